@@ -1,0 +1,35 @@
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLES = ROOT / "sample_scenes"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def sample_scene_paths():
+    """Every 3-D sample scene shipped in sample_scenes/."""
+    return sorted(p for p in SAMPLES.glob("*") if p.suffix.lower() in (".obj", ".ply"))
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+def soup(vertices, polygons, groups=None, names=None):
+    """A PolygonSoup from a vertex list and a list of polygons (vertex index lists)."""
+    from viscx.scene import PolygonSoup
+
+    sizes = [len(p) for p in polygons]
+    groups = np.zeros(len(polygons), dtype=np.int64) if groups is None else np.asarray(groups)
+    names = names or [f"g{i}" for i in range(int(groups.max()) + 1)]
+    return PolygonSoup(
+        vertices=np.asarray(vertices, dtype=np.float64),
+        polygon_offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        polygon_vertices=np.concatenate([np.asarray(p) for p in polygons]).astype(np.int64),
+        polygon_group=groups.astype(np.int64),
+        group_names=names,
+    )

@@ -1,0 +1,81 @@
+"""Independent reference implementations for tests (slow, simple, float64)."""
+
+import numpy as np
+
+
+def segment_hits_reference(starts, ends, vertices, triangles, bary_slack=0.0):
+    """Brute force: does each closed segment meet each closed triangle?
+
+    Written independently of viscx.raycast: the segment is tested against the
+    triangle's plane by signed distances, and the crossing point against the
+    triangle by edge-function signs (not Möller–Trumbore). ``bary_slack`` grows
+    (> 0) or shrinks (< 0) every triangle by that fraction of its size, to find
+    segments whose answer is decided by a hair.
+
+    Parameters
+    ----------
+    starts, ends : (n, 3) float
+    vertices : (v, 3) float
+    triangles : (t, 3) int
+
+    Returns
+    -------
+    hit : (n, t) bool
+    s : (n, t) float
+        Fraction along the segment where its line crosses the triangle's plane.
+    """
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    normal = np.cross(b - a, c - a)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    d0 = np.einsum("tj,ntj->nt", normal, starts[:, None, :] - a[None])
+    d1 = np.einsum("tj,ntj->nt", normal, ends[:, None, :] - a[None])
+    crosses = (np.sign(d0) * np.sign(d1) <= 0) & (d0 != d1)
+    s = np.where(crosses, d0 / np.where(crosses, d0 - d1, 1.0), 0.0)
+    point = starts[:, None, :] + s[..., None] * (ends - starts)[:, None, :]
+    centroid = (a + b + c) / 3
+    size = np.linalg.norm(b - a, axis=1) + np.linalg.norm(c - b, axis=1) + np.linalg.norm(a - c, axis=1)
+    inside = np.ones_like(crosses)
+    for p, q in ((a, b), (b, c), (c, a)):
+        edge = q - p
+        # inward normal of the edge within the triangle's plane
+        inward = np.cross(normal, edge)
+        inward /= np.linalg.norm(inward, axis=1, keepdims=True)
+        dist = np.einsum("tj,ntj->nt", inward, point - p[None])
+        inside &= dist >= -bary_slack * size[None]
+    return crosses & inside, np.where(crosses, s, np.nan)
+
+
+def first_face_reference(origins, directions, tmax, vertices, triangles, triangle_face, tie=1e-12):
+    """Brute force first hit on ``[0, tmax]``.
+
+    Returns
+    -------
+    face : (n,) int
+        A first face, -1 for none.
+    t : (n,) float
+    tied : (n, f) bool
+        Every face hit at the first distance (overlapping coplanar faces tie).
+    """
+    d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    ends = origins + d * tmax[:, None]
+    hit, s = segment_hits_reference(origins, ends, vertices, triangles)
+    s = np.where(hit, s, np.inf)
+    first = np.argmin(s, axis=1)
+    best = s[np.arange(len(origins)), first]
+    face = np.where(np.isfinite(best), triangle_face[first], -1)
+    tied_tri = np.isfinite(best)[:, None] & (s <= best[:, None] + tie)
+    tied = np.zeros((len(origins), triangle_face.max() + 1), dtype=bool)
+    rows, cols = np.nonzero(tied_tri)
+    tied[rows, triangle_face[cols]] = True
+    return face, best * tmax, tied
+
+
+def sample_on_triangles(vertices, triangles, n, rng):
+    """Uniform random points on a triangle set: (points (n, 3), triangle (n,))."""
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    tri = rng.choice(len(triangles), size=n, p=area / area.sum())
+    r1, r2 = rng.random(n), rng.random(n)
+    flip = r1 + r2 > 1
+    r1[flip], r2[flip] = 1 - r1[flip], 1 - r2[flip]
+    return a[tri] + r1[:, None] * (b[tri] - a[tri]) + r2[:, None] * (c[tri] - a[tri]), tri

@@ -1,0 +1,54 @@
+"""The command line: build, info, errors (the bad-input corpus is in test_bad_inputs.py)."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+from conftest import SAMPLES
+
+from viscx.cli import main
+
+
+def run(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    out, err = capsys.readouterr()
+    return exc.value.code, out, err
+
+
+def test_build_then_info(tmp_path, capsys):
+    out = tmp_path / "cornell.h5"
+    code, stdout, err = run(["--quiet", "build", str(SAMPLES / "cornell_box.obj"), "-o", str(out)], capsys)
+    assert code == 0 and out.exists() and err == ""
+    code, stdout, _ = run(["info", str(out), "--json"], capsys)
+    summary = json.loads(stdout)
+    assert code == 0
+    counts = summary["counts"]["scene"]
+    # 16 quads, none merged (different groups or planes), 2 triangles each
+    assert counts["faces"] == 16 and counts["triangles"] == 32
+    assert summary["groups"]["light"] == 1 and summary["levels"] == ["scene"]
+    code, stdout, _ = run(["info", str(out)], capsys)
+    assert code == 0 and "generator_edges" in stdout and "light (1 faces)" in stdout
+
+
+def test_missing_file_is_one_line_exit_2(tmp_path, capsys):
+    code, _, err = run(["build", str(tmp_path / "nope.obj"), "-o", str(tmp_path / "x.h5")], capsys)
+    assert code == 2 and err.count("\n") == 1 and "no such file" in err
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_usage_error_is_one_line_exit_2(capsys):
+    code, _, err = run(["build"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "Missing argument" in err
+
+
+def test_console_script_end_to_end(tmp_path):
+    out = tmp_path / "t.h5"
+    done = subprocess.run(
+        [sys.executable, "-c", "from viscx.cli import main; main()", "build", str(SAMPLES / "tetrahedra.obj"), "-o", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0 and out.exists(), done.stderr
+    assert "16 faces" in done.stdout

@@ -1,0 +1,75 @@
+"""The HDF5 container: round trip and atomic writing."""
+
+import os
+
+import h5py
+import numpy as np
+import pytest
+from conftest import sample_scene_paths
+
+from viscx.formats.atomic import temporary_name
+from viscx.formats.hdf5 import FORMAT_VERSION, ViscxFile, read_scene, write_complex
+from viscx.scene import load_scene
+
+
+def assert_same_scene(a, b):
+    for name in (
+        "vertices triangles triangle_face face_loop_offsets loop_offsets loop_vertices face_normal face_offset "
+        "face_area face_group face_material material_kd material_ke"
+    ).split():
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and np.array_equal(x, y), name
+    for name in "start end face next opp edge loop edge_vertices edge_is_generator vertex_is_generator".split():
+        assert np.array_equal(getattr(a.half_edges, name), getattr(b.half_edges, name)), name
+    assert a.group_names == b.group_names and a.material_names == b.material_names
+    assert a.epsilon == b.epsilon and a.weld_tolerance == b.weld_tolerance and a.sha256 == b.sha256
+
+
+@pytest.mark.parametrize("path", sample_scene_paths(), ids=lambda p: p.name)
+def test_round_trip(path, tmp_path):
+    scene = load_scene(path)
+    out = tmp_path / "x.h5"
+    write_complex(out, scene, options={"epsilon": scene.epsilon}, timings={"scene": 1.0})
+    back = read_scene(out)
+    assert_same_scene(scene, back)
+    with ViscxFile(out) as f:
+        assert f.h5.attrs["format"] == "viscx" and f.h5.attrs["format_version"] == FORMAT_VERSION
+        assert f.levels == ["scene"] and f.timings == {"scene": 1.0}
+        assert len(f.h5.attrs["scene_sha256"]) == 64
+
+
+def test_levels_are_written_by_their_writers(tmp_path):
+    scene = load_scene(sample_scene_paths()[0])
+    out = tmp_path / "x.h5"
+    write_complex(out, scene, levels={"V0": lambda g: g.create_dataset("kind", data=np.arange(3))})
+    with h5py.File(out) as f:
+        assert list(f["V0/kind"][()]) == [0, 1, 2]
+
+
+@pytest.mark.parametrize("interruption", [KeyboardInterrupt, RuntimeError, SystemExit])
+def test_interrupted_write_leaves_nothing(tmp_path, interruption):
+    scene = load_scene(sample_scene_paths()[0])
+    out = tmp_path / "x.h5"
+
+    def failing_level(group):
+        group.create_dataset("partial", data=np.zeros(10))
+        assert temporary_name(out).exists()  # it really was being written
+        raise interruption()
+
+    with pytest.raises(interruption):
+        write_complex(out, scene, levels={"V0": failing_level})
+    assert os.listdir(tmp_path) == []
+
+
+def test_failed_write_keeps_the_previous_file(tmp_path):
+    scene = load_scene(sample_scene_paths()[0])
+    out = tmp_path / "x.h5"
+    write_complex(out, scene)
+    before = out.read_bytes()
+
+    def failing_level(group):
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        write_complex(out, scene, levels={"V0": failing_level})
+    assert out.read_bytes() == before and os.listdir(tmp_path) == ["x.h5"]

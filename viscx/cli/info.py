@@ -1,0 +1,69 @@
+"""``viscx info``: what a viscx file holds."""
+
+import json
+
+import click
+import numpy as np
+
+
+def file_summary(path):
+    """Counts per level, options and timings of a viscx file, as a dict."""
+    from viscx.formats.hdf5 import ViscxFile
+
+    with ViscxFile(path) as f:
+        scene = f.read_scene()
+        attrs = f.h5.attrs
+        groups = {
+            name: int(np.count_nonzero(scene.face_group == i)) for i, name in enumerate(scene.group_names)
+        }
+        return {
+            "file": str(path),
+            "format_version": int(attrs["format_version"]),
+            "viscx_version": str(attrs["viscx_version"]),
+            "scene": str(attrs["scene_name"]),
+            "scene_sha256": str(attrs["scene_sha256"]),
+            "epsilon": float(attrs["epsilon"]),
+            "options": f.options,
+            "levels": f.levels,
+            "counts": {
+                "scene": {
+                    "vertices": scene.n_vertices,
+                    "faces": scene.n_faces,
+                    "triangles": len(scene.triangles),
+                    "half_edges": len(scene.half_edges.start),
+                    "edges": len(scene.half_edges.edge_vertices),
+                    "generator_edges": len(scene.generator_edges),
+                    "generator_vertices": len(scene.generator_vertices),
+                    "holes": int(np.sum(np.diff(scene.face_loop_offsets) - 1)),
+                }
+            },
+            "groups": groups,
+            "timings": f.timings,
+        }
+
+
+@click.command(short_help="Show the counts, options and timings stored in a viscx file.")
+@click.argument("path", metavar="FILE", type=click.Path(dir_okay=True))
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def info(path, as_json):
+    """Print what FILE (written by `viscx build`) holds: counts per level, the
+    build options and the time each stage took.
+
+    \b
+    viscx info cornell.h5
+    viscx info cornell.h5 --json | python -m json.tool
+    """
+    summary = file_summary(path)
+    if as_json:
+        click.echo(json.dumps(summary, indent=2, sort_keys=True))
+        return
+    click.echo(f"{summary['file']}: viscx format {summary['format_version']} (written by viscx {summary['viscx_version']})")
+    click.echo(f"  scene   {summary['scene']}  sha256 {summary['scene_sha256'][:16]}…")
+    click.echo(f"  epsilon {summary['epsilon']:.6g}   levels: {', '.join(summary['levels'])}")
+    for level, counts in summary["counts"].items():
+        click.echo(f"  [{level}]")
+        for name, value in counts.items():
+            click.echo(f"    {name:<20}{value:>10}")
+    click.echo("  groups  " + ", ".join(f"{name} ({n} faces)" for name, n in summary["groups"].items()))
+    if summary["timings"]:
+        click.echo("  timings " + ", ".join(f"{k} {v:.3f} s" for k, v in summary["timings"].items()))

@@ -1,0 +1,198 @@
+"""The viscx HDF5 container: one group per skeleton level.
+
+Layout (every dataset is documented in ``docs/format.md``)::
+
+    /                 attrs: format="viscx", format_version, viscx_version,
+                             epsilon, weld_tolerance, scene_sha256, scene_name,
+                             options (JSON), levels (JSON list of level names)
+    /scene            the cleaned scene (vertices, faces as loops, triangles, groups,
+                      materials) with subgroups half_edges/ and edges/
+    /provenance       attrs: timings (JSON); the only part that changes between
+                      two builds of the same input (``viscx diff`` ignores it)
+
+Files are written through a temporary file renamed on success
+(:func:`viscx.formats.atomic.atomic_path`). Datasets carry no timestamps, so
+the same scene and options give the same content.
+"""
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from viscx import __version__
+from viscx.errors import ViscxError
+from viscx.formats.atomic import atomic_path
+from viscx.scene import Scene
+from viscx.scene.halfedge import HalfEdges
+
+FORMAT = "viscx"
+FORMAT_VERSION = 1
+
+_SCENE_ARRAYS = [
+    "vertices",
+    "triangles",
+    "triangle_face",
+    "face_loop_offsets",
+    "loop_offsets",
+    "loop_vertices",
+    "face_normal",
+    "face_offset",
+    "face_area",
+    "face_group",
+    "face_material",
+    "material_kd",
+    "material_ke",
+]
+_HALF_EDGE_ARRAYS = ["start", "end", "face", "next", "opp", "edge", "loop"]
+_STRINGS = h5py.string_dtype(encoding="utf-8")
+
+
+def write_dataset(group, name, data):
+    """Write one array deterministically (no timestamps; gzip for large ones)."""
+    data = np.asarray(data)
+    kwargs = {"track_times": False}
+    if data.size >= 4096 and data.dtype != object:
+        kwargs.update(compression="gzip", compression_opts=4, shuffle=True, chunks=True)
+    return group.create_dataset(name, data=data, **kwargs)
+
+
+def write_strings(group, name, strings):
+    group.create_dataset(name, data=np.array(list(strings), dtype=object), dtype=_STRINGS, track_times=False)
+
+
+def _write_scene(group, scene):
+    for name in _SCENE_ARRAYS:
+        write_dataset(group, name, getattr(scene, name))
+    write_strings(group, "group_names", scene.group_names)
+    write_strings(group, "material_names", scene.material_names)
+    he = group.create_group("half_edges", track_order=True)
+    for name in _HALF_EDGE_ARRAYS:
+        write_dataset(he, name, getattr(scene.half_edges, name))
+    edges = group.create_group("edges", track_order=True)
+    write_dataset(edges, "vertices", scene.half_edges.edge_vertices)
+    write_dataset(edges, "is_generator", scene.half_edges.edge_is_generator)
+    write_dataset(group, "vertex_is_generator", scene.half_edges.vertex_is_generator)
+
+
+def write_complex(path, scene, levels=None, options=None, timings=None):
+    """Write a viscx file atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+    scene : Scene
+    levels : dict, optional
+        ``{level_name: writer}``, each writer a callable ``writer(h5py.Group)``
+        that fills its level's group (``V0``, ``V1``, ``V2``, ``points``).
+    options : dict, optional
+        The build options (JSON-serialisable), stored as the ``options`` attribute.
+    timings : dict, optional
+        Seconds per stage, stored under ``/provenance``.
+    """
+    levels = levels or {}
+    with atomic_path(path) as tmp:
+        with h5py.File(tmp, "w", track_order=True) as f:
+            f.attrs["format"] = FORMAT
+            f.attrs["format_version"] = FORMAT_VERSION
+            f.attrs["viscx_version"] = __version__
+            f.attrs["epsilon"] = scene.epsilon
+            f.attrs["weld_tolerance"] = scene.weld_tolerance
+            f.attrs["scene_sha256"] = scene.sha256
+            f.attrs["scene_name"] = Path(scene.source).name if scene.source else ""
+            f.attrs["options"] = json.dumps(options or {}, sort_keys=True)
+            f.attrs["levels"] = json.dumps(["scene", *levels])
+            _write_scene(f.create_group("scene", track_order=True), scene)
+            for name, writer in levels.items():
+                writer(f.create_group(name, track_order=True))
+            prov = f.create_group("provenance")
+            prov.attrs["timings"] = json.dumps(timings or {}, sort_keys=True)
+
+
+class ViscxFile:
+    """An open, validated viscx file (use as a context manager).
+
+    Raises :class:`ViscxError` for a missing file, a file that is not HDF5
+    (or is truncated), an HDF5 file from another program, or a file written by
+    a newer format version.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        if not self.path.exists():
+            raise ViscxError(f"no such file: {self.path}")
+        if self.path.is_dir():
+            raise ViscxError(f"{self.path} is a directory, not a viscx file")
+        try:
+            self.h5 = h5py.File(self.path, "r")
+        except OSError:
+            raise ViscxError(f"{self.path} is not a readable HDF5 file (corrupt, truncated or another format)") from None
+        attrs = self.h5.attrs
+        if attrs.get("format") != FORMAT:
+            self.h5.close()
+            raise ViscxError(f"{self.path} is an HDF5 file but not one written by viscx")
+        version = int(attrs.get("format_version", -1))
+        if version > FORMAT_VERSION:
+            self.h5.close()
+            raise ViscxError(
+                f"{self.path} has format version {version}, newer than this viscx reads ({FORMAT_VERSION}); upgrade viscx"
+            )
+        if version < 1 or "scene" not in self.h5:
+            self.h5.close()
+            raise ViscxError(f"{self.path} is a damaged viscx file (no scene level)")
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.h5.close()
+
+    @property
+    def levels(self):
+        return json.loads(self.h5.attrs["levels"])
+
+    @property
+    def options(self):
+        return json.loads(self.h5.attrs["options"])
+
+    @property
+    def timings(self):
+        return json.loads(self.h5["provenance"].attrs["timings"]) if "provenance" in self.h5 else {}
+
+    def _array(self, group, name):
+        try:
+            return group[name][()]
+        except KeyError:
+            raise ViscxError(f"{self.path} is a damaged viscx file (missing {group.name}/{name})") from None
+
+    def read_scene(self):
+        """The :class:`Scene` stored in the file."""
+        g = self.h5["scene"]
+        arrays = {name: self._array(g, name) for name in _SCENE_ARRAYS}
+        he = {name: self._array(g, f"half_edges/{name}") for name in _HALF_EDGE_ARRAYS}
+        half_edges = HalfEdges(
+            **he,
+            edge_vertices=self._array(g, "edges/vertices"),
+            edge_is_generator=self._array(g, "edges/is_generator"),
+            vertex_is_generator=self._array(g, "vertex_is_generator"),
+        )
+        names = [s.decode() if isinstance(s, bytes) else s for s in self._array(g, "group_names")]
+        materials = [s.decode() if isinstance(s, bytes) else s for s in self._array(g, "material_names")]
+        attrs = self.h5.attrs
+        return Scene(
+            **arrays,
+            group_names=names,
+            material_names=materials,
+            half_edges=half_edges,
+            weld_tolerance=float(attrs["weld_tolerance"]),
+            epsilon=float(attrs["epsilon"]),
+            source=str(attrs.get("scene_name", "")),
+            sha256=str(attrs.get("scene_sha256", "")),
+        )
+
+
+def read_scene(path):
+    """The :class:`Scene` stored in a viscx file."""
+    with ViscxFile(path) as f:
+        return f.read_scene()

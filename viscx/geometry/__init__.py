@@ -1,0 +1,1 @@
+"""The float64 geometric kernel: pure functions over numpy arrays."""

@@ -1,0 +1,108 @@
+"""Cleaning a triangle soup: welding, degenerate and duplicate triangles."""
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+
+def weld_vertices(vertices, tolerance):
+    """Merge vertices closer than ``tolerance`` (transitively).
+
+    Every cluster is represented by its lowest-index member, whose coordinates
+    are kept exactly (no averaging: coordinates that were equal stay equal).
+    Surviving vertices keep their relative order, so ids are stable.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    tolerance : float
+        Absolute distance; 0 merges only identical positions.
+
+    Returns
+    -------
+    welded : (k, 3) float
+    remap : (n,) int
+        New index of every old vertex.
+    """
+    n = len(vertices)
+    if n == 0:
+        return vertices.copy(), np.zeros(0, dtype=np.int64)
+    pairs = cKDTree(vertices).query_pairs(r=max(float(tolerance), 0.0), output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    # representative of each cluster: its smallest member
+    representative = np.full(label.max() + 1, n, dtype=np.int64)
+    np.minimum.at(representative, label, np.arange(n))
+    keep = np.unique(representative)  # sorted: relative order preserved
+    new_id = np.empty(n, dtype=np.int64)
+    new_id[keep] = np.arange(len(keep))
+    return vertices[keep].copy(), new_id[representative[label]]
+
+
+def triangle_normals(vertices, triangles):
+    """Unit normals and areas of triangles.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    triangles : (t, 3) int
+
+    Returns
+    -------
+    normals : (t, 3) float
+        Zero for zero-area triangles.
+    areas : (t,) float
+    """
+    a, b, c = (vertices[triangles[:, i]] for i in range(3))
+    cross = np.cross(b - a, c - a)
+    length = np.linalg.norm(cross, axis=1)
+    normals = cross / np.where(length > 0, length, 1.0)[:, None]
+    return normals, 0.5 * length
+
+
+def degenerate_triangles(vertices, triangles, tolerance):
+    """Mask of triangles that are thinner than ``tolerance`` (or repeat a vertex).
+
+    The thickness of a triangle is twice its area over its longest side: its
+    smallest height.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    triangles : (t, 3) int
+    tolerance : float
+
+    Returns
+    -------
+    (t,) bool
+    """
+    repeated = (
+        (triangles[:, 0] == triangles[:, 1]) | (triangles[:, 1] == triangles[:, 2]) | (triangles[:, 0] == triangles[:, 2])
+    )
+    _, areas = triangle_normals(vertices, triangles)
+    p = vertices[triangles]
+    longest = np.max(np.linalg.norm(p - np.roll(p, -1, axis=1), axis=2), axis=1)
+    thickness = 2.0 * areas / np.where(longest > 0, longest, 1.0)
+    return repeated | (thickness <= tolerance)
+
+
+def duplicate_triangles(triangles):
+    """Mask of triangles that repeat an earlier one's vertex set (either orientation).
+
+    Parameters
+    ----------
+    triangles : (t, 3) int
+
+    Returns
+    -------
+    (t,) bool
+        True for every repeat after the first occurrence.
+    """
+    if len(triangles) == 0:
+        return np.zeros(0, dtype=bool)
+    key = np.sort(triangles, axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    mask = np.ones(len(triangles), dtype=bool)
+    mask[first] = False
+    return mask

@@ -1,0 +1,159 @@
+"""The float64 line kernel against independent constructions."""
+
+import numpy as np
+from conftest import soup
+
+from viscx.geometry.lines import (
+    eee_line,
+    eee_map,
+    eee_x2,
+    line_through_point_and_two_lines,
+    lines_through_four_lines,
+    plucker,
+    point_direction,
+    segment_parameter,
+    side,
+)
+from viscx.geometry.tangency import tangent_at_edges
+from viscx.scene import build_scene
+
+
+def line_distance(p1, d1, p2, d2):
+    """Distance between two lines, from the textbook formula."""
+    cross = np.cross(d1, d2)
+    return np.abs(np.einsum("ij,ij->i", p2 - p1, cross)) / np.linalg.norm(cross, axis=1)
+
+
+def test_side_product_is_the_triple_product(rng):
+    p1, d1, p2, d2 = rng.normal(size=(4, 1000, 3))
+    s = side(plucker(p1, d1), plucker(p2, d2))
+    assert np.allclose(s, np.einsum("ij,ij->i", p1 - p2, np.cross(d1, d2)))
+    # lines through a common point meet
+    d3 = rng.normal(size=(1000, 3))
+    assert np.allclose(side(plucker(p1, d1), plucker(p1 + 2 * d1, d3)), 0, atol=1e-9)
+
+
+def test_four_lines_through_a_known_line_recover_it(rng):
+    n = 500
+    x0p, x0d = rng.normal(size=(2, n, 3))
+    lines = []
+    for _ in range(4):
+        on = x0p + rng.normal(size=(n, 1)) * x0d
+        lines.append(plucker(on, rng.normal(size=(n, 3))))
+    lines = np.stack(lines, axis=1)
+    sol, valid, degenerate = lines_through_four_lines(lines)
+    assert not degenerate.any()
+    sp, sd = point_direction(sol.reshape(-1, 6))
+    # X0 is one of the solutions
+    p0 = np.repeat(x0p, 2, axis=0)
+    d0 = np.repeat(x0d / np.linalg.norm(x0d, axis=1, keepdims=True), 2, axis=0)
+    parallel = np.abs(np.abs(np.einsum("ij,ij->i", sd, d0)) - 1) < 1e-7
+    on_x0 = np.linalg.norm(np.cross(sp - p0, d0), axis=1) < 1e-6 * (1 + np.linalg.norm(p0, axis=1))
+    assert np.all((parallel & on_x0 & valid.reshape(-1)).reshape(n, 2).any(axis=1))
+
+
+def quadric_through_three_lines(lines3, rng):
+    """Coefficients of the quadric through three lines: fit to sample points (independent of Plücker)."""
+    pts = []
+    for L in lines3:
+        p, d = point_direction(L[None])
+        for t in rng.normal(size=5) * 3:
+            pts.append(p[0] + t * d[0])
+    pts = np.array(pts)
+    x, y, z = pts.T
+    design = np.stack([x * x, y * y, z * z, x * y, y * z, z * x, x, y, z, np.ones_like(x)], axis=1)
+    return np.linalg.svd(design)[2][-1]
+
+
+def real_roots_on_quadric(q, line):
+    p, d = point_direction(line[None])
+    p, d = p[0], d[0]
+
+    def value(t):
+        x, y, z = p + t * d
+        return np.array([x * x, y * y, z * z, x * y, y * z, z * x, x, y, z, 1.0]) @ q
+
+    # quadratic in t through three samples
+    f0, f1, f2 = value(-1.0), value(0.0), value(1.0)
+    a, b, c = (f2 + f0) / 2 - f1, (f2 - f0) / 2, f1
+    disc = b * b - 4 * a * c
+    return 0 if disc < 0 else 2
+
+
+def test_four_random_lines_count_matches_the_quadric_oracle(rng):
+    n = 300
+    lines = plucker(rng.normal(size=(n * 4, 3)), rng.normal(size=(n * 4, 3))).reshape(n, 4, 6)
+    sol, valid, degenerate = lines_through_four_lines(lines)
+    assert not degenerate.any()
+    expected = np.array([real_roots_on_quadric(quadric_through_three_lines(L[:3], rng), L[3]) for L in lines])
+    assert np.array_equal(valid.sum(axis=1), expected)
+    assert (expected == 0).any() and (expected == 2).any()
+    # every solution meets all four lines
+    sp, sd = point_direction(sol[valid])
+    for k in range(4):
+        lp, ld = point_direction(np.repeat(lines[:, k][:, None], 2, axis=1)[valid])
+        assert np.all(line_distance(sp, sd, lp, ld) < 1e-8 * (1 + np.linalg.norm(sp, axis=1)))
+
+
+def test_four_lines_through_one_point_are_degenerate(rng):
+    apex = rng.normal(size=(50, 1, 3))
+    lines = plucker(np.repeat(apex, 4, axis=1).reshape(-1, 3), rng.normal(size=(200, 3))).reshape(50, 4, 6)
+    _, valid, degenerate = lines_through_four_lines(lines)
+    assert degenerate.all() and not valid.any()
+
+
+def test_line_through_a_point_meets_both_lines(rng):
+    n = 1000
+    v = rng.normal(size=(n, 3))
+    L1 = plucker(rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
+    L2 = plucker(rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
+    d = line_through_point_and_two_lines(v, L1, L2)
+    assert np.allclose(np.linalg.norm(d, axis=1), 1)
+    for L in (L1, L2):
+        lp, ld = point_direction(L)
+        assert np.all(line_distance(v, d, lp, ld) < 1e-9 * (1 + np.abs(v).max()))
+
+
+def test_segment_parameter_finds_the_crossing(rng):
+    n = 200
+    a, b = rng.normal(size=(2, n, 3))
+    x = rng.random(n)
+    through = a + x[:, None] * (b - a)
+    d = rng.normal(size=(n, 3))
+    got, dist = segment_parameter(through - 3 * d, d, a, b)
+    assert np.allclose(got, x) and np.allclose(dist, 0, atol=1e-10)
+
+
+def test_eee_map_is_linear_fractional_and_oriented(rng):
+    n = 200
+    e1, e2, e3 = rng.normal(size=(3, n, 2, 3))
+    coeffs, orientation = eee_map(e1, e2, e3)
+    L2 = plucker(e2[:, 0], e2[:, 1] - e2[:, 0])
+    L3 = plucker(e3[:, 0], e3[:, 1] - e3[:, 0])
+    for x1 in rng.random(5):
+        p, d = eee_line(e1[:, 0], e1[:, 1], L2, L3, np.full(n, x1))
+        direct, _ = segment_parameter(p, d, e2[:, 0], e2[:, 1])
+        pred = eee_x2(coeffs, np.full(n, x1))
+        ok = np.isfinite(direct) & (np.abs(direct) < 1e6)
+        assert np.allclose(pred[ok], direct[ok], rtol=1e-6, atol=1e-8)
+    # orientation against a forward difference away from the pole
+    x1 = rng.random(n)
+    h = 1e-6
+    slope = (eee_x2(coeffs, x1 + h) - eee_x2(coeffs, x1)) / h
+    a, b, c, d = coeffs.T
+    far_from_pole = np.abs(c * x1 + d) > 1e-2
+    assert np.array_equal(np.sign(slope[far_from_pole]), orientation[far_from_pole])
+
+
+def test_tangency_at_a_cube_edge():
+    # bottom face z=0 (y >= 0) and front face y=0 (z >= 0) meet along the x axis
+    verts = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 1], [0, 0, 1]]
+    scene = build_scene(soup(verts, [[0, 3, 2, 1], [0, 1, 4, 5]]))
+    edge = np.flatnonzero((scene.half_edges.edge_vertices == [0, 1]).all(1))
+    dirs = np.array([[0, 1, -1], [0, -1, 1], [0, 1, 1], [0, -1, -1], [0, 1, 0], [0, 0, 1]], dtype=float)
+    got = tangent_at_edges(scene, np.repeat(edge, len(dirs)), dirs)
+    # outside the wedge both ways, into/out of the wedge, grazing a face
+    assert got.tolist() == [True, True, False, False, True, True]
+    # a boundary edge is always tangent
+    boundary = np.flatnonzero((scene.half_edges.edge_vertices == [2, 3]).all(1))
+    assert tangent_at_edges(scene, np.repeat(boundary, 3), np.eye(3)[[0, 1, 2]] + [0.1, 0.2, 0.3]).all()

@@ -1,0 +1,272 @@
+"""Lines in space: Plücker coordinates and the line constructions of visual events.
+
+Plücker coordinates of the line through ``p`` with direction ``d`` are
+``L = (d, m)`` with moment ``m = p × d``. They are homogeneous (any non-zero
+multiple is the same line) and satisfy the Plücker relation ``d · m = 0``.
+
+Two lines meet (or are parallel) exactly when their *side product* vanishes::
+
+    side(a, b) = d_a · m_b + d_b · m_a
+
+It is linear in each argument, which makes "meets line L" a linear condition
+``(m_L, d_L) · X = 0`` on the unknown line X; this is what turns the visual
+events into small linear-algebra problems:
+
+* E4, a line meeting four lines: four linear conditions on X ∈ R⁶ leave a pencil
+  X = αP + βQ (null space of a 4×6 matrix, by SVD); the Plücker relation is a
+  quadratic form in (α, β): 0, 1 or 2 real lines (Teller & Hohmeyer).
+* VEE, a line through a point v meeting two lines: it lies in the plane through v
+  and each line, so its direction is ``n1 × n2`` with ``n_i`` the normals of those
+  planes.
+* EEE, lines meeting three lines: for x1 on the first edge, the line through
+  e1(x1) meeting the other two hits e2 at x2(x1), a linear-fractional function
+  (lines meeting three skew lines form a regulus, which induces a projectivity
+  between any two of its directrices).
+
+All functions are vectorised over a leading axis and work in float64.
+"""
+
+import numpy as np
+
+
+def plucker(points, directions):
+    """Plücker coordinates of lines through ``points`` along ``directions``.
+
+    Parameters
+    ----------
+    points, directions : (n, 3) float
+
+    Returns
+    -------
+    (n, 6) float
+        ``(d, p × d)``.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    directions = np.asarray(directions, dtype=np.float64)
+    return np.concatenate([directions, np.cross(points, directions)], axis=-1)
+
+
+def side(a, b):
+    """Side product of Plücker lines: zero iff they meet (or are parallel).
+
+    Parameters
+    ----------
+    a, b : (..., 6) float
+
+    Returns
+    -------
+    (...) float
+        Its sign tells on which side of each other two skew lines pass.
+    """
+    return np.einsum("...i,...i->...", a[..., :3], b[..., 3:]) + np.einsum("...i,...i->...", b[..., :3], a[..., 3:])
+
+
+def point_direction(lines):
+    """A point (the one closest to the origin) and the unit direction of Plücker lines.
+
+    Parameters
+    ----------
+    lines : (n, 6) float
+        With a non-zero direction part.
+
+    Returns
+    -------
+    points, directions : (n, 3) float
+    """
+    d, m = lines[..., :3], lines[..., 3:]
+    dd = np.einsum("...i,...i->...", d, d)[..., None]
+    return np.cross(d, m) / dd, d / np.sqrt(dd)
+
+
+def lines_through_four_lines(lines, rank_tol=1e-10):
+    """The real lines meeting four given lines.
+
+    Parameters
+    ----------
+    lines : (n, 4, 6) float
+        Four Plücker lines per problem (any scale).
+    rank_tol : float
+        Relative singular-value threshold: below it the four conditions are
+        dependent (e.g. lines of one regulus, or lines through one point) and
+        infinitely many lines meet them: the problem is reported degenerate.
+
+    Returns
+    -------
+    solutions : (n, 2, 6) float
+        Up to two lines, direction part of unit length.
+    valid : (n, 2) bool
+        Which solutions are real lines (a double root gives one).
+    degenerate : (n,) bool
+        Problems with a family of solutions (no solution is reported for them).
+    """
+    lines = np.asarray(lines, dtype=np.float64)
+    n = len(lines)
+    # "X meets L" is (m_L, d_L) · X = 0: swap halves to get the condition rows
+    rows = np.concatenate([lines[..., 3:], lines[..., :3]], axis=-1)
+    rows = rows / np.linalg.norm(rows, axis=-1, keepdims=True)
+    _, sing, vt = np.linalg.svd(rows)
+    degenerate = sing[:, 3] <= rank_tol * sing[:, 0]
+    P, Q = vt[:, 4], vt[:, 5]
+    # Plücker relation on X = αP + βQ: the quadratic form [[a, b/2], [b/2, c]]
+    a = np.einsum("ni,ni->n", P[:, :3], P[:, 3:])
+    c = np.einsum("ni,ni->n", Q[:, :3], Q[:, 3:])
+    b = np.einsum("ni,ni->n", P[:, :3], Q[:, 3:]) + np.einsum("ni,ni->n", Q[:, :3], P[:, 3:])
+    form = np.stack([np.stack([a, b / 2], -1), np.stack([b / 2, c], -1)], -2)
+    lam, vec = np.linalg.eigh(form)  # lam[:, 0] <= lam[:, 1]
+    scale = np.maximum(np.abs(lam).max(axis=1), 1e-300)
+    lo, hi = lam[:, 0] / scale, lam[:, 1] / scale
+    quadric_tol = 1e-12
+    # λ0 x² + λ1 y² = 0 has real solutions iff λ0 ≤ 0 ≤ λ1
+    real = (lo <= quadric_tol) & (hi >= -quadric_tol) & ~((np.abs(lo) <= quadric_tol) & (np.abs(hi) <= quadric_tol))
+    degenerate |= (np.abs(lo) <= quadric_tol) & (np.abs(hi) <= quadric_tol)
+    x = np.sqrt(np.clip(hi, 0, None))
+    y = np.sqrt(np.clip(-lo, 0, None))
+    solutions = np.zeros((n, 2, 6))
+    valid = np.zeros((n, 2), dtype=bool)
+    for k, sign in enumerate((1.0, -1.0)):
+        alpha_beta = x[:, None] * vec[:, :, 0] + sign * y[:, None] * vec[:, :, 1]  # (n, 2)
+        X = alpha_beta[:, :1] * P + alpha_beta[:, 1:] * Q
+        dnorm = np.linalg.norm(X[:, :3], axis=1)
+        ok = real & ~degenerate & (dnorm > 1e-12 * np.linalg.norm(X, axis=1))
+        solutions[ok, k] = X[ok] / dnorm[ok, None]
+        valid[:, k] = ok
+    # a double root (one eigenvalue zero) gives the same line twice: keep one
+    same = valid[:, 0] & valid[:, 1] & (np.abs(side_free_distance(solutions[:, 0], solutions[:, 1])) < 1e-12)
+    valid[same, 1] = False
+    return solutions, valid, degenerate
+
+
+def side_free_distance(a, b):
+    """Distance between normalised Plücker lines as 6-vectors, sign-insensitive.
+
+    A cheap equality test for lines whose directions have unit length.
+    """
+    return np.minimum(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
+
+
+def line_through_point_and_two_lines(points, lines1, lines2):
+    """Direction of the line through each point meeting two lines.
+
+    The line lies in the plane through ``v`` and ``L1`` and in the one through
+    ``v`` and ``L2``; its direction is the cross product of their normals.
+    The plane through v and the line (d, m) has normal ``m - v × d`` (the moment of
+    the line about v).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    lines1, lines2 : (n, 6) float
+
+    Returns
+    -------
+    directions : (n, 3) float
+        Unit length; zero where the two planes coincide or a line passes
+        through the point (degenerate: no unique line).
+    """
+    v = np.asarray(points, dtype=np.float64)
+    n1 = lines1[:, 3:] - np.cross(v, lines1[:, :3])
+    n2 = lines2[:, 3:] - np.cross(v, lines2[:, :3])
+    d = np.cross(n1, n2)
+    size = np.linalg.norm(d, axis=1)
+    scale = np.linalg.norm(n1, axis=1) * np.linalg.norm(n2, axis=1)
+    ok = size > 1e-12 * scale
+    out = np.zeros_like(d)
+    out[ok] = d[ok] / size[ok, None]
+    return out
+
+
+def segment_parameter(line_points, line_dirs, seg_a, seg_b):
+    """Where each line passes closest to each segment's supporting line.
+
+    Parameters
+    ----------
+    line_points, line_dirs : (n, 3) float
+    seg_a, seg_b : (n, 3) float
+        Segments from a (x = 0) to b (x = 1).
+
+    Returns
+    -------
+    x : (n,) float
+        Parameter on the segment's line of the closest point (nan if parallel).
+    distance : (n,) float
+        Distance between the two lines there.
+    """
+    e = seg_b - seg_a
+    w = seg_a - line_points
+    a = np.einsum("ij,ij->i", line_dirs, line_dirs)
+    b = np.einsum("ij,ij->i", line_dirs, e)
+    c = np.einsum("ij,ij->i", e, e)
+    d = np.einsum("ij,ij->i", line_dirs, w)
+    f = np.einsum("ij,ij->i", e, w)
+    den = a * c - b * b
+    ok = den > 1e-14 * a * c
+    x = np.where(ok, (b * d - a * f) / np.where(ok, den, 1.0), np.nan)
+    s = np.where(ok, (d + b * x) / a, np.nan)
+    gap = w + x[:, None] * e - s[:, None] * line_dirs
+    return x, np.linalg.norm(gap, axis=1)
+
+
+def eee_line(e1a, e1b, line2, line3, x1):
+    """The line through e1(x1) meeting two lines (the EEE family, parameterised by x1).
+
+    Parameters
+    ----------
+    e1a, e1b : (n, 3) float
+        First edge, e1(x) = e1a + x (e1b - e1a).
+    line2, line3 : (n, 6) float
+    x1 : (n,) float
+
+    Returns
+    -------
+    points, directions : (n, 3) float
+    """
+    p = e1a + x1[:, None] * (e1b - e1a)
+    return p, line_through_point_and_two_lines(p, line2, line3)
+
+
+def eee_map(e1, e2, e3):
+    """The linear-fractional map x2 = (a x1 + b) / (c x1 + d) of an EEE family.
+
+    For x1 on edge e1, the line through e1(x1) meeting the lines of e2 and e3 hits
+    the line of e2 at parameter x2. The map is a projectivity, fixed by three
+    samples: (a, b, c, d) is the null vector of ``a x1 + b - x2 (c x1 + d) = 0``
+    at x1 ∈ {0, 1/2, 1} (computed exactly by the constructions above).
+
+    Parameters
+    ----------
+    e1, e2, e3 : (n, 2, 3) float
+        Edges as endpoint pairs; x = 0 at the first, 1 at the second.
+
+    Returns
+    -------
+    coeffs : (n, 4) float
+        (a, b, c, d), normalised.
+    orientation : (n,) int
+        sign(dx2/dx1) = sign(ad - bc), constant along an arc (seed 000 §4.2).
+    """
+    n = len(e1)
+    L2 = plucker(e2[:, 0], e2[:, 1] - e2[:, 0])
+    L3 = plucker(e3[:, 0], e3[:, 1] - e3[:, 0])
+    rows = []
+    for x1 in (0.0, 0.5, 1.0):
+        p, d = eee_line(e1[:, 0], e1[:, 1], L2, L3, np.full(n, x1))
+        x2, _ = segment_parameter(p, d, e2[:, 0], e2[:, 1])
+        rows.append(np.stack([np.full(n, x1), np.ones(n), -x2 * x1, -x2], axis=1))
+    system = np.stack(rows, axis=1)  # (n, 3, 4)
+    _, _, vt = np.linalg.svd(system)
+    coeffs = vt[:, -1]
+    coeffs = coeffs / np.linalg.norm(coeffs, axis=1, keepdims=True)
+    a, b, c, d = coeffs.T
+    return coeffs, np.sign(a * d - b * c).astype(np.int64)
+
+
+def eee_x2(coeffs, x1):
+    """Evaluate x2(x1) of :func:`eee_map`.
+
+    Parameters
+    ----------
+    coeffs : (n, 4) float
+    x1 : (n,) float
+    """
+    a, b, c, d = coeffs.T
+    return (a * x1 + b) / (c * x1 + d)

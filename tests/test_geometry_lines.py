@@ -157,3 +157,58 @@ def test_tangency_at_a_cube_edge():
     # a boundary edge is always tangent
     boundary = np.flatnonzero((scene.half_edges.edge_vertices == [2, 3]).all(1))
     assert tangent_at_edges(scene, np.repeat(boundary, 3), np.eye(3)[[0, 1, 2]] + [0.1, 0.2, 0.3]).all()
+
+
+def winding_number(vertices, triangles, points):
+    """Generalized winding number of closed outward triangle meshes (Van Oosterom–Strackee)."""
+    total = np.zeros(len(points))
+    for tri in triangles:
+        a, b, c = (vertices[tri[k]] - points for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        num = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
+        total += 2 * np.arctan2(num, den)
+    return total / (4 * np.pi)
+
+
+def test_vertex_sides_match_the_winding_number_of_closed_solids(rng):
+    """Every closed-fan vertex of the tetrahedra and the boxes, against the winding
+    number of its own closed solid (its group) at v + δd."""
+    from viscx.geometry.tangency import INSIDE, ON_SURFACE, OUTSIDE, classify_vertex_directions, closed_fan
+    from viscx.scene import load_scene
+
+    from conftest import SAMPLES
+
+    for path in (SAMPLES / "tetrahedra.obj", SAMPLES / "boxes_on_floor.obj"):
+        scene = load_scene(path)
+        he = scene.half_edges
+        closed = np.flatnonzero(closed_fan(scene))
+        assert len(closed) >= 16
+        verts = rng.choice(closed, size=4000)
+        d = rng.normal(size=(4000, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        got = classify_vertex_directions(scene, verts, d)
+        group = np.array([scene.face_group[he.face[np.flatnonzero(he.start == v)[0]]] for v in verts])
+        expected = np.empty(len(verts), dtype=np.int8)
+        delta = 1e-6 * scene.diagonal
+        for g in np.unique(group):
+            sel = group == g
+            tris = scene.triangles[scene.face_group[scene.triangle_face] == g]
+            w = winding_number(scene.vertices, tris, scene.vertices[verts[sel]] + delta * d[sel])
+            expected[sel] = np.where(w > 0.5, INSIDE, OUTSIDE)
+        decided = got != ON_SURFACE
+        assert decided.mean() > 0.99
+        assert np.array_equal(got[decided], expected[decided]), path.name
+        assert (expected == INSIDE).any() and (expected == OUTSIDE).any()
+
+
+def test_open_fans_enclose_nothing(rng):
+    from viscx.geometry.tangency import tangent_at_vertices
+    from viscx.scene import load_scene
+
+    from conftest import SAMPLES
+
+    scene = load_scene(SAMPLES / "two_triangles.obj")
+    verts = rng.choice(scene.generator_vertices, size=500)
+    tangent, blocked = tangent_at_vertices(scene, verts, rng.normal(size=(500, 3)))
+    assert tangent.all() and not blocked.any()

@@ -68,3 +68,140 @@ def tangent_at_edges(scene, edges, directions, angle_tol=1e-9):
     np.logical_or.at(pos, owner, s > angle_tol)
     np.logical_or.at(neg, owner, s < -angle_tol)
     return ~(pos & neg)
+
+
+# Sides of a vertex along a direction (see classify_vertex_directions).
+OUTSIDE, INSIDE, ON_SURFACE = 0, 1, 2
+
+
+def vertex_corners(scene):
+    """CSR from vertices to the face corners at them.
+
+    The corner of half-edge ``h`` sits at ``start[h]`` between ``h`` (leaving) and
+    the half-edge before it in its loop (arriving).
+
+    Returns
+    -------
+    offsets : (n + 1,) int
+    corners : (h,) int
+        Half-edge ids, grouped by start vertex.
+    prev : (h,) int
+        The half-edge before each half-edge in its loop.
+    """
+    he = scene.half_edges
+    prev = np.empty_like(he.next)
+    prev[he.next] = np.arange(len(he.next))
+    order = np.argsort(he.start, kind="stable")
+    offsets = np.searchsorted(he.start[order], np.arange(scene.n_vertices + 1))
+    return offsets, order, prev
+
+
+def closed_fan(scene):
+    """(n,) bool: vertices whose incident edges all have exactly two faces, consistently wound.
+
+    Only around such a vertex does the surface separate a small ball into an
+    inside (behind the face normals) and an outside.
+    """
+    he = scene.half_edges
+    bad = (he.opp < 0) | (he.start[np.maximum(he.opp, 0)] != he.end)
+    closed = np.ones(scene.n_vertices, dtype=bool)
+    closed[he.start[bad]] = False
+    closed[he.end[bad]] = False
+    return closed
+
+
+def classify_vertex_directions(scene, vertices, directions, angle_tol=1e-9):
+    """On which side of the surface at each vertex a ray along each direction leaves.
+
+    The face corners at v are arcs on the sphere of directions around v. The side
+    of a direction d is read off the nearest point of that fan (the pseudo-normal
+    test): if it lies inside a corner's arc the side is the sign of d · n for that
+    face's normal n; if it is an edge direction shared by two corners, the sign of
+    (d - e) · (n1 + n2). Faces' normals are taken to point out of the solid, so
+    INSIDE means the ray enters the material at v. A vertex whose fan is not
+    closed (boundary or non-manifold edges, inconsistent winding) encloses
+    nothing: every direction is OUTSIDE.
+
+    Parameters
+    ----------
+    scene : Scene
+    vertices : (q,) int
+    directions : (q, 3) float
+    angle_tol : float
+        Directions within this angle of the fan are ON_SURFACE (grazing).
+
+    Returns
+    -------
+    (q,) int8
+        OUTSIDE, INSIDE or ON_SURFACE.
+    """
+    vertices = np.asarray(vertices, dtype=np.int64)
+    d = np.asarray(directions, dtype=np.float64)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    he = scene.half_edges
+    offsets, corners, prev = vertex_corners(scene)
+    counts = offsets[vertices + 1] - offsets[vertices]
+    owner = np.repeat(np.arange(len(vertices)), counts)
+    h = corners[np.repeat(offsets[vertices], counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)]
+    v = scene.vertices[he.start[h]]
+    n = scene.face_normal[he.face[h]]
+    a = scene.vertices[he.end[h]] - v  # leaving edge
+    b = scene.vertices[he.start[prev[h]]] - v  # arriving edge, reversed
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    q = d[owner]
+    # angles measured counter-clockwise about n from a: the corner spans [0, span]
+    a_perp = np.cross(n, a)
+    span = np.arctan2(np.einsum("ij,ij->i", b, a_perp), np.einsum("ij,ij->i", b, a)) % (2 * np.pi)
+    qp = q - np.einsum("ij,ij->i", q, n)[:, None] * n
+    angle = np.arctan2(np.einsum("ij,ij->i", qp, a_perp), np.einsum("ij,ij->i", qp, a)) % (2 * np.pi)
+    in_arc = angle <= span
+    dist_face = np.arcsin(np.clip(np.abs(np.einsum("ij,ij->i", q, n)), 0, 1))
+    dist_a = np.arccos(np.clip(np.einsum("ij,ij->i", q, a), -1, 1))
+    dist_b = np.arccos(np.clip(np.einsum("ij,ij->i", q, b), -1, 1))
+    # candidate features: the arc's interior (face), its two end directions (edges)
+    dist = np.where(in_arc, dist_face, np.inf)
+    feature_dist = np.stack([dist, dist_a, dist_b], axis=1)
+    best_feature = np.argmin(feature_dist, axis=1)
+    best = feature_dist[np.arange(len(h)), best_feature]
+    # nearest feature per query
+    order = np.lexsort((best, owner))
+    first = order[np.unique(owner[order], return_index=True)[1]]
+    out = np.full(len(vertices), OUTSIDE, dtype=np.int8)
+    qi = owner[first]
+    on = best[first] <= angle_tol
+    face_side = np.einsum("ij,ij->i", q[first], n[first])
+    # an edge direction's pseudo-normal: its two faces' normals summed
+    edge_h = np.where(best_feature[first] == 1, h[first], prev[h[first]])
+    other = he.opp[edge_h]
+    pseudo = n[first] + scene.face_normal[he.face[np.maximum(other, 0)]]
+    e = np.where((best_feature[first] == 1)[:, None], a[first], b[first])
+    edge_side = np.einsum("ij,ij->i", q[first] - e, pseudo)
+    side = np.where(best_feature[first] == 0, face_side, edge_side)
+    out[qi] = np.where(on, ON_SURFACE, np.where(side < 0, INSIDE, OUTSIDE))
+    out[~closed_fan(scene)[vertices] & (out == INSIDE)] = OUTSIDE
+    return out
+
+
+def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
+    """Whether the line through each vertex along each direction is tangent there.
+
+    Tangent: neither ray from v (along +d and -d) enters the solid at v. Where
+    one does, v is itself the blocker on that side (seed 000 §4.1).
+
+    Parameters
+    ----------
+    scene : Scene
+    vertices : (q,) int
+    directions : (q, 3) float
+
+    Returns
+    -------
+    tangent : (q,) bool
+    blocked : (q, 2) bool
+        Whether v blocks the ray along +d (column 0) and along -d (column 1).
+    """
+    plus = classify_vertex_directions(scene, vertices, directions, angle_tol)
+    minus = classify_vertex_directions(scene, vertices, -np.asarray(directions, dtype=np.float64), angle_tol)
+    blocked = np.stack([plus == INSIDE, minus == INSIDE], axis=1)
+    return ~blocked.any(axis=1), blocked

@@ -9,8 +9,10 @@ How float32 is kept honest
 Embree works in float32 (coordinates relative to the scene centre). Its answer
 is only a proposal:
 
-* embree searches ``[tmin - band, tmax + band]`` (``band``: 1e-5 of the diagonal),
-  so hits that float32 puts just outside the interval are still seen;
+* embree searches ``[tmin - band, tmax + band]``, ``band`` being 8 float32 ulps of
+  the scene's half-extent (about 5e-7 of the diagonal, below the default
+  epsilon, so a ray leaving a surface does not re-find it), so hits that float32
+  puts just outside the interval are still seen;
 * every hit it reports is re-decided in float64 (Möller–Trumbore, numba) on
   that triangle, and, when float64 says the ray passes just outside it, on every
   triangle sharing a vertex with it (where a watertight float32 hit really is);
@@ -29,8 +31,8 @@ from embreex import rtcore_scene
 from numba import njit
 from embreex.mesh_construction import TriangleMesh
 
-#: Zone of doubt around interval ends, relative to the scene diagonal.
-FLOAT32_BAND = 1e-5
+#: Margin of embree's search interval, in float32 ulps of the scene's half-extent.
+FLOAT32_ULPS = 8
 #: Rays per embree call (bounds temporary memory).
 CHUNK = 1 << 20
 #: Enlargement of the bounding box where sky ends are placed (design notes §4).
@@ -118,7 +120,8 @@ class RayCaster:
     epsilon : float
         Default trimming at segment ends (scene units).
     band : float, optional
-        Zone of doubt (scene units); default ``FLOAT32_BAND`` × diagonal.
+        Margin of embree's search interval (scene units); default
+        ``FLOAT32_ULPS`` float32 ulps of the scene's half-extent.
     """
 
     def __init__(self, vertices, triangles, triangle_face, epsilon, band=None):
@@ -131,7 +134,9 @@ class RayCaster:
         margin = SKY_MARGIN * 0.5 * (hi - lo) + SKY_MARGIN * self.diagonal * 1e-3
         self.sky_box = np.stack([lo - margin, hi + margin])
         self.epsilon = float(epsilon)
-        self.band = float(band) if band is not None else FLOAT32_BAND * self.diagonal
+        half_extent = float(np.abs(self.vertices - self.center).max())
+        ulp = float(np.finfo(np.float32).eps) * half_extent
+        self.band = float(band) if band is not None else FLOAT32_ULPS * ulp
         self._embree = rtcore_scene.EmbreeScene(robust=True)
         corners = (self.vertices[self.triangles] - self.center).astype(np.float32)
         self._mesh = TriangleMesh(self._embree, corners)  # keep a reference alive

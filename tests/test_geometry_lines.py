@@ -202,7 +202,26 @@ def test_vertex_sides_match_the_winding_number_of_closed_solids(rng):
         assert (expected == INSIDE).any() and (expected == OUTSIDE).any()
 
 
-def test_open_fans_enclose_nothing(rng):
+def test_vertex_tangency_is_same_region(rng):
+    from viscx.geometry.tangency import classify_vertex_directions, tangent_at_vertices
+    from viscx.scene import load_scene
+
+    from conftest import SAMPLES
+
+    scene = load_scene(SAMPLES / "tetrahedra.obj")
+    verts = rng.choice(scene.generator_vertices, size=2000)
+    d = rng.normal(size=(2000, 3))
+    tangent, degenerate = tangent_at_vertices(scene, verts, d)
+    plus = classify_vertex_directions(scene, verts, d)
+    minus = classify_vertex_directions(scene, verts, -d)
+    assert np.array_equal(tangent, (plus == minus) & ~degenerate)
+    # a convex corner: tangent lines graze it from outside; crossing lines exist too
+    assert tangent.any() and (~tangent & ~degenerate).any()
+    # at a convex corner no line has both rays inside
+    assert not ((plus == 1) & (minus == 1)).any()
+
+
+def test_open_fans_separate_nothing(rng):
     from viscx.geometry.tangency import tangent_at_vertices
     from viscx.scene import load_scene
 
@@ -210,5 +229,5 @@ def test_open_fans_enclose_nothing(rng):
 
     scene = load_scene(SAMPLES / "two_triangles.obj")
     verts = rng.choice(scene.generator_vertices, size=500)
-    tangent, blocked = tangent_at_vertices(scene, verts, rng.normal(size=(500, 3)))
-    assert tangent.all() and not blocked.any()
+    tangent, degenerate = tangent_at_vertices(scene, verts, rng.normal(size=(500, 3)))
+    assert tangent.all() and not degenerate.any()

@@ -186,8 +186,12 @@ def classify_vertex_directions(scene, vertices, directions, angle_tol=1e-9):
 def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
     """Whether the line through each vertex along each direction is tangent there.
 
-    Tangent: neither ray from v (along +d and -d) enters the solid at v. Where
-    one does, v is itself the blocker on that side (seed 000 §4.1).
+    Faces are two-sided and space off the faces is free, so what matters is only
+    whether the surface separates the line's two rays at v: tangent when both
+    rays leave into the same region of v's fan (always, for an open fan); else
+    the line crosses the surface at v and v blocks it on both sides (seed 000
+    §4.1, "v is the up blocker"). Edges follow the same rule
+    (:func:`tangent_at_edges`).
 
     Parameters
     ----------
@@ -198,10 +202,10 @@ def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
     Returns
     -------
     tangent : (q,) bool
-    blocked : (q, 2) bool
-        Whether v blocks the ray along +d (column 0) and along -d (column 1).
+    degenerate : (q,) bool
+        A ray grazes the fan (lies within ``angle_tol`` of a face or edge at v).
     """
     plus = classify_vertex_directions(scene, vertices, directions, angle_tol)
     minus = classify_vertex_directions(scene, vertices, -np.asarray(directions, dtype=np.float64), angle_tol)
-    blocked = np.stack([plus == INSIDE, minus == INSIDE], axis=1)
-    return ~blocked.any(axis=1), blocked
+    degenerate = (plus == ON_SURFACE) | (minus == ON_SURFACE)
+    return (plus == minus) & ~degenerate, degenerate

@@ -151,12 +151,14 @@ def test_tangency_at_a_cube_edge():
     scene = build_scene(soup(verts, [[0, 3, 2, 1], [0, 1, 4, 5]]))
     edge = np.flatnonzero((scene.half_edges.edge_vertices == [0, 1]).all(1))
     dirs = np.array([[0, 1, -1], [0, -1, 1], [0, 1, 1], [0, -1, -1], [0, 1, 0], [0, 0, 1]], dtype=float)
-    got = tangent_at_edges(scene, np.repeat(edge, len(dirs)), dirs)
+    got, grazing = tangent_at_edges(scene, np.repeat(edge, len(dirs)), dirs)
     # outside the wedge both ways, into/out of the wedge, grazing a face
     assert got.tolist() == [True, True, False, False, True, True]
+    assert grazing.tolist() == [False, False, False, False, True, True]
     # a boundary edge is always tangent
     boundary = np.flatnonzero((scene.half_edges.edge_vertices == [2, 3]).all(1))
-    assert tangent_at_edges(scene, np.repeat(boundary, 3), np.eye(3)[[0, 1, 2]] + [0.1, 0.2, 0.3]).all()
+    got, grazing = tangent_at_edges(scene, np.repeat(boundary, 3), np.eye(3)[[0, 1, 2]] + [0.1, 0.2, 0.3])
+    assert got.all() and not grazing.any()
 
 
 def winding_number(vertices, triangles, points):

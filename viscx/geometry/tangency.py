@@ -47,27 +47,34 @@ def tangent_at_edges(scene, edges, directions, angle_tol=1e-9):
         Line directions (any length, not parallel to the edge).
     angle_tol : float
         |sin| of the angle between a face and the line–edge plane below which the
-        face counts as lying in that plane (on both sides).
+        face counts as lying in that plane (the line grazes it).
 
     Returns
     -------
-    (n,) bool
+    tangent : (n,) bool
+    degenerate : (n,) bool
+        The line grazes a face of the edge.
     """
     offsets, order = edge_half_edges(scene)
     w = edge_face_directions(scene)
     ev = scene.half_edges.edge_vertices[edges]
     along = scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]]
     m = np.cross(directions, along)
-    m /= np.linalg.norm(m, axis=1, keepdims=True)
+    size = np.linalg.norm(m, axis=1, keepdims=True)
+    along_edge = size[:, 0] <= 1e-12 * np.linalg.norm(along, axis=1) * np.linalg.norm(directions, axis=1)
+    m /= np.where(along_edge[:, None], 1.0, size)
     counts = offsets[edges + 1] - offsets[edges]
     owner = np.repeat(np.arange(len(edges)), counts)
     first = np.repeat(offsets[edges], counts) + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts))
     s = np.einsum("ij,ij->i", m[owner], w[order[first]])
     pos = np.zeros(len(edges), dtype=bool)
     neg = np.zeros(len(edges), dtype=bool)
+    graze = np.zeros(len(edges), dtype=bool)
     np.logical_or.at(pos, owner, s > angle_tol)
     np.logical_or.at(neg, owner, s < -angle_tol)
-    return ~(pos & neg)
+    np.logical_or.at(graze, owner, np.abs(s) <= angle_tol)
+    graze |= along_edge  # the line contains the edge: no plane is spanned
+    return ~(pos & neg), graze
 
 
 # Sides of a vertex along a direction (see classify_vertex_directions).

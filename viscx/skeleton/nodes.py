@@ -1,0 +1,223 @@
+"""V0: the nodes (0-cells) of the visibility complex: E4, VEE and VV.
+
+A node is a maximal free segment fixed by four conditions on generators
+(docs/skeleton.md). Whatever proposes the candidate lines (the O(n⁴) reference
+in :mod:`viscx.skeleton.reference`, or the output-sensitive builder), this module
+decides which candidates are nodes and builds their segments, so every builder
+shares one definition.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viscx.geometry.lines import segment_parameter
+from viscx.geometry.tangency import tangent_at_edges, tangent_at_vertices
+
+# Node kinds.
+E4, VEE, VV = 0, 1, 2
+KIND_NAMES = {E4: "E4", VEE: "VEE", VV: "VV"}
+# Which generator slots hold vertices, per kind (the rest hold edges).
+SLOT_IS_VERTEX = np.array([[False] * 4, [True, False, False, False], [True, True, False, False]])
+SLOT_COUNT = np.array([4, 3, 2])
+
+# Blocker kinds of a segment end.
+BLOCK_FACE, BLOCK_SKY, BLOCK_EDGE, BLOCK_VERTEX = 0, 1, 2, 3
+
+
+@dataclass
+class Nodes:
+    """Nodes as flat arrays, sorted by (kind, generators, direction).
+
+    Attributes
+    ----------
+    kind : (n,) int8
+        E4, VEE or VV.
+    generators : (n, 4) int
+        VV: (u, v, -1, -1) with u < v; VEE: (v, e1, e2, -1) with e1 < e2;
+        E4: four edges, increasing. Vertex and edge ids of the scene.
+    direction : (n, 3) float
+        Unit direction of the line, oriented canonically.
+    ends : (n, 2, 3) float
+        Back end P and front end Q of the maximal free segment (P + t d, t ↑).
+    blocker_kind : (n, 2) int8
+        BLOCK_FACE, BLOCK_SKY, BLOCK_EDGE or BLOCK_VERTEX for P and Q.
+    blocker : (n, 2) int
+        Face, edge or vertex id (-1 for the sky).
+    generator_points : (n, 4, 3) float
+        Where the segment meets each generator (nan for unused slots).
+    """
+
+    kind: np.ndarray
+    generators: np.ndarray
+    direction: np.ndarray
+    ends: np.ndarray
+    blocker_kind: np.ndarray
+    blocker: np.ndarray
+    generator_points: np.ndarray
+
+    def __len__(self):
+        return len(self.kind)
+
+    def counts(self):
+        """Number of nodes per kind name."""
+        return {name: int(np.count_nonzero(self.kind == k)) for k, name in KIND_NAMES.items()}
+
+
+def canonical_directions(directions):
+    """Unit directions, flipped so that d · (1, 1e-3, 1e-6) > 0 (a fixed orientation)."""
+    d = np.asarray(directions, dtype=np.float64)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    flip = d @ np.array([1.0, 1e-3, 1e-6]) < 0
+    d[flip] *= -1
+    return d
+
+
+def validate_candidates(scene, kind, generators, origins, directions):
+    """Keep the candidate lines that are nodes and build their segments.
+
+    Parameters
+    ----------
+    scene : Scene
+    kind : (m,) int
+    generators : (m, 4) int
+        Canonical generator tuples (see :class:`Nodes`).
+    origins : (m, 3) float
+        A point of each candidate line.
+    directions : (m, 3) float
+
+    Returns
+    -------
+    Nodes
+    """
+    eps = scene.epsilon
+    kind = np.asarray(kind, dtype=np.int8)
+    generators = np.asarray(generators, dtype=np.int64)
+    d = canonical_directions(directions)
+    o = np.asarray(origins, dtype=np.float64)
+    m = len(kind)
+    if m == 0:
+        return _empty()
+
+    # one row per (candidate, generator slot)
+    used = np.arange(4)[None, :] < SLOT_COUNT[kind][:, None]
+    cand, slot = np.nonzero(used)
+    gid = generators[cand, slot]
+    is_vertex = SLOT_IS_VERTEX[kind[cand], slot]
+    oc, dc = o[cand], d[cand]
+    point = np.empty((len(cand), 3))
+    ok = np.ones(len(cand), dtype=bool)
+    tangent = np.zeros(len(cand), dtype=bool)
+    degenerate = np.zeros(len(cand), dtype=bool)
+
+    iv = np.flatnonzero(is_vertex)
+    x_v = scene.vertices[gid[iv]]
+    ok[iv] = np.linalg.norm(np.cross(x_v - oc[iv], dc[iv]), axis=1) <= eps
+    point[iv] = x_v
+    tangent[iv], degenerate[iv] = tangent_at_vertices(scene, gid[iv], dc[iv])
+
+    ie = np.flatnonzero(~is_vertex)
+    ev = scene.half_edges.edge_vertices[gid[ie]]
+    a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+    x, dist = segment_parameter(oc[ie], dc[ie], a, b)
+    length = np.linalg.norm(b - a, axis=1)
+    # the line meets the edge strictly inside: at an endpoint the event is the vertex's
+    with np.errstate(invalid="ignore"):
+        ok[ie] = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps)
+    point[ie] = a + np.nan_to_num(x)[:, None] * (b - a)
+    tangent[ie], degenerate[ie] = tangent_at_edges(scene, gid[ie], dc[ie])
+    ok &= ~degenerate
+
+    keep = np.ones(m, dtype=bool)
+    np.logical_and.at(keep, cand, ok)
+
+    # generators sorted along the line
+    t = np.full((m, 4), np.inf)
+    t[cand, slot] = np.einsum("ij,ij->i", point - oc, dc)
+    order = np.argsort(t, axis=1, kind="stable")
+    t_sorted = np.take_along_axis(t, order, axis=1)
+    row_of = np.full((m, 4), -1)
+    row_of[cand, slot] = np.arange(len(cand))
+    row_sorted = np.take_along_axis(row_of, order, axis=1)
+    count = SLOT_COUNT[kind]
+    for j in range(3):  # distinct points along the line
+        has = j + 1 < count
+        gap = np.where(has, t_sorted[:, j + 1] - np.where(has, t_sorted[:, j], 0.0), np.inf)
+        keep &= ~has | (gap > eps)
+    for j in range(1, 3):  # inner generators must be passed
+        inner = j < count - 1
+        r = np.where(inner, row_sorted[:, j], 0)
+        keep &= ~inner | tangent[r]
+
+    # consecutive generators see each other
+    pieces_a, pieces_b, piece_cand = [], [], []
+    for j in range(3):
+        has = keep & (j + 1 < count)
+        c = np.flatnonzero(has)
+        pieces_a.append(point[row_sorted[c, j]])
+        pieces_b.append(point[row_sorted[c, j + 1]])
+        piece_cand.append(c)
+    piece_cand = np.concatenate(piece_cand)
+    if len(piece_cand):
+        free = scene.ray_caster.free_segments(np.concatenate(pieces_a), np.concatenate(pieces_b))
+        np.logical_and.at(keep, piece_cand, free)
+
+    nodes = np.flatnonzero(keep)
+    n = len(nodes)
+    first_row = row_sorted[nodes, 0]
+    last_row = row_sorted[nodes, count[nodes] - 1]
+    ends = np.empty((n, 2, 3))
+    blocker_kind = np.empty((n, 2), dtype=np.int8)
+    blocker = np.empty((n, 2), dtype=np.int64)
+    for side, row, sign in ((0, first_row, -1.0), (1, last_row, 1.0)):
+        feature_kind = np.where(is_vertex[row], BLOCK_VERTEX, BLOCK_EDGE)
+        ends[:, side] = point[row]
+        blocker_kind[:, side] = feature_kind
+        blocker[:, side] = gid[row]
+        go_on = np.flatnonzero(tangent[row])  # passing: the segment ends farther on
+        if len(go_on):
+            start = point[row[go_on]]
+            direction = sign * d[nodes[go_on]]
+            face, dist_hit = scene.ray_caster.first_hit(start, direction, tmin=eps)
+            sky = face < 0
+            end = start + np.where(sky, 0.0, dist_hit)[:, None] * direction
+            if sky.any():
+                end[sky] = scene.ray_caster.sky_points(start[sky], direction[sky])
+            ends[go_on, side] = end
+            blocker_kind[go_on, side] = np.where(sky, BLOCK_SKY, BLOCK_FACE)
+            blocker[go_on, side] = face
+
+    gen_points = np.full((n, 4, 3), np.nan)
+    r = row_of[nodes]
+    has = r >= 0
+    gen_points[has] = point[r[has]]
+    result = Nodes(
+        kind=kind[nodes],
+        generators=generators[nodes],
+        direction=d[nodes],
+        ends=ends,
+        blocker_kind=blocker_kind,
+        blocker=blocker,
+        generator_points=gen_points,
+    )
+    return sort_nodes(result)
+
+
+def sort_nodes(nodes):
+    """Nodes in canonical order: kind, generators, then direction (two E4 solutions)."""
+    keys = [nodes.direction[:, 2], nodes.direction[:, 1], nodes.direction[:, 0]]
+    keys += [nodes.generators[:, k] for k in (3, 2, 1, 0)] + [nodes.kind]
+    order = np.lexsort(keys)
+    return Nodes(**{name: getattr(nodes, name)[order] for name in nodes.__dataclass_fields__})
+
+
+def _empty():
+    return Nodes(
+        kind=np.zeros(0, dtype=np.int8),
+        generators=np.zeros((0, 4), dtype=np.int64),
+        direction=np.zeros((0, 3)),
+        ends=np.zeros((0, 2, 3)),
+        blocker_kind=np.zeros((0, 2), dtype=np.int8),
+        blocker=np.zeros((0, 2), dtype=np.int64),
+        generator_points=np.zeros((0, 4, 3)),
+    )

@@ -29,7 +29,10 @@ def segment_hits_reference(starts, ends, vertices, triangles, bary_slack=0.0):
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
     d0 = np.einsum("tj,ntj->nt", normal, starts[:, None, :] - a[None])
     d1 = np.einsum("tj,ntj->nt", normal, ends[:, None, :] - a[None])
-    crosses = (np.sign(d0) * np.sign(d1) <= 0) & (d0 != d1)
+    # a segment lying in a triangle's plane (within rounding) grazes it, never crosses it
+    scale = 1e-12 * (1.0 + np.abs(vertices).max())
+    in_plane = (np.abs(d0) <= scale) & (np.abs(d1) <= scale)
+    crosses = (np.sign(d0) * np.sign(d1) <= 0) & (d0 != d1) & ~in_plane
     s = np.where(crosses, d0 / np.where(crosses, d0 - d1, 1.0), 0.0)
     point = starts[:, None, :] + s[..., None] * (ends - starts)[:, None, :]
     centroid = (a + b + c) / 3

@@ -243,10 +243,11 @@ class RayCaster:
             sel = order[first]
             best_t[owner[sel]] = ct_ok[sel]
             best_tri[owner[sel]] = cand[sel]
-        # parallel to the plane: float64 has no crossing; use the float32 position
-        centroid = self.vertices[self.triangles[tri]].mean(axis=1)
-        approx = np.einsum("ij,ij->i", centroid - origins, directions)
-        passed = np.where(np.isfinite(t64), t64, approx)
+        # parallel to the triangle's plane: float64 has no crossing, and the ray
+        # cannot meet the triangle beyond its farthest corner along the ray
+        corners = self.vertices[self.triangles[tri]]
+        farthest = np.einsum("ikj,ij->ik", corners - origins[:, None, :], directions).max(axis=1)
+        passed = np.where(np.isfinite(t64), t64, farthest)
         return best_t, best_tri, passed
 
     # -- the queries built on it ---------------------------------------------------------

@@ -126,6 +126,9 @@ def validate_candidates(scene, kind, generators, origins, directions):
         ok[ie] = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps)
     point[ie] = a + np.nan_to_num(x)[:, None] * (b - a)
     tangent[ie], degenerate[ie] = tangent_at_edges(scene, gid[ie], dc[ie])
+    # grazing is the rule, not a degeneracy, at a face holding two of the node's
+    # generators (v and e on one face, two edges of one face): seed 000 §4.1
+    degenerate &= ~_grazes_shared_face(scene, cand, gid, is_vertex, oc, dc)
     ok &= ~degenerate
 
     keep = np.ones(m, dtype=bool)
@@ -201,6 +204,55 @@ def validate_candidates(scene, kind, generators, origins, directions):
         generator_points=gen_points,
     )
     return sort_nodes(result)
+
+
+def generator_faces(scene):
+    """Faces touching each vertex and each edge, as CSR tables.
+
+    Returns
+    -------
+    vertex_offsets : (n + 1,) int
+    vertex_faces : (k,) int
+        Unique faces whose loops pass through each vertex.
+    edge_offsets : (e + 1,) int
+    edge_faces : (k',) int
+        Faces bounded by each edge.
+    """
+    he = scene.half_edges
+
+    def table(owner, face, size):
+        pairs = np.unique(np.stack([owner, face], axis=1), axis=0)
+        return np.searchsorted(pairs[:, 0], np.arange(size + 1)), pairs[:, 1]
+
+    vo, vf = table(he.start, he.face, scene.n_vertices)
+    eo, ef = table(he.edge, he.face, len(he.edge_vertices))
+    return vo, vf, eo, ef
+
+
+def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, angle_tol=1e-9):
+    """For each generator row, whether its line lies in the plane of a face that
+    holds this generator and another generator of the same candidate."""
+    vo, vf, eo, ef = generator_faces(scene)
+    offsets = np.empty(len(gid), dtype=np.int64)
+    counts = np.empty(len(gid), dtype=np.int64)
+    v, e = is_vertex, ~is_vertex
+    offsets[v], counts[v] = vo[gid[v]], vo[gid[v] + 1] - vo[gid[v]]
+    offsets[e], counts[e] = eo[gid[e]], eo[gid[e] + 1] - eo[gid[e]]
+    row = np.repeat(np.arange(len(gid)), counts)
+    at = np.repeat(offsets, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    face = np.empty(len(row), dtype=np.int64)
+    rv = is_vertex[row]
+    face[rv], face[~rv] = vf[at[rv]], ef[at[~rv]]
+    key = cand[row] * scene.n_faces + face
+    _, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
+    shared = count[inverse.reshape(-1)] >= 2
+    n, off = scene.face_normal[face], scene.face_offset[face]
+    in_plane = (np.abs(np.einsum("ij,ij->i", n, directions[row])) <= angle_tol) & (
+        np.abs(np.einsum("ij,ij->i", n, origins[row]) - off) <= scene.epsilon
+    )
+    excused = np.zeros(len(gid), dtype=bool)
+    np.logical_or.at(excused, row, shared & in_plane)
+    return excused
 
 
 def sort_nodes(nodes):

@@ -1,7 +1,7 @@
 """The O(n⁴) reference enumeration of nodes, for small scenes (the ground truth).
 
 Every combination of generators is a candidate: all pairs of generator vertices
-(VV), every generator vertex with every pair of generator edges not incident to
+not joined by an edge (VV), every generator vertex with every pair of generator edges not incident to
 it (VEE), every quadruple of pairwise non-adjacent generator edges (E4, 0–2
 lines each). :func:`viscx.skeleton.nodes.validate_candidates` keeps the nodes.
 Fast builders must produce exactly the same node set.
@@ -36,10 +36,13 @@ def reference_candidates(scene):
     ev = scene.half_edges.edge_vertices
     out = []
 
-    # VV: every pair of generator vertices
+    # VV: every pair of generator vertices not joined by an edge (that line holds the edge)
     if len(gv) >= 2:
         i, j = np.triu_indices(len(gv), 1)
         u, v = gv[i], gv[j]
+        nv = scene.n_vertices
+        joined = np.isin(u * nv + v, ev[:, 0] * nv + ev[:, 1])
+        u, v = u[~joined], v[~joined]
         gens = np.stack([u, v, np.full_like(u, -1), np.full_like(u, -1)], axis=1)
         out.append((np.full(len(u), VV), gens, scene.vertices[u], scene.vertices[v] - scene.vertices[u]))
 

@@ -102,3 +102,51 @@ def test_reference_finds_every_kind_on_the_cornell_box():
     scene = load_scene(SAMPLES / "cornell_box.obj")
     counts = reference_nodes(scene).counts()
     assert counts["E4"] > 0 and counts["VEE"] > 0 and counts["VV"] > 0
+
+
+def test_blocked_and_passed_generators_by_perturbation(scene_nodes):
+    """Shift the node's line sideways by δ in 16 directions and look for hits with the
+    generator's own faces near the generator point (brute force, independent of the
+    tangency predicates). A passed generator has a shift that misses them all (the
+    line can be moved off the surface); a blocking one is hit by every shift
+    (the surface separates the line's two rays there). Grazing generators are skipped."""
+    from viscx.skeleton.nodes import generator_faces
+
+    scene, nodes = scene_nodes
+    vo, vf, eo, ef = generator_faces(scene)
+    delta = 1e-5 * scene.diagonal
+    angles = np.linspace(0, 2 * np.pi, 16, endpoint=False) + 0.1234  # not aligned with the axes
+    checked = 0
+    for i in range(len(nodes)):
+        d = nodes.direction[i]
+        u = np.cross(d, [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        w = np.cross(d, u)
+        shifts = np.cos(angles)[:, None] * u + np.sin(angles)[:, None] * w
+        kinds = {VV: (1, 1, 0, 0), VEE: (1, 0, 0, 0), E4: (0, 0, 0, 0)}[int(nodes.kind[i])]
+        for slot in range(4):
+            g = nodes.generators[i, slot]
+            if g < 0:
+                continue
+            faces = vf[vo[g] : vo[g + 1]] if kinds[slot] else ef[eo[g] : eo[g + 1]]
+            slope = np.abs(scene.face_normal[faces] @ d).min()
+            if slope < 1e-6:
+                continue  # the line grazes one of its faces
+            # a shift of δ meets a face at an angle θ after δ / sin θ
+            reach = min(scene.diagonal, 4 * delta / slope)
+            p = nodes.generator_points[i, slot]
+            tris = scene.triangles[np.isin(scene.triangle_face, faces)]
+            a = p + delta * shifts - reach * d
+            b = p + delta * shifts + reach * d
+            at_end = [np.allclose(p, nodes.ends[i, k]) for k in (0, 1)]
+            blocking = any(at_end[k] and nodes.blocker_kind[i, k] in (BLOCK_EDGE, BLOCK_VERTEX) for k in (0, 1))
+            # grown faces for "every shift hits", shrunk ones for "some shift misses":
+            # a shifted line through an edge of the faces is decided by a hair
+            hit, _ = segment_hits_reference(a, b, scene.vertices, tris, bary_slack=1e-9 if blocking else -1e-9)
+            hits = hit.any(axis=1)
+            if blocking:
+                assert hits.all(), f"node {i} slot {slot}: blocked there, yet a shifted line misses"
+            else:
+                assert not hits.all(), f"node {i} slot {slot}: passed there, yet every shifted line hits"
+            checked += 1
+    assert checked >= len(nodes)

@@ -6,29 +6,35 @@ the ray at ``t ∈ [tmin, tmax]`` (closed), with its float64 ``t``.
 
 How float32 is kept honest
 --------------------------
-Embree works in float32 (coordinates relative to the scene centre). Its answer
-is only a proposal:
+Embree (coordinates relative to the scene centre) searches
+``[tmin - band, tmax + band]``, ``band`` being 8 float32 ulps of the scene's
+half-extent (about 5e-7 of the diagonal: below the default epsilon, so a ray
+leaving a surface does not re-find it). Its first hit is accepted only when it
+is clear-cut in float64 on its triangle:
 
-* embree searches ``[tmin - band, tmax + band]``, ``band`` being 8 float32 ulps of
-  the scene's half-extent (about 5e-7 of the diagonal, below the default
-  epsilon, so a ray leaving a surface does not re-find it), so hits that float32
-  puts just outside the interval are still seen;
-* every hit it reports is re-decided in float64 (Möller–Trumbore, numba) on
-  that triangle, and, when float64 says the ray passes just outside it, on every
-  triangle sharing a vertex with it (where a watertight float32 hit really is);
-* a hit that float64 rejects makes the ray be cast again just past it, with a
-  step that starts at ``band / 16`` and doubles at each retry (a grazing ray can
-  stay within float32 noise of a plane for a long way).
+* float64 puts the ray inside the triangle with a barycentric margin of at least
+  ``1e-6`` (not near an edge, where the true first hit may be a neighbour),
+* the ray is not grazing (|cos| to the triangle's plane at least ``1e-4``),
+* float64 and float32 agree on where (within ``band``), and the hit is farther
+  than ``band`` from both interval ends.
 
-So every reported hit is a float64 hit. What float32 can still get wrong is a
-*miss*: a ray passing within float32 noise of a silhouette edge, or grazing a
-plane so that float32 keeps it on one side: the degenerate configurations that
-epsilon-visibility exists for.
+Under those conditions float32 cannot have ordered two hits wrongly, except for
+surfaces closer than ``band`` to each other. Every other ray embree hit is
+decided by :class:`viscx.grid.TriangleGrid`, an exact float64 first-hit
+caster. What float32 can still get wrong is a crossing it does not see at all:
+a ray passing within float32 rounding of a silhouette edge, or crossing a plane
+so obliquely (below about 1e-7 rad, float32 rounding over the scene's size)
+that it stays within rounding of the plane: such a ray may be reported as
+passing that face. These are the degenerate configurations epsilon-visibility
+exists for; a reported hit is never beyond the true first hit of a clearly
+crossed face (tests/test_raycast.py, the hard configurations).
 """
 
 import numpy as np
 from embreex import rtcore_scene
 from numba import njit
+
+from viscx.grid import TriangleGrid, moller_trumbore
 from embreex.mesh_construction import TriangleMesh
 
 #: Margin of embree's search interval, in float32 ulps of the scene's half-extent.
@@ -37,40 +43,22 @@ FLOAT32_ULPS = 8
 CHUNK = 1 << 20
 #: Enlargement of the bounding box where sky ends are placed (design notes §4).
 SKY_MARGIN = 0.01
-# Barycentric slack of the float64 test: points on a triangle's edge are on it.
-_BARY_SLACK = 1e-12
-_MAX_RECASTS = 64
+#: An embree hit is clear-cut when float64 puts it this far inside its triangle
+#: (smallest barycentric coordinate) ...
+CLEAR_MARGIN = 1e-6
+#: ... and the ray meets the triangle's plane at least this steeply (|cos|).
+CLEAR_COSINE = 1e-4
 
 
 @njit(cache=True)
 def _intersect_pairs(origins, directions, vertices, triangles, tri):
-    """Float64 Möller–Trumbore of ray i against triangle tri[i] (see intersect_triangles)."""
     n = tri.shape[0]
     t = np.empty(n)
-    inside = np.empty(n, dtype=np.bool_)
+    margin = np.empty(n)
+    cosine = np.empty(n)
     for i in range(n):
-        ia, ib, ic = triangles[tri[i], 0], triangles[tri[i], 1], triangles[tri[i], 2]
-        ax, ay, az = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
-        e1x, e1y, e1z = vertices[ib, 0] - ax, vertices[ib, 1] - ay, vertices[ib, 2] - az
-        e2x, e2y, e2z = vertices[ic, 0] - ax, vertices[ic, 1] - ay, vertices[ic, 2] - az
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        # p = d × e2, det = e1 · p
-        px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
-        det = e1x * px + e1y * py + e1z * pz
-        scale = np.sqrt((e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z) * (dx * dx + dy * dy + dz * dz))
-        if abs(det) <= 1e-14 * scale:  # ray parallel to the triangle's plane
-            t[i] = np.inf
-            inside[i] = False
-            continue
-        inv = 1.0 / det
-        sx, sy, sz = origins[i, 0] - ax, origins[i, 1] - ay, origins[i, 2] - az
-        u = (sx * px + sy * py + sz * pz) * inv
-        # q = s × e1
-        qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
-        v = (dx * qx + dy * qy + dz * qz) * inv
-        t[i] = (e2x * qx + e2y * qy + e2z * qz) * inv
-        inside[i] = u >= -_BARY_SLACK and v >= -_BARY_SLACK and u + v <= 1.0 + _BARY_SLACK
-    return t, inside
+        t[i], margin[i], cosine[i] = moller_trumbore(origins[i], directions[i], vertices, triangles, tri[i])
+    return t, margin, cosine
 
 
 def intersect_triangles(origins, directions, vertices, triangles, tri):
@@ -88,8 +76,11 @@ def intersect_triangles(origins, directions, vertices, triangles, tri):
     -------
     t : (n,) float
         Ray parameter of the hit with the triangle's plane (inf when parallel).
-    inside : (n,) bool
-        Whether that point is in the closed triangle.
+    margin : (n,) float
+        Smallest barycentric coordinate of that point: ≥ 0 inside the closed
+        triangle, its distance from the nearest edge relative to the triangle.
+    cosine : (n,) float
+        |cos| of the angle between the ray and the triangle's normal (0: grazing).
     """
     return _intersect_pairs(
         np.ascontiguousarray(origins, dtype=np.float64),
@@ -140,12 +131,8 @@ class RayCaster:
         self._embree = rtcore_scene.EmbreeScene(robust=True)
         corners = (self.vertices[self.triangles] - self.center).astype(np.float32)
         self._mesh = TriangleMesh(self._embree, corners)  # keep a reference alive
-        # vertex -> triangles (CSR), for the one-ring float64 re-decision
-        flat = self.triangles.reshape(-1)
-        order = np.argsort(flat, kind="stable")
-        self._ring_tris = order // 3
-        self._ring_offsets = np.searchsorted(flat[order], np.arange(len(self.vertices) + 1))
-        self.stats = {"rays": 0, "float64_checks": 0, "recasts": 0}
+        self._exact = TriangleGrid(self.vertices, self.triangles)
+        self.stats = {"rays": 0, "float64_checks": 0, "exact": 0}
 
     # -- the one primitive -------------------------------------------------------------
     def first_hit(self, origins, directions, tmin=0.0, tmax=np.inf):
@@ -189,66 +176,28 @@ class RayCaster:
         n = len(origins)
         face = np.full(n, -1, dtype=np.int64)
         t_out = np.full(n, np.inf)
-        start = tmin - self.band
-        stop = tmax + self.band
-        step = np.full(n, self.band / 16)
-        todo = np.arange(n)
-        for _ in range(_MAX_RECASTS):
-            if len(todo) == 0:
-                break
-            prim, _ = self._embree_hits(origins[todo], directions[todo], start[todo], stop[todo])
-            hit = prim >= 0
-            rays, tri = todo[hit], prim[hit]
-            if len(rays) == 0:
-                break
-            self.stats["float64_checks"] += len(rays)
-            best_t, best_tri, passed = self._decide64(origins[rays], directions[rays], tmin[rays], tmax[rays], tri)
-            found = np.isfinite(best_t)
-            face[rays[found]] = self.triangle_face[best_tri[found]]
-            t_out[rays[found]] = best_t[found]
-            # rejected in float64: cast again past the rejected hit, if before tmax
-            again = ~found & (passed < tmax[rays])
-            todo = rays[again]
-            start[todo] = np.maximum(start[todo] + step[todo], passed[again] + step[todo])
-            step[todo] *= 2
-            self.stats["recasts"] += len(todo)
+        prim, t32 = self._embree_hits(origins, directions, tmin - self.band, tmax + self.band)
+        rays = np.flatnonzero(prim >= 0)
+        tri = prim[rays]
+        self.stats["float64_checks"] += len(rays)
+        t64, margin, cosine = intersect_triangles(origins[rays], directions[rays], self.vertices, self.triangles, tri)
+        clear = (
+            (margin >= CLEAR_MARGIN)
+            & (cosine >= CLEAR_COSINE)
+            & (np.abs(t64 - t32[rays]) <= self.band)
+            & (t64 >= tmin[rays] + self.band)
+            & (t64 <= tmax[rays] - self.band)
+        )
+        face[rays[clear]] = self.triangle_face[tri[clear]]
+        t_out[rays[clear]] = t64[clear]
+        doubt = rays[~clear]
+        if len(doubt):
+            self.stats["exact"] += len(doubt)
+            tri_exact, t_exact = self._exact.first_hit(origins[doubt], directions[doubt], tmin[doubt], tmax[doubt])
+            found = tri_exact >= 0
+            face[doubt[found]] = self.triangle_face[tri_exact[found]]
+            t_out[doubt[found]] = t_exact[found]
         return face, t_out
-
-    def _decide64(self, origins, directions, tmin, tmax, tri):
-        """Float64 decision of the hits embree proposed.
-
-        Returns the smallest valid ``t`` in ``[tmin, tmax]`` (inf if none), its
-        triangle, and the float64 ``t`` of the proposed hit (where to recast from).
-        """
-        t64, inside = intersect_triangles(origins, directions, self.vertices, self.triangles, tri)
-        valid = inside & (t64 >= tmin) & (t64 <= tmax)
-        best_t = np.where(valid, t64, np.inf)
-        best_tri = tri.copy()
-        # passing just outside the triangle: the true hit may be on a neighbour
-        outside = np.flatnonzero(~inside)
-        if len(outside):
-            corners = self.triangles[tri[outside]]  # (k, 3)
-            lo = self._ring_offsets[corners]
-            hi = self._ring_offsets[corners + 1]
-            counts = (hi - lo).reshape(-1)
-            owner = np.repeat(np.repeat(outside, 3), counts)
-            starts = np.repeat(lo.reshape(-1), counts)
-            within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-            cand = self._ring_tris[starts + within]
-            ct, cin = intersect_triangles(origins[owner], directions[owner], self.vertices, self.triangles, cand)
-            ok = cin & (ct >= tmin[owner]) & (ct <= tmax[owner])
-            ct_ok = np.where(ok, ct, np.inf)
-            order = np.lexsort((ct_ok, owner))
-            first = np.unique(owner[order], return_index=True)[1]
-            sel = order[first]
-            best_t[owner[sel]] = ct_ok[sel]
-            best_tri[owner[sel]] = cand[sel]
-        # parallel to the triangle's plane: float64 has no crossing, and the ray
-        # cannot meet the triangle beyond its farthest corner along the ray
-        corners = self.vertices[self.triangles[tri]]
-        farthest = np.einsum("ikj,ij->ik", corners - origins[:, None, :], directions).max(axis=1)
-        passed = np.where(np.isfinite(t64), t64, farthest)
-        return best_t, best_tri, passed
 
     # -- the queries built on it ---------------------------------------------------------
     def free_segments(self, starts, ends, trim=None):

@@ -206,8 +206,56 @@ def test_sample_scenes_are_clean(path):
     # every triangle lies in its face's plane
     height = np.einsum("tkj,tj->tk", scene.vertices[scene.triangles], scene.face_normal[scene.triangle_face])
     assert np.all(np.abs(height - scene.face_offset[scene.triangle_face][:, None]) <= scene.weld_tolerance * 1.01)
-    # triangles and faces cover the same area
-    tri_area = 0.5 * np.linalg.norm(
-        np.cross(*(scene.vertices[scene.triangles[:, k]] - scene.vertices[scene.triangles[:, 0]] for k in (1, 2))), axis=1
-    )
-    assert np.isclose(tri_area.sum(), scene.face_area.sum(), rtol=1e-12)
+    # (the loops enclose each face's triangle area: checked in check_half_edge_invariants)
+
+
+# -- configurations from review (each broke an earlier version) ----------------------------
+
+
+def test_keyhole_polygon_is_a_face_with_a_hole():
+    V = [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0], [1, 1, 0], [1, 3, 0], [3, 3, 0], [3, 1, 0]]
+    scene = build_scene(soup(V, [[0, 1, 2, 3, 0, 4, 5, 6, 7, 4]]))
+    assert scene.n_faces == 1 and np.isclose(scene.face_area[0], 12.0)
+    assert [len(p) for p in scene.face_loops(0)] == [4, 4]
+    check_half_edge_invariants(scene)
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e8, 1e10, 1e12])
+def test_a_planar_quad_far_from_the_origin_is_one_face(offset):
+    quad = np.array([[0, 0, 0], [1, 0, 2], [1, 1, 5], [0, 1, 3.0]]) + offset  # plane z = 2x + 3y + c
+    scene = build_scene(soup(quad, [[0, 1, 2], [0, 2, 3]]))
+    assert scene.n_faces == 1 and len(scene.half_edges.edge_vertices) == 4
+
+
+def test_a_gentle_arc_keeps_the_vertices_that_shape_it():
+    n, sag = 1000, 0.01
+    x = np.linspace(0, 1, n + 1)
+    arc = np.stack([x, -sag * np.sin(np.pi * x), 0 * x], 1)
+    scene = build_scene(soup(np.concatenate([arc, [[1, 1, 0], [0, 1, 0]]]), [list(range(n + 1)) + [n + 1, n + 2]]))
+    loop = scene.face_loops(0)[0]
+    enclosed = np.cross(loop, np.roll(loop, -1, 0)).sum(0) @ scene.face_normal[0] / 2
+    perimeter = np.linalg.norm(np.roll(loop, -1, 0) - loop, axis=1).sum()
+    # every dropped vertex is within tolerance of the loop: areas agree to tolerance × perimeter
+    assert abs(enclosed - scene.face_area[0]) <= scene.weld_tolerance * perimeter
+    assert len(loop) < n / 2  # and straight runs were simplified
+
+
+def test_collinear_decisions_agree_between_neighbouring_loops():
+    h = 2e-7  # a sliver thinner than the weld tolerance next to a fat face
+    V = [[0, 0, 0], [1, -h, 0], [2, 0, 0], [1, h, 0], [0, -1, 0], [2, -1, 0]]
+    polys = [[4, 5, 1], [4, 1, 0], [5, 2, 1], [1, 2, 3], [1, 3, 0]]
+    scene = build_scene(soup(V, polys, groups=[0, 0, 0, 1, 1], names=["big", "sliver"]))
+    check_half_edge_invariants(scene)
+    he = scene.half_edges
+    # every edge between the two faces is shared: none became a lone boundary
+    shared = (he.opp >= 0).sum()
+    assert shared >= 2 and np.all(he.face[he.opp[he.opp >= 0]] != he.face[he.opp >= 0])
+
+
+def test_a_shallow_fold_is_a_generator_when_its_faces_do_not_merge():
+    a = 1e-5
+    V = [[0, 0, 0], [0, 1, 0], [1, 0.5, 0], [-1, 0.5, np.tan(a)]]
+    scene = build_scene(soup(V, [[0, 2, 1], [0, 1, 3]]))
+    assert scene.n_faces == 2
+    edge = np.flatnonzero((scene.half_edges.edge_vertices == [0, 1]).all(1))[0]
+    assert scene.half_edges.edge_is_generator[edge]

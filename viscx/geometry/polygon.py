@@ -63,7 +63,7 @@ def is_convex_2d(points):
 
 
 def ear_clip(points):
-    """Triangulate a simple counter-clockwise 2-D polygon by ear clipping, O(k²).
+    """Triangulate a simple (or weakly simple: a keyhole) counter-clockwise 2-D polygon by ear clipping, O(k³) worst case.
 
     Parameters
     ----------
@@ -82,22 +82,36 @@ def ear_clip(points):
     def cross(o, a, b):
         return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
-    def inside(p, a, b, c):
-        return cross(a, b, p) >= 0 and cross(b, c, p) >= 0 and cross(c, a, p) >= 0
+    def inside(p, a, b, c, closed):
+        if closed:
+            return cross(a, b, p) >= 0 and cross(b, c, p) >= 0 and cross(c, a, p) >= 0
+        # strictly inside, or on the new diagonal c–a (the sides a–b, b–c are the polygon's own)
+        on_diagonal = cross(c, a, p) == 0 and min(a[0], c[0]) <= p[0] <= max(a[0], c[0]) and min(a[1], c[1]) <= p[1] <= max(a[1], c[1])
+        return (cross(a, b, p) > 0 and cross(b, c, p) > 0 and cross(c, a, p) > 0) or on_diagonal
 
+    # passes, most careful first: (convex corners only, other points on the ear's
+    # border block it); then collinear corners; then only points strictly inside
+    # block it (a vertex touching another edge in a weakly simple polygon)
+    passes = ((True, True), (False, True), (True, False))
     guard = 0
     while len(idx) > 3 and guard < 4 * len(points) ** 2:
         guard += 1
         clipped = False
-        for strict in (True, False):
+        for strict, closed in passes:
             for k in range(len(idx)):
                 i0, i1, i2 = idx[k - 1], idx[k], idx[(k + 1) % len(idx)]
                 a, b, c = points[i0], points[i1], points[i2]
                 turn = cross(a, b, c)
                 if turn < 0 or (strict and turn == 0):
                     continue
-                others = (points[j] for j in idx if j not in (i0, i1, i2))
-                if turn > 0 and any(inside(p, a, b, c) for p in others):
+                # a keyhole (bridged hole) repeats vertices: copies of the ear's own
+                # corners are not inside it
+                others = (
+                    points[j]
+                    for j in idx
+                    if j not in (i0, i1, i2) and not any(np.array_equal(points[j], q) for q in (a, b, c))
+                )
+                if turn > 0 and any(inside(p, a, b, c, closed) for p in others):
                     continue
                 out.append((i0, i1, i2))
                 del idx[k]

@@ -23,7 +23,7 @@ import numpy as np
 
 from viscx.errors import ViscxError
 from viscx.geometry.polygon import triangulate_polygons
-from viscx.scene.clean import degenerate_triangles, duplicate_triangles, weld_vertices
+from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate_triangles, weld_vertices
 from viscx.scene.faces import drop_collinear_vertices, face_loops, merge_coplanar
 from viscx.scene.halfedge import HalfEdges, build_half_edges
 from viscx.scene.soup import PolygonSoup
@@ -178,7 +178,8 @@ def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, so
     if not np.all(np.isfinite(vertices)):
         raise ViscxError(f"{name}: a vertex has a NaN or infinite coordinate")
     used = np.unique(soup.polygon_vertices)
-    diagonal = float(np.linalg.norm(vertices[used].max(axis=0) - vertices[used].min(axis=0)))
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported just below
+        diagonal = float(np.linalg.norm(vertices[used].max(axis=0) - vertices[used].min(axis=0)))
     if not np.isfinite(diagonal):
         raise ViscxError(f"{name}: coordinates too large (the bounding box overflows float64)")
     if diagonal == 0:
@@ -196,6 +197,9 @@ def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, so
             raise ViscxError("relative epsilon must be positive")
 
     triangles, tri_polygon = triangulate_polygons(vertices, soup.polygon_offsets, soup.polygon_vertices)
+    crossing = crossing_polygons(vertices, soup.polygon_offsets, soup.polygon_vertices, triangles, tri_polygon, tolerance)
+    if crossing.any():
+        raise ViscxError(f"{name}: face {int(np.argmax(crossing)) + 1} (in file order) intersects itself: its edges cross")
     vertices, remap = weld_vertices(vertices, tolerance)
     triangles = remap[triangles]
     keep = ~degenerate_triangles(vertices, triangles, tolerance)
@@ -219,7 +223,7 @@ def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, so
 
     flo, lo, lv = face_loops(vertices, triangles, triangle_face, face_normal)
     lo, lv = drop_collinear_vertices(vertices, lo, lv, tolerance)
-    half_edges = build_half_edges(vertices, face_normal, flo, lo, lv)
+    half_edges = build_half_edges(vertices, face_normal, flo, lo, lv, tolerance)
     return Scene(
         vertices=vertices,
         triangles=triangles,

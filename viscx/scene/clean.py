@@ -106,3 +106,45 @@ def duplicate_triangles(triangles):
     mask = np.ones(len(triangles), dtype=bool)
     mask[first] = False
     return mask
+
+
+def crossing_polygons(vertices, offsets, indices, triangles, triangle_polygon, tolerance):
+    """Mask of input polygons whose edges cross (bow-ties and the like).
+
+    A simple polygon's triangles add up to the area it encloses (half the length
+    of its Newell vector); where edges cross, part of it winds the other way, so
+    its triangles cover more than it encloses. Non-planarity changes the two only
+    to second order, hence the 1e-3 relative slack; differences thinner than
+    ``tolerance`` along the perimeter are ignored (such slivers are dropped later).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    offsets : (p + 1,) int
+    indices : (m,) int
+        The polygons, as in :class:`viscx.scene.PolygonSoup`.
+    triangles : (t, 3) int
+    triangle_polygon : (t,) int
+        Their triangulation (:func:`viscx.geometry.polygon.triangulate_polygons`).
+    tolerance : float
+
+    Returns
+    -------
+    (p,) bool
+    """
+    p = len(offsets) - 1
+    sizes = np.diff(offsets)
+    if np.all(sizes <= 3):  # triangles cannot cross themselves (the common case for big meshes)
+        return np.zeros(p, dtype=bool)
+    owner = np.repeat(np.arange(p), sizes)
+    # relative to each polygon's first vertex: cross products of far-away coordinates cancel badly
+    pts = vertices[indices] - vertices[indices[offsets[:-1]]][owner]
+    nxt = np.arange(len(indices)) + 1
+    nxt[offsets[1:] - 1] = offsets[:-1]
+    cross = np.cross(pts, pts[nxt])
+    newell = np.stack([np.bincount(owner, weights=cross[:, i], minlength=p) for i in range(3)], axis=1)
+    enclosed = 0.5 * np.linalg.norm(newell, axis=1)
+    perimeter = np.bincount(owner, weights=np.linalg.norm(pts[nxt] - pts, axis=1), minlength=p)
+    _, areas = triangle_normals(vertices, triangles)
+    covered = np.bincount(triangle_polygon, weights=areas, minlength=p)
+    return covered - enclosed > 1e-3 * covered + tolerance * perimeter

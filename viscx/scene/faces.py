@@ -59,6 +59,10 @@ def merge_coplanar(vertices, triangles, triangle_group, tolerance):
     face_area : (f,) float
     """
     t = len(triangles)
+    # planes in coordinates relative to the scene's centre: offsets of far-away
+    # scenes would otherwise swallow the tolerance in rounding
+    center = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0)) if len(vertices) else np.zeros(3)
+    vertices = vertices - center
     normals, areas = triangle_normals(vertices, triangles)
     a, b = _triangle_edges(triangles)
     edge, count = _undirected_ids(a, b, len(vertices))
@@ -69,10 +73,8 @@ def merge_coplanar(vertices, triangles, triangle_group, tolerance):
     t1, t2 = i1 // 3, i2 // 3
     apex1 = triangles[t1, (i1 % 3 + 2) % 3]
     apex2 = triangles[t2, (i2 % 3 + 2) % 3]
-    off1 = np.einsum("ij,ij->i", normals[t1], vertices[triangles[t1, 0]])
-    off2 = np.einsum("ij,ij->i", normals[t2], vertices[triangles[t2, 0]])
-    dist12 = np.abs(np.einsum("ij,ij->i", normals[t1], vertices[apex2]) - off1)
-    dist21 = np.abs(np.einsum("ij,ij->i", normals[t2], vertices[apex1]) - off2)
+    dist12 = np.abs(np.einsum("ij,ij->i", normals[t1], vertices[apex2] - vertices[triangles[t1, 0]]))
+    dist21 = np.abs(np.einsum("ij,ij->i", normals[t2], vertices[apex1] - vertices[triangles[t2, 0]]))
     join = (
         (a[i1] == b[i2])  # consistent winding: the shared edge runs both ways
         & (triangle_group[t1] == triangle_group[t2])
@@ -112,6 +114,7 @@ def merge_coplanar(vertices, triangles, triangle_group, tolerance):
     rank[used[np.argsort(first_tri[used], kind="stable")]] = np.arange(len(used))
     triangle_face = rank[label]
     face_normal, face_offset, face_area = planes(triangle_face)
+    face_offset = face_offset + face_normal @ center
     return triangle_face, face_normal, face_offset, face_area
 
 
@@ -241,9 +244,12 @@ def drop_collinear_vertices(vertices, loop_offsets, loop_vertices, tolerance):
     """Remove loop vertices that lie straight between their only two neighbours.
 
     A vertex whose boundary edges (over all faces) go to exactly two other
-    vertices a and b, and that lies on the segment ab within ``tolerance``,
-    splits one straight edge in two; every loop through it runs a→v→b or b→v→a,
-    so it can go. Loops never drop below three vertices.
+    vertices is a *chain* vertex: every loop through it runs along the same chain
+    of such vertices between two kept vertices A and B. A chain is replaced by
+    the chord AB when every vertex of it lies within ``tolerance`` of AB;
+    otherwise the farthest vertex is kept and both halves are tried again
+    (Douglas–Peucker). Decisions are per vertex, so all loops agree; a loop that
+    would fall below three vertices keeps all of its vertices, everywhere.
 
     Parameters
     ----------
@@ -258,28 +264,74 @@ def drop_collinear_vertices(vertices, loop_offsets, loop_vertices, tolerance):
     loop_vertices : (m',) int
     """
     nv = len(vertices)
-    loop_id = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    n_loops = len(loop_offsets) - 1
+    loop_id = np.repeat(np.arange(n_loops), np.diff(loop_offsets))
     pos = np.arange(len(loop_vertices))
     nxt = np.where(pos + 1 == loop_offsets[loop_id + 1], loop_offsets[loop_id], pos + 1)
     a, b = loop_vertices, loop_vertices[nxt]
     pairs = np.unique(np.concatenate([np.stack([a, b], 1), np.stack([b, a], 1)]), axis=0)
     degree = np.bincount(pairs[:, 0], minlength=nv)
-    cand = np.flatnonzero(degree == 2)
-    if len(cand) == 0:
+    if not np.any(degree == 2):
         return loop_offsets, loop_vertices
-    first = np.searchsorted(pairs[:, 0], cand)
-    na, nb = vertices[pairs[first, 1]], vertices[pairs[first + 1, 1]]
-    p = vertices[cand]
-    ab = nb - na
-    length2 = np.einsum("ij,ij->i", ab, ab)
-    s = np.einsum("ij,ij->i", p - na, ab) / np.where(length2 > 0, length2, 1.0)
-    off_line = np.linalg.norm(p - na - s[:, None] * ab, axis=1)
-    straight = (off_line <= tolerance) & (s > 0) & (s < 1)
-    removable = np.zeros(nv, dtype=bool)
-    removable[cand[straight]] = True
-    keep = ~removable[loop_vertices]
-    kept_per_loop = np.bincount(loop_id, weights=keep, minlength=len(loop_offsets) - 1).astype(np.int64)
-    too_small = kept_per_loop < 3
-    keep |= too_small[loop_id]
-    kept_per_loop = np.bincount(loop_id, weights=keep, minlength=len(loop_offsets) - 1).astype(np.int64)
+    first = np.searchsorted(pairs[:, 0], np.arange(nv))
+    neighbours = np.full((nv, 2), -1, dtype=np.int64)
+    two = np.flatnonzero(degree == 2)
+    neighbours[two] = np.stack([pairs[first[two], 1], pairs[first[two] + 1, 1]], axis=1)
+    protected = np.zeros(nv, dtype=bool)
+    while True:
+        removed = _chain_vertices_to_drop(vertices, neighbours, degree == 2, protected, tolerance)
+        keep = ~removed[loop_vertices]
+        kept_per_loop = np.bincount(loop_id, weights=keep, minlength=n_loops).astype(np.int64)
+        small = np.flatnonzero(kept_per_loop < 3)
+        newly = np.unique(loop_vertices[np.isin(loop_id, small)])
+        newly = newly[~protected[newly] & removed[newly]]
+        if len(newly) == 0:
+            break
+        protected[newly] = True
     return np.concatenate([[0], np.cumsum(kept_per_loop)]).astype(np.int64), loop_vertices[keep]
+
+
+def _chain_vertices_to_drop(vertices, neighbours, chain, protected, tolerance):
+    """Walk every chain of degree-2 vertices and simplify it against its chord."""
+    drop = np.zeros(len(vertices), dtype=bool)
+    seen = np.zeros(len(vertices), dtype=bool)
+    candidates = chain & ~protected
+    for start in np.flatnonzero(candidates):
+        if seen[start]:
+            continue
+        # walk both ways to the kept ends
+        path = [start]
+        seen[start] = True
+        ends = []
+        for direction in (0, 1):
+            prev, cur = start, neighbours[start, direction]
+            side = []
+            while candidates[cur] and not seen[cur]:
+                seen[cur] = True
+                side.append(cur)
+                n0, n1 = neighbours[cur]
+                prev, cur = cur, (n1 if n0 == prev else n0)
+            ends.append(cur)
+            path = side[::-1] + path if direction == 0 else path + side
+        if ends[0] == ends[1] and candidates[ends[0]]:
+            continue  # a closed ring of chain vertices: keep it (nothing anchors a chord)
+        chord = [ends[0], *path, ends[1]]
+        _douglas_peucker(vertices, chord, 0, len(chord) - 1, tolerance, drop)
+    return drop
+
+
+def _douglas_peucker(vertices, chord, i, j, tolerance, drop):
+    if j - i < 2:
+        return
+    a, b = vertices[chord[i]], vertices[chord[j]]
+    inner = vertices[chord[i + 1 : j]]
+    ab = b - a
+    length2 = float(ab @ ab)
+    s = np.clip((inner - a) @ ab / length2, 0.0, 1.0) if length2 > 0 else np.zeros(len(inner))
+    dist = np.linalg.norm(inner - a - s[:, None] * ab, axis=1)
+    k = int(np.argmax(dist))
+    if dist[k] <= tolerance:
+        drop[np.asarray(chord[i + 1 : j])] = True
+        return
+    _douglas_peucker(vertices, chord, i, i + 1 + k, tolerance, drop)
+    _douglas_peucker(vertices, chord, i + 1 + k, j, tolerance, drop)

@@ -9,6 +9,8 @@ edge three or more; ``edge[h]`` groups them all). Faces are two-sided.
 Generators (design notes §2): an edge is a *generator edge* unless it is shared
 by exactly two faces that are coplanar and lie on opposite sides of it (a flat
 edge, never a visual event); boundary and non-manifold edges always are.
+Coplanar means what merging means (:func:`viscx.scene.faces.merge_coplanar`):
+every vertex of each face within the tolerance of the other's plane.
 *Generator vertices* are the endpoints of generator edges.
 """
 
@@ -16,9 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Two faces are "flat" across an edge when their in-plane directions away from
-# the edge are opposite within this cosine (about 1.4e-5 rad).
-FLAT_COSINE = 1.0 - 1e-10
 
 
 @dataclass
@@ -46,7 +45,7 @@ class HalfEdges:
     vertex_is_generator: np.ndarray
 
 
-def build_half_edges(vertices, face_normal, face_loop_offsets, loop_offsets, loop_vertices):
+def build_half_edges(vertices, face_normal, face_loop_offsets, loop_offsets, loop_vertices, tolerance):
     """Half-edges of polygon faces given as loops.
 
     Parameters
@@ -56,6 +55,8 @@ def build_half_edges(vertices, face_normal, face_loop_offsets, loop_offsets, loo
     face_loop_offsets : (f + 1,) int
     loop_offsets : (l + 1,) int
     loop_vertices : (m,) int
+    tolerance : float
+        Coplanarity tolerance (the weld tolerance).
 
     Returns
     -------
@@ -85,7 +86,8 @@ def build_half_edges(vertices, face_normal, face_loop_offsets, loop_offsets, loo
     # in-plane direction from the edge into each face: n × (end - start)
     inward = np.cross(face_normal[face], vertices[end] - vertices[start])
     inward /= np.linalg.norm(inward, axis=1, keepdims=True)
-    flat = np.einsum("ij,ij->i", inward[h1], inward[h2]) <= -FLAT_COSINE
+    opposite = np.einsum("ij,ij->i", inward[h1], inward[h2]) < 0
+    flat = opposite & _coplanar(vertices, face_normal, face, face_loop_offsets, loop_offsets, loop_vertices, h1, h2, start, tolerance)
     edge_is_generator = np.ones(len(uniq), dtype=bool)
     edge_is_generator[two[flat]] = False
     vertex_is_generator = np.zeros(nv, dtype=bool)
@@ -102,3 +104,23 @@ def build_half_edges(vertices, face_normal, face_loop_offsets, loop_offsets, loo
         edge_is_generator=edge_is_generator,
         vertex_is_generator=vertex_is_generator,
     )
+
+
+def _coplanar(vertices, face_normal, face, face_loop_offsets, loop_offsets, loop_vertices, h1, h2, start, tolerance):
+    """Whether the faces of half-edge pairs (h1, h2) are coplanar within ``tolerance``:
+    every vertex of each face lies that close to the other's plane through the
+    shared edge (measured from the edge's start, so far-away scenes lose nothing)."""
+    ok = np.ones(len(h1), dtype=bool)
+    vertex_start = loop_offsets[face_loop_offsets[:-1]]
+    vertex_end = loop_offsets[face_loop_offsets[1:]]
+    for this, other in ((h1, h2), (h2, h1)):
+        f_other = face[other]
+        counts = vertex_end[f_other] - vertex_start[f_other]
+        owner = np.repeat(np.arange(len(this)), counts)
+        at = np.repeat(vertex_start[f_other], counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        points = vertices[loop_vertices[at]] - vertices[start[this]][owner]
+        dist = np.abs(np.einsum("ij,ij->i", points, face_normal[face[this]][owner]))
+        worst = np.zeros(len(this))
+        np.maximum.at(worst, owner, dist)
+        ok &= worst <= tolerance
+    return ok

@@ -93,10 +93,12 @@ def intersect_triangles(origins, directions, vertices, triangles, tri):
 
 def _unit(directions):
     d = np.asarray(directions, dtype=np.float64)
-    n = np.linalg.norm(d, axis=1, keepdims=True)
-    if np.any(n == 0) or not np.all(np.isfinite(d)):
+    # scale by the largest component first: 1e160 would overflow the norm, 1e-170 underflow it
+    big = np.abs(d).max(axis=1, keepdims=True) if len(d) else np.ones((0, 1))
+    if np.any(big == 0) or not np.all(np.isfinite(d)):
         raise ValueError("directions must be finite and non-zero")
-    return d / n
+    d = d / big
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 class RayCaster:
@@ -244,7 +246,8 @@ class RayCaster:
         with np.errstate(divide="ignore", invalid="ignore"):
             bound = np.where(d > 0, self.sky_box[1], self.sky_box[0])
             t = np.where(d != 0, (bound - o) / d, np.inf)
-        return o + np.min(t, axis=1)[:, None] * d
+        # a point outside the box (in the sky already) is its own sky end
+        return o + np.maximum(np.min(t, axis=1), 0.0)[:, None] * d
 
     def maximal_segments(self, points, directions, tmin=None):
         """The maximal free segment through each point along each direction.

@@ -15,8 +15,8 @@ epsilon_option = click.option(
     type=float,
     default=None,
     metavar="EPS",
-    help="Robustness epsilon (scene units): features closer than EPS are merged and "
-    "near-degenerate ray decisions are made in float64 within EPS. "
+    help="Robustness epsilon (scene units): segments are trimmed by EPS at their ends and "
+    "generators count as met within EPS (epsilon-visibility). "
     "Default: 1e-6 of the scene's bounding-box diagonal.",
 )
 

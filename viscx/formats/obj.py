@@ -8,6 +8,7 @@ the vertices read so far). Texture coordinates, normals, lines and curves are
 ignored. Materials come from ``mtllib`` files beside the OBJ (``Kd``, ``Ke``).
 """
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from viscx.errors import ViscxError
 from viscx.scene.soup import PolygonSoup
 
 DEFAULT_GROUP = "default"
+_INDEX = re.compile(r"-?[0-9]+")
 
 
 def _float_tokens(tokens, path, lineno, count):
@@ -104,10 +106,9 @@ def read_obj(path):
             face = []
             for token in tokens[1:]:
                 head = token.split("/", 1)[0]
-                try:
-                    index = int(head)
-                except ValueError:
-                    raise ViscxError(f"{path}:{lineno}: bad vertex index {token!r}") from None
+                if not _INDEX.fullmatch(head):  # int() would also take "+2" and "1_1"
+                    raise ViscxError(f"{path}:{lineno}: bad vertex index {token!r}")
+                index = int(head)
                 index = index - 1 if index > 0 else n + index
                 if index < 0 or index >= n or head in ("0", "-0"):
                     raise ViscxError(f"{path}:{lineno}: vertex index {head} out of range (1..{n})")

@@ -13,6 +13,7 @@ from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from viscx.errors import ViscxError
 from viscx.geometry.polygon import plane_basis
 from viscx.scene.clean import triangle_normals
 
@@ -206,7 +207,7 @@ def face_loops(vertices, triangles, triangle_face, face_normal):
     lo = np.searchsorted(sorted_keys, end_key, "left")
     hi = np.searchsorted(sorted_keys, end_key, "right")
     if np.any(hi == lo):
-        raise RuntimeError("open face boundary: a boundary edge has no successor")
+        raise ViscxError("a face's boundary could not be traced (overlapping or inconsistently wound triangles)")
     successor = sorted_ids[np.minimum(lo, len(sorted_ids) - 1)]
     ambiguous = np.flatnonzero(hi - lo > 1)
     if len(ambiguous):

@@ -2,7 +2,9 @@
 
 trimesh's OBJ path renames groups (an ``o`` and a ``g`` become ``object_group``),
 orders them by hash and triangulates, so viscx reads OBJ itself: ``o`` and ``g``
-name the current group, ``usemtl`` the current material, ``f`` lines are polygons
+name the current group (the latest statement wins, so a ``g`` inside an ``o``
+names its faces; ``g a b`` puts them in group ``a``: a face belongs to one
+group), ``usemtl`` the current material, ``f`` lines are polygons
 of any size (``v``, ``v/vt``, ``v//vn``, ``v/vt/vn``, negative indices relative to
 the vertices read so far). Texture coordinates, normals, lines and curves are
 ignored. Materials come from ``mtllib`` files beside the OBJ (``Kd``, ``Ke``).

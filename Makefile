@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 OUT    := out
 
-.PHONY: demo test venv bench clean
+.PHONY: demo test venv bench clean golden
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,16 @@ demo: venv
 
 test: venv
 	$(BIN)/python -m pytest -q
+
+# Rebuild the golden files that tests/test_golden.py diffs against; run it only
+# when a change of output is intended, and commit the result.
+golden: venv
+	$(BIN)/viscx -q build sample_scenes/two_triangles.obj -o tests/golden/two_triangles.h5
+	$(BIN)/viscx -q build sample_scenes/tetrahedra.obj -o tests/golden/tetrahedra.h5
+	$(BIN)/viscx -q build sample_scenes/boxes_on_floor.obj -o tests/golden/boxes_on_floor.h5
+	$(BIN)/viscx -q build sample_scenes/cornell_box.obj -o tests/golden/cornell_box.h5
+	$(BIN)/viscx -q build sample_scenes/room_with_door.obj -o tests/golden/room_with_door.h5
+	$(BIN)/viscx -q build sample_scenes/occluder_over_plane.ply -o tests/golden/occluder_over_plane.h5
 
 bench: venv
 	$(BIN)/python benchmarks/run.py --quick

@@ -5,7 +5,7 @@ import os
 import h5py
 import numpy as np
 import pytest
-from conftest import sample_scene_paths
+from conftest import SAMPLES, sample_scene_paths
 
 from viscx.formats.atomic import temporary_name
 from viscx.formats.hdf5 import FORMAT_VERSION, ViscxFile, read_scene, write_complex
@@ -73,3 +73,25 @@ def test_failed_write_keeps_the_previous_file(tmp_path):
     with pytest.raises(RuntimeError):
         write_complex(out, scene, levels={"V0": failing_level})
     assert out.read_bytes() == before and os.listdir(tmp_path) == ["x.h5"]
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda f: f.attrs.__delitem__("levels"), "missing attribute 'levels'"),
+        (lambda f: f.attrs.__setitem__("options", "{not json"), "not JSON"),
+        (lambda f: (f["scene"].__delitem__("face_group"), f["scene"].create_dataset("face_group", data=np.zeros((2, 2), int))), "face_group"),
+        (lambda f: (f["scene"].__delitem__("triangles"), f["scene"].create_dataset("triangles", data=np.full((32, 3), 999))), "triangles"),
+    ],
+    ids=["no-levels", "options-not-json", "wrong-shape", "index-out-of-range"],
+)
+def test_damaged_files_are_refused(tmp_path, damage, message):
+    from viscx.errors import ViscxError
+
+    scene = load_scene(SAMPLES / "cornell_box.obj")
+    out = tmp_path / "x.h5"
+    write_complex(out, scene)
+    with h5py.File(out, "r+") as f:
+        damage(f)
+    with pytest.raises(ViscxError, match=message):
+        read_scene(out)

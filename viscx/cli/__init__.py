@@ -12,16 +12,19 @@ import importlib
 import os
 import signal
 import sys
+import warnings
 
 import click
 
 from viscx import __version__
 from viscx.errors import ViscxError
+from viscx.formats.atomic import received_signals
 
 # name -> "module:attribute", in the order `viscx --help` lists them.
 COMMANDS = {
     "build": "viscx.cli.build:build",
     "info": "viscx.cli.info:info",
+    "diff": "viscx.cli.diff:diff",
 }
 
 
@@ -61,8 +64,16 @@ class Terminated(BaseException):
     """Raised in the main thread on SIGTERM so that clean-up (temporary files) runs."""
 
 
-def _on_sigterm(signum, frame):
-    raise Terminated()
+def _on_signal(signum, frame):
+    received_signals.append(signum)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _unraisable(info):
+    """Keep quiet about a signal's exception swallowed in a weakref callback or
+    ``__del__``: ``received_signals`` still stops the commit and sets the exit status."""
+    if not isinstance(info.exc_value, (KeyboardInterrupt, Terminated)):
+        sys.__unraisablehook__(info)
 
 
 def _fail(message, code):
@@ -72,10 +83,16 @@ def _fail(message, code):
 
 def main(argv=None):
     """Entry point of the ``viscx`` console script; returns via ``sys.exit``."""
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    received_signals.clear()
+    signal.signal(signal.SIGTERM, _on_signal)
+    signal.signal(signal.SIGINT, _on_signal)
+    sys.unraisablehook = _unraisable
+    # numeric warnings are not messages for a person: errors are reported as such
+    warnings.simplefilter("ignore", RuntimeWarning)
     try:
-        cli.main(args=argv, prog_name="viscx", standalone_mode=False)
-        code = 0
+        # without standalone mode click returns ctx.exit()'s code instead of raising
+        returned = cli.main(args=argv, prog_name="viscx", standalone_mode=False)
+        code = returned if isinstance(returned, int) else 0
     except click.exceptions.Exit as exc:
         code = exc.exit_code
     except click.UsageError as exc:
@@ -86,9 +103,9 @@ def main(argv=None):
     except ViscxError as exc:
         code = _fail(f"error: {exc}", exc.exit_code)
     except (KeyboardInterrupt, click.Abort):
-        code = _fail("interrupted", 130)
+        code = 130
     except Terminated:
-        code = _fail("terminated", 143)
+        code = 143
     except OSError as exc:
         name = f": {exc.filename}" if exc.filename else ""
         code = _fail(f"error: {exc.strerror or exc}{name}", 2)
@@ -96,4 +113,8 @@ def main(argv=None):
         if os.environ.get("VISCX_DEBUG"):
             raise
         code = _fail(f"internal error: {type(exc).__name__}: {exc} (set VISCX_DEBUG=1 for a traceback)", 1)
+    if received_signals:  # also when the signal's exception was swallowed on the way
+        code = 143 if received_signals[0] == signal.SIGTERM else 130
+    if code in (130, 143):
+        _fail("terminated" if code == 143 else "interrupted", code)
     sys.exit(code)

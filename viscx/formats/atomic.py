@@ -9,7 +9,12 @@ import contextlib
 import os
 from pathlib import Path
 
-__all__ = ["atomic_path", "temporary_name"]
+__all__ = ["atomic_path", "temporary_name", "received_signals"]
+
+#: Signals the CLI received (its handlers append here before raising). A handler's
+#: exception is lost when it lands in a weakref callback or ``__del__`` (Python
+#: prints "Exception ignored" and carries on), so the commit below checks this too.
+received_signals = []
 
 
 def temporary_name(path):
@@ -35,6 +40,8 @@ def atomic_path(path):
     tmp = temporary_name(path)
     try:
         yield tmp
+        if received_signals:
+            raise KeyboardInterrupt(f"signal {received_signals[0]}")
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

@@ -46,6 +46,7 @@ _SCENE_ARRAYS = [
     "material_ke",
 ]
 _HALF_EDGE_ARRAYS = ["start", "end", "face", "next", "opp", "edge", "loop"]
+_REQUIRED_ATTRS = ["levels", "options", "epsilon", "weld_tolerance"]
 _STRINGS = h5py.string_dtype(encoding="utf-8")
 
 
@@ -132,7 +133,12 @@ class ViscxFile:
         if attrs.get("format") != FORMAT:
             self.h5.close()
             raise ViscxError(f"{self.path} is an HDF5 file but not one written by viscx")
-        version = int(attrs.get("format_version", -1))
+        try:
+            version = int(attrs.get("format_version", -1))
+        except (TypeError, ValueError):
+            version = attrs.get("format_version")
+            self.h5.close()
+            raise ViscxError(f"{self.path} is a damaged viscx file (format_version {version!r} is not a number)") from None
         if version > FORMAT_VERSION:
             self.h5.close()
             raise ViscxError(
@@ -141,6 +147,16 @@ class ViscxFile:
         if version < 1 or "scene" not in self.h5:
             self.h5.close()
             raise ViscxError(f"{self.path} is a damaged viscx file (no scene level)")
+        missing = [name for name in _REQUIRED_ATTRS if name not in attrs]
+        if missing:
+            self.h5.close()
+            raise ViscxError(f"{self.path} is a damaged viscx file (missing attribute {missing[0]!r})")
+        try:
+            json.loads(attrs["levels"])
+            json.loads(attrs["options"])
+        except (TypeError, ValueError):
+            self.h5.close()
+            raise ViscxError(f"{self.path} is a damaged viscx file (levels or options are not JSON)") from None
 
     def __enter__(self):
         return self
@@ -179,6 +195,7 @@ class ViscxFile:
         )
         names = [s.decode() if isinstance(s, bytes) else s for s in self._array(g, "group_names")]
         materials = [s.decode() if isinstance(s, bytes) else s for s in self._array(g, "material_names")]
+        _check_scene_arrays(self.path, arrays, he, half_edges, names)
         attrs = self.h5.attrs
         return Scene(
             **arrays,
@@ -196,3 +213,50 @@ def read_scene(path):
     """The :class:`Scene` stored in a viscx file."""
     with ViscxFile(path) as f:
         return f.read_scene()
+
+
+def _check_scene_arrays(path, arrays, he, half_edges, names):
+    """Shapes and index ranges of a stored scene, so that a damaged file is refused
+    instead of read into wrong answers."""
+    n = len(arrays["vertices"])
+    f = len(arrays["face_area"])
+    t = len(arrays["triangles"])
+    h = len(he["start"])
+    e = len(half_edges.edge_vertices)
+    k = len(arrays["material_kd"])
+    expect = {
+        "vertices": (n, 3),
+        "triangles": (t, 3),
+        "triangle_face": (t,),
+        "face_loop_offsets": (f + 1,),
+        "face_normal": (f, 3),
+        "face_offset": (f,),
+        "face_area": (f,),
+        "face_group": (f,),
+        "face_material": (f,),
+        "loop_vertices": (h,),
+        "material_kd": (k, 3),
+        "material_ke": (k, 3),
+    }
+    problems = [name for name, shape in expect.items() if arrays[name].shape != shape]
+    problems += [f"half_edges/{name}" for name in _HALF_EDGE_ARRAYS if he[name].shape != (h,)]
+    if half_edges.edge_vertices.shape != (e, 2) or half_edges.edge_is_generator.shape != (e,):
+        problems.append("edges")
+    if half_edges.vertex_is_generator.shape != (n,):
+        problems.append("vertex_is_generator")
+    if not problems:
+        ranges = {
+            "triangles": (arrays["triangles"], n),
+            "triangle_face": (arrays["triangle_face"], f),
+            "loop_vertices": (arrays["loop_vertices"], n),
+            "face_group": (arrays["face_group"], len(names)),
+            "half_edges/next": (he["next"], h),
+            "half_edges/edge": (he["edge"], e),
+            "half_edges/face": (he["face"], f),
+        }
+        problems = [name for name, (a, top) in ranges.items() if a.size and (a.min() < 0 or a.max() >= top)]
+        offsets = arrays["face_loop_offsets"]
+        if offsets.size and (offsets[0] != 0 or np.any(np.diff(offsets) < 1) or offsets[-1] != len(arrays["loop_offsets"]) - 1):
+            problems.append("face_loop_offsets")
+    if problems:
+        raise ViscxError(f"{path} is a damaged viscx file (inconsistent scene/{problems[0]})")

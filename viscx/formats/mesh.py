@@ -22,6 +22,8 @@ def read_mesh(path):
         loaded = trimesh.load(str(path), force="scene", process=False)
     except Exception as exc:  # trimesh raises many kinds for unreadable files
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, ImportError):  # trimesh's fallback for a file it could not parse needs an optional module
+            reason = f"corrupt or unsupported file (trimesh's fallback needs the missing module {exc.name!r})"
         raise ViscxError(f"cannot read {path} as a mesh: {reason}") from None
     geometries = []
     for name in sorted(loaded.geometry):

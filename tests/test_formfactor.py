@@ -76,3 +76,68 @@ def test_against_monte_carlo_cosine_sampling(rng):
     estimate = hit.mean()
     sigma = np.sqrt(estimate * (1 - estimate) / k)
     assert abs(estimate - exact) < 4 * sigma
+
+
+def parallel_rectangles(X, Y):
+    """Closed form: directly opposed parallel rectangles X = a/c, Y = b/c (Howell C-11)."""
+    return (2 / (np.pi * X * Y)) * (
+        np.log(np.sqrt((1 + X * X) * (1 + Y * Y) / (1 + X * X + Y * Y)))
+        + X * np.sqrt(1 + Y * Y) * np.arctan(X / np.sqrt(1 + Y * Y))
+        + Y * np.sqrt(1 + X * X) * np.arctan(Y / np.sqrt(1 + X * X))
+        - X * np.arctan(X)
+        - Y * np.arctan(Y)
+    )
+
+
+def perpendicular_rectangles(H, W):
+    """Closed form: rectangles at a right angle sharing an edge of length l, H = h/l, W = w/l,
+    from the w × l one to the h × l one (Howell C-14)."""
+    a = (1 + W * W) * (1 + H * H) / (1 + W * W + H * H)
+    b = (W * W * (1 + W * W + H * H) / ((1 + W * W) * (W * W + H * H))) ** (W * W)
+    c = (H * H * (1 + H * H + W * W) / ((1 + H * H) * (H * H + W * W))) ** (H * H)
+    return (W * np.arctan(1 / W) + H * np.arctan(1 / H) - np.hypot(H, W) * np.arctan(1 / np.hypot(H, W)) + 0.25 * np.log(a * b * c)) / (np.pi * W)
+
+
+@pytest.mark.parametrize("a, b, c", [(1, 1, 1), (2, 0.5, 1.5), (0.2, 3.0, 0.7)])
+def test_parallel_rectangles(a, b, c):
+    from viscx.geometry.formfactor import polygon_to_polygon
+
+    lower = np.array([[0, 0, 0], [a, 0, 0], [a, b, 0], [0, b, 0.0]])
+    upper = lower + [0, 0, c]
+    got = polygon_to_polygon([lower], [0, 0, 1], [upper], [0, 0, -1])
+    assert abs(got - parallel_rectangles(a / c, b / c)) < 1e-9
+
+
+@pytest.mark.parametrize("l, w, h", [(1, 1, 1), (2, 0.5, 1.5), (0.7, 3.0, 0.4)])
+def test_perpendicular_rectangles_sharing_an_edge(l, w, h):
+    from viscx.geometry.formfactor import polygon_to_polygon
+
+    floor = np.array([[0, 0, 0], [l, 0, 0], [l, w, 0], [0, w, 0.0]])
+    wall = np.array([[0, 0, 0], [l, 0, 0], [l, 0, h], [0, 0, h]])
+    got = polygon_to_polygon([floor], [0, 0, 1], [wall], [0, 1, 0])
+    assert abs(got - perpendicular_rectangles(h / l, w / l)) < 1e-9
+    # reciprocity: A_i F_ij = A_j F_ji
+    back = polygon_to_polygon([wall], [0, 1, 0], [floor], [0, 0, 1])
+    assert abs(l * w * got - l * h * back) < 1e-9
+
+
+def test_polygon_to_polygon_is_the_integral_of_point_to_polygon(rng):
+    """Tilted triangles, no shared boundary: the contour integral against Monte Carlo
+    integration of the exact point-to-polygon formula over the emitter."""
+    from viscx.geometry.formfactor import polygon_to_polygon
+
+    tri_i = np.array([[0, 0, 0], [1.0, 0.1, 0.05], [0.2, 0.9, -0.1]])
+    tri_j = np.array([[0.1, 0.2, 1.0], [1.2, 0.5, 1.4], [-0.3, 1.1, 1.2]])
+    n_i = np.cross(tri_i[1] - tri_i[0], tri_i[2] - tri_i[0])
+    n_i /= np.linalg.norm(n_i)
+    n_j = -np.cross(tri_j[1] - tri_j[0], tri_j[2] - tri_j[0])
+    n_j /= np.linalg.norm(n_j)
+    exact = polygon_to_polygon([tri_i], n_i, [tri_j], n_j)
+    k = 200_000
+    u, v = rng.random(k), rng.random(k)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    points = tri_i[0] + u[:, None] * (tri_i[1] - tri_i[0]) + v[:, None] * (tri_i[2] - tri_i[0])
+    values = point_to_polygon(points, np.tile(n_i, (k, 1)), [tri_j])
+    sigma = values.std() / np.sqrt(k)
+    assert abs(values.mean() - exact) < 4 * sigma

@@ -97,3 +97,110 @@ def clip_to_hemisphere(loop, point, normal):
         if (ha >= 0) != (hb >= 0):
             out.append(a + (b - a) * (ha / (ha - hb)))
     return np.asarray(out).reshape(-1, 3)
+
+
+# -- polygon to polygon, unoccluded ----------------------------------------------------------
+#
+# Stokes' theorem turns the double area integral into a double contour integral
+# (Sparrow 1963):
+#
+#     A_i F_ij = (1 / 2π) ∮_i ∮_j ln r  dr_i · dr_j
+#
+# with both contours run counter-clockwise about their own polygon's normal (the
+# normals facing each other). Per pair of edges a (of i) and b (of j), with unit
+# directions u_a, u_b, the inner integral along b has a closed form: for a point
+# x at height h from b's line and projection t0 on it,
+#
+#     ∫_0^L ln |x - b(t)| dt = G(L - t0) - G(-t0),
+#     G(y) = ½ (y ln(y² + h²) - 2y) + h atan(y / h)        (G(y) = y ln|y| - y at h = 0),
+#
+# and the outer one along a is Gauss–Legendre on sub-intervals that shrink
+# geometrically toward a's ends, where the integrand has its (integrable)
+# logarithmic singularities when the polygons touch (a shared edge or vertex).
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(10)
+
+
+def _graded_nodes(length, levels=40):
+    """Quadrature nodes and weights on [0, length], refined geometrically toward both ends."""
+    cuts = length * np.concatenate([[0.0], 0.5 ** np.arange(levels, 0, -1) / 2, [0.5], 1 - 0.5 ** np.arange(1, levels + 1) / 2, [1.0]])
+    a, b = cuts[:-1], cuts[1:]
+    half = (b - a) / 2
+    nodes = (a + half)[:, None] + half[:, None] * _GL_X[None, :]
+    weights = half[:, None] * _GL_W[None, :]
+    return nodes.ravel(), weights.ravel()
+
+
+def _log_distance_integral(x, start, direction, length):
+    """∫_0^length ln |x - (start + t direction)| dt for points x, closed form.
+
+    Parameters
+    ----------
+    x : (m, 3) float
+    start, direction : (3,) float
+        Segment start and unit direction.
+    length : float
+    """
+    w = x - start
+    t0 = w @ direction
+    h = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - t0 * t0, 0.0))
+
+    def G(y):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            log_term = np.where(y * y + h * h > 0, y * np.log(y * y + h * h), 0.0)
+            atan_term = np.where(h > 0, h * np.arctan(y / np.where(h > 0, h, 1.0)), 0.0)
+        return 0.5 * log_term - y + atan_term
+
+    return G(length - t0) - G(-t0)
+
+
+def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j):
+    """Unoccluded form factor F_ij between two planar polygons (holes allowed).
+
+    Parameters
+    ----------
+    loops_i, loops_j : list of (k, 3) float
+        Outer loop first, then holes (wound oppositely to the outer loop).
+    normal_i, normal_j : (3,) float
+        Unit normals; polygon j must lie in front of i and i in front of j
+        (their planes may meet only along their boundary).
+
+    Returns
+    -------
+    float
+    """
+
+    def oriented(loops, normal):
+        # outer loop counter-clockwise about the normal, holes the other way round
+        out = []
+        for k, loop in enumerate(loops):
+            loop = np.asarray(loop, dtype=np.float64)
+            area = np.cross(loop, np.roll(loop, -1, axis=0)).sum(axis=0) @ normal
+            if (area > 0) != (k == 0):
+                loop = loop[::-1]
+            out.append(loop)
+        return out
+
+    li = oriented(loops_i, np.asarray(normal_i, dtype=np.float64))
+    lj = oriented(loops_j, np.asarray(normal_j, dtype=np.float64))
+    area_i = sum(abs(np.cross(l, np.roll(l, -1, axis=0)).sum(axis=0) @ normal_i) / 2 * (1 if k == 0 else -1) for k, l in enumerate(li))
+    total = 0.0
+    for loop_a in li:
+        for a0, a1 in zip(loop_a, np.roll(loop_a, -1, axis=0)):
+            len_a = np.linalg.norm(a1 - a0)
+            if len_a == 0:
+                continue
+            u_a = (a1 - a0) / len_a
+            s, w = _graded_nodes(len_a)
+            x = a0 + s[:, None] * u_a
+            for loop_b in lj:
+                for b0, b1 in zip(loop_b, np.roll(loop_b, -1, axis=0)):
+                    len_b = np.linalg.norm(b1 - b0)
+                    if len_b == 0:
+                        continue
+                    u_b = (b1 - b0) / len_b
+                    cos_ab = u_a @ u_b
+                    if abs(cos_ab) < 1e-15:
+                        continue  # perpendicular edges contribute nothing
+                    total += cos_ab * (w @ _log_distance_integral(x, b0, u_b, len_b))
+    return total / (2 * np.pi * area_i)

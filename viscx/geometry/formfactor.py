@@ -154,6 +154,15 @@ def _log_distance_integral(x, start, direction, length):
     return G(length - t0) - G(-t0)
 
 
+def _edges(loops):
+    """(start, unit direction, length) of every non-degenerate edge of some loops."""
+    for loop in loops:
+        for a, b in zip(loop, np.roll(loop, -1, axis=0)):
+            length = np.linalg.norm(b - a)
+            if length > 0:
+                yield a, (b - a) / length, length
+
+
 def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j):
     """Unoccluded form factor F_ij between two planar polygons (holes allowed).
 
@@ -185,22 +194,11 @@ def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j):
     lj = oriented(loops_j, np.asarray(normal_j, dtype=np.float64))
     area_i = sum(abs(np.cross(l, np.roll(l, -1, axis=0)).sum(axis=0) @ normal_i) / 2 * (1 if k == 0 else -1) for k, l in enumerate(li))
     total = 0.0
-    for loop_a in li:
-        for a0, a1 in zip(loop_a, np.roll(loop_a, -1, axis=0)):
-            len_a = np.linalg.norm(a1 - a0)
-            if len_a == 0:
-                continue
-            u_a = (a1 - a0) / len_a
-            s, w = _graded_nodes(len_a)
-            x = a0 + s[:, None] * u_a
-            for loop_b in lj:
-                for b0, b1 in zip(loop_b, np.roll(loop_b, -1, axis=0)):
-                    len_b = np.linalg.norm(b1 - b0)
-                    if len_b == 0:
-                        continue
-                    u_b = (b1 - b0) / len_b
-                    cos_ab = u_a @ u_b
-                    if abs(cos_ab) < 1e-15:
-                        continue  # perpendicular edges contribute nothing
-                    total += cos_ab * (w @ _log_distance_integral(x, b0, u_b, len_b))
+    for a0, u_a, len_a in _edges(li):
+        s, w = _graded_nodes(len_a)
+        x = a0 + s[:, None] * u_a
+        for b0, u_b, len_b in _edges(lj):
+            cos_ab = u_a @ u_b
+            if abs(cos_ab) > 1e-15:  # perpendicular edges contribute nothing
+                total += cos_ab * (w @ _log_distance_integral(x, b0, u_b, len_b))
     return total / (2 * np.pi * area_i)

@@ -106,14 +106,14 @@ def test_reference_finds_every_kind_on_the_cornell_box():
 
 def test_blocked_and_passed_generators_by_perturbation(scene_nodes):
     """Shift the node's line sideways by δ in 16 directions and look for hits with the
-    generator's own faces near the generator point (brute force, independent of the
-    tangency predicates). A passed generator has a shift that misses them all (the
+    faces touching the generator point (brute force, independent of the tangency
+    predicates). A passed generator has a shift that misses them all (the
     line can be moved off the surface); a blocking one is hit by every shift
     (the surface separates the line's two rays there). Grazing generators are skipped."""
-    from viscx.skeleton.nodes import generator_faces
+    from viscx.scene.neighbourhood import incident_faces
 
     scene, nodes = scene_nodes
-    vo, vf, eo, ef = generator_faces(scene)
+    vo, vf, eo, ef = incident_faces(scene)
     delta = 1e-5 * scene.diagonal
     angles = np.linspace(0, 2 * np.pi, 16, endpoint=False) + 0.1234  # not aligned with the axes
     checked = 0
@@ -128,13 +128,16 @@ def test_blocked_and_passed_generators_by_perturbation(scene_nodes):
             g = nodes.generators[i, slot]
             if g < 0:
                 continue
-            faces = vf[vo[g] : vo[g + 1]] if kinds[slot] else ef[eo[g] : eo[g + 1]]
+            # every face touching the generator point, its own or not (a block's
+            # bottom edge lies on the floor): found geometrically, not by topology
+            p = nodes.generator_points[i, slot]
+            _, near = scene.ray_caster.exact.triangles_near(p[None], 2 * scene.weld_tolerance)
+            faces = np.unique(np.concatenate([vf[vo[g] : vo[g + 1]] if kinds[slot] else ef[eo[g] : eo[g + 1]], scene.triangle_face[near]]))
             slope = np.abs(scene.face_normal[faces] @ d).min()
             if slope < 1e-6:
                 continue  # the line grazes one of its faces
             # a shift of δ meets a face at an angle θ after δ / sin θ
             reach = min(scene.diagonal, 4 * delta / slope)
-            p = nodes.generator_points[i, slot]
             tris = scene.triangles[np.isin(scene.triangle_face, faces)]
             a = p + delta * shifts - reach * d
             b = p + delta * shifts + reach * d

@@ -158,6 +158,67 @@ def _first_hits(origins, directions, tmin, tmax, vertices, triangles, lo, hi, ce
     return best_tri, best_t
 
 
+@njit(cache=True)
+def _near_counts(points, tol, vertices, triangles, lo, cell, dims, offsets, items, out_point, out_tri, fill):
+    """Pairs (point, triangle) with the point within ``tol`` of the closed triangle
+    (plane distance and barycentric slack); fills the out arrays when given room."""
+    k = 0
+    for r in range(points.shape[0]):
+        p = points[r]
+        a0 = np.empty(3, dtype=np.int64)
+        a1 = np.empty(3, dtype=np.int64)
+        for d in range(3):
+            a0[d] = min(max(int(np.floor((p[d] - tol - lo[d]) / cell[d])), 0), dims[d] - 1)
+            a1[d] = min(max(int(np.floor((p[d] + tol - lo[d]) / cell[d])), 0), dims[d] - 1)
+        seen_start = k
+        for x in range(a0[0], a1[0] + 1):
+            for y in range(a0[1], a1[1] + 1):
+                for z in range(a0[2], a1[2] + 1):
+                    c = (x * dims[1] + y) * dims[2] + z
+                    for j in range(offsets[c], offsets[c + 1]):
+                        tri = items[j]
+                        if _point_near_triangle(p, vertices, triangles, tri, tol):
+                            duplicate = False
+                            for q in range(seen_start, k):
+                                if fill and out_tri[q] == tri:
+                                    duplicate = True
+                                    break
+                            if fill and not duplicate:
+                                out_point[k] = r
+                                out_tri[k] = tri
+                                k += 1
+                            elif not fill:
+                                k += 1
+    return k
+
+
+@njit(cache=True)
+def _point_near_triangle(p, vertices, triangles, tri, tol):
+    a = vertices[triangles[tri, 0]]
+    b = vertices[triangles[tri, 1]]
+    c = vertices[triangles[tri, 2]]
+    e1 = b - a
+    e2 = c - a
+    n = np.array([e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]])
+    nn = np.sqrt((n * n).sum())
+    if nn == 0.0:
+        return False
+    w = p - a
+    if abs((w * n).sum()) / nn > tol:
+        return False
+    # barycentric coordinates of the projection, with slack tol / (edge length) per edge
+    d00 = (e1 * e1).sum()
+    d01 = (e1 * e2).sum()
+    d11 = (e2 * e2).sum()
+    d20 = (w * e1).sum()
+    d21 = (w * e2).sum()
+    den = d00 * d11 - d01 * d01
+    v = (d11 * d20 - d01 * d21) / den
+    u = (d00 * d21 - d01 * d20) / den
+    slack = tol * np.sqrt(nn * nn) / nn / np.sqrt(max(d00, d11))
+    return v >= -slack and u >= -slack and u + v <= 1.0 + slack
+
+
 class TriangleGrid:
     """Uniform grid over triangles with an exact float64 first-hit query.
 
@@ -215,3 +276,25 @@ class TriangleGrid:
             self.offsets,
             self.items,
         )
+
+    def triangles_near(self, points, tol):
+        """Every (point, triangle) pair with the point within ``tol`` of the closed triangle.
+
+        Parameters
+        ----------
+        points : (n, 3) float
+        tol : float
+
+        Returns
+        -------
+        point : (k,) int
+        triangle : (k,) int
+            Sorted by point, then as found; no repeated pair.
+        """
+        points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        args = (points, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims, self.offsets, self.items)
+        upper = _near_counts(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
+        point = np.empty(upper, dtype=np.int64)
+        tri = np.empty(upper, dtype=np.int64)
+        k = _near_counts(*args, point, tri, True)
+        return point[:k], tri[:k]

@@ -133,7 +133,7 @@ class RayCaster:
         self._embree = rtcore_scene.EmbreeScene(robust=True)
         corners = (self.vertices[self.triangles] - self.center).astype(np.float32)
         self._mesh = TriangleMesh(self._embree, corners)  # keep a reference alive
-        self._exact = TriangleGrid(self.vertices, self.triangles)
+        self.exact = TriangleGrid(self.vertices, self.triangles)
         self.stats = {"rays": 0, "float64_checks": 0, "exact": 0}
 
     # -- the one primitive -------------------------------------------------------------
@@ -195,7 +195,7 @@ class RayCaster:
         doubt = rays[~clear]
         if len(doubt):
             self.stats["exact"] += len(doubt)
-            tri_exact, t_exact = self._exact.first_hit(origins[doubt], directions[doubt], tmin[doubt], tmax[doubt])
+            tri_exact, t_exact = self.exact.first_hit(origins[doubt], directions[doubt], tmin[doubt], tmax[doubt])
             found = tri_exact >= 0
             face[doubt[found]] = self.triangle_face[tri_exact[found]]
             t_out[doubt[found]] = t_exact[found]

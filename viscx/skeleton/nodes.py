@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.lines import segment_parameter
-from viscx.geometry.tangency import tangent_at_edges, tangent_at_vertices
+from viscx.geometry.tangency import tangent_at_points
+from viscx.scene.neighbourhood import incident_faces
 
 # Node kinds.
 E4, VEE, VV = 0, 1, 2
@@ -114,7 +115,6 @@ def validate_candidates(scene, kind, generators, origins, directions):
     x_v = scene.vertices[gid[iv]]
     ok[iv] = np.linalg.norm(np.cross(x_v - oc[iv], dc[iv]), axis=1) <= eps
     point[iv] = x_v
-    tangent[iv], degenerate[iv] = tangent_at_vertices(scene, gid[iv], dc[iv])
 
     ie = np.flatnonzero(~is_vertex)
     ev = scene.half_edges.edge_vertices[gid[ie]]
@@ -125,7 +125,12 @@ def validate_candidates(scene, kind, generators, origins, directions):
     with np.errstate(invalid="ignore"):
         ok[ie] = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps)
     point[ie] = a + np.nan_to_num(x)[:, None] * (b - a)
-    tangent[ie], degenerate[ie] = tangent_at_edges(scene, gid[ie], dc[ie])
+
+    # tangency (the costly test) only for candidates whose every generator is met
+    met = np.ones(m, dtype=bool)
+    np.logical_and.at(met, cand, ok)
+    rows = np.flatnonzero(met[cand])
+    tangent[rows], degenerate[rows] = tangent_at_points(scene, point[rows], dc[rows])
     # grazing is the rule, not a degeneracy, at a face holding two of the node's
     # generators (v and e on one face, two edges of one face): seed 000 §4.1
     degenerate &= ~_grazes_shared_face(scene, cand, gid, is_vertex, oc, dc)
@@ -206,33 +211,10 @@ def validate_candidates(scene, kind, generators, origins, directions):
     return sort_nodes(result)
 
 
-def generator_faces(scene):
-    """Faces touching each vertex and each edge, as CSR tables.
-
-    Returns
-    -------
-    vertex_offsets : (n + 1,) int
-    vertex_faces : (k,) int
-        Unique faces whose loops pass through each vertex.
-    edge_offsets : (e + 1,) int
-    edge_faces : (k',) int
-        Faces bounded by each edge.
-    """
-    he = scene.half_edges
-
-    def table(owner, face, size):
-        pairs = np.unique(np.stack([owner, face], axis=1), axis=0)
-        return np.searchsorted(pairs[:, 0], np.arange(size + 1)), pairs[:, 1]
-
-    vo, vf = table(he.start, he.face, scene.n_vertices)
-    eo, ef = table(he.edge, he.face, len(he.edge_vertices))
-    return vo, vf, eo, ef
-
-
 def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, angle_tol=1e-9):
     """For each generator row, whether its line lies in the plane of a face that
     holds this generator and another generator of the same candidate."""
-    vo, vf, eo, ef = generator_faces(scene)
+    vo, vf, eo, ef = incident_faces(scene)
     offsets = np.empty(len(gid), dtype=np.int64)
     counts = np.empty(len(gid), dtype=np.int64)
     v, e = is_vertex, ~is_vertex

@@ -134,11 +134,16 @@ def check_perturbation(scene, nodes):
             slope = np.abs(scene.face_normal[faces] @ d).min()
             if slope < 1e-6:
                 continue  # the line grazes one of its faces
+            # stay local: the probe must not reach past the faces' other corners
+            corners = np.concatenate([scene.face_loops(f)[k] for f in faces for k in range(len(scene.face_loops(f)))])
+            gap = np.linalg.norm(corners - p, axis=1)
+            local = gap[gap > 10 * scene.weld_tolerance].min()
             # a shift of δ meets a face at an angle θ after δ / sin θ
-            reach = min(scene.diagonal, 4 * delta / slope)
+            shift = min(delta, local * slope / 8)
+            reach = 4 * shift / slope
             tris = scene.triangles[np.isin(scene.triangle_face, faces)]
-            a = p + delta * shifts - reach * d
-            b = p + delta * shifts + reach * d
+            a = p + shift * shifts - reach * d
+            b = p + shift * shifts + reach * d
             at_end = [np.allclose(p, nodes.ends[i, k]) for k in (0, 1)]
             blocking = any(at_end[k] and nodes.blocker_kind[i, k] in (BLOCK_EDGE, BLOCK_VERTEX) for k in (0, 1))
             # grown faces for "every shift hits", shrunk ones for "some shift misses":

@@ -95,3 +95,19 @@ def test_damaged_files_are_refused(tmp_path, damage, message):
         damage(f)
     with pytest.raises(ViscxError, match=message):
         read_scene(out)
+
+
+def test_nodes_round_trip(tmp_path):
+    from viscx.formats.hdf5 import read_nodes, write_nodes
+    from viscx.skeleton.reference import reference_nodes
+
+    scene = load_scene(SAMPLES / "cornell_box.obj")
+    nodes = reference_nodes(scene)
+    out = tmp_path / "x.h5"
+    write_complex(out, scene, levels={"V0": lambda g: write_nodes(g, nodes)})
+    with ViscxFile(out) as f:
+        assert f.levels == ["scene", "V0"]
+        back = read_nodes(f.h5["V0"])
+    for name in nodes.__dataclass_fields__:
+        a, b = getattr(nodes, name), getattr(back, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), name

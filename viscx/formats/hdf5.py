@@ -111,6 +111,33 @@ def write_complex(path, scene, levels=None, options=None, timings=None):
             prov.attrs["timings"] = json.dumps(timings or {}, sort_keys=True)
 
 
+_NODE_ARRAYS = ["kind", "generators", "direction", "ends", "blocker_kind", "blocker", "generator_points"]
+
+
+def write_nodes(group, nodes):
+    """Fill a ``V0`` group with :class:`viscx.skeleton.nodes.Nodes` (see docs/format.md)."""
+    for name in _NODE_ARRAYS:
+        write_dataset(group, name, getattr(nodes, name))
+    group.attrs["kinds"] = json.dumps({"E4": 0, "VEE": 1, "VV": 2})
+    group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2, "vertex": 3})
+
+
+def read_nodes(group):
+    """The :class:`viscx.skeleton.nodes.Nodes` stored in a ``V0`` group."""
+    from viscx.skeleton.nodes import Nodes
+
+    try:
+        arrays = {name: group[name][()] for name in _NODE_ARRAYS}
+    except KeyError as exc:
+        raise ViscxError(f"damaged V0 level (missing {exc.args[0]})") from None
+    n = len(arrays["kind"])
+    shapes = {"generators": (n, 4), "direction": (n, 3), "ends": (n, 2, 3), "blocker_kind": (n, 2), "blocker": (n, 2), "generator_points": (n, 4, 3)}
+    for name, shape in shapes.items():
+        if arrays[name].shape != shape:
+            raise ViscxError(f"damaged V0 level (V0/{name} has shape {arrays[name].shape}, expected {shape})")
+    return Nodes(**arrays)
+
+
 class ViscxFile:
     """An open, validated viscx file (use as a context manager).
 

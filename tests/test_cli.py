@@ -52,3 +52,17 @@ def test_console_script_end_to_end(tmp_path):
     )
     assert done.returncode == 0 and out.exists(), done.stderr
     assert "16 faces" in done.stdout
+
+
+def test_info_counts_a_v0_level_by_kind(tmp_path, capsys):
+    from viscx.formats.hdf5 import write_complex, write_nodes
+    from viscx.scene import load_scene
+    from viscx.skeleton.reference import reference_nodes
+
+    scene = load_scene(SAMPLES / "tetrahedra.obj")
+    nodes = reference_nodes(scene)
+    out = tmp_path / "t.h5"
+    write_complex(out, scene, levels={"V0": lambda g: write_nodes(g, nodes)})
+    code, stdout, _ = run(["info", str(out), "--json"], capsys)
+    counts = json.loads(stdout)["counts"]["V0"]
+    assert code == 0 and counts["total"] == len(nodes) and counts == {"total": len(nodes), **nodes.counts()}

@@ -26,20 +26,35 @@ def file_summary(path):
             "options": f.options,
             "levels": f.levels,
             "counts": {
-                "scene": {
-                    "vertices": scene.n_vertices,
-                    "faces": scene.n_faces,
-                    "triangles": len(scene.triangles),
-                    "half_edges": len(scene.half_edges.start),
-                    "edges": len(scene.half_edges.edge_vertices),
-                    "generator_edges": len(scene.generator_edges),
-                    "generator_vertices": len(scene.generator_vertices),
-                    "holes": int(np.sum(np.diff(scene.face_loop_offsets) - 1)),
-                }
+                "scene": scene_counts(scene),
+                **{level: level_counts(f.h5[level]) for level in f.levels if level != "scene" and level in f.h5},
             },
             "groups": groups,
             "timings": f.timings,
         }
+
+
+def scene_counts(scene):
+    """Counts of the scene level."""
+    return {
+        "vertices": scene.n_vertices,
+        "faces": scene.n_faces,
+        "triangles": len(scene.triangles),
+        "half_edges": len(scene.half_edges.start),
+        "edges": len(scene.half_edges.edge_vertices),
+        "generator_edges": len(scene.generator_edges),
+        "generator_vertices": len(scene.generator_vertices),
+        "holes": int(np.sum(np.diff(scene.face_loop_offsets) - 1)),
+    }
+
+
+def level_counts(group):
+    """Counts of a skeleton level: by kind where the level says its kinds, else rows per dataset."""
+    if "kind" in group and "kinds" in group.attrs:
+        kinds = json.loads(group.attrs["kinds"])
+        kind = group["kind"][()]
+        return {"total": int(len(kind)), **{name: int(np.count_nonzero(kind == k)) for name, k in kinds.items()}}
+    return {name: int(group[name].shape[0]) for name in group if hasattr(group[name], "shape") and group[name].shape}
 
 
 @click.command(short_help="Show the counts, options and timings stored in a viscx file.")

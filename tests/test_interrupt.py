@@ -31,7 +31,7 @@ def start_build(scene, out):
     # SIGINT is ignored by processes started in the background of a non-interactive shell,
     # and Python then installs no KeyboardInterrupt handler: restore the default first
     return subprocess.Popen(
-        [sys.executable, "-m", "viscx", "--quiet", "build", str(scene), "-o", str(out)],
+        [sys.executable, "-X", "faulthandler", "-m", "viscx", "--quiet", "build", str(scene), "-o", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

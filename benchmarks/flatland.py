@@ -1,0 +1,82 @@
+"""Flatland benchmark: build time and complex size for random circle scenes, and the
+dynamic update (one object moved) against a rebuild from scratch.
+
+    python benchmarks/flatland.py            # 10, 100, 300, 1000 circles
+    python benchmarks/flatland.py 10 100     # chosen sizes
+
+Plain timings (best of a few runs for the small sizes), no assertions.  The first call
+compiles/loads the numba kernels and is excluded (a warm-up build runs first).
+"""
+
+import sys
+import time
+
+import numpy as np
+
+from viscx.flatland.complex import build, candidates, classify, default_eps
+from viscx.flatland.dynamic import move
+from viscx.flatland.scene import make_scene
+
+
+def random_circles(n, seed=0, density=4.0):
+    """n disjoint circles, radii in [0.3, 1], in a square of side 4·√n (about 10 % covered)."""
+    rng = np.random.default_rng(seed)
+    side = np.sqrt(n) * density
+    centres, radii = np.zeros((0, 2)), np.zeros(0)
+    while len(radii) < n:
+        c = rng.uniform(0, side, 2)
+        r = rng.uniform(0.3, 1.0)
+        if len(radii) == 0 or np.all(np.hypot(*(centres - c).T) > radii + r + 0.05):
+            centres = np.vstack([centres, c])
+            radii = np.append(radii, r)
+    return make_scene([{"type": "circle", "center": c.tolist(), "radius": float(r)} for c, r in zip(centres, radii)])
+
+
+def timed(f, repeat=1):
+    best, out = np.inf, None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = f()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+def main(sizes):
+    build(random_circles(5))  # warm-up: numba cache
+    rows = []
+    for n in sizes:
+        scene = random_circles(n, seed=n)
+        rep = 3 if n <= 300 else 1
+        t_build, cx = timed(lambda: build(scene), rep)
+        # stage split of the build
+        eps = default_eps(scene)
+        t_cand, cand = timed(lambda: candidates(scene))
+        t_cls, cls = timed(lambda: classify(scene, cand, eps))
+        rng = np.random.default_rng(1)
+        t_moves, t_rebuilds, recomputed = [], [], []
+        for _ in range(5):
+            while True:
+                k = int(rng.integers(n))
+                dx, dy = rng.uniform(-0.5, 0.5, 2)
+                try:
+                    t_m, (moved, stats) = timed(lambda: move(cx, k, dx, dy))
+                    break
+                except Exception:
+                    continue
+            t_r, _ = timed(lambda: build(moved.scene, eps=cx.eps))
+            t_moves.append(t_m)
+            t_rebuilds.append(t_r)
+            recomputed.append((stats.formfactors_recomputed, stats.formfactors_total))
+        ff = np.mean([a for a, b in recomputed]), np.mean([b for a, b in recomputed])
+        rows.append((n, cx.n_vertices, cx.n_edges, cx.n_faces, t_build, t_cand, t_cls, np.median(t_moves),
+                     np.median(t_rebuilds), ff))
+    head = (f"{'n':>5} {'vertices':>9} {'edges':>8} {'faces':>7} {'build s':>8} {'(cand s':>8} {'free s)':>8} "
+            f"{'move s':>8} {'rebuild s':>9} {'FF recomputed / total':>22}")
+    print(head)
+    for n, m, E, F, tb, tc, tf, tm, tr, (a, b) in rows:
+        print(f"{n:>5} {m:>9} {E:>8} {F:>7} {tb:>8.3f} {tc:>8.3f} {tf:>8.3f} {tm:>8.3f} {tr:>9.3f} "
+              f"{a:>10.1f} / {b:<10.1f}")
+
+
+if __name__ == "__main__":
+    main([int(x) for x in sys.argv[1:]] or [10, 100, 300, 1000])

@@ -1,0 +1,554 @@
+"""The 2-D visibility complex of disjoint convex objects (Pocchiola–Vegter; seed 003 §3).
+
+Elements (seed 003 §3.2), all sets of maximal free segments:
+
+- **vertex**: a free bitangent — a segment tangent to two objects k1, k2 (k1's tangent
+  point first along the line) whose maximal free extension ends on a *tail* t and a
+  *head* h (−1 = blue sky).  Every pair of objects has four common tangents (two outer,
+  two inner); those whose segment between the tangent points is free are vertices.
+- **edge**: an arc of a tangency curve of one object k between two consecutive vertices:
+  segments tangent to k, with tail t and head h fixed along the arc.
+- **face**: a connected set of maximal free segments with the same pair of end objects.
+
+Incidences: an edge (k; t, h) is incident to the three faces (t,k), (k,h), (t,h) and bounded
+by two vertices; a vertex (k1, k2; t, h) is incident to four edges (two arcs on k1's curve,
+two on k2's) and six faces (t,k1), (k1,k2), (k2,h), (t,k2), (k1,h), (t,h); a face is bounded
+by two chains (its upper and lower boundary in the (θ, u) dual).
+
+How it is built (any method O(m log n) in practice is allowed by the issue):
+
+1. Candidates: the 4 common tangents of every pair, in closed form per support-function
+   piece (:func:`kernels.all_bitangents`).
+2. Each candidate segment is tested for freeness and extended to its tail and head by a
+   grid walk (:func:`kernels.classify_bitangents`; early exit on the first blocker).
+3. Edges: we work on the *oriented* double cover (θ ∈ [0, 2π)), where every vertex occurs
+   twice (θ and θ + π, sides swapped).  Sorting the vertex occurrences along each of the
+   2n tangency curves gives the edges between consecutive vertices.  The tail and head of
+   each edge follow from its end vertices (checked against both ends).
+4. Faces: an edge has three face *slots*; at a vertex the four edges pairwise share the six
+   faces, which glues slots into connected components (union–find) = the faces.
+5. Quotient: the reversal (θ, u) → (θ + π, −u) maps every oriented element to its *twin*;
+   the stored complex keeps one representative of each pair (edges starting at θ < π,
+   faces oriented from the smaller object id, the sky being −1).
+
+The form factors use the oriented faces: the lines leaving O_a and next meeting O_b form the
+oriented face a→b, whose dual area A_ab (θ ∈ [0, 2π)) equals the area of the unoriented
+face over θ ∈ [0, π).  The lines meeting O_a have measure 2 L_a when each is counted once per
+side it leaves O_a from (θ over [0, 2π)), so
+
+    F_ab = A_ab / (2 L_a)         (seed 003 §4.1 writes L_a, the [0, π) area, see docs)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from viscx.errors import ViscxError
+from viscx.flatland import kernels as K
+from viscx.flatland.scene import SKY, Scene
+
+TWO_PI = 2.0 * math.pi
+L, R = 0, 1
+
+# slots of an edge (object k, tail t, head h): the three faces it bounds
+SLOT_TK, SLOT_KH, SLOT_TH = 0, 1, 2
+
+
+@dataclass
+class FlatComplex:
+    """The visibility complex of a flatland scene plus its form factors.
+
+    Vertex arrays (m,): ``v_key`` int64 candidate key (pair, kind, root: stable id order),
+    ``v_obj`` (m, 2) int64 (k1, k2), ``v_support`` (m, 2) int64 (global support-point index
+    of each tangent point), ``v_side`` (m, 2) int8 (side of k1, k2: 1 = right of
+    the line, 0 = left), ``v_tail``, ``v_head`` int64 (−1 = sky), ``v_theta`` float64 in
+    [0, π), ``v_p``, ``v_q`` (m, 2) tangent points, ``v_length`` |pq| (seed 003's d_e),
+    ``v_seg`` (m, 4) the maximal free segment (sky ends clipped at the scene box + 1 %),
+    ``v_edges`` (m, 4) (k1 before, k1 after, k2 before, k2 after), ``v_faces`` (m, 6)
+    ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h)).
+
+    Edge arrays (E,): ``e_obj``, ``e_side``, ``e_tail``, ``e_head``, ``e_verts`` (E, 2)
+    (start, end vertex; −1 for a full loop), ``e_theta`` (E, 2) θ0 < θ1 (θ0 in [0, π)),
+    ``e_integral`` ∫u dθ, ``e_arclength`` (seed 003's d_c), ``e_faces`` (E, 3) (slots
+    (t,k), (k,h), (t,h)).
+
+    Face arrays (F,): ``f_pair`` (F, 2) (a, b) oriented a→b, ``f_area`` (dual area, method
+    a), ``f_strings`` (signed vertex/edge sum, method b), ``f_bounded``; boundary chains as
+    CSR ``f_edge_start`` / ``f_edge`` / ``f_edge_upper`` / ``f_edge_reversed`` and vertices
+    ``f_vert_start`` / ``f_vert`` / ``f_vert_sign`` (+1 extremal, −1 chain vertex, 0 a smooth
+    boundary point).
+
+    Form factors: ``F_area``, ``F_strings`` (n, n + 1), last column the blue sky.
+    """
+
+    scene: Scene
+    eps: float
+    arrays: dict
+
+    def __getattr__(self, name):
+        arrays = self.__dict__.get("arrays")
+        if arrays is not None and name in arrays:
+            return arrays[name]
+        raise AttributeError(name)
+
+    def __repr__(self):
+        return (f"FlatComplex(n_objects={self.scene.n}, vertices={self.n_vertices}, edges={self.n_edges}, "
+                f"faces={self.n_faces})")
+
+    @property
+    def n_vertices(self):
+        return int(self.arrays["v_key"].shape[0])
+
+    @property
+    def n_edges(self):
+        return int(self.arrays["e_obj"].shape[0])
+
+    @property
+    def n_faces(self):
+        return int(self.arrays["f_pair"].shape[0])
+
+
+# ----------------------------------------------------------------------------- candidates
+def scene_kernel_args(scene: Scene):
+    A, cumG, cumS, perimeter = scene.pieces()
+    return A, cumG, cumS, perimeter
+
+
+def default_eps(scene: Scene) -> float:
+    bb = scene.bounding_boxes()
+    diag = math.hypot(bb[:, 2].max() - bb[:, 0].min(), bb[:, 3].max() - bb[:, 1].min())
+    return 1e-9 * max(diag, 1e-300)
+
+
+def candidates(scene: Scene, pairs=None):
+    """Candidate bitangents (the 4 common tangents of every pair), canonical orientation.
+
+    Parameters
+    ----------
+    pairs : (P, 2) int64, optional  object pairs (i < j); default all pairs.
+
+    Returns a dict of (4P,) arrays: key, theta in [0, π), a, b, side_a, side_b, va, vb."""
+    n = scene.n
+    if pairs is None:
+        ii, jj = np.triu_indices(n, 1)
+        pairs = np.stack([ii, jj], axis=1).astype(np.int64)
+    pa, pb = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
+    A, cumG, cumS, perim = scene.pieces()
+    theta, va, vb, count = K.all_bitangents(pa, pb, scene.vert_start, scene.verts, scene.radius, A, 1e-12)
+    bad = np.nonzero(count != 2)[0]
+    if bad.size:
+        i = bad[0] // 2
+        raise ViscxError(f"degenerate pair: objects {scene.names[pa[i]]!r} and {scene.names[pb[i]]!r} "
+                         f"have {count[bad[0]]} common tangents of one kind instead of 2 (degenerate; try --perturb)")
+    P = pa.shape[0]
+    a = np.repeat(pa, 4)
+    b = np.repeat(pb, 4)
+    combo = np.tile(np.array([0, 0, 1, 1]), P)
+    root = np.tile(np.array([0, 1, 0, 1]), P)
+    side_a = np.ones(4 * P, np.int8)
+    side_b = np.where(combo == 0, 1, 0).astype(np.int8)
+    # canonical orientation θ ∈ [0, π): the reversed line swaps both sides
+    flip = theta >= math.pi
+    theta = np.where(flip, theta - math.pi, theta)
+    side_a = np.where(flip, 1 - side_a, side_a).astype(np.int8)
+    side_b = np.where(flip, 1 - side_b, side_b).astype(np.int8)
+    key = ((a * n + b) * 4 + 2 * combo + root).astype(np.int64)
+    return dict(key=key, theta=theta, a=a, b=b, side_a=side_a, side_b=side_b, va=va, vb=vb)
+
+
+def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
+    """Freeness, order and tail/head of candidates (see :func:`kernels.classify_bitangents`)."""
+    if grid is None:
+        grid = K.build_grid(scene.bounding_boxes())
+    N = cand["theta"].shape[0]
+    todo = np.ones(N, bool) if todo is None else todo
+    return K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
+                                 cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo, eps, *grid,
+                                 scene.kind, scene.vert_start, scene.verts, scene.radius)
+
+
+def vertices_from(scene: Scene, cand: dict, cls) -> dict:
+    """Vertex arrays (sorted by key) from classified candidates."""
+    free, a_first, tail, head, tail_t, head_t = cls
+    idx = np.nonzero(free)[0]
+    af = a_first[idx]
+    a, b = cand["a"][idx], cand["b"][idx]
+    sa, sb = cand["side_a"][idx], cand["side_b"][idx]
+    va, vb = cand["va"][idx], cand["vb"][idx]
+    theta = cand["theta"][idx]
+    d = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    nrm = np.stack([-d[:, 1], d[:, 0]], axis=1)
+    pa = scene.verts[va] + ((2.0 * sa - 1.0) * scene.radius[a])[:, None] * nrm
+    pb = scene.verts[vb] + ((2.0 * sb - 1.0) * scene.radius[b])[:, None] * nrm
+    k1 = np.where(af, a, b)
+    k2 = np.where(af, b, a)
+    s1 = np.where(af, sa, sb).astype(np.int8)
+    s2 = np.where(af, sb, sa).astype(np.int8)
+    p = np.where(af[:, None], pa, pb)
+    q = np.where(af[:, None], pb, pa)
+    length = np.einsum("ij,ij->i", q - p, d)
+    # maximal free segment; a sky end is clipped to the scene box enlarged by 1 %
+    tt = np.where(np.isfinite(tail_t[idx]), tail_t[idx], 0.0)
+    ht = np.where(np.isfinite(head_t[idx]), head_t[idx], 0.0)
+    seg = np.concatenate([p - tt[:, None] * d, q + ht[:, None] * d], axis=1)
+    seg = clip_sky_ends(scene, theta, p, q, tail[idx], head[idx], seg)
+    sup = np.stack([np.where(af, va, vb), np.where(af, vb, va)], 1).astype(np.int64)
+    return dict(v_key=cand["key"][idx], v_obj=np.stack([k1, k2], 1).astype(np.int64), v_support=sup,
+                v_side=np.stack([s1, s2], 1).astype(np.int8), v_tail=tail[idx].astype(np.int64),
+                v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
+
+
+def clip_sky_ends(scene, theta, p, q, tail, head, seg):
+    """(m, 4) segments with every sky end (tail or head −1) replaced by the point where the
+    line leaves the scene's bounding box enlarged by 1 % (finite, checkable)."""
+    d = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    bb = scene.bounding_boxes()
+    lo, hi = bb[:, :2].min(axis=0), bb[:, 2:].max(axis=0)
+    pad = 0.01 * (hi - lo).max() + 1e-12
+    seg = seg.copy()
+    back = p - _box_exit(p, -d, lo - pad, hi + pad)[:, None] * d
+    far = q + _box_exit(q, d, lo - pad, hi + pad)[:, None] * d
+    seg[:, :2] = np.where((tail < 0)[:, None], back, seg[:, :2])
+    seg[:, 2:] = np.where((head < 0)[:, None], far, seg[:, 2:])
+    return seg
+
+
+def _box_exit(o, d, lo, hi):
+    """(N,) distance along d from points o (inside the box) to the box boundary."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = np.where(d[:, 0] > 0, (hi[0] - o[:, 0]) / d[:, 0], np.where(d[:, 0] < 0, (lo[0] - o[:, 0]) / d[:, 0], np.inf))
+        ty = np.where(d[:, 1] > 0, (hi[1] - o[:, 1]) / d[:, 1], np.where(d[:, 1] < 0, (lo[1] - o[:, 1]) / d[:, 1], np.inf))
+    return np.minimum(tx, ty)
+
+
+# ----------------------------------------------------------------------------- topology
+def derive(scene: Scene, V: dict, previous: dict | None = None):
+    """Edges, faces, incidences, dual areas and string sums from the vertices.
+
+    Pure numpy over flat arrays (sorting and a union–find by connected components).  With
+    ``previous`` (the arrays of an earlier complex of the same objects), faces whose
+    boundary signature is unchanged keep their area and string sum instead of being
+    re-summed.  Returns (arrays, recomputed) with recomputed (F,) bool per face."""
+    n = scene.n
+    m = V["v_key"].shape[0]
+    k1, k2 = V["v_obj"][:, 0], V["v_obj"][:, 1]
+    s1, s2 = V["v_side"][:, 0].astype(np.int64), V["v_side"][:, 1].astype(np.int64)
+    t, h = V["v_tail"], V["v_head"]
+    th = V["v_theta"]
+    # -- oriented occurrences: o = 0 the stored line, o = 1 its reversal (θ + π): the
+    #    order along the line flips, both sides flip, tail and head swap
+    OK1 = np.concatenate([k1, k2]); OK2 = np.concatenate([k2, k1])
+    OS1 = np.concatenate([s1, 1 - s2]); OS2 = np.concatenate([s2, 1 - s1])
+    OT = np.concatenate([t, h]); OH = np.concatenate([h, t])
+    OTH = np.concatenate([th, th + math.pi])
+    OJ1 = np.concatenate([V["v_support"][:, 0], V["v_support"][:, 1]])
+    OJ2 = np.concatenate([V["v_support"][:, 1], V["v_support"][:, 0]])
+    n_occ = 2 * m
+    # -- incidences on tangency curves (curve id 2·object + side): role 0 on K1, 1 on K2
+    inc_occ = np.concatenate([np.arange(n_occ), np.arange(n_occ)])
+    inc_role = np.concatenate([np.zeros(n_occ, np.int64), np.ones(n_occ, np.int64)])
+    inc_obj = np.concatenate([OK1, OK2])
+    inc_side = np.concatenate([OS1, OS2])
+    inc_curve = 2 * inc_obj + inc_side
+    inc_theta = np.concatenate([OTH, OTH])
+    order = np.lexsort((inc_occ, inc_theta, inc_curve))
+    cur = inc_curve[order]
+    n_inc = order.shape[0]
+    # next incidence on the same curve (cyclic)
+    first_of = np.searchsorted(cur, cur, side="left")
+    last_of = np.searchsorted(cur, cur, side="right") - 1
+    pos = np.arange(n_inc)
+    nxt = np.where(pos == last_of, first_of, pos + 1)
+    # edges: one per sorted incidence (starting there); plus full loops for empty curves
+    e_curve = cur
+    e_start_inc = order
+    e_end_inc = order[nxt]
+    th0 = inc_theta[order]
+    th1 = inc_theta[order[nxt]]
+    th1 = np.where(nxt <= pos, th1 + TWO_PI, th1)  # wrap (also the single-vertex loop)
+    # edge starting / ending at each incidence
+    edge_after = np.empty(n_inc, np.int64); edge_after[order] = pos
+    edge_before = np.empty(n_inc, np.int64); edge_before[order[nxt]] = pos
+
+    def inc_id(occ, role):
+        return occ + role * n_occ
+
+    occ = np.arange(n_occ)
+    # labels of the four edges at an occurrence (derivation: f(θ) = u_K1 − u_K2 has slope
+    # d·(q − p) > 0 at the vertex, so just after it the line tangent to K1 passes above
+    # K2's curve; it crosses K2 iff K2 is on its left (λ) side; symmetrically for K2)
+    x_after = OS2 == L            # on K1's curve the (T→K2) edge is after the vertex
+    z_after = OS1 == R            # on K2's curve the (K1→H) edge is after the vertex
+    e1a, e1b = edge_after[inc_id(occ, 0)], edge_before[inc_id(occ, 0)]
+    e2a, e2b = edge_after[inc_id(occ, 1)], edge_before[inc_id(occ, 1)]
+    X = np.where(x_after, e1a, e1b); Y = np.where(x_after, e1b, e1a)
+    Z = np.where(z_after, e2a, e2b); W = np.where(z_after, e2b, e2a)
+    # tail/head from the start vertex of each edge ...
+    start_occ = e_start_inc % n_occ
+    start_role = e_start_inc // n_occ
+    so = start_occ
+    tail_s = np.where(start_role == 0, OT[so], np.where(z_after[so], OK1[so], OT[so]))
+    head_s = np.where(start_role == 0, np.where(x_after[so], OK2[so], OH[so]), OH[so])
+    eo = e_end_inc % n_occ
+    er = e_end_inc // n_occ
+    # ... and from the end vertex (the edge is 'before' there): must agree
+    tail_e = np.where(er == 0, OT[eo], np.where(z_after[eo], OT[eo], OK1[eo]))
+    head_e = np.where(er == 0, np.where(x_after[eo], OH[eo], OK2[eo]), OH[eo])
+    bad = np.nonzero((tail_s != tail_e) | (head_s != head_e))[0]
+    if bad.size:
+        kk = e_curve[bad[0]] // 2
+        raise ViscxError(f"inconsistent visibility complex along the tangency curve of {scene.names[kk]!r} "
+                         "(a degenerate configuration, e.g. edges of three objects on one line); "
+                         "rebuild with --perturb (Scene.perturbed())")
+    e_tail, e_head = tail_s, head_s
+    e_obj = e_curve // 2
+    e_side = e_curve % 2
+    e_vs = e_start_inc % n_occ  # start occurrence
+    e_ve = e_end_inc % n_occ
+    # the support point (tangent point) of the edge's object at its two end vertices
+    e_j0 = np.where(start_role == 0, OJ1[e_vs], OJ2[e_vs])
+    e_j1 = np.where(er == 0, OJ1[e_ve], OJ2[e_ve])
+    # full loops: tangency curves without any vertex (a lone object)
+    have = np.zeros(2 * n, bool); have[cur] = True
+    loops = np.nonzero(~have)[0]
+    if loops.size:
+        e_curve = np.concatenate([e_curve, loops])
+        e_obj = e_curve // 2; e_side = e_curve % 2
+        th0 = np.concatenate([th0, np.zeros(loops.size)])
+        th1 = np.concatenate([th1, np.full(loops.size, TWO_PI)])
+        e_tail = np.concatenate([e_tail, np.full(loops.size, SKY)])
+        e_head = np.concatenate([e_head, np.full(loops.size, SKY)])
+        e_vs = np.concatenate([e_vs, np.full(loops.size, -1)])
+        e_ve = np.concatenate([e_ve, np.full(loops.size, -1)])
+        e_j0 = np.concatenate([e_j0, np.full(loops.size, -1)])
+        e_j1 = np.concatenate([e_j1, np.full(loops.size, -1)])
+    E = e_curve.shape[0]
+    # -- faces: union of slots (3·edge + slot) glued at the vertices
+    S = lambda e, s: 3 * e + s  # noqa: E731
+    ua = [S(X, 0), S(X, 1), S(X, 2), S(Y, 1), S(Y, 2), S(Z, 1)]
+    ub = [S(Y, 0), S(Z, 0), S(W, 0), S(Z, 2), S(W, 2), S(W, 1)]
+    ua = np.concatenate(ua); ub = np.concatenate(ub)
+    if loops.size:
+        # a lone object: its two loops bound the same faces (lines crossing it)
+        lid = {int(c): n_inc + i for i, c in enumerate(loops)}
+        extra_a, extra_b = [], []
+        for c, e in lid.items():
+            if c % 2 == R and (c - 1) in lid:
+                o = lid[c - 1]
+                extra_a += [S(e, 0), S(e, 1)]; extra_b += [S(o, 0), S(o, 1)]
+        ua = np.concatenate([ua, np.array(extra_a, np.int64)]); ub = np.concatenate([ub, np.array(extra_b, np.int64)])
+    nslot = 3 * E
+    g = coo_matrix((np.ones(ua.shape[0]), (ua, ub)), shape=(nslot, nslot))
+    ncomp, comp = connected_components(g, directed=False)
+    # labels of the slots
+    slot_edge = np.arange(nslot) // 3
+    slot_kind = np.arange(nslot) % 3
+    slot_tail = np.where(slot_kind == SLOT_KH, e_obj[slot_edge], e_tail[slot_edge])
+    slot_head = np.where(slot_kind == SLOT_TK, e_obj[slot_edge], e_head[slot_edge])
+    c_tail = np.full(ncomp, -3, np.int64); c_tail[comp] = slot_tail
+    c_head = np.full(ncomp, -3, np.int64); c_head[comp] = slot_head
+    # -- twins: reversal maps occurrence (v, o) to (v, 1 − o), role r to 1 − r, side to 1 − side
+    inc_twin = inc_id((np.arange(n_inc) % n_occ + m) % n_occ, 1 - np.arange(n_inc) // n_occ)
+    e_twin = np.empty(E, np.int64)
+    e_twin[:n_inc] = edge_after[inc_twin[e_start_inc]]
+    if loops.size:
+        loop_of = {int(c): n_inc + i for i, c in enumerate(loops)}
+        for c, e in loop_of.items():
+            e_twin[e] = loop_of[c ^ 1]
+    slot_twin = 3 * e_twin[slot_edge] + np.array([1, 0, 2])[slot_kind]
+    c_twin = np.empty(ncomp, np.int64); c_twin[comp] = comp[slot_twin]
+    c_minslot = np.full(ncomp, nslot, np.int64)
+    np.minimum.at(c_minslot, comp, np.arange(nslot))
+    canon_c = np.where(c_tail != c_head, c_tail < c_head,
+                       (c_minslot <= c_minslot[c_twin]))
+    # -- edge integrals: ∫u dθ (method a) and contact arc lengths d_c (method b)
+    A_, cumG, cumS, perim = scene.pieces()
+    I, arc = K.edge_integrals(e_obj, e_side, th0, th1, scene.vert_start, scene.verts, scene.radius,
+                              A_, cumG, cumS, perim, e_j0, e_j1)
+    # -- method (a): Green's theorem in the (θ, u) plane, area = ∫ upper u dθ − ∫ lower u dθ.
+    #    Above a curve of side L lie the lines crossing k (slots (t,k), (k,h)); above a curve
+    #    of side R the lines missing it (slot (t,h)).  A face below an edge has it as upper.
+    crossing = slot_kind != SLOT_TH
+    side_s = e_side[slot_edge]
+    face_below = np.where(side_s == R, crossing, ~crossing)
+    # faces whose boundary is unchanged since `previous` keep their sums (dynamic update)
+    c_hash = _component_hashes(scene, comp, ncomp, slot_edge, slot_kind, e_obj, e_side, e_tail, e_head, th0, th1)
+    need = np.ones(ncomp, bool)
+    if previous is not None and previous["f_hash"].size:
+        ph = np.concatenate([previous["f_hash"], previous["f_hash_twin"]])
+        pa = np.concatenate([previous["f_area"], previous["f_area_twin"]])
+        ps = np.concatenate([previous["f_strings"], previous["f_strings_twin"]])
+        o_ = np.argsort(ph, kind="stable")
+        ph, pa, ps = ph[o_], pa[o_], ps[o_]
+        idx = np.clip(np.searchsorted(ph, c_hash), 0, ph.size - 1)
+        need = ph[idx] != c_hash
+    live = need[comp]
+    contrib = np.where(face_below, I[slot_edge], -I[slot_edge])
+    area = np.bincount(comp[live], weights=contrib[live], minlength=ncomp)
+    has_up = np.bincount(comp, weights=face_below.astype(float), minlength=ncomp) > 0
+    has_lo = np.bincount(comp, weights=(~face_below).astype(float), minlength=ncomp) > 0
+    bounded = has_up & has_lo
+    # -- method (b): seed 003 §4.1: + d_c for edges on the face's own objects, − d_c for the
+    #    others; + d_e for extremal vertices (where the two chains meet), − d_e otherwise.
+    strings = np.bincount(comp[live], weights=np.where(crossing, arc[slot_edge], -arc[slot_edge])[live],
+                          minlength=ncomp)
+    occ_len = np.concatenate([V["v_length"], V["v_length"]])
+    same = OS1 == OS2
+    # the six faces of an occurrence, as components, and the vertex's role on each.  Near
+    # the bitangent, (T,K1) is every line crossing K1 and (K2,H) every line crossing K2: the
+    # vertex is a smooth point of their boundary (sign 0).  The other four faces fill the
+    # four sectors of the crossing of the two tangency curves: 'both' (K1,K2), 'neither'
+    # (T,H), 'K1 only' (K1,H), 'K2 only' (T,K2).  When the two sides agree (outer
+    # bitangent), 'both' and 'neither' are the up/down sectors (a chain vertex, −d_e) and the
+    # two others the left/right ones (an extremal vertex, +d_e); inner bitangents swap them.
+    six = np.stack([comp[S(X, 0)], comp[S(X, 1)], comp[S(X, 2)], comp[S(Y, 1)], comp[S(Y, 2)], comp[S(Z, 1)]], 1)
+    zero = np.zeros_like(same)
+    sgn = np.stack([zero, np.where(same, -1, 1), np.where(same, 1, -1), np.where(same, 1, -1),
+                    np.where(same, -1, 1), zero], 1).astype(np.int8) if n_occ else np.zeros((0, 6), np.int8)
+    six_live = need[six.ravel()]
+    strings += np.bincount(six.ravel()[six_live], weights=(sgn * occ_len[:, None]).ravel().astype(float)[six_live],
+                           minlength=ncomp)
+    area = np.where(bounded, area, np.inf)
+    strings = np.where(bounded, strings, np.inf)
+    if previous is not None and previous["f_hash"].size:
+        area = np.where(need, area, pa[idx])
+        strings = np.where(need, strings, ps[idx])
+    # -- canonical numbering: edges starting at an o = 0 occurrence (or R loops), in order;
+    #    faces sorted by (tail, head, smallest slot of their representative)
+    e_canon = np.where(e_vs >= 0, e_vs < m, e_side == R)
+    canon_e_ids = np.nonzero(e_canon)[0]
+    e_new = np.full(E, -1, np.int64)
+    e_new[canon_e_ids] = np.arange(canon_e_ids.size)
+    e_new[~e_canon] = e_new[e_twin[~e_canon]]
+    e_rev = ~e_canon
+    rep = np.nonzero(canon_c)[0]
+    rep = rep[np.lexsort((c_minslot[rep], c_head[rep], c_tail[rep]))]
+    f_new = np.full(ncomp, -1, np.int64)
+    f_new[rep] = np.arange(rep.size)
+    f_new[~canon_c] = f_new[c_twin[~canon_c]]
+    out = {}
+    ce = canon_e_ids
+    out["e_obj"] = e_obj[ce].astype(np.int64)
+    out["e_side"] = e_side[ce].astype(np.int8)
+    out["e_tail"] = e_tail[ce]
+    out["e_head"] = e_head[ce]
+    out["e_verts"] = np.stack([np.where(e_vs[ce] >= 0, e_vs[ce] % max(m, 1), -1),
+                               np.where(e_ve[ce] >= 0, e_ve[ce] % max(m, 1), -1)], 1).astype(np.int64)
+    out["e_theta"] = np.stack([th0[ce], th1[ce]], 1)
+    out["e_integral"] = I[ce]
+    out["e_arclength"] = arc[ce]
+    out["e_faces"] = f_new[comp[3 * ce[:, None] + np.arange(3)[None, :]]]
+    # vertex incidences (occurrence o = 0)
+    o0 = np.arange(m)
+    out["v_edges"] = np.stack([e_new[e1b[o0]], e_new[e1a[o0]], e_new[e2b[o0]], e_new[e2a[o0]]], 1) if m else np.zeros((0, 4), np.int64)
+    out["v_faces"] = f_new[six[:m]] if m else np.zeros((0, 6), np.int64)
+    # faces
+    out["f_pair"] = np.stack([c_tail[rep], c_head[rep]], 1)
+    out["f_area"] = area[rep]
+    out["f_strings"] = strings[rep]
+    out["f_bounded"] = bounded[rep]
+    # boundary chains of each face's representative: its slots, upper chain first, by θ0
+    slot_f = f_new[comp]
+    keep = canon_c[comp]
+    sl = np.nonzero(keep)[0]
+    sl = sl[np.lexsort((th0[slot_edge[sl]] % TWO_PI, ~face_below[sl], slot_f[sl]))]
+    out["f_edge_start"] = np.searchsorted(slot_f[sl], np.arange(rep.size + 1)).astype(np.int64)
+    out["f_edge"] = e_new[slot_edge[sl]]
+    out["f_edge_upper"] = face_below[sl]
+    out["f_edge_reversed"] = e_rev[slot_edge[sl]]
+    # boundary vertices of each face's representative, with extremal flag
+    fv_face = six.ravel()
+    fv_occ = np.repeat(np.arange(n_occ), 6)
+    fv_sign = sgn.ravel()
+    kv = canon_c[fv_face]
+    ff = f_new[fv_face[kv]]; vv = fv_occ[kv] % max(m, 1); ex = fv_sign[kv]
+    o = np.lexsort((vv, ff))
+    out["f_vert_start"] = np.searchsorted(ff[o], np.arange(rep.size + 1)).astype(np.int64)
+    out["f_vert"] = vv[o].astype(np.int64)
+    out["f_vert_sign"] = ex[o].astype(np.int8)
+    # oriented areas of both twins (for the reciprocity check)
+    out["f_area_twin"] = area[c_twin[rep]]
+    out["f_strings_twin"] = strings[c_twin[rep]]
+    out["f_hash"] = c_hash[rep]
+    out["f_hash_twin"] = c_hash[c_twin[rep]]
+    # form factors F_ab = A_ab / (2 L_a), last column: the sky
+    out.update(form_factors(scene, out["f_pair"], out["f_area"], out["f_bounded"], out["f_strings"]))
+    return out, need[rep]
+
+
+def _object_hashes(scene):
+    """(n,) uint64: a digest of each object's geometry (support points and radius)."""
+    import hashlib
+
+    out = np.empty(scene.n, np.uint64)
+    for k in range(scene.n):
+        h = hashlib.blake2b(digest_size=8)
+        h.update(np.ascontiguousarray(scene.verts[scene.vert_start[k]:scene.vert_start[k + 1]]).tobytes())
+        h.update(np.float64(scene.radius[k]).tobytes())
+        out[k] = np.frombuffer(h.digest(), np.uint64)[0]
+    return out
+
+
+def _mix(x):
+    """splitmix64 finaliser on uint64 arrays (wrapping arithmetic)."""
+    x = x.astype(np.uint64)
+    with np.errstate(over="ignore"):
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return x ^ (x >> np.uint64(31))
+
+
+def _component_hashes(scene, comp, ncomp, slot_edge, slot_kind, e_obj, e_side, e_tail, e_head, th0, th1):
+    """(ncomp,) uint64 signature of each face: the sum of its boundary slots' digests
+    (object geometry, side, slot, tail, head and the exact θ range of the edge).  Two faces
+    with equal signatures have the same boundary, hence the same area."""
+    oh = _object_hashes(scene)
+    e = slot_edge
+    h = _mix(oh[e_obj[e]] ^ np.uint64(0x9E3779B97F4A7C15))
+    with np.errstate(over="ignore"):
+        for part in (e_side[e].astype(np.int64) * 3 + slot_kind, e_tail[e] + 7, e_head[e] + 11,
+                     th0[e].view(np.int64), th1[e].view(np.int64)):
+            h = _mix(h ^ part.astype(np.int64).view(np.uint64))
+        acc = np.zeros(ncomp, np.uint64)
+        np.add.at(acc, comp, h)
+    return _mix(acc)
+
+
+def form_factors(scene, f_pair, f_area, f_bounded, f_strings):
+    """F_area, F_strings (n, n + 1): F_ab = Σ_faces{a,b} A / (2 L_a); column n is the sky."""
+    n = scene.n
+    Lp = scene.perimeters()
+    out = {}
+    for name, val in (("F_area", f_area), ("F_strings", f_strings)):
+        F = np.zeros((n, n + 1))
+        a, b = f_pair[:, 0], f_pair[:, 1]
+        ok = f_bounded & ((a >= 0) | (b >= 0))
+        a, b, v = a[ok], b[ok], val[ok]
+        ai = np.where(a < 0, n, a); bi = np.where(b < 0, n, b)
+        m1 = a >= 0
+        np.add.at(F, (a[m1], bi[m1]), v[m1] / (2.0 * Lp[a[m1]]))
+        m2 = b >= 0
+        np.add.at(F, (b[m2], ai[m2]), v[m2] / (2.0 * Lp[b[m2]]))
+        out[name] = F
+    return out
+
+
+def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatComplex:
+    """Build the visibility complex of ``scene`` (and its form factors)."""
+    from viscx.progress import bar
+
+    eps = default_eps(scene) if eps is None else float(eps)
+    with bar(total=3, desc="flatland complex", quiet=quiet, unit="stage") as pb:
+        cand = candidates(scene)
+        pb.update()
+        cls = classify(scene, cand, eps)
+        V = vertices_from(scene, cand, cls)
+        pb.update()
+        V.update(derive(scene, V)[0])
+        pb.update()
+    return FlatComplex(scene=scene, eps=eps, arrays=V)

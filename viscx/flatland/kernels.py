@@ -1,0 +1,456 @@
+"""numba kernels of flatland: support functions, tangency curves, bitangents, ray queries.
+
+Conventions (used everywhere in :mod:`viscx.flatland`)
+------------------------------------------------------
+An *oriented* line is (θ, u): direction d(θ) = (cos θ, sin θ), left normal
+n(θ) = (−sin θ, cos θ), points x with n·x = u (seed 003 §3.2's duality
+−x sin θ + y cos θ = u).  θ ∈ [0, 2π) for oriented lines; the unoriented line (θ, u) is
+the oriented line (θ + π, −u).  The measure dθ du is the motion-invariant measure of lines.
+
+Object k has two *tangency curves* (seed 003's λ and μ):
+
+    side R (object on the right of the line):  u = μ_k(θ) =  h_k(θ + π/2)
+    side L (object on the left):               u = λ_k(θ) = −h_k(θ − π/2)
+
+On a piece where support point v (radius r) is active, both read u = n(θ)·v + σ r with
+σ = +1 (R) or −1 (L), and the tangent point is p = v + σ r n(θ).
+
+Side codes: ``R = 1``, ``L = 0`` (so σ = 2·side − 1).
+"""
+
+import math
+
+import numba as nb
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+HALF_PI = 0.5 * math.pi
+R_SIDE, L_SIDE = 1, 0
+
+
+# ----------------------------------------------------------------------------- support
+@nb.njit(cache=True)
+def support_index(k, phi, vert_start, A):
+    """Global index of the support point of object k active in direction φ."""
+    s, e = vert_start[k], vert_start[k + 1]
+    if e - s == 1:
+        return s
+    a0 = A[s]
+    p = a0 + (phi - a0) % TWO_PI
+    j = s
+    for i in range(s + 1, e):
+        if A[i] <= p:
+            j = i
+        else:
+            break
+    return j
+
+
+@nb.njit(cache=True)
+def antideriv_h(k, phi, vert_start, verts, radius, A, cumG, perimeter):
+    """G_k(φ): an antiderivative of the support function h_k (continuous in φ ∈ ℝ).
+
+    Circle: h = c·e(φ) + r  ⇒  G = c·(sin φ, −cos φ) + r φ.
+    Polygon: on piece j, h = v_j·e(φ); G = (whole turns)·L + cumG_j + v_j·(S(φ) − S(A_j)),
+    S(φ) = (sin φ, −cos φ); one whole turn integrates h to the perimeter L (Cauchy)."""
+    s, e = vert_start[k], vert_start[k + 1]
+    if e - s == 1:
+        c = verts[s]
+        return c[0] * math.sin(phi) - c[1] * math.cos(phi) + radius[k] * phi
+    a0 = A[s]
+    turns = math.floor((phi - a0) / TWO_PI)
+    p = phi - turns * TWO_PI
+    j = support_index(k, p, vert_start, A)
+    v = verts[j]
+    aj = A[j]
+    return (turns * perimeter[k] + cumG[j]
+            + v[0] * (math.sin(p) - math.sin(aj)) - v[1] * (math.cos(p) - math.cos(aj)))
+
+
+@nb.njit(cache=True)
+def contact_length(k, phi, vert_start, verts, radius, A, cumS, perimeter):
+    """S_k(φ): boundary length travelled by the contact point of direction φ (continuous
+    from the right, increasing; S(φ + 2π) = S(φ) + L).  Circle: r φ; polygon: the contact
+    point sits on corner j for the whole piece j and jumps by an edge length between pieces."""
+    s, e = vert_start[k], vert_start[k + 1]
+    if e - s == 1:
+        return radius[k] * phi
+    a0 = A[s]
+    turns = math.floor((phi - a0) / TWO_PI)
+    p = phi - turns * TWO_PI
+    j = support_index(k, p, vert_start, A)
+    return turns * perimeter[k] + cumS[j]
+
+
+# ----------------------------------------------------------------------------- chords
+@nb.njit(cache=True)
+def chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius):
+    """Parameters (t_in, t_out) where the line o + t d crosses object k; t_in > t_out if it
+    misses.  Circle: solve |o + t d − c|² = r².  Polygon (CCW): Cyrus–Beck clipping against
+    the half-planes ν_j·(x − v_j) ≤ 0 with outward edge normals ν_j."""
+    s, e = vert_start[k], vert_start[k + 1]
+    if kind[k] == 0:
+        cx, cy = verts[s, 0] - ox, verts[s, 1] - oy
+        b = cx * dx + cy * dy
+        perp2 = cx * cx + cy * cy - b * b
+        r = radius[k]
+        if perp2 >= r * r:
+            return 1.0, -1.0
+        h = math.sqrt(r * r - perp2)
+        return b - h, b + h
+    tin, tout = -np.inf, np.inf
+    for i in range(s, e):
+        i2 = i + 1 if i + 1 < e else s
+        nx = verts[i2, 1] - verts[i, 1]
+        ny = -(verts[i2, 0] - verts[i, 0])
+        num = nx * (ox - verts[i, 0]) + ny * (oy - verts[i, 1])
+        den = nx * dx + ny * dy
+        if den == 0.0:
+            if num > 0.0:
+                return 1.0, -1.0
+        elif den > 0.0:
+            t = -num / den
+            if t < tout:
+                tout = t
+        else:
+            t = -num / den
+            if t > tin:
+                tin = t
+    return tin, tout
+
+
+# ----------------------------------------------------------------------------- grid
+def build_grid(bboxes, target_per_cell=2.0):
+    """A uniform grid over the objects' bounding boxes (CSR cell → objects).
+
+    Parameters
+    ----------
+    bboxes : (n, 4) float  xmin, ymin, xmax, ymax
+
+    Returns
+    -------
+    origin (2,) float64, cell (float), shape (2,) int64, cell_start (nx*ny+1,) int64,
+    cell_items (K,) int64
+    """
+    n = bboxes.shape[0]
+    lo = bboxes[:, :2].min(axis=0)
+    hi = bboxes[:, 2:].max(axis=0)
+    ext = np.maximum(hi - lo, 1e-12)
+    lo = lo - 1e-6 * ext.max()
+    ext = ext + 2e-6 * ext.max()
+    ncell = max(1.0, n / target_per_cell)
+    cell = math.sqrt(ext[0] * ext[1] / ncell)
+    cell = max(cell, ext.max() / 2048.0)
+    nx = max(1, int(math.ceil(ext[0] / cell)))
+    ny = max(1, int(math.ceil(ext[1] / cell)))
+    i0 = np.clip(((bboxes[:, 0] - lo[0]) / cell).astype(np.int64), 0, nx - 1)
+    i1 = np.clip(((bboxes[:, 2] - lo[0]) / cell).astype(np.int64), 0, nx - 1)
+    j0 = np.clip(((bboxes[:, 1] - lo[1]) / cell).astype(np.int64), 0, ny - 1)
+    j1 = np.clip(((bboxes[:, 3] - lo[1]) / cell).astype(np.int64), 0, ny - 1)
+    cells, objs = [], []
+    for k in range(n):
+        ii, jj = np.meshgrid(np.arange(i0[k], i1[k] + 1), np.arange(j0[k], j1[k] + 1), indexing="ij")
+        c = (jj * nx + ii).ravel()
+        cells.append(c)
+        objs.append(np.full(c.shape, k, dtype=np.int64))
+    cells = np.concatenate(cells)
+    objs = np.concatenate(objs)
+    order = np.lexsort((objs, cells))
+    cells, objs = cells[order], objs[order]
+    cell_start = np.searchsorted(cells, np.arange(nx * ny + 1)).astype(np.int64)
+    return lo.astype(np.float64), float(cell), np.array([nx, ny], dtype=np.int64), cell_start, objs
+
+
+@nb.njit(cache=True)
+def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
+              origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius):
+    """First object crossed by the ray o + t d, t > 0 (objects skip1, skip2 ignored).
+
+    Walks the grid cells along the ray (Amanatides–Woo).  An object counts when its chord
+    is longer than ``eps`` and ends beyond t = eps (grazing contacts are not hits).  Stops
+    early and returns as soon as a hit with t_in < ``limit`` is certain to be the first
+    one below the current cell (used for 'is [0, limit] free').
+
+    Returns (object or −1, t_in)."""
+    nx, ny = shape[0], shape[1]
+    # entry into the grid box
+    x0, y0 = origin[0], origin[1]
+    x1, y1 = x0 + nx * cell, y0 + ny * cell
+    tmin, tmax = 0.0, np.inf
+    if dx != 0.0:
+        ta, tb = (x0 - ox) / dx, (x1 - ox) / dx
+        if ta > tb:
+            ta, tb = tb, ta
+        tmin, tmax = max(tmin, ta), min(tmax, tb)
+    elif ox < x0 or ox > x1:
+        return -1, np.inf
+    if dy != 0.0:
+        ta, tb = (y0 - oy) / dy, (y1 - oy) / dy
+        if ta > tb:
+            ta, tb = tb, ta
+        tmin, tmax = max(tmin, ta), min(tmax, tb)
+    elif oy < y0 or oy > y1:
+        return -1, np.inf
+    if tmin > tmax:
+        return -1, np.inf
+    px, py = ox + tmin * dx, oy + tmin * dy
+    ix = min(max(int((px - x0) / cell), 0), nx - 1)
+    iy = min(max(int((py - y0) / cell), 0), ny - 1)
+    stepx = 1 if dx > 0 else -1
+    stepy = 1 if dy > 0 else -1
+    if dx != 0.0:
+        nxt = x0 + (ix + (1 if dx > 0 else 0)) * cell
+        tx = (nxt - ox) / dx
+        dtx = cell / abs(dx)
+    else:
+        tx, dtx = np.inf, np.inf
+    if dy != 0.0:
+        nyt = y0 + (iy + (1 if dy > 0 else 0)) * cell
+        ty = (nyt - oy) / dy
+        dty = cell / abs(dy)
+    else:
+        ty, dty = np.inf, np.inf
+    best, best_t = -1, np.inf
+    while True:
+        c = iy * nx + ix
+        for q in range(cell_start[c], cell_start[c + 1]):
+            k = cell_items[q]
+            if k == skip1 or k == skip2 or stamp[k] == stamp_id:
+                continue
+            stamp[k] = stamp_id
+            tin, tout = chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
+            if tout - tin > eps and tout > eps:
+                if tin < best_t:
+                    best, best_t = k, tin
+        t_exit = min(tx, ty)
+        # a later cell cannot hold a nearer hit (an object crossing the ray before t_exit
+        # overlaps a visited cell); a hit before `limit` already answers 'blocked'
+        if best >= 0 and (best_t <= t_exit or best_t < limit):
+            return best, best_t
+        if t_exit > tmax:
+            return best, best_t
+        if tx < ty:
+            ix += stepx
+            tx += dtx
+            if ix < 0 or ix >= nx:
+                return best, best_t
+        else:
+            iy += stepy
+            ty += dty
+            if iy < 0 or iy >= ny:
+                return best, best_t
+
+
+# ----------------------------------------------------------------------------- bitangents
+@nb.njit(cache=True)
+def _piece_bounds(k, side, theta, vert_start, A):
+    """Active support point of tangency curve (k, side) at θ and the θ where its piece ends."""
+    shift = HALF_PI if side == 1 else -HALF_PI
+    phi = theta + shift
+    j = support_index(k, phi, vert_start, A)
+    s, e = vert_start[k], vert_start[k + 1]
+    if e - s == 1:
+        return j, np.inf
+    a0 = A[s]
+    p = a0 + (phi - a0) % TWO_PI
+    end = A[j + 1] if j + 1 < e else a0 + TWO_PI
+    return j, theta + (end - p)
+
+
+@nb.njit(cache=True)
+def _next_piece(k, j, vert_start, A):
+    """The piece after j on object k (cyclic) and its angular width."""
+    s, e = vert_start[k], vert_start[k + 1]
+    j2 = j + 1 if j + 1 < e else s
+    end = A[j2 + 1] if j2 + 1 < e else A[s] + TWO_PI
+    return j2, end - A[j2]
+
+
+@nb.njit(cache=True)
+def pair_bitangents(a, b, sa, sb, vert_start, verts, radius, A, out_theta, out_va, out_vb, tol):
+    """The oriented common tangents of objects a, b with a on side sa and b on side sb.
+
+    On a θ-piece where support points va, vb are active, u_a = u_b reads
+    n(θ)·w = ρ with w = v_b − v_a, ρ = σ_a r_a − σ_b r_b; writing w = |w|(cos β, sin β),
+    n(θ)·w = |w| sin(β − θ), so θ = β − asin(ρ/|w|) or θ = β − π + asin(ρ/|w|).
+    A root counts if it lies in the piece (a tolerance ``tol`` on the ends, duplicates
+    at piece ends merged).  Disjoint convex objects have exactly two such lines.
+
+    Returns the number of roots written to out_theta / out_va / out_vb (≤ 4)."""
+    sig_a = 2.0 * sa - 1.0
+    sig_b = 2.0 * sb - 1.0
+    rho = sig_a * radius[a] - sig_b * radius[b]
+    theta = 0.0
+    cnt = 0
+    guard = 0
+    ja, ea = _piece_bounds(a, sa, 0.0, vert_start, A)
+    jb, eb = _piece_bounds(b, sb, 0.0, vert_start, A)
+    # walk the merged pieces of both curves by index (no re-location from θ, which
+    # rounding could stall at a piece end)
+    while theta < TWO_PI and guard < 100000:
+        guard += 1
+        hi = min(ea, eb, TWO_PI)
+        wx, wy = verts[jb, 0] - verts[ja, 0], verts[jb, 1] - verts[ja, 1]
+        wn = math.hypot(wx, wy)
+        if wn > 0.0 and abs(rho) <= wn:
+            beta = math.atan2(wy, wx)
+            q = math.asin(rho / wn)
+            for cand in (beta - q, beta - math.pi + q):
+                # bring the root next to the piece [theta, hi)
+                t = theta + (cand - theta) % TWO_PI
+                if t > TWO_PI - tol + theta:
+                    t -= TWO_PI
+                if t >= theta - tol and t < hi + tol:
+                    tt = t % TWO_PI
+                    dup = False
+                    for c in range(cnt):
+                        dd = abs(out_theta[c] - tt)
+                        if dd < 1e3 * tol or TWO_PI - dd < 1e3 * tol:
+                            dup = True
+                    if not dup and cnt < out_theta.shape[0]:
+                        out_theta[cnt] = tt
+                        out_va[cnt] = ja
+                        out_vb[cnt] = jb
+                        cnt += 1
+        theta = hi
+        if ea <= hi:
+            ja, wa = _next_piece(a, ja, vert_start, A)
+            ea += wa
+        if eb <= hi:
+            jb, wb = _next_piece(b, jb, vert_start, A)
+            eb += wb
+    return cnt
+
+
+@nb.njit(cache=True)
+def all_bitangents(pa, pb, vert_start, verts, radius, A, tol):
+    """Candidate bitangents of the object pairs (pa[i], pb[i]): for combos (R, R) (outer)
+    and (R, L) (inner) the two oriented roots each, i.e. the 4 unoriented common tangents.
+
+    Returns theta (4P,), va (4P,), vb (4P,), count (2P,) (roots found per pair and combo;
+    anything but 2 is a degeneracy the caller reports)."""
+    P = pa.shape[0]
+    theta = np.full(4 * P, np.nan)
+    va = np.full(4 * P, -1, np.int64)
+    vb = np.full(4 * P, -1, np.int64)
+    count = np.zeros(2 * P, np.int64)
+    tt = np.empty(4)
+    ja = np.empty(4, np.int64)
+    jb = np.empty(4, np.int64)
+    for i in range(P):
+        for combo in range(2):
+            sb = 1 if combo == 0 else 0
+            c = pair_bitangents(pa[i], pb[i], 1, sb, vert_start, verts, radius, A, tt, ja, jb, tol)
+            count[2 * i + combo] = c
+            # deterministic order: by θ
+            if c >= 2 and tt[1] < tt[0]:
+                tt[0], tt[1] = tt[1], tt[0]
+                ja[0], ja[1] = ja[1], ja[0]
+                jb[0], jb[1] = jb[1], jb[0]
+            for r in range(min(c, 2)):
+                o = 4 * i + 2 * combo + r
+                theta[o] = tt[r]
+                va[o] = ja[r]
+                vb[o] = jb[r]
+    return theta, va, vb, count
+
+
+@nb.njit(cache=True)
+def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, shape, cell_start,
+                        cell_items, kind, vert_start, verts, radius):
+    """For each candidate i with todo[i]: is the bitangent segment free, and which objects
+    end its maximal free segment?
+
+    The oriented line at θ_i touches oa at p = v_a + σ_a r_a n and ob at q likewise.  The
+    segment between p and q must not cross any third object (chord longer than eps); the
+    tail is the first object behind the first tangent point, the head the first one
+    beyond the second (−1: the blue sky).
+
+    Returns free (bool), first (which of a/b is first along d: 0 → a), tail, head,
+    tail_t, head_t (distance from the first/second tangent point to the blocker)."""
+    N = theta.shape[0]
+    free = np.zeros(N, np.bool_)
+    a_first = np.zeros(N, np.bool_)
+    tail = np.full(N, -2, np.int64)
+    head = np.full(N, -2, np.int64)
+    tail_t = np.zeros(N)
+    head_t = np.zeros(N)
+    stamp = np.zeros(kind.shape[0], np.int64)
+    sid = 0
+    for i in range(N):
+        if not todo[i]:
+            continue
+        th = theta[i]
+        dx, dy = math.cos(th), math.sin(th)
+        nx, ny = -dy, dx
+        ga = 2.0 * sa[i] - 1.0
+        gb = 2.0 * sb[i] - 1.0
+        px = verts[va[i], 0] + ga * radius[oa[i]] * nx
+        py = verts[va[i], 1] + ga * radius[oa[i]] * ny
+        qx = verts[vb[i], 0] + gb * radius[ob[i]] * nx
+        qy = verts[vb[i], 1] + gb * radius[ob[i]] * ny
+        L = (qx - px) * dx + (qy - py) * dy
+        if L < 0.0:
+            px, py, qx, qy = qx, qy, px, py
+            L = -L
+            a_first[i] = False
+        else:
+            a_first[i] = True
+        sid += 1
+        k, t = first_hit(px, py, dx, dy, oa[i], ob[i], L - eps, eps, stamp, sid,
+                         origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
+        if k >= 0 and t < L - eps:
+            continue
+        free[i] = True
+        head[i] = k
+        head_t[i] = t - L if k >= 0 else np.inf
+        sid += 1
+        k2, t2 = first_hit(px, py, -dx, -dy, oa[i], ob[i], -np.inf, eps, stamp, sid,
+                           origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
+        tail[i] = k2
+        tail_t[i] = t2 if k2 >= 0 else np.inf
+    return free, a_first, tail, head, tail_t, head_t
+
+
+@nb.njit(cache=True)
+def contact_length_at(k, phi, j_forced, vert_start, verts, radius, A, cumS, perimeter):
+    """S_k(φ) with the contact point forced onto support point j_forced (−1: none).
+
+    At a degenerate direction (a polygon edge on the line) both corners of the edge touch
+    it; the vertex's tangent point names the one used, and the edge's arc length must
+    start or end there too, or the string sum (method b) misses the edge length."""
+    s, e = vert_start[k], vert_start[k + 1]
+    if e - s == 1 or j_forced < 0:
+        return contact_length(k, phi, vert_start, verts, radius, A, cumS, perimeter)
+    a0 = A[s]
+    turns = math.floor((phi - a0) / TWO_PI)
+    j = support_index(k, phi - turns * TWO_PI, vert_start, A)
+    if j == s and j_forced == e - 1:
+        turns -= 1
+    elif j == e - 1 and j_forced == s:
+        turns += 1
+    return turns * perimeter[k] + cumS[j_forced]
+
+
+@nb.njit(cache=True)
+def edge_integrals(obj, side, th0, th1, vert_start, verts, radius, A, cumG, cumS, perimeter, j0, j1):
+    """Per edge (an arc of the tangency curve (obj, side) over θ ∈ [θ0, θ1]):
+
+    I = ∫ u dθ  exactly:  side R: u = h(θ + π/2) ⇒ I = G(θ1 + π/2) − G(θ0 + π/2);
+                          side L: u = −h(θ − π/2) ⇒ I = −(G(θ1 − π/2) − G(θ0 − π/2));
+    s = the boundary length swept by the tangent point (seed 003's d_c(e)), from support
+        point j0 to j1 (the end vertices' tangent points; −1 for a loop).
+
+    Returns I (E,), s (E,)."""
+    E = obj.shape[0]
+    I = np.empty(E)
+    s = np.empty(E)
+    for i in range(E):
+        k = obj[i]
+        sh = HALF_PI if side[i] == 1 else -HALF_PI
+        g = (antideriv_h(k, th1[i] + sh, vert_start, verts, radius, A, cumG, perimeter)
+             - antideriv_h(k, th0[i] + sh, vert_start, verts, radius, A, cumG, perimeter))
+        I[i] = g if side[i] == 1 else -g
+        s[i] = (contact_length_at(k, th1[i] + sh, j1[i], vert_start, verts, radius, A, cumS, perimeter)
+                - contact_length_at(k, th0[i] + sh, j0[i], vert_start, verts, radius, A, cumS, perimeter))
+    return I, s

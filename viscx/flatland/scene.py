@@ -1,0 +1,481 @@
+"""Flatland scenes: disjoint convex objects (circles, convex polygons) plus the blue sky.
+
+Every object is stored the same way, as a *rounded convex polygon*: support points
+``v_0 .. v_{m-1}`` (counter-clockwise) and a radius ``r``.  A circle is one support point
+(its centre) with ``r > 0``; a polygon is its corners with ``r = 0``.  The support function
+of object k in the direction e(φ) = (cos φ, sin φ) is then
+
+    h_k(φ) = max_x x·e(φ) = v_j·e(φ) + r,    j = the support point active at φ,
+
+and corner j of a polygon is active for φ between the outward normal angles of its two
+incident edges.  Everything in the 2-D complex (tangency curves, bitangents, dual areas,
+contact arc lengths) is a closed-form function of (v_j, r) on those φ pieces.
+
+The blue sky is not stored: it is object id ``-1`` (``SKY``) wherever an object id is
+expected.
+
+Loaders: :func:`load_json`, :func:`load_svg`, :func:`load_dxf`, and :func:`load_scene`
+which dispatches on the file suffix.  Bad input raises :class:`viscx.errors.ViscxError`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from viscx.errors import ViscxError
+
+SKY = -1
+CIRCLE, POLYGON = 0, 1
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass
+class Scene:
+    """A flatland scene.
+
+    Attributes
+    ----------
+    kind : (n,) int8
+        ``CIRCLE`` (0) or ``POLYGON`` (1).
+    vert_start : (n + 1,) int64
+        CSR offsets into ``verts``: object k owns ``verts[vert_start[k]:vert_start[k+1]]``.
+    verts : (V, 2) float64
+        Support points, counter-clockwise per object (a circle has one: its centre).
+    radius : (n,) float64
+        Rounding radius (circle radius; 0 for polygons).
+    emission, reflectance : (n,) float64
+        Emitted radiosity E and reflectance ρ ∈ [0, 1).
+    names : list of str
+        One name per object (used in error messages and plots).
+    """
+
+    kind: np.ndarray
+    vert_start: np.ndarray
+    verts: np.ndarray
+    radius: np.ndarray
+    emission: np.ndarray
+    reflectance: np.ndarray
+    names: list = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return int(self.kind.shape[0])
+
+    # -- derived, cached quantities -------------------------------------------------------
+    def pieces(self):
+        """Support-function pieces (see :func:`support_pieces`), cached."""
+        if not hasattr(self, "_pieces"):
+            self._pieces = support_pieces(self.vert_start, self.verts, self.radius)
+        return self._pieces
+
+    def perimeters(self) -> np.ndarray:
+        """(n,) float64: boundary length L_k (= measure of the lines meeting O_k)."""
+        return self.pieces()[3]
+
+    def bounding_boxes(self) -> np.ndarray:
+        """(n, 4) float64: xmin, ymin, xmax, ymax per object."""
+        out = np.empty((self.n, 4))
+        for k in range(self.n):
+            v = self.verts[self.vert_start[k] : self.vert_start[k + 1]]
+            r = self.radius[k]
+            out[k, :2] = v.min(axis=0) - r
+            out[k, 2:] = v.max(axis=0) + r
+        return out
+
+    def object_polygon(self, k, samples=128) -> np.ndarray:
+        """(m, 2) float64: the boundary of object k as a closed-ready polygon (circles sampled)."""
+        v = self.verts[self.vert_start[k] : self.vert_start[k + 1]]
+        if self.kind[k] == CIRCLE:
+            a = np.linspace(0.0, TWO_PI, samples, endpoint=False)
+            return v[0] + self.radius[k] * np.stack([np.cos(a), np.sin(a)], axis=1)
+        return v.copy()
+
+    def moved(self, k, dx, dy) -> "Scene":
+        """A copy of the scene with object k translated by (dx, dy) (no overlap check)."""
+        verts = self.verts.copy()
+        verts[self.vert_start[k] : self.vert_start[k + 1]] += (dx, dy)
+        return Scene(self.kind.copy(), self.vert_start.copy(), verts, self.radius.copy(),
+                     self.emission.copy(), self.reflectance.copy(), list(self.names))
+
+    def perturbed(self, rel=1e-7) -> "Scene":
+        """A copy with every object rotated about its centre and translated by tiny,
+        deterministic amounts (``rel`` × the scene diagonal; angles from the golden-ratio
+        sequence), which breaks collinear edges of different objects (a degeneracy the
+        complex does not resolve symbolically).  Form factors change by O(rel)."""
+        bb = self.bounding_boxes()
+        diag = math.hypot(bb[:, 2].max() - bb[:, 0].min(), bb[:, 3].max() - bb[:, 1].min())
+        verts = self.verts.copy()
+        g = (math.sqrt(5.0) - 1.0) / 2.0
+        for k in range(self.n):
+            s, e = self.vert_start[k], self.vert_start[k + 1]
+            v = verts[s:e]
+            c = v.mean(axis=0)
+            size = max(np.ptp(v, axis=0).max() + 2 * self.radius[k], 1e-300)
+            a = rel * diag / size * (((k + 1) * g) % 1.0 - 0.5) * 2.0
+            ca, sa = math.cos(a), math.sin(a)
+            d = v - c
+            t = rel * diag * np.array([((k + 1) * g * g) % 1.0 - 0.5, ((k + 1) * g * g * g) % 1.0 - 0.5])
+            verts[s:e] = c + t + np.stack([ca * d[:, 0] - sa * d[:, 1], sa * d[:, 0] + ca * d[:, 1]], axis=1)
+        out = Scene(self.kind.copy(), self.vert_start.copy(), verts, self.radius.copy(), self.emission.copy(),
+                    self.reflectance.copy(), list(self.names))
+        check_disjoint(out)
+        return out
+
+    def to_json(self) -> dict:
+        """The scene as the JSON document :func:`load_json` reads."""
+        objs = []
+        for k in range(self.n):
+            v = self.verts[self.vert_start[k] : self.vert_start[k + 1]]
+            o = {"name": self.names[k], "emission": float(self.emission[k]), "reflectance": float(self.reflectance[k])}
+            if self.kind[k] == CIRCLE:
+                o.update(type="circle", center=[float(v[0, 0]), float(v[0, 1])], radius=float(self.radius[k]))
+            else:
+                o.update(type="polygon", points=v.tolist())
+            objs.append(o)
+        return {"objects": objs}
+
+
+def support_pieces(vert_start, verts, radius):
+    """Angular pieces of every object's support function.
+
+    Support point j of object k is active for φ in [A_j, A_{j+1}) (unwrapped, A_{j+1} =
+    A_j + exterior angle at corner j, the pieces of one object span exactly 2π).  With
+    them: ``cumG[j] = ∫_{A_0}^{A_j} h dφ`` and ``cumS[j]`` = boundary length from the
+    contact point at A_0 to corner j.  A circle has one piece [0, 2π).
+
+    Returns
+    -------
+    A, cumG, cumS : (V,) float64 ; perimeter : (n,) float64
+    """
+    V = verts.shape[0]
+    A = np.zeros(V)
+    cumG = np.zeros(V)
+    cumS = np.zeros(V)
+    n = vert_start.shape[0] - 1
+    perimeter = np.zeros(n)
+    for k in range(n):
+        s, e = vert_start[k], vert_start[k + 1]
+        m = e - s
+        if m == 1:
+            perimeter[k] = TWO_PI * radius[k]
+            continue
+        v = verts[s:e]
+        edge = np.roll(v, -1, axis=0) - v                      # edge j: v_j -> v_{j+1}
+        alpha = np.arctan2(-edge[:, 0], edge[:, 1])            # outward normal angle (dy, -dx)
+        # corner j is active between the normals of edges j-1 and j
+        ext = np.mod(alpha - np.roll(alpha, 1), TWO_PI)        # exterior angle at corner j
+        a0 = np.mod(alpha[-1], TWO_PI)                          # start of piece 0
+        Aj = a0 + np.concatenate([[0.0], np.cumsum(ext[:-1])])
+        A[s:e] = Aj
+        # ∫ v_j·e(φ) dφ = v_j·(sin φ, −cos φ) between the piece ends
+        b = Aj + ext
+        piece = v[:, 0] * (np.sin(b) - np.sin(Aj)) - v[:, 1] * (np.cos(b) - np.cos(Aj))
+        cumG[s:e] = np.concatenate([[0.0], np.cumsum(piece[:-1])])
+        elen = np.hypot(edge[:, 0], edge[:, 1])
+        cumS[s:e] = np.concatenate([[0.0], np.cumsum(elen[:-1])])  # corner j after edges 0..j-1
+        perimeter[k] = elen.sum()
+    return A, cumG, cumS, perimeter
+
+
+# ----------------------------------------------------------------------------- building
+def make_scene(objects) -> Scene:
+    """Build and validate a :class:`Scene` from a list of object dicts.
+
+    Each dict has ``type`` ("circle" with ``center``, ``radius``; or "polygon" with
+    ``points``), optional ``name``, ``emission`` (E ≥ 0, default 0) and ``reflectance``
+    (0 ≤ ρ < 1, default 0.5).  Polygons are made counter-clockwise; a non-convex polygon,
+    a degenerate object or two overlapping objects raise ViscxError naming them.
+    """
+    if not isinstance(objects, (list, tuple)) or len(objects) == 0:
+        raise ViscxError("flatland scene has no objects")
+    kinds, starts, verts, radius, E, rho, names = [], [0], [], [], [], [], []
+    for i, o in enumerate(objects):
+        if not isinstance(o, dict):
+            raise ViscxError(f"object {i} is not a JSON object")
+        name = str(o.get("name", f"object{i}"))
+        t = o.get("type")
+        try:
+            if t == "circle":
+                c = np.asarray(o["center"], dtype=float).reshape(2)
+                r = float(o["radius"])
+                if not (np.all(np.isfinite(c)) and math.isfinite(r) and r > 0):
+                    raise ViscxError(f"object {name!r}: a circle needs a finite centre and a radius > 0")
+                kinds.append(CIRCLE)
+                verts.append(c[None, :])
+                radius.append(r)
+            elif t == "polygon":
+                p = np.asarray(o["points"], dtype=float)
+                if p.ndim != 2 or p.shape[1] != 2 or not np.all(np.isfinite(p)):
+                    raise ViscxError(f"object {name!r}: 'points' must be a list of finite [x, y] pairs")
+                kinds.append(POLYGON)
+                verts.append(_convex_ccw(p, name))
+                radius.append(0.0)
+            else:
+                raise ViscxError(f"object {name!r}: unknown type {t!r} (expected 'circle' or 'polygon')")
+            e = float(o.get("emission", 0.0))
+            r_ = float(o.get("reflectance", 0.5))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ViscxError(f"object {name!r}: bad or missing field ({exc})") from None
+        if not (math.isfinite(e) and e >= 0):
+            raise ViscxError(f"object {name!r}: emission must be finite and >= 0")
+        if not (0.0 <= r_ < 1.0):
+            raise ViscxError(f"object {name!r}: reflectance must be in [0, 1)")
+        starts.append(starts[-1] + len(verts[-1]))
+        E.append(e)
+        rho.append(r_)
+        names.append(name)
+    if len(set(names)) != len(names):
+        dup = sorted({x for x in names if names.count(x) > 1})[0]
+        raise ViscxError(f"two objects are named {dup!r}; names must be unique")
+    scene = Scene(np.array(kinds, dtype=np.int8), np.array(starts, dtype=np.int64), np.concatenate(verts),
+                  np.array(radius), np.array(E), np.array(rho), names)
+    check_disjoint(scene)
+    return scene
+
+
+def _convex_ccw(p, name, eps=1e-12):
+    """(m, 2) float64 counter-clockwise corners of a strictly convex polygon, or ViscxError.
+
+    Repeated closing points and collinear corners are dropped (a flat corner is not a
+    corner of the support function)."""
+    if len(p) > 1 and np.allclose(p[0], p[-1]):
+        p = p[:-1]
+    # drop consecutive duplicates
+    keep = np.ones(len(p), bool)
+    keep[1:] = np.any(np.abs(np.diff(p, axis=0)) > 0, axis=1)
+    p = p[keep]
+    scale = max(np.ptp(p, axis=0).max() if len(p) else 0.0, 1e-300)
+    area2 = np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]) if len(p) >= 3 else 0.0
+    if len(p) < 3 or abs(area2) <= eps * scale * scale:
+        raise ViscxError(f"object {name!r}: a polygon needs at least 3 non-collinear points")
+    if area2 < 0:
+        p = p[::-1]
+    # cross product at each corner: > 0 convex, ~0 flat (dropped), < 0 reflex (rejected)
+    a, b = p - np.roll(p, 1, axis=0), np.roll(p, -1, axis=0) - p
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    tol = eps * scale * scale
+    if np.any(cross < -tol):
+        raise ViscxError(f"object {name!r} is not convex (reflex corner at {p[np.argmin(cross)].tolist()})")
+    p = p[cross > tol]
+    # a convex polygon turns exactly once around
+    e = np.roll(p, -1, axis=0) - p
+    ang = np.arctan2(e[:, 1], e[:, 0])
+    turn = np.mod(np.diff(np.concatenate([ang, ang[:1]])), TWO_PI).sum()
+    if abs(turn - TWO_PI) > 1e-6:
+        raise ViscxError(f"object {name!r} is not convex (self-intersecting outline)")
+    return p
+
+
+def check_disjoint(scene: Scene, eps=None):
+    """Raise ViscxError naming the first two objects that touch or overlap.
+
+    Separating-axis test: two convex objects are disjoint iff some direction separates
+    them; for circle/rounded polygons the candidate axes are the polygons' edge normals
+    and the directions between support points (exact for circles and polygons)."""
+    n = scene.n
+    bb = scene.bounding_boxes()
+    scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
+    eps = 1e-9 * scale if eps is None else eps
+    # broad phase: overlapping bounding boxes
+    order = np.argsort(bb[:, 0], kind="stable")
+    for ii, i in enumerate(order):
+        for j in order[ii + 1:]:
+            if bb[j, 0] > bb[i, 2] + eps:
+                break
+            if bb[j, 1] > bb[i, 3] + eps or bb[i, 1] > bb[j, 3] + eps:
+                continue
+            if not _separated(scene, i, j, eps):
+                a, b = sorted((int(i), int(j)))
+                raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} overlap or touch; "
+                                 "flatland objects must be disjoint")
+
+
+def _separated(scene, i, j, eps):
+    vi = scene.verts[scene.vert_start[i]:scene.vert_start[i + 1]]
+    vj = scene.verts[scene.vert_start[j]:scene.vert_start[j + 1]]
+    ri, rj = scene.radius[i], scene.radius[j]
+    axes = []
+    for v in (vi, vj):
+        if len(v) > 1:
+            e = np.roll(v, -1, axis=0) - v
+            axes.append(np.stack([e[:, 1], -e[:, 0]], axis=1))
+    d = (vj[None, :, :] - vi[:, None, :]).reshape(-1, 2)
+    axes.append(d)
+    ax = np.concatenate(axes)
+    nrm = np.hypot(ax[:, 0], ax[:, 1])
+    ax = ax[nrm > 0] / nrm[nrm > 0, None]
+    pi = vi @ ax.T
+    pj = vj @ ax.T
+    gap1 = pj.min(axis=0) - rj - (pi.max(axis=0) + ri)
+    gap2 = pi.min(axis=0) - ri - (pj.max(axis=0) + rj)
+    return bool(np.max(np.maximum(gap1, gap2)) > eps)
+
+
+# ----------------------------------------------------------------------------- loaders
+def load_scene(path) -> Scene:
+    """Load a flatland scene from ``.json``, ``.svg`` or ``.dxf`` (by suffix)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ViscxError(f"no such scene file: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        return load_json(path)
+    if suffix == ".svg":
+        return load_svg(path)
+    if suffix == ".dxf":
+        return load_dxf(path)
+    raise ViscxError(f"{path}: unknown flatland scene type {suffix!r} (expected .json, .svg or .dxf)")
+
+
+def load_json(path) -> Scene:
+    """JSON: ``{"objects": [{"type": "circle", "center": [x, y], "radius": r, "emission": E,
+    "reflectance": ρ, "name": ...}, {"type": "polygon", "points": [[x, y], ...], ...}]}``."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ViscxError(f"{path}: not a readable JSON file ({exc})") from None
+    if not isinstance(doc, dict) or "objects" not in doc:
+        raise ViscxError(f"{path}: a flatland JSON scene needs an 'objects' list")
+    return make_scene(doc["objects"])
+
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def _floats(text):
+    return [float(x) for x in re.findall(_NUM, text or "")]
+
+
+def _svg_material(el, name):
+    out = {}
+    for key, attr in (("emission", "emission"), ("reflectance", "reflectance")):
+        val = el.get(attr, el.get(f"data-{attr}"))
+        if val is not None:
+            try:
+                out[key] = float(val)
+            except ValueError:
+                raise ViscxError(f"SVG element {name!r}: {attr}={val!r} is not a number") from None
+    return out
+
+
+def _path_points(d, name):
+    """Points of an SVG path made of straight segments only (M/L/H/V/Z, absolute or relative)."""
+    tokens = re.findall(r"[A-Za-z]|" + _NUM, d or "")
+    pts, cur, start, cmd, i, closed = [], np.zeros(2), None, None, 0, False
+    while i < len(tokens):
+        t = tokens[i]
+        if t.isalpha():
+            cmd = t
+            i += 1
+            if cmd in "Zz":
+                closed = True
+                if start is not None:
+                    cur = start.copy()
+            elif cmd not in "MmLlHhVv":
+                raise ViscxError(f"SVG path {name!r}: curved or unsupported path command {cmd!r} "
+                                 "(only straight segments M, L, H, V, Z)")
+            continue
+        if cmd is None:
+            raise ViscxError(f"SVG path {name!r}: path data must start with a command")
+        if closed and cmd not in "Mm":
+            raise ViscxError(f"SVG path {name!r}: one closed outline per path")
+        rel = cmd.islower()
+        if cmd in "MmLl":
+            x, y = float(tokens[i]), float(tokens[i + 1])
+            i += 2
+            cur = cur + (x, y) if rel else np.array([x, y])
+            if cmd in "Mm":
+                if pts:
+                    raise ViscxError(f"SVG path {name!r}: one outline per path (several 'M' found)")
+                start = cur.copy()
+                cmd = "l" if rel else "L"
+        elif cmd in "Hh":
+            x = float(tokens[i]); i += 1
+            cur = np.array([cur[0] + x if rel else x, cur[1]])
+        else:
+            y = float(tokens[i]); i += 1
+            cur = np.array([cur[0], cur[1] + y if rel else y])
+        pts.append(cur.copy())
+    if not closed:
+        raise ViscxError(f"SVG path {name!r}: the outline must be closed with 'Z'")
+    return np.array(pts)
+
+
+def load_svg(path) -> Scene:
+    """SVG: ``circle``, ``rect``, ``polygon`` and ``path`` (straight segments, closed) become
+    objects; ``emission``/``reflectance`` (or ``data-emission``/``data-reflectance``)
+    attributes set the material; ``id`` names the object.  Ellipses, curved paths and
+    transforms are rejected with a clear error."""
+    try:
+        root = ET.parse(str(path)).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise ViscxError(f"{path}: not a readable SVG file ({exc})") from None
+    objs = []
+    for el in root.iter():
+        tag = el.tag.rsplit("}", 1)[-1]
+        name = el.get("id") or f"{tag}{len(objs)}"
+        if tag in ("circle", "rect", "polygon", "path", "ellipse", "polyline", "line") and el.get("transform"):
+            raise ViscxError(f"SVG element {name!r}: transforms are not supported; apply them first")
+        if tag == "ellipse":
+            raise ViscxError(f"SVG element {name!r}: ellipses are not supported (use a circle or a polygon)")
+        if tag in ("polyline", "line"):
+            raise ViscxError(f"SVG element {name!r}: open {tag}s are not objects (use a closed polygon)")
+        try:
+            if tag == "circle":
+                o = {"type": "circle", "center": [float(el.get("cx", 0)), float(el.get("cy", 0))],
+                     "radius": float(el.get("r"))}
+            elif tag == "rect":
+                x, y = float(el.get("x", 0)), float(el.get("y", 0))
+                w, h = float(el.get("width")), float(el.get("height"))
+                if el.get("rx") or el.get("ry"):
+                    raise ViscxError(f"SVG rect {name!r}: rounded corners are curves and are not supported")
+                o = {"type": "polygon", "points": [[x, y], [x + w, y], [x + w, y + h], [x, y + h]]}
+            elif tag == "polygon":
+                f = _floats(el.get("points"))
+                if len(f) % 2:
+                    raise ViscxError(f"SVG polygon {name!r}: odd number of coordinates")
+                o = {"type": "polygon", "points": np.array(f).reshape(-1, 2).tolist()}
+            elif tag == "path":
+                o = {"type": "polygon", "points": _path_points(el.get("d"), name).tolist()}
+            else:
+                continue
+        except (TypeError, ValueError, IndexError):
+            raise ViscxError(f"SVG element {name!r}: missing or malformed geometry attributes") from None
+        o["name"] = name
+        o.update(_svg_material(el, name))
+        objs.append(o)
+    if not objs:
+        raise ViscxError(f"{path}: no circle, rect, polygon or path elements found")
+    return make_scene(objs)
+
+
+def load_dxf(path, emission=0.0, reflectance=0.5) -> Scene:
+    """DXF 2-D plans via trimesh's path loader: every closed outline (trimesh traces
+    connected lines and polylines into closed paths; curves come discretised) must be
+    convex and becomes a polygon object named ``outline<i>``.  Materials: E = 0, ρ = 0.5."""
+    try:
+        import trimesh
+        p = trimesh.load_path(str(path))
+    except Exception as exc:  # trimesh raises many kinds on bad files
+        raise ViscxError(f"{path}: not a readable DXF file ({type(exc).__name__}: {exc})") from None
+    objs = []
+    try:
+        loops = p.discrete
+    except Exception as exc:  # trimesh's path graph code raises various kinds
+        raise ViscxError(f"{path}: DXF outlines could not be traced ({type(exc).__name__}: {exc})") from None
+    for i, pts in enumerate(loops):
+        pts = np.asarray(pts, dtype=float)[:, :2]
+        if len(pts) < 4 or not np.allclose(pts[0], pts[-1]):
+            raise ViscxError(f"{path}: outline {i} is not a closed polyline; flatland objects are closed")
+        objs.append({"type": "polygon", "points": pts[:-1].tolist(), "name": f"outline{i}",
+                     "emission": emission, "reflectance": reflectance})
+    if not objs:
+        raise ViscxError(f"{path}: no closed polylines found in the DXF")
+    return make_scene(objs)

@@ -41,7 +41,9 @@ def timed(f, repeat=1):
     return best, out
 
 
-def main(sizes):
+def measure(sizes):
+    """One row per size: (n, vertices, edges, faces, build s, candidates s, freeness s,
+    median move s, median rebuild s, (mean form factors recomputed, mean total))."""
     build(random_circles(5))  # warm-up: numba cache
     rows = []
     for n in sizes:
@@ -70,6 +72,11 @@ def main(sizes):
         ff = np.mean([a for a, b in recomputed]), np.mean([b for a, b in recomputed])
         rows.append((n, cx.n_vertices, cx.n_edges, cx.n_faces, t_build, t_cand, t_cls, np.median(t_moves),
                      np.median(t_rebuilds), ff))
+    return rows
+
+
+def main(sizes):
+    rows = measure(sizes)
     head = (f"{'n':>5} {'vertices':>9} {'edges':>8} {'faces':>7} {'build s':>8} {'(cand s':>8} {'free s)':>8} "
             f"{'move s':>8} {'rebuild s':>9} {'FF recomputed / total':>22}")
     print(head)

@@ -96,12 +96,95 @@ def bench_raycast(scene, name, n_rays, rng):
     return rows
 
 
+def _row(section, scene, stage, triangles, n, seconds, rate, unit, note=""):
+    return {"section": section, "scene": scene, "stage": stage, "triangles": triangles, "n": n,
+            "seconds": seconds, "rate": rate, "unit": unit, "peak_mb": peak_mb(), "note": note}
+
+
+def _cosine_directions(normal, n, rng):
+    """(n, 3) directions cosine-distributed about ``normal`` (3,) (Malley's method)."""
+    u1, u2 = rng.random(n), rng.random(n)
+    r, phi = np.sqrt(u1), 2 * np.pi * u2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u1)], axis=1)
+    t = np.cross(normal, [1.0, 0, 0] if abs(normal[0]) < 0.9 else [0, 1.0, 0])
+    t /= np.linalg.norm(t)
+    return local @ np.stack([t, np.cross(normal, t), normal])
+
+
+def bench_formfactors(n_rays, rng, tolerance=1e-3):
+    """Exact form factors against embree Monte Carlo (cosine-weighted rays) reaching a
+    relative error ``tolerance``: the Monte Carlo time is (1 - F) / (F tolerance²) rays
+    at the measured ray rate (its standard error falls as 1/√N)."""
+    import tempfile
+
+    from viscx.geometry.formfactor import point_to_polygon, polygon_to_polygon
+
+    # two unit squares, the second 1 above the first and shifted by 0.4: partly facing
+    obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.4 0 1\nv 1.4 0 1\nv 1.4 1 1\nv 0.4 1 1\n"
+    obj += "g lower\nf 1 2 3 4\ng upper\nf 5 8 7 6\n"
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "squares.obj"
+        path.write_text(obj)
+        scene = load_scene(path)
+    upper = next(k for k in range(scene.n_faces) if scene.face_loops(k)[0][:, 2].min() > 0.5)
+    lower = 1 - upper
+    loop_u, loop_l = scene.face_loops(upper), scene.face_loops(lower)
+    up = np.array([0, 0, 1.0])
+    caster = scene.ray_caster
+    caster.first_hit(scene.vertices[:4], np.ones((4, 3)))  # warm up
+    rows = []
+
+    # point to polygon: Lambert's contour formula at many points, one call
+    m = 100_000
+    pts = np.column_stack([rng.random((m, 2)), np.zeros(m)])
+    sec_exact, F = timed(point_to_polygon, pts, np.tile(up, (m, 1)), loop_u)
+    p0 = np.array([0.5, 0.5, 0.0])
+    d = _cosine_directions(up, n_rays, rng)
+    sec_mc, (face, _) = timed(caster.first_hit, np.tile(p0 + 1e-9 * up, (n_rays, 1)), d, repeat=1)
+    F0 = float(point_to_polygon(p0[None], up[None], loop_u)[0])
+    F_mc = float(np.mean(face == upper))
+    need = (1 - F0) / (F0 * tolerance**2) / (n_rays / sec_mc)
+    per_point = sec_exact / m
+    rows.append(_row("formfactor", "two squares", "point to polygon, exact (Lambert)", 2, m, sec_exact, m / sec_exact,
+                     "points/s", f"F = {F0:.12f}"))
+    rows.append(_row("formfactor", "two squares", "point to polygon, embree Monte Carlo", 2, n_rays, sec_mc,
+                     n_rays / sec_mc, "rays/s",
+                     f"F ~ {F_mc:.5f}; {tolerance:g} rel. error needs {need:.3g} s = {need / per_point:,.0f} x exact"))
+
+    # polygon to polygon: the double contour integral against uniform points x cosine rays
+    sec_exact, F = timed(polygon_to_polygon, loop_l, up, loop_u, -up)
+    a = np.column_stack([rng.random((n_rays, 2)), np.full(n_rays, 1e-9)])
+    sec_mc, (face, _) = timed(caster.first_hit, a, _cosine_directions(up, n_rays, rng), repeat=1)
+    F_mc = float(np.mean(face == upper))
+    need = (1 - F) / (F * tolerance**2) / (n_rays / sec_mc)
+    rows.append(_row("formfactor", "two squares", "polygon to polygon, exact (contour integral)", 2, 1, sec_exact,
+                     1 / sec_exact, "pairs/s", f"F = {F:.12f}"))
+    rows.append(_row("formfactor", "two squares", "polygon to polygon, embree Monte Carlo", 2, n_rays, sec_mc,
+                     n_rays / sec_mc, "rays/s",
+                     f"F ~ {F_mc:.5f}; {tolerance:g} rel. error needs {need:.3g} s = {need / sec_exact:,.0f} x exact"))
+    return rows
+
+
+def bench_flatland(sizes):
+    """Flatland build, and one object moved: update against rebuild (benchmarks/flatland.py)."""
+    from flatland import measure
+
+    rows = []
+    for n, m, E, F, tb, tc, tf, tm, tr, (re, tot) in measure(sizes):
+        rows.append(_row("flatland", f"{n} random circles", "build complex + form factors", 0, m, tb, m / tb,
+                         "vertices/s", f"{E} edges, {F} faces"))
+        rows.append(_row("flatland", f"{n} random circles", "move one object: update (vs rebuild)", 0, m, tm,
+                         m / tm, "vertices/s",
+                         f"rebuild {tr:.3f} s ({tr / tm:.2f} x); form factors recomputed {re:.0f} of {tot:.0f}"))
+    return rows
+
+
 def markdown(rows, machine):
-    lines = [f"Machine: {machine}", "", "| section | scene | stage | triangles | n | median s | rate | peak MB |", "|---|---|---|---:|---:|---:|---:|---:|"]
+    lines = [f"Machine: {machine}", "", "| section | scene | stage | triangles | n | median s | rate | peak MB | note |", "|---|---|---|---:|---:|---:|---:|---:|---|"]
     for r in rows:
         lines.append(
             f"| {r['section']} | {r['scene']} | {r['stage']} | {r['triangles']:,} | {r['n']:,} | "
-            f"{r['seconds']:.3f} | {r['rate']:,.0f} {r['unit']} | {r['peak_mb']:.0f} |"
+            f"{r['seconds']:.3g} | {r['rate']:,.0f} {r['unit']} | {r['peak_mb']:.0f} | {r.get('note', '')} |"
         )
     return "\n".join(lines)
 
@@ -135,6 +218,8 @@ def main():
         }
     )
     rows += bench_raycast(big, "spheres_in_room", n_rays, rng)
+    rows += bench_formfactors(n_rays, rng)
+    rows += bench_flatland([10, 100, 300] if args.quick else [10, 100, 300, 1000])
 
     table = markdown(rows, machine)
     print(table)

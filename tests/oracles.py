@@ -35,7 +35,6 @@ def segment_hits_reference(starts, ends, vertices, triangles, bary_slack=0.0):
     crosses = (np.sign(d0) * np.sign(d1) <= 0) & (d0 != d1) & ~in_plane
     s = np.where(crosses, d0 / np.where(crosses, d0 - d1, 1.0), 0.0)
     point = starts[:, None, :] + s[..., None] * (ends - starts)[:, None, :]
-    centroid = (a + b + c) / 3
     size = np.linalg.norm(b - a, axis=1) + np.linalg.norm(c - b, axis=1) + np.linalg.norm(a - c, axis=1)
     inside = np.ones_like(crosses)
     for p, q in ((a, b), (b, c), (c, a)):

@@ -59,8 +59,11 @@ def chords(obj, o, d):
     return np.where(hit, tin, np.inf), np.where(hit, tout, -np.inf)
 
 
-def monte_carlo_F(scene, n_lines=1_000_000, seed=0, chunk=250_000):
-    """Monte Carlo form factors: F (n, n+1) and its standard error (n, n+1)."""
+def sampled_lines(scene, n_lines, seed, chunk=250_000):
+    """Uniform oriented lines (θ, u) through the disk of radius Rb around the scene, in
+    chunks: yields (o (M, 2), d (M, 2), t_in (M, n), t_out (M, n), order (M, n) objects
+    sorted by entry, hit (M, n) whether the j-th of them is met, and the measure 4π Rb of
+    all the sampled lines)."""
     objs = objects_of(scene)
     n = len(objs)
     pts = np.concatenate([o[1] for o in objs])
@@ -68,35 +71,40 @@ def monte_carlo_F(scene, n_lines=1_000_000, seed=0, chunk=250_000):
     center = 0.5 * (pts.min(0) + pts.max(0))
     Rb = np.max(np.hypot(*(pts - center).T)) + rad + 1e-9
     rng = np.random.default_rng(seed)
-    counts = np.zeros((n, n + 1))
     done = 0
     while done < n_lines:
-        N = min(chunk, n_lines - done)
-        th = rng.uniform(0, 2 * math.pi, N)
-        u = rng.uniform(-Rb, Rb, N)
+        M = min(chunk, n_lines - done)
+        th = rng.uniform(0, 2 * math.pi, M)
+        u = rng.uniform(-Rb, Rb, M)
         d = np.stack([np.cos(th), np.sin(th)], 1)
-        nr = np.stack([-d[:, 1], d[:, 0]], 1)
-        o = center + u[:, None] * nr
-        tin = np.empty((N, n))
+        o = center + u[:, None] * np.stack([-d[:, 1], d[:, 0]], 1)
+        tin = np.empty((M, n)); tout = np.empty((M, n))
         for k, ob in enumerate(objs):
-            tin[:, k] = chords(ob, o, d)[0]
+            tin[:, k], tout[:, k] = chords(ob, o, d)
         order = np.argsort(tin, axis=1, kind="stable")
-        ts = np.take_along_axis(tin, order, 1)
-        hit = np.isfinite(ts)
+        hit = np.isfinite(np.take_along_axis(tin, order, 1))
+        yield o, d, tin, tout, order, hit, 4 * math.pi * Rb
+        done += M
+
+
+def monte_carlo_F(scene, n_lines=1_000_000, seed=0, chunk=250_000):
+    """Monte Carlo form factors: F (n, n+1) and its standard error (n, n+1)."""
+    objs = objects_of(scene)
+    n = len(objs)
+    counts = np.zeros((n, n + 1))
+    measure = 0.0
+    for o, d, tin, tout, order, hit, measure in sampled_lines(scene, n_lines, seed, chunk):
+        N = len(o)
         for j in range(n):
             a = order[:, j]
             ok = hit[:, j]
-            if j + 1 < n:
-                nxt_hit = hit[:, j + 1]
-                b = np.where(nxt_hit, order[:, j + 1], n)
-            else:
-                b = np.full(N, n)
+            b = np.where(hit[:, j + 1], order[:, j + 1], n) if j + 1 < n else np.full(N, n)
             np.add.at(counts, (a[ok], b[ok]), 1.0)
-        done += N
     Lp = np.array([perimeter(ob) for ob in objs])
-    scale = (4 * math.pi * Rb) / (2 * Lp)[:, None]
+    scale = measure / (2 * Lp)[:, None]
     p = counts / n_lines
     return p * scale, np.sqrt(p * (1 - p) / n_lines) * scale
+
 
 
 def crossed_strings_circles(c1, r1, c2, r2):
@@ -171,34 +179,17 @@ def monte_carlo_elements(scene, elem_obj, elem_s, n_lines=1_000_000, seed=0, chu
     objs = objects_of(scene)
     n = len(objs)
     N = len(elem_obj)
-    pts = np.concatenate([o[1] for o in objs])
-    rad = max(o[2] for o in objs)
-    center = 0.5 * (pts.min(0) + pts.max(0))
-    Rb = np.max(np.hypot(*(pts - center).T)) + rad + 1e-9
-    rng = np.random.default_rng(seed)
     counts = np.zeros((N, N + 1))
     # per object: element starts (sorted) for the position → element lookup
     starts = {k: (np.nonzero(elem_obj == k)[0], elem_s[elem_obj == k, 0]) for k in range(n)}
-    per = np.array([perimeter(o) for o in objs])
 
     def elem_of(k, s):
         ids, st = starts[k]
         j = np.searchsorted(st, s, side="right") - 1
         return ids[j % len(ids)]  # before the first start: the wrapping last element
 
-    done = 0
-    while done < n_lines:
-        M = min(chunk, n_lines - done)
-        th = rng.uniform(0, 2 * math.pi, M)
-        u = rng.uniform(-Rb, Rb, M)
-        d = np.stack([np.cos(th), np.sin(th)], 1)
-        o = center + u[:, None] * np.stack([-d[:, 1], d[:, 0]], 1)
-        tin = np.empty((M, n)); tout = np.empty((M, n))
-        for k, ob in enumerate(objs):
-            tin[:, k], tout[:, k] = chords(ob, o, d)
-        order = np.argsort(tin, axis=1, kind="stable")
-        ts = np.take_along_axis(tin, order, 1)
-        hit = np.isfinite(ts)
+    measure = 0.0
+    for o, d, tin, tout, order, hit, measure in sampled_lines(scene, n_lines, seed, chunk):
         for j in range(n):
             ok = hit[:, j]
             a = order[ok, j]
@@ -225,8 +216,7 @@ def monte_carlo_elements(scene, elem_obj, elem_s, n_lines=1_000_000, seed=0, chu
                         eb[mk] = elem_of(k, arc_positions(objs[k], y[mk]))
                 fb[nh] = eb
             np.add.at(counts, (ea, fb), 1.0)
-        done += M
     Le = elem_s[:, 1] - elem_s[:, 0]
-    scale = (4 * math.pi * Rb) / (2 * Le)[:, None]
+    scale = measure / (2 * Le)[:, None]
     p = counts / n_lines
     return p * scale, np.sqrt(p * (1 - p) / n_lines) * scale

@@ -160,7 +160,7 @@ def test_incidences_and_edge_labels(seed):
     scene = random_mixed(15, seed=seed, density=3.0)
     cx = build(scene)
     objs = objects_of(scene)
-    m, E, F = cx.n_vertices, cx.n_edges, cx.n_faces
+    m, E = cx.n_vertices, cx.n_edges
     # a vertex: four distinct edges, six distinct faces
     assert np.all([len(set(r)) == 4 for r in cx.v_edges])
     # six faces (t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h); when both ends are the sky

@@ -251,7 +251,6 @@ def derive(scene: Scene, V: dict, previous: dict | None = None):
     n_occ = 2 * m
     # -- incidences on tangency curves (curve id 2·object + side): role 0 on K1, 1 on K2
     inc_occ = np.concatenate([np.arange(n_occ), np.arange(n_occ)])
-    inc_role = np.concatenate([np.zeros(n_occ, np.int64), np.ones(n_occ, np.int64)])
     inc_obj = np.concatenate([OK1, OK2])
     inc_side = np.concatenate([OS1, OS2])
     inc_curve = 2 * inc_obj + inc_side

@@ -467,7 +467,6 @@ def solve_radiosity(F, emission, reflectance, tol=1e-13, max_iter=100000):
     F : (N, N) float64 ; emission, reflectance : (N,) float64
 
     Returns B (N,) float64 and the number of sweeps."""
-    N = F.shape[0]
     B = emission.astype(float).copy()
     rF = reflectance[:, None] * F
     for it in range(1, max_iter + 1):

@@ -279,7 +279,6 @@ def check_disjoint(scene: Scene, eps=None):
     Separating-axis test: two convex objects are disjoint iff some direction separates
     them; for circle/rounded polygons the candidate axes are the polygons' edge normals
     and the directions between support points (exact for circles and polygons)."""
-    n = scene.n
     bb = scene.bounding_boxes()
     scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
     eps = 1e-9 * scale if eps is None else eps

@@ -91,20 +91,89 @@ def validate_candidates(scene, kind, generators, origins, directions):
     -------
     Nodes
     """
-    eps = scene.epsilon
     kind = np.asarray(kind, dtype=np.int8)
+    if len(kind) == 0:
+        return _empty()
+    seg = maximal_free_segments(scene, SLOT_IS_VERTEX[kind], SLOT_COUNT[kind], generators, origins, directions)
+    nodes = np.flatnonzero(seg.valid)
+    result = Nodes(
+        kind=kind[nodes],
+        generators=np.asarray(generators, dtype=np.int64)[nodes],
+        direction=seg.direction[nodes],
+        ends=seg.ends[nodes],
+        blocker_kind=seg.blocker_kind[nodes],
+        blocker=seg.blocker[nodes],
+        generator_points=seg.generator_points[nodes],
+    )
+    return sort_nodes(result)
+
+
+@dataclass
+class LineSegments:
+    """The maximal free segment of each line through k generators (or why there is none).
+
+    Attributes
+    ----------
+    valid : (m,) bool
+        The line meets its generators as the node definition demands
+        (docs/skeleton.md, conditions 1-5 with k generators).
+    direction : (m, 3) float
+        Unit direction, oriented canonically (:func:`canonical_directions`).
+    ends : (m, 2, 3) float
+        Back end P and front end Q (NaN where not valid).
+    blocker_kind, blocker : (m, 2) int8, int
+        As in :class:`Nodes` (-1 where not valid).
+    generator_points : (m, 4, 3) float
+        Where the line meets each generator slot (NaN for unused slots).
+    tangent : (m, 4) bool
+        Whether the line passes at each generator slot (False for unused slots).
+    """
+
+    valid: np.ndarray
+    direction: np.ndarray
+    ends: np.ndarray
+    blocker_kind: np.ndarray
+    blocker: np.ndarray
+    generator_points: np.ndarray
+    tangent: np.ndarray
+
+
+def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions):
+    """The one definition of "a maximal free segment through these generators".
+
+    Nodes use it with four conditions (k = 4, 3, 2 generator points), arcs
+    (:mod:`viscx.skeleton.arcs`) with three (EEE: three edges, VE: a vertex and
+    an edge), so that an arc's end and the node there are judged alike.
+
+    Parameters
+    ----------
+    scene : Scene
+    slot_is_vertex : (m, 4) bool
+        Which generator slots hold vertices (the others hold edges).
+    slot_count : (m,) int
+        Number of used slots (the first ``slot_count`` slots).
+    generators : (m, 4) int
+        Vertex or edge id per slot.
+    origins, directions : (m, 3) float
+        A point and a direction of each line.
+
+    Returns
+    -------
+    LineSegments
+    """
+    eps = scene.epsilon
+    slot_is_vertex = np.asarray(slot_is_vertex, dtype=bool)
+    count = np.asarray(slot_count, dtype=np.int64)
     generators = np.asarray(generators, dtype=np.int64)
     d = canonical_directions(directions)
     o = np.asarray(origins, dtype=np.float64)
-    m = len(kind)
-    if m == 0:
-        return _empty()
+    m = len(count)
 
     # one row per (candidate, generator slot)
-    used = np.arange(4)[None, :] < SLOT_COUNT[kind][:, None]
+    used = np.arange(4)[None, :] < count[:, None]
     cand, slot = np.nonzero(used)
     gid = generators[cand, slot]
-    is_vertex = SLOT_IS_VERTEX[kind[cand], slot]
+    is_vertex = slot_is_vertex[cand, slot]
     oc, dc = o[cand], d[cand]
     point = np.empty((len(cand), 3))
     ok = np.ones(len(cand), dtype=bool)
@@ -147,7 +216,6 @@ def validate_candidates(scene, kind, generators, origins, directions):
     row_of = np.full((m, 4), -1)
     row_of[cand, slot] = np.arange(len(cand))
     row_sorted = np.take_along_axis(row_of, order, axis=1)
-    count = SLOT_COUNT[kind]
     for j in range(3):  # distinct points along the line
         has = j + 1 < count
         gap = np.where(has, t_sorted[:, j + 1] - np.where(has, t_sorted[:, j], 0.0), np.inf)
@@ -195,20 +263,18 @@ def validate_candidates(scene, kind, generators, origins, directions):
             blocker_kind[go_on, side] = np.where(sky, BLOCK_SKY, BLOCK_FACE)
             blocker[go_on, side] = face
 
-    gen_points = np.full((n, 4, 3), np.nan)
-    r = row_of[nodes]
-    has = r >= 0
-    gen_points[has] = point[r[has]]
-    result = Nodes(
-        kind=kind[nodes],
-        generators=generators[nodes],
-        direction=d[nodes],
-        ends=ends,
-        blocker_kind=blocker_kind,
-        blocker=blocker,
-        generator_points=gen_points,
-    )
-    return sort_nodes(result)
+    all_ends = np.full((m, 2, 3), np.nan)
+    all_ends[nodes] = ends
+    all_kind = np.full((m, 2), -1, dtype=np.int8)
+    all_kind[nodes] = blocker_kind
+    all_blocker = np.full((m, 2), -1, dtype=np.int64)
+    all_blocker[nodes] = blocker
+    gen_points = np.full((m, 4, 3), np.nan)
+    has = row_of >= 0
+    gen_points[has] = point[row_of[has]]
+    slot_tangent = np.zeros((m, 4), dtype=bool)
+    slot_tangent[has] = tangent[row_of[has]]
+    return LineSegments(keep, d, all_ends, all_kind, all_blocker, gen_points, slot_tangent)
 
 
 def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, angle_tol=1e-9):

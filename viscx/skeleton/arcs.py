@@ -1,0 +1,831 @@
+"""V1: the arcs (1-cells) of the visibility complex, EEE and VE, and the VE half-cells.
+
+An arc is a maximal connected 1-parameter family of maximal free segments with
+the same three generator conditions (EEE: meets three edges; VE: passes through
+a vertex and meets an edge) and the same blocker pair (docs/skeleton.md, "Arcs").
+
+Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
+------------------------------------------------------------------------------
+1. *Events.* The V0 nodes, plus the *planar E4 events*: lines in the plane of
+   two generator edges sharing a vertex (Durand's FEE events when that plane
+   is a face's) that meet two more edges. V0 leaves those out (node condition
+   5), yet they end arcs: an EEE arc whose line turns into a face's plane at
+   one of its edges stops there (the edge stops being passed, or the blocker
+   becomes the edge). They are validated by the same definition as nodes.
+2. *Families through each event.* An E4 event lies on the four EEE families
+   obtained by dropping one edge; a VEE node (v, e1, e2) on VE (v, e1),
+   VE (v, e2) and EEE (e_v, e1, e2) for each generator edge e_v at v; a VV
+   node (u, v) on VE (u, e) for each generator edge e at v and VE (v, e) for
+   each one at u.
+3. *Parameters.* EEE (p, q, r) by the point s ∈ [0, 1] of the line on its
+   parameter edge p (the line through a point of p meeting the lines of q and
+   r is unique, seed 000 §4.2); VE (v, e) by the point s ∈ [0, 1] on e. Each
+   family's events are sorted along s, together with the ends of its domain
+   (s = 0, 1 and, for EEE, where the line reaches an endpoint of q or r: a
+   linear-fractional map, inverted exactly).
+4. *Arcs.* Between consecutive events the family is sampled (s at 1/4, 1/2,
+   3/4 of the interval) and every sample judged by
+   :func:`viscx.skeleton.nodes.maximal_free_segments`, the nodes' own
+   definition with three generator conditions. Agreeing valid samples make
+   one arc whose ends are the two events. Disagreeing samples mean an event
+   V0 leaves out (a degenerate one, dropped by epsilon-visibility): the
+   interval is resampled and each change located by bisection; the arc ends
+   there with end type ``END_TRANSITION``.
+5. *VE half-cells* (seed 000 §4.1): the blocker pairs of the two V-cells on
+   either side of each VE arc, found by turning the arc's middle line about
+   its vertex off the plane of the vertex and the edge.
+
+All per-sample work is numpy over flat arrays; the only Python loops run over
+stages, bisection steps and small constant counts.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
+from viscx.geometry.tangency import tangent_at_points
+from viscx.progress import bar
+from viscx.skeleton.nodes import (
+    BLOCK_FACE,
+    BLOCK_SKY,
+    BLOCK_VERTEX,
+    E4,
+    VEE,
+    VV,
+    Nodes,
+    maximal_free_segments,
+    validate_candidates,
+)
+
+# Arc kinds.
+EEE, VE = 0, 1
+KIND_NAMES = {EEE: "EEE", VE: "VE"}
+
+# How an arc ends (one code per end).
+END_NODE = 0  # at a V0 node (end_node is its id)
+END_PLANAR = 1  # at a planar E4 event, not a V0 node (end_node indexes Arcs.planar)
+END_ENDPOINT = 2  # the family reaches an edge's endpoint and V0 has no node there
+END_TRANSITION = 3  # the samples change there without a known event (a dropped, degenerate event)
+END_EDGE = 4  # a VE arc reaches the line along an edge of its vertex (end_node is that edge)
+END_NAMES = {END_NODE: "node", END_PLANAR: "planar", END_ENDPOINT: "endpoint", END_TRANSITION: "transition", END_EDGE: "edge"}
+
+#: Where each interval between consecutive events is sampled (fractions of it); the first is the arc's sample.
+SAMPLES = (0.5, 0.25, 0.75)
+#: Samples of an interval whose samples disagree, before bisection.
+REFINE = 48
+#: Bisection steps locating a change inside such an interval.
+BISECT = 40
+
+# slot layout of the family lines for maximal_free_segments (EEE: three edges; VE: vertex, edge)
+_SLOT_IS_VERTEX = np.array([[False] * 4, [True, False, False, False]])
+_SLOT_COUNT = np.array([3, 2])
+
+
+@dataclass
+class HalfCells:
+    """VE half-cells (seed 000 eq. 1-3), one row per VE arc.
+
+    Row i is the half-cell ``(up[i, 0], vertex, edge, down[i, 0], start, end)``
+    running along the edge from ``a`` to ``b`` (its vertices, smaller id first)
+    with its V-cell on the side of ``n = (b - a) × (vertex - a)``; the opposite
+    half-cell is ``(up[i, 1], vertex, edge reversed, down[i, 1], end, start)``,
+    its V-cell on the side of ``-n``. "Up" is the vertex's side of the line,
+    "down" the edge's (downstream from vertex to edge). Blockers are
+    ``(kind, id)`` pairs as in :class:`viscx.skeleton.nodes.Nodes`: a face, the
+    sky, or the vertex itself when the surface separates the line's rays there
+    (only ever in ``up``).
+
+    Attributes
+    ----------
+    arc : (h,) int
+        The VE arc.
+    vertex, edge : (h,) int
+    up_kind, down_kind : (h, 2) int8
+        Side +n, side -n.
+    up, down : (h, 2) int
+    start, end : (h,) int
+        Ends of the arc at s = interval[0] and interval[1]: node ids when
+        ``start_type``/``end_type`` is END_NODE, else as :class:`Arcs` ``end_node``.
+    start_type, end_type : (h,) int8
+    """
+
+    arc: np.ndarray
+    vertex: np.ndarray
+    edge: np.ndarray
+    up_kind: np.ndarray
+    up: np.ndarray
+    down_kind: np.ndarray
+    down: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    start_type: np.ndarray
+    end_type: np.ndarray
+
+    def __len__(self):
+        return len(self.arc)
+
+
+@dataclass
+class Arcs:
+    """Arcs as flat arrays, sorted by (kind, generators, interval).
+
+    Attributes
+    ----------
+    kind : (n,) int8
+        EEE or VE.
+    generators : (n, 3) int
+        EEE: (p, q, r), p the parameter edge, q < r; p is the smallest id whose
+        two other edges are skew (so that the line through a point of p meeting
+        them is unique). VE: (v, e, -1).
+    interval : (n, 2) float
+        Parameter interval s0 < s1: the point of the line on edge p (EEE) or e
+        (VE), 0 at the edge's smaller vertex id, 1 at the larger.
+    end_type : (n, 2) int8
+        END_NODE, END_PLANAR, END_ENDPOINT or END_TRANSITION at s0 and s1.
+    end_node : (n, 2) int
+        V0 node id (END_NODE), ``planar`` row (END_PLANAR), else -1.
+    blocker_kind : (n, 2) int8
+    blocker : (n, 2) int
+        Blocker pair (as in Nodes) of the arc's segments, in the family's
+        orientation: from p's point towards q's (EEE), from v towards e (VE).
+    parameter : (n,) float
+        s of the sample segment.
+    direction : (n, 3) float
+        Unit direction of the sample line, in the family's orientation.
+    ends : (n, 2, 3) float
+        The sample's maximal free segment, back end then front end.
+    generator_points : (n, 3, 3) float
+        Where the sample line meets each generator.
+    planar : Nodes
+        The planar E4 events (kind E4, four edges) arcs end at.
+    half_cells : HalfCells
+        One per VE arc.
+    """
+
+    kind: np.ndarray
+    generators: np.ndarray
+    interval: np.ndarray
+    end_type: np.ndarray
+    end_node: np.ndarray
+    blocker_kind: np.ndarray
+    blocker: np.ndarray
+    parameter: np.ndarray
+    direction: np.ndarray
+    ends: np.ndarray
+    generator_points: np.ndarray
+    planar: Nodes
+    half_cells: HalfCells
+
+    def __len__(self):
+        return len(self.kind)
+
+    def counts(self):
+        """Number of arcs per kind name."""
+        return {name: int(np.count_nonzero(self.kind == k)) for k, name in KIND_NAMES.items()}
+
+
+# --------------------------------------------------------------------------------------
+# generator tables
+
+
+def _vertex_edges(scene):
+    """Generator edges at each vertex as CSR: (offsets (n + 1,), edges (k,))."""
+    ge = scene.generator_edges
+    ev = scene.half_edges.edge_vertices[ge]
+    owner = np.concatenate([ev[:, 0], ev[:, 1]])
+    edges = np.concatenate([ge, ge])
+    order = np.lexsort([edges, owner])
+    owner, edges = owner[order], edges[order]
+    return np.searchsorted(owner, np.arange(scene.n_vertices + 1)), edges
+
+
+def _edge_geometry(scene, edges):
+    ev = scene.half_edges.edge_vertices[edges]
+    return scene.vertices[ev[..., 0]], scene.vertices[ev[..., 1]]
+
+
+def _skew(scene, e1, e2):
+    """Whether pairs of edges lie on skew lines (no shared vertex, not coplanar, not parallel)."""
+    ev = scene.half_edges.edge_vertices
+    share = (ev[e1][:, :, None] == ev[e2][:, None, :]).any(axis=(1, 2))
+    a1, b1 = _edge_geometry(scene, e1)
+    a2, b2 = _edge_geometry(scene, e2)
+    u1 = (b1 - a1) / np.linalg.norm(b1 - a1, axis=1, keepdims=True)
+    u2 = (b2 - a2) / np.linalg.norm(b2 - a2, axis=1, keepdims=True)
+    c = np.cross(u1, u2)
+    size = np.linalg.norm(c, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gap = np.abs(np.einsum("ij,ij->i", a2 - a1, c)) / size
+    return ~share & (size > 1e-9) & (gap > scene.epsilon)
+
+
+def canonical_eee(scene, triples):
+    """Canonical (p, q, r) of EEE families, p the parameter edge.
+
+    Parameters
+    ----------
+    triples : (m, 3) int
+        Three distinct edge ids per family, any order.
+
+    Returns
+    -------
+    (m, 3) int
+        p is the smallest id whose two other edges are skew, q < r; rows of -1
+        where no edge qualifies (the three lines are pairwise coplanar: no
+        1-parameter family).
+    """
+    t = np.sort(np.asarray(triples, dtype=np.int64).reshape(-1, 3), axis=1)
+    out = np.full_like(t, -1)
+    left = np.ones(len(t), dtype=bool)
+    for i, (j, k) in enumerate(((1, 2), (0, 2), (0, 1))):
+        rows = np.flatnonzero(left)
+        ok = _skew(scene, t[rows, j], t[rows, k])
+        rows = rows[ok]
+        out[rows] = np.stack([t[rows, i], t[rows, j], t[rows, k]], axis=1)
+        left[rows] = False
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# family lines
+
+
+def family_lines(scene, kind, generators, s):
+    """A point and a direction of the line of each family at parameter s.
+
+    Parameters
+    ----------
+    kind : (m,) int
+        EEE or VE.
+    generators : (m, 3) int
+        Canonical (see :class:`Arcs`).
+    s : (m,) float
+
+    Returns
+    -------
+    origins, directions : (m, 3) float
+        Directions are zero where the line is undefined (EEE: the point lies on
+        the line of q or r).
+    """
+    kind = np.asarray(kind)
+    generators = np.asarray(generators, dtype=np.int64)
+    s = np.asarray(s, dtype=np.float64)
+    origins = np.zeros((len(kind), 3))
+    directions = np.zeros((len(kind), 3))
+    e = np.flatnonzero(kind == EEE)
+    if len(e):
+        a, b = _edge_geometry(scene, generators[e, 0])
+        p = a + s[e, None] * (b - a)
+        aq, bq = _edge_geometry(scene, generators[e, 1])
+        ar, br = _edge_geometry(scene, generators[e, 2])
+        origins[e] = p
+        directions[e] = line_through_point_and_two_lines(p, plucker(aq, bq - aq), plucker(ar, br - ar))
+    v = np.flatnonzero(kind == VE)
+    if len(v):
+        a, b = _edge_geometry(scene, generators[v, 1])
+        origins[v] = scene.vertices[generators[v, 0]]
+        directions[v] = a + s[v, None] * (b - a) - origins[v]
+    return origins, directions
+
+
+@dataclass
+class _Samples:
+    valid: np.ndarray
+    state: np.ndarray  # (m, 5) int: valid, blocker kinds and ids in the family's orientation
+    direction: np.ndarray
+    ends: np.ndarray
+    generator_points: np.ndarray
+
+
+def judge_samples(scene, kind, generators, s):
+    """The maximal free segment of each family's line at s, in the family's orientation.
+
+    Parameters
+    ----------
+    kind : (m,) int
+    generators : (m, 3) int
+    s : (m,) float
+
+    Returns
+    -------
+    valid : (m,) bool
+    state : (m, 5) int
+        (valid, back blocker kind, back blocker, front blocker kind, front
+        blocker); -1 for the blockers of invalid lines. Two samples of a family
+        are on one arc only if their states agree.
+    direction : (m, 3) float
+    ends : (m, 2, 3) float
+    generator_points : (m, 3, 3) float
+    """
+    kind = np.asarray(kind, dtype=np.int64)
+    generators = np.asarray(generators, dtype=np.int64)
+    o, d = family_lines(scene, kind, generators, s)
+    undefined = np.linalg.norm(d, axis=1) == 0
+    d[undefined] = (1.0, 0.0, 0.0)
+    gens = np.concatenate([generators, np.full((len(kind), 1), -1)], axis=1)
+    seg = maximal_free_segments(scene, _SLOT_IS_VERTEX[kind], _SLOT_COUNT[kind], gens, o, d)
+    valid = seg.valid & ~undefined
+    gp = seg.generator_points[:, :3]
+    # the family's orientation: from the first generator's point towards the second's
+    flip = valid & (np.einsum("ij,ij->i", seg.direction, gp[:, 1] - gp[:, 0]) < 0)
+    direction = np.where(flip[:, None], -seg.direction, seg.direction)
+    ends = np.where(flip[:, None, None], seg.ends[:, ::-1], seg.ends)
+    bk = np.where(flip[:, None], seg.blocker_kind[:, ::-1], seg.blocker_kind).astype(np.int64)
+    b = np.where(flip[:, None], seg.blocker[:, ::-1], seg.blocker)
+    state = np.stack([valid.astype(np.int64), bk[:, 0], b[:, 0], bk[:, 1], b[:, 1]], axis=1)
+    state[~valid, 1:] = -1
+    return _Samples(valid, state, direction, ends, gp)
+
+
+# --------------------------------------------------------------------------------------
+# events
+
+
+def planar_events(scene):
+    """The planar E4 events: lines in the plane of two generator edges sharing a vertex
+    that meet two more generator edges, validated as nodes.
+
+    V0 leaves them out (two of the four edges share an endpoint); they end EEE
+    arcs where the line turns into a face's plane at one of its edges (Durand's
+    FEE events) or into the plane of two edges of one vertex.
+
+    Returns
+    -------
+    Nodes
+        Kind E4, generators the four edges increasing, one line per quadruple.
+    """
+    eps = scene.epsilon
+    vo, ve = _vertex_edges(scene)
+    # pairs of generator edges at one vertex
+    owner = np.repeat(np.arange(scene.n_vertices), np.diff(vo))
+    i, j = _pairs_within_groups(owner)
+    if len(i) == 0:
+        return _no_events(scene)
+    pa, pb, pw = ve[i], ve[j], owner[i]
+    w = scene.vertices[pw]
+    other = lambda e: np.where(scene.half_edges.edge_vertices[e, 0] == pw, scene.half_edges.edge_vertices[e, 1], scene.half_edges.edge_vertices[e, 0])  # noqa: E731
+    ua, ub = scene.vertices[other(pa)] - w, scene.vertices[other(pb)] - w
+    normal = np.cross(ua, ub)
+    size = np.linalg.norm(normal, axis=1)
+    keep = size > 1e-9 * np.linalg.norm(ua, axis=1) * np.linalg.norm(ub, axis=1)
+    pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
+
+    # generator edges crossing each pair's plane strictly inside (chunked: pairs × edges)
+    ge = scene.generator_edges
+    ga, gb = _edge_geometry(scene, ge)
+    cross_pair, cross_edge, cross_point = [], [], []
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for lo in range(0, len(pa), chunk):
+        sl = slice(lo, lo + chunk)
+        h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], w[sl])[:, None]
+        h1 = normal[sl] @ gb.T - np.einsum("ij,ij->i", normal[sl], w[sl])[:, None]
+        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > eps) & (np.abs(h1) > eps))
+        f = h0[i, j] / (h0[i, j] - h1[i, j])
+        cross_pair.append(i + lo)
+        cross_edge.append(ge[j])
+        cross_point.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
+    cp, ce, cq = np.concatenate(cross_pair), np.concatenate(cross_edge), np.concatenate(cross_point)
+    # (the pair's own edges and the edges at w do not cross the plane strictly)
+    ci, cj = _pairs_within_groups(cp)
+    if len(ci) == 0:
+        return _no_events(scene)
+    pair = cp[ci]
+    origin, direction = cq[ci], cq[cj] - cq[ci]
+    fine = np.linalg.norm(direction, axis=1) > eps
+    # the line must cross both edges of the pair (cut the corner at w) before it is worth judging
+    for e in (pa, pb):
+        a, b = _edge_geometry(scene, e[pair])
+        x, _ = segment_parameter(origin, np.where(fine[:, None], direction, 1.0), a, b)
+        with np.errstate(invalid="ignore"):
+            fine &= (x > 0) & (x < 1)
+    ci, cj, pair, origin, direction = ci[fine], cj[fine], pair[fine], origin[fine], direction[fine]
+    gens = np.sort(np.stack([pa[pair], pb[pair], ce[ci], ce[cj]], axis=1), axis=1)
+    distinct = np.all(np.diff(gens, axis=1) > 0, axis=1)
+    gens, origin, direction = gens[distinct], origin[distinct], direction[distinct]
+    # one line per quadruple (two adjacent pairs can propose it)
+    _, first = np.unique(gens, axis=0, return_index=True)
+    first = np.sort(first)
+    events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])
+    _, first = np.unique(events.generators, axis=0, return_index=True)
+    return Nodes(**{k: getattr(events, k)[np.sort(first)] for k in events.__dataclass_fields__})
+
+
+def _pairs_within_groups(group):
+    """All index pairs i < j with group[i] == group[j], for a sorted group array."""
+    group = np.asarray(group)
+    ii, jj = [], []
+    k = 1
+    while k < len(group):
+        i = np.flatnonzero(group[k:] == group[:-k])
+        if len(i) == 0:
+            break  # sorted: no longer runs
+        ii.append(i)
+        jj.append(i + k)
+        k += 1
+    if not ii:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(ii), np.concatenate(jj)
+
+
+def _no_events(scene):
+    return validate_candidates(scene, np.zeros(0, np.int8), np.zeros((0, 4), np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
+
+
+def _incidences(scene, events):
+    """The families each event lies on.
+
+    Returns
+    -------
+    kind : (k,) int
+    generators : (k, 3) int
+        Canonical family generators.
+    event : (k,) int
+        Row of ``events``.
+    """
+    vo, ve = _vertex_edges(scene)
+    is_gen_vertex = np.diff(vo) > 0
+    kinds, gens, rows = [], [], []
+
+    e4 = np.flatnonzero(events.kind == E4)
+    for drop in range(4):
+        keep = [j for j in range(4) if j != drop]
+        kinds.append(np.full(len(e4), EEE))
+        gens.append(canonical_eee(scene, events.generators[e4][:, keep]))
+        rows.append(e4)
+
+    vee = np.flatnonzero(events.kind == VEE)
+    g = events.generators[vee]
+    for slot in (1, 2):
+        kinds.append(np.full(len(vee), VE))
+        gens.append(np.stack([g[:, 0], g[:, slot], np.full(len(vee), -1)], axis=1))
+        rows.append(vee)
+    # EEE (e_v, e1, e2) for every generator edge e_v at v
+    count = np.diff(vo)[g[:, 0]]
+    r = np.repeat(np.arange(len(vee)), count)
+    e_v = ve[np.repeat(vo[g[:, 0]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    kinds.append(np.full(len(r), EEE))
+    gens.append(canonical_eee(scene, np.stack([e_v, g[r, 1], g[r, 2]], axis=1)))
+    rows.append(vee[r])
+
+    # a VEE line lying in the plane of two edges at v (v and e1 on one face) also ends the
+    # pencil of lines in that plane through the other edge's point: EEE (e_v, e_v', e2)
+    owner = np.repeat(np.arange(scene.n_vertices), np.diff(vo))
+    pi, pj = _pairs_within_groups(owner)
+    pair_offsets = np.searchsorted(owner[pi], np.arange(scene.n_vertices + 1))
+    count = np.diff(pair_offsets)[g[:, 0]]
+    r = np.repeat(np.arange(len(vee)), count)
+    pr = np.repeat(pair_offsets[g[:, 0]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    ea, eb = ve[pi[pr]], ve[pj[pr]]
+    x = scene.vertices[g[r, 0]]
+    a1, b1 = _edge_geometry(scene, ea)
+    a2, b2 = _edge_geometry(scene, eb)
+    normal = np.cross(b1 - a1, b2 - a2)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    in_plane = np.abs(np.einsum("ij,ij->i", normal, events.direction[vee[r]])) <= 1e-9
+    for held, free in ((1, 2), (2, 1)):
+        ah, bh = _edge_geometry(scene, g[r, held])
+        holds = in_plane.copy()
+        for q in (ah, bh):
+            holds &= np.abs(np.einsum("ij,ij->i", normal, q - x)) <= scene.epsilon
+        kinds.append(np.full(np.count_nonzero(holds), EEE))
+        gens.append(canonical_eee(scene, np.stack([ea[holds], eb[holds], g[r[holds], free]], axis=1)))
+        rows.append(vee[r[holds]])
+
+    vv = np.flatnonzero(events.kind == VV)
+    g = events.generators[vv]
+    for own, other in ((0, 1), (1, 0)):
+        count = np.diff(vo)[g[:, other]]
+        r = np.repeat(np.arange(len(vv)), count)
+        e = ve[np.repeat(vo[g[:, other]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+        kinds.append(np.full(len(r), VE))
+        gens.append(np.stack([g[r, own], e, np.full(len(r), -1)], axis=1))
+        rows.append(vv[r])
+
+    kind = np.concatenate(kinds)
+    gens = np.concatenate(gens).reshape(-1, 3)
+    rows = np.concatenate(rows)
+    ok = gens[:, 0] >= 0
+    ok[kind == VE] &= is_gen_vertex[gens[kind == VE, 0]]
+    return kind[ok], gens[ok], rows[ok]
+
+
+def _event_parameters(scene, kind, generators, events, rows):
+    """Parameter s of each event's line on the family's parameter edge."""
+    param_edge = np.where(kind == EEE, generators[:, 0], generators[:, 1])
+    a, b = _edge_geometry(scene, param_edge)
+    s, _ = segment_parameter(events.ends[rows, 0], events.direction[rows], a, b)
+    return s
+
+
+def _domain_ends(scene, fam_kind, fam_gens):
+    """Parameters where each EEE family's line reaches an endpoint of q or r, or q's or r's
+    line at infinity (the linear-fractional map's pole), within [0, 1].
+
+    The map s -> x (x the line's point on q or r) is linear-fractional (a
+    projectivity between two lines of a regulus, or a central projection for a
+    pencil of lines in a plane), fixed by three samples; a pencil through a
+    point of the edge gives a constant map and no end.
+
+    Returns
+    -------
+    family : (k,) int
+    s : (k,) float
+    """
+    e = np.flatnonzero(fam_kind == EEE)
+    fams, ss = [], []
+    if len(e) == 0:
+        return np.zeros(0, np.int64), np.zeros(0)
+    probes = np.array([0.2, 0.5, 0.8])
+    o, d = family_lines(scene, np.full(3 * len(e), EEE), np.repeat(fam_gens[e], 3, axis=0), np.tile(probes, len(e)))
+    for slot in (1, 2):
+        a, b = _edge_geometry(scene, np.repeat(fam_gens[e, slot], 3))
+        x, _ = segment_parameter(o, np.where(np.linalg.norm(d, axis=1)[:, None] > 0, d, 1.0), a, b)
+        x = x.reshape(-1, 3)
+        s = np.broadcast_to(probes, x.shape)
+        # x = (α s + β) / (γ s + δ): (α, β, γ, δ) is the null vector of [s, 1, -x s, -x]
+        system = np.stack([s, np.ones_like(s), -x * s, -x], axis=2)
+        # a constant map (a pencil through a point of this edge) has no ends to find
+        fine = np.all(np.isfinite(system), axis=(1, 2)) & (np.ptp(x, axis=1) > 1e-9)
+        coeff = np.full((len(e), 4), np.nan)
+        if fine.any():
+            coeff[fine] = np.linalg.svd(system[fine])[2][:, -1]
+        al, be, ga, de = coeff.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for value in (0.0, 1.0):
+                fams.append(e)
+                ss.append((be - value * de) / (value * ga - al))
+            fams.append(e)
+            ss.append(-de / ga)
+    fam, s = np.concatenate(fams), np.concatenate(ss)
+    keep = np.isfinite(s) & (s > 0) & (s < 1)
+    return fam[keep], s[keep]
+
+
+# --------------------------------------------------------------------------------------
+# the builder
+
+
+def build_arcs(scene, nodes, quiet=True):
+    """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
+
+    Parameters
+    ----------
+    scene : Scene
+    nodes : Nodes
+        The V0 nodes (any builder's; ids refer to their order).
+    quiet : bool
+        No progress bar.
+
+    Returns
+    -------
+    Arcs
+    """
+    with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
+        progress.set_postfix_str("planar events")
+        planar = planar_events(scene)
+        progress.update()
+
+        progress.set_postfix_str("families")
+        ev_kind, ev_index, fam_kind, fam_gens, fam_of, ev_s = [], [], [], [], [], []
+        for code, events in ((END_NODE, nodes), (END_PLANAR, planar)):
+            k, g, rows = _incidences(scene, events)
+            fam_kind.append(k)
+            fam_gens.append(g)
+            ev_kind.append(np.full(len(rows), code))
+            ev_index.append(rows)
+            ev_s.append(_event_parameters(scene, k, g, events, rows))
+        keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
+        families, fam_of = np.unique(keys.reshape(-1, 4), axis=0, return_inverse=True)
+        fam_of = fam_of.reshape(-1)
+        fkind, fgens = families[:, 0], families[:, 1:]
+        ev_kind, ev_index, ev_s = np.concatenate(ev_kind), np.concatenate(ev_index), np.concatenate(ev_s)
+        # the ends of each family's domain
+        dom_f, dom_s = _domain_ends(scene, fkind, fgens)
+        nf = len(families)
+        fam_of = np.concatenate([fam_of, dom_f, np.arange(nf), np.arange(nf)])
+        ev_s = np.concatenate([ev_s, dom_s, np.zeros(nf), np.ones(nf)])
+        extra = len(dom_f) + 2 * nf
+        ev_kind = np.concatenate([ev_kind, np.full(extra, END_ENDPOINT)])
+        ev_index = np.concatenate([ev_index, np.full(extra, -1)])
+        # events on the family's edge (within rounding of its ends)
+        ev_s = np.nan_to_num(ev_s, nan=-1.0)
+        inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+        ev_s = np.clip(ev_s, 0.0, 1.0)
+        fam_of, ev_s, ev_kind, ev_index = fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside]
+        progress.update()
+
+        progress.set_postfix_str("intervals")
+        lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id = _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index)
+        progress.update()
+
+        progress.set_postfix_str("samples")
+        arcs = _arcs_on_intervals(scene, fkind, fgens, lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id)
+        progress.update()
+
+        progress.set_postfix_str("half-cells")
+        _edge_line_ends(scene, arcs)
+        arcs = _sorted(arcs)
+        half_cells = _half_cells(scene, arcs)
+        progress.update()
+    return Arcs(**arcs, planar=planar, half_cells=half_cells)
+
+
+def _param_scale(scene, fkind, fgens):
+    """Length of each family's parameter edge."""
+    a, b = _edge_geometry(scene, np.where(fkind == EEE, fgens[:, 0], fgens[:, 1]))
+    return np.linalg.norm(b - a, axis=1)
+
+
+def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index):
+    """Merge each family's events closer than epsilon along its edge (a node beats a
+    planar event beats a domain end) and return the intervals between consecutive ones."""
+    order = np.lexsort([ev_index, ev_kind, ev_s, fam_of])
+    f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
+    tol = 4 * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
+    new_group = np.ones(len(f), dtype=bool)
+    new_group[1:] = (f[1:] != f[:-1]) | (s[1:] - s[:-1] > tol[1:])
+    group = np.cumsum(new_group) - 1
+    # within a group, the best event: lowest type code, then lowest id
+    best = np.lexsort([i, k, group])
+    first = best[np.r_[True, group[best][1:] != group[best][:-1]]]
+    gf, gs, gk, gi = f[first], s[first], k[first], i[first]
+    nxt = np.flatnonzero(gf[1:] == gf[:-1])
+    return gf[nxt], gs[nxt], gk[nxt], gi[nxt], gs[nxt + 1], gk[nxt + 1], gi[nxt + 1]
+
+
+def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
+    n = len(f)
+    fr = np.asarray(SAMPLES)
+    ks = np.repeat(fkind[f], len(fr))
+    gs = np.repeat(fgens[f], len(fr), axis=0)
+    ss = (s0[:, None] + fr[None] * (s1 - s0)[:, None]).reshape(-1)
+    smp = judge_samples(scene, ks, gs, ss)
+    state = smp.state.reshape(n, len(fr), 5)
+    uniform = np.all(state == state[:, :1], axis=(1, 2))
+    whole = np.flatnonzero(uniform & (state[:, 0, 0] == 1))
+    mid = whole * len(fr)  # the first sample (fraction 1/2) stands for the arc
+    pieces = {
+        "family": f[whole],
+        "interval": np.stack([s0[whole], s1[whole]], axis=1),
+        "end_type": np.stack([t0[whole], t1[whole]], axis=1),
+        "end_node": np.stack([i0[whole], i1[whole]], axis=1),
+        "parameter": ss[mid],
+        "state": smp.state[mid],
+        "direction": smp.direction[mid],
+        "ends": smp.ends[mid],
+        "generator_points": smp.generator_points[mid],
+    }
+    mixed = np.flatnonzero(~uniform)
+    if len(mixed):
+        more = _refine(scene, fkind, fgens, f[mixed], s0[mixed], t0[mixed], i0[mixed], s1[mixed], t1[mixed], i1[mixed])
+        pieces = {k: np.concatenate([pieces[k], more[k]]) for k in pieces}
+    fam = pieces.pop("family")
+    state = pieces.pop("state")
+    return {
+        "kind": fkind[fam].astype(np.int8),
+        "generators": fgens[fam],
+        **{k: pieces[k] for k in ("interval",)},
+        "end_type": pieces["end_type"].astype(np.int8),
+        "end_node": pieces["end_node"],
+        "blocker_kind": state[:, [1, 3]].astype(np.int8),
+        "blocker": state[:, [2, 4]],
+        "parameter": pieces["parameter"],
+        "direction": pieces["direction"],
+        "ends": pieces["ends"],
+        "generator_points": pieces["generator_points"],
+    }
+
+
+def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
+    """Intervals whose samples disagree: resample, locate each change by bisection and
+    cut the interval there (end type END_TRANSITION)."""
+    n = len(f)
+    fr = (np.arange(REFINE) + 0.5) / REFINE
+    ss = s0[:, None] + fr[None] * (s1 - s0)[:, None]
+    smp = judge_samples(scene, np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1))
+    state = smp.state.reshape(n, REFINE, 5)
+    change = np.any(state[:, 1:] != state[:, :-1], axis=2)  # (n, REFINE - 1)
+    ci, cj = np.nonzero(change)
+    lo, hi = ss[ci, cj], ss[ci, cj + 1]
+    left = state[ci, cj]
+    for _ in range(BISECT):
+        m = 0.5 * (lo + hi)
+        st = judge_samples(scene, fkind[f[ci]], fgens[f[ci]], m).state
+        same = np.all(st == left, axis=1)
+        lo, hi = np.where(same, m, lo), np.where(same, hi, m)
+    cut = 0.5 * (lo + hi)
+    # runs of equal state between cuts; keep the valid ones
+    run_start = np.ones((n, REFINE), dtype=bool)
+    run_start[:, 1:] = change
+    ri, rj = np.nonzero(run_start)
+    run_id = np.cumsum(run_start.reshape(-1)).reshape(n, REFINE) - 1
+    nrun = len(ri)
+    # each run's ends: its interval's end or the cut before / after it
+    start_s, start_t, start_i = s0[ri].copy(), t0[ri].copy(), i0[ri].copy()
+    end_s, end_t, end_i = s1[ri].copy(), t1[ri].copy(), i1[ri].copy()
+    after = run_id[ci, cj]  # the run ending at this cut
+    end_s[after], end_t[after], end_i[after] = cut, END_TRANSITION, -1
+    before = run_id[ci, cj + 1]
+    start_s[before], start_t[before], start_i[before] = cut, END_TRANSITION, -1
+    # each run's middle sample stands for it
+    last = np.r_[ri[1:] != ri[:-1], True] if nrun else np.zeros(0, bool)
+    run_len = np.empty(nrun, dtype=np.int64)
+    run_len[:-1] = np.where(last[:-1], REFINE - rj[:-1], rj[1:] - rj[:-1])
+    if nrun:
+        run_len[-1] = REFINE - rj[-1]
+    pick = ri * REFINE + rj + run_len // 2
+    ok = smp.valid[pick] & (end_s > start_s)
+    return {
+        "family": f[ri][ok],
+        "interval": np.stack([start_s, end_s], axis=1)[ok],
+        "end_type": np.stack([start_t, end_t], axis=1)[ok],
+        "end_node": np.stack([start_i, end_i], axis=1)[ok],
+        "parameter": ss.reshape(-1)[pick][ok],
+        "state": smp.state[pick][ok],
+        "direction": smp.direction[pick][ok],
+        "ends": smp.ends[pick][ok],
+        "generator_points": smp.generator_points[pick][ok],
+    }
+
+
+def _edge_line_ends(scene, arcs):
+    """A VE arc (v, e) whose domain ends at an endpoint w of e joined to v by an edge ends
+    on the line along that edge (v and e lie on one face): end type END_EDGE, end_node
+    the edge (V0 has no VV there: the line holds the edge)."""
+    ev = scene.half_edges.edge_vertices
+    nv = scene.n_vertices
+    key = ev[:, 0] * nv + ev[:, 1]
+    order = np.argsort(key)
+    for side in (0, 1):
+        rows = np.flatnonzero((arcs["kind"] == VE) & (arcs["end_type"][:, side] == END_ENDPOINT))
+        s = arcs["interval"][rows, side]
+        at_end = (s == 0.0) | (s == 1.0)
+        rows, s = rows[at_end], s[at_end]
+        v = arcs["generators"][rows, 0]
+        w = ev[arcs["generators"][rows, 1], (s == 1.0).astype(np.int64)]
+        k = np.minimum(v, w) * nv + np.maximum(v, w)
+        pos = np.clip(np.searchsorted(key[order], k), 0, len(key) - 1)
+        joined = key[order][pos] == k
+        arcs["end_type"][rows[joined], side] = END_EDGE
+        arcs["end_node"][rows[joined], side] = order[pos[joined]]
+
+
+def _sorted(arcs):
+    """Canonical order: kind, generators, then interval start."""
+    g = arcs["generators"]
+    order = np.lexsort([arcs["interval"][:, 0], g[:, 2], g[:, 1], g[:, 0], arcs["kind"]])
+    return {k: v[order] for k, v in arcs.items()}
+
+
+# --------------------------------------------------------------------------------------
+# VE half-cells
+
+
+def _half_cells(scene, arcs):
+    """Blocker pairs of the V-cells on both sides of each VE arc (seed 000 §4.1).
+
+    The arc's sample line is turned about its vertex by an angle that moves it
+    50 epsilon off the edge, towards +n and -n (n = (b - a) × (v - a)); the
+    blockers of the turned lines are the half-cells' (up: the vertex's side,
+    the vertex itself where the surface separates the turned line's rays there;
+    down: the edge's side).
+    """
+    eps = scene.epsilon
+    ve = np.flatnonzero(arcs["kind"] == VE)
+    v, e = arcs["generators"][ve, 0], arcs["generators"][ve, 1]
+    x = scene.vertices[v]
+    a, b = _edge_geometry(scene, e)
+    target = a + arcs["parameter"][ve, None] * (b - a)
+    d0 = target - x
+    length = np.linalg.norm(d0, axis=1, keepdims=True)
+    n = np.cross(b - a, x - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    h = len(ve)
+    up_kind = np.empty((h, 2), np.int8)
+    up = np.empty((h, 2), np.int64)
+    down_kind = np.empty((h, 2), np.int8)
+    down = np.empty((h, 2), np.int64)
+    for side, sign in ((0, 1.0), (1, -1.0)):
+        d = d0 / length + sign * (50 * eps / length) * n
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        tangent, _ = tangent_at_points(scene, x, d)
+        face, _ = scene.ray_caster.first_hit(np.concatenate([x, x]), np.concatenate([-d, d]), tmin=eps)
+        back, front = face[:h], face[h:]
+        up_kind[:, side] = np.where(~tangent, BLOCK_VERTEX, np.where(back < 0, BLOCK_SKY, BLOCK_FACE))
+        up[:, side] = np.where(~tangent, v, back)
+        down_kind[:, side] = np.where(front < 0, BLOCK_SKY, BLOCK_FACE)
+        down[:, side] = front
+    return HalfCells(
+        arc=ve,
+        vertex=v,
+        edge=e,
+        up_kind=up_kind,
+        up=up,
+        down_kind=down_kind,
+        down=down,
+        start=arcs["end_node"][ve, 0],
+        end=arcs["end_node"][ve, 1],
+        start_type=arcs["end_type"][ve, 0],
+        end_type=arcs["end_type"][ve, 1],
+    )

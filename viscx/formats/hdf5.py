@@ -138,6 +138,63 @@ def read_nodes(group):
     return Nodes(**arrays)
 
 
+_ARC_ARRAYS = [
+    "kind",
+    "generators",
+    "interval",
+    "end_type",
+    "end_node",
+    "blocker_kind",
+    "blocker",
+    "parameter",
+    "direction",
+    "ends",
+    "generator_points",
+]
+_HALF_CELL_ARRAYS = ["arc", "vertex", "edge", "up_kind", "up", "down_kind", "down", "start", "end", "start_type", "end_type"]
+
+
+def write_arcs(group, arcs):
+    """Fill a ``V1`` group with :class:`viscx.skeleton.arcs.Arcs` (see docs/format.md):
+    the arcs, ``planar/`` (the planar E4 events arcs end at, laid out like ``/V0``) and
+    ``half_cells/`` (one VE half-cell per VE arc)."""
+    from viscx.skeleton.arcs import END_NAMES, KIND_NAMES
+
+    for name in _ARC_ARRAYS:
+        write_dataset(group, name, getattr(arcs, name))
+    group.attrs["kinds"] = json.dumps({v: k for k, v in KIND_NAMES.items()})
+    group.attrs["end_types"] = json.dumps({v: k for k, v in END_NAMES.items()})
+    group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2, "vertex": 3})
+    write_nodes(group.create_group("planar", track_order=True), arcs.planar)
+    hc = group.create_group("half_cells", track_order=True)
+    for name in _HALF_CELL_ARRAYS:
+        write_dataset(hc, name, getattr(arcs.half_cells, name))
+
+
+def read_arcs(group):
+    """The :class:`viscx.skeleton.arcs.Arcs` stored in a ``V1`` group."""
+    from viscx.skeleton.arcs import Arcs, HalfCells
+
+    try:
+        arrays = {name: group[name][()] for name in _ARC_ARRAYS}
+        half = {name: group["half_cells"][name][()] for name in _HALF_CELL_ARRAYS}
+        planar = group["planar"]
+    except KeyError as exc:
+        raise ViscxError(f"damaged V1 level (missing {exc.args[0]})") from None
+    n = len(arrays["kind"])
+    shapes = {"generators": (n, 3), "interval": (n, 2), "end_type": (n, 2), "end_node": (n, 2), "blocker_kind": (n, 2),
+              "blocker": (n, 2), "parameter": (n,), "direction": (n, 3), "ends": (n, 2, 3), "generator_points": (n, 3, 3)}
+    h = len(half["arc"])
+    shapes_h = {name: (h, 2) if name in ("up_kind", "up", "down_kind", "down") else (h,) for name in _HALF_CELL_ARRAYS}
+    for name, shape in shapes.items():
+        if arrays[name].shape != shape:
+            raise ViscxError(f"damaged V1 level (V1/{name} has shape {arrays[name].shape}, expected {shape})")
+    for name, shape in shapes_h.items():
+        if half[name].shape != shape:
+            raise ViscxError(f"damaged V1 level (V1/half_cells/{name} has shape {half[name].shape}, expected {shape})")
+    return Arcs(**arrays, planar=read_nodes(planar), half_cells=HalfCells(**half))
+
+
 class ViscxFile:
     """An open, validated viscx file (use as a context manager).
 

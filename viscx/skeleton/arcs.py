@@ -510,6 +510,18 @@ def _incidences(scene, events):
     return kind[ok], gens[ok], rows[ok]
 
 
+def _same_face_ve(scene):
+    """(v, e, -1) for every generator vertex v and generator edge e of one face, e not at v."""
+    he = scene.half_edges
+    order = np.argsort(he.face, kind="stable")
+    face = he.face[order]
+    i, j = _pairs_within_groups(face)
+    h1, h2 = order[np.concatenate([i, j])], order[np.concatenate([j, i])]
+    v, e = he.start[h1], he.edge[h2]
+    ok = he.edge_is_generator[e] & he.vertex_is_generator[v] & (he.edge_vertices[e] != v[:, None]).all(axis=1)
+    return np.unique(np.stack([v[ok], e[ok], np.full(ok.sum(), -1)], axis=1), axis=0).reshape(-1, 3)
+
+
 def _event_parameters(scene, kind, generators, events, rows):
     """Parameter s of each event's line on the family's parameter edge."""
     param_edge = np.where(kind == EEE, generators[:, 0], generators[:, 1])
@@ -595,9 +607,14 @@ def build_arcs(scene, nodes, quiet=True):
             ev_kind.append(np.full(len(rows), code))
             ev_index.append(rows)
             ev_s.append(_event_parameters(scene, k, g, events, rows))
+        # VE families of a vertex and an edge of one face hold no node when the face is a
+        # triangle (they run between the lines along the vertex's two edges): seed them all
+        face_ve = _same_face_ve(scene)
+        fam_kind.append(np.full(len(face_ve), VE))
+        fam_gens.append(face_ve)
         keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
         families, fam_of = np.unique(keys.reshape(-1, 4), axis=0, return_inverse=True)
-        fam_of = fam_of.reshape(-1)
+        fam_of = fam_of.reshape(-1)[: len(keys) - len(face_ve)]
         fkind, fgens = families[:, 0], families[:, 1:]
         ev_kind, ev_index, ev_s = np.concatenate(ev_kind), np.concatenate(ev_index), np.concatenate(ev_s)
         # the ends of each family's domain

@@ -1,0 +1,378 @@
+"""V1 arcs and VE half-cells from the reference nodes: ray oracle on every arc, ends at
+nodes with the arc's generators, node degrees (docs/skeleton.md), an independent dense
+sampling of every family, HDF5 round trip."""
+
+from collections import Counter
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import SAMPLES
+from random_scenes import random_boxes, random_tetrahedra
+from test_nodes import check_ends, check_free, line_point_distance, point_segment_distance
+
+from viscx.scene import build_scene, load_scene
+from viscx.skeleton.arcs import (
+    END_EDGE,
+    END_NODE,
+    END_PLANAR,
+    EEE,
+    VE,
+    _event_parameters,
+    _incidences,
+    build_arcs,
+    canonical_eee,
+    family_lines,
+    judge_samples,
+)
+from viscx.skeleton.nodes import BLOCK_EDGE, BLOCK_VERTEX, E4, VEE, VV
+from viscx.skeleton.reference import reference_nodes
+
+# scenes in general position (no axis-aligned contacts): every generic statement holds there
+GENERAL = ["two_triangles.obj", "occluder_over_plane.ply", "tetrahedra.obj"]
+DEGENERATE = ["boxes_on_floor.obj", "cornell_box.obj"]
+
+
+def random_scene(seed, kind):
+    rng = np.random.default_rng(seed)
+    if kind == "tetrahedra":
+        return build_scene(random_tetrahedra(rng, int(rng.integers(2, 4))))
+    return build_scene(random_boxes(rng, int(rng.integers(1, 3)), axis_aligned=False, on_floor=False))
+
+
+_CACHE = {}
+
+
+def built(name):
+    """(scene, nodes, arcs) of a sample scene or a random one ("rtet:seed", "rbox:seed")."""
+    if name not in _CACHE:
+        if ":" in name:
+            kind, seed = name.split(":")
+            scene = random_scene(int(seed), "tetrahedra" if kind == "rtet" else "boxes")
+        else:
+            scene = load_scene(SAMPLES / name)
+        nodes = reference_nodes(scene)
+        _CACHE[name] = scene, nodes, build_arcs(scene, nodes)
+    return _CACHE[name]
+
+
+RANDOM = ["rtet:1000", "rtet:1001", "rtet:1002", "rbox:1000", "rbox:1001"]
+ALL = GENERAL + DEGENERATE + RANDOM
+
+
+def as_segments(arcs):
+    gp = np.full((len(arcs), 4, 3), np.nan)
+    gp[:, :3] = arcs.generator_points
+    return SimpleNamespace(ends=arcs.ends, generator_points=gp, direction=arcs.direction,
+                           blocker_kind=arcs.blocker_kind, blocker=arcs.blocker)
+
+
+# ---------------------------------------------------------------------------------------
+# ray oracle
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_arc_samples_pass_the_ray_oracle(name):
+    """Every arc's sample segment is free between its points, ends on its blockers and
+    passes within epsilon of each generator (tests/oracles.py, independent of the caster)."""
+    scene, _, arcs = built(name)
+    assert len(arcs) > 0
+    seg = as_segments(arcs)
+    check_free(scene, seg)
+    check_ends(scene, seg)
+    eps = scene.epsilon
+    o, d = arcs.ends[:, 0], arcs.direction
+    ve = arcs.kind == VE
+    assert np.all(line_point_distance(o[ve], d[ve], scene.vertices[arcs.generators[ve, 0]]) <= eps)
+    for slot in range(3):
+        e = (arcs.kind == EEE) | (slot == 1)
+        e &= slot < np.where(arcs.kind == EEE, 3, 2)
+        ev = scene.half_edges.edge_vertices[arcs.generators[e, slot]]
+        gp = arcs.generator_points[e, slot]
+        assert np.all(point_segment_distance(gp, scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]) <= eps)
+        assert np.all(line_point_distance(o[e], d[e], gp) <= eps)
+    # the sample lies inside its interval and the family's line there is the sample's
+    assert np.all((arcs.interval[:, 0] < arcs.parameter) & (arcs.parameter < arcs.interval[:, 1]))
+    fo, fd = family_lines(scene, arcs.kind, arcs.generators, arcs.parameter)
+    fd /= np.linalg.norm(fd, axis=1, keepdims=True)
+    assert np.all(np.linalg.norm(np.cross(fd, d), axis=1) <= 1e-9)
+    assert np.all(line_point_distance(o, d, fo) <= eps)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_arc_ends_are_events_with_the_arc_generators(name):
+    """A node end is a V0 node whose generators include the arc's (an edge counts when it
+    ends at one of the node's vertices) and whose line is the family's line there."""
+    scene, nodes, arcs = built(name)
+    ev = scene.half_edges.edge_vertices
+    checked = 0
+    for code, events in ((END_NODE, nodes), (END_PLANAR, arcs.planar)):
+        for side in (0, 1):
+            rows = np.flatnonzero(arcs.end_type[:, side] == code)
+            for i in rows:
+                j = arcs.end_node[i, side]
+                assert 0 <= j < len(events)
+                g = events.generators[j].tolist()
+                nv = {E4: 0, VEE: 1, VV: 2}[int(events.kind[j])]
+                verts, edges = set(g[:nv]), set(g[nv:]) - {-1}
+                if arcs.kind[i] == VE:
+                    assert arcs.generators[i, 0] in verts
+                    assert arcs.generators[i, 1] in edges or set(ev[arcs.generators[i, 1]].tolist()) & verts
+                else:
+                    for e in arcs.generators[i]:
+                        assert e in edges or set(ev[e].tolist()) & verts, (i, side, arcs.generators[i], g)
+            # the family's line at the end parameter is the event's line
+            fo, fd = family_lines(scene, arcs.kind[rows], arcs.generators[rows], arcs.interval[rows, side])
+            fine = np.linalg.norm(fd, axis=1) > 0  # a pencil's line is undefined at its vertex
+            fd[fine] /= np.linalg.norm(fd[fine], axis=1, keepdims=True)
+            j = arcs.end_node[rows[fine], side]
+            assert np.all(np.linalg.norm(np.cross(fd[fine], events.direction[j]), axis=1) <= 1e-6)
+            assert np.all(line_point_distance(events.ends[j, 0], events.direction[j], fo[fine]) <= 10 * scene.epsilon)
+            checked += len(rows)
+    assert checked > 0
+    # an edge end is an edge joining the VE arc's vertex to an endpoint of its edge
+    for side in (0, 1):
+        rows = np.flatnonzero(arcs.end_type[:, side] == END_EDGE)
+        assert np.all(arcs.kind[rows] == VE)
+        joined = ev[arcs.end_node[rows, side]]
+        assert np.all((joined == arcs.generators[rows, :1]).any(axis=1))
+
+
+@pytest.mark.parametrize("name", ALL[:3])
+def test_arcs_are_deterministic(name):
+    scene, nodes, arcs = built(name)
+    again = build_arcs(scene, nodes)
+    for field in arcs.__dataclass_fields__:
+        if field in ("planar", "half_cells"):
+            for sub in getattr(arcs, field).__dataclass_fields__:
+                assert np.array_equal(getattr(getattr(arcs, field), sub), getattr(getattr(again, field), sub), equal_nan=True)
+        else:
+            assert np.array_equal(getattr(arcs, field), getattr(again, field), equal_nan=True), field
+    key = np.concatenate([arcs.kind[:, None], arcs.generators, arcs.interval[:, :1]], axis=1)
+    assert np.all(np.lexsort(key.T[::-1]) == np.arange(len(arcs)))
+    assert np.all(arcs.interval[:, 0] < arcs.interval[:, 1])
+    eee = arcs.kind == EEE
+    assert np.array_equal(canonical_eee(scene, arcs.generators[eee]), arcs.generators[eee])
+
+
+# ---------------------------------------------------------------------------------------
+# degrees
+
+
+def degrees(nodes, arcs):
+    """Incident arcs per node: (all, VE, EEE)."""
+    out = []
+    for mask in (np.ones(len(arcs), bool), arcs.kind == VE, arcs.kind == EEE):
+        deg = np.zeros(len(nodes), np.int64)
+        for side in (0, 1):
+            m = mask & (arcs.end_type[:, side] == END_NODE)
+            np.add.at(deg, arcs.end_node[m, side], 1)
+        out.append(deg)
+    return out
+
+
+def probe_half_arcs(scene, nodes, epsilons=20):
+    """Valid half-arcs at each node, found locally: every family through the node judged
+    just before and just after the node's parameter (20 epsilon along its edge)."""
+    kind, gens, rows = _incidences(scene, nodes)
+    key = np.concatenate([kind[:, None], gens, rows[:, None]], axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    kind, gens, rows = kind[first], gens[first], rows[first]
+    s = _event_parameters(scene, kind, gens, nodes, rows)
+    ev = scene.half_edges.edge_vertices[np.where(kind == EEE, gens[:, 0], gens[:, 1])]
+    delta = epsilons * scene.epsilon / np.linalg.norm(scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]], axis=1)
+    count = np.zeros(len(nodes), np.int64)
+    for sign in (-1.0, 1.0):
+        t = s + sign * delta
+        inside = (t > 0) & (t < 1)
+        ok = judge_samples(scene, kind[inside], gens[inside], t[inside]).valid
+        np.add.at(count, rows[inside][ok], 1)
+    return count
+
+
+def inner_edges(nodes, i):
+    """Edge slots of node i lying strictly between its first and last generator point."""
+    gp = nodes.generator_points[i]
+    used = ~np.isnan(gp[:, 0])
+    t = np.where(used, (gp - nodes.ends[i, 0]) @ nodes.direction[i], np.nan)
+    lo, hi = np.nanmin(t), np.nanmax(t)
+    return [k for k in np.flatnonzero(used) if lo < t[k] < hi]
+
+
+@pytest.mark.parametrize("name", GENERAL + RANDOM)
+def test_node_degrees(name):
+    """docs/skeleton.md, "Node degrees": an E4 node has 6 arcs; a VEE node 2 VE arcs per
+    end edge and 1 per inner edge plus k_v EEE arcs; every node as many arcs as valid
+    half-arcs of its families found by probing next to it."""
+    scene, nodes, arcs = built(name)
+    deg, deg_ve, deg_eee = degrees(nodes, arcs)
+    assert np.all(deg[nodes.kind == E4] == 6)
+    for i in np.flatnonzero(nodes.kind == VEE):
+        inner = inner_edges(nodes, i)
+        assert deg_ve[i] == sum(1 if k in inner else 2 for k in (1, 2)), i
+        assert deg_eee[i] >= 2 if 0 in inner else deg_eee[i] >= 0
+    assert np.array_equal(deg, probe_half_arcs(scene, nodes))
+    assert np.all(deg[nodes.kind == VV] >= 4)
+
+
+def test_measured_degrees_on_the_sample_scenes():
+    """The distributions docs/skeleton.md quotes."""
+    expect = {
+        "two_triangles.obj": {"VV": {4: 9}},
+        "occluder_over_plane.ply": {"VV": {4: 14}},
+        "tetrahedra.obj": {"VEE": {5: 12, 6: 2}, "VV": {4: 32, 5: 38, 6: 11}},
+    }
+    for name, want in expect.items():
+        _, nodes, arcs = built(name)
+        deg = degrees(nodes, arcs)[0]
+        for kind, dist in want.items():
+            k = {"E4": E4, "VEE": VEE, "VV": VV}[kind]
+            assert dict(sorted(Counter(deg[nodes.kind == k].tolist()).items())) == dist, (name, kind)
+
+
+# ---------------------------------------------------------------------------------------
+# VE half-cells
+
+
+@pytest.mark.parametrize("name", GENERAL + RANDOM)
+def test_half_cells(name):
+    """Every VE half-cell starts and ends at a node (or, for v and e on one face, on the
+    line along an edge of v); its blockers agree with the arc's where they must."""
+    scene, nodes, arcs = built(name)
+    hc = arcs.half_cells
+    assert len(hc) == np.count_nonzero(arcs.kind == VE)
+    assert np.all(arcs.kind[hc.arc] == VE)
+    for t, i in ((hc.start_type, hc.start), (hc.end_type, hc.end)):
+        assert np.all((t == END_NODE) | (t == END_EDGE))
+        assert np.all(np.isin(i[t == END_NODE], np.arange(len(nodes))))
+    from viscx.scene.neighbourhood import incident_faces
+
+    vo, vf, eo, ef = incident_faces(scene)
+    for h in range(len(hc)):
+        a = hc.arc[h]
+        faces_e = set(ef[eo[hc.edge[h]] : eo[hc.edge[h] + 1]].tolist())
+        same_face = bool(faces_e & set(vf[vo[hc.vertex[h]] : vo[hc.vertex[h] + 1]].tolist()))
+        front = (arcs.blocker_kind[a, 1], arcs.blocker[a, 1])
+        downs = [(hc.down_kind[h, k], hc.down[h, k]) for k in (0, 1)]
+        if front[0] == BLOCK_EDGE:
+            # e is not a silhouette: v sees both of its faces, one on each side
+            assert downs[0] != downs[1] and {downs[0][1], downs[1][1]} <= faces_e
+        else:
+            # the side away from e's faces goes on to the arc's blocker, the other may hit them
+            assert front in downs
+            other = downs[1 - downs.index(front)]
+            assert other == front or other[1] in faces_e
+        back = (arcs.blocker_kind[a, 0], arcs.blocker[a, 0])
+        ups = [(hc.up_kind[h, k], hc.up[h, k]) for k in (0, 1)]
+        if back[0] == BLOCK_VERTEX:
+            assert ups[0] == ups[1] == back  # v's up side is interior: v is the up blocker
+        elif not same_face:
+            assert ups[0] == ups[1] == back  # general position: up.left = up.right
+        else:
+            assert back in ups  # v and e on one face: one side may enter the surface at v
+            assert all(u == back or u == (BLOCK_VERTEX, hc.vertex[h]) for u in ups)
+
+
+# ---------------------------------------------------------------------------------------
+# independent oracle: every family sampled densely
+
+
+def all_families(scene):
+    ge = scene.generator_edges
+    i, j, k = np.array(np.meshgrid(*[np.arange(len(ge))] * 3, indexing="ij")).reshape(3, -1)
+    t = (i < j) & (j < k)
+    eee = canonical_eee(scene, np.stack([ge[i[t]], ge[j[t]], ge[k[t]]], axis=1))
+    eee = eee[eee[:, 0] >= 0]
+    gv = scene.generator_vertices
+    v, e = np.repeat(gv, len(ge)), np.tile(ge, len(gv))
+    ev = scene.half_edges.edge_vertices
+    ok = (ev[e] != v[:, None]).all(axis=1)
+    ve = np.stack([v[ok], e[ok], np.full(ok.sum(), -1)], axis=1)
+    kind = np.concatenate([np.full(len(eee), EEE), np.full(len(ve), VE)])
+    return kind, np.concatenate([eee, ve])
+
+
+@pytest.mark.parametrize("name,per_family", [("two_triangles.obj", 200), ("occluder_over_plane.ply", 200),
+                                              ("tetrahedra.obj", 24), ("rtet:1000", 24), ("rbox:1001", 16)])
+def test_arcs_cover_every_valid_line_of_every_family(name, per_family):
+    """Sample every EEE and VE family of the scene (not only those through nodes) at
+    random parameters: each valid sample lies on an arc of its family with its blockers,
+    no invalid sample does (margins of 1e-6 at the arcs' ends)."""
+    scene, _, arcs = built(name)
+    kind, gens = all_families(scene)
+    rng = np.random.default_rng(7)
+    fam = np.repeat(np.arange(len(kind)), per_family)
+    s = rng.random(len(fam))
+    smp = judge_samples(scene, kind[fam], gens[fam], s)
+    # arcs by family
+    akey = {(int(k), *map(int, g)): [] for k, g in zip(arcs.kind, arcs.generators)}
+    for a, (k, g) in enumerate(zip(arcs.kind, arcs.generators)):
+        akey[(int(k), *map(int, g))].append(a)
+    missing, wrong = [], []
+    for r in range(len(fam)):
+        f = fam[r]
+        cands = akey.get((int(kind[f]), *map(int, gens[f])), [])
+        cover = [a for a in cands if arcs.interval[a, 0] + 1e-6 < s[r] < arcs.interval[a, 1] - 1e-6]
+        near_end = any(min(abs(s[r] - arcs.interval[a, 0]), abs(s[r] - arcs.interval[a, 1])) <= 1e-6 for a in cands)
+        if smp.valid[r]:
+            state = tuple(smp.state[r])
+            good = [a for a in cover if (1, arcs.blocker_kind[a, 0], arcs.blocker[a, 0], arcs.blocker_kind[a, 1], arcs.blocker[a, 1]) == state]
+            if not good and not near_end:
+                missing.append((kind[f], tuple(gens[f]), s[r]))
+        elif cover:
+            wrong.append((kind[f], tuple(gens[f]), s[r]))
+    assert smp.valid.sum() > 0
+    assert not missing, f"{len(missing)} valid samples on no arc, e.g. {missing[:3]}"
+    assert not wrong, f"{len(wrong)} invalid samples on an arc, e.g. {wrong[:3]}"
+
+
+# ---------------------------------------------------------------------------------------
+# HDF5
+
+
+def test_hdf5_round_trip(tmp_path):
+    from viscx.formats.hdf5 import ViscxFile, read_arcs, read_nodes, write_arcs, write_complex, write_nodes
+
+    scene, nodes, arcs = built("tetrahedra.obj")
+    out = tmp_path / "x.h5"
+    write_complex(out, scene, levels={"V0": lambda g: write_nodes(g, nodes), "V1": lambda g: write_arcs(g, arcs)})
+    with ViscxFile(out) as f:
+        assert f.levels == ["scene", "V0", "V1"]
+        back = read_arcs(f.h5["V1"])
+        assert len(read_nodes(f.h5["V0"])) == len(nodes)
+    for field in arcs.__dataclass_fields__:
+        a, b = getattr(arcs, field), getattr(back, field)
+        if field in ("planar", "half_cells"):
+            for sub in a.__dataclass_fields__:
+                x, y = getattr(a, sub), getattr(b, sub)
+                assert x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True), (field, sub)
+        else:
+            assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), field
+
+
+def test_damaged_v1_is_refused(tmp_path):
+    import h5py
+
+    from viscx.errors import ViscxError
+    from viscx.formats.hdf5 import read_arcs, write_arcs
+
+    _, _, arcs = built("two_triangles.obj")
+    with h5py.File(tmp_path / "x.h5", "w") as f:
+        write_arcs(f.create_group("V1"), arcs)
+        del f["V1/interval"]
+        with pytest.raises(ViscxError, match="missing"):
+            read_arcs(f["V1"])
+
+
+# ---------------------------------------------------------------------------------------
+# many random scenes
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+def test_many_random_scenes(seed):
+    name = ("rtet:%d" if seed % 2 else "rbox:%d") % (2000 + seed)
+    test_arc_samples_pass_the_ray_oracle(name)
+    test_arc_ends_are_events_with_the_arc_generators(name)
+    test_node_degrees(name)
+    test_half_cells(name)

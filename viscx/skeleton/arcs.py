@@ -24,7 +24,7 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    (s = 0, 1 and, for EEE, where the line reaches an endpoint of q or r: a
    linear-fractional map, inverted exactly).
 4. *Arcs.* Between consecutive events the family is sampled (s at 1/4, 1/2,
-   3/4 of the interval) and every sample judged by
+   3/4 of the interval and 20 epsilon from each end) and every sample judged by
    :func:`viscx.skeleton.nodes.maximal_free_segments`, the nodes' own
    definition with three generator conditions. Agreeing valid samples make
    one arc whose ends are the two events. Disagreeing samples mean an event
@@ -70,7 +70,8 @@ END_TRANSITION = 3  # the samples change there without a known event (a dropped,
 END_EDGE = 4  # a VE arc reaches the line along an edge of its vertex (end_node is that edge)
 END_NAMES = {END_NODE: "node", END_PLANAR: "planar", END_ENDPOINT: "endpoint", END_TRANSITION: "transition", END_EDGE: "edge"}
 
-#: Where each interval between consecutive events is sampled (fractions of it); the first is the arc's sample.
+#: Where each interval between consecutive events is sampled (fractions of it; the first is
+#: the arc's sample), besides 20 epsilon from each end.
 SAMPLES = (0.5, 0.25, 0.75)
 #: Samples of an interval whose samples disagree, before bisection.
 REFINE = 48
@@ -671,17 +672,26 @@ def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index):
     return gf[nxt], gs[nxt], gk[nxt], gi[nxt], gs[nxt + 1], gk[nxt + 1], gi[nxt + 1]
 
 
+def _end_fraction(scene, fkind, fgens, f, s0, s1):
+    """Fraction of each interval that is 20 epsilon along the parameter edge (at most 0.1):
+    where the samples next to the interval's events are taken, so that a short piece next
+    to an event is seen even when the event closing it is missing."""
+    length = _param_scale(scene, fkind, fgens)[f] * (s1 - s0)
+    return np.minimum(0.1, 20 * scene.epsilon / np.maximum(length, 1e-300))
+
+
 def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     n = len(f)
-    fr = np.asarray(SAMPLES)
-    ks = np.repeat(fkind[f], len(fr))
-    gs = np.repeat(fgens[f], len(fr), axis=0)
-    ss = (s0[:, None] + fr[None] * (s1 - s0)[:, None]).reshape(-1)
+    near = _end_fraction(scene, fkind, fgens, f, s0, s1)
+    fr = np.concatenate([np.broadcast_to(np.asarray(SAMPLES), (n, len(SAMPLES))), near[:, None], 1 - near[:, None]], axis=1)
+    ks = np.repeat(fkind[f], fr.shape[1])
+    gs = np.repeat(fgens[f], fr.shape[1], axis=0)
+    ss = (s0[:, None] + fr * (s1 - s0)[:, None]).reshape(-1)
     smp = judge_samples(scene, ks, gs, ss)
-    state = smp.state.reshape(n, len(fr), 5)
+    state = smp.state.reshape(n, fr.shape[1], 5)
     uniform = np.all(state == state[:, :1], axis=(1, 2))
     whole = np.flatnonzero(uniform & (state[:, 0, 0] == 1))
-    mid = whole * len(fr)  # the first sample (fraction 1/2) stands for the arc
+    mid = whole * fr.shape[1]  # the first sample (fraction 1/2) stands for the arc
     pieces = {
         "family": f[whole],
         "interval": np.stack([s0[whole], s1[whole]], axis=1),
@@ -718,8 +728,10 @@ def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     """Intervals whose samples disagree: resample, locate each change by bisection and
     cut the interval there (end type END_TRANSITION)."""
     n = len(f)
-    fr = (np.arange(REFINE) + 0.5) / REFINE
-    ss = s0[:, None] + fr[None] * (s1 - s0)[:, None]
+    near = _end_fraction(scene, fkind, fgens, f, s0, s1)
+    grid = np.broadcast_to((np.arange(REFINE - 2) + 0.5) / (REFINE - 2), (n, REFINE - 2))
+    fr = np.concatenate([near[:, None], near[:, None] + grid * (1 - 2 * near[:, None]), 1 - near[:, None]], axis=1)
+    ss = s0[:, None] + fr * (s1 - s0)[:, None]
     smp = judge_samples(scene, np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1))
     state = smp.state.reshape(n, REFINE, 5)
     change = np.any(state[:, 1:] != state[:, :-1], axis=2)  # (n, REFINE - 1)

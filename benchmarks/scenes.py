@@ -31,3 +31,47 @@ def spheres_in_room(n_spheres=6, subdivisions=5, seed=0):
         group_names=["room"] + [f"sphere{i}" for i in range(n_spheres)],
     )
     return build_scene(soup, source=f"spheres_in_room(n={n_spheres}, subdivisions={subdivisions}, seed={seed})")
+
+
+def random_boxes(n_polygons, seed=0, coverage=0.15):
+    """Boxes standing on a floor quad, about ``n_polygons`` faces (six per box plus the floor).
+
+    A small city: each box has a random footprint (0.6–2.0 units a side), height
+    (0.5–3.0) and rotation about y, and stands on the y = 0 floor; boxes never
+    touch one another (a gap of at least 0.2 between their bounding circles), and
+    they cover about ``coverage`` of the floor, whose side grows as the square
+    root of the number of boxes (constant density). Deterministic in ``seed``.
+    """
+    rng = np.random.default_rng(seed)
+    n_boxes = max(1, int(round((n_polygons - 1) / 6)))
+    mean_area = 1.3**2
+    side = float(np.sqrt(n_boxes * mean_area / coverage))
+    vertices = [[0.0, 0.0, 0.0], [0.0, 0.0, side], [side, 0.0, side], [side, 0.0, 0.0]]
+    polygons = [[0, 1, 2, 3]]
+    groups = [0]
+    placed = []
+    unit = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (0.0, 1.0) for z in (-0.5, 0.5)])
+    while len(placed) < n_boxes:
+        size = np.array([rng.uniform(0.6, 2.0), rng.uniform(0.5, 3.0), rng.uniform(0.6, 2.0)])
+        radius = 0.5 * float(np.hypot(size[0], size[2]))
+        center = rng.uniform(radius + 0.2, side - radius - 0.2, 2)
+        if any(np.hypot(*(center - c)) < radius + r + 0.2 for c, r in placed):
+            continue
+        placed.append((center, radius))
+        angle = rng.uniform(0, np.pi / 2)
+        rot = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
+        corners = (unit * size) @ rot.T + [center[0], 0.0, center[1]]
+        base = len(vertices)
+        vertices += corners.tolist()
+        for quad in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
+            polygons.append([base + i for i in quad])
+            groups.append(len(placed))
+    sizes = [len(p) for p in polygons]
+    soup = PolygonSoup(
+        vertices=np.asarray(vertices, dtype=np.float64),
+        polygon_offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        polygon_vertices=np.concatenate(polygons).astype(np.int64),
+        polygon_group=np.asarray(groups, dtype=np.int64),
+        group_names=["floor"] + [f"box{i}" for i in range(n_boxes)],
+    )
+    return build_scene(soup, source=f"random_boxes(n_polygons={n_polygons}, seed={seed})")

@@ -1,0 +1,144 @@
+"""V0 (nodes) benchmark ladder: the output-sensitive builder on growing scenes.
+
+    python benchmarks/skeleton.py                       # Cornell box, boxes 100 … 3000
+    python benchmarks/skeleton.py --sizes 100 300       # a shorter ladder
+    python benchmarks/skeleton.py --budget 600          # skip sizes predicted to exceed 600 s
+
+For each scene: V0 wall time (candidates + validation), candidate and node counts
+per kind, and the time of each stage; then the growth exponents of time against
+polygons and against nodes (least squares on log-log). Prints a table and writes
+``benchmarks/skeleton_results.json``. A size whose predicted time (from the
+exponent fitted so far) exceeds ``--budget`` seconds is recorded as skipped.
+"""
+
+import argparse
+import json
+import os
+import platform
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+from scenes import random_boxes  # noqa: E402
+
+from viscx.scene import load_scene  # noqa: E402
+from viscx.skeleton.candidates import fast_candidates, validate_in_chunks  # noqa: E402
+from viscx.skeleton.nodes import E4, VEE, VV  # noqa: E402
+
+KINDS = {"E4": E4, "VEE": VEE, "VV": VV}
+
+
+def peak_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def run_v0(scene, name):
+    """Build V0 once, timing candidates and validation separately."""
+    stats = {}
+    t0 = time.perf_counter()
+    kind, gens, origins, dirs = fast_candidates(scene, stats=stats)
+    t1 = time.perf_counter()
+    nodes = validate_in_chunks(scene, kind, gens, origins, dirs)
+    t2 = time.perf_counter()
+    row = {
+        "scene": name,
+        "polygons": int(scene.n_faces),
+        "generator_edges": int(len(scene.generator_edges)),
+        "generator_vertices": int(len(scene.generator_vertices)),
+        "seconds": t2 - t0,
+        "seconds_candidates": t1 - t0,
+        "seconds_validation": t2 - t1,
+        "candidates": {k: int(np.count_nonzero(kind == v)) for k, v in KINDS.items()},
+        "nodes": nodes.counts(),
+        "stages": {k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()},
+        "peak_mb": peak_mb(),
+    }
+    row["candidates_total"] = int(len(kind))
+    row["nodes_total"] = int(len(nodes))
+    return row
+
+
+def fit_exponent(x, y):
+    """Slope of log y against log x (least squares), None with fewer than two points."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = (x > 0) & (y > 0)
+    if ok.sum() < 2:
+        return None
+    return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0])
+
+
+def table(rows):
+    head = f"{'scene':<22}{'polys':>7}{'V0 s':>9}{'cand s':>9}{'valid s':>9}{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if r.get("skipped"):
+            lines.append(f"{r['scene']:<22}{r['polygons']:>7}   skipped: {r['skipped']}")
+            continue
+        c, n = r["candidates"], r["nodes"]
+        lines.append(
+            f"{r['scene']:<22}{r['polygons']:>7}{r['seconds']:>9.2f}{r['seconds_candidates']:>9.2f}{r['seconds_validation']:>9.2f}"
+            f"{c['VV']:>9}/{c['VEE']:>8}/{c['E4']:>7}{n['VV']:>8}/{n['VEE']:>7}/{n['E4']:>7}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[100, 300, 1000, 3000])
+    parser.add_argument("--budget", type=float, default=1800.0, help="skip sizes predicted to take longer (s)")
+    parser.add_argument("--out", default=str(HERE / "skeleton_results.json"))
+    args = parser.parse_args(argv)
+
+    # compile the numba kernels outside the timings
+    fast_candidates(random_boxes(20, seed=1))
+
+    rows = [run_v0(load_scene(ROOT / "sample_scenes" / "cornell_box.obj"), "cornell_box")]
+    print(table(rows[-1:]), flush=True)
+    ladder = []
+    for size in args.sizes:
+        scene = random_boxes(size, seed=0)
+        name = f"random_boxes({size})"
+        if len(ladder) >= 2:
+            k = fit_exponent([r["polygons"] for r in ladder], [r["seconds"] for r in ladder])
+            predicted = ladder[-1]["seconds"] * (scene.n_faces / ladder[-1]["polygons"]) ** k
+            if predicted > args.budget:
+                rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": f"predicted {predicted:.0f} s > budget {args.budget:.0f} s"})
+                print(table(rows[-1:]), flush=True)
+                continue
+        row = run_v0(scene, name)
+        rows.append(row)
+        ladder.append(row)
+        print(table(rows[-1:]), flush=True)
+
+    polys = [r["polygons"] for r in ladder]
+    secs = [r["seconds"] for r in ladder]
+    nodes = [r["nodes_total"] for r in ladder]
+    growth = {
+        "time_vs_polygons": fit_exponent(polys, secs),
+        "time_vs_nodes": fit_exponent(nodes, secs),
+        "nodes_vs_polygons": fit_exponent(polys, nodes),
+        "candidates_vs_polygons": fit_exponent(polys, [r["candidates_total"] for r in ladder]),
+    }
+    print()
+    print(table(rows))
+    print()
+    for k, v in growth.items():
+        print(f"growth exponent {k}: {'n/a' if v is None else f'{v:.2f}'}")
+    result = {
+        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
+        "rows": rows,
+        "growth": growth,
+    }
+    Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
+    print(f"\nwrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,143 @@
+"""The output-sensitive V0 builder equals the O(n⁴) reference, with far fewer candidates."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SAMPLES, sample_scene_paths
+
+from viscx.scene import build_scene, load_scene
+from viscx.skeleton.candidates import blocked_table, build_nodes, fast_candidates
+from viscx.skeleton.reference import reference_candidates, reference_nodes
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+
+
+def assert_same_nodes(a, b):
+    assert len(a) == len(b), (a.counts(), b.counts())
+    for name in a.__dataclass_fields__:
+        assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
+
+
+@pytest.mark.parametrize("name", [p.name for p in sample_scene_paths()])
+def test_samples_equal_reference(name):
+    scene = load_scene(SAMPLES / name)
+    assert_same_nodes(build_nodes(scene), reference_nodes(scene))
+
+
+def test_pruning_keeps_working_on_boxes_on_floor():
+    """The candidates are a small fraction of the reference's, and every stage prunes."""
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    stats = {}
+    fast = fast_candidates(scene, stats=stats)
+    ref = reference_candidates(scene)
+    assert len(fast[0]) <= 0.1 * len(ref[0])
+    # the three boxes are isolated convex solids: some pairs of vertices are blocked
+    table, _ = blocked_table(scene, scene.generator_vertices)
+    assert (table >= 0).any()
+    assert stats["VV unblocked"] < stats["VV pairs"]
+    for kind in ("VV", "VEE", "E4"):
+        assert np.count_nonzero(fast[0] == {"VV": 2, "VEE": 1, "E4": 0}[kind]) <= np.count_nonzero(ref[0] == {"VV": 2, "VEE": 1, "E4": 0}[kind])
+
+
+def test_random_boxes_benchmark_scene_prunes():
+    """On the benchmark's city of boxes, far fewer E4 quadruples than edge quadruples."""
+    from scenes import random_boxes
+
+    stats = {}
+    scene = random_boxes(60, seed=3)
+    fast_candidates(scene, stats=stats)
+    g = len(scene.generator_edges)
+    assert stats["E4 quadruples"] < 0.002 * g * (g - 1) * (g - 2) * (g - 3) / 24
+    assert stats["VEE triples"] < 0.05 * len(scene.generator_vertices) * g * (g - 1) / 2
+    # the reference's memory grows as edges⁴: compare on a smaller city
+    small = random_boxes(25, seed=3)
+    assert_same_nodes(build_nodes(small), reference_nodes(small))
+
+
+def _random_scene(seed, kind):
+    from random_scenes import random_boxes, random_tetrahedra
+
+    rng = np.random.default_rng(seed)
+    if kind == "tetrahedra":
+        s = random_tetrahedra(rng, int(rng.integers(2, 5)))
+    elif kind == "touching boxes":
+        s = touching_boxes(rng)
+    else:
+        s = random_boxes(rng, int(rng.integers(1, 4)), axis_aligned=kind != "rotated boxes", on_floor=kind == "boxes on a floor")
+    return build_scene(s)
+
+
+def touching_boxes(rng):
+    """Two axis-aligned boxes in face contact (a partial patch) and a third floating
+    one: solids that are not isolated (no pruning by them) next to one that is."""
+    from conftest import soup
+
+    vertices, polygons = [], []
+    lo_a = np.round(rng.uniform(0, 3, 3), 2)
+    hi_a = lo_a + np.round(rng.uniform(1, 3, 3), 2)
+    lo_b = np.array([hi_a[0], lo_a[1] + 0.5, lo_a[2] + 0.5])
+    hi_b = lo_b + np.round(rng.uniform(1, 3, 3), 2)
+    lo_c = np.array([0.0, 0.0, hi_a[2] + 2.0]) + np.round(rng.uniform(0, 2, 3), 2)
+    hi_c = lo_c + np.round(rng.uniform(0.5, 2, 3), 2)
+    for lo, hi in ((lo_a, hi_a), (lo_b, hi_b), (lo_c, hi_c)):
+        base = len(vertices)
+        vertices += [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        for quad in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
+            polygons.append([base + i for i in quad])
+    return soup(vertices, polygons, np.repeat(np.arange(3), 6))
+
+
+def test_touching_solids_do_not_prune():
+    from viscx.skeleton.candidates import blocking_solids
+
+    scene = build_scene(touching_boxes(np.random.default_rng(7)))
+    solid_of_vertex, _, _, _ = blocking_solids(scene)
+    # the two boxes in contact are not isolated; the third one is
+    assert len(np.unique(solid_of_vertex[solid_of_vertex >= 0])) == 1
+    assert_same_nodes(build_nodes(scene), reference_nodes(scene))
+
+
+KINDS = ["tetrahedra", "rotated boxes", "floating aligned boxes", "boxes on a floor", "touching boxes"]
+
+
+def _check(seed, kind):
+    scene = _random_scene(seed, kind)
+    assert_same_nodes(build_nodes(scene), reference_nodes(scene))
+
+
+def test_random_scenes_hypothesis():
+    """200 random small scenes (tetrahedra, rotated and aligned boxes, boxes on a floor)."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=200, deadline=None, derandomize=True)
+    @given(st.integers(0, 2**31 - 1), st.sampled_from(KINDS))
+    def run(seed, kind):
+        _check(seed, kind)
+
+    run()
+
+
+@pytest.mark.slow
+def test_many_random_scenes_hypothesis():
+    """600 more random scenes (-m slow)."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=600, deadline=None, derandomize=True, database=None)
+    @given(st.integers(0, 2**31 - 1), st.sampled_from(KINDS), st.integers(0, 7))
+    def run(seed, kind, salt):
+        _check(seed * 8 + salt, kind)
+
+    run()
+
+
+def test_validation_in_chunks_is_the_same():
+    from viscx.skeleton.candidates import validate_in_chunks
+    from viscx.skeleton.nodes import validate_candidates
+
+    scene = load_scene(SAMPLES / "cornell_box.obj")
+    cand = fast_candidates(scene)
+    assert_same_nodes(validate_in_chunks(scene, *cand, chunk=97), validate_candidates(scene, *cand))

@@ -1,0 +1,1161 @@
+"""Output-sensitive V0: candidate lines for the nodes, far fewer than all tuples.
+
+:func:`fast_candidates` proposes candidate lines in the same form as
+:func:`viscx.skeleton.reference.reference_candidates` (same canonical generator
+tuples, same line constructions, so the same floats), but only for tuples that
+can still be nodes; :func:`build_nodes` hands them to
+:func:`viscx.skeleton.nodes.validate_candidates`, the one definition of a node.
+The result equals :func:`viscx.skeleton.reference.reference_nodes` exactly as
+long as every node's tuple is proposed: the candidate set is a superset of the
+nodes' tuples, and validation decides each candidate on its own.
+
+What a node guarantees (docs/skeleton.md)
+-----------------------------------------
+Let a node's generator points, sorted along its line ℓ, be g₁ … g_k. Validation
+accepts it only if
+
+(N1) ℓ passes within ε of every generator, edge points are the points of the
+     edge's line closest to ℓ and lie strictly inside the edge (x·|e| > ε and
+     (1 - x)·|e| > ε), consecutive points are more than ε apart along ℓ;
+(N2) inner points g₂ … g_{k-1} are passing (tangent, not grazing a foreign face);
+(N3) every piece [gᵢ, gᵢ₊₁], trimmed by ε at both ends, is free for the ray caster.
+
+Enumeration: every generator lies in the hull of the outer two
+----------------------------------------------------------------------
+The projections of g₂ … g_{k-1} on ℓ lie between those of g₁ and g_k, and each
+gᵢ is within ε of ℓ, so every inner gᵢ is within 2ε of the segment [g₁, g_k]
+(write ĝ for the projection: gᵢ - ((1-λ)g₁ + λg_k) = rᵢ - (1-λ)r₁ - λr_k, each
+|r| ≤ ε). [g₁, g_k] joins a point of the first generator to a point of the last,
+so it lies in their convex hull: the tetrahedron conv(a ∪ d) of two edges, the
+triangle conv(v ∪ e) of a vertex and an edge. Hence, with H the hull inflated
+by ``HULL_TOL`` ε (≥ 2ε plus rounding):
+
+* E4 (a, b, c, d) with outer edges a, d: b and c meet H(a, d);
+* VEE with the vertex inner (e₁, v, e₂): v lies in H(e₁, e₂);
+* VEE with the vertex at an end (v, e₁, e₂): e₁ meets H(v, e₂);
+* VV: the only pair.
+
+So the builder visits pairs (edge, edge) and (vertex, edge) and asks a uniform
+grid of generator edges and vertices which of them meet the inflated hull
+(separating-axis test; any subset of the axes is conservative, degenerate axes
+are skipped). Edges sharing an endpoint are never two generators of one node
+(the line through both meets them at the shared endpoint, which (N1) rejects,
+or it is not unique); the reference enumerates those tuples and validation
+rejects them, so they are not proposed.
+
+Pruning: isolated convex solids block whole families of segments
+-------------------------------------------------------------------
+A *blocking solid* C is a connected component of the scene (faces joined by
+shared vertices) that is a closed 2-manifold whose every vertex lies on the
+inner side of every one of its face planes (a convex polytope bounded by
+exactly those faces), and that is *isolated*: every generator edge of another
+component stays farther than ``ISOLATION`` ε from C (tested against C's face
+planes pushed out by that much, which contains C's ε-neighbourhood).
+C_in is C scaled about its centroid so that every face plane moves inwards by at
+least ``SOLID_DEPTH`` ε: points of C_in are that deep inside C.
+
+Lemma 1 (corners suffice). For a convex set K, if the four segments joining the
+endpoints of edge a to those of edge d meet K, every segment joining a point of
+a to a point of d meets K. Proof: for a point p, {x : [p, x] meets K} =
+{p + λ(k - p) : k ∈ K, λ ≥ 1} is convex, so along a line the blocked
+parameters form an interval. Fix t = 0: the blocked s on a form an interval
+holding 0 and 1, so all of [0, 1]; likewise for t = 1; then for each s the
+blocked t form an interval holding 0 and 1. For a vertex and an edge, the two
+segments from the vertex to the edge's endpoints suffice (same argument).
+
+Lemma 2 (no node crosses a solid). Let two generators X, Y of a node lie in
+other components than C, and let every segment joining X to Y meet C_in. Then
+the tuple is not a node. Proof: by isolation X and Y are outside C (they are
+more than ``ISOLATION`` ε from C and not inside it, since a generator inside C
+would make C non-isolated), while [g_X, g_Y] ⊂ [g₁, g_k] reaches depth
+``SOLID_DEPTH`` ε inside C: ℓ crosses ∂C at some point Z of [g₁, g_k] with
+[Z, deeper point] inside C. A generator point on one of C's own edges is not
+inner (a line passing a convex polytope's edge lies in a supporting plane, and a
+line grazing one of its faces stays within 1e-9 rad of a supporting plane: it
+cannot reach that depth), and not an end (ends are X, Y's side: they lie outside
+C). Every other generator point is farther than ``ISOLATION`` ε > ε from ∂C, so
+Z lies inside a trimmed piece of (N3), which crosses C's surface from outside
+to a depth of ``SOLID_DEPTH`` ε: the ray caster reports that face (a clear
+crossing at an angle of at least depth / diagonal, far above the float32 limits
+of :mod:`viscx.raycast`), and the piece is not free.
+
+Any two generators of a node therefore must not be *blocked*: for a pair of
+generator vertices, the segment joining them meets C_in (found by casting rays
+against the scaled solids, exact float64 first hits from
+:class:`viscx.raycast.RayCaster`), with C foreign to both; for a pair involving
+edges, by Lemma 1, all corner segments meet the same C_in. The builder casts
+one ray per pair of generator vertices (``blocked_table``) and looks the corners
+up. Scenes without isolated convex solids lose nothing, they just get no pruning.
+
+Exact filters on the line (numba, in the scans)
+--------------------------------------------------
+Inside the hulls the scans compute the line itself by closed forms and keep a
+tuple only if that line meets every segment with validation's ε rules (points
+more than ε from the edges' ends and from each other), relaxed to
+``END_MARGIN`` ε plus ``PARAM_SLACK``: the closed forms and the reference's
+constructions agree far better than that wherever the closed forms are well
+conditioned, and wherever they are not (a pole, a near double root, dependent
+conditions) the filter accepts.
+
+* VEE, v at an end: the lines through v meeting e are v → e(t); the one meeting
+  line b has (e(t) - v) · ((b₀ - v) × b') = 0, linear in t.
+* VEE, v inside: the line through v meeting lines a and d meets a where a crosses
+  the plane through v and d (and vice versa).
+* E4: the lines through a(s) and d(t) meet line b where the side product
+  f_b(s, t) = α + βs + γt + δst vanishes (bilinear); along b the (s, t) of the
+  line through b(u) are linear-fractional in u, so each inner edge's arc has a
+  box spanned by its ends (unless it crosses a pole); boxes that miss the square
+  or each other are dropped, and for the rest f_b = f_c = 0 is a quadratic in s.
+
+Coplanar edges. If b lies in the plane π of a and d (f_b vanishes identically),
+every line meeting a, b and d at three points more than ε apart lies in π (it
+meets π at three separated points; the reference's lines satisfy the four
+linear conditions to rounding). Such a line meets c where c crosses π. So the
+tuple is dropped when c lies in π too (the four conditions are dependent: the
+reference finds no line), or when c crosses π steeply (sin ≥ 0.1) within ε/2
+of one of its ends (the line would meet c at an end, which validation
+rejects). This is the floor of an architectural scene: its edges and every
+box's bottom edges are coplanar, and every vertical edge meets the floor at
+its end.
+
+VV candidates are the unblocked pairs not joined by an edge whose segment is
+free, tested exactly as validation tests it (same two points in the same order
+along the canonical direction, so the same rays). VEE and E4 candidates are the
+tuples found as above with every pair of generators unblocked, deduplicated,
+whose line (computed exactly as the reference does) passes (N1) with doubled
+tolerances (2ε distance, ε/2 from the edge ends, ε/2 gaps): a looser copy of
+validation's own first test, so rounding cannot drop a node.
+
+Cost: one ray per vertex pair (against the solids only), one hull query per
+unblocked pair of generators (grid cells of the hull's box, then a few dot
+products per listed edge), and a candidate per pair of edges meeting one hull;
+the hull scans run in numba (nogil) on a thread per core.
+"""
+
+import os
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numba import njit
+
+from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines, segment_parameter
+from viscx.progress import bar
+from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, sort_nodes, validate_candidates
+from viscx.skeleton.reference import edge_lines
+
+#: Depth, in epsilons, a segment must reach inside a solid to be blocked by it.
+SOLID_DEPTH = 8.0
+#: Other components' generator edges must stay this many epsilons away from a blocking solid.
+ISOLATION = 3.0
+#: Inflation of the hull of two generators, in epsilons (the proof needs 2).
+HULL_TOL = 4.0
+#: Largest (faces × vertices) of a component tested for convexity.
+CONVEXITY_BUDGET = 4_000_000
+#: Rays per call when filling the blocked table (and quadruples per line solve).
+RAY_CHUNK = 1 << 20
+#: Candidates per call of the validator (bounds its memory).
+VALIDATE_CHUNK = 1 << 18
+
+
+def _components(scene):
+    """Component of each vertex (faces joined through shared vertices)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    he = scene.half_edges
+    n = scene.n_vertices
+    graph = coo_matrix((np.ones(len(he.start)), (he.start, he.end)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def blocking_solids(scene):
+    """The isolated convex closed components, and their copies shrunk inwards.
+
+    Returns
+    -------
+    solid_of_vertex : (n_vertices,) int
+        Blocking solid of each vertex, -1 if none.
+    vertices : (k, 3) float
+    triangles : (t, 3) int
+        The scaled copies C_in (module docstring), triangulated like the scene.
+    triangle_solid : (t,) int
+    """
+    eps, tol = scene.epsilon, 10 * scene.weld_tolerance
+    he = scene.half_edges
+    comp = _components(scene)
+    n_comp = comp.max() + 1
+    face_first_vertex = scene.loop_vertices[scene.loop_offsets[scene.face_loop_offsets[:-1]]]
+    face_comp = comp[face_first_vertex]
+    usable = np.ones(n_comp, dtype=bool)
+    # closed 2-manifold: every half-edge has an opposite; faces without holes
+    usable[comp[he.start[he.opp < 0]]] = False
+    holes = np.diff(scene.face_loop_offsets) > 1
+    usable[face_comp[holes]] = False
+    # a component without faces (isolated vertices) is not a solid
+    has_face = np.zeros(n_comp, dtype=bool)
+    has_face[face_comp] = True
+    usable &= has_face
+
+    vert_order = np.argsort(comp, kind="stable")
+    vert_start = np.searchsorted(comp[vert_order], np.arange(n_comp + 1))
+    face_order = np.argsort(face_comp, kind="stable")
+    face_start = np.searchsorted(face_comp[face_order], np.arange(n_comp + 1))
+    centroid = np.zeros((n_comp, 3))
+    np.add.at(centroid, comp, scene.vertices)
+    centroid /= np.maximum(np.bincount(comp, minlength=n_comp), 1)[:, None]
+    nv_c, nf_c = np.diff(vert_start), np.diff(face_start)
+    usable &= nv_c * nf_c <= CONVEXITY_BUDGET
+
+    margin = SOLID_DEPTH * eps
+    plane_n, plane_off = np.zeros((len(scene.face_area), 3)), np.zeros(len(scene.face_area))
+    scale = np.zeros(n_comp)
+    for c in np.flatnonzero(usable):
+        faces = face_order[face_start[c] : face_start[c + 1]]
+        verts = vert_order[vert_start[c] : vert_start[c + 1]]
+        n, off = scene.face_normal[faces], scene.face_offset[faces]
+        # orient every plane outwards: the centroid of a convex polytope is inside
+        height = off - n @ centroid[c]
+        sign = np.where(height >= 0, 1.0, -1.0)
+        n, off, height = n * sign[:, None], off * sign, np.abs(height)
+        outside = scene.vertices[verts] @ n.T - off[None, :]
+        if outside.max() > tol or height.min() <= 4 * margin:
+            usable[c] = False
+            continue
+        plane_n[faces], plane_off[faces] = n, off
+        scale[c] = 1.0 - margin / height.min()
+
+    # isolation: no generator edge of another component near the solid
+    ge = scene.generator_edges
+    ev = he.edge_vertices[ge]
+    usable = _isolated(
+        usable,
+        scene.vertices,
+        ev,
+        comp,
+        face_order,
+        face_start,
+        plane_n,
+        plane_off,
+        ISOLATION * eps,
+    )
+    solid_of_vertex = np.where(usable[comp], comp, -1)
+    tri_comp = face_comp[scene.triangle_face]
+    keep = usable[tri_comp]
+    tris = scene.triangles[keep]
+    tri_solid = tri_comp[keep]
+    used, new_tris = np.unique(tris, return_inverse=True)
+    c = comp[used]
+    verts = centroid[c] + scale[c][:, None] * (scene.vertices[used] - centroid[c])
+    return solid_of_vertex, verts, new_tris.reshape(-1, 3).astype(np.int64), tri_solid.astype(np.int64)
+
+
+@njit(cache=True)
+def _isolated(usable, vertices, ev, comp, face_order, face_start, plane_n, plane_off, gap):
+    """Clear ``usable`` for solids that another component's generator edge comes near."""
+    out = usable.copy()
+    n_comp = usable.shape[0]
+    lo = np.full((n_comp, 3), np.inf)
+    hi = np.full((n_comp, 3), -np.inf)
+    for v in range(vertices.shape[0]):
+        c = comp[v]
+        for k in range(3):
+            lo[c, k] = min(lo[c, k], vertices[v, k] - gap)
+            hi[c, k] = max(hi[c, k], vertices[v, k] + gap)
+    for c in range(n_comp):
+        if not usable[c]:
+            continue
+        for i in range(ev.shape[0]):
+            if comp[ev[i, 0]] == c:
+                continue
+            a = vertices[ev[i, 0]]
+            b = vertices[ev[i, 1]]
+            apart = False
+            for k in range(3):
+                if max(a[k], b[k]) < lo[c, k] or min(a[k], b[k]) > hi[c, k]:
+                    apart = True
+            if apart:
+                continue
+            # clip the segment by the solid's planes pushed out by ``gap``
+            t0, t1 = 0.0, 1.0
+            for j in range(face_start[c], face_start[c + 1]):
+                f = face_order[j]
+                fa = plane_n[f, 0] * a[0] + plane_n[f, 1] * a[1] + plane_n[f, 2] * a[2] - plane_off[f] - gap
+                fb = plane_n[f, 0] * b[0] + plane_n[f, 1] * b[1] + plane_n[f, 2] * b[2] - plane_off[f] - gap
+                if fa > 0 and fb > 0:
+                    t0, t1 = 1.0, 0.0
+                    break
+                if fa > 0:
+                    t0 = max(t0, fa / (fa - fb))
+                elif fb > 0:
+                    t1 = min(t1, fa / (fa - fb))
+            if t0 <= t1:
+                out[c] = False
+                break
+    return out
+
+
+def blocked_table(scene, gv):
+    """For each pair of generator vertices, the blocking solid whose inner copy their
+    segment meets (-1 for none, or when that solid holds one of them).
+
+    Parameters
+    ----------
+    scene : Scene
+    gv : (g,) int
+        Generator vertex ids; the table is indexed by position in ``gv``.
+
+    Returns
+    -------
+    table : (g, g) int32
+        Symmetric.
+    solid_of_vertex : (g,) int
+    """
+    from viscx.raycast import RayCaster
+
+    sov_all, verts, tris, tri_solid = blocking_solids(scene)
+    sov = sov_all[gv]
+    g = len(gv)
+    table = np.full((g, g), -1, dtype=np.int32)
+    if len(tris) == 0 or g < 2:
+        return table, sov
+    caster = RayCaster(verts, tris, tri_solid, epsilon=scene.epsilon)
+    x = scene.vertices[gv]
+    i_all, j_all = np.triu_indices(g, 1)
+    for lo in range(0, len(i_all), RAY_CHUNK):
+        i, j = i_all[lo : lo + RAY_CHUNK], j_all[lo : lo + RAY_CHUNK]
+        vec = x[j] - x[i]
+        length = np.linalg.norm(vec, axis=1)
+        solid, _ = caster.first_hit(x[i], vec, tmin=0.0, tmax=length)
+        # the first solid met may hold an end (a segment into its own solid): look from the other end
+        own = (solid >= 0) & ((solid == sov[i]) | (solid == sov[j]))
+        if own.any():
+            back, _ = caster.first_hit(x[j[own]], -vec[own], tmin=0.0, tmax=length[own])
+            solid[own] = back
+        foreign = (solid >= 0) & (solid != sov[i]) & (solid != sov[j])
+        table[i[foreign], j[foreign]] = solid[foreign]
+        table[j[foreign], i[foreign]] = solid[foreign]
+    return table, sov
+
+
+# -- the uniform grid of generator edges and vertices -------------------------------------
+
+
+class _Grid:
+    """Segments (generator edges, and vertices as zero-length segments) in a uniform
+    grid: each listed in every cell its bounding box overlaps."""
+
+    def __init__(self, lo, hi, n_cells):
+        span = np.maximum(hi - lo, 1e-300)
+        side = (np.prod(span) / max(1.0, n_cells)) ** (1 / 3)
+        self.dims = np.clip(np.ceil(span / np.maximum(side, 1e-300)), 1, 128).astype(np.int64)
+        self.lo = lo
+        self.cell = span / self.dims
+
+    def fill(self, a, b):
+        """CSR lists (offsets, items) of the segments ab in each cell."""
+        return _grid_build(self.lo, self.cell, self.dims, np.minimum(a, b), np.maximum(a, b))
+
+
+@njit(cache=True)
+def _grid_build(lo, cell, dims, box_lo, box_hi):
+    n = box_lo.shape[0]
+    counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    rng = np.empty((n, 6), dtype=np.int64)
+    for i in range(n):
+        for k in range(3):
+            rng[i, k] = min(max(int(np.floor((box_lo[i, k] - lo[k]) / cell[k])), 0), dims[k] - 1)
+            rng[i, 3 + k] = min(max(int(np.floor((box_hi[i, k] - lo[k]) / cell[k])), 0), dims[k] - 1)
+        for x in range(rng[i, 0], rng[i, 3] + 1):
+            for y in range(rng[i, 1], rng[i, 4] + 1):
+                for z in range(rng[i, 2], rng[i, 5] + 1):
+                    counts[(x * dims[1] + y) * dims[2] + z + 1] += 1
+    offsets = np.cumsum(counts)
+    fill = offsets[:-1].copy()
+    items = np.empty(offsets[-1], dtype=np.int64)
+    for i in range(n):
+        for x in range(rng[i, 0], rng[i, 3] + 1):
+            for y in range(rng[i, 1], rng[i, 4] + 1):
+                for z in range(rng[i, 2], rng[i, 5] + 1):
+                    c = (x * dims[1] + y) * dims[2] + z
+                    items[fill[c]] = i
+                    fill[c] += 1
+    return offsets, items
+
+
+@njit(cache=True, nogil=True)
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, nogil=True)
+def _cross(a, b):
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@njit(cache=True, nogil=True)
+def _hull_axes(P, k):
+    """Fixed separating axes of the hull of k = 3 or 4 points: the normal of every
+    triple and, in each triple's plane, the normals of its sides (the axes that
+    matter when the hull is flat). Unit rows; degenerate ones left out."""
+    axes = np.empty((16, 3))
+    m = 0
+    scale = 0.0
+    for i in range(k):
+        for j in range(i + 1, k):
+            scale = max(scale, np.sqrt(_dot(P[j] - P[i], P[j] - P[i])))
+    if scale == 0.0:
+        return axes[:0]
+    for i in range(k):
+        for j in range(i + 1, k):
+            for l in range(j + 1, k):
+                n = _cross(P[j] - P[i], P[l] - P[i])
+                size = np.sqrt(_dot(n, n))
+                if size <= 1e-9 * scale * scale:
+                    continue
+                n = n / size
+                axes[m] = n
+                m += 1
+                for (p, q) in ((i, j), (j, l), (i, l)):
+                    s = _cross(n, P[q] - P[p])
+                    ss = np.sqrt(_dot(s, s))
+                    if ss > 1e-9 * scale:
+                        axes[m] = s / ss
+                        m += 1
+    return axes[:m]
+
+
+@njit(cache=True, nogil=True)
+def _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
+    """Whether segment AB comes within ``tol`` of the hull of P[:k] (conservative:
+    False only when an axis separates them by more than tol)."""
+    for r in range(axes.shape[0]):
+        sa, sb = _dot(A, axes[r]), _dot(B, axes[r])
+        if min(sa, sb) > hmax[r] + tol or max(sa, sb) < hmin[r] - tol:
+            return False
+    d = B - A
+    dd = _dot(d, d)
+    if dd == 0.0:
+        return True
+    for i in range(k):
+        for j in range(i + 1, k):
+            e = P[j] - P[i]
+            u = _cross(d, e)
+            size = np.sqrt(_dot(u, u))
+            if size <= 1e-9 * np.sqrt(dd * _dot(e, e)):
+                continue
+            u = u / size
+            lo, hi = np.inf, -np.inf
+            for q in range(k):
+                s = _dot(P[q], u)
+                lo = min(lo, s)
+                hi = max(hi, s)
+            sa, sb = _dot(A, u), _dot(B, u)
+            if min(sa, sb) > hi + tol or max(sa, sb) < lo - tol:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out):
+    """Indices of the segments meeting the inflated hull of P[:k]; writes them to
+    ``out`` and returns their count (``stamp`` marks segments already seen)."""
+    axes = _hull_axes(P, k)
+    hmin = np.empty(axes.shape[0])
+    hmax = np.empty(axes.shape[0])
+    for r in range(axes.shape[0]):
+        hmin[r], hmax[r] = np.inf, -np.inf
+        for q in range(k):
+            s = _dot(P[q], axes[r])
+            hmin[r] = min(hmin[r], s)
+            hmax[r] = max(hmax[r], s)
+    blo = np.empty(3)
+    bhi = np.empty(3)
+    c0 = np.empty(3, dtype=np.int64)
+    c1 = np.empty(3, dtype=np.int64)
+    for d in range(3):
+        blo[d], bhi[d] = np.inf, -np.inf
+        for q in range(k):
+            blo[d] = min(blo[d], P[q, d])
+            bhi[d] = max(bhi[d], P[q, d])
+        blo[d] -= tol
+        bhi[d] += tol
+        c0[d] = min(max(int(np.floor((blo[d] - lo[d]) / cell[d])), 0), dims[d] - 1)
+        c1[d] = min(max(int(np.floor((bhi[d] - lo[d]) / cell[d])), 0), dims[d] - 1)
+    m = 0
+    for x in range(c0[0], c1[0] + 1):
+        for y in range(c0[1], c1[1] + 1):
+            for z in range(c0[2], c1[2] + 1):
+                c = (x * dims[1] + y) * dims[2] + z
+                for j in range(offsets[c], offsets[c + 1]):
+                    s = items[j]
+                    if stamp[s] == stamp_id:
+                        continue
+                    stamp[s] = stamp_id
+                    A, B = seg_a[s], seg_b[s]
+                    if (
+                        min(A[0], B[0]) > bhi[0]
+                        or max(A[0], B[0]) < blo[0]
+                        or min(A[1], B[1]) > bhi[1]
+                        or max(A[1], B[1]) < blo[1]
+                        or min(A[2], B[2]) > bhi[2]
+                        or max(A[2], B[2]) < blo[2]
+                    ):
+                        continue
+                    if _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
+                        out[m] = s
+                        m += 1
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _edges_blocked(table, a0, a1, b0, b1):
+    t = table[a0, b0]
+    return t >= 0 and table[a0, b1] == t and table[a1, b0] == t and table[a1, b1] == t
+
+
+@njit(cache=True, nogil=True)
+def _vertex_edge_blocked(table, v, b0, b1):
+    t = table[v, b0]
+    return t >= 0 and table[v, b1] == t
+
+
+@njit(cache=True, nogil=True)
+def _adjacent(ev, a, b):
+    return ev[a, 0] == ev[b, 0] or ev[a, 0] == ev[b, 1] or ev[a, 1] == ev[b, 0] or ev[a, 1] == ev[b, 1]
+
+
+@njit(cache=True, nogil=True)
+def _push(buf, n, row):
+    if n == buf.shape[0]:
+        bigger = np.empty((2 * buf.shape[0] + 16, buf.shape[1]), dtype=buf.dtype)
+        bigger[:n] = buf[:n]
+        buf = bigger
+    for k in range(buf.shape[1]):
+        buf[n, k] = row[k]
+    return buf
+
+
+#: Slack on the line parameters (s, t on the outer pair, u on an inner edge, λ along
+#: the segment) of the exact filters, on top of the ε margins: rounding of the
+#: closed forms below where they are well conditioned (where they are not, the
+#: filters accept).
+PARAM_SLACK = 1e-7
+#: Margin, in epsilons, kept from an edge's ends and between consecutive points by
+#: the exact filters (validation demands more than 1 ε; the rest covers the
+#: difference between these closed forms and the reference's constructions).
+END_MARGIN = 0.4
+#: Relative size below which a side-product form counts as identically zero
+#: (the edge lies in the plane of the outer pair, to rounding).
+IN_PLANE = 1e-14
+
+
+@njit(cache=True, nogil=True)
+def _ratio(num, den, scale):
+    """num / den, or nan when den is within rounding of zero (a pole: anything goes)."""
+    if abs(den) <= 1e-12 * scale:
+        return np.nan
+    return num / den
+
+
+@njit(cache=True, nogil=True)
+def _within(x, margin):
+    """x in [margin, 1 - margin] up to PARAM_SLACK, or nan (undecided)."""
+    return np.isnan(x) or (margin - PARAM_SLACK <= x <= 1.0 - margin + PARAM_SLACK)
+
+
+@njit(cache=True, nogil=True)
+def _margin(eps, length):
+    return END_MARGIN * eps / length if length > 0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _through_point(p, a0, da, d0, dd):
+    """The line through point p meeting the lines a0 + s da and d0 + t dd: (s, t).
+
+    It lies in the plane through p and each line; it meets line a where a crosses
+    the plane through p and line d (normal (d0 - p) × dd), and vice versa. nan
+    where a line is parallel to the other's plane (no unique answer)."""
+    n_d = _cross(d0 - p, dd)
+    n_a = _cross(a0 - p, da)
+    s = _ratio(_dot(p - a0, n_d), _dot(da, n_d), np.sqrt(_dot(da, da) * _dot(n_d, n_d)))
+    t = _ratio(_dot(p - d0, n_a), _dot(dd, n_a), np.sqrt(_dot(dd, dd) * _dot(n_a, n_a)))
+    return s, t
+
+
+@njit(cache=True, nogil=True)
+def _param_on(o, d, b0, db):
+    """Parameter on line b0 + u db of its point closest to the line o + λ d, and λ
+    there (nan, nan when parallel)."""
+    w = b0 - o
+    aa, bb, cc = _dot(d, d), _dot(d, db), _dot(db, db)
+    dw, ew = _dot(d, w), _dot(db, w)
+    den = aa * cc - bb * bb
+    if den <= 1e-12 * aa * cc:
+        return np.nan, np.nan
+    u = (bb * dw - aa * ew) / den
+    lam = (dw + bb * u) / aa
+    return u, lam
+
+
+@njit(cache=True, nogil=True)
+def _between(A, D, b0, db, eps):
+    """Whether the line AD meets segment b away from its ends, between A and D and
+    away from them (the ε rules of validation, with END_MARGIN)."""
+    u, lam = _param_on(A, D - A, b0, db)
+    return _within(u, _margin(eps, np.sqrt(_dot(db, db)))) and _within(lam, _margin(eps, np.sqrt(_dot(D - A, D - A))))
+
+
+@njit(cache=True, nogil=True)
+def _side_coefficients(a0, da, d0, dd, b0, db, out):
+    """f(s, t) = α + βs + γt + δst, the side product of line b with the line through
+    a0 + s da and d0 + t dd (zero iff they meet), normalised into ``out``. The line
+    is (D - A, A × D), and side(L, L_b) = (D - A)·m_b + d_b·(A × D) is bilinear.
+
+    Returns whether f vanishes identically (to rounding): b lies in the plane of
+    a and d."""
+    mb = _cross(b0, db)
+    alpha = _dot(d0 - a0, mb) + _dot(db, _cross(a0, d0))
+    beta = -_dot(da, mb) + _dot(db, _cross(da, d0))
+    gamma = _dot(dd, mb) + _dot(db, _cross(a0, dd))
+    delta = _dot(db, _cross(da, dd))
+    size = max(max(abs(alpha), abs(beta)), max(abs(gamma), abs(delta)))
+    # a bound on every term: what rounding is relative to
+    na, nd, nb = np.sqrt(_dot(a0, a0)) + np.sqrt(_dot(da, da)), np.sqrt(_dot(d0, d0)) + np.sqrt(_dot(dd, dd)), np.sqrt(_dot(db, db))
+    scale = (na + nd) * np.sqrt(_dot(mb, mb)) + nb * na * nd
+    for k in range(4):
+        out[k] = 0.0
+    if size > 0:
+        out[0], out[1], out[2], out[3] = alpha / size, beta / size, gamma / size, delta / size
+    return size <= IN_PLANE * scale
+
+
+@njit(cache=True, nogil=True)
+def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
+    """For coplanar lines a and d: whether segment b crosses their plane steeply
+    (sin ≥ 0.1) at a point within ε/2 of one of its ends, or outside it.
+
+    Then no line of the plane meets b farther than ε from its ends (see
+    :func:`_four_lines_meet`)."""
+    n = _cross(da, d0 - a0)
+    if _dot(n, n) < _dot(_cross(da, d0 + dd - a0), _cross(da, d0 + dd - a0)):
+        n = _cross(da, d0 + dd - a0)
+    size = np.sqrt(_dot(n, n))
+    length = np.sqrt(_dot(db, db))
+    if size <= 1e-9 * np.sqrt(_dot(da, da)) * np.sqrt(_dot(d0 - a0, d0 - a0) + _dot(dd, dd)) or length == 0:
+        return False
+    n = n / size
+    h0, h1 = _dot(b0 - a0, n), _dot(b0 + db - a0, n)
+    if abs(h1 - h0) < 0.1 * length:
+        return False
+    u = h0 / (h0 - h1)
+    return u * length < 0.5 * eps or (1 - u) * length < 0.5 * eps
+
+
+@njit(cache=True, nogil=True)
+def _arc_box(a0, da, d0, dd, b0, db, slack):
+    """Box [s_lo, s_hi, t_lo, t_hi] in the (s, t) square of the lines through a point
+    of segment b meeting lines a and d; empty (s_lo > s_hi) when it misses the square.
+
+    Along b, s(u) and t(u) are linear-fractional (numerator and denominator of
+    :func:`_through_point` are linear in u: the quadratic term is a triple product
+    with a repeated vector), so monotone between poles: the box is spanned by
+    u = 0 and u = 1 unless a denominator changes sign on [0, 1]."""
+    box = np.empty(4)
+    b1 = b0 + db
+    for axis in range(2):
+        if axis == 0:
+            n0, n1 = _cross(d0 - b0, dd), _cross(d0 - b1, dd)
+            x0, x1, dx = b0 - a0, b1 - a0, da
+        else:
+            n0, n1 = _cross(a0 - b0, da), _cross(a0 - b1, da)
+            x0, x1, dx = b0 - d0, b1 - d0, dd
+        m0, m1 = _dot(dx, n0), _dot(dx, n1)
+        scale = np.sqrt(_dot(dx, dx)) * max(np.sqrt(_dot(n0, n0)), np.sqrt(_dot(n1, n1)))
+        if m0 * m1 <= 0 or min(abs(m0), abs(m1)) <= 1e-9 * scale:
+            lo, hi = -np.inf, np.inf  # through a pole: unbounded
+        else:
+            v0, v1 = _dot(x0, n0) / m0, _dot(x1, n1) / m1
+            lo, hi = min(v0, v1), max(v0, v1)
+        box[2 * axis] = max(lo, -slack)
+        box[2 * axis + 1] = min(hi, 1.0 + slack)
+    return box
+
+
+@njit(cache=True, nogil=True)
+def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
+    """Whether a line meets segments a and d (at s, t), and segments b and c between
+    them, with the ε margins of validation. Conservative: True wherever the
+    closed form is ill-conditioned (a family of lines, a double root, a pole).
+
+    Solves f_b = f_c = 0 (bilinear): eliminating t gives
+    Q(s) = (α_c + β_c s)(γ_b + δ_b s) - (α_b + β_b s)(γ_c + δ_c s) = 0; two
+    well-separated roots are accurate to rounding."""
+    q2 = fc[1] * fb[3] - fb[1] * fc[3]
+    q1 = fc[0] * fb[3] + fc[1] * fb[2] - fb[0] * fc[3] - fb[1] * fc[2]
+    q0 = fc[0] * fb[2] - fb[0] * fc[2]
+    big = max(abs(q2), max(abs(q1), abs(q0)))
+    if big <= 1e-8:
+        return True  # dependent conditions: leave it to the exact solver
+    roots = np.empty(2)
+    n = 0
+    if abs(q2) <= 1e-8 * big:
+        if abs(q1) <= 1e-8 * big:
+            return False  # Q is a non-zero constant
+        roots[0] = -q0 / q1
+        n = 1
+    else:
+        disc = q1 * q1 - 4 * q2 * q0
+        if abs(disc) <= 1e-6 * (q1 * q1 + 4 * abs(q2 * q0)):
+            return True  # a (near) double root: its position is ill-conditioned
+        if disc < 0:
+            return False
+        root = np.sqrt(disc)
+        q = -0.5 * (q1 + (root if q1 >= 0 else -root))
+        roots[0] = q / q2
+        roots[1] = q0 / q
+        n = 2
+    ma, md = _margin(eps, np.sqrt(_dot(da, da))), _margin(eps, np.sqrt(_dot(dd, dd)))
+    for r in range(n):
+        s = roots[r]
+        if not _within(s, ma):
+            continue
+        den_b, den_c = fb[2] + fb[3] * s, fc[2] + fc[3] * s
+        if max(abs(den_b), abs(den_c)) <= 1e-6:
+            return True  # f_b and f_c (nearly) hold for every t at this s
+        if abs(den_b) >= abs(den_c):
+            t = -(fb[0] + fb[1] * s) / den_b
+        else:
+            t = -(fc[0] + fc[1] * s) / den_c
+        if not _within(t, md):
+            continue
+        A = a0 + s * da
+        D = d0 + t * dd
+        if _between(A, D, b0, db, eps) and _between(A, D, c0, dc, eps):
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps):
+    """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
+    their inflated hull with every pair of generators unblocked and a line through
+    all of them (exact filters, with slack).
+
+    ``ev`` holds the edges' endpoints as positions in the vertex table. Returns VEE
+    rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
+    slack = PARAM_SLACK
+    n_e = ev.shape[0]
+    n_v = vx.shape[0]
+    e_stamp = np.full(n_e, -1, dtype=np.int64)
+    v_stamp = np.full(n_v, -1, dtype=np.int64)
+    e_out = np.empty(n_e, dtype=np.int64)
+    v_out = np.empty(n_v, dtype=np.int64)
+    inner = np.empty(n_e, dtype=np.int64)
+    coef = np.empty((n_e, 4))
+    box = np.empty((n_e, 4))
+    in_plane = np.empty(n_e, dtype=np.bool_)
+    at_end = np.empty(n_e, dtype=np.bool_)
+    vee = np.empty((1024, 3), dtype=np.int64)
+    quad = np.empty((1024, 4), dtype=np.int64)
+    n_vee = 0
+    n_quad = 0
+    P = np.empty((4, 3))
+    row3 = np.empty(3, dtype=np.int64)
+    row4 = np.empty(4, dtype=np.int64)
+    query = 0
+    for a in first:
+        a0, a1 = ev[a, 0], ev[a, 1]
+        pa, da = ea[a], eb[a] - ea[a]
+        len_a = np.sqrt(_dot(da, da))
+        for d in range(a + 1, n_e):
+            if _adjacent(ev, a, d):
+                continue
+            d0, d1 = ev[d, 0], ev[d, 1]
+            if _edges_blocked(table, a0, a1, d0, d1):
+                continue
+            pd, dd = ea[d], eb[d] - ea[d]
+            len_d = np.sqrt(_dot(dd, dd))
+            P[0], P[1], P[2], P[3] = vx[a0], vx[a1], vx[d0], vx[d1]
+            query += 1
+            nv = _query(P, 4, tol, vx, vx, lo, cell, dims, v_off, v_items, v_stamp, query, v_out)
+            for r in range(nv):
+                v = v_out[r]
+                if v == a0 or v == a1 or v == d0 or v == d1:
+                    continue
+                if _vertex_edge_blocked(table, v, a0, a1) or _vertex_edge_blocked(table, v, d0, d1):
+                    continue
+                # the line through v meeting lines a and d: inside both segments, v between
+                s, t = _through_point(vx[v], pa, da, pd, dd)
+                if not (_within(s, _margin(eps, len_a)) and _within(t, _margin(eps, len_d))):
+                    continue
+                if not (np.isnan(s) or np.isnan(t)):
+                    A, D = pa + s * da, pd + t * dd
+                    dad = _dot(D - A, D - A)
+                    if dad > 0 and not _within(_dot(vx[v] - A, D - A) / dad, _margin(eps, np.sqrt(dad))):
+                        continue
+                row3[0], row3[1], row3[2] = v, a, d
+                vee = _push(vee, n_vee, row3)
+                n_vee += 1
+            ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
+            # inner edge candidates and their arcs in the (s, t) square of lines meeting a and d
+            m = 0
+            for r in range(ne):
+                b = e_out[r]
+                if b == a or b == d or _adjacent(ev, a, b) or _adjacent(ev, b, d):
+                    continue
+                b0, b1 = ev[b, 0], ev[b, 1]
+                if _edges_blocked(table, a0, a1, b0, b1) or _edges_blocked(table, b0, b1, d0, d1):
+                    continue
+                bx = _arc_box(pa, da, pd, dd, ea[b], eb[b] - ea[b], 1e-6)
+                if bx[0] > bx[1] or bx[2] > bx[3]:
+                    continue
+                inner[m] = b
+                in_plane[m] = _side_coefficients(pa, da, pd, dd, ea[b], eb[b] - ea[b], coef[m])
+                at_end[m] = not in_plane[m] and _crosses_plane_at_end(pa, da, pd, dd, ea[b], eb[b] - ea[b], eps)
+                box[m] = bx
+                m += 1
+            for i in range(m):
+                b = inner[i]
+                b0, b1 = ev[b, 0], ev[b, 1]
+                for j in range(i + 1, m):
+                    if box[j, 0] > box[i, 1] or box[i, 0] > box[j, 1] or box[j, 2] > box[i, 3] or box[i, 2] > box[j, 3]:
+                        continue
+                    c = inner[j]
+                    if _adjacent(ev, b, c):
+                        continue
+                    c0, c1 = ev[c, 0], ev[c, 1]
+                    if _edges_blocked(table, b0, b1, c0, c1):
+                        continue
+                    # b (or c) in the plane of a and d: every line meeting a, b and d
+                    # lies in that plane (module docstring, "coplanar edges")
+                    if in_plane[i] and in_plane[j]:
+                        continue
+                    if (in_plane[i] and at_end[j]) or (in_plane[j] and at_end[i]):
+                        continue
+                    if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c], eps):
+                        continue
+                    row4[0], row4[1], row4[2], row4[3] = a, b, c, d
+                    quad = _push(quad, n_quad, row4)
+                    n_quad += 1
+    return vee[:n_vee], quad[:n_quad]
+
+
+@njit(cache=True, nogil=True)
+def _scan_vertex_edges(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_items, tol, eps):
+    """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
+    inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
+    through v, them and e (exact filter, with slack).
+    Returns rows (v, e1, e2) by position, e1 the inner edge."""
+    slack = PARAM_SLACK
+    n_e = ev.shape[0]
+    e_stamp = np.full(n_e, -1, dtype=np.int64)
+    e_out = np.empty(n_e, dtype=np.int64)
+    vee = np.empty((1024, 3), dtype=np.int64)
+    n_vee = 0
+    P = np.empty((4, 3))
+    row3 = np.empty(3, dtype=np.int64)
+    query = 0
+    for v in first:
+        pv = vx[v]
+        for e in range(n_e):
+            e0, e1 = ev[e, 0], ev[e, 1]
+            if e0 == v or e1 == v or _vertex_edge_blocked(table, v, e0, e1):
+                continue
+            pe, de = ea[e], eb[e] - ea[e]
+            P[0], P[1], P[2] = pv, vx[e0], vx[e1]
+            query += 1
+            ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
+            for r in range(ne):
+                b = e_out[r]
+                b0, b1 = ev[b, 0], ev[b, 1]
+                if b == e or b0 == v or b1 == v or _adjacent(ev, b, e):
+                    continue
+                if _vertex_edge_blocked(table, v, b0, b1) or _edges_blocked(table, b0, b1, e0, e1):
+                    continue
+                # lines through v meeting e at e(t) meet line b where v, e(t), b are
+                # coplanar: (e(t) - v) · n_b = 0 with n_b the normal of plane (v, b)
+                pb, db = ea[b], eb[b] - ea[b]
+                n_b = _cross(pb - pv, db)
+                t = _ratio(-_dot(pe - pv, n_b), _dot(de, n_b), np.sqrt(_dot(de, de) * _dot(n_b, n_b)))
+                if not _within(t, _margin(eps, np.sqrt(_dot(de, de)))):
+                    continue
+                if not np.isnan(t) and not _between(pv, pe + t * de, pb, db, eps):
+                    continue
+                row3[0], row3[1], row3[2] = v, b, e
+                vee = _push(vee, n_vee, row3)
+                n_vee += 1
+    return vee[:n_vee]
+
+
+def _parallel(kernel, items, args, chunk, progress_bar, workers):
+    """Run ``kernel(items_chunk, *args)`` over chunks on threads (the kernels release the GIL)."""
+    chunks = [items[i : i + chunk] for i in range(0, len(items), chunk)]
+    lock = threading.Lock()
+
+    def run(part):
+        out = kernel(part, *args)
+        with lock:
+            progress_bar.update(len(part))
+        return out
+
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(run, chunks))
+
+
+def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
+    """(N1) with doubled tolerances: within 2ε of every generator, edge points at
+    least ε/2 inside their edges, consecutive points more than ε/2 apart.
+
+    Parameters
+    ----------
+    origins, directions : (m, 3) float
+    vertex_ids : (m, p) int
+        Vertex generators (p may be 0).
+    edge_ids : (m, q) int
+
+    Returns
+    -------
+    (m,) bool
+    """
+    eps = scene.epsilon
+    d = canonical_directions(directions)
+    ok = np.ones(len(d), dtype=bool)
+    ts = []
+    for col in vertex_ids.T:
+        x = scene.vertices[col]
+        ok &= np.linalg.norm(np.cross(x - origins, d), axis=1) <= 2 * eps
+        ts.append(np.einsum("ij,ij->i", x - origins, d))
+    ev = scene.half_edges.edge_vertices
+    for col in edge_ids.T:
+        a, b = scene.vertices[ev[col, 0]], scene.vertices[ev[col, 1]]
+        x, dist = segment_parameter(origins, d, a, b)
+        length = np.linalg.norm(b - a, axis=1)
+        with np.errstate(invalid="ignore"):
+            ok &= (dist <= 2 * eps) & (x * length > 0.5 * eps) & ((1 - x) * length > 0.5 * eps)
+        p = a + np.nan_to_num(x)[:, None] * (b - a)
+        ts.append(np.einsum("ij,ij->i", p - origins, d))
+    t = np.sort(np.stack(ts, axis=1), axis=1)
+    ok &= (np.diff(t, axis=1) > 0.5 * eps).all(axis=1)
+    return ok
+
+
+def fast_candidates(scene, progress=None, workers=None, stats=None):
+    """Candidate lines that include every node's, in the reference's form.
+
+    Parameters
+    ----------
+    scene : Scene
+    progress : callable, optional
+        ``progress(desc, total)`` returns a tqdm-like bar (``update``, ``close``);
+        default: no bars.
+    workers : int, optional
+        Threads for the hull scans (default: the CPU count).
+    stats : dict, optional
+        Filled with the counts of each stage (pairs, tuples, candidates per kind).
+
+    Returns
+    -------
+    kind : (m,) int8
+    generators : (m, 4) int
+    origins, directions : (m, 3) float
+        As :func:`viscx.skeleton.reference.reference_candidates`.
+    """
+    if progress is None:
+        progress = lambda desc, total: bar(total, desc, quiet=True)  # noqa: E731
+    workers = workers or os.cpu_count() or 1
+    eps = scene.epsilon
+    gv = scene.generator_vertices
+    ge = scene.generator_edges
+    ev_all = scene.half_edges.edge_vertices
+    stats = {} if stats is None else stats
+    out = []
+    if len(gv) < 2:
+        return _pack(out)
+    clock = time.perf_counter()
+    pos = np.full(scene.n_vertices, -1, dtype=np.int64)
+    pos[gv] = np.arange(len(gv))
+    table, _ = blocked_table(scene, gv)
+    stats["seconds solids"] = time.perf_counter() - clock
+    vx = np.ascontiguousarray(scene.vertices[gv])
+    ev = pos[ev_all[ge]]  # generator edges by vertex position
+
+    # VV: unblocked pairs not joined by an edge, free as validation will test them
+    clock = time.perf_counter()
+    pb = progress("VV", len(gv))
+    i, j = np.triu_indices(len(gv), 1)
+    keep = table[i, j] < 0
+    joined = np.zeros((len(gv), len(gv)), dtype=bool)
+    joined[ev[:, 0], ev[:, 1]] = joined[ev[:, 1], ev[:, 0]] = True
+    keep &= ~joined[i, j]
+    i, j = i[keep], j[keep]
+    u, v = gv[i], gv[j]
+    origin, direction = scene.vertices[u], scene.vertices[v] - scene.vertices[u]
+    d = canonical_directions(direction)
+    forward = np.einsum("ij,ij->i", scene.vertices[v] - origin, d) >= 0
+    first = np.where(forward[:, None], scene.vertices[u], scene.vertices[v])
+    last = np.where(forward[:, None], scene.vertices[v], scene.vertices[u])
+    free = scene.ray_caster.free_segments(first, last)
+    pb.update(len(gv))
+    pb.close()
+    stats["VV pairs"] = int(len(gv) * (len(gv) - 1) // 2)
+    stats["VV unblocked"] = int(len(u))
+    u, v = u[free], v[free]
+    gens = np.stack([u, v, np.full_like(u, -1), np.full_like(u, -1)], axis=1)
+    out.append((np.full(len(u), VV), gens, scene.vertices[u], scene.vertices[v] - scene.vertices[u]))
+    stats["VV candidates"] = int(len(u))
+    stats["seconds VV"] = time.perf_counter() - clock
+    if len(ge) < 2:
+        return _pack(out)
+
+    lo = vx.min(axis=0) - HULL_TOL * eps
+    hi = vx.max(axis=0) + HULL_TOL * eps
+    ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
+    grid = _Grid(lo, hi, len(ge) / 2)
+    e_off, e_items = grid.fill(ea, eb)
+    v_off, v_items = grid.fill(vx, vx)
+    tol = HULL_TOL * eps + 1e-12 * scene.diagonal
+
+    # VEE with the vertex at an end: (v, e) pairs and the edges in their triangle
+    clock = time.perf_counter()
+    pb = progress("VEE", len(gv))
+    parts = _parallel(
+        _scan_vertex_edges,
+        np.arange(len(gv)),
+        (ev, ea, eb, vx, table, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps),
+        max(1, min(64, len(gv) // (8 * workers) + 1)),
+        pb,
+        workers,
+    )
+    pb.close()
+    vee_end = np.concatenate(parts) if parts else np.zeros((0, 3), np.int64)
+    stats["seconds VEE scan"] = time.perf_counter() - clock
+    clock = time.perf_counter()
+
+    # E4 and VEE with the vertex inside: outer edge pairs (a, d) and what their tetrahedron holds
+    pb = progress("E4", len(ge))
+    parts = _parallel(
+        _scan_edge_pairs,
+        np.arange(len(ge)),
+        (
+            ev,
+            ea,
+            eb,
+            vx,
+            table,
+            grid.lo,
+            grid.cell,
+            grid.dims,
+            e_off,
+            e_items,
+            v_off,
+            v_items,
+            tol,
+            eps,
+        ),
+        max(1, min(64, len(ge) // (8 * workers) + 1)),
+        pb,
+        workers,
+    )
+    pb.close()
+    vee_in = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 3), np.int64)
+    quads = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 4), np.int64)
+    stats["seconds E4 scan"] = time.perf_counter() - clock
+    clock = time.perf_counter()
+
+    # VEE: canonical (v, e1 < e2), ids of the scene, deduplicated
+    vee = np.concatenate([vee_end, vee_in])
+    stats["VEE tuples"] = int(len(vee))
+    v_id = gv[vee[:, 0]]
+    e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
+    vee = np.unique(np.stack([v_id, e_lo, e_hi], axis=1), axis=0) if len(vee) else np.zeros((0, 3), np.int64)
+    v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
+    d = line_through_point_and_two_lines(scene.vertices[v], edge_lines(scene, e1), edge_lines(scene, e2))
+    fine = np.linalg.norm(d, axis=1) > 0
+    origin = scene.vertices[v]
+    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:])
+    gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]
+    out.append((np.full(fine.sum(), VEE), gens, origin[fine], d[fine]))
+    stats["VEE triples"] = int(len(vee))
+    stats["VEE candidates"] = int(fine.sum())
+    stats["seconds VEE lines"] = time.perf_counter() - clock
+    clock = time.perf_counter()
+
+    # E4: sorted quadruples of scene ids, deduplicated, solved as the reference does
+    stats["E4 tuples"] = int(len(quads))
+    quads = np.sort(ge[quads], axis=1)
+    quads = _unique_rows(quads)
+    stats["E4 quadruples"] = int(len(quads))
+    e4 = []
+    for lo_q in range(0, len(quads), RAY_CHUNK):
+        q = quads[lo_q : lo_q + RAY_CHUNK]
+        lines = edge_lines(scene, q.reshape(-1)).reshape(-1, 4, 6)
+        sol, valid, _ = lines_through_four_lines(lines)
+        q_idx, s_idx = np.nonzero(valid)
+        d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]
+        origins = np.cross(d, m) / np.einsum("ij,ij->i", d, d)[:, None]
+        ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), q[q_idx])
+        e4.append((np.full(ok.sum(), E4), q[q_idx][ok], origins[ok], d[ok]))
+    if e4:
+        out.append(tuple(np.concatenate(x) for x in zip(*e4)))
+        stats["E4 candidates"] = int(len(out[-1][0]))
+    stats["seconds E4 lines"] = time.perf_counter() - clock
+    return _pack(out)
+
+
+def _unique_rows(rows):
+    """Unique rows of a small-int (n, k) array, sorted."""
+    if len(rows) == 0:
+        return rows
+    bits = int(rows.max()).bit_length()
+    if bits * rows.shape[1] <= 63:
+        key = np.zeros(len(rows), dtype=np.int64)
+        for col in rows.T:
+            key = (key << bits) | col
+        _, first = np.unique(key, return_index=True)
+        return rows[first]
+    return np.unique(rows, axis=0)
+
+
+def _pack(out):
+    if not out:
+        return np.zeros(0, np.int8), np.zeros((0, 4), np.int64), np.zeros((0, 3)), np.zeros((0, 3))
+    kind, gens, origins, dirs = (np.concatenate(x) for x in zip(*out))
+    return kind.astype(np.int8), gens.astype(np.int64), origins, dirs
+
+
+def validate_in_chunks(scene, kind, generators, origins, directions, chunk=VALIDATE_CHUNK):
+    """:func:`viscx.skeleton.nodes.validate_candidates` over chunks of candidates
+    (each candidate is judged on its own, so the result is the same; memory stays
+    bounded). Parameters as there."""
+    parts = [
+        validate_candidates(scene, kind[i : i + chunk], generators[i : i + chunk], origins[i : i + chunk], directions[i : i + chunk])
+        for i in range(0, len(kind), chunk)
+    ]
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return validate_candidates(scene, kind, generators, origins, directions)
+    merged = Nodes(**{name: np.concatenate([getattr(p, name) for p in parts]) for name in Nodes.__dataclass_fields__})
+    return sort_nodes(merged)
+
+
+def build_nodes(scene, quiet=True, workers=None):
+    """The nodes (V0) of a scene by the output-sensitive candidates.
+
+    Parameters
+    ----------
+    scene : Scene
+    quiet : bool
+        No progress bars.
+    workers : int, optional
+        Threads for the hull scans.
+
+    Returns
+    -------
+    Nodes
+        Equal to :func:`viscx.skeleton.reference.reference_nodes` (tests/test_fast_nodes.py).
+    """
+    kind, gens, origins, dirs = fast_candidates(scene, progress=lambda desc, total: bar(total, desc, quiet=quiet), workers=workers)
+    return validate_in_chunks(scene, kind, gens, origins, dirs)

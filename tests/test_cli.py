@@ -27,7 +27,8 @@ def test_build_then_info(tmp_path, capsys):
     counts = summary["counts"]["scene"]
     # 16 quads, none merged (different groups or planes), 2 triangles each
     assert counts["faces"] == 16 and counts["triangles"] == 32
-    assert summary["groups"]["light"] == 1 and summary["levels"] == ["scene"]
+    assert summary["groups"]["light"] == 1 and summary["levels"] == ["scene", "V0", "V1"]
+    assert summary["counts"]["V0"]["total"] > 0 and summary["counts"]["V1"]["total"] > 0
     code, stdout, _ = run(["info", str(out)], capsys)
     assert code == 0 and "generator_edges" in stdout and "light (1 faces)" in stdout
 
@@ -66,3 +67,27 @@ def test_info_counts_a_v0_level_by_kind(tmp_path, capsys):
     code, stdout, _ = run(["info", str(out), "--json"], capsys)
     counts = json.loads(stdout)["counts"]["V0"]
     assert code == 0 and counts["total"] == len(nodes) and counts == {"total": len(nodes), **nodes.counts()}
+
+
+@pytest.mark.parametrize("levels, expected", [(-1, ["scene"]), (0, ["scene", "V0"]), (1, ["scene", "V0", "V1"])])
+def test_build_levels(levels, expected, tmp_path, capsys):
+    from viscx.formats.hdf5 import ViscxFile, read_nodes
+    from viscx.scene import load_scene
+    from viscx.skeleton.reference import reference_nodes
+
+    out = tmp_path / "t.h5"
+    code, _, err = run(["--quiet", "build", str(SAMPLES / "tetrahedra.obj"), "--levels", str(levels), "-o", str(out)], capsys)
+    assert code == 0, err
+    with ViscxFile(out) as f:
+        assert f.levels == expected
+        if "V0" in expected:
+            # the file's nodes are the brute-force reference's
+            want = reference_nodes(load_scene(SAMPLES / "tetrahedra.obj"))
+            got = read_nodes(f.h5["V0"])
+            assert len(got) == len(want) and (got.generators == want.generators).all()
+
+
+def test_build_levels_out_of_range(tmp_path, capsys):
+    code, _, err = run(["build", str(SAMPLES / "tetrahedra.obj"), "--levels", "2", "-o", str(tmp_path / "t.h5")], capsys)
+    assert code == 2 and err.count("\n") == 1 and "--levels" in err
+    assert not (tmp_path / "t.h5").exists()

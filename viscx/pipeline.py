@@ -1,4 +1,4 @@
-"""The staged build: scene → (later: nodes → arcs → V/EE cells) → HDF5 file.
+"""The staged build: scene → nodes (V0) → arcs (V1) → (later: V/EE cells) → HDF5 file.
 
 Builders are functions of in-memory data and never touch files; this module
 chains them, times each stage and hands everything to the writer.
@@ -24,7 +24,33 @@ def check_output(scene_path, output):
         raise ViscxError(f"the output {output} is a folder")
 
 
-def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, quiet=False):
+# The skeleton levels in build order: name, builder(scene, previous levels, quiet) and the
+# writer that fills the level's HDF5 group. Level k needs the levels before it.
+def _nodes(scene, built, quiet):
+    from viscx.skeleton.candidates import build_nodes
+
+    return build_nodes(scene, quiet=quiet)
+
+
+def _arcs(scene, built, quiet):
+    from viscx.skeleton.arcs import build_arcs
+
+    return build_arcs(scene, built["V0"], quiet=quiet)
+
+
+def _writer(level):
+    from viscx.formats import hdf5
+
+    return {"V0": hdf5.write_nodes, "V1": hdf5.write_arcs}[level]
+
+
+LEVELS = [("V0", _nodes), ("V1", _arcs)]
+NOUNS = {"V0": "nodes", "V1": "arcs"}
+MAX_LEVEL = len(LEVELS) - 1
+
+
+def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,
+               quiet=False):
     """Build the visibility complex of a scene file and write it to ``output``.
 
     Parameters
@@ -32,18 +58,25 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
     scene_path, output : str or Path
     epsilon, relative_epsilon, weld
         See :func:`viscx.scene.build_scene`.
+    levels : int
+        The last skeleton level to build: -1 the scene only, 0 the nodes (V0),
+        1 also the arcs (V1).
     quiet : bool
         No progress bars.
 
     Returns
     -------
     scene : Scene
+    built : dict
+        ``{level name: built level}``.
     timings : dict
         Seconds per stage.
     """
+    if not -1 <= levels <= MAX_LEVEL:
+        raise ViscxError(f"--levels must be between -1 (scene only) and {MAX_LEVEL}")
     check_output(scene_path, output)
-    timings = {}
-    stages = ["scene", "write"]
+    timings, built = {}, {}
+    stages = ["scene", *[name for name, _ in LEVELS[: levels + 1]], "write"]
     with bar(total=len(stages), desc="build", quiet=quiet, unit="stage") as progress:
         t0 = time.perf_counter()
         progress.set_postfix_str("scene")
@@ -51,10 +84,18 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
         timings["scene"] = time.perf_counter() - t0
         progress.update()
 
+        for name, builder in LEVELS[: levels + 1]:
+            t0 = time.perf_counter()
+            progress.set_postfix_str(name)
+            built[name] = builder(scene, built, quiet)
+            timings[name] = time.perf_counter() - t0
+            progress.update()
+
         t0 = time.perf_counter()
         progress.set_postfix_str("write")
-        options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon, "weld": weld}
-        write_complex(output, scene, options=options, timings=timings)
+        options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon, "weld": weld, "levels": levels}
+        writers = {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
+        write_complex(output, scene, levels=writers, options=options, timings=timings)
         timings["write"] = time.perf_counter() - t0
         progress.update()
-    return scene, timings
+    return scene, built, timings

@@ -21,27 +21,38 @@ from viscx.scene import DEFAULT_WELD
     help="Vertices closer than this fraction of the bounding-box diagonal are welded; "
     "faces within it of a common plane are merged.",
 )
+@click.option(
+    "--levels",
+    type=click.IntRange(-1, None),
+    default=None,
+    metavar="N",
+    help="The last level to build: -1 the scene only, 0 the nodes (V0), 1 also the arcs (V1). "
+    "Default: every level.",
+)
 @click.pass_context
-def build(ctx, scene_file, output, epsilon, relative_epsilon, weld):
+def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels):
     """Load SCENE (OBJ, PLY, or any mesh trimesh reads), clean it into polygon
     faces with a half-edge structure and generators, and write the result.
 
     \b
     viscx build sample_scenes/cornell_box.obj -o cornell.h5
     viscx build scene.ply --relative-epsilon 1e-5 -o scene.h5
+    viscx build sample_scenes/tetrahedra.obj --levels 0 -o nodes_only.h5
 
     The output is written to a temporary file and renamed when complete, so a
     failed or interrupted build leaves nothing behind.
     """
-    from viscx.pipeline import build_file
+    from viscx.pipeline import MAX_LEVEL, NOUNS, build_file
 
     output = Path(output) if output else Path(Path(scene_file).stem + ".h5")
-    scene, timings = build_file(
-        scene_file, output, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld, quiet=quiet(ctx)
+    scene, built, timings = build_file(
+        scene_file, output, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
+        levels=MAX_LEVEL if levels is None else levels, quiet=quiet(ctx),
     )
     if not quiet(ctx):
         total = sum(timings.values())
+        counts = "".join(f", {len(level)} {NOUNS[name]}" for name, level in built.items())
         click.echo(
             f"{output}: {scene.n_faces} faces, {len(scene.generator_edges)} generator edges, "
-            f"{len(scene.generator_vertices)} generator vertices ({total:.2f} s)"
+            f"{len(scene.generator_vertices)} generator vertices{counts} ({total:.2f} s)"
         )

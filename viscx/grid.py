@@ -60,7 +60,9 @@ def moller_trumbore(o, d, vertices, triangles, t_index):
 
 
 @njit(cache=True)
-def _build(lo, cell, dims, boxes_lo, boxes_hi):
+def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
+    """CSR lists (offsets (cells + 1,) int64, items int64) of the boxes overlapping each
+    cell of a uniform grid (origin lo (3,), cell size cell (3,), dims (3,) int64)."""
     n = boxes_lo.shape[0]
     n_cells = dims[0] * dims[1] * dims[2]
     counts = np.zeros(n_cells + 1, dtype=np.int64)
@@ -244,7 +246,7 @@ class TriangleGrid:
         self.dims = np.clip(np.ceil(size * per_unit), 1, 256).astype(np.int64)
         self.cell = size / self.dims
         pad = 1e-9 * float(size.max())  # so a hit on a cell boundary is in both cells
-        self.offsets, self.items = _build(
+        self.offsets, self.items = bin_boxes(
             self.lo, self.cell, self.dims, corners.min(axis=1) - pad, corners.max(axis=1) + pad
         )
 

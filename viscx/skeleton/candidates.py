@@ -141,6 +141,7 @@ import numpy as np
 from numba import njit
 
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines, segment_parameter
+from viscx.grid import bin_boxes
 from viscx.progress import bar
 from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
@@ -355,33 +356,7 @@ class _Grid:
 
     def fill(self, a, b):
         """CSR lists (offsets, items) of the segments ab in each cell."""
-        return _grid_build(self.lo, self.cell, self.dims, np.minimum(a, b), np.maximum(a, b))
-
-
-@njit(cache=True)
-def _grid_build(lo, cell, dims, box_lo, box_hi):
-    n = box_lo.shape[0]
-    counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
-    rng = np.empty((n, 6), dtype=np.int64)
-    for i in range(n):
-        for k in range(3):
-            rng[i, k] = min(max(int(np.floor((box_lo[i, k] - lo[k]) / cell[k])), 0), dims[k] - 1)
-            rng[i, 3 + k] = min(max(int(np.floor((box_hi[i, k] - lo[k]) / cell[k])), 0), dims[k] - 1)
-        for x in range(rng[i, 0], rng[i, 3] + 1):
-            for y in range(rng[i, 1], rng[i, 4] + 1):
-                for z in range(rng[i, 2], rng[i, 5] + 1):
-                    counts[(x * dims[1] + y) * dims[2] + z + 1] += 1
-    offsets = np.cumsum(counts)
-    fill = offsets[:-1].copy()
-    items = np.empty(offsets[-1], dtype=np.int64)
-    for i in range(n):
-        for x in range(rng[i, 0], rng[i, 3] + 1):
-            for y in range(rng[i, 1], rng[i, 4] + 1):
-                for z in range(rng[i, 2], rng[i, 5] + 1):
-                    c = (x * dims[1] + y) * dims[2] + z
-                    items[fill[c]] = i
-                    fill[c] += 1
-    return offsets, items
+        return bin_boxes(self.lo, self.cell, self.dims, np.minimum(a, b), np.maximum(a, b))
 
 
 @njit(cache=True, nogil=True)

@@ -60,6 +60,13 @@ def moller_trumbore(o, d, vertices, triangles, t_index):
 
 
 @njit(cache=True)
+def cell_of(x, lo, cell, n):
+    """The grid cell holding coordinate x along one axis (origin lo, cell size cell),
+    clamped to [0, n): points outside the grid fall into its border cells."""
+    return min(max(int(np.floor((x - lo) / cell)), 0), n - 1)
+
+
+@njit(cache=True)
 def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
     """CSR lists (offsets (cells + 1,) int64, items int64) of the boxes overlapping each
     cell of a uniform grid (origin lo (3,), cell size cell (3,), dims (3,) int64)."""
@@ -69,10 +76,8 @@ def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
     ranges = np.empty((n, 6), dtype=np.int64)
     for i in range(n):
         for k in range(3):
-            a = int(np.floor((boxes_lo[i, k] - lo[k]) / cell[k]))
-            b = int(np.floor((boxes_hi[i, k] - lo[k]) / cell[k]))
-            ranges[i, k] = min(max(a, 0), dims[k] - 1)
-            ranges[i, 3 + k] = min(max(b, 0), dims[k] - 1)
+            ranges[i, k] = cell_of(boxes_lo[i, k], lo[k], cell[k], dims[k])
+            ranges[i, 3 + k] = cell_of(boxes_hi[i, k], lo[k], cell[k], dims[k])
         for x in range(ranges[i, 0], ranges[i, 3] + 1):
             for y in range(ranges[i, 1], ranges[i, 4] + 1):
                 for z in range(ranges[i, 2], ranges[i, 5] + 1):
@@ -170,8 +175,8 @@ def _near_counts(points, tol, vertices, triangles, lo, cell, dims, offsets, item
         a0 = np.empty(3, dtype=np.int64)
         a1 = np.empty(3, dtype=np.int64)
         for d in range(3):
-            a0[d] = min(max(int(np.floor((p[d] - tol - lo[d]) / cell[d])), 0), dims[d] - 1)
-            a1[d] = min(max(int(np.floor((p[d] + tol - lo[d]) / cell[d])), 0), dims[d] - 1)
+            a0[d] = cell_of(p[d] - tol, lo[d], cell[d], dims[d])
+            a1[d] = cell_of(p[d] + tol, lo[d], cell[d], dims[d])
         seen_start = k
         for x in range(a0[0], a1[0] + 1):
             for y in range(a0[1], a1[1] + 1):

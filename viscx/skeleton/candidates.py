@@ -141,7 +141,7 @@ import numpy as np
 from numba import njit
 
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines, segment_parameter
-from viscx.grid import bin_boxes
+from viscx.grid import bin_boxes, cell_of
 from viscx.progress import bar
 from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
@@ -456,8 +456,8 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
             bhi[d] = max(bhi[d], P[q, d])
         blo[d] -= tol
         bhi[d] += tol
-        c0[d] = min(max(int(np.floor((blo[d] - lo[d]) / cell[d])), 0), dims[d] - 1)
-        c1[d] = min(max(int(np.floor((bhi[d] - lo[d]) / cell[d])), 0), dims[d] - 1)
+        c0[d] = cell_of(blo[d], lo[d], cell[d], dims[d])
+        c1[d] = cell_of(bhi[d], lo[d], cell[d], dims[d])
     m = 0
     for x in range(c0[0], c1[0] + 1):
         for y in range(c0[1], c1[1] + 1):
@@ -720,7 +720,6 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
 
     ``ev`` holds the edges' endpoints as positions in the vertex table. Returns VEE
     rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
-    slack = PARAM_SLACK
     n_e = ev.shape[0]
     n_v = vx.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
@@ -823,7 +822,6 @@ def _scan_vertex_edges(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_it
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
     through v, them and e (exact filter, with slack).
     Returns rows (v, e1, e2) by position, e1 the inner edge."""
-    slack = PARAM_SLACK
     n_e = ev.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
     e_out = np.empty(n_e, dtype=np.int64)

@@ -1,12 +1,13 @@
-"""V0 (nodes) benchmark ladder: the output-sensitive builder on growing scenes.
+"""V0 (nodes) and V1 (arcs) benchmark ladder: the skeleton builders on growing scenes.
 
     python benchmarks/skeleton.py                       # Cornell box, boxes 100 … 3000
     python benchmarks/skeleton.py --sizes 100 300       # a shorter ladder
     python benchmarks/skeleton.py --budget 600          # skip sizes predicted to exceed 600 s
 
 For each scene: V0 wall time (candidates + validation), candidate and node counts
-per kind, and the time of each stage; then the growth exponents of time against
-polygons and against nodes (least squares on log-log). Prints a table and writes
+per kind, the time of each V0 stage, V1 wall time and arc counts per kind; then
+the growth exponents of time against polygons and against nodes (least squares
+on log-log). Prints a table and writes
 ``benchmarks/skeleton_results.json``. A size whose predicted time (from the
 exponent fitted so far) exceeds ``--budget`` seconds is recorded as skipped.
 """
@@ -30,6 +31,7 @@ from scenes import random_boxes  # noqa: E402
 
 from viscx.scene import load_scene  # noqa: E402
 from viscx.skeleton.candidates import fast_candidates, validate_in_chunks  # noqa: E402
+from viscx.skeleton.arcs import build_arcs  # noqa: E402
 from viscx.skeleton.nodes import E4, VEE, VV  # noqa: E402
 
 KINDS = {"E4": E4, "VEE": VEE, "VV": VV}
@@ -39,22 +41,27 @@ def peak_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def run_v0(scene, name):
-    """Build V0 once, timing candidates and validation separately."""
+def run_skeleton(scene, name):
+    """Build V0 once, timing candidates and validation separately, then V1."""
     stats = {}
     t0 = time.perf_counter()
     kind, gens, origins, dirs = fast_candidates(scene, stats=stats)
     t1 = time.perf_counter()
     nodes = validate_in_chunks(scene, kind, gens, origins, dirs)
     t2 = time.perf_counter()
+    arcs = build_arcs(scene, nodes)
+    t3 = time.perf_counter()
     row = {
         "scene": name,
         "polygons": int(scene.n_faces),
         "generator_edges": int(len(scene.generator_edges)),
         "generator_vertices": int(len(scene.generator_vertices)),
-        "seconds": t2 - t0,
+        "seconds": t3 - t0,
+        "seconds_v0": t2 - t0,
         "seconds_candidates": t1 - t0,
         "seconds_validation": t2 - t1,
+        "seconds_v1": t3 - t2,
+        "arcs": arcs.counts(),
         "candidates": {k: int(np.count_nonzero(kind == v)) for k, v in KINDS.items()},
         "nodes": nodes.counts(),
         "stages": {k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()},
@@ -75,16 +82,20 @@ def fit_exponent(x, y):
 
 
 def table(rows):
-    head = f"{'scene':<22}{'polys':>7}{'V0 s':>9}{'cand s':>9}{'valid s':>9}{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}"
+    head = (
+        f"{'scene':<22}{'polys':>7}{'V0 s':>9}{'cand s':>9}{'valid s':>9}{'V1 s':>9}"
+        f"{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}{'arcs EEE/VE':>16}"
+    )
     lines = [head, "-" * len(head)]
     for r in rows:
         if r.get("skipped"):
             lines.append(f"{r['scene']:<22}{r['polygons']:>7}   skipped: {r['skipped']}")
             continue
-        c, n = r["candidates"], r["nodes"]
+        c, n, a = r["candidates"], r["nodes"], r["arcs"]
         lines.append(
-            f"{r['scene']:<22}{r['polygons']:>7}{r['seconds']:>9.2f}{r['seconds_candidates']:>9.2f}{r['seconds_validation']:>9.2f}"
-            f"{c['VV']:>9}/{c['VEE']:>8}/{c['E4']:>7}{n['VV']:>8}/{n['VEE']:>7}/{n['E4']:>7}"
+            f"{r['scene']:<22}{r['polygons']:>7}{r['seconds_v0']:>9.2f}{r['seconds_candidates']:>9.2f}"
+            f"{r['seconds_validation']:>9.2f}{r['seconds_v1']:>9.2f}"
+            f"{c['VV']:>9}/{c['VEE']:>8}/{c['E4']:>7}{n['VV']:>8}/{n['VEE']:>7}/{n['E4']:>7}{a['EEE']:>9}/{a['VE']:>6}"
         )
     return "\n".join(lines)
 
@@ -99,7 +110,7 @@ def main(argv=None):
     # compile the numba kernels outside the timings
     fast_candidates(random_boxes(20, seed=1))
 
-    rows = [run_v0(load_scene(ROOT / "sample_scenes" / "cornell_box.obj"), "cornell_box")]
+    rows = [run_skeleton(load_scene(ROOT / "sample_scenes" / "cornell_box.obj"), "cornell_box")]
     print(table(rows[-1:]), flush=True)
     ladder = []
     for size in args.sizes:
@@ -112,7 +123,7 @@ def main(argv=None):
                 rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": f"predicted {predicted:.0f} s > budget {args.budget:.0f} s"})
                 print(table(rows[-1:]), flush=True)
                 continue
-        row = run_v0(scene, name)
+        row = run_skeleton(scene, name)
         rows.append(row)
         ladder.append(row)
         print(table(rows[-1:]), flush=True)
@@ -122,6 +133,8 @@ def main(argv=None):
     nodes = [r["nodes_total"] for r in ladder]
     growth = {
         "time_vs_polygons": fit_exponent(polys, secs),
+        "v0_time_vs_polygons": fit_exponent(polys, [r["seconds_v0"] for r in ladder]),
+        "v1_time_vs_polygons": fit_exponent(polys, [r["seconds_v1"] for r in ladder]),
         "time_vs_nodes": fit_exponent(nodes, secs),
         "nodes_vs_polygons": fit_exponent(polys, nodes),
         "candidates_vs_polygons": fit_exponent(polys, [r["candidates_total"] for r in ladder]),

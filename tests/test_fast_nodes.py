@@ -141,3 +141,39 @@ def test_validation_in_chunks_is_the_same():
     scene = load_scene(SAMPLES / "cornell_box.obj")
     cand = fast_candidates(scene)
     assert_same_nodes(validate_in_chunks(scene, *cand, chunk=97), validate_candidates(scene, *cand))
+
+
+def test_hidden_pairs_have_no_free_segment():
+    """_pair_hidden claims every segment between two edges crosses a solid: no ray
+    between them may be free (an oracle of 81 segments per pair)."""
+    from scenes import random_boxes
+
+    from viscx.skeleton.candidates import _pair_hidden, _SolidGrid, blocking_solids
+
+    scene = random_boxes(200, seed=5)
+    solids = blocking_solids(scene)
+    grid = _SolidGrid(*solids[1:])
+    ev = scene.half_edges.edge_vertices[scene.generator_edges]
+    x = scene.vertices
+    rng = np.random.default_rng(0)
+    a, d = rng.integers(0, len(ev), (2, 20000))
+    mid = 0.5 * (x[ev[:, 0]] + x[ev[:, 1]])
+    # not adjacent, and near enough that many pairs see each other
+    keep = ~(ev[a][:, :, None] == ev[d][:, None, :]).any(axis=(1, 2)) & (np.linalg.norm(mid[a] - mid[d], axis=1) < 8)
+    a, d = a[keep][:3000], d[keep][:3000]
+    stamp = np.full(grid.n_solids, -1, dtype=np.int64)
+    counter = np.zeros(1, dtype=np.int64)
+    own = solids[0]
+    hidden = np.array(
+        [_pair_hidden(x[ev[i, 0]], x[ev[i, 1]], x[ev[j, 0]], x[ev[j, 1]], True, own[ev[i, 0]], own[ev[j, 0]], *grid.args(), stamp, counter) for i, j in zip(a, d)]
+    )
+    s = (np.arange(9) + 0.5) / 9
+    S, T = (g.ravel() for g in np.meshgrid(s, s, indexing="ij"))
+    ends = []
+    for e, u in ((a, S), (d, T)):
+        p0, p1 = x[ev[e, 0]], x[ev[e, 1]]
+        ends.append((p0[:, None] + u[None, :, None] * (p1 - p0)[:, None]).reshape(-1, 3))
+    free = scene.ray_caster.free_segments(*ends).reshape(len(a), -1)
+    # the test has teeth: many pairs are claimed hidden, many others see each other
+    assert hidden.mean() > 0.04 and free.any(axis=1).mean() > 0.2
+    assert not (hidden & free.any(axis=1)).any()

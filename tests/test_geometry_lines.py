@@ -206,3 +206,22 @@ def test_open_fans_separate_nothing(rng):
     verts = rng.choice(scene.generator_vertices, size=500)
     tangent, degenerate = tangent_at_vertices(scene, verts, rng.normal(size=(500, 3)))
     assert tangent.all() and not degenerate.any()
+
+
+def test_four_lines_with_a_pencil_of_solutions_are_degenerate():
+    # three lines in the plane y = 0, the fourth crossing it at (0.5, 0, 0.5): every
+    # line of that plane through the crossing meets all four (a pencil, which lies
+    # wholly inside the Plücker quadric)
+    points = np.array([[0, 0, 0], [0, 0, 1], [1, 0, 0], [0.5, -1, 0.5]], float)
+    dirs = np.array([[1, 0, 0.1], [1, 0, -0.2], [0, 0, 1], [0, 1, 0]], float)
+    lines = plucker(points, dirs)[None]
+    # the oracle: two different lines of that pencil, each meeting the four
+    for d in ([1.0, 0.0, 0.0], [1.0, 0.0, 1.0]):
+        pencil_line = plucker(np.array([[0.5, 0, 0.5]]), np.array([d]))
+        assert np.allclose(side(np.repeat(pencil_line, 4, axis=0), lines[0]), 0, atol=1e-12)
+    _, valid, degenerate = lines_through_four_lines(lines)
+    assert degenerate.all() and not valid.any()
+    # tilting one of the three out of the plane removes the family
+    dirs[0] = [1, 0.3, 0.1]
+    _, valid, degenerate = lines_through_four_lines(plucker(points, dirs)[None])
+    assert not degenerate.any()

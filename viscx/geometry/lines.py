@@ -13,7 +13,7 @@ It is linear in each argument, which makes "meets line L" a linear condition
 events into small linear-algebra problems:
 
 * E4, a line meeting four lines: four linear conditions on X ∈ R⁶ leave a pencil
-  X = αP + βQ (null space of a 4×6 matrix, by SVD); the Plücker relation is a
+  X = αP + βQ (null space of a 4×6 matrix); the Plücker relation is a
   quadratic form in (α, β): 0, 1 or 2 real lines (Teller & Hohmeyer).
 * VEE, a line through a point v meeting two lines: it lies in the plane through v
   and each line, so its direction is ``n1 × n2`` with ``n_i`` the normals of those
@@ -27,6 +27,7 @@ All functions are vectorised over a leading axis and work in float64.
 """
 
 import numpy as np
+from numba import njit
 
 
 def plucker(points, directions):
@@ -78,7 +79,7 @@ def point_direction(lines):
     return np.cross(d, m) / dd, d / np.sqrt(dd)
 
 
-def lines_through_four_lines(lines, rank_tol=1e-10):
+def lines_through_four_lines(lines, rank_tol=1e-10, quadric_tol=1e-12):
     """The real lines meeting four given lines.
 
     Parameters
@@ -86,9 +87,14 @@ def lines_through_four_lines(lines, rank_tol=1e-10):
     lines : (n, 4, 6) float
         Four Plücker lines per problem (any scale).
     rank_tol : float
-        Relative singular-value threshold: below it the four conditions are
-        dependent (e.g. lines of one regulus, or lines through one point) and
-        infinitely many lines meet them: the problem is reported degenerate.
+        Below this residual (the condition rows are unit vectors) a condition
+        depends on the others (e.g. four lines through one point, or of one
+        regulus): a family of lines meets them and the problem is degenerate.
+    quadric_tol : float
+        When the Plücker relation vanishes on the whole null space to this
+        absolute size (its basis is orthonormal), every line of the pencil
+        X = αP + βQ is a real line meeting the four (e.g. three of them in a
+        plane, the fourth crossing it): degenerate as well.
 
     Returns
     -------
@@ -99,49 +105,136 @@ def lines_through_four_lines(lines, rank_tol=1e-10):
     degenerate : (n,) bool
         Problems with a family of solutions (no solution is reported for them).
     """
-    lines = np.asarray(lines, dtype=np.float64)
+    lines = np.ascontiguousarray(lines, dtype=np.float64).reshape(-1, 4, 6)
     n = len(lines)
-    # "X meets L" is (m_L, d_L) · X = 0: swap halves to get the condition rows
-    rows = np.concatenate([lines[..., 3:], lines[..., :3]], axis=-1)
-    rows = rows / np.linalg.norm(rows, axis=-1, keepdims=True)
-    _, sing, vt = np.linalg.svd(rows)
-    degenerate = sing[:, 3] <= rank_tol * sing[:, 0]
-    P, Q = vt[:, 4], vt[:, 5]
-    # Plücker relation on X = αP + βQ: the quadratic form [[a, b/2], [b/2, c]]
-    a = np.einsum("ni,ni->n", P[:, :3], P[:, 3:])
-    c = np.einsum("ni,ni->n", Q[:, :3], Q[:, 3:])
-    b = np.einsum("ni,ni->n", P[:, :3], Q[:, 3:]) + np.einsum("ni,ni->n", Q[:, :3], P[:, 3:])
-    form = np.stack([np.stack([a, b / 2], -1), np.stack([b / 2, c], -1)], -2)
-    lam, vec = np.linalg.eigh(form)  # lam[:, 0] <= lam[:, 1]
-    scale = np.maximum(np.abs(lam).max(axis=1), 1e-300)
-    lo, hi = lam[:, 0] / scale, lam[:, 1] / scale
-    quadric_tol = 1e-12
-    # λ0 x² + λ1 y² = 0 has real solutions iff λ0 ≤ 0 ≤ λ1
-    real = (lo <= quadric_tol) & (hi >= -quadric_tol) & ~((np.abs(lo) <= quadric_tol) & (np.abs(hi) <= quadric_tol))
-    degenerate |= (np.abs(lo) <= quadric_tol) & (np.abs(hi) <= quadric_tol)
-    x = np.sqrt(np.clip(hi, 0, None))
-    y = np.sqrt(np.clip(-lo, 0, None))
     solutions = np.zeros((n, 2, 6))
     valid = np.zeros((n, 2), dtype=bool)
-    for k, sign in enumerate((1.0, -1.0)):
-        alpha_beta = x[:, None] * vec[:, :, 0] + sign * y[:, None] * vec[:, :, 1]  # (n, 2)
-        X = alpha_beta[:, :1] * P + alpha_beta[:, 1:] * Q
-        dnorm = np.linalg.norm(X[:, :3], axis=1)
-        ok = real & ~degenerate & (dnorm > 1e-12 * np.linalg.norm(X, axis=1))
-        solutions[ok, k] = X[ok] / dnorm[ok, None]
-        valid[:, k] = ok
-    # a double root (one eigenvalue zero) gives the same line twice: keep one
-    same = valid[:, 0] & valid[:, 1] & (np.abs(side_free_distance(solutions[:, 0], solutions[:, 1])) < 1e-12)
-    valid[same, 1] = False
+    degenerate = np.zeros(n, dtype=bool)
+    _four_lines_kernel(lines, rank_tol, quadric_tol, solutions, valid, degenerate)
     return solutions, valid, degenerate
 
 
-def side_free_distance(a, b):
-    """Distance between normalised Plücker lines as 6-vectors, sign-insensitive.
+@njit(cache=True, nogil=True)
+def _orthogonalise(w, basis, k):
+    """w minus its projection on the first k orthonormal rows of basis, twice (so
+    that it is orthogonal to working precision), normalised; returns its norm."""
+    for _ in range(2):
+        for r in range(k):
+            dot = 0.0
+            for j in range(6):
+                dot += w[j] * basis[r, j]
+            for j in range(6):
+                w[j] -= dot * basis[r, j]
+    size = 0.0
+    for j in range(6):
+        size += w[j] * w[j]
+    size = np.sqrt(size)
+    if size > 0:
+        for j in range(6):
+            w[j] /= size
+    return size
 
-    A cheap equality test for lines whose directions have unit length.
-    """
-    return np.minimum(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
+
+@njit(cache=True, nogil=True)
+def _four_lines_kernel(lines, rank_tol, quadric_tol, solutions, valid, degenerate):
+    rows = np.empty((4, 6))
+    basis = np.empty((6, 6))
+    w = np.empty(6)
+    for i in range(lines.shape[0]):
+        # "X meets L" is (m_L, d_L) · X = 0: the condition rows, unit length
+        for k in range(4):
+            size = 0.0
+            for j in range(3):
+                rows[k, j] = lines[i, k, 3 + j]
+                rows[k, 3 + j] = lines[i, k, j]
+            for j in range(6):
+                size += rows[k, j] * rows[k, j]
+            size = np.sqrt(size)
+            for j in range(6):
+                rows[k, j] = rows[k, j] / size if size > 0 else 0.0
+        # orthonormal basis of the rows, the largest residual first (Gram-Schmidt
+        # with pivoting: its last residual is the rank test) ...
+        for k in range(4):
+            best, best_size = k, -1.0
+            for r in range(k, 4):
+                size = 0.0
+                for j in range(6):
+                    size += rows[r, j] * rows[r, j]
+                if size > best_size:
+                    best, best_size = r, size
+            for j in range(6):
+                w[j] = rows[best, j]
+                rows[best, j] = rows[k, j]
+            if _orthogonalise(w, basis, k) <= rank_tol:
+                degenerate[i] = True
+                break
+            basis[k] = w
+            for r in range(k + 1, 4):
+                dot = 0.0
+                for j in range(6):
+                    dot += rows[r, j] * w[j]
+                for j in range(6):
+                    rows[r, j] -= dot * w[j]
+        if degenerate[i]:
+            continue
+        # ... then of its complement, P and Q, from the unit vectors farthest from it
+        # (the residual of e_j has squared norm 1 - Σ_r basis[r, j]²)
+        for k in range(4, 6):
+            best, best_size = 0, -1.0
+            for j in range(6):
+                size = 1.0
+                for r in range(k):
+                    size -= basis[r, j] * basis[r, j]
+                if size > best_size:
+                    best, best_size = j, size
+            for j in range(6):
+                w[j] = 0.0
+            w[best] = 1.0
+            _orthogonalise(w, basis, k)
+            basis[k] = w
+        P, Q = basis[4], basis[5]
+        # Plücker relation d · m = 0 on X = αP + βQ: the form [[a, h], [h, c]]
+        a = P[0] * P[3] + P[1] * P[4] + P[2] * P[5]
+        c = Q[0] * Q[3] + Q[1] * Q[4] + Q[2] * Q[5]
+        h = 0.5 * (P[0] * Q[3] + P[1] * Q[4] + P[2] * Q[5] + Q[0] * P[3] + Q[1] * P[4] + Q[2] * P[5])
+        if max(abs(a), max(abs(c), abs(h))) <= quadric_tol:
+            degenerate[i] = True  # the whole pencil consists of lines
+            continue
+        # eigenvalues lo <= hi and eigenvectors (closed form of a 2x2 symmetric matrix)
+        mean, rad = 0.5 * (a + c), np.hypot(0.5 * (a - c), h)
+        lo, hi = mean - rad, mean + rad
+        theta = 0.5 * np.arctan2(2 * h, a - c)
+        v_hi0, v_hi1 = np.cos(theta), np.sin(theta)
+        v_lo0, v_lo1 = -v_hi1, v_hi0
+        scale = max(abs(lo), abs(hi))
+        lo, hi = lo / scale, hi / scale
+        # lo x² + hi y² = 0 has real solutions iff lo <= 0 <= hi
+        if lo > quadric_tol or hi < -quadric_tol:
+            continue
+        x, y = np.sqrt(max(hi, 0.0)), np.sqrt(max(-lo, 0.0))
+        for k in range(2):
+            sign = 1.0 if k == 0 else -1.0
+            alpha = x * v_lo0 + sign * y * v_hi0
+            beta = x * v_lo1 + sign * y * v_hi1
+            dn, xn = 0.0, 0.0
+            for j in range(6):
+                w[j] = alpha * P[j] + beta * Q[j]
+                xn += w[j] * w[j]
+                if j < 3:
+                    dn += w[j] * w[j]
+            dn, xn = np.sqrt(dn), np.sqrt(xn)
+            if dn > 1e-12 * xn:
+                for j in range(6):
+                    solutions[i, k, j] = w[j] / dn
+                valid[i, k] = True
+        # a double root gives the same line twice: keep one
+        if valid[i, 0] and valid[i, 1]:
+            plus, minus = 0.0, 0.0
+            for j in range(6):
+                plus += (solutions[i, 0, j] - solutions[i, 1, j]) ** 2
+                minus += (solutions[i, 0, j] + solutions[i, 1, j]) ** 2
+            if min(plus, minus) < 1e-24:
+                valid[i, 1] = False
 
 
 def line_through_point_and_two_lines(points, lines1, lines2):

@@ -85,7 +85,12 @@ against the scaled solids, exact float64 first hits from
 :class:`viscx.raycast.RayCaster`), with C foreign to both; for a pair involving
 edges, by Lemma 1, all corner segments meet the same C_in. The builder casts
 one ray per pair of generator vertices (``blocked_table``) and looks the corners
-up. Scenes without isolated convex solids lose nothing, they just get no pruning.
+up. The outer pair of a hull scan (two edges, or a vertex and an edge) is also
+tested finer: Lemma 1 on each cell of its (s, t) square split ``HIDDEN_DEPTH``
+times (sub-edges are segments too), each cell's four corner segments meeting
+one foreign solid's C_in, tested by clipping against its planes
+(``_pair_hidden``); different cells may be hidden by different solids. Scenes
+without isolated convex solids lose nothing, they just get no pruning.
 
 Exact filters on the line (numba, in the scans)
 --------------------------------------------------
@@ -108,15 +113,21 @@ conditions) the filter accepts.
   or each other are dropped, and for the rest f_b = f_c = 0 is a quadratic in s.
 
 Coplanar edges. If b lies in the plane π of a and d (f_b vanishes identically),
-every line meeting a, b and d at three points more than ε apart lies in π (it
-meets π at three separated points; the reference's lines satisfy the four
-linear conditions to rounding). Such a line meets c where c crosses π. So the
-tuple is dropped when c lies in π too (the four conditions are dependent: the
-reference finds no line), or when c crosses π steeply (sin ≥ 0.1) within ε/2
-of one of its ends (the line would meet c at an end, which validation
-rejects). This is the floor of an architectural scene: its edges and every
-box's bottom edges are coplanar, and every vertical edge meets the floor at
-its end.
+the three conditions "meets a, b, d" hold for every line of π, a 3-dimensional
+subspace of Plücker space lying wholly in the Plücker quadric; a fourth condition
+leaves a pencil of real lines (or dependent conditions), which
+``lines_through_four_lines`` reports as degenerate: the reference finds no line.
+So b is never an inner edge of (a, d). If a and d are coplanar (parallel or
+meeting), every line meeting both at separated points lies in their plane and
+meets an inner edge b where b crosses it; when b crosses steeply (sin ≥ 0.1)
+within ε/2 of one of its ends (or outside it), that is at b's end, which
+validation rejects, so b is dropped as well. More generally, when three of the
+four lines are pairwise coplanar (in one plane, or through one point, possibly
+at infinity) their conditions hold on a 3-dimensional subspace of real lines
+(the lines of the plane, or through the point), and the fourth again leaves a
+family or nothing: the pair (b, c) is skipped when b, c and a (or d) are. This is the floor of an
+architectural scene: its edges and every box's bottom edges are coplanar, and
+every vertical edge meets the floor at its end.
 
 VV candidates are the unblocked pairs not joined by an edge whose segment is
 free, tested exactly as validation tests it (same two points in the same order
@@ -297,7 +308,7 @@ def _isolated(usable, vertices, ev, comp, face_order, face_start, plane_n, plane
     return out
 
 
-def blocked_table(scene, gv):
+def blocked_table(scene, gv, solids=None):
     """For each pair of generator vertices, the blocking solid whose inner copy their
     segment meets (-1 for none, or when that solid holds one of them).
 
@@ -306,6 +317,8 @@ def blocked_table(scene, gv):
     scene : Scene
     gv : (g,) int
         Generator vertex ids; the table is indexed by position in ``gv``.
+    solids : tuple, optional
+        :func:`blocking_solids` of the scene, when already computed.
 
     Returns
     -------
@@ -315,7 +328,7 @@ def blocked_table(scene, gv):
     """
     from viscx.raycast import RayCaster
 
-    sov_all, verts, tris, tri_solid = blocking_solids(scene)
+    sov_all, verts, tris, tri_solid = blocking_solids(scene) if solids is None else solids
     sov = sov_all[gv]
     g = len(gv)
     table = np.full((g, g), -1, dtype=np.int32)
@@ -338,6 +351,143 @@ def blocked_table(scene, gv):
         table[i[foreign], j[foreign]] = solid[foreign]
         table[j[foreign], i[foreign]] = solid[foreign]
     return table, sov
+
+
+class _SolidGrid:
+    """The inner copies C_in of the blocking solids as plane sets, in a uniform grid.
+
+    Parameters
+    ----------
+    verts : (k, 3) float
+    tris : (t, 3) int
+    tri_solid : (t,) int
+        As returned by :func:`blocking_solids`.
+    """
+
+    def __init__(self, verts, tris, tri_solid):
+        n_solids = int(tri_solid.max()) + 1 if len(tri_solid) else 0
+        # one plane per triangle (a face's triangles repeat its plane: harmless),
+        # oriented outwards: the centroid of a convex polytope is inside
+        a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
+        normal = np.cross(b - a, c - a)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        centroid = np.zeros((n_solids, 3))
+        np.add.at(centroid, tri_solid, (a + b + c) / 3)
+        centroid /= np.maximum(np.bincount(tri_solid, minlength=n_solids), 1)[:, None]
+        offset = np.einsum("ij,ij->i", normal, a)
+        flip = np.einsum("ij,ij->i", normal, centroid[tri_solid]) > offset
+        normal[flip], offset[flip] = -normal[flip], -offset[flip]
+        order = np.argsort(tri_solid, kind="stable")
+        self.plane_offsets = np.searchsorted(tri_solid[order], np.arange(n_solids + 1))
+        self.planes = np.ascontiguousarray(np.concatenate([normal, offset[:, None]], axis=1)[order])
+        corners = np.stack([a, b, c], axis=1)
+        lo_t, hi_t = corners.min(axis=1), corners.max(axis=1)
+        box_lo = np.full((n_solids, 3), np.inf)
+        box_hi = np.full((n_solids, 3), -np.inf)
+        np.minimum.at(box_lo, tri_solid, lo_t)
+        np.maximum.at(box_hi, tri_solid, hi_t)
+        # solid ids are component ids: only some of them are solids
+        present = np.flatnonzero(np.isfinite(box_lo[:, 0]))
+        if len(present):
+            self.lo, hi = box_lo[present].min(axis=0), box_hi[present].max(axis=0)
+        else:
+            self.lo, hi = np.zeros(3), np.ones(3)
+        span = np.maximum(hi - self.lo, 1e-12)
+        side = (np.prod(span) / max(4.0 * len(present), 1.0)) ** (1 / 3)
+        self.dims = np.clip(np.ceil(span / side), 1, 256).astype(np.int64)
+        self.cell = span / self.dims
+        self.offsets, items = bin_boxes(self.lo, self.cell, self.dims, box_lo[present], box_hi[present])
+        self.items = present[items]
+        self.n_solids = n_solids
+
+    def args(self):
+        """The arrays the numba kernels take, in their order."""
+        return (self.plane_offsets, self.planes, self.lo, self.cell, self.dims, self.offsets, self.items)
+
+
+@njit(cache=True, nogil=True)
+def _segment_meets_solid(A, B, solid, plane_offsets, planes):
+    """Whether segment AB meets the convex solid (clipped by each of its planes)."""
+    if plane_offsets[solid] == plane_offsets[solid + 1]:
+        return False  # not a solid
+    t0, t1 = 0.0, 1.0
+    for k in range(plane_offsets[solid], plane_offsets[solid + 1]):
+        fa = planes[k, 0] * A[0] + planes[k, 1] * A[1] + planes[k, 2] * A[2] - planes[k, 3]
+        fb = planes[k, 0] * B[0] + planes[k, 1] * B[1] + planes[k, 2] * B[2] - planes[k, 3]
+        if fa > 0 and fb > 0:
+            return False
+        if fa > 0:
+            t0 = max(t0, fa / (fa - fb))
+        elif fb > 0:
+            t1 = min(t1, fa / (fa - fb))
+        if t0 > t1:
+            return False
+    return True
+
+
+#: Subdivision levels of the (s, t) square when proving an outer pair hidden.
+HIDDEN_DEPTH = 1
+
+
+@njit(cache=True, nogil=True)
+def _pair_hidden(P0, P1, Q0, Q1, split_s, own1, own2, plane_offsets, planes, lo, cell, dims, offsets, items, stamp, counter):
+    """Whether every segment from a point of P0P1 to a point of Q0Q1 meets the inner
+    copy of a blocking solid other than ``own1`` and ``own2`` (Lemma 1 on the cells
+    of a subdivided (s, t) square: each cell's four corner segments meet one solid).
+    Conservative: False when that is not shown within HIDDEN_DEPTH levels.
+
+    ``split_s`` is False when P0 = P1 (a vertex). ``stamp`` and ``counter[0]``
+    mark solids already tried for the current cell."""
+    stack = np.empty((4 * HIDDEN_DEPTH + 4, 5))
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3], stack[0, 4] = 0.0, 1.0, 0.0, 1.0, 0.0
+    top = 1
+    dP, dQ = P1 - P0, Q1 - Q0
+    small = min(cell[0], min(cell[1], cell[2]))
+    while top > 0:
+        top -= 1
+        s0, s1, t0, t1, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4]
+        A0, A1, B0, B1 = P0 + s0 * dP, P0 + s1 * dP, Q0 + t0 * dQ, Q0 + t1 * dQ
+        # candidate solids: those listed in the cells along the cell's middle segment
+        M, N = P0 + 0.5 * (s0 + s1) * dP, Q0 + 0.5 * (t0 + t1) * dQ
+        steps = int(np.sqrt(_dot(N - M, N - M)) / small) + 1
+        counter[0] += 1
+        hidden = False
+        for k in range(steps + 1):
+            X = M + (k / steps) * (N - M)
+            c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(
+                X[2], lo[2], cell[2], dims[2]
+            )
+            for j in range(offsets[c], offsets[c + 1]):
+                solid = items[j]
+                if stamp[solid] == counter[0] or solid == own1 or solid == own2:
+                    continue
+                stamp[solid] = counter[0]
+                if (
+                    _segment_meets_solid(A0, B0, solid, plane_offsets, planes)
+                    and _segment_meets_solid(A0, B1, solid, plane_offsets, planes)
+                    and _segment_meets_solid(A1, B0, solid, plane_offsets, planes)
+                    and _segment_meets_solid(A1, B1, solid, plane_offsets, planes)
+                ):
+                    hidden = True
+                    break
+            if hidden:
+                break
+        if hidden:
+            continue
+        if depth >= HIDDEN_DEPTH:
+            return False
+        sm, tm = 0.5 * (s0 + s1), 0.5 * (t0 + t1)
+        for half_t in range(2):
+            ta, tb = (t0, tm) if half_t == 0 else (tm, t1)
+            if split_s:
+                for half_s in range(2):
+                    sa, sb = (s0, sm) if half_s == 0 else (sm, s1)
+                    stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4] = sa, sb, ta, tb, depth + 1
+                    top += 1
+            else:
+                stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4] = s0, s1, ta, tb, depth + 1
+                top += 1
+    return True
 
 
 # -- the uniform grid of generator edges and vertices -------------------------------------
@@ -521,6 +671,10 @@ PARAM_SLACK = 1e-7
 #: the exact filters (validation demands more than 1 ε; the rest covers the
 #: difference between these closed forms and the reference's constructions).
 END_MARGIN = 0.4
+#: Relative size of the triple product below which two lines count as coplanar
+#: when pruning tuples whose solutions form a family: far tighter than the
+#: exact solver's own test, so that the pruning never drops a solvable tuple.
+COPLANAR = 1e-14
 #: Relative size below which a side-product form counts as identically zero
 #: (the edge lies in the plane of the outer pair, to rounding).
 IN_PLANE = 1e-14
@@ -604,6 +758,18 @@ def _side_coefficients(a0, da, d0, dd, b0, db, out):
     if size > 0:
         out[0], out[1], out[2], out[3] = alpha / size, beta / size, gamma / size, delta / size
     return size <= IN_PLANE * scale
+
+
+@njit(cache=True, nogil=True)
+def _coplanar(a0, da, d0, dd):
+    """Whether lines a and d lie in one plane (parallel, or meeting), to rounding."""
+    n = _cross(da, dd)
+    size = np.sqrt(_dot(n, n))
+    scale = np.sqrt(_dot(da, da) * _dot(dd, dd))
+    if size <= COPLANAR * scale:
+        return True
+    w = d0 - a0
+    return abs(_dot(w, n)) <= COPLANAR * np.sqrt(_dot(w, w)) * scale
 
 
 @njit(cache=True, nogil=True)
@@ -713,7 +879,9 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
 
 
 @njit(cache=True, nogil=True)
-def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps):
+def _scan_edge_pairs(
+    first, ev, ea, eb, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
     all of them (exact filters, with slack).
@@ -724,13 +892,15 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
     n_v = vx.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
     v_stamp = np.full(n_v, -1, dtype=np.int64)
+    s_stamp = np.full(max(s_planes_off.shape[0] - 1, 1), -1, dtype=np.int64)
+    s_counter = np.zeros(1, dtype=np.int64)
     e_out = np.empty(n_e, dtype=np.int64)
     v_out = np.empty(n_v, dtype=np.int64)
     inner = np.empty(n_e, dtype=np.int64)
     coef = np.empty((n_e, 4))
     box = np.empty((n_e, 4))
-    in_plane = np.empty(n_e, dtype=np.bool_)
-    at_end = np.empty(n_e, dtype=np.bool_)
+    with_a = np.empty(n_e, dtype=np.bool_)
+    with_d = np.empty(n_e, dtype=np.bool_)
     vee = np.empty((1024, 3), dtype=np.int64)
     quad = np.empty((1024, 4), dtype=np.int64)
     n_vee = 0
@@ -748,6 +918,10 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
                 continue
             d0, d1 = ev[d, 0], ev[d, 1]
             if _edges_blocked(table, a0, a1, d0, d1):
+                continue
+            if _pair_hidden(
+                ea[a], eb[a], ea[d], eb[d], True, sov[a0], sov[d0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
+            ):
                 continue
             pd, dd = ea[d], eb[d] - ea[d]
             len_d = np.sqrt(_dot(dd, dd))
@@ -773,6 +947,7 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
                 vee = _push(vee, n_vee, row3)
                 n_vee += 1
             ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
+            coplanar = _coplanar(pa, da, pd, dd)
             # inner edge candidates and their arcs in the (s, t) square of lines meeting a and d
             m = 0
             for r in range(ne):
@@ -785,10 +960,18 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
                 bx = _arc_box(pa, da, pd, dd, ea[b], eb[b] - ea[b], 1e-6)
                 if bx[0] > bx[1] or bx[2] > bx[3]:
                     continue
+                # b in the plane of a and d: three coplanar lines, so with any fourth
+                # the solutions form a family or there are none (module docstring)
+                if _side_coefficients(pa, da, pd, dd, ea[b], eb[b] - ea[b], coef[m]):
+                    continue
+                # a and d coplanar: every line meeting both lies in their plane and
+                # meets b where b crosses it; near b's end that is no node
+                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, ea[b], eb[b] - ea[b], eps):
+                    continue
                 inner[m] = b
-                in_plane[m] = _side_coefficients(pa, da, pd, dd, ea[b], eb[b] - ea[b], coef[m])
-                at_end[m] = not in_plane[m] and _crosses_plane_at_end(pa, da, pd, dd, ea[b], eb[b] - ea[b], eps)
                 box[m] = bx
+                with_a[m] = _coplanar(pa, da, ea[b], eb[b] - ea[b])
+                with_d[m] = _coplanar(pd, dd, ea[b], eb[b] - ea[b])
                 m += 1
             for i in range(m):
                 b = inner[i]
@@ -802,11 +985,9 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
                     c0, c1 = ev[c, 0], ev[c, 1]
                     if _edges_blocked(table, b0, b1, c0, c1):
                         continue
-                    # b (or c) in the plane of a and d: every line meeting a, b and d
-                    # lies in that plane (module docstring, "coplanar edges")
-                    if in_plane[i] and in_plane[j]:
-                        continue
-                    if (in_plane[i] and at_end[j]) or (in_plane[j] and at_end[i]):
+                    # three pairwise coplanar lines (in one plane, or through one
+                    # point): a family of solutions or none (module docstring)
+                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c]):
                         continue
                     if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c], eps):
                         continue
@@ -817,7 +998,9 @@ def _scan_edge_pairs(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_item
 
 
 @njit(cache=True, nogil=True)
-def _scan_vertex_edges(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_items, tol, eps):
+def _scan_vertex_edges(
+    first, ev, ea, eb, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
     through v, them and e (exact filter, with slack).
@@ -825,6 +1008,8 @@ def _scan_vertex_edges(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_it
     n_e = ev.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
     e_out = np.empty(n_e, dtype=np.int64)
+    s_stamp = np.full(max(s_planes_off.shape[0] - 1, 1), -1, dtype=np.int64)
+    s_counter = np.zeros(1, dtype=np.int64)
     vee = np.empty((1024, 3), dtype=np.int64)
     n_vee = 0
     P = np.empty((4, 3))
@@ -835,6 +1020,10 @@ def _scan_vertex_edges(first, ev, ea, eb, vx, table, lo, cell, dims, e_off, e_it
         for e in range(n_e):
             e0, e1 = ev[e, 0], ev[e, 1]
             if e0 == v or e1 == v or _vertex_edge_blocked(table, v, e0, e1):
+                continue
+            if _pair_hidden(
+                pv, pv, ea[e], eb[e], False, sov[v], sov[e0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
+            ):
                 continue
             pe, de = ea[e], eb[e] - ea[e]
             P[0], P[1], P[2] = pv, vx[e0], vx[e1]
@@ -949,7 +1138,9 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     clock = time.perf_counter()
     pos = np.full(scene.n_vertices, -1, dtype=np.int64)
     pos[gv] = np.arange(len(gv))
-    table, _ = blocked_table(scene, gv)
+    solids = blocking_solids(scene)
+    table, sov = blocked_table(scene, gv, solids)
+    solid_grid = _SolidGrid(*solids[1:]).args()
     stats["seconds solids"] = time.perf_counter() - clock
     vx = np.ascontiguousarray(scene.vertices[gv])
     ev = pos[ev_all[ge]]  # generator edges by vertex position
@@ -996,7 +1187,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, vx, table, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps),
+        (ev, ea, eb, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1011,22 +1202,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (
-            ev,
-            ea,
-            eb,
-            vx,
-            table,
-            grid.lo,
-            grid.cell,
-            grid.dims,
-            e_off,
-            e_items,
-            v_off,
-            v_items,
-            tol,
-            eps,
-        ),
+        (ev, ea, eb, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1044,7 +1220,10 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
     vee = np.unique(np.stack([v_id, e_lo, e_hi], axis=1), axis=0) if len(vee) else np.zeros((0, 3), np.int64)
     v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
-    d = line_through_point_and_two_lines(scene.vertices[v], edge_lines(scene, e1), edge_lines(scene, e2))
+    # Plücker lines of the generator edges, once (the same floats as per tuple)
+    line_of = np.zeros((len(ev_all), 6))
+    line_of[ge] = edge_lines(scene, ge)
+    d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
     fine = np.linalg.norm(d, axis=1) > 0
     origin = scene.vertices[v]
     fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:])
@@ -1063,7 +1242,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     e4 = []
     for lo_q in range(0, len(quads), RAY_CHUNK):
         q = quads[lo_q : lo_q + RAY_CHUNK]
-        lines = edge_lines(scene, q.reshape(-1)).reshape(-1, 4, 6)
+        lines = line_of[q]
         sol, valid, _ = lines_through_four_lines(lines)
         q_idx, s_idx = np.nonzero(valid)
         d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]

@@ -195,16 +195,6 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
         ok[ie] = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps)
     point[ie] = a + np.nan_to_num(x)[:, None] * (b - a)
 
-    # tangency (the costly test) only for candidates whose every generator is met
-    met = np.ones(m, dtype=bool)
-    np.logical_and.at(met, cand, ok)
-    rows = np.flatnonzero(met[cand])
-    tangent[rows], degenerate[rows] = tangent_at_points(scene, point[rows], dc[rows])
-    # grazing is the rule, not a degeneracy, at a face holding two of the node's
-    # generators (v and e on one face, two edges of one face): seed 000 §4.1
-    degenerate &= ~_grazes_shared_face(scene, cand, gid, is_vertex, oc, dc)
-    ok &= ~degenerate
-
     keep = np.ones(m, dtype=bool)
     np.logical_and.at(keep, cand, ok)
 
@@ -220,12 +210,9 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
         has = j + 1 < count
         gap = np.where(has, t_sorted[:, j + 1] - np.where(has, t_sorted[:, j], 0.0), np.inf)
         keep &= ~has | (gap > eps)
-    for j in range(1, 3):  # inner generators must be passed
-        inner = j < count - 1
-        r = np.where(inner, row_sorted[:, j], 0)
-        keep &= ~inner | tangent[r]
 
-    # consecutive generators see each other
+    # The tests are one conjunction, so their order is free: cheapest first.
+    # Consecutive generators see each other (batched rays) ...
     pieces_a, pieces_b, piece_cand = [], [], []
     for j in range(3):
         has = keep & (j + 1 < count)
@@ -237,6 +224,21 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     if len(piece_cand):
         free = scene.ray_caster.free_segments(np.concatenate(pieces_a), np.concatenate(pieces_b))
         np.logical_and.at(keep, piece_cand, free)
+
+    # ... then tangency, the costly test, on the lines still standing
+    rows = np.flatnonzero(keep[cand])
+    tangent[rows], degenerate[rows] = tangent_at_points(scene, point[rows], dc[rows])
+    # grazing is the rule, not a degeneracy, at a face holding two of the node's
+    # generators (v and e on one face, two edges of one face): seed 000 §4.1
+    grazing = np.flatnonzero(degenerate)
+    if len(grazing):
+        excused = _grazes_shared_face(scene, cand, gid, is_vertex, oc, dc, grazing)
+        degenerate[grazing[excused]] = False
+    np.logical_and.at(keep, cand, ~degenerate)
+    for j in range(1, 3):  # inner generators must be passed
+        inner = j < count - 1
+        r = np.where(inner, row_sorted[:, j], 0)
+        keep &= ~inner | tangent[r]
 
     nodes = np.flatnonzero(keep)
     n = len(nodes)
@@ -277,29 +279,50 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     return LineSegments(keep, d, all_ends, all_kind, all_blocker, gen_points, slot_tangent)
 
 
-def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, angle_tol=1e-9):
-    """For each generator row, whether its line lies in the plane of a face that
-    holds this generator and another generator of the same candidate."""
+def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, rows, angle_tol=1e-9):
+    """For each generator row in ``rows``, whether its line lies in the plane of a
+    face that holds this generator and another generator of the same candidate.
+
+    cand, gid, is_vertex : (k,) int, int, bool
+        Candidate, generator id and kind of every generator row.
+    origins, directions : (k, 3) float
+    rows : (r,) int
+        The rows to judge.
+
+    Returns
+    -------
+    (r,) bool
+    """
     vo, vf, eo, ef = incident_faces(scene)
-    offsets = np.empty(len(gid), dtype=np.int64)
-    counts = np.empty(len(gid), dtype=np.int64)
-    v, e = is_vertex, ~is_vertex
-    offsets[v], counts[v] = vo[gid[v]], vo[gid[v] + 1] - vo[gid[v]]
-    offsets[e], counts[e] = eo[gid[e]], eo[gid[e] + 1] - eo[gid[e]]
-    row = np.repeat(np.arange(len(gid)), counts)
-    at = np.repeat(offsets, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    face = np.empty(len(row), dtype=np.int64)
-    rv = is_vertex[row]
-    face[rv], face[~rv] = vf[at[rv]], ef[at[~rv]]
-    key = cand[row] * scene.n_faces + face
-    _, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
-    shared = count[inverse.reshape(-1)] >= 2
+
+    def faces_of(r):
+        """(position in r, face) for every face incident to the generator of rows r."""
+        v = is_vertex[r]
+        offsets, counts = np.empty(len(r), np.int64), np.empty(len(r), np.int64)
+        offsets[v], counts[v] = vo[gid[r[v]]], vo[gid[r[v]] + 1] - vo[gid[r[v]]]
+        offsets[~v], counts[~v] = eo[gid[r[~v]]], eo[gid[r[~v]] + 1] - eo[gid[r[~v]]]
+        pos = np.repeat(np.arange(len(r)), counts)
+        at = np.repeat(offsets, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        face = np.empty(len(pos), np.int64)
+        pv = v[pos]
+        face[pv], face[~pv] = vf[at[pv]], ef[at[~pv]]
+        return pos, face
+
+    # a face is shared when another generator row of the candidate touches it too
+    # (the row itself is among its candidate's rows, hence "at least two")
+    pos, face = faces_of(rows)
+    siblings = np.flatnonzero(np.isin(cand, cand[rows]))
+    sib_pos, sib_face = faces_of(siblings)
+    key_other = np.sort(cand[siblings[sib_pos]] * scene.n_faces + sib_face)
+    key_here = cand[rows[pos]] * scene.n_faces + face
+    shared = np.searchsorted(key_other, key_here, "right") - np.searchsorted(key_other, key_here, "left") >= 2
     n, off = scene.face_normal[face], scene.face_offset[face]
-    in_plane = (np.abs(np.einsum("ij,ij->i", n, directions[row])) <= angle_tol) & (
-        np.abs(np.einsum("ij,ij->i", n, origins[row]) - off) <= scene.epsilon
+    r = rows[pos]
+    in_plane = (np.abs(np.einsum("ij,ij->i", n, directions[r])) <= angle_tol) & (
+        np.abs(np.einsum("ij,ij->i", n, origins[r]) - off) <= scene.epsilon
     )
-    excused = np.zeros(len(gid), dtype=bool)
-    np.logical_or.at(excused, row, shared & in_plane)
+    excused = np.zeros(len(rows), dtype=bool)
+    np.logical_or.at(excused, pos, shared & in_plane)
     return excused
 
 

@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from conftest import SAMPLES
 
@@ -27,8 +28,9 @@ def test_build_then_info(tmp_path, capsys):
     counts = summary["counts"]["scene"]
     # 16 quads, none merged (different groups or planes), 2 triangles each
     assert counts["faces"] == 16 and counts["triangles"] == 32
-    assert summary["groups"]["light"] == 1 and summary["levels"] == ["scene", "V0", "V1"]
+    assert summary["groups"]["light"] == 1 and summary["levels"] == ["scene", "V0", "V1", "V2"]
     assert summary["counts"]["V0"]["total"] > 0 and summary["counts"]["V1"]["total"] > 0
+    assert summary["counts"]["V2"]["cells"] > 0 and summary["counts"]["V2"]["vertices"] == 28
     code, stdout, _ = run(["info", str(out)], capsys)
     assert code == 0 and "generator_edges" in stdout and "light (1 faces)" in stdout
 
@@ -69,9 +71,10 @@ def test_info_counts_a_v0_level_by_kind(tmp_path, capsys):
     assert code == 0 and counts["total"] == len(nodes) and counts == {"total": len(nodes), **nodes.counts()}
 
 
-@pytest.mark.parametrize("levels, expected", [(-1, ["scene"]), (0, ["scene", "V0"]), (1, ["scene", "V0", "V1"])])
+@pytest.mark.parametrize("levels, expected", [(-1, ["scene"]), (0, ["scene", "V0"]), (1, ["scene", "V0", "V1"]),
+                                              (2, ["scene", "V0", "V1", "V2"])])
 def test_build_levels(levels, expected, tmp_path, capsys):
-    from viscx.formats.hdf5 import ViscxFile, read_nodes
+    from viscx.formats.hdf5 import ViscxFile, read_arcs, read_nodes, read_vcells
     from viscx.scene import load_scene
     from viscx.skeleton.reference import reference_nodes
 
@@ -85,9 +88,15 @@ def test_build_levels(levels, expected, tmp_path, capsys):
             want = reference_nodes(load_scene(SAMPLES / "tetrahedra.obj"))
             got = read_nodes(f.h5["V0"])
             assert len(got) == len(want) and (got.generators == want.generators).all()
+        if "V2" in expected:
+            # one V-cell tiling per generator vertex, built on the file's own half-cells
+            cells = read_vcells(f.h5["V2"])
+            half_cells = read_arcs(f.h5["V1"]).half_cells
+            assert len(np.unique(cells.vertex)) == 16 and cells.complete.all()
+            assert np.abs(cells.element).max() <= len(half_cells)
 
 
 def test_build_levels_out_of_range(tmp_path, capsys):
-    code, _, err = run(["build", str(SAMPLES / "tetrahedra.obj"), "--levels", "2", "-o", str(tmp_path / "t.h5")], capsys)
+    code, _, err = run(["build", str(SAMPLES / "tetrahedra.obj"), "--levels", "3", "-o", str(tmp_path / "t.h5")], capsys)
     assert code == 2 and err.count("\n") == 1 and "--levels" in err
     assert not (tmp_path / "t.h5").exists()

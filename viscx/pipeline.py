@@ -1,4 +1,4 @@
-"""The staged build: scene → nodes (V0) → arcs (V1) → (later: V/EE cells) → HDF5 file.
+"""The staged build: scene → nodes (V0) → arcs (V1) → V-cells (V2) → HDF5 file.
 
 Builders are functions of in-memory data and never touch files; this module
 chains them, times each stage and hands everything to the writer.
@@ -38,14 +38,20 @@ def _arcs(scene, built, quiet):
     return build_arcs(scene, built["V0"], quiet=quiet)
 
 
+def _vcells(scene, built, quiet):
+    from viscx.skeleton.vcells import build_vcells
+
+    return build_vcells(scene, built["V1"], quiet=quiet)
+
+
 def _writer(level):
     from viscx.formats import hdf5
 
-    return {"V0": hdf5.write_nodes, "V1": hdf5.write_arcs}[level]
+    return {"V0": hdf5.write_nodes, "V1": hdf5.write_arcs, "V2": hdf5.write_vcells}[level]
 
 
-LEVELS = [("V0", _nodes), ("V1", _arcs)]
-NOUNS = {"V0": "nodes", "V1": "arcs"}
+LEVELS = [("V0", _nodes), ("V1", _arcs), ("V2", _vcells)]
+NOUNS = {"V0": "nodes", "V1": "arcs", "V2": "V-cells"}
 MAX_LEVEL = len(LEVELS) - 1
 
 
@@ -60,7 +66,7 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
         See :func:`viscx.scene.build_scene`.
     levels : int
         The last skeleton level to build: -1 the scene only, 0 the nodes (V0),
-        1 also the arcs (V1).
+        1 also the arcs (V1), 2 also the V-cells (V2).
     quiet : bool
         No progress bars.
 

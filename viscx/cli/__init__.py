@@ -25,6 +25,7 @@ COMMANDS = {
     "build": "viscx.cli.build:build",
     "info": "viscx.cli.info:info",
     "diff": "viscx.cli.diff:diff",
+    "plot": "viscx.cli.plot:plot",
     "flatland": "viscx.cli.flatland:flatland",
 }
 

@@ -26,8 +26,8 @@ from viscx.scene import DEFAULT_WELD
     type=click.IntRange(-1, None),
     default=None,
     metavar="N",
-    help="The last level to build: -1 the scene only, 0 the nodes (V0), 1 also the arcs (V1). "
-    "Default: every level.",
+    help="The last level to build: -1 the scene only, 0 the nodes (V0), 1 also the arcs (V1), "
+    "2 also the V-cells (V2). Default: every level.",
 )
 @click.pass_context
 def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels):

@@ -49,7 +49,10 @@ def scene_counts(scene):
 
 
 def level_counts(group):
-    """Counts of a skeleton level: by kind where the level says its kinds, else rows per dataset."""
+    """Counts of a skeleton level: those it stores (attribute ``counts``), by kind where the
+    level says its kinds, else rows per dataset."""
+    if "counts" in group.attrs:
+        return {name: int(value) for name, value in json.loads(group.attrs["counts"]).items()}
     if "kind" in group and "kinds" in group.attrs:
         kinds = json.loads(group.attrs["kinds"])
         kind = group["kind"][()]

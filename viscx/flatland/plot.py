@@ -14,14 +14,11 @@ from viscx.formats.atomic import atomic_path
 
 
 def _mpl():
-    try:
-        import matplotlib
+    from viscx.render import pyplot
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        from matplotlib.collections import LineCollection
-    except ImportError:
-        raise ViscxError("plotting needs matplotlib: pip install 'viscx[plot]'") from None
+    plt = pyplot()
+    from matplotlib.collections import LineCollection
+
     return plt, LineCollection
 
 

@@ -195,6 +195,50 @@ def read_arcs(group):
     return Arcs(**arrays, planar=read_nodes(planar), half_cells=HalfCells(**half))
 
 
+_VCELL_ARRAYS = ["vertex", "up_kind", "up", "down_kind", "down", "solid_angle", "twin", "complete", "loop_offsets", "turning",
+                 "element_offsets", "element", "antipodal"]
+# open chains live in V2/open/ under their names without the prefix
+_OPEN_ARRAYS = ["offsets", "element", "antipodal", "vertex", "up_kind", "up", "down_kind", "down"]
+
+
+def write_vcells(group, vcells):
+    """Fill a ``V2`` group with :class:`viscx.skeleton.vcells.VCells` (see docs/format.md):
+    the cells with their boundary loops as CSR lists, and ``open/`` (chains that did
+    not close)."""
+    for name in _VCELL_ARRAYS:
+        write_dataset(group, name, getattr(vcells, name))
+    group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "vertex": 3})
+    group.attrs["counts"] = json.dumps(vcells.counts())
+    chains = group.create_group("open", track_order=True)
+    for name in _OPEN_ARRAYS:
+        write_dataset(chains, name, getattr(vcells, f"open_{name}"))
+
+
+def read_vcells(group):
+    """The :class:`viscx.skeleton.vcells.VCells` stored in a ``V2`` group."""
+    from viscx.skeleton.vcells import VCells
+
+    try:
+        arrays = {name: group[name][()] for name in _VCELL_ARRAYS}
+        arrays.update({f"open_{name}": group["open"][name][()] for name in _OPEN_ARRAYS})
+    except KeyError as exc:
+        raise ViscxError(f"damaged V2 level (missing {exc.args[0]})") from None
+    c, loops, k = len(arrays["vertex"]), len(arrays["turning"]), len(arrays["element"])
+    o, m = len(arrays["open_vertex"]), len(arrays["open_element"])
+    shapes = {"up_kind": (c,), "up": (c,), "down_kind": (c,), "down": (c,), "solid_angle": (c,), "twin": (c,), "complete": (c,),
+              "loop_offsets": (c + 1,), "element_offsets": (loops + 1,), "antipodal": (k,), "open_offsets": (o + 1,),
+              "open_antipodal": (m,), "open_up_kind": (o,), "open_up": (o,), "open_down_kind": (o,), "open_down": (o,)}
+    for name, shape in shapes.items():
+        if arrays[name].shape != shape:
+            where = f"open/{name[5:]}" if name.startswith("open_") else name
+            raise ViscxError(f"damaged V2 level (V2/{where} has shape {arrays[name].shape}, expected {shape})")
+    for name, total in (("loop_offsets", loops), ("element_offsets", k), ("open_offsets", m)):
+        offsets = arrays[name]
+        if offsets[0] != 0 or offsets[-1] != total or np.any(np.diff(offsets) < 0):
+            raise ViscxError(f"damaged V2 level (V2/{name} is not a CSR offset list)")
+    return VCells(**arrays)
+
+
 class ViscxFile:
     """An open, validated viscx file (use as a context manager).
 

@@ -130,14 +130,26 @@ def tangent_at_points(scene, points, directions, angle_tol=1e-9):
 
 
 def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
-    """:func:`tangent_at_points` at vertices.
+    """:func:`tangent_at_points` at vertices; the wedges of a vertex repeated in the
+    queries are found once.
 
     Parameters
     ----------
     vertices : (q,) int
     directions : (q, 3) float
     """
-    return tangent_at_points(scene, scene.vertices[np.asarray(vertices, dtype=np.int64)], directions, angle_tol)
+    unique, which = np.unique(np.asarray(vertices, dtype=np.int64), return_inverse=True)
+    which = which.reshape(-1)
+    w = surface_wedges(scene, scene.vertices[unique])
+    count = np.diff(w.offsets)[which]
+    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    rows = np.repeat(w.offsets[which], count) + np.arange(offsets[-1]) - np.repeat(offsets[:-1], count)
+    directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    blocked, degenerate = _separation(
+        offsets, np.ascontiguousarray(w.first[rows]), np.ascontiguousarray(w.normal[rows]), w.span[rows], directions,
+        angle_tol,
+    )
+    return ~blocked, degenerate
 
 
 def tangent_at_edges(scene, edges, directions, points=None, angle_tol=1e-9):

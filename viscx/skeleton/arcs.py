@@ -44,18 +44,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
-from viscx.geometry.tangency import tangent_at_points
 from viscx.progress import bar
 from viscx.skeleton.nodes import (
-    BLOCK_FACE,
-    BLOCK_SKY,
-    BLOCK_VERTEX,
     E4,
     VEE,
     VV,
     Nodes,
     maximal_free_segments,
     validate_candidates,
+    vertex_ray_blockers,
 )
 
 # Arc kinds.
@@ -837,14 +834,7 @@ def _half_cells(scene, arcs):
     down = np.empty((h, 2), np.int64)
     for side, sign in ((0, 1.0), (1, -1.0)):
         d = d0 / length + sign * (50 * eps / length) * n
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        tangent, _ = tangent_at_points(scene, x, d)
-        face, _ = scene.ray_caster.first_hit(np.concatenate([x, x]), np.concatenate([-d, d]), tmin=eps)
-        back, front = face[:h], face[h:]
-        up_kind[:, side] = np.where(~tangent, BLOCK_VERTEX, np.where(back < 0, BLOCK_SKY, BLOCK_FACE))
-        up[:, side] = np.where(~tangent, v, back)
-        down_kind[:, side] = np.where(front < 0, BLOCK_SKY, BLOCK_FACE)
-        down[:, side] = front
+        up_kind[:, side], up[:, side], down_kind[:, side], down[:, side], _ = vertex_ray_blockers(scene, v, d)
     return HalfCells(
         arc=ve,
         vertex=v,

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.lines import segment_parameter
-from viscx.geometry.tangency import tangent_at_points
+from viscx.geometry.tangency import tangent_at_points, tangent_at_vertices
 from viscx.scene.neighbourhood import incident_faces
 
 # Node kinds.
@@ -277,6 +277,41 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     slot_tangent = np.zeros((m, 4), dtype=bool)
     slot_tangent[has] = tangent[row_of[has]]
     return LineSegments(keep, d, all_ends, all_kind, all_blocker, gen_points, slot_tangent)
+
+
+def vertex_ray_blockers(scene, vertices, directions):
+    """Blocker pair of the maximal free segment through each vertex whose part beyond
+    the vertex runs along each direction (V-cells, docs/skeleton.md).
+
+    The rule of :func:`maximal_free_segments` for one vertex: where the line is
+    tangent at the vertex the segment runs from the first hit along -d (up) to
+    the first hit along d (down); where the surface separates its rays there,
+    up is the vertex itself.
+
+    Parameters
+    ----------
+    scene : Scene
+    vertices : (q,) int
+    directions : (q, 3) float
+
+    Returns
+    -------
+    up_kind, up, down_kind, down : (q,) int8, int, int8, int
+        BLOCK_FACE, BLOCK_SKY (id -1) or BLOCK_VERTEX (up only, id the vertex).
+    degenerate : (q,) bool
+        The line lies on a face at the vertex or along an edge there (grazing).
+    """
+    vertices = np.asarray(vertices, dtype=np.int64)
+    d = np.asarray(directions, dtype=np.float64)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    x = scene.vertices[vertices]
+    tangent, degenerate = tangent_at_vertices(scene, vertices, d)
+    face, _ = scene.ray_caster.first_hit(np.concatenate([x, x]), np.concatenate([-d, d]), tmin=scene.epsilon)
+    back, front = face[: len(d)], face[len(d):]
+    up_kind = np.where(~tangent, BLOCK_VERTEX, np.where(back < 0, BLOCK_SKY, BLOCK_FACE)).astype(np.int8)
+    up = np.where(~tangent, vertices, back)
+    down_kind = np.where(front < 0, BLOCK_SKY, BLOCK_FACE).astype(np.int8)
+    return up_kind, up, down_kind, front, degenerate
 
 
 def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, rows, angle_tol=1e-9):

@@ -1,0 +1,477 @@
+"""V2 V-cells: every vertex's cells checked against the ray caster at random directions,
+solid angles, twins, the seed's projected turning angles (§5.3), holes (seed Fig. 3a),
+the measured V1 gaps of the degenerate samples, HDF5, determinism and the plot command."""
+
+import h5py
+import numpy as np
+import pytest
+from conftest import SAMPLES, soup
+from random_scenes import random_boxes, random_tetrahedra
+
+from viscx.scene import build_scene, load_scene
+from viscx.skeleton.arcs import build_arcs
+from viscx.skeleton.candidates import build_nodes
+from viscx.skeleton.nodes import BLOCK_FACE, BLOCK_SKY, BLOCK_VERTEX, vertex_ray_blockers
+from viscx.skeleton.vcells import FOUR_PI, build_vcells, locate, stored_elements
+
+GENERAL = ["two_triangles.obj", "occluder_over_plane.ply", "tetrahedra.obj"]
+DEGENERATE = ["boxes_on_floor.obj", "cornell_box.obj", "room_with_door.obj"]
+#: Random directions per vertex for the ray oracle.
+DIRECTIONS = 10_000
+#: Directions closer than this (radians) to a cell boundary are not judged: the ray caster
+#: and the half-cells' 50-epsilon probes decide them within rounding.
+BAND = 1e-4
+#: Required agreement with the ray caster outside the band.
+AGREEMENT = 0.999
+
+_CACHE = {}
+
+
+def random_scene(seed):
+    """Random tetrahedra (odd seeds) or rotated floating boxes (even seeds): general position."""
+    rng = np.random.default_rng(seed)
+    if seed % 2:
+        return build_scene(random_tetrahedra(rng, int(rng.integers(2, 4))))
+    return build_scene(random_boxes(rng, int(rng.integers(1, 3)), axis_aligned=False, on_floor=False))
+
+
+def built(name):
+    """(scene, arcs, vcells) of a sample scene, a random scene ("rand:seed") or a scene object."""
+    if name not in _CACHE:
+        scene = random_scene(int(name.split(":")[1])) if name.startswith("rand:") else load_scene(SAMPLES / name)
+        arcs = build_arcs(scene, build_nodes(scene))
+        _CACHE[name] = scene, arcs, build_vcells(scene, arcs)
+    return _CACHE[name]
+
+
+def build_all(scene):
+    arcs = build_arcs(scene, build_nodes(scene))
+    return arcs, build_vcells(scene, arcs)
+
+
+def uniform_directions(rng, n):
+    d = rng.normal(size=(n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def angular_distance_to_arcs(d, starts, ends):
+    """Angle from each direction (n, 3) to the nearest of the minor great-circle arcs
+    starts[k] -> ends[k] ((m, 3) each), computed directly (not with the builder's code)."""
+    if len(starts) == 0:
+        return np.full(len(d), np.inf)
+    normal = np.cross(starts, ends)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    h = d @ normal.T  # (n, m): sine of the angle to each arc's great circle
+    # the foot of d on the great circle lies between the ends iff d is on the inner side of
+    # the planes through (normal, start) and (end, normal)
+    inside = (d @ np.cross(normal, starts).T >= 0) & (d @ np.cross(ends, normal).T >= 0)
+    dist = np.where(inside, np.arcsin(np.minimum(np.abs(h), 1.0)), np.inf)
+    for p in (starts, ends):
+        dist = np.minimum(dist, np.arccos(np.clip(d @ p.T, -1.0, 1.0)))
+    return dist.min(axis=1)
+
+
+def vertex_boundaries(scene, arcs, vc, v):
+    """Start and end directions of every boundary element of vertex v (loops and open chains)."""
+    cells = np.flatnonzero(vc.vertex == v)
+    parts = []
+    for c in cells:
+        lo, hi = vc.element_offsets[vc.loop_offsets[c]], vc.element_offsets[vc.loop_offsets[c + 1]]
+        parts.append((vc.element[lo:hi], vc.antipodal[lo:hi]))
+    for c in np.flatnonzero(vc.open_vertex == v):
+        lo, hi = vc.open_offsets[c], vc.open_offsets[c + 1]
+        parts.append((vc.open_element[lo:hi], vc.open_antipodal[lo:hi]))
+    signed = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, np.int64)
+    anti = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0, bool)
+    el = stored_elements(scene, arcs, signed, anti)
+    return el.start, el.end
+
+
+def pair_name(kind, index):
+    return {BLOCK_FACE: f"face {index}", BLOCK_SKY: "sky", BLOCK_VERTEX: f"vertex {index}"}[int(kind)]
+
+
+def ray_oracle(scene, arcs, vc, vertices, n=DIRECTIONS, seed=0):
+    """Locate random directions of each vertex among its cells and compare the cell's
+    blocker pair with the ray caster's (:func:`vertex_ray_blockers`, the judging rule of
+    maximal_free_segments at one vertex).
+
+    Returns
+    -------
+    judged, agreed : int
+        Directions judged (outside the band, not grazing a face at the vertex) and agreeing.
+    disagreements : list of str
+        Each disagreement with its vertex, direction, the cell's pair and the caster's.
+    """
+    rng = np.random.default_rng(seed)
+    judged = agreed = 0
+    disagreements = []
+    for v in vertices:
+        d = uniform_directions(rng, n)
+        cell, holders = locate(scene, arcs, vc, v, d)
+        up_kind, up, down_kind, down, grazing = vertex_ray_blockers(scene, np.full(n, v), d)
+        starts, ends = vertex_boundaries(scene, arcs, vc, v)
+        away = np.concatenate([angular_distance_to_arcs(d[k:k + 2000], starts, ends) for k in range(0, n, 2000)]) > BAND
+        c = np.maximum(cell, 0)
+        agree = (cell >= 0) & (vc.up_kind[c] == up_kind) & (vc.up[c] == up) & (vc.down_kind[c] == down_kind) & (vc.down[c] == down)
+        judge = away & ~grazing
+        judged += int(judge.sum())
+        agreed += int((agree & judge).sum())
+        for i in np.flatnonzero(judge & ~agree)[:5]:
+            where = (f"cell {cell[i]} ({pair_name(vc.up_kind[c[i]], vc.up[c[i]])} -> {pair_name(vc.down_kind[c[i]], vc.down[c[i]])})"
+                     if cell[i] >= 0 else f"{holders[i]} cells")
+            disagreements.append(f"vertex {v} direction {np.round(d[i], 6).tolist()}: {where}, rays: "
+                                 f"{pair_name(up_kind[i], up[i])} -> {pair_name(down_kind[i], down[i])}")
+    return judged, agreed, disagreements
+
+
+def assert_oracle(scene, arcs, vc, vertices, seed=0):
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, vertices, seed=seed)
+    assert judged >= 0.99 * DIRECTIONS * len(vertices)
+    assert agreed >= AGREEMENT * judged, (
+        f"{judged - agreed} of {judged} directions disagree with the ray caster "
+        f"({agreed / judged:.5f}); e.g.:\n" + "\n".join(wrong[:20]))
+    return judged, agreed
+
+
+def complete_vertices(vc):
+    return np.unique(vc.vertex[vc.complete])
+
+
+def per_vertex_solid_angle(vc, n_vertices):
+    return np.bincount(vc.vertex, weights=vc.solid_angle, minlength=n_vertices)
+
+
+# ---------------------------------------------------------------------------------------
+# ray oracle
+
+
+@pytest.mark.parametrize("name", GENERAL)
+def test_ray_oracle_on_every_vertex(name):
+    """General position: every vertex's cells close, tile its sphere and carry the blocker
+    pair the ray caster finds at 10^4 random directions."""
+    scene, arcs, vc = built(name)
+    gv = scene.generator_vertices
+    assert len(vc.open_vertex) == 0 and np.all(vc.complete)
+    assert set(vc.vertex.tolist()) == set(gv.tolist())
+    assert_oracle(scene, arcs, vc, gv)
+
+
+@pytest.mark.parametrize("name", DEGENERATE)
+def test_ray_oracle_on_complete_vertices_of_degenerate_samples(name):
+    """Degenerate samples: the vertices whose loops all close (``complete``) pass the ray
+    oracle (the others are the measured V1 gap, test below); a few of them here, all with -m slow."""
+    scene, arcs, vc = built(name)
+    assert_oracle(scene, arcs, vc, complete_vertices(vc)[:3])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", DEGENERATE)
+def test_ray_oracle_on_all_complete_vertices_of_degenerate_samples(name):
+    scene, arcs, vc = built(name)
+    assert_oracle(scene, arcs, vc, complete_vertices(vc))
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="V1 leaves V-cell boundaries out in degenerate scenes (docs/skeleton.md, V-cells)")
+@pytest.mark.parametrize("name", DEGENERATE)
+def test_ray_oracle_on_every_vertex_of_degenerate_samples(name):
+    scene, arcs, vc = built(name)
+    assert_oracle(scene, arcs, vc, scene.generator_vertices)
+
+
+#: Measured on the degenerate samples (docs/skeleton.md, "V-cells"): vertices whose loops
+#: all close, generator vertices, open chains. A change means V1 changed: update the docs.
+MEASURED_GAPS = {
+    "boxes_on_floor.obj": (1, 28, 215),
+    "cornell_box.obj": (8, 28, 139),
+    "room_with_door.obj": (2, 20, 168),
+}
+
+
+@pytest.mark.parametrize("name", DEGENERATE)
+def test_measured_gaps_of_degenerate_samples(name):
+    scene, _, vc = built(name)
+    assert (len(complete_vertices(vc)), len(scene.generator_vertices), len(vc.open_vertex)) == MEASURED_GAPS[name]
+
+
+def check_random_scene(seed, directions_seed=0):
+    name = f"rand:{seed}"
+    scene, arcs, vc = built(name)
+    done = complete_vertices(vc)
+    # where V1 closes every loop the cells tile the sphere and agree with the caster
+    assert np.allclose(per_vertex_solid_angle(vc, scene.n_vertices)[done], FOUR_PI, atol=1e-6)
+    if len(done):
+        assert_oracle(scene, arcs, vc, done, seed=directions_seed)
+    return len(done), len(scene.generator_vertices)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_random_scenes(seed):
+    check_random_scene(seed)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("block", range(10))
+def test_many_random_scenes(block):
+    """100 more random scenes (10 per test); at least 90 % of their vertices complete."""
+    done = total = 0
+    for seed in range(100 + 10 * block, 110 + 10 * block):
+        d, t = check_random_scene(seed)
+        done, total = done + d, total + t
+    assert done >= 0.9 * total, f"only {done} of {total} vertices have closed loops"
+
+
+def test_most_random_vertices_are_complete():
+    """The default random scenes: V1's known gaps (transitions near edge ends, probes
+    across cells thinner than 50 epsilon) leave few vertices open."""
+    done = total = 0
+    for seed in range(20):
+        scene, _, vc = built(f"rand:{seed}")
+        done += len(complete_vertices(vc))
+        total += len(scene.generator_vertices)
+    assert done >= 0.9 * total, f"only {done} of {total} vertices have closed loops"
+
+
+# ---------------------------------------------------------------------------------------
+# solid angles, twins, loops
+
+
+@pytest.mark.parametrize("name", GENERAL + ["rand:1", "rand:2"])
+def test_cells_cover_the_sphere(name):
+    """Σ solid angles = 4π at every vertex; every cell has a solid angle in (0, 4π) and its
+    loop of largest turning sum first (its outer loop)."""
+    scene, _, vc = built(name)
+    total = per_vertex_solid_angle(vc, scene.n_vertices)
+    assert np.allclose(total[np.unique(vc.vertex)], FOUR_PI, atol=1e-6)
+    assert np.all(vc.solid_angle > 0) and np.all(vc.solid_angle < FOUR_PI + 1e-9)
+    for c in range(len(vc)):
+        loops = vc.turning[vc.loop_offsets[c]: vc.loop_offsets[c + 1]]
+        assert loops[0] == loops.max()
+
+
+@pytest.mark.parametrize("name", GENERAL + ["rand:1", "rand:2"])
+def test_twins(name):
+    """A cell whose up is not the vertex has an antipodal twin: the same segments seen from
+    the other end (pair swapped, same solid angle, same half-cells on the other image);
+    cells whose up is the vertex have none. Checked by the ray caster at the antipode too."""
+    scene, arcs, vc = built(name)
+    tangent = vc.up_kind != BLOCK_VERTEX
+    assert np.all((vc.twin >= 0) == tangent)
+    t = np.flatnonzero(tangent)
+    tw = vc.twin[t]
+    assert np.array_equal(vc.twin[tw], t)
+    assert np.array_equal(vc.up[tw], vc.down[t]) and np.array_equal(vc.down[tw], vc.up[t])
+    assert np.array_equal(vc.up_kind[tw], vc.down_kind[t]) and np.array_equal(vc.down_kind[tw], vc.up_kind[t])
+    assert np.allclose(vc.solid_angle[tw], vc.solid_angle[t], rtol=1e-9, atol=1e-12)
+    assert np.array_equal(vc.vertex[tw], vc.vertex[t])
+    for c in t:
+        assert elements_of(vc, c) == {(e, not a) for e, a in elements_of(vc, vc.twin[c])}
+
+
+def elements_of(vc, c):
+    lo, hi = vc.element_offsets[vc.loop_offsets[c]], vc.element_offsets[vc.loop_offsets[c + 1]]
+    return {(int(e), bool(a)) for e, a in zip(vc.element[lo:hi], vc.antipodal[lo:hi])}
+
+
+def test_twins_are_antipodal_by_the_caster():
+    scene, arcs, vc = built("tetrahedra.obj")
+    rng = np.random.default_rng(3)
+    for v in scene.generator_vertices[:4]:
+        d = uniform_directions(rng, 2000)
+        here, _ = locate(scene, arcs, vc, v, d)
+        there, _ = locate(scene, arcs, vc, v, -d)
+        ok = (here >= 0) & (there >= 0) & (vc.up_kind[np.maximum(here, 0)] != BLOCK_VERTEX)
+        assert ok.sum() > 1000
+        assert np.array_equal(vc.twin[here[ok]], there[ok])
+
+
+@pytest.mark.parametrize("name", GENERAL + ["rand:1", "rand:2"])
+def test_projected_turning_angles(name):
+    """The seed's classification (§5.3): project each loop of a cell with a face blocker
+    through the vertex onto that face's plane (great-circle arcs become segments); seen
+    from beyond the plane the outer loop turns by +2π and each hole by -2π (down face; the
+    antipodal up face mirrors the signs)."""
+    scene, arcs, vc = built(name)
+    checked = 0
+    for c in range(len(vc)):
+        if vc.down_kind[c] == BLOCK_FACE:
+            face, sign = vc.down[c], 1.0
+        elif vc.up_kind[c] == BLOCK_FACE:
+            face, sign = vc.up[c], -1.0
+        else:
+            continue
+        x = scene.vertices[vc.vertex[c]]
+        n, off = scene.face_normal[face], scene.face_offset[face]
+        away = n if off - n @ x > 0 else -n  # plane normal pointing away from the vertex
+        e1 = np.cross(away, [1.0, 0, 0] if abs(away[0]) < 0.9 else [0, 1.0, 0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(away, e1)
+        for j in range(vc.loop_offsets[c], vc.loop_offsets[c + 1]):
+            lo, hi = vc.element_offsets[j], vc.element_offsets[j + 1]
+            d = sign * stored_elements(scene, arcs, vc.element[lo:hi], vc.antipodal[lo:hi]).start
+            t = (off - n @ x) / (d @ n)
+            assert np.all(t > 0), "a loop of a cell blocked by a face leaves that face's side"
+            p = (x + t[:, None] * d) @ np.stack([e1, e2], axis=1)
+            edge = np.roll(p, -1, axis=0) - p
+            edge = edge[np.linalg.norm(edge, axis=1) > 1e-12 * np.abs(p).max()]
+            nxt = np.roll(edge, -1, axis=0)
+            total = np.sum(np.arctan2(edge[:, 0] * nxt[:, 1] - edge[:, 1] * nxt[:, 0], np.einsum("ij,ij->i", edge, nxt)))
+            expected = 2 * np.pi if j == vc.loop_offsets[c] else -2 * np.pi
+            assert total == pytest.approx(sign * expected, abs=1e-6), (c, j)
+            checked += 1
+    assert checked > 0
+
+
+# ---------------------------------------------------------------------------------------
+# holes (seed Fig. 3a, Fig. 8)
+
+
+def triangle_solid_angle(x, tri):
+    """Solid angle of a triangle ((3, 3) float) seen from x (Van Oosterom and Strackee)."""
+    a, b, c = tri - x
+    la, lb, lc = (np.linalg.norm(w) for w in (a, b, c))
+    num = abs(a @ np.cross(b, c))
+    den = la * lb * lc + (a @ b) * lc + (a @ c) * lb + (b @ c) * la
+    return 2 * np.arctan2(num, den)
+
+
+def test_small_occluder_inside_a_big_blocker_makes_a_hole():
+    """From vertex v, a small triangle S projects inside a big triangle B: the cell
+    (sky -> B) has one hole whose loop runs along S's edges, and the solid angles equal
+    the triangles' (independent formula): Ω(sky -> S) = Ω(S), Ω(sky -> B) = Ω(B) - Ω(S)."""
+    big = [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [0.0, 10.0, 0.0]]
+    small = [[-0.5, -0.5, 1.0], [0.5, -0.4, 1.1], [0.1, 0.5, 0.9]]
+    viewer = [[0.05, 0.02, 3.0], [1.0, 0.3, 5.0], [-0.4, 1.0, 5.2]]
+    scene = build_scene(soup(big + small + viewer, [[0, 1, 2], [3, 4, 5], [6, 7, 8]], [0, 1, 2]))
+    arcs, vc = build_all(scene)
+    v = int(np.flatnonzero(np.all(scene.vertices == viewer[0], axis=1))[0])
+    face_of = {g: int(np.flatnonzero(scene.face_group == g)[0]) for g in range(3)}
+    b, s = face_of[0], face_of[1]
+    mine = vc.vertex == v
+    on_b = np.flatnonzero(mine & (vc.down_kind == BLOCK_FACE) & (vc.down == b))
+    on_s = np.flatnonzero(mine & (vc.down_kind == BLOCK_FACE) & (vc.down == s))
+    assert len(on_b) == 1 and len(on_s) == 1
+    cb, cs = on_b[0], on_s[0]
+    assert vc.up_kind[cb] == BLOCK_SKY and vc.up_kind[cs] == BLOCK_SKY
+    assert vc.loop_offsets[cb + 1] - vc.loop_offsets[cb] == 2  # an outer loop and one hole
+    hole = vc.loop_offsets[cb] + 1
+    lo, hi = vc.element_offsets[hole], vc.element_offsets[hole + 1]
+    edges = scene.half_edges.edge_vertices[arcs.half_cells.edge[np.abs(vc.element[lo:hi]) - 1]]
+    small_vertices = set(np.flatnonzero(scene.face_group[scene.half_edges.face] == 1).tolist())
+    s_ids = {int(i) for i in np.unique(scene.half_edges.start[list(small_vertices)])}
+    assert set(edges.reshape(-1).tolist()) <= s_ids
+    x = scene.vertices[v]
+    assert vc.solid_angle[cs] == pytest.approx(triangle_solid_angle(x, np.array(small)), rel=1e-9)
+    assert vc.solid_angle[cb] == pytest.approx(triangle_solid_angle(x, np.array(big)) - triangle_solid_angle(x, np.array(small)), rel=1e-9)
+    assert_oracle(scene, arcs, vc, [v])
+
+
+def test_a_lone_polygon_is_one_cell_per_corner():
+    """Nothing on a lone triangle's corner spheres changes the pair: one loop-less cell of
+    4π each, sky both ways, its own twin."""
+    scene = build_scene(soup([[0, 0, 0], [1, 0, 0], [0.2, 1, 0.1]], [[0, 1, 2]]))
+    arcs, vc = build_all(scene)
+    assert len(vc) == 3 and np.all(np.diff(vc.loop_offsets) == 0) and np.all(vc.complete)
+    assert np.allclose(vc.solid_angle, FOUR_PI) and np.array_equal(vc.twin, np.arange(3))
+    assert np.all((vc.up_kind == BLOCK_SKY) & (vc.down_kind == BLOCK_SKY))
+    assert_oracle(scene, arcs, vc, scene.generator_vertices)
+
+
+def test_sample_with_holes():
+    """occluder_over_plane (the samples' Fig. 8 scene): from each floor corner the small
+    triangle's cell is a hole in the sky cell above the floor."""
+    scene, _, vc = built("occluder_over_plane.ply")
+    holes = np.diff(vc.loop_offsets) - 1
+    assert holes.sum() >= 4
+    assert np.all(vc.up_kind[holes > 0] != BLOCK_VERTEX)
+
+
+# ---------------------------------------------------------------------------------------
+# HDF5, determinism, CLI
+
+
+def test_hdf5_round_trip(tmp_path):
+    from viscx.formats.hdf5 import ViscxFile, read_vcells, write_complex, write_vcells
+
+    scene, _, vc = built("boxes_on_floor.obj")  # has open chains too
+    out = tmp_path / "x.h5"
+    write_complex(out, scene, levels={"V2": lambda g: write_vcells(g, vc)})
+    with ViscxFile(out) as f:
+        back = read_vcells(f.h5["V2"])
+    for field in vc.__dataclass_fields__:
+        a, b = getattr(vc, field), getattr(back, field)
+        assert a.dtype == b.dtype and np.array_equal(a, b), field
+
+
+def test_damaged_v2_is_refused(tmp_path):
+    from viscx.errors import ViscxError
+    from viscx.formats.hdf5 import read_vcells, write_vcells
+
+    _, _, vc = built("two_triangles.obj")
+    with h5py.File(tmp_path / "x.h5", "w") as f:
+        write_vcells(f.create_group("V2"), vc)
+        del f["V2/twin"]
+        with pytest.raises(ViscxError, match="missing"):
+            read_vcells(f["V2"])
+        del f["V2"]
+        write_vcells(f.create_group("V2"), vc)
+        del f["V2/loop_offsets"]
+        f["V2/loop_offsets"] = np.zeros(len(vc) + 1, np.int64)
+        with pytest.raises(ViscxError, match="CSR"):
+            read_vcells(f["V2"])
+
+
+def test_v2_bytes_are_deterministic(tmp_path):
+    """Two builds (one from a fresh scene object) write identical V2 datasets."""
+    from viscx.pipeline import build_file
+
+    paths = [tmp_path / "a.h5", tmp_path / "b.h5"]
+    for p in paths:
+        build_file(SAMPLES / "cornell_box.obj", p, quiet=True)
+    raw = []
+    for p in paths:
+        with h5py.File(p, "r") as f:
+            found = {}
+            f["V2"].visititems(lambda name, obj: found.__setitem__(name, obj[()].tobytes()) if isinstance(obj, h5py.Dataset) else None)
+            raw.append(found)
+    assert raw[0] == raw[1] and len(raw[0]) >= 20
+
+
+def run(argv, capsys):
+    from viscx.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    out, err = capsys.readouterr()
+    return exc.value.code, out, err
+
+
+def test_plot_vcells(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    h5 = tmp_path / "t.h5"
+    assert run(["--quiet", "build", str(SAMPLES / "tetrahedra.obj"), "-o", str(h5)], capsys)[0] == 0
+    png = tmp_path / "v0.png"
+    code, out, err = run(["plot", "vcells", str(h5), "--vertex", "0", "-o", str(png), "--size", "60"], capsys)
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "V-cells of vertex 0" in out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--vertex", "99"], "not a generator vertex"),
+    (["--vertex", "-1"], "not a generator vertex"),
+])
+def test_plot_vcells_bad_vertex(args, message, tmp_path, capsys):
+    h5 = tmp_path / "t.h5"
+    assert run(["--quiet", "build", str(SAMPLES / "two_triangles.obj"), "-o", str(h5)], capsys)[0] == 0
+    code, _, err = run(["plot", "vcells", str(h5), *args, "-o", str(tmp_path / "x.png")], capsys)
+    assert code == 2 and err.count("\n") == 1 and message in err
+
+
+def test_plot_vcells_needs_v2(tmp_path, capsys):
+    h5 = tmp_path / "t.h5"
+    assert run(["--quiet", "build", str(SAMPLES / "two_triangles.obj"), "--levels", "1", "-o", str(h5)], capsys)[0] == 0
+    code, _, err = run(["plot", "vcells", str(h5), "--vertex", "0", "-o", str(tmp_path / "x.png")], capsys)
+    assert code == 2 and err.count("\n") == 1 and "--levels 2" in err
+    code, _, err = run(["plot", "vcells", str(tmp_path / "missing.h5"), "--vertex", "0", "-o", str(tmp_path / "x.png")], capsys)
+    assert code == 2 and err.count("\n") == 1

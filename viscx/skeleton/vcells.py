@@ -1,0 +1,800 @@
+"""V2: the V-cells (2-cells of a vertex) of the visibility complex (seed 000 §5).
+
+The direction sphere of a vertex
+--------------------------------
+For a generator vertex v and a direction d (unit), the *downstream segment*
+σ(v, d) is the maximal free segment through v whose part beyond v runs along
+d, judged like every segment of the skeleton (docs/skeleton.md): if the line
+through v along d is tangent (passing) at v, σ runs from the first hit along
+-d to the first hit along d and its blocker pair is ``(up, down) = (hit(-d),
+hit(d))``; otherwise the surface separates the two rays at v, σ = [v, hit(d)]
+and ``up`` is the vertex itself. A *V-cell* is a maximal connected region of
+the sphere S² of directions d where ``(up(d), down(d))`` is constant. The
+V-cells of v tile S² (their solid angles sum to 4π).
+
+A tangent line through v is one segment seen from both of its ends: d and -d
+give the same segment with up and down swapped. So a V-cell whose up is not
+the vertex has an antipodal *twin* (the region -R with the pair swapped), the
+same set of maximal free segments: the seed's V-cell "with up and down in
+either order" is a cell together with its twin (a sky-sky region may be its
+own twin). Cells whose up is the vertex have no twin (-d gives the other
+segment of that line). Both lifts are kept: the downstream view of v (what v
+sees along each d) is then a plain lookup.
+
+Boundaries: VE half-cells on the sphere
+---------------------------------------
+A VE arc (v, e) over s ∈ [s0, s1] is, on v's sphere, the great-circle arc of
+directions d(s) = (e(s) - v)/|e(s) - v| (its *forward image*) and the arc of
+-d(s) (its *antipodal image*). Its half-cells (V1) give the blocker pairs of
+the cells on either side of the forward image: side +n = (b - a) × (v - a)
+(half-cell ``+(h+1)``) and side -n (the opposite half-cell, ``-(h+1)``). On
+the antipodal image the same lines are seen from the other end:
+
+* where a side's up is not the vertex, the cell there is ``(down, up)``;
+* where a side's up is the vertex (the line enters the surface at v on that
+  side) the cell at -d is ``(v, hit(-d))``; it is bounded by the antipodal
+  image only when the other side is tangent, and its down blocker is that
+  side's up (the same ray -d, no event between them);
+* a side whose pair equals the other side's pair bounds nothing.
+
+A *boundary element* is one side of one image: a directed great-circle arc
+with its cell on the left (seen from outside the sphere): the forward image of
+half-cell +(h+1) runs from s0 to s1 (the seed's "ve"), the forward image of
+-(h+1) from s1 to s0 ("ve.opp"); antipodal images run the other way.
+
+Algorithm (seed 000 Fig. 4, §5.2-5.5)
+-------------------------------------
+Per vertex and blocker pair (one *group*), FormLoops chains the group's
+elements end to start. Ends meet where they coincide on the sphere (within
+``JOIN_TOLERANCE``, not by end ids: transition ends carry none). Where several
+elements of a group start at one point (a degenerate 0-cell, §5.5, or a cell
+touching itself) the next element is the first one clockwise from the
+incoming element's reversed tangent, which makes the loops the boundaries of
+the faces of the arrangement (they never cross); exact ties go to the smaller
+element id (the sorted-unique-id rule of §5.5). Elements that cannot lie on
+any loop (nothing of their group meets their start or end) choose last, so a
+spurious V1 arc cannot take a closing element's successor.
+
+Each loop L has a turning-angle sum T (left turns positive, summed over its
+corners: great-circle arcs have no geodesic curvature) and, by Gauss-Bonnet,
+its left region has solid angle 2π - T. Loops of one group are grouped into
+cells by ray-crossing parity on the sphere (§5.4): a reference point just left
+of each loop is located against every other loop of the group, and two loops
+bound one cell exactly when every loop of the group sees them on the same side
+(and each lies left of the other). A cell's *outer* loop is its loop of largest
+turning sum: a cell with a face blocker lies in the open hemisphere of
+directions towards that face's plane, where the seed's gnomonic projection
+onto the plane (which maps great-circle arcs to segments) turns the outer loop
+by +2π and holes by -2π; on the sphere exactly one of its loops has T > 0 and
+it is that outer loop. The cell's solid angle is Σ (2π - T) - 4π (k - 1) over
+its k loops.
+
+Chains that do not close (a V1 end with no partner on the sphere) are kept as
+*open chains* and reported; they form no cell, and the cells of their vertex
+are not ``complete`` (docs/skeleton.md, "V-cells", for how often and why).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from viscx.progress import bar
+from viscx.skeleton.arcs import VE, family_lines
+from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
+
+FOUR_PI = 4 * np.pi
+#: Chord on the unit sphere below which an element's end and another's start are one point:
+#: V1 puts arc ends at events computed per family (nodes: rounding; transitions: bisection
+#: to ~1e-12 in s), far below this; events merged by V1 are 4 epsilon apart along an edge.
+JOIN_TOLERANCE = 1e-7
+#: Angle by which a loop's reference point lies left of its longest element's midpoint.
+REFERENCE_OFFSET = 1e-8
+#: A vertex's cells cover its sphere when their solid angles sum to 4π within this.
+COVER_TOLERANCE = 1e-6
+#: (loop, direction) pairs per call of the point-location kernel.
+LOCATE_CHUNK = 1 << 21
+
+
+@dataclass
+class VCells:
+    """V-cells as flat arrays, sorted by (vertex, up, down, first boundary element).
+
+    Attributes
+    ----------
+    vertex : (c,) int
+    up_kind, down_kind : (c,) int8
+        BLOCK_FACE, BLOCK_SKY or BLOCK_VERTEX (up only: the vertex itself).
+    up, down : (c,) int
+        Face id, -1 for the sky, the vertex id for BLOCK_VERTEX.
+    solid_angle : (c,) float
+        Area of the cell on the unit sphere of directions.
+    twin : (c,) int
+        The antipodal cell (same segments, up and down swapped); itself for a
+        cell that is its own antipode; -1 when up is the vertex.
+    complete : (c,) bool
+        Every boundary element of its vertex lies on a closed loop and the
+        vertex's cells cover its sphere (solid angles summing to 4π within
+        COVER_TOLERANCE). Elsewhere V1 left loops open (docs/skeleton.md,
+        "V-cells") and cells built from the closed loops may be wrong.
+    loop_offsets : (c + 1,) int
+        Loops of cell i: ``loop_offsets[i]:loop_offsets[i + 1]``, the outer loop first.
+    turning : (l,) float
+        Turning-angle sum of each loop on the sphere (2π minus its left region's area).
+    element_offsets : (l + 1,) int
+        Elements of loop j: ``element_offsets[j]:element_offsets[j + 1]``, in order.
+    element : (k,) int
+        Signed half-cell id: +(h + 1) for half-cell h of ``Arcs.half_cells``
+        (its cell on side +n), -(h + 1) for its opposite (side -n).
+    antipodal : (k,) bool
+        The element runs along the antipodal image (directions from the edge
+        through the vertex) instead of the forward image.
+    open_offsets : (o + 1,) int
+        Chains that did not close, as ``element_offsets``.
+    open_element : (m,) int
+    open_antipodal : (m,) bool
+    open_vertex, open_up_kind, open_up, open_down_kind, open_down : (o,) int
+        The group of each open chain.
+    """
+
+    vertex: np.ndarray
+    up_kind: np.ndarray
+    up: np.ndarray
+    down_kind: np.ndarray
+    down: np.ndarray
+    solid_angle: np.ndarray
+    twin: np.ndarray
+    complete: np.ndarray
+    loop_offsets: np.ndarray
+    turning: np.ndarray
+    element_offsets: np.ndarray
+    element: np.ndarray
+    antipodal: np.ndarray
+    open_offsets: np.ndarray
+    open_element: np.ndarray
+    open_antipodal: np.ndarray
+    open_vertex: np.ndarray
+    open_up_kind: np.ndarray
+    open_up: np.ndarray
+    open_down_kind: np.ndarray
+    open_down: np.ndarray
+
+    def __len__(self):
+        return len(self.vertex)
+
+    def counts(self):
+        """Numbers of cells, of cells counting twins once (the seed's V-cells), of cells whose
+        up is the vertex, with holes, of holes, of open chains, of vertices with cells and
+        of those whose cells cover the sphere."""
+        loops = np.diff(self.loop_offsets)
+        return {
+            "cells": len(self),
+            "seed_cells": int(np.count_nonzero((self.twin < 0) | (self.twin >= np.arange(len(self))))),
+            "vertex_up": int(np.count_nonzero(self.up_kind == BLOCK_VERTEX)),
+            "with_holes": int(np.count_nonzero(loops > 1)),
+            "holes": int(np.sum(np.maximum(loops - 1, 0))),
+            "open_chains": len(self.open_vertex),
+            "vertices": len(np.unique(np.concatenate([self.vertex, self.open_vertex]))),
+            "complete_vertices": len(np.unique(self.vertex[self.complete])),
+        }
+
+
+# --------------------------------------------------------------------------------------
+# boundary elements
+
+
+@dataclass
+class Elements:
+    """Boundary elements: one side of one image of a VE half-cell, a directed
+    great-circle arc of a vertex's direction sphere with its cell on the left.
+
+    Attributes
+    ----------
+    half_cell : (k,) int
+    side : (k,) int
+        0: the half-cell's own side (+n), 1: its opposite's (-n).
+    antipodal : (k,) bool
+    vertex : (k,) int
+    pair : (k, 4) int
+        (up kind, up, down kind, down) of the cell on the element's left.
+    start, end : (k, 3) float
+        Unit directions where the element starts and ends.
+    start_tangent, end_tangent : (k, 3) float
+        Unit direction of travel there (tangent to the sphere).
+    """
+
+    half_cell: np.ndarray
+    side: np.ndarray
+    antipodal: np.ndarray
+    vertex: np.ndarray
+    pair: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    start_tangent: np.ndarray
+    end_tangent: np.ndarray
+
+    def __len__(self):
+        return len(self.half_cell)
+
+    def take(self, index):
+        return Elements(**{name: getattr(self, name)[index] for name in self.__dataclass_fields__})
+
+    @property
+    def signed(self):
+        """(k,) int: +(h + 1) on the half-cell's side, -(h + 1) on its opposite's."""
+        return np.where(self.side == 0, 1, -1) * (self.half_cell + 1)
+
+
+def side_pairs(half_cells):
+    """Blocker pairs of the cells beside both images of every VE arc.
+
+    Parameters
+    ----------
+    half_cells : HalfCells
+
+    Returns
+    -------
+    pairs : (h, 2, 2, 4) int
+        ``pairs[i, image, side]`` = (up kind, up, down kind, down) of the cell
+        on ``side`` (0: +n, 1: -n) of the forward (image 0) or antipodal
+        (image 1) image of VE arc i.
+    bounds : (h, 2, 2) bool
+        Whether that side of that image bounds a cell (rules in the module docstring).
+    """
+    hc = half_cells
+    fwd = np.stack([hc.up_kind, hc.up, hc.down_kind, hc.down], axis=2).astype(np.int64)  # (h, side, 4)
+    vert = hc.up_kind == BLOCK_VERTEX  # (h, side)
+    other = fwd[:, ::-1]
+    # the vertex's side of the antipodal image: (v, the other side's up)
+    vertex_side = np.stack([np.full(vert.shape, BLOCK_VERTEX), np.broadcast_to(hc.vertex[:, None], vert.shape),
+                            other[:, :, 0], other[:, :, 1]], axis=2)
+    anti = np.where(vert[:, :, None], vertex_side, fwd[:, :, [2, 3, 0, 1]])
+    pairs = np.stack([fwd, anti], axis=1)
+    bounds = np.ones(pairs.shape[:3], dtype=bool)
+    bounds[:, 1] &= ~(vert & vert[:, ::-1])  # both sides enter the surface at v: -d sees no event
+    bounds &= np.any(pairs[:, :, 0] != pairs[:, :, 1], axis=2)[:, :, None]
+    return pairs, bounds
+
+
+def element_geometry(scene, arcs, half_cell, side, antipodal):
+    """The boundary elements of the given half-cell sides and images.
+
+    Parameters
+    ----------
+    scene : Scene
+    arcs : Arcs
+    half_cell, side : (k,) int
+    antipodal : (k,) bool
+
+    Returns
+    -------
+    Elements
+    """
+    hc = arcs.half_cells
+    h, side, anti = np.asarray(half_cell, np.int64), np.asarray(side, np.int64), np.asarray(antipodal, bool)
+    pairs, _ = side_pairs(hc)
+    interval = arcs.interval[hc.arc[h]]
+    # the forward image's -n side and the antipodal image's +n side run from s1 to s0
+    rev = (side == 1) != anti
+    s_start = np.where(rev, interval[:, 1], interval[:, 0])
+    s_end = np.where(rev, interval[:, 0], interval[:, 1])
+    sign = np.where(anti, -1.0, 1.0)[:, None]
+    travel = sign * np.where(rev, -1.0, 1.0)[:, None]
+    start, t_start = _image_point(scene, hc.vertex[h], hc.edge[h], s_start)
+    end, t_end = _image_point(scene, hc.vertex[h], hc.edge[h], s_end)
+    return Elements(
+        half_cell=h,
+        side=side,
+        antipodal=anti,
+        vertex=hc.vertex[h],
+        pair=pairs[h, anti.astype(np.int64), side],
+        start=sign * start,
+        end=sign * end,
+        start_tangent=travel * t_start,
+        end_tangent=travel * t_end,
+    )
+
+
+def boundary_elements(scene, arcs):
+    """Every boundary element of every vertex's direction sphere, sorted by
+    (half-cell, antipodal, side).
+
+    Returns
+    -------
+    Elements
+    """
+    _, bounds = side_pairs(arcs.half_cells)
+    h, image, side = np.nonzero(bounds)
+    return element_geometry(scene, arcs, h, side, image == 1)
+
+
+def _image_point(scene, vertex, edge, s):
+    """Direction from each vertex to its edge's point s, and the direction in which it
+    moves as s grows (unit, tangent to the sphere)."""
+    gens = np.stack([vertex, edge, np.full(len(vertex), -1)], axis=1)
+    _, d = family_lines(scene, np.full(len(vertex), VE), gens, s)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    ev = scene.half_edges.edge_vertices[edge]
+    along = scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]]
+    t = along - np.einsum("ij,ij->i", along, d)[:, None] * d
+    return d, t / np.linalg.norm(t, axis=1, keepdims=True)
+
+
+def _signed_angle(a, b, normal):
+    """Angle from a to b about normal (counter-clockwise positive), in (-π, π]."""
+    return np.arctan2(np.einsum("ij,ij->i", np.cross(a, b), normal), np.einsum("ij,ij->i", a, b))
+
+
+def _pairs_in_groups(group):
+    """All ordered pairs (i, j), i and j in one group (i = j included).
+
+    Parameters
+    ----------
+    group : (n,) int
+
+    Returns
+    -------
+    i, j : (m,) int
+    """
+    order = np.argsort(group, kind="stable")
+    _, first, size = np.unique(group[order], return_index=True, return_counts=True)
+    rep = np.repeat(size, size)  # per element (sorted): its group's size
+    start = np.repeat(first, size)
+    i = np.repeat(np.arange(len(group)), rep)
+    j = np.repeat(start, rep) + np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+    return order[i], order[j]
+
+
+# --------------------------------------------------------------------------------------
+# FormLoops
+
+
+def form_loops(el, group):
+    """Chain each group's elements end to start into loops (seed 000 §5.3 FormLoops).
+
+    Candidates to follow an element are the elements of its group starting
+    within JOIN_TOLERANCE of its end; the first clockwise from the reversed
+    incoming tangent wins, exact ties to the smaller id, each element followed
+    at most once. Elements that cannot lie on a loop (no candidate before or
+    after them, repeatedly) choose last.
+
+    Parameters
+    ----------
+    el : Elements
+    group : (k,) int
+
+    Returns
+    -------
+    order : (k,) int
+        The elements walk by walk: the closed loops (each from its smallest
+        element), then the open chains.
+    loop_offsets : (l + 1,) int
+        Loop j is ``order[loop_offsets[j]:loop_offsets[j + 1]]``.
+    chain_offsets : (o + 1,) int
+        Open chain j is ``order[chain_offsets[j]:chain_offsets[j + 1]]``.
+    """
+    if len(el) == 0:
+        return np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64)
+    i, j = _pairs_in_groups(group)
+    near = np.linalg.norm(el.end[i] - el.start[j], axis=1) <= JOIN_TOLERANCE
+    i, j = i[near], j[near]
+    cw = np.mod(-_signed_angle(-el.end_tangent[i], el.start_tangent[j], el.end[i]), 2 * np.pi)
+    cw = np.where(cw <= 1e-12, 2 * np.pi, cw)  # going straight back is the last choice
+    closable = _closable_links(len(el), i, j)
+    pick = np.lexsort([j, i, cw, ~closable])
+    return _trace(_greedy_match(len(el), i[pick], j[pick]))
+
+
+def _closable_links(n, i, j):
+    """Links between elements that may lie on a loop: elements without a candidate before
+    or after them (dangling ends, e.g. a VE arc ending at a transition nothing else meets)
+    are set aside, repeatedly, so that they cannot take a closing element's successor."""
+    alive = np.ones(n, bool)
+    while True:
+        keep = alive[i] & alive[j]
+        has_out = np.bincount(i[keep], minlength=n) > 0
+        has_in = np.bincount(j[keep], minlength=n) > 0
+        still = alive & has_out & has_in
+        if np.array_equal(still, alive):
+            return keep
+        alive = still
+
+
+@njit(cache=True)
+def _greedy_match(n, i, j):
+    """Successor of each element: links (i, j) taken in the given order while both are free."""
+    nxt = np.full(n, -1, np.int64)
+    taken = np.zeros(n, np.bool_)
+    for k in range(len(i)):
+        if nxt[i[k]] < 0 and not taken[j[k]]:
+            nxt[i[k]] = j[k]
+            taken[j[k]] = True
+    return nxt
+
+
+@njit(cache=True)
+def _trace(nxt):
+    """Walks of an injective successor map: (order, loop offsets, chain offsets) as in form_loops."""
+    n = len(nxt)
+    has_prev = np.zeros(n, np.bool_)
+    for i in range(n):
+        if nxt[i] >= 0:
+            has_prev[nxt[i]] = True
+    seen = np.zeros(n, np.bool_)
+    chains = np.empty(n, np.int64)
+    chain_off = [0]
+    m = 0
+    for i in range(n):  # open chains begin where nothing leads in
+        if not has_prev[i]:
+            k = i
+            while k >= 0:
+                seen[k] = True
+                chains[m] = k
+                m += 1
+                k = nxt[k]
+            chain_off.append(m)
+    # the rest are cycles (nxt is injective); ascending i starts each at its smallest element
+    loops = np.empty(n, np.int64)
+    loop_off = [0]
+    q = 0
+    for i in range(n):
+        k = i
+        while not seen[k]:
+            seen[k] = True
+            loops[q] = k
+            q += 1
+            k = nxt[k]
+        if q > loop_off[-1]:
+            loop_off.append(q)
+    order = np.concatenate((loops[:q], chains[:m]))
+    return order, np.array(loop_off, np.int64), np.array(chain_off, np.int64) + q
+
+
+# --------------------------------------------------------------------------------------
+# loops on the sphere (elements of loop j contiguous: loop_offsets[j]:loop_offsets[j + 1])
+
+
+def turning_sums(el, loop_offsets):
+    """Sum of the signed turning angles (left turns positive) at the corners of each loop.
+
+    Returns
+    -------
+    (l,) float
+        2π minus the solid angle of the loop's left region (Gauss-Bonnet).
+    """
+    n = loop_offsets[-1]
+    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    nxt = np.arange(1, n + 1)
+    nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
+    turn = _signed_angle(el.end_tangent[:n], el.start_tangent[nxt], el.end[:n])
+    return np.bincount(loop_of, weights=turn, minlength=len(loop_offsets) - 1)
+
+
+def reference_points(el, loop_offsets):
+    """A point just left of each loop: REFERENCE_OFFSET (at most a thousandth of the
+    element) off the middle of its longest element.
+
+    Returns
+    -------
+    (l, 3) float
+    """
+    n = loop_offsets[-1]
+    length = np.arccos(np.clip(np.einsum("ij,ij->i", el.start[:n], el.end[:n]), -1.0, 1.0))
+    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    pick = np.lexsort([-length, loop_of])
+    best = pick[np.searchsorted(loop_of[pick], np.arange(len(loop_offsets) - 1))]
+    mid = el.start[best] + el.end[best]
+    mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+    left = np.cross(mid, el.end[best] - el.start[best])
+    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    ref = mid + np.minimum(REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
+    return ref / np.linalg.norm(ref, axis=1, keepdims=True)
+
+
+@njit(cache=True, inline="always")
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def _crosses(a, b, c, d):
+    """Whether the minor great-circle arcs a-b and c-d cross ((3,) float each)."""
+    n1 = _cross(a[0], a[1], a[2], b[0], b[1], b[2])
+    if (n1[0] * c[0] + n1[1] * c[1] + n1[2] * c[2] > 0) == (n1[0] * d[0] + n1[1] * d[1] + n1[2] * d[2] > 0):
+        return False
+    n2 = _cross(c[0], c[1], c[2], d[0], d[1], d[2])
+    if (n2[0] * a[0] + n2[1] * a[1] + n2[2] * a[2] > 0) == (n2[0] * b[0] + n2[1] * b[1] + n2[2] * b[2] > 0):
+        return False
+    # the two great circles meet at ±x: the arcs cross iff both hold the same one
+    x = _cross(n1[0], n1[1], n1[2], n2[0], n2[1], n2[2])
+    on_ab = x[0] * (a[0] + b[0]) + x[1] * (a[1] + b[1]) + x[2] * (a[2] + b[2]) > 0
+    on_cd = x[0] * (c[0] + d[0]) + x[1] * (c[1] + d[1]) + x[2] * (c[2] + d[2]) > 0
+    return on_ab == on_cd
+
+
+@njit(cache=True)
+def _inside(ref, loop_offsets, starts, ends, pair_loop, targets):
+    out = np.empty(len(pair_loop), np.bool_)
+    mid = np.empty(3)
+    for t in range(len(pair_loop)):
+        L = pair_loop[t]
+        r = ref[L]
+        p = targets[t]
+        c = r[0] * p[0] + r[1] * p[1] + r[2] * p[2]
+        two_legs = c <= -0.5
+        if two_legs:  # through a point at right angles to r: both legs are minor arcs
+            for k in range(3):
+                mid[k] = p[k] - c * r[k]
+            size = np.sqrt(mid[0] ** 2 + mid[1] ** 2 + mid[2] ** 2)
+            if size < 1e-3:
+                k = np.argmin(np.abs(r))
+                h0, h1, h2 = 0.0, 0.0, 0.0
+                if k == 0:
+                    h0 = 1.0
+                elif k == 1:
+                    h1 = 1.0
+                else:
+                    h2 = 1.0
+                mid[0], mid[1], mid[2] = _cross(r[0], r[1], r[2], h0, h1, h2)
+                size = np.sqrt(mid[0] ** 2 + mid[1] ** 2 + mid[2] ** 2)
+            for k in range(3):
+                mid[k] /= size
+        count = 0
+        for e in range(loop_offsets[L], loop_offsets[L + 1]):
+            if two_legs:
+                count += _crosses(r, mid, starts[e], ends[e]) + _crosses(mid, p, starts[e], ends[e])
+            else:
+                count += _crosses(r, p, starts[e], ends[e])
+        out[t] = count % 2 == 0
+    return out
+
+
+def inside_loops(el, loop_offsets, ref, loop, targets):
+    """Whether each target direction lies in the left region of a loop: the path from
+    the loop's reference point crosses the loop an even number of times (§5.4).
+
+    Parameters
+    ----------
+    el : Elements
+        Loop j's elements are ``loop_offsets[j]:loop_offsets[j + 1]``.
+    loop_offsets : (l + 1,) int
+    ref : (l, 3) float
+        Reference points (:func:`reference_points`).
+    loop : (m,) int
+    targets : (m, 3) float
+        Unit directions.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    return _inside(ref, loop_offsets, np.ascontiguousarray(el.start), np.ascontiguousarray(el.end),
+                   np.asarray(loop, np.int64), np.ascontiguousarray(targets, dtype=np.float64))
+
+
+def cells_of_loops(el, loop_offsets, loop_group, ref):
+    """Group the loops of each group into cells (§5.4 on the sphere).
+
+    Loops i and j bound one cell iff every loop k of their group has i's and
+    j's reference points on the same side (a loop's own reference point is on
+    its left): the columns i and j of the group's side matrix are equal.
+
+    Returns
+    -------
+    (l,) int
+        Cell id of each loop, numbered by the cells' smallest loops.
+    """
+    nl = len(loop_group)
+    k, i = _pairs_in_groups(loop_group)
+    side = inside_loops(el, loop_offsets, ref, k, ref[i]) | (k == i)
+    # sort the pairs by (group, i, k): loop i's column is then one contiguous run
+    order = np.lexsort([k, i])
+    size = np.bincount(loop_group, minlength=loop_group.max() + 1 if nl else 0)[loop_group]
+    column = side[order]
+    cell = np.arange(nl)
+    for m in np.unique(size[size > 1]):
+        loops = np.flatnonzero(size == m)  # sorted by loop id; each is a column of length m
+        cols = column[np.searchsorted(i[order], loops)[:, None] + np.arange(m)]
+        key = np.concatenate([loop_group[loops, None], cols], axis=1)
+        _, cls = np.unique(key, axis=0, return_inverse=True)
+        cls = cls.reshape(-1)
+        smallest = np.full(cls.max() + 1, nl)
+        np.minimum.at(smallest, cls, loops)
+        cell[loops] = smallest[cls]
+    _, cell = np.unique(cell, return_inverse=True)
+    return cell.reshape(-1)
+
+
+# --------------------------------------------------------------------------------------
+# the builder
+
+
+def build_vcells(scene, arcs, quiet=True):
+    """The V-cells (V2) of every generator vertex, from the VE half-cells (V1).
+
+    Parameters
+    ----------
+    scene : Scene
+    arcs : Arcs
+    quiet : bool
+        No progress bar.
+
+    Returns
+    -------
+    VCells
+    """
+    with bar(total=3, desc="V-cells", quiet=quiet, unit="stage") as progress:
+        progress.set_postfix_str("elements")
+        el = boundary_elements(scene, arcs)
+        key = np.concatenate([el.vertex[:, None], el.pair], axis=1)
+        _, group = np.unique(key, axis=0, return_inverse=True)
+        group = group.reshape(-1)
+        progress.update()
+
+        progress.set_postfix_str("loops")
+        order, loop_offsets, chain_offsets = form_loops(el, group)
+        walk = el.take(order)  # loops and chains contiguous
+        turning = turning_sums(walk, loop_offsets)
+        ref = reference_points(walk, loop_offsets)
+        progress.update()
+
+        progress.set_postfix_str("cells")
+        loop_group = group[order[loop_offsets[:-1]]]
+        cell = cells_of_loops(walk, loop_offsets, loop_group, ref)
+        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el))
+        progress.update()
+    return result
+
+
+#: Directions tried, in order, for the pair of a vertex whose sphere is one cell.
+_PROBES = np.array([[0.267, 0.534, 0.802], [-0.577, 0.211, 0.789], [0.432, -0.898, 0.083]])
+
+
+def whole_sphere_cells(scene, el):
+    """Generator vertices without boundary elements (nothing on their sphere changes the
+    blocker pair, e.g. a lone polygon's corners) and the pair of their one cell, cast
+    along the first non-grazing probe direction.
+
+    Returns
+    -------
+    (w, 5) int
+        (vertex, up kind, up, down kind, down).
+    """
+    lone = np.setdiff1d(scene.generator_vertices, el.vertex)
+    rows = np.zeros((len(lone), 5), np.int64)
+    rows[:, 0] = lone
+    todo = np.ones(len(lone), bool)
+    for probe in _PROBES:
+        k = np.flatnonzero(todo)
+        if len(k) == 0:
+            break
+        up_kind, up, down_kind, down, grazing = vertex_ray_blockers(scene, lone[k], np.tile(probe, (len(k), 1)))
+        rows[k, 1:] = np.stack([up_kind, up, down_kind, down], axis=1)
+        todo[k] = grazing
+    return rows
+
+
+def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole):
+    """Cells in canonical order with their loops (outer first), twins and solid angles;
+    ``whole`` (vertex, pair) rows are cells without loops covering their sphere."""
+    n_loops = len(loop_offsets) - 1
+    n_bounded = int(cell.max()) + 1 if n_loops else 0
+    n_cells = n_bounded + len(whole)
+    first = order[loop_offsets[:-1]]  # each loop's smallest element (ids of the sorted table)
+    at_first = loop_offsets[:-1]
+    pair = np.concatenate([walk.vertex[at_first, None], walk.pair[at_first]], axis=1)
+    # the outer loop: the largest turning sum of the cell
+    rank_in_cell = np.lexsort([first, -turning, cell])
+    outer = np.zeros(n_loops, bool)
+    outer[rank_in_cell[np.searchsorted(cell[rank_in_cell], np.arange(n_bounded))]] = True
+    count = np.bincount(cell, minlength=n_cells)
+    solid = np.bincount(cell, weights=2 * np.pi - turning, minlength=n_cells) - FOUR_PI * (count - 1)
+    # canonical order: vertex, pair, smallest element
+    cell_pair = np.zeros((n_cells, 5), np.int64)
+    cell_pair[cell] = pair
+    cell_pair[n_bounded:] = whole
+    cell_first = np.full(n_cells, np.iinfo(np.int64).max)
+    cell_first[n_bounded:] = -1
+    np.minimum.at(cell_first, cell, first)
+    cell_order = np.lexsort([cell_first, *cell_pair.T[::-1]])
+    rank = np.empty(n_cells, np.int64)
+    rank[cell_order] = np.arange(n_cells)
+    loop_order = np.lexsort([first, ~outer, rank[cell]])
+    lens = np.diff(loop_offsets)[loop_order]
+    idx = np.repeat(loop_offsets[:-1][loop_order], lens) + np.arange(lens.sum()) - np.repeat(np.cumsum(lens) - lens, lens)
+    # twin: the cell holding the antipodal image of the outer loop's first element
+    n_el = loop_offsets[-1]
+    code = walk.half_cell[:n_el] * 4 + walk.antipodal[:n_el] * 2 + walk.side[:n_el]
+    loop_of = np.repeat(np.arange(n_loops), np.diff(loop_offsets))
+    by_code = np.argsort(code)
+    o = at_first[outer]
+    mirror = walk.half_cell[o] * 4 + (~walk.antipodal[o]) * 2 + walk.side[o]
+    at = np.clip(np.searchsorted(code[by_code], mirror), 0, max(n_el - 1, 0))
+    found = (code[by_code][at] == mirror) if n_el else np.zeros(0, bool)
+    twin_cell = np.full(n_cells, -1)
+    twin_cell[cell[outer]] = np.where(found, cell[loop_of[by_code[at]]] if n_el else -1, -1)
+    twin_cell[n_bounded:] = np.arange(n_bounded, n_cells)  # the whole sphere is its own antipode
+    twin_cell[cell_pair[:, 1] == BLOCK_VERTEX] = -1
+    twin = np.where(twin_cell >= 0, rank[np.maximum(twin_cell, 0)], -1)[cell_order]
+    cp = cell_pair[cell_order]
+    chain = walk.take(np.arange(n_el, len(walk)))
+    chain_first = chain_offsets[:-1] - n_el
+    _, vertex_of = np.unique(cp[:, 0], return_inverse=True)
+    vertex_of = vertex_of.reshape(-1)
+    total = np.bincount(vertex_of, weights=solid[cell_order])
+    complete = (np.abs(total - FOUR_PI)[vertex_of] <= COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex)
+    return VCells(
+        vertex=cp[:, 0],
+        up_kind=cp[:, 1].astype(np.int8),
+        up=cp[:, 2],
+        down_kind=cp[:, 3].astype(np.int8),
+        down=cp[:, 4],
+        solid_angle=solid[cell_order],
+        twin=twin,
+        complete=complete,
+        loop_offsets=np.concatenate([[0], np.cumsum(count[cell_order])]).astype(np.int64),
+        turning=turning[loop_order],
+        element_offsets=np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
+        element=walk.signed[idx],
+        antipodal=walk.antipodal[idx],
+        open_offsets=(chain_offsets - n_el).astype(np.int64),
+        open_element=chain.signed,
+        open_antipodal=chain.antipodal,
+        open_vertex=chain.vertex[chain_first],
+        open_up_kind=chain.pair[chain_first, 0].astype(np.int8),
+        open_up=chain.pair[chain_first, 1],
+        open_down_kind=chain.pair[chain_first, 2].astype(np.int8),
+        open_down=chain.pair[chain_first, 3],
+    )
+
+
+# --------------------------------------------------------------------------------------
+# queries
+
+
+def stored_elements(scene, arcs, signed, antipodal):
+    """Elements of stored signed half-cell ids ((k,) int, (k,) bool), in that order."""
+    signed = np.asarray(signed, np.int64)
+    return element_geometry(scene, arcs, np.abs(signed) - 1, (signed < 0).astype(np.int64), antipodal)
+
+
+def locate(scene, arcs, vcells, vertex, directions):
+    """The V-cells of a vertex holding each direction (point location on its sphere).
+
+    Parameters
+    ----------
+    scene : Scene
+    arcs : Arcs
+    vcells : VCells
+    vertex : int
+    directions : (n, 3) float
+
+    Returns
+    -------
+    cell : (n,) int
+        The cell (index into ``vcells``) holding each direction, -1 where none
+        or several do.
+    holders : (n,) int
+        How many cells hold it (1 where the cells tile the sphere).
+    """
+    d = np.asarray(directions, dtype=np.float64)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    cells = np.flatnonzero(vcells.vertex == vertex)
+    if len(cells) == 0:
+        return np.full(len(d), -1), np.zeros(len(d), np.int64)
+    first_loop, end_loop = vcells.loop_offsets[cells[0]], vcells.loop_offsets[cells[-1] + 1]
+    nl, nd = end_loop - first_loop, len(d)
+    held = np.ones((len(cells), nd), bool)
+    if nl:
+        lo, hi = vcells.element_offsets[first_loop], vcells.element_offsets[end_loop]
+        el = stored_elements(scene, arcs, vcells.element[lo:hi], vcells.antipodal[lo:hi])
+        offsets = vcells.element_offsets[first_loop: end_loop + 1] - lo
+        ref = reference_points(el, offsets)
+        cell_of_loop = np.repeat(np.arange(len(cells)), np.diff(vcells.loop_offsets[cells[0]: cells[-1] + 2]))
+        step = max(1, LOCATE_CHUNK // nl)
+        for k in range(0, nd, step):  # bounded memory: (loop, direction) pairs per call
+            part = d[k: k + step]
+            inside = inside_loops(el, offsets, ref, np.repeat(np.arange(nl), len(part)), np.tile(part, (nl, 1)))
+            np.logical_and.at(held[:, k: k + step], cell_of_loop, inside.reshape(nl, len(part)))
+    holders = held.sum(axis=0)
+    return np.where(holders == 1, cells[np.argmax(held, axis=0)], -1), holders

@@ -13,7 +13,7 @@ import numpy as np
 
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_at_points, tangent_at_vertices
-from viscx.scene.neighbourhood import incident_faces
+from viscx.scene.neighbourhood import faces_near
 
 # Node kinds.
 E4, VEE, VV = 0, 1, 2
@@ -232,7 +232,7 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     # generators (v and e on one face, two edges of one face): seed 000 §4.1
     grazing = np.flatnonzero(degenerate)
     if len(grazing):
-        excused = _grazes_shared_face(scene, cand, gid, is_vertex, oc, dc, grazing)
+        excused = _grazes_shared_face(scene, cand, point, oc, dc, grazing)
         degenerate[grazing[excused]] = False
     np.logical_and.at(keep, cand, ~degenerate)
     for j in range(1, 3):  # inner generators must be passed
@@ -314,12 +314,19 @@ def vertex_ray_blockers(scene, vertices, directions):
     return up_kind, up, down_kind, front, degenerate
 
 
-def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, rows, angle_tol=1e-9):
+def _grazes_shared_face(scene, cand, point, origins, directions, rows, angle_tol=1e-9):
     """For each generator row in ``rows``, whether its line lies in the plane of a
-    face that holds this generator and another generator of the same candidate.
+    face that touches this generator's point and another generator point of the
+    same candidate.
 
-    cand, gid, is_vertex : (k,) int, int, bool
-        Candidate, generator id and kind of every generator row.
+    Contacts are geometric (within the weld tolerance), as in tangency
+    (:mod:`viscx.scene.neighbourhood`): a block's bottom edge lying on a floor
+    is on the floor's face although no half-edge joins them.
+
+    cand : (k,) int
+        Candidate of every generator row.
+    point : (k, 3) float
+        Where each row's line meets its generator.
     origins, directions : (k, 3) float
     rows : (r,) int
         The rows to judge.
@@ -328,26 +335,11 @@ def _grazes_shared_face(scene, cand, gid, is_vertex, origins, directions, rows, 
     -------
     (r,) bool
     """
-    vo, vf, eo, ef = incident_faces(scene)
-
-    def faces_of(r):
-        """(position in r, face) for every face incident to the generator of rows r."""
-        v = is_vertex[r]
-        offsets, counts = np.empty(len(r), np.int64), np.empty(len(r), np.int64)
-        offsets[v], counts[v] = vo[gid[r[v]]], vo[gid[r[v]] + 1] - vo[gid[r[v]]]
-        offsets[~v], counts[~v] = eo[gid[r[~v]]], eo[gid[r[~v]] + 1] - eo[gid[r[~v]]]
-        pos = np.repeat(np.arange(len(r)), counts)
-        at = np.repeat(offsets, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-        face = np.empty(len(pos), np.int64)
-        pv = v[pos]
-        face[pv], face[~pv] = vf[at[pv]], ef[at[~pv]]
-        return pos, face
-
     # a face is shared when another generator row of the candidate touches it too
     # (the row itself is among its candidate's rows, hence "at least two")
-    pos, face = faces_of(rows)
+    pos, face = faces_near(scene, point[rows], scene.weld_tolerance)
     siblings = np.flatnonzero(np.isin(cand, cand[rows]))
-    sib_pos, sib_face = faces_of(siblings)
+    sib_pos, sib_face = faces_near(scene, point[siblings], scene.weld_tolerance)
     key_other = np.sort(cand[siblings[sib_pos]] * scene.n_faces + sib_face)
     key_here = cand[rows[pos]] * scene.n_faces + face
     shared = np.searchsorted(key_other, key_here, "right") - np.searchsorted(key_other, key_here, "left") >= 2

@@ -168,8 +168,9 @@ def _first_hits(origins, directions, tmin, tmax, vertices, triangles, lo, hi, ce
 @njit(cache=True)
 def _near_counts(points, tol, vertices, triangles, lo, cell, dims, offsets, items, out_point, out_tri, fill):
     """Pairs (point, triangle) with the point within ``tol`` of the closed triangle
-    (plane distance and barycentric slack); fills the out arrays when given room."""
+    (Euclidean distance); fills the out arrays when given room."""
     k = 0
+    tol2 = tol * tol
     for r in range(points.shape[0]):
         p = points[r]
         a0 = np.empty(3, dtype=np.int64)
@@ -184,7 +185,8 @@ def _near_counts(points, tol, vertices, triangles, lo, cell, dims, offsets, item
                     c = (x * dims[1] + y) * dims[2] + z
                     for j in range(offsets[c], offsets[c + 1]):
                         tri = items[j]
-                        if _point_near_triangle(p, vertices, triangles, tri, tol):
+                        t = triangles[tri]
+                        if _point_triangle_dist2(p, vertices[t[0]], vertices[t[1]], vertices[t[2]]) <= tol2:
                             duplicate = False
                             for q in range(seen_start, k):
                                 if fill and out_tri[q] == tri:
@@ -200,30 +202,126 @@ def _near_counts(points, tol, vertices, triangles, lo, cell, dims, offsets, item
 
 
 @njit(cache=True)
-def _point_near_triangle(p, vertices, triangles, tri, tol):
-    a = vertices[triangles[tri, 0]]
-    b = vertices[triangles[tri, 1]]
-    c = vertices[triangles[tri, 2]]
-    e1 = b - a
-    e2 = c - a
-    n = np.array([e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]])
-    nn = np.sqrt((n * n).sum())
-    if nn == 0.0:
-        return False
-    w = p - a
-    if abs((w * n).sum()) / nn > tol:
-        return False
-    # barycentric coordinates of the projection, with slack tol / (edge length) per edge
-    d00 = (e1 * e1).sum()
-    d01 = (e1 * e2).sum()
-    d11 = (e2 * e2).sum()
-    d20 = (w * e1).sum()
-    d21 = (w * e2).sum()
-    den = d00 * d11 - d01 * d01
-    v = (d11 * d20 - d01 * d21) / den
-    u = (d00 * d21 - d01 * d20) / den
-    slack = tol * np.sqrt(nn * nn) / nn / np.sqrt(max(d00, d11))
-    return v >= -slack and u >= -slack and u + v <= 1.0 + slack
+def _segments_near_counts(starts, ends, tol, vertices, triangles, lo, cell, dims, offsets, items, out_seg, out_tri, fill):
+    """Pairs (segment, triangle) within ``tol`` of each other (Euclidean distance between
+    the closed sets); fills the out arrays when given room. Every cell of a segment's
+    bounding box (grown by tol) is searched: fine for the short edges of a scene."""
+    k = 0
+    tol2 = tol * tol
+    stamp = np.full(triangles.shape[0], -1, dtype=np.int64)
+    for r in range(starts.shape[0]):
+        p0, p1 = starts[r], ends[r]
+        a0 = np.empty(3, dtype=np.int64)
+        a1 = np.empty(3, dtype=np.int64)
+        for d in range(3):
+            a0[d] = cell_of(min(p0[d], p1[d]) - tol, lo[d], cell[d], dims[d])
+            a1[d] = cell_of(max(p0[d], p1[d]) + tol, lo[d], cell[d], dims[d])
+        for x in range(a0[0], a1[0] + 1):
+            for y in range(a0[1], a1[1] + 1):
+                for z in range(a0[2], a1[2] + 1):
+                    c = (x * dims[1] + y) * dims[2] + z
+                    for j in range(offsets[c], offsets[c + 1]):
+                        tri = items[j]
+                        if stamp[tri] == r:
+                            continue
+                        stamp[tri] = r
+                        t = triangles[tri]
+                        if _segment_triangle_dist2(p0, p1, vertices[t[0]], vertices[t[1]], vertices[t[2]]) <= tol2:
+                            if fill:
+                                out_seg[k] = r
+                                out_tri[k] = tri
+                            k += 1
+    return k
+
+
+@njit(cache=True)
+def _point_triangle_dist2(p, a, b, c):
+    """Squared distance from p to the closed triangle abc: the closest point lies in the
+    Voronoi region of a vertex, of an edge or of the face (Ericson, Real-Time Collision
+    Detection §5.1.5), told apart by the signs of dot products. Scalar code: this runs
+    for every (point, nearby triangle) pair."""
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    apx, apy, apz = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:  # vertex a
+        return apx * apx + apy * apy + apz * apz
+    bpx, bpy, bpz = p[0] - b[0], p[1] - b[1], p[2] - b[2]
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:  # vertex b
+        return bpx * bpx + bpy * bpy + bpz * bpz
+    cpx, cpy, cpz = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:  # vertex c
+        return cpx * cpx + cpy * cpy + cpz * cpz
+    vc = d1 * d4 - d3 * d2
+    vb = d5 * d2 - d1 * d6
+    va = d3 * d6 - d5 * d4
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:  # edge ab
+        u, v = d1 / (d1 - d3), 0.0
+    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:  # edge ac
+        u, v = 0.0, d2 / (d2 - d6)
+    elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:  # edge bc
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        u, v = 1.0 - w, w
+    else:  # the face
+        den = va + vb + vc
+        if den <= 0.0:  # a degenerate triangle: its closest point is on an edge, found above
+            return np.inf
+        u, v = vb / den, vc / den
+    dx = apx - u * abx - v * acx
+    dy = apy - u * aby - v * acy
+    dz = apz - u * abz - v * acz
+    return dx * dx + dy * dy + dz * dz
+
+
+@njit(cache=True)
+def _segment_segment_dist2(p0, p1, q0, q1):
+    """Squared distance between the closed segments p0p1 and q0q1: minimise
+    |p0 + s u - q0 - t v|² over [0, 1]², clamping s, then t, then s again."""
+    u, v, w = p1 - p0, q1 - q0, p0 - q0
+    a, e, f = (u * u).sum(), (v * v).sum(), (v * w).sum()
+    if a <= 0.0 and e <= 0.0:
+        return (w * w).sum()
+    if a <= 0.0:
+        s, t = 0.0, min(max(f / e, 0.0), 1.0)
+    else:
+        c = (u * w).sum()
+        if e <= 0.0:
+            s, t = min(max(-c / a, 0.0), 1.0), 0.0
+        else:
+            b = (u * v).sum()
+            den = a * e - b * b
+            s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 0.0 else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                s, t = min(max(-c / a, 0.0), 1.0), 0.0
+            elif t > 1.0:
+                s, t = min(max((b - c) / a, 0.0), 1.0), 1.0
+    d = p0 + s * u - q0 - t * v
+    return (d * d).sum()
+
+
+@njit(cache=True)
+def _segment_triangle_dist2(p0, p1, a, b, c):
+    """Squared distance between the closed segment p0p1 and the closed triangle abc.
+
+    A closest pair is the segment's crossing of the triangle's plane (distance
+    zero if inside), or has its segment point at an end, or its triangle point on
+    an edge (an interior pair at a positive distance is not stationary unless the
+    segment is parallel, when an end does as well)."""
+    best = min(_point_triangle_dist2(p0, a, b, c), _point_triangle_dist2(p1, a, b, c))
+    n = np.cross(b - a, c - a)
+    s0, s1 = (n * (p0 - a)).sum(), (n * (p1 - a)).sum()
+    if (s0 <= 0.0 <= s1 or s1 <= 0.0 <= s0) and s0 != s1:
+        # where the segment crosses the plane (a candidate, exact up to rounding)
+        best = min(best, _point_triangle_dist2(p0 + (s0 / (s0 - s1)) * (p1 - p0), a, b, c))
+    best = min(best, _segment_segment_dist2(p0, p1, a, b))
+    best = min(best, _segment_segment_dist2(p0, p1, b, c))
+    return min(best, _segment_segment_dist2(p0, p1, c, a))
 
 
 class TriangleGrid:
@@ -305,3 +403,27 @@ class TriangleGrid:
         tri = np.empty(upper, dtype=np.int64)
         k = _near_counts(*args, point, tri, True)
         return point[:k], tri[:k]
+
+    def triangles_near_segments(self, starts, ends, tol):
+        """Every (segment, triangle) pair within ``tol`` of each other.
+
+        Parameters
+        ----------
+        starts, ends : (n, 3) float
+        tol : float
+
+        Returns
+        -------
+        segment : (k,) int
+        triangle : (k,) int
+            Sorted by segment; no repeated pair.
+        """
+        starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 3)
+        ends = np.ascontiguousarray(ends, dtype=np.float64).reshape(-1, 3)
+        args = (starts, ends, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims, self.offsets,
+                self.items)
+        upper = _segments_near_counts(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
+        segment = np.empty(upper, dtype=np.int64)
+        tri = np.empty(upper, dtype=np.int64)
+        _segments_near_counts(*args, segment, tri, True)
+        return segment, tri

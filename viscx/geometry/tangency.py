@@ -28,61 +28,89 @@ decide what grazing means (docs/skeleton.md).
 import numpy as np
 from numba import njit
 
-from viscx.scene.neighbourhood import surface_wedges
+from viscx.scene.neighbourhood import surface_wedges, take_wedges
 
 TWO_PI = 2 * np.pi
 
 
 @njit(cache=True)
+def _angle_about(x0, x1, x2, e1, e2):
+    """Angle of x in the plane spanned by the orthonormal e1, e2."""
+    return np.arctan2(x0 * e2[0] + x1 * e2[1] + x2 * e2[2], x0 * e1[0] + x1 * e1[1] + x2 * e1[2])
+
+
+@njit(cache=True)
 def _separation(offsets, first, normal, span, directions, angle_tol):
+    """Scalar code with buffers allocated once: it runs for every sample of every family."""
     q = directions.shape[0]
     blocked = np.zeros(q, dtype=np.bool_)
     degenerate = np.zeros(q, dtype=np.bool_)
+    most = 0
     for i in range(q):
-        d = directions[i] / np.sqrt((directions[i] ** 2).sum())
-        helper = np.zeros(3)
-        helper[np.argmin(np.abs(d))] = 1.0
-        e1 = np.cross(d, helper)
-        e1 /= np.sqrt((e1 ** 2).sum())
-        e2 = np.cross(d, e1)
-        k0, k1 = offsets[i], offsets[i + 1]
-        starts = np.empty(k1 - k0)
-        lengths = np.empty(k1 - k0)
+        most = max(most, offsets[i + 1] - offsets[i])
+    starts = np.empty(2 * most)
+    lengths = np.empty(2 * most)
+    e1 = np.empty(3)
+    e2 = np.empty(3)
+    for i in range(q):
+        norm = np.sqrt(directions[i, 0] ** 2 + directions[i, 1] ** 2 + directions[i, 2] ** 2)
+        dx, dy, dz = directions[i, 0] / norm, directions[i, 1] / norm, directions[i, 2] / norm
+        # e1 = d × (the axis d is least aligned with), e2 = d × e1
+        ax, ay, az = abs(dx), abs(dy), abs(dz)
+        if ax <= ay and ax <= az:
+            e1[0], e1[1], e1[2] = 0.0, dz, -dy
+        elif ay <= az:
+            e1[0], e1[1], e1[2] = -dz, 0.0, dx
+        else:
+            e1[0], e1[1], e1[2] = dy, -dx, 0.0
+        en = np.sqrt(e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2)
+        e1[0], e1[1], e1[2] = e1[0] / en, e1[1] / en, e1[2] / en
+        e2[0], e2[1], e2[2] = dy * e1[2] - dz * e1[1], dz * e1[0] - dx * e1[2], dx * e1[1] - dy * e1[0]
         m = 0
         full = False
-        for k in range(k0, k1):
-            n = normal[k]
-            a = first[k]
+        for k in range(offsets[i], offsets[i + 1]):
+            nx, ny, nz = normal[k, 0], normal[k, 1], normal[k, 2]
+            a0, a1, a2 = first[k, 0], first[k, 1], first[k, 2]
             sp = span[k]
-            nxa = np.cross(n, a)
-            c = (n * d).sum()
+            # n × a: the wedge's plane is spanned by a and n × a
+            m0, m1, m2 = ny * a2 - nz * a1, nz * a0 - nx * a2, nx * a1 - ny * a0
+            c = nx * dx + ny * dy + nz * dz
             whole = sp >= TWO_PI - 1e-12
-            b = np.cos(sp) * a + np.sin(sp) * nxa
+            cs, sn = np.cos(sp), np.sin(sp)
+            b0, b1, b2 = cs * a0 + sn * m0, cs * a1 + sn * m1, cs * a2 + sn * m2
             if not whole:
                 # the line runs along one of the wedge's edges
-                if np.sqrt((np.cross(a, d) ** 2).sum()) <= angle_tol or np.sqrt((np.cross(b, d) ** 2).sum()) <= angle_tol:
+                xa = (a1 * dz - a2 * dy) ** 2 + (a2 * dx - a0 * dz) ** 2 + (a0 * dy - a1 * dx) ** 2
+                xb = (b1 * dz - b2 * dy) ** 2 + (b2 * dx - b0 * dz) ** 2 + (b0 * dy - b1 * dx) ** 2
+                if np.sqrt(xa) <= angle_tol or np.sqrt(xb) <= angle_tol:
                     degenerate[i] = True
             if abs(c) <= angle_tol:
                 # d lies in the face's plane: the line lies on the face if ±d is in the wedge
+                dm = dx * m0 + dy * m1 + dz * m2
+                da = dx * a0 + dy * a1 + dz * a2
                 for sign in (1.0, -1.0):
-                    ang = np.arctan2(sign * (d * nxa).sum(), sign * (d * a).sum()) % TWO_PI
+                    ang = np.arctan2(sign * dm, sign * da) % TWO_PI
                     if whole or ang <= sp + angle_tol or ang >= TWO_PI - angle_tol:
                         degenerate[i] = True
                 continue
             if whole:
                 full = True
                 continue
-            ta = np.arctan2((a * e2).sum(), (a * e1).sum())
-            tb = np.arctan2((b * e2).sum(), (b * e1).sum())
+            ta = _angle_about(a0, a1, a2, e1, e2)
+            tb = _angle_about(b0, b1, b2, e1, e2)
             # the projection along d keeps the wedge's orientation iff n · d > 0
             if c > 0:
-                starts[m] = ta % TWO_PI
-                lengths[m] = (tb - ta) % TWO_PI
+                st, ln = ta % TWO_PI, (tb - ta) % TWO_PI
             else:
-                starts[m] = tb % TWO_PI
-                lengths[m] = (ta - tb) % TWO_PI
-            if sp > np.pi and lengths[m] <= np.pi:  # rounding at a reflex wedge
-                lengths[m] = TWO_PI - lengths[m]
+                st, ln = tb % TWO_PI, (ta - tb) % TWO_PI
+            if sp > np.pi and ln <= np.pi:  # rounding at a reflex wedge
+                ln = TWO_PI - ln
+            # insertion by start (few wedges per point)
+            j = m
+            while j > 0 and starts[j - 1] > st:
+                starts[j], lengths[j] = starts[j - 1], lengths[j - 1]
+                j -= 1
+            starts[j], lengths[j] = st, ln
             m += 1
         if full:
             blocked[i] = True
@@ -90,26 +118,24 @@ def _separation(offsets, first, normal, span, directions, angle_tol):
         if m == 0:
             continue
         # do the intervals cover the circle? sweep from the smallest start, with copies shifted by 2π
-        order = np.argsort(starts[:m])
-        s = np.concatenate((starts[:m][order], starts[:m][order] + TWO_PI))
-        ln = np.concatenate((lengths[:m][order], lengths[:m][order]))
-        reach = s[0] + ln[0]
+        for j in range(m):
+            starts[m + j], lengths[m + j] = starts[j] + TWO_PI, lengths[j]
+        reach = starts[0] + lengths[0]
         for j in range(1, 2 * m):
-            if s[j] > reach + angle_tol:
+            if starts[j] > reach + angle_tol:
                 break
-            reach = max(reach, s[j] + ln[j])
-        blocked[i] = reach >= s[0] + TWO_PI - angle_tol
+            reach = max(reach, starts[j] + lengths[j])
+        blocked[i] = reach >= starts[0] + TWO_PI - angle_tol
     return blocked, degenerate
 
 
-def tangent_at_points(scene, points, directions, angle_tol=1e-9):
-    """Whether the line through each point along each direction passes there.
+def tangent_in_wedges(wedges, directions, angle_tol=1e-9):
+    """Whether the line along each direction passes the surface given by its wedges.
 
     Parameters
     ----------
-    scene : Scene
-    points : (q, 3) float
-        Points of the surface (vertices, points of edges).
+    wedges : Wedges
+        The surface around each query point (:mod:`viscx.scene.neighbourhood`).
     directions : (q, 3) float
 
     Returns
@@ -120,36 +146,36 @@ def tangent_at_points(scene, points, directions, angle_tol=1e-9):
     degenerate : (q,) bool
         The line lies on a face touching the point, or along an edge there.
     """
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
-    w = surface_wedges(scene, points)
     blocked, degenerate = _separation(
-        w.offsets, np.ascontiguousarray(w.first), np.ascontiguousarray(w.normal), w.span, directions, angle_tol
+        wedges.offsets, np.ascontiguousarray(wedges.first), np.ascontiguousarray(wedges.normal), wedges.span,
+        directions, angle_tol,
     )
     return ~blocked, degenerate
 
 
+def tangent_at_points(scene, points, directions, angle_tol=1e-9):
+    """:func:`tangent_in_wedges` at any points of the surface (vertices, points of edges),
+    their wedges searched geometrically.
+
+    Parameters
+    ----------
+    scene : Scene
+    points : (q, 3) float
+    directions : (q, 3) float
+    """
+    return tangent_in_wedges(surface_wedges(scene, points), directions, angle_tol)
+
+
 def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
-    """:func:`tangent_at_points` at vertices; the wedges of a vertex repeated in the
-    queries are found once.
+    """:func:`tangent_in_wedges` at vertices (their wedges are cached per scene).
 
     Parameters
     ----------
     vertices : (q,) int
     directions : (q, 3) float
     """
-    unique, which = np.unique(np.asarray(vertices, dtype=np.int64), return_inverse=True)
-    which = which.reshape(-1)
-    w = surface_wedges(scene, scene.vertices[unique])
-    count = np.diff(w.offsets)[which]
-    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-    rows = np.repeat(w.offsets[which], count) + np.arange(offsets[-1]) - np.repeat(offsets[:-1], count)
-    directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
-    blocked, degenerate = _separation(
-        offsets, np.ascontiguousarray(w.first[rows]), np.ascontiguousarray(w.normal[rows]), w.span[rows], directions,
-        angle_tol,
-    )
-    return ~blocked, degenerate
+    return tangent_in_wedges(take_wedges(scene.contacts.vertex, vertices), directions, angle_tol)
 
 
 def tangent_at_edges(scene, edges, directions, points=None, angle_tol=1e-9):

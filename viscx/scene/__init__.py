@@ -92,6 +92,7 @@ class Scene:
     source: str = ""
     sha256: str = ""
     _caster: object = field(default=None, repr=False, compare=False)
+    _contacts: object = field(default=None, repr=False, compare=False)
 
     @property
     def n_vertices(self):
@@ -141,6 +142,15 @@ class Scene:
 
             self._caster = RayCaster(self.vertices, self.triangles, self.triangle_face, epsilon=self.epsilon)
         return self._caster
+
+    @property
+    def contacts(self):
+        """The :class:`viscx.scene.neighbourhood.GeneratorContacts` of this scene (built on first use)."""
+        if self._contacts is None:
+            from viscx.scene.neighbourhood import generator_contacts
+
+            self._contacts = generator_contacts(self)
+        return self._contacts
 
 
 def _relative(value, diagonal, name):

@@ -10,11 +10,18 @@ wall's edge (a T-junction).
 A wedge is given by its first ray ``a`` (unit, in the face's plane), its face's
 unit normal ``n`` and its angle ``span``: it sweeps counter-clockwise about n
 from a by span (2π for the whole plane).
+
+Generators are asked about again and again (every sample of every arc family),
+so :class:`GeneratorContacts` finds the wedges once per scene: at every vertex,
+and along every edge that no foreign face comes near (its wedges are then its
+own faces' half-planes at every inner point). Only points of the other edges
+(a block's bottom edge on a floor) are searched geometrically each time.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 
 @dataclass
@@ -64,10 +71,83 @@ def incident_faces(scene):
 def faces_near(scene, points, tol):
     """(point, face) pairs with the point within ``tol`` of the closed face, sorted."""
     point, tri = scene.ray_caster.exact.triangles_near(points, tol)
-    if len(point) == 0:
-        return point, point.copy()
-    pairs = np.unique(np.stack([point, scene.triangle_face[tri]], axis=1), axis=0)
-    return pairs[:, 0], pairs[:, 1]
+    return _unique_faces(point, scene.triangle_face[tri])
+
+
+@njit(cache=True)
+def _unique_faces(point, face):
+    """The distinct (point, face) pairs of (point, face) pairs sorted by point, sorted by
+    face within each point (runs are short: a few faces touch a point)."""
+    out_point = np.empty(len(point), dtype=np.int64)
+    out_face = np.empty(len(point), dtype=np.int64)
+    k = 0
+    i = 0
+    while i < len(point):
+        j = i
+        run = k
+        while j < len(point) and point[j] == point[i]:
+            f = face[j]
+            # insert f into the sorted run unless present
+            q = k
+            while q > run and out_face[q - 1] > f:
+                q -= 1
+            if not (q > run and out_face[q - 1] == f):
+                for r in range(k, q, -1):
+                    out_face[r] = out_face[r - 1]
+                out_face[q] = f
+                out_point[k] = point[i]
+                k += 1
+            j += 1
+        i = j
+    return out_point[:k], out_face[:k]
+
+
+@njit(cache=True)
+def _classify(points, owner, face, half_first, half_last, start, end, prev, nxt, vertices, normal, tol):
+    """The wedge each face makes at its point: a whole plane (the point is inside it), a
+    corner (at one of its vertices) or a half-plane (on one of its edges), judged by the
+    face's nearest boundary half-edge (the first of equally near ones)."""
+    k = len(face)
+    first = np.empty((k, 3))
+    span = np.empty(k)
+    for i in range(k):
+        p = points[owner[i]]
+        f = face[i]
+        best, best_d, best_s, best_len = -1, np.inf, 0.0, 0.0
+        for h in range(half_first[f], half_last[f]):
+            a, b = vertices[start[h]], vertices[end[h]]
+            ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+            ll = ab0 * ab0 + ab1 * ab1 + ab2 * ab2
+            s = ((p[0] - a[0]) * ab0 + (p[1] - a[1]) * ab1 + (p[2] - a[2]) * ab2) / ll
+            s = min(max(s, 0.0), 1.0)
+            dist = np.sqrt((p[0] - a[0] - s * ab0) ** 2 + (p[1] - a[1] - s * ab1) ** 2 + (p[2] - a[2] - s * ab2) ** 2)
+            if dist < best_d:
+                best, best_d, best_s, best_len = h, dist, s, np.sqrt(ll)
+        n = normal[f]
+        if best_d > tol:  # inside the face: the whole plane, any first ray in it
+            m = np.argmin(np.abs(n))
+            u = np.zeros(3)
+            u[m] = 1.0
+            r = np.cross(n, u)
+            first[i] = r / np.sqrt((r * r).sum())
+            span[i] = 2 * np.pi
+            continue
+        at_start = best_s * best_len <= tol
+        at_end = not at_start and (1 - best_s) * best_len <= tol
+        if at_start or at_end:  # a corner: between the edge leaving it and the one arriving
+            ch = nxt[best] if at_end else best
+            o = vertices[start[ch]]
+            leave = vertices[end[ch]] - o
+            leave /= np.sqrt((leave * leave).sum())
+            arrive = vertices[start[prev[ch]]] - o
+            arrive /= np.sqrt((arrive * arrive).sum())
+            first[i] = leave
+            span[i] = np.arctan2((arrive * np.cross(n, leave)).sum(), (arrive * leave).sum()) % (2 * np.pi)
+        else:  # on an edge: the half-plane on the face's side (faces lie left of their half-edges)
+            ab = vertices[end[best]] - vertices[start[best]]
+            first[i] = ab / np.sqrt((ab * ab).sum())
+            span[i] = np.pi
+    return first, span
 
 
 def _unit(v):
@@ -86,50 +166,141 @@ def surface_wedges(scene, points):
     -------
     Wedges
     """
-    tol = scene.weld_tolerance
     he = scene.half_edges
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    owner, face = faces_near(scene, points, tol)
-    # the nearest boundary half-edge of each face to its point
-    first = scene.loop_offsets[scene.face_loop_offsets[face]]
-    last = scene.loop_offsets[scene.face_loop_offsets[face + 1]]
-    counts = last - first
-    pair = np.repeat(np.arange(len(face)), counts)
-    h = np.repeat(first, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    a, b = scene.vertices[he.start[h]], scene.vertices[he.end[h]]
-    p = points[owner[pair]]
-    ab = b - a
-    s = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-    dist = np.linalg.norm(p - a - s[:, None] * ab, axis=1)
-    order = np.lexsort((dist, pair))
-    best = order[np.searchsorted(pair[order], np.arange(len(face)))] if len(face) else order
-    h_best, s_best, d_best = h[best], s[best], dist[best]
-    length = np.linalg.norm(ab[best], axis=1)
-
-    n = scene.face_normal[face]
-    first_ray = np.empty((len(face), 3))
-    span = np.empty(len(face))
-    # inside the face: the whole plane
-    inside = d_best > tol
-    u = np.cross(n[inside], np.eye(3)[np.argmin(np.abs(n[inside]), axis=1)])
-    first_ray[inside] = _unit(u) if len(u) else u
-    span[inside] = 2 * np.pi
-    # at a corner: between the edge leaving it and the one arriving (reversed)
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    owner, face = faces_near(scene, points, scene.weld_tolerance)
     prev = np.empty_like(he.next)
     prev[he.next] = np.arange(len(he.next))
-    at_start = ~inside & (s_best * length <= tol)
-    at_end = ~inside & ~at_start & ((1 - s_best) * length <= tol)
-    corner_h = np.where(at_end, he.next[h_best], h_best)
-    corner = at_start | at_end
-    ch = corner_h[corner]
-    leave = _unit(scene.vertices[he.end[ch]] - scene.vertices[he.start[ch]])
-    arrive = _unit(scene.vertices[he.start[prev[ch]]] - scene.vertices[he.start[ch]])
-    nc = n[corner]
-    first_ray[corner] = leave
-    span[corner] = np.arctan2(np.einsum("ij,ij->i", arrive, np.cross(nc, leave)), np.einsum("ij,ij->i", arrive, leave)) % (2 * np.pi)
-    # on an edge: the half-plane on the face's side (faces lie left of their half-edges)
-    edge = ~inside & ~corner
-    first_ray[edge] = _unit(ab[best][edge])
-    span[edge] = np.pi
+    # a face's half-edges are contiguous, loop after loop
+    first_ray, span = _classify(
+        points, owner, face, scene.loop_offsets[scene.face_loop_offsets[:-1]], scene.loop_offsets[scene.face_loop_offsets[1:]],
+        he.start, he.end, prev, he.next, scene.vertices, scene.face_normal, scene.weld_tolerance,
+    )
+    n = scene.face_normal[face]
     offsets = np.searchsorted(owner, np.arange(len(points) + 1))
     return Wedges(offsets=offsets, face=face, first=first_ray, normal=n, span=span)
+
+
+def take_wedges(w, index):
+    """The wedges of the query points ``index`` of ``w``, as a new CSR list.
+
+    Parameters
+    ----------
+    w : Wedges
+    index : (m,) int
+    """
+    index = np.asarray(index, dtype=np.int64)
+    count = w.offsets[index + 1] - w.offsets[index]
+    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    rows = np.repeat(w.offsets[index], count) + np.arange(offsets[-1]) - np.repeat(offsets[:-1], count)
+    return Wedges(offsets=offsets, face=w.face[rows], first=w.first[rows], normal=w.normal[rows], span=w.span[rows])
+
+
+def merge_wedges(n, parts):
+    """One CSR list over n query points from parts ``(rows, wedges)`` that together
+    cover every point once (``rows`` : (m,) int, the points of ``wedges``, in its order)."""
+    count = np.zeros(n, dtype=np.int64)
+    for rows, w in parts:
+        count[rows] = np.diff(w.offsets)
+    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    k = offsets[-1]
+    face, first, normal, span = np.empty(k, np.int64), np.empty((k, 3)), np.empty((k, 3)), np.empty(k)
+    for rows, w in parts:
+        c = np.diff(w.offsets)
+        dest = np.repeat(offsets[rows], c) + np.arange(w.offsets[-1]) - np.repeat(w.offsets[:-1], c)
+        face[dest], first[dest], normal[dest], span[dest] = w.face, w.first, w.normal, w.span
+    return Wedges(offsets=offsets, face=face, first=first, normal=normal, span=span)
+
+
+@dataclass
+class GeneratorContacts:
+    """The surface around every vertex and along every edge, found once per scene.
+
+    Attributes
+    ----------
+    vertex : Wedges
+        The wedges at each vertex (query point i = vertex i).
+    edge : Wedges
+        The half-planes of each edge's faces (query point i = edge i): first ray
+        along the face's half-edge, span π.
+    edge_clean : (e,) bool
+        No face other than the edge's own comes within the weld tolerance of the
+        edge shortened by ``shrink`` at both ends: there ``edge`` holds the wedges
+        of every inner point.
+    shrink : float
+    """
+
+    vertex: Wedges
+    edge: Wedges
+    edge_clean: np.ndarray
+    shrink: float
+
+
+def generator_contacts(scene):
+    """Build :class:`GeneratorContacts` (use ``scene.contacts``, which caches it)."""
+    he = scene.half_edges
+    n_edges = len(he.edge_vertices)
+    vertex = surface_wedges(scene, scene.vertices)
+
+    # half-planes of the faces along each edge (faces lie left of their half-edges)
+    order = np.lexsort((he.face, he.edge))
+    h = order
+    a, b = scene.vertices[he.start[h]], scene.vertices[he.end[h]]
+    edge = Wedges(
+        offsets=np.searchsorted(he.edge[h], np.arange(n_edges + 1)),
+        face=he.face[h],
+        first=_unit(b - a),
+        normal=scene.face_normal[he.face[h]],
+        span=np.full(len(h), np.pi),
+    )
+
+    # an edge is clean when the faces near its shortened segment are its own, each once
+    shrink = scene.epsilon
+    ev = he.edge_vertices
+    p, q = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+    length = np.linalg.norm(q - p, axis=1)
+    u = (q - p) / np.maximum(length, 1e-300)[:, None]
+    clean = length > 2 * shrink
+    own_key = he.edge[h] * scene.n_faces + he.face[h]
+    clean &= np.bincount(he.edge[h][1:][own_key[1:] == own_key[:-1]], minlength=n_edges) == 0
+    seg, tri = scene.ray_caster.exact.triangles_near_segments(p + shrink * u, q - shrink * u, scene.weld_tolerance)
+    key = seg * scene.n_faces + scene.triangle_face[tri]
+    foreign = ~np.isin(key, own_key)
+    clean[seg[foreign]] = False
+    return GeneratorContacts(vertex=vertex, edge=edge, edge_clean=clean, shrink=shrink)
+
+
+def generator_wedges(scene, is_vertex, generator, points):
+    """The wedges at points of generators: cached at vertices and inside clean edges,
+    searched geometrically elsewhere (:func:`surface_wedges`).
+
+    Parameters
+    ----------
+    scene : Scene
+    is_vertex : (q,) bool
+    generator : (q,) int
+        Vertex or edge id.
+    points : (q, 3) float
+        The vertex, or a point of the edge.
+
+    Returns
+    -------
+    Wedges
+    """
+    c = scene.contacts
+    is_vertex = np.asarray(is_vertex, dtype=bool)
+    generator = np.asarray(generator, dtype=np.int64)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    iv = np.flatnonzero(is_vertex)
+    ie = np.flatnonzero(~is_vertex)
+    ev = scene.half_edges.edge_vertices[generator[ie]]
+    a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+    # distance of the point from both ends, along the edge
+    along = np.einsum("ij,ij->i", points[ie] - a, _unit(b - a))
+    inner = (along >= c.shrink) & (along <= np.linalg.norm(b - a, axis=1) - c.shrink)
+    cached = inner & c.edge_clean[generator[ie]]
+    ic, ig = ie[cached], ie[~cached]
+    parts = [(iv, take_wedges(c.vertex, generator[iv])), (ic, take_wedges(c.edge, generator[ic]))]
+    if len(ig):
+        parts.append((ig, surface_wedges(scene, points[ig])))
+    return merge_wedges(len(points), parts)

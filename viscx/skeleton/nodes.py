@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.lines import segment_parameter
-from viscx.geometry.tangency import tangent_at_points, tangent_at_vertices
-from viscx.scene.neighbourhood import faces_near
+from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
+from viscx.scene.neighbourhood import generator_wedges
 
 # Node kinds.
 E4, VEE, VV = 0, 1, 2
@@ -196,7 +196,7 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     point[ie] = a + np.nan_to_num(x)[:, None] * (b - a)
 
     keep = np.ones(m, dtype=bool)
-    np.logical_and.at(keep, cand, ok)
+    keep &= _all_of(cand, ok, m)
 
     # generators sorted along the line
     t = np.full((m, 4), np.inf)
@@ -223,18 +223,19 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     piece_cand = np.concatenate(piece_cand)
     if len(piece_cand):
         free = scene.ray_caster.free_segments(np.concatenate(pieces_a), np.concatenate(pieces_b))
-        np.logical_and.at(keep, piece_cand, free)
+        keep &= _all_of(piece_cand, free, m)
 
     # ... then tangency, the costly test, on the lines still standing
     rows = np.flatnonzero(keep[cand])
-    tangent[rows], degenerate[rows] = tangent_at_points(scene, point[rows], dc[rows])
+    wedges = generator_wedges(scene, is_vertex[rows], gid[rows], point[rows])
+    tangent[rows], degenerate[rows] = tangent_in_wedges(wedges, dc[rows])
     # grazing is the rule, not a degeneracy, at a face holding two of the node's
     # generators (v and e on one face, two edges of one face): seed 000 §4.1
-    grazing = np.flatnonzero(degenerate)
+    grazing = np.flatnonzero(degenerate[rows])
     if len(grazing):
-        excused = _grazes_shared_face(scene, cand, point, oc, dc, grazing)
-        degenerate[grazing[excused]] = False
-    np.logical_and.at(keep, cand, ~degenerate)
+        excused = _grazes_shared_face(scene, cand[rows], wedges, oc[rows], dc[rows], grazing)
+        degenerate[rows[grazing[excused]]] = False
+    keep &= _all_of(cand, ~degenerate, m)
     for j in range(1, 3):  # inner generators must be passed
         inner = j < count - 1
         r = np.where(inner, row_sorted[:, j], 0)
@@ -314,19 +315,19 @@ def vertex_ray_blockers(scene, vertices, directions):
     return up_kind, up, down_kind, front, degenerate
 
 
-def _grazes_shared_face(scene, cand, point, origins, directions, rows, angle_tol=1e-9):
+def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=1e-9):
     """For each generator row in ``rows``, whether its line lies in the plane of a
     face that touches this generator's point and another generator point of the
     same candidate.
 
-    Contacts are geometric (within the weld tolerance), as in tangency
-    (:mod:`viscx.scene.neighbourhood`): a block's bottom edge lying on a floor
-    is on the floor's face although no half-edge joins them.
+    Contacts are the geometric ones tangency uses (``wedges``): a block's bottom
+    edge lying on a floor is on the floor's face although no half-edge joins them.
 
     cand : (k,) int
-        Candidate of every generator row.
-    point : (k, 3) float
-        Where each row's line meets its generator.
+        Candidate of every generator row; every row of a candidate in ``rows``
+        is among the k.
+    wedges : Wedges
+        The surface around each row's generator point.
     origins, directions : (k, 3) float
     rows : (r,) int
         The rows to judge.
@@ -335,12 +336,14 @@ def _grazes_shared_face(scene, cand, point, origins, directions, rows, angle_tol
     -------
     (r,) bool
     """
+    row_of_wedge = np.repeat(np.arange(len(cand)), np.diff(wedges.offsets))
+    here = np.isin(row_of_wedge, rows)
+    pos = np.searchsorted(rows, row_of_wedge[here])
+    face = wedges.face[here]
     # a face is shared when another generator row of the candidate touches it too
     # (the row itself is among its candidate's rows, hence "at least two")
-    pos, face = faces_near(scene, point[rows], scene.weld_tolerance)
-    siblings = np.flatnonzero(np.isin(cand, cand[rows]))
-    sib_pos, sib_face = faces_near(scene, point[siblings], scene.weld_tolerance)
-    key_other = np.sort(cand[siblings[sib_pos]] * scene.n_faces + sib_face)
+    sib = np.isin(cand[row_of_wedge], cand[rows])
+    key_other = np.sort(cand[row_of_wedge[sib]] * scene.n_faces + wedges.face[sib])
     key_here = cand[rows[pos]] * scene.n_faces + face
     shared = np.searchsorted(key_other, key_here, "right") - np.searchsorted(key_other, key_here, "left") >= 2
     n, off = scene.face_normal[face], scene.face_offset[face]
@@ -348,9 +351,13 @@ def _grazes_shared_face(scene, cand, point, origins, directions, rows, angle_tol
     in_plane = (np.abs(np.einsum("ij,ij->i", n, directions[r])) <= angle_tol) & (
         np.abs(np.einsum("ij,ij->i", n, origins[r]) - off) <= scene.epsilon
     )
-    excused = np.zeros(len(rows), dtype=bool)
-    np.logical_or.at(excused, pos, shared & in_plane)
-    return excused
+    return ~_all_of(pos, ~(shared & in_plane), len(rows))
+
+
+def _all_of(owner, flag, n):
+    """(n,) bool: whether every flag of each owner is set (owners without rows: True).
+    A bincount, because ``np.logical_and.at`` is slow on millions of rows."""
+    return np.bincount(owner, weights=~np.asarray(flag, dtype=bool), minlength=n) == 0
 
 
 def sort_nodes(nodes):

@@ -56,7 +56,7 @@ MAX_LEVEL = len(LEVELS) - 1
 
 
 def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,
-               quiet=False):
+               quiet=False, points=None):
     """Build the visibility complex of a scene file and write it to ``output``.
 
     Parameters
@@ -69,6 +69,9 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
         1 also the arcs (V1), 2 also the V-cells (V2).
     quiet : bool
         No progress bars.
+    points : (k, 3) float64, optional
+        Free points (lights, viewpoints) added as generator vertices n, n + 1, …
+        (:mod:`viscx.skeleton.points`); stored as ``/scene/points``.
 
     Returns
     -------
@@ -82,7 +85,8 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
         raise ViscxError(f"--levels must be between -1 (scene only) and {MAX_LEVEL}")
     check_output(scene_path, output)
     timings, built = {}, {}
-    stages = ["scene", *[name for name, _ in LEVELS[: levels + 1]], "write"]
+    has_points = points is not None and len(points) > 0
+    stages = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []), "write"]
     with bar(total=len(stages), desc="build", quiet=quiet, unit="stage") as progress:
         t0 = time.perf_counter()
         progress.set_postfix_str("scene")
@@ -97,11 +101,25 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
             timings[name] = time.perf_counter() - t0
             progress.update()
 
+        if has_points:
+            from viscx.skeleton.points import add_points, build_points, check_points
+
+            t0 = time.perf_counter()
+            progress.set_postfix_str("points")
+            check_points(scene, points)
+            if built:  # the points' nodes, arcs and cells, merged into the built levels
+                built.update(add_points(built, build_points(scene, points)))
+            timings["points"] = time.perf_counter() - t0
+            progress.update()
+
         t0 = time.perf_counter()
         progress.set_postfix_str("write")
         options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon, "weld": weld, "levels": levels}
+        if has_points:
+            options["points"] = len(points)
         writers = {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
-        write_complex(output, scene, levels=writers, options=options, timings=timings)
+        write_complex(output, scene, levels=writers, options=options, timings=timings,
+                      points=points if has_points else None)
         timings["write"] = time.perf_counter() - t0
         progress.update()
     return scene, built, timings

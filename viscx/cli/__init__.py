@@ -26,6 +26,7 @@ COMMANDS = {
     "info": "viscx.cli.info:info",
     "diff": "viscx.cli.diff:diff",
     "plot": "viscx.cli.plot:plot",
+    "query": "viscx.cli.query:query",
     "flatland": "viscx.cli.flatland:flatland",
 }
 

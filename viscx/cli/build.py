@@ -4,7 +4,7 @@ from pathlib import Path
 
 import click
 
-from viscx.cli.options import epsilon_option, output_option, quiet, relative_epsilon_option
+from viscx.cli.options import epsilon_option, output_option, point_option, quiet, relative_epsilon_option
 from viscx.scene import DEFAULT_WELD
 
 
@@ -29,8 +29,11 @@ from viscx.scene import DEFAULT_WELD
     help="The last level to build: -1 the scene only, 0 the nodes (V0), 1 also the arcs (V1), "
     "2 also the V-cells (V2). Default: every level.",
 )
+@point_option("--point", "points", multiple=True,
+              help_text="Add a free point (e.g. a light) as a generator: its nodes, VE arcs and V-cells are "
+              "built like a vertex's. Repeatable.")
 @click.pass_context
-def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels):
+def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, points):
     """Load SCENE (OBJ, PLY, or any mesh trimesh reads), clean it into polygon
     faces with a half-edge structure and generators, and write the result.
 
@@ -38,6 +41,7 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels):
     viscx build sample_scenes/cornell_box.obj -o cornell.h5
     viscx build scene.ply --relative-epsilon 1e-5 -o scene.h5
     viscx build sample_scenes/tetrahedra.obj --levels 0 -o nodes_only.h5
+    viscx build sample_scenes/cornell_box.obj --point 278,540,280 -o cornell_light.h5
 
     The output is written to a temporary file and renamed when complete, so a
     failed or interrupted build leaves nothing behind.
@@ -47,12 +51,13 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels):
     output = Path(output) if output else Path(Path(scene_file).stem + ".h5")
     scene, built, timings = build_file(
         scene_file, output, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
-        levels=MAX_LEVEL if levels is None else levels, quiet=quiet(ctx),
+        levels=MAX_LEVEL if levels is None else levels, quiet=quiet(ctx), points=list(points) or None,
     )
     if not quiet(ctx):
         total = sum(timings.values())
         counts = "".join(f", {len(level)} {NOUNS[name]}" for name, level in built.items())
         click.echo(
             f"{output}: {scene.n_faces} faces, {len(scene.generator_edges)} generator edges, "
-            f"{len(scene.generator_vertices)} generator vertices{counts} ({total:.2f} s)"
+            f"{len(scene.generator_vertices)} generator vertices{counts}"
+            + (f", {len(points)} points" if points else "") + f" ({total:.2f} s)"
         )

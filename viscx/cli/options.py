@@ -33,3 +33,40 @@ def quiet(ctx):
     """True when the user asked for ``viscx --quiet``."""
     root = ctx.find_root()
     return bool(root.obj and root.obj.get("quiet"))
+
+
+class PointType(click.ParamType):
+    """``X,Y,Z``: three finite numbers separated by commas (a point in scene units)."""
+
+    name = "X,Y,Z"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        parts = str(value).split(",")
+        try:
+            point = tuple(float(p) for p in parts)
+        except ValueError:
+            point = ()
+        if len(point) != 3 or not all(abs(x) < float("inf") for x in point):
+            self.fail(f"{value!r} is not a point X,Y,Z (three finite numbers separated by commas)", param, ctx)
+        return point
+
+
+POINT = PointType()
+
+
+def point_option(*names, help_text, multiple=False, required=True):
+    """A point option (``--from``, ``--light``, ``--point``) given as ``X,Y,Z``."""
+    return click.option(*names, type=POINT, multiple=multiple, required=required and not multiple, metavar="X,Y,Z",
+                        help=help_text)
+
+
+format_option = click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["json", "msgpack"]),
+    default=None,
+    help="Output format. Default: from the output's extension (.msgpack/.mpk, .ply where the "
+    "query writes geometry), else JSON.",
+)

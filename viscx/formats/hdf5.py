@@ -77,7 +77,7 @@ def _write_scene(group, scene):
     write_dataset(group, "vertex_is_generator", scene.half_edges.vertex_is_generator)
 
 
-def write_complex(path, scene, levels=None, options=None, timings=None):
+def write_complex(path, scene, levels=None, options=None, timings=None, points=None):
     """Write a viscx file atomically.
 
     Parameters
@@ -91,6 +91,10 @@ def write_complex(path, scene, levels=None, options=None, timings=None):
         The build options (JSON-serialisable), stored as the ``options`` attribute.
     timings : dict, optional
         Seconds per stage, stored under ``/provenance``.
+    points : (k, 3) float64, optional
+        Free points added as generators (``viscx build --point``), stored as
+        ``/scene/points``; point i is generator vertex ``n_vertices + i``. Nothing is
+        written when there are none.
     """
     levels = levels or {}
     with atomic_path(path) as tmp:
@@ -105,6 +109,9 @@ def write_complex(path, scene, levels=None, options=None, timings=None):
             f.attrs["options"] = json.dumps(options or {}, sort_keys=True)
             f.attrs["levels"] = json.dumps(["scene", *levels])
             _write_scene(f.create_group("scene", track_order=True), scene)
+            if points is not None and len(points):
+                dset = write_dataset(f["scene"], "points", np.asarray(points, dtype=np.float64).reshape(-1, 3))
+                dset.attrs["first_id"] = scene.n_vertices
             for name, writer in levels.items():
                 writer(f.create_group(name, track_order=True))
             prov = f.create_group("provenance")
@@ -335,6 +342,20 @@ class ViscxFile:
             source=str(attrs.get("scene_name", "")),
             sha256=str(attrs.get("scene_sha256", "")),
         )
+
+
+def _read_points(self):
+    """(k, 3) float64: the free points stored by ``viscx build --point`` (generator
+    vertices ``n_vertices + i``); empty when there are none."""
+    if "points" not in self.h5["scene"]:
+        return np.zeros((0, 3))
+    points = self.h5["scene"]["points"][()]
+    if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
+        raise ViscxError(f"{self.path} is a damaged viscx file (scene/points has shape {points.shape} or is not finite)")
+    return points.astype(np.float64)
+
+
+ViscxFile.read_points = _read_points
 
 
 def read_scene(path):

@@ -609,7 +609,7 @@ def cells_of_loops(el, loop_offsets, loop_group, ref):
 # the builder
 
 
-def build_vcells(scene, arcs, quiet=True):
+def build_vcells(scene, arcs, quiet=True, vertices=None):
     """The V-cells (V2) of every generator vertex, from the VE half-cells (V1).
 
     Parameters
@@ -618,6 +618,10 @@ def build_vcells(scene, arcs, quiet=True):
     arcs : Arcs
     quiet : bool
         No progress bar.
+    vertices : (k,) int, optional
+        The generator vertices whose half-cells ``arcs`` holds (default: all);
+        only these get a whole-sphere cell when they have no boundary element
+        (free points built on their own, :mod:`viscx.skeleton.points`).
 
     Returns
     -------
@@ -641,7 +645,7 @@ def build_vcells(scene, arcs, quiet=True):
         progress.set_postfix_str("cells")
         loop_group = group[order[loop_offsets[:-1]]]
         cell = cells_of_loops(walk, loop_offsets, loop_group, ref)
-        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el))
+        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el, vertices))
         progress.update()
     return result
 
@@ -650,17 +654,17 @@ def build_vcells(scene, arcs, quiet=True):
 _PROBES = np.array([[0.267, 0.534, 0.802], [-0.577, 0.211, 0.789], [0.432, -0.898, 0.083]])
 
 
-def whole_sphere_cells(scene, el):
-    """Generator vertices without boundary elements (nothing on their sphere changes the
-    blocker pair, e.g. a lone polygon's corners) and the pair of their one cell, cast
-    along the first non-grazing probe direction.
+def whole_sphere_cells(scene, el, vertices=None):
+    """Generator vertices (of ``vertices``, default all) without boundary elements (nothing
+    on their sphere changes the blocker pair, e.g. a lone polygon's corners) and the pair
+    of their one cell, cast along the first non-grazing probe direction.
 
     Returns
     -------
     (w, 5) int
         (vertex, up kind, up, down kind, down).
     """
-    lone = np.setdiff1d(scene.generator_vertices, el.vertex)
+    lone = np.setdiff1d(scene.generator_vertices if vertices is None else vertices, el.vertex)
     rows = np.zeros((len(lone), 5), np.int64)
     rows[:, 0] = lone
     todo = np.ones(len(lone), bool)

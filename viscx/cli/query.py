@@ -1,0 +1,110 @@
+"""``viscx query``: questions to a built complex (schemas in docs/queries.md)."""
+
+import click
+
+from viscx.cli.options import format_option, output_option, point_option, quiet
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows).")
+def query():
+    """Questions to the complex stored in a viscx file. Each reads the file (the scene and,
+    for a point stored by `viscx build --point`, its V-cells; any other point's V-cells
+    are computed on demand) and never rebuilds the whole complex.
+
+    \b
+    viscx query visible cornell.h5 --from 278,273,-800
+    viscx query shadows cornell.h5 --light 278,540,280 -o shadows.ply
+    """
+
+
+face_option = click.option("--face", "faces", type=int, multiple=True, metavar="N",
+                           help="Report only face N (repeatable). Default: every face.")
+
+
+def _check_faces(faces, n_faces):
+    """ViscxError for a face id out of range (before any work)."""
+    from viscx.errors import ViscxError
+
+    for f in faces:
+        if not 0 <= f < n_faces:
+            raise ViscxError(f"--face {f} is out of range (the scene has {n_faces} faces: 0 to {n_faces - 1})")
+
+
+def _only(result, faces, n_faces):
+    """Keep the faces asked for."""
+    _check_faces(faces, n_faces)
+    if faces:
+        result["faces"] = [result["faces"][f] for f in sorted(set(faces))]
+    return result
+
+
+def _warn(ctx, result):
+    if not result["complete"] and not quiet(ctx):
+        faces = [f["face"] for f in result["faces"] if not f["complete"]]
+        click.echo(
+            f"viscx: warning: {result['incomplete_cells']} of the point's {result['cells']} V-cells are incomplete "
+            f"and {result['open_chains']} boundary chains did not close"
+            + (f" (faces {', '.join(map(str, faces))})" if faces else "") + "; see docs/queries.md",
+            err=True,
+        )
+
+
+@query.command(short_help="The visible part of every face from a point.")
+@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@point_option("--from", "viewpoint", help_text="The viewpoint, in scene units.")
+@output_option("Where to write (.json or .msgpack). Default: standard output.", required=False)
+@format_option
+@face_option
+@click.pass_context
+def visible(ctx, file, viewpoint, output, fmt, faces):
+    """The visibility polyhedron of a point (seed 000 §7.1): for every face, the part
+    seen from X,Y,Z as polygons with holes (3-D loops), from the point's V-cells.
+
+    \b
+    viscx build sample_scenes/cornell_box.obj -o cornell.h5
+    viscx query visible cornell.h5 --from 278,273,-800 -o view.json
+    viscx query visible cornell.h5 --from 278,273,-800 --format msgpack -o view.msgpack
+    """
+    from viscx.formats.queries import output_format, write_result
+    from viscx.queries.visibility import open_query, view_from, visible_result
+
+    fmt = output_format(output, fmt)
+    q = open_query(file)
+    _check_faces(faces, q.scene.n_faces)
+    view, stored = view_from(q, viewpoint)
+    result = _only(visible_result(q.scene, view, stored), faces, q.scene.n_faces)
+    write_result(result, output, fmt)
+    _warn(ctx, result)
+
+
+@query.command(short_help="Lit polygons and shadow boundaries of a point light.")
+@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@point_option("--light", "light", help_text="The point light, in scene units.")
+@output_option("Where to write: .json, .msgpack, or .ply (the scene split along the shadow "
+               "boundaries, a lit flag per face). Default: JSON on standard output.", required=False)
+@format_option
+@face_option
+@click.pass_context
+def shadows(ctx, file, light, output, fmt, faces):
+    """For every face, the polygons lit by a point light at X,Y,Z (outer loops
+    counter-clockwise seen from the face's front, holes clockwise) and the
+    shadow-boundary segments (seed 000 §7.2).
+
+    \b
+    viscx build sample_scenes/cornell_box.obj --point 278,540,280 -o cornell.h5
+    viscx query shadows cornell.h5 --light 278,540,280 -o shadows.json
+    viscx query shadows cornell.h5 --light 278,540,280 -o shadows.ply
+    """
+    from viscx.formats.queries import output_format, write_result, write_shadow_ply
+    from viscx.queries.shadows import shadows as compute
+
+    fmt = output_format(output, fmt, geometry=True)
+    scene, view, result = compute(file, light, faces=faces)
+    result = _only(result, faces, scene.n_faces)
+    if fmt == "ply":
+        counts = write_shadow_ply(output, scene, view)
+        if not quiet(ctx):
+            click.echo(f"{output}: {counts['triangles']} triangles, {counts['lit_triangles']} lit", err=True)
+    else:
+        write_result(result, output, fmt)
+    _warn(ctx, result)

@@ -1,0 +1,82 @@
+"""Shadows of a point light (seed 000 §7.2, Fig. 8): lit polygons and shadow boundaries.
+
+A point of a face is lit exactly when the light sees it, so the lit part of
+each face is its visible part from the light (:mod:`viscx.queries.visibility`,
+the light's V-cells projected onto the face); the shadow-boundary segments
+are the traces on the face of the light's VE half-cells whose down blocker is
+the face on one side and another face on the other (an occluder's edge casting
+its shadow). Faces are two-sided: a face whose back is turned to the light is
+lit on its back (``front`` says which side the light is on).
+"""
+
+import numpy as np
+
+from viscx.queries.visibility import open_query, view_from
+
+
+def shadow_result(scene, view, stored=False):
+    """The shadows as a plain dict (the JSON schema of docs/queries.md).
+
+    Parameters
+    ----------
+    scene : Scene
+    view : PointView
+        The light's view (:func:`viscx.queries.visibility.view_from`).
+
+    Returns
+    -------
+    dict
+        ``{"light": [x, y, z], "faces": [{"face", "group", "lit", "boundary", "front",
+        "lit_area", "complete"}], "complete", "cells", "incomplete_cells", "open_chains"}``:
+        per face (in face order) the lit loops, outer loops counter-clockwise seen from
+        the face's front, holes clockwise, and the shadow-boundary segments.
+    """
+    p = view.point
+    faces = []
+    for fv in view.faces:
+        f = fv.face
+        faces.append({
+            "face": f,
+            "group": scene.group_names[scene.face_group[f]],
+            "lit": [loop.tolist() for loop in fv.loops],
+            "boundary": np.asarray(fv.boundary).tolist(),
+            "front": bool(scene.face_normal[f] @ p > scene.face_offset[f]),
+            "lit_area": fv.area(),
+            "complete": fv.complete,
+        })
+    return {
+        "light": p.tolist(),
+        "faces": faces,
+        "complete": bool(view.complete),
+        "cells": view.cells,
+        "incomplete_cells": view.incomplete_cells,
+        "open_chains": view.open_chains,
+        "source": "file" if stored else "on demand",
+    }
+
+
+def shadows(path, light, faces=()):
+    """Lit polygons and shadow boundaries of a point light, from a viscx file.
+
+    Parameters
+    ----------
+    path : str or Path
+    light : (3,) float64
+    faces : sequence of int
+        Face ids the caller will report; checked before any work (ViscxError when out of range).
+
+    Returns
+    -------
+    scene : Scene
+    view : PointView
+    result : dict
+        :func:`shadow_result`.
+    """
+    from viscx.errors import ViscxError
+
+    query = open_query(path)
+    bad = [f for f in faces if not 0 <= f < query.scene.n_faces]
+    if bad:
+        raise ViscxError(f"--face {bad[0]} is out of range (the scene has {query.scene.n_faces} faces: 0 to {query.scene.n_faces - 1})")
+    view, stored = view_from(query, light)
+    return query.scene, view, shadow_result(query.scene, view, stored)

@@ -1,0 +1,296 @@
+"""The visibility polyhedron of a point (seed 000 §7.1) from the point's V-cells.
+
+From a point p, the ray along a direction d first meets the face ``down(d)``:
+the V-cells of p whose down blocker is face f together are the directions in
+which p sees f, and their central projection through p onto f's plane is the
+part of f visible from p. Their union is bounded by the boundary elements
+(VE half-cells (p, e) on p's direction sphere) whose two sides have different
+down blockers; elements between two cells with the same down (only the up
+blocker behind p changes) are inside the union and cancel. The remaining
+elements are chained again (FormLoops grouped by down face, seed 000 §5.3),
+classified outer / hole by their turning sums and grouped by crossing parity,
+exactly as V2 does for one cell (:mod:`viscx.skeleton.vcells`).
+
+Projection: an element is a great-circle arc, the directions from p to a
+stretch of edge e; the plane through p holding it meets f's plane in a line,
+so its image on f is the segment between the images of its ends, which are
+where the segments of the VE family end on f (their VV/VEE nodes). Nothing
+is clipped: where p sees f, the boundary is made of the VE half-cells of f's
+own edges and of the edges that hide parts of f, so the loops lie in f. A
+boundary element whose edge is not an edge of f is where another object cuts
+f's visible part: a shadow boundary when p is a light (seed 000 §7.2, Fig. 8).
+
+Open chains (cells V1 could not close, docs/skeleton.md "V-cells") are
+reported per face (``complete`` false) and their elements kept as boundary
+segments; such a face's polygons miss the region the chain bounds.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from viscx.geometry.polygon import plane_basis, signed_area_2d
+from viscx.skeleton.nodes import BLOCK_FACE
+from viscx.skeleton.vcells import cells_of_loops, form_loops, reference_points, stored_elements, turning_sums
+
+
+@dataclass
+class FaceView:
+    """What a point sees of one face.
+
+    Attributes
+    ----------
+    face : int
+    polygons : list of (outer, holes)
+        ``outer`` : (k, 3) float64, counter-clockwise seen from the face's front
+        (its normal); ``holes`` : list of (k, 3) float64, clockwise.
+    boundary : (b, 2, 3) float64
+        Segments of the visible part's boundary cast by other objects (traces of
+        VE half-cells of edges not on this face): the shadow boundaries.
+    complete : bool
+        Every boundary element of the face closed into a loop.
+    """
+
+    face: int
+    polygons: list = field(default_factory=list)
+    boundary: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
+    complete: bool = True
+
+    @property
+    def loops(self):
+        """Every loop, outer loops and their holes in order: list of (k, 3) float64."""
+        return [loop for outer, holes in self.polygons for loop in (outer, *holes)]
+
+    def area(self):
+        """Area of the visible part (outer loops minus holes), float: the loops are
+        oriented about one normal, so their Newell vectors add up to twice it."""
+        loops = self.loops
+        return 0.5 * float(np.linalg.norm(sum(_newell(loop) for loop in loops))) if loops else 0.0
+
+
+def _newell(points):
+    p = np.asarray(points, dtype=np.float64)
+    return np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
+
+
+@dataclass
+class PointView:
+    """The visibility polyhedron of a point: per face, the part it sees.
+
+    Attributes
+    ----------
+    point : (3,) float64
+    faces : list of FaceView
+        One per face of the scene, in face order (empty polygons where nothing is seen).
+    cells : int
+        V-cells of the point.
+    incomplete_cells : int
+        Of those, cells whose vertex has loops that did not close (``VCells.complete`` false).
+    open_chains : int
+        Chains of the visible parts' boundaries that did not close.
+    """
+
+    point: np.ndarray
+    faces: list
+    cells: int
+    incomplete_cells: int
+    open_chains: int
+
+    @property
+    def complete(self):
+        return self.incomplete_cells == 0 and self.open_chains == 0
+
+
+def point_view(scene, arcs, vcells, vertex, point):
+    """The visible part of every face from a point, from the point's V-cells.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene the half-cells refer to (with the point appended when the
+        point is a free point: :func:`viscx.skeleton.points.with_points`).
+    arcs : Arcs
+    vcells : VCells
+    vertex : int
+        The point's generator vertex id.
+    point : (3,) float64
+
+    Returns
+    -------
+    PointView
+    """
+    p = np.asarray(point, dtype=np.float64)
+    n_faces = len(scene.face_area)
+    mine = np.flatnonzero(vcells.vertex == vertex)
+    ochains = np.flatnonzero(vcells.open_vertex == vertex)
+    # every boundary element of the point's cells and open chains, with its cell's down face
+    signed, anti, down = [], [], []
+    for cell in mine:
+        lo = vcells.element_offsets[vcells.loop_offsets[cell]]
+        hi = vcells.element_offsets[vcells.loop_offsets[cell + 1]]
+        signed.append(vcells.element[lo:hi])
+        anti.append(vcells.antipodal[lo:hi])
+        down.append(np.full(hi - lo, vcells.down[cell] if vcells.down_kind[cell] == BLOCK_FACE else -1))
+    for chain in ochains:
+        lo, hi = vcells.open_offsets[chain], vcells.open_offsets[chain + 1]
+        signed.append(vcells.open_element[lo:hi])
+        anti.append(vcells.open_antipodal[lo:hi])
+        down.append(np.full(hi - lo, vcells.open_down[chain] if vcells.open_down_kind[chain] == BLOCK_FACE else -1))
+    faces = [FaceView(face=f) for f in range(n_faces)]
+    if not signed:
+        return PointView(p, faces, len(mine), int(np.count_nonzero(~vcells.complete[mine])), 0)
+    signed, anti, down = np.concatenate(signed), np.concatenate(anti), np.concatenate(down)
+    # an element and its mirror (the other side of the same image) between two cells seeing
+    # the same face lie inside that face's visible part: drop both
+    code = (np.abs(signed) - 1) * 4 + anti * 2 + (signed < 0)
+    mirror = code ^ 1
+    order = np.argsort(code)
+    at = np.clip(np.searchsorted(code[order], mirror), 0, len(code) - 1)
+    has_mirror = code[order][at] == mirror
+    same = has_mirror & (down[order][at] == down)
+    keep = (down >= 0) & ~same
+    signed, anti, down = signed[keep], anti[keep], down[keep]
+    el = stored_elements(scene, arcs, signed, anti)
+    walk_order, loop_offsets, chain_offsets = form_loops(el, down)
+    walk = el.take(walk_order)
+    walk_down = down[walk_order]
+    n_loops = len(loop_offsets) - 1
+    turning = turning_sums(walk, loop_offsets)
+    ref = reference_points(walk, loop_offsets)
+    loop_face = walk_down[loop_offsets[:-1]]
+    cell = cells_of_loops(walk, loop_offsets, loop_face, ref) if n_loops else np.zeros(0, np.int64)
+
+    # which edges bound which face (a boundary along f's own edge is f's outline, not a shadow)
+    he = scene.half_edges
+    own = set(zip(he.face.tolist(), he.edge.tolist()))
+    edge_of = arcs.half_cells.edge[np.abs(walk.signed) - 1]
+    shadow = np.array([(int(f), int(e)) not in own for f, e in zip(walk_down, edge_of)], bool)
+
+    normal, offset = scene.face_normal, scene.face_offset
+
+    def project(d, f):
+        t = (offset[f] - normal[f] @ p) / (d @ normal[f])
+        return p + t[:, None] * d
+
+    # loops by cell, the outer loop (largest turning sum) first
+    by_cell = {}
+    for j in np.lexsort([np.arange(n_loops), -turning, cell]):
+        by_cell.setdefault(int(cell[j]), []).append(j)
+    for c in sorted(by_cell, key=lambda c: (int(loop_face[by_cell[c][0]]), c)):
+        loops = by_cell[c]
+        f = int(loop_face[loops[0]])
+        u, v = plane_basis(normal[f])
+        rings = []
+        for rank, j in enumerate(loops):
+            lo, hi = loop_offsets[j], loop_offsets[j + 1]
+            ring = project(walk.start[lo:hi], f)
+            area = signed_area_2d(np.stack([ring @ u, ring @ v], axis=1))
+            # outer counter-clockwise about the normal, holes clockwise
+            if (area < 0) == (rank == 0):
+                ring = ring[::-1]
+            rings.append(ring)
+        faces[f].polygons.append((rings[0], rings[1:]))
+    # shadow boundaries and open chains
+    segs = {}
+    for k in np.flatnonzero(shadow):
+        f = int(walk_down[k])
+        d = np.stack([walk.start[k], walk.end[k]])
+        segs.setdefault(f, []).append(project(d, f))
+    for k in range(len(chain_offsets) - 1):
+        f = int(walk_down[chain_offsets[k]])
+        faces[f].complete = False
+    for f, s in segs.items():
+        faces[f].boundary = np.stack(s)
+    return PointView(p, faces, len(mine), int(np.count_nonzero(~vcells.complete[mine])), len(chain_offsets) - 1)
+
+
+# --------------------------------------------------------------------------------------
+# from a file
+
+
+@dataclass
+class QueryScene:
+    """What the point queries read from a viscx file: the scene, its stored points and
+    (lazily) the levels holding the stored points' V-cells.
+
+    Attributes
+    ----------
+    path : str
+    scene : Scene
+    points : (k, 3) float64
+        Points stored by ``viscx build --point``.
+    """
+
+    path: str
+    scene: object
+    points: np.ndarray
+
+
+def open_query(path):
+    """Read the scene of a viscx file for a point query; the file must hold V-cells (V2).
+
+    Raises ViscxError (one line, exit status 2) for a file without V2.
+    """
+    from viscx.errors import ViscxError
+    from viscx.formats.hdf5 import ViscxFile
+
+    with ViscxFile(path) as f:
+        if "V2" not in f.levels or "V2" not in f.h5:
+            raise ViscxError(f"{path} has no V-cells (V2); build it with `viscx build` (all levels)")
+        return QueryScene(str(path), f.read_scene(), f.read_points())
+
+
+def view_from(query, point):
+    """The visibility polyhedron of a point: from the file's V-cells when the point is one
+    stored by ``viscx build --point`` (within the epsilon), else computed on demand
+    (:func:`viscx.skeleton.points.point_vcells`, nothing written).
+
+    Parameters
+    ----------
+    query : QueryScene
+    point : (3,) float64
+
+    Returns
+    -------
+    view : PointView
+    stored : bool
+        Whether the file's V-cells were used.
+    """
+    from viscx.formats.hdf5 import ViscxFile, read_arcs, read_vcells
+    from viscx.skeleton.points import check_points, point_vcells, with_points
+
+    scene = query.scene
+    p = np.asarray(point, dtype=np.float64).reshape(3)
+    check_points(scene, p[None])
+    if len(query.points):
+        dist = np.linalg.norm(query.points - p, axis=1)
+        k = int(np.argmin(dist))
+        if dist[k] <= scene.epsilon:
+            with ViscxFile(query.path) as f:
+                arcs, vcells = read_arcs(f.h5["V1"]), read_vcells(f.h5["V2"])
+            ext = with_points(scene, query.points)
+            return point_view(ext, arcs, vcells, scene.n_vertices + k, query.points[k]), True
+    pc = point_vcells(scene, p)
+    return point_view(pc.scene, pc.arcs, pc.vcells, int(pc.point_ids[0]), p), False
+
+
+def visible_result(scene, view, stored=False):
+    """The visibility polyhedron as a plain dict (the JSON schema of docs/queries.md)."""
+    faces = []
+    for fv in view.faces:
+        faces.append({
+            "face": fv.face,
+            "group": scene.group_names[scene.face_group[fv.face]],
+            "polygons": [{"outer": outer.tolist(), "holes": [h.tolist() for h in holes]} for outer, holes in fv.polygons],
+            "area": fv.area(),
+            "complete": fv.complete,
+        })
+    return {
+        "from": view.point.tolist(),
+        "faces": faces,
+        "complete": bool(view.complete),
+        "cells": view.cells,
+        "incomplete_cells": view.incomplete_cells,
+        "open_chains": view.open_chains,
+        "source": "file" if stored else "on demand",
+    }

@@ -235,6 +235,13 @@ class GeneratorContacts:
     edge_clean: np.ndarray
     shrink: float
 
+    def with_free_points(self, k):
+        """The contacts after k free points (touching no face) are appended as vertices."""
+        v = self.vertex
+        offsets = np.concatenate([v.offsets, np.full(k, v.offsets[-1])])
+        return GeneratorContacts(vertex=Wedges(offsets, v.face, v.first, v.normal, v.span), edge=self.edge,
+                                 edge_clean=self.edge_clean, shrink=self.shrink)
+
 
 def generator_contacts(scene):
     """Build :class:`GeneratorContacts` (use ``scene.contacts``, which caches it)."""

@@ -60,6 +60,7 @@ def with_points(scene, points):
     )
     ext = dataclasses.replace(scene, vertices=np.concatenate([scene.vertices, points]), half_edges=he)
     ext._caster = scene.ray_caster  # the points are not in it: they block nothing
+    ext._contacts = scene.contacts.with_free_points(len(points))  # they touch no face (check_points)
     return ext
 
 

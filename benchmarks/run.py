@@ -2,6 +2,7 @@
 
     python benchmarks/run.py            # full run
     python benchmarks/run.py --quick    # a few minutes at most
+    python benchmarks/run.py --budget 600   # skip ladder sizes predicted to exceed 600 s
 
 Writes ``benchmarks/results.json`` and ``benchmarks/results.md`` (a Markdown
 table, also printed). Sections grow with the project; each row is one measured
@@ -179,8 +180,55 @@ def bench_flatland(sizes):
     return rows
 
 
+def bench_fast_vs_reference(names):
+    """V0 by the output-sensitive builder against the O(n⁴) reference enumeration, on
+    the sample scenes small enough for the reference (same nodes asserted in tests)."""
+    from viscx.skeleton.candidates import build_nodes
+    from viscx.skeleton.reference import reference_nodes
+
+    rows = []
+    for name in names:
+        scene = load_scene(ROOT / "sample_scenes" / name)
+        build_nodes(scene)  # compile, warm the caches
+        sec_fast, fast = timed(build_nodes, scene)
+        sec_ref, ref = timed(reference_nodes, scene, repeat=1)
+        same = "same nodes" if len(fast) == len(ref) else f"DIFFERENT: {len(fast)} vs {len(ref)} nodes"
+        rows.append(_row("V0", name, "nodes, fast builder (vs reference)", len(scene.triangles), len(fast), sec_fast,
+                         len(fast) / sec_fast, "nodes/s",
+                         f"reference {sec_ref:.3g} s = {sec_ref / sec_fast:.1f} x fast; {same}"))
+    return rows
+
+
+def bench_skeleton(sizes, budget):
+    """The V0/V1/V2 ladder of benchmarks/skeleton.py (Cornell box, random boxes cities):
+    one row per scene and level, and the fitted growth exponents."""
+    from skeleton import run_ladder
+
+    results, growth = run_ladder(sizes, budget, report=lambda text: print(text.splitlines()[-1], flush=True))
+    rows = []
+    for r in results:
+        if r.get("skipped"):
+            rows.append({"section": "skeleton", "scene": r["scene"], "stage": "V0+V1+V2", "triangles": r["polygons"],
+                         "n": 0, "seconds": float("nan"), "rate": 0.0, "unit": "", "peak_mb": peak_mb(),
+                         "note": "skipped: " + r["skipped"]})
+            continue
+        n, a, v = r["nodes"], r["arcs"], r["vcells"]
+        for stage, sec, count, unit, note in (
+            ("V0 nodes", r["seconds_v0"], r["nodes_total"], "nodes/s",
+             f"VV/VEE/E4 {n['VV']}/{n['VEE']}/{n['E4']}; {r['candidates_total']:,} candidates"),
+            ("V1 arcs", r["seconds_v1"], a["EEE"] + a["VE"], "arcs/s", f"EEE/VE {a['EEE']}/{a['VE']}"),
+            ("V2 V-cells", r["seconds_v2"], v["cells"], "cells/s",
+             f"complete vertices {v['complete_vertices']}/{v['vertices']}, open chains {v['open_chains']}"),
+        ):
+            rows.append({"section": "skeleton", "scene": r["scene"], "stage": stage, "triangles": r["polygons"],
+                         "n": int(count), "seconds": sec, "rate": count / max(sec, 1e-9), "unit": unit,
+                         "peak_mb": r["peak_mb"], "note": note})
+    return rows, growth
+
+
 def markdown(rows, machine):
-    lines = [f"Machine: {machine}", "", "| section | scene | stage | triangles | n | median s | rate | peak MB | note |", "|---|---|---|---:|---:|---:|---:|---:|---|"]
+    lines = [f"Machine: {machine}", "", "size: triangles, or polygons in the skeleton section; n: what the rate counts.", "",
+             "| section | scene | stage | size | n | median s | rate | peak MB | note |", "|---|---|---|---:|---:|---:|---:|---:|---|"]
     for r in rows:
         lines.append(
             f"| {r['section']} | {r['scene']} | {r['stage']} | {r['triangles']:,} | {r['n']:,} | "
@@ -193,6 +241,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rays and smaller scenes")
     parser.add_argument("--out", default=str(HERE), help="folder for results.json and results.md")
+    parser.add_argument("--budget", type=float, default=1800.0,
+                        help="skip skeleton ladder sizes predicted to take longer than this (s)")
     args = parser.parse_args()
     rng = np.random.default_rng(2026)
     n_rays = 200_000 if args.quick else 1_000_000
@@ -220,12 +270,20 @@ def main():
     rows += bench_raycast(big, "spheres_in_room", n_rays, rng)
     rows += bench_formfactors(n_rays, rng)
     rows += bench_flatland([10, 100, 300] if args.quick else [10, 100, 300, 1000])
+    rows += bench_fast_vs_reference(["tetrahedra.obj", "cornell_box.obj"] if args.quick else
+                                    ["two_triangles.obj", "tetrahedra.obj", "room_with_door.obj",
+                                     "boxes_on_floor.obj", "cornell_box.obj"])
+    skeleton_rows, growth = bench_skeleton([100] if args.quick else [100, 300, 1000, 3000], budget=args.budget)
+    rows += skeleton_rows
 
     table = markdown(rows, machine)
+    table += "\n\nGrowth exponents (least squares on log-log over the random boxes ladder):\n\n"
+    table += "\n".join(f"- {k}: {'n/a' if v is None else f'{v:.2f}'}" for k, v in growth.items())
     print(table)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps({"machine": machine, "quick": args.quick, "rows": rows}, indent=2))
+    (out / "results.json").write_text(
+        json.dumps({"machine": machine, "quick": args.quick, "rows": rows, "growth": growth}, indent=2))
     (out / "results.md").write_text(table + "\n")
 
 

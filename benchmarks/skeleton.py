@@ -1,11 +1,12 @@
-"""V0 (nodes) and V1 (arcs) benchmark ladder: the skeleton builders on growing scenes.
+"""V0 (nodes), V1 (arcs) and V2 (V-cells) benchmark ladder: the skeleton builders on growing scenes.
 
     python benchmarks/skeleton.py                       # Cornell box, boxes 100 … 3000
     python benchmarks/skeleton.py --sizes 100 300       # a shorter ladder
     python benchmarks/skeleton.py --budget 600          # skip sizes predicted to exceed 600 s
 
 For each scene: V0 wall time (candidates + validation), candidate and node counts
-per kind, the time of each V0 stage, V1 wall time and arc counts per kind; then
+per kind, the time of each V0 stage, V1 wall time and arc counts per kind, V2
+(V-cells) wall time and cell counts; then
 the growth exponents of time against polygons and against nodes (least squares
 on log-log). Prints a table and writes
 ``benchmarks/skeleton_results.json``. A size whose predicted time (from the
@@ -33,6 +34,7 @@ from viscx.scene import load_scene  # noqa: E402
 from viscx.skeleton.candidates import fast_candidates, validate_in_chunks  # noqa: E402
 from viscx.skeleton.arcs import build_arcs  # noqa: E402
 from viscx.skeleton.nodes import E4, VEE, VV  # noqa: E402
+from viscx.skeleton.vcells import build_vcells  # noqa: E402
 
 KINDS = {"E4": E4, "VEE": VEE, "VV": VV}
 
@@ -42,7 +44,7 @@ def peak_mb():
 
 
 def run_skeleton(scene, name):
-    """Build V0 once, timing candidates and validation separately, then V1."""
+    """Build V0 once, timing candidates and validation separately, then V1 and V2."""
     stats = {}
     t0 = time.perf_counter()
     kind, gens, origins, dirs = fast_candidates(scene, stats=stats)
@@ -51,16 +53,20 @@ def run_skeleton(scene, name):
     t2 = time.perf_counter()
     arcs = build_arcs(scene, nodes)
     t3 = time.perf_counter()
+    vcells = build_vcells(scene, arcs)
+    t4 = time.perf_counter()
     row = {
         "scene": name,
         "polygons": int(scene.n_faces),
         "generator_edges": int(len(scene.generator_edges)),
         "generator_vertices": int(len(scene.generator_vertices)),
-        "seconds": t3 - t0,
+        "seconds": t4 - t0,
         "seconds_v0": t2 - t0,
         "seconds_candidates": t1 - t0,
         "seconds_validation": t2 - t1,
         "seconds_v1": t3 - t2,
+        "seconds_v2": t4 - t3,
+        "vcells": vcells.counts(),
         "arcs": arcs.counts(),
         "candidates": {k: int(np.count_nonzero(kind == v)) for k, v in KINDS.items()},
         "nodes": nodes.counts(),
@@ -83,50 +89,52 @@ def fit_exponent(x, y):
 
 def table(rows):
     head = (
-        f"{'scene':<22}{'polys':>7}{'V0 s':>9}{'cand s':>9}{'valid s':>9}{'V1 s':>9}"
-        f"{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}{'arcs EEE/VE':>16}"
+        f"{'scene':<22}{'polys':>7}{'V0 s':>9}{'cand s':>9}{'valid s':>9}{'V1 s':>9}{'V2 s':>8}"
+        f"{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}{'arcs EEE/VE':>16}{'V-cells':>9}{'complete':>11}"
     )
     lines = [head, "-" * len(head)]
     for r in rows:
         if r.get("skipped"):
             lines.append(f"{r['scene']:<22}{r['polygons']:>7}   skipped: {r['skipped']}")
             continue
-        c, n, a = r["candidates"], r["nodes"], r["arcs"]
+        c, n, a, v = r["candidates"], r["nodes"], r["arcs"], r["vcells"]
         lines.append(
             f"{r['scene']:<22}{r['polygons']:>7}{r['seconds_v0']:>9.2f}{r['seconds_candidates']:>9.2f}"
-            f"{r['seconds_validation']:>9.2f}{r['seconds_v1']:>9.2f}"
+            f"{r['seconds_validation']:>9.2f}{r['seconds_v1']:>9.2f}{r['seconds_v2']:>8.2f}"
             f"{c['VV']:>9}/{c['VEE']:>8}/{c['E4']:>7}{n['VV']:>8}/{n['VEE']:>7}/{n['E4']:>7}{a['EEE']:>9}/{a['VE']:>6}"
+            f"{v['cells']:>9}{v['complete_vertices']:>6}/{v['vertices']:<5}"
         )
     return "\n".join(lines)
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="*", default=[100, 300, 1000, 3000])
-    parser.add_argument("--budget", type=float, default=1800.0, help="skip sizes predicted to take longer (s)")
-    parser.add_argument("--out", default=str(HERE / "skeleton_results.json"))
-    args = parser.parse_args(argv)
+def run_ladder(sizes, budget, report=print):
+    """The Cornell box, then random boxes cities of the given sizes (a size predicted
+    to take longer than ``budget`` seconds is recorded as skipped).
 
-    # compile the numba kernels outside the timings
-    fast_candidates(random_boxes(20, seed=1))
-
+    Returns
+    -------
+    rows : list of dict
+        One per scene (:func:`run_skeleton`; skipped sizes carry "skipped").
+    growth : dict
+        Fitted growth exponents over the measured cities.
+    """
+    fast_candidates(random_boxes(20, seed=1))  # compile the numba kernels outside the timings
     rows = [run_skeleton(load_scene(ROOT / "sample_scenes" / "cornell_box.obj"), "cornell_box")]
-    print(table(rows[-1:]), flush=True)
+    report(table(rows[-1:]))
     ladder = []
-    for size in args.sizes:
+    for size in sizes:
         scene = random_boxes(size, seed=0)
         name = f"random_boxes({size})"
         if len(ladder) >= 2:
             k = fit_exponent([r["polygons"] for r in ladder], [r["seconds"] for r in ladder])
             predicted = ladder[-1]["seconds"] * (scene.n_faces / ladder[-1]["polygons"]) ** k
-            if predicted > args.budget:
-                rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": f"predicted {predicted:.0f} s > budget {args.budget:.0f} s"})
-                print(table(rows[-1:]), flush=True)
+            if predicted > budget:
+                rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": f"predicted {predicted:.0f} s > budget {budget:.0f} s"})
+                report(table(rows[-1:]))
                 continue
-        row = run_skeleton(scene, name)
-        rows.append(row)
-        ladder.append(row)
-        print(table(rows[-1:]), flush=True)
+        rows.append(run_skeleton(scene, name))
+        ladder.append(rows[-1])
+        report(table(rows[-1:]))
 
     polys = [r["polygons"] for r in ladder]
     secs = [r["seconds"] for r in ladder]
@@ -135,10 +143,21 @@ def main(argv=None):
         "time_vs_polygons": fit_exponent(polys, secs),
         "v0_time_vs_polygons": fit_exponent(polys, [r["seconds_v0"] for r in ladder]),
         "v1_time_vs_polygons": fit_exponent(polys, [r["seconds_v1"] for r in ladder]),
+        "v2_time_vs_polygons": fit_exponent(polys, [r["seconds_v2"] for r in ladder]),
         "time_vs_nodes": fit_exponent(nodes, secs),
         "nodes_vs_polygons": fit_exponent(polys, nodes),
         "candidates_vs_polygons": fit_exponent(polys, [r["candidates_total"] for r in ladder]),
     }
+    return rows, growth
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[100, 300, 1000, 3000])
+    parser.add_argument("--budget", type=float, default=1800.0, help="skip sizes predicted to take longer (s)")
+    parser.add_argument("--out", default=str(HERE / "skeleton_results.json"))
+    args = parser.parse_args(argv)
+    rows, growth = run_ladder(args.sizes, args.budget, report=lambda text: print(text, flush=True))
     print()
     print(table(rows))
     print()

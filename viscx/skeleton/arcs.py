@@ -74,6 +74,8 @@ SAMPLES = (0.5, 0.25, 0.75)
 REFINE = 48
 #: Bisection steps locating a change inside such an interval.
 BISECT = 40
+#: Intervals judged per batch in the first pass (5 samples each), samples per batch when refining.
+CHUNK = 100_000
 
 # slot layout of the family lines for maximal_free_segments (EEE: three edges; VE: vertex, edge)
 _SLOT_IS_VERTEX = np.array([[False] * 4, [True, False, False, False]])
@@ -681,24 +683,31 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     n = len(f)
     near = _end_fraction(scene, fkind, fgens, f, s0, s1)
     fr = np.concatenate([np.broadcast_to(np.asarray(SAMPLES), (n, len(SAMPLES))), near[:, None], 1 - near[:, None]], axis=1)
-    ks = np.repeat(fkind[f], fr.shape[1])
-    gs = np.repeat(fgens[f], fr.shape[1], axis=0)
-    ss = (s0[:, None] + fr * (s1 - s0)[:, None]).reshape(-1)
-    smp = judge_samples(scene, ks, gs, ss)
-    state = smp.state.reshape(n, fr.shape[1], 5)
-    uniform = np.all(state == state[:, :1], axis=(1, 2))
-    whole = np.flatnonzero(uniform & (state[:, 0, 0] == 1))
-    mid = whole * fr.shape[1]  # the first sample (fraction 1/2) stands for the arc
+    ss = s0[:, None] + fr * (s1 - s0)[:, None]
+    # judged in chunks of intervals, keeping the whole segment only for the sample that
+    # stands for an arc (the first, at 1/2): memory stays bounded on large scenes
+    uniform = np.zeros(n, dtype=bool)
+    kept = []
+    for lo in range(0, n, CHUNK):
+        c = np.arange(lo, min(lo + CHUNK, n))
+        smp = judge_samples(scene, np.repeat(fkind[f[c]], fr.shape[1]), np.repeat(fgens[f[c]], fr.shape[1], axis=0),
+                            ss[c].reshape(-1))
+        state = smp.state.reshape(len(c), fr.shape[1], 5)
+        uniform[c] = np.all(state == state[:, :1], axis=(1, 2))
+        whole = np.flatnonzero(uniform[c] & (state[:, 0, 0] == 1))
+        mid = whole * fr.shape[1]
+        kept.append((c[whole], smp.state[mid], smp.direction[mid], smp.ends[mid], smp.generator_points[mid]))
+    whole = np.concatenate([k[0] for k in kept])
     pieces = {
         "family": f[whole],
         "interval": np.stack([s0[whole], s1[whole]], axis=1),
         "end_type": np.stack([t0[whole], t1[whole]], axis=1),
         "end_node": np.stack([i0[whole], i1[whole]], axis=1),
-        "parameter": ss[mid],
-        "state": smp.state[mid],
-        "direction": smp.direction[mid],
-        "ends": smp.ends[mid],
-        "generator_points": smp.generator_points[mid],
+        "parameter": ss[whole, 0],
+        "state": np.concatenate([k[1] for k in kept]),
+        "direction": np.concatenate([k[2] for k in kept]),
+        "ends": np.concatenate([k[3] for k in kept]),
+        "generator_points": np.concatenate([k[4] for k in kept]),
     }
     mixed = np.flatnonzero(~uniform)
     if len(mixed):
@@ -729,7 +738,11 @@ def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     grid = np.broadcast_to((np.arange(REFINE - 2) + 0.5) / (REFINE - 2), (n, REFINE - 2))
     fr = np.concatenate([near[:, None], near[:, None] + grid * (1 - 2 * near[:, None]), 1 - near[:, None]], axis=1)
     ss = s0[:, None] + fr * (s1 - s0)[:, None]
-    smp = judge_samples(scene, np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1))
+    # judged in batches of CHUNK samples (memory)
+    k, g, flat = np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1)
+    parts = [judge_samples(scene, k[i : i + CHUNK], g[i : i + CHUNK], flat[i : i + CHUNK]) for i in range(0, len(k), CHUNK)]
+    smp = _Samples(*(np.concatenate([getattr(p, name) for p in parts]) for name in _Samples.__dataclass_fields__)) if parts \
+        else judge_samples(scene, k, g, flat)
     state = smp.state.reshape(n, REFINE, 5)
     change = np.any(state[:, 1:] != state[:, :-1], axis=2)  # (n, REFINE - 1)
     ci, cj = np.nonzero(change)

@@ -444,3 +444,10 @@ def test_plot_eecell_needs_v2(tmp_path, capsys):
     assert run(["--quiet", "build", str(SAMPLES / "two_triangles.obj"), "--levels", "1", "-o", str(h5)], capsys)[0] == 0
     code, _, err = run(["plot", "eecell", str(h5), "--edges", "0", "4", "-o", str(tmp_path / "x.png")], capsys)
     assert code == 2 and err.count("\n") == 1 and "--levels 2" in err
+
+
+def test_a_lone_polygon_has_no_ee_cells():
+    """A lone triangle's edges pairwise share a vertex: no square, no cell, no chain."""
+    scene = build_scene(soup([[0, 0, 0], [1, 0, 0], [0.2, 1, 0.1]], [[0, 1, 2]]))
+    _, ee = build_all(scene)
+    assert len(ee) == 0 and len(ee.open_edge1) == 0 and ee.counts()["pairs"] == 0

@@ -48,7 +48,12 @@ of the square, where such arcs meet). Along an EEE arc:
 
 The square's sides are the VE arcs (w, e2) through an endpoint w of e1
 (x1 = 0 or 1, parameterised by x2 = s) and (w, e1) through an endpoint of e2
-(x2 = 0 or 1); only their inner side bounds a cell.
+(x2 = 0 or 1); only their inner side bounds a cell. A VE arc has no event where
+the lines through e1 *next to* w change but the lines through w do not (a pencil
+of a face of e1 at w ends on the side there: tangency at e1 flips, while the
+line through w only touches the surface at w), so VE arcs are cut into pieces
+where other arcs of the square end on them (:func:`side_pieces`); EEE arcs need
+no cut (their crossings are V0 nodes or V1's planar events).
 
 Which side gets which pair is found like the VE half-cells' (arcs.py): the
 arc's middle point of the square is moved off the arc, across it on each side,
@@ -60,7 +65,8 @@ A *boundary element* is one side of one arc in one square, a curve directed so
 that its cell lies on its left in the (x1, x2) plane (x1 to the right, x2 up):
 ``+(a + 1)`` runs along arc a with s increasing (cell on its left), ``-(a + 1)``
 with s decreasing (cell on the left of that, i.e. on the right of s
-increasing). Along an element each coordinate is a linear-fractional function
+increasing); an element runs along an arc piece, ``element_interval`` in the
+stored cells. Along an element each coordinate is a linear-fractional function
 of the arc's parameter, stored as a rational linear Bézier curve: coordinate
 c(u) = ((1 - u)(1 - w) c0 + u w c1) / ((1 - u)(1 - w) + u w) for u ∈ [0, 1]
 with c0, c1 the element's ends and w fixed by the middle sample
@@ -92,8 +98,10 @@ group sees their reference points on the same side (vcells.cells_of_loops).
 *Area*: Green's formula, exactly: along an element x2 is a linear-fractional
 function of x1 (a composition of two), integrated in closed form.
 
-Chains that do not close are kept as *open chains* (as for V-cells); the cells
-of a pair with any open chain are not ``complete``.
+Chains that do not close are kept as *open chains* (as for V-cells), and so are
+loops whose winding is not ±2π (they closed only within the join tolerance, e.g.
+one spurious V1 arc shorter than it); the cells of a pair with any open chain
+are not ``complete``.
 """
 
 from dataclasses import dataclass
@@ -117,6 +125,8 @@ JOIN_TOLERANCE = 8
 REFERENCE_OFFSET = 1e-9
 #: Where along its element (Bézier u) a loop's reference point lies: the golden section.
 REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
+#: A loop is closed when its winding is ±2π within this (else it is an open chain).
+WINDING_TOLERANCE = 1e-6
 #: A pair's cells cover the square when their areas sum to 1 within this.
 COVER_TOLERANCE = 1e-6
 #: Clamp of the Bézier weights (a coordinate constant along its element has w = 1/2).
@@ -641,7 +651,9 @@ def side_pieces(scene, arcs, arc, e1, e2):
     rows_all, pos_all = rows_all[order], pos_all[order]
     keep = np.ones(len(rows_all), bool)
     keep[1:] = (rows_all[1:] != rows_all[:-1]) | (pos_all[1:] - pos_all[:-1] > t[rows_all[1:]])
-    keep[np.r_[rows_all[1:] != rows_all[:-1], True]] = True  # always keep each row's s1
+    last = np.ones(len(rows_all), bool)
+    last[:-1] = rows_all[1:] != rows_all[:-1]
+    keep[last] = True  # always keep each row's s1
     rows_all, pos_all = rows_all[keep], pos_all[keep]
     nxt = np.flatnonzero(rows_all[1:] == rows_all[:-1])
     piece_row = ve[rows_all[nxt]]
@@ -865,6 +877,11 @@ def build_eecells(scene, arcs, quiet=True):
 
         progress.set_postfix_str("loops")
         order, loop_offsets, chain_offsets = form_loops(el, group, join_tolerance(scene, el.e1, el.e2))
+        turning = windings(el.take(order), loop_offsets)
+        # a closed boundary winds by ±2π; anything else closed only within the join tolerance
+        # (e.g. one spurious arc shorter than it, meeting itself) and is an open chain
+        order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets,
+                                                     np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE)
         walk = el.take(order)
         turning = windings(walk, loop_offsets)
         area = loop_areas(walk, loop_offsets)
@@ -877,6 +894,20 @@ def build_eecells(scene, arcs, quiet=True):
         result = _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell)
         progress.update()
     return result
+
+
+def _demote(order, loop_offsets, chain_offsets, bad):
+    """Move the loops flagged ``bad`` ((l,) bool) to the open chains (before the others);
+    returns (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`."""
+    if not bad.any():
+        return order, loop_offsets, chain_offsets
+    lens = np.diff(loop_offsets)
+    n_el = loop_offsets[-1]
+    keep = ~bad[np.repeat(np.arange(len(lens)), lens)]
+    order = np.concatenate([order[:n_el][keep], order[:n_el][~keep], order[n_el:]])
+    loop_offsets = np.concatenate([[0], np.cumsum(lens[~bad])]).astype(np.int64)
+    demoted = loop_offsets[-1] + np.concatenate([[0], np.cumsum(lens[bad])])
+    return order, loop_offsets, np.concatenate([demoted, chain_offsets[1:]]).astype(np.int64)
 
 
 def join_tolerance(scene, e1, e2):

@@ -1,10 +1,11 @@
-"""The staged build: scene → nodes (V0) → arcs (V1) → V-cells (V2) → HDF5 file.
+"""The staged build: scene → nodes (V0) → arcs (V1) → V-cells and EE-cells (V2) → HDF5 file.
 
 Builders are functions of in-memory data and never touch files; this module
 chains them, times each stage and hands everything to the writer.
 """
 
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from viscx.errors import ViscxError
@@ -38,20 +39,44 @@ def _arcs(scene, built, quiet):
     return build_arcs(scene, built["V0"], quiet=quiet)
 
 
-def _vcells(scene, built, quiet):
+@dataclass
+class TwoCells:
+    """The V2 level: V-cells and EE-cells, with the seconds each took."""
+
+    vcells: object
+    eecells: object
+    timings: dict = field(default_factory=dict)
+
+    def __len__(self):
+        return len(self.vcells) + len(self.eecells)
+
+
+def _two_cells(scene, built, quiet):
+    from viscx.skeleton.eecells import build_eecells
     from viscx.skeleton.vcells import build_vcells
 
-    return build_vcells(scene, built["V1"], quiet=quiet)
+    t0 = time.perf_counter()
+    vcells = build_vcells(scene, built["V1"], quiet=quiet)
+    t1 = time.perf_counter()
+    eecells = build_eecells(scene, built["V1"], quiet=quiet)
+    return TwoCells(vcells, eecells, {"V2 V-cells": t1 - t0, "V2 EE-cells": time.perf_counter() - t1})
+
+
+def _write_two_cells(group, cells):
+    from viscx.formats import hdf5
+
+    hdf5.write_vcells(group, cells.vcells)
+    hdf5.write_eecells(group, cells.eecells)
 
 
 def _writer(level):
     from viscx.formats import hdf5
 
-    return {"V0": hdf5.write_nodes, "V1": hdf5.write_arcs, "V2": hdf5.write_vcells}[level]
+    return {"V0": hdf5.write_nodes, "V1": hdf5.write_arcs, "V2": _write_two_cells}[level]
 
 
-LEVELS = [("V0", _nodes), ("V1", _arcs), ("V2", _vcells)]
-NOUNS = {"V0": "nodes", "V1": "arcs", "V2": "V-cells"}
+LEVELS = [("V0", _nodes), ("V1", _arcs), ("V2", _two_cells)]
+NOUNS = {"V0": "nodes", "V1": "arcs", "V2": "V- and EE-cells"}
 MAX_LEVEL = len(LEVELS) - 1
 
 
@@ -66,7 +91,7 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
         See :func:`viscx.scene.build_scene`.
     levels : int
         The last skeleton level to build: -1 the scene only, 0 the nodes (V0),
-        1 also the arcs (V1), 2 also the V-cells (V2).
+        1 also the arcs (V1), 2 also the V-cells and EE-cells (V2).
     quiet : bool
         No progress bars.
     points : (k, 3) float64, optional
@@ -99,6 +124,7 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
             progress.set_postfix_str(name)
             built[name] = builder(scene, built, quiet)
             timings[name] = time.perf_counter() - t0
+            timings.update(getattr(built[name], "timings", {}))
             progress.update()
 
         if has_points:

@@ -27,7 +27,7 @@ from viscx.scene import DEFAULT_WELD
     default=None,
     metavar="N",
     help="The last level to build: -1 the scene only, 0 the nodes (V0), 1 also the arcs (V1), "
-    "2 also the V-cells (V2). Default: every level.",
+    "2 also the V-cells and EE-cells (V2). Default: every level.",
 )
 @point_option("--point", "points", multiple=True,
               help_text="Add a free point (e.g. a light) as a generator: its nodes, VE arcs and V-cells are "

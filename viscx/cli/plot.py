@@ -1,6 +1,7 @@
 """``viscx plot``: pictures of a viscx file (needs the ``plot`` extra: matplotlib)."""
 
 import click
+import numpy as np
 
 from viscx.cli.options import output_option
 from viscx.errors import ViscxError
@@ -12,6 +13,7 @@ def plot():
 
     \b
     viscx plot vcells cornell.h5 --vertex 3 -o v3.png
+    viscx plot eecell cornell.h5 --edges 4 17 -o e4_17.png
     """
 
 
@@ -45,3 +47,47 @@ def vcells(file, vertex, output, size):
     result = plot_vcells(scene, arcs, cells, vertex, output, size=size)
     note = f", {result['unlocated']:.1%} of the sphere in no cell (loops V1 could not close)" if result["unlocated"] else ""
     click.echo(f"{result['cells']} V-cells of vertex {vertex} -> {output}{note}")
+
+
+@plot.command(short_help="Draw the EE-cells of an edge pair in its square.")
+@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@click.option("--edges", "edges", type=int, nargs=2, required=True, metavar="A B",
+              help="The two generator edges (either order; x1 runs along the smaller id).")
+@output_option("The image to write (.png, .svg or .pdf).")
+@click.option("--size", type=click.IntRange(16, 4000), default=300, show_default=True,
+              help="Pixels per side of the square.")
+def eecell(file, edges, output, size):
+    """Draw the EE-cells of the edge pair A, B of FILE in its square [0, 1]² (seed 000
+    Fig. 7): point (x1, x2) is the line through the two edges' points x1 and x2, one
+    colour per cell, the boundary arcs with their direction, each cell listed with its
+    blocker pair (back → front) and area.
+
+    \b
+    viscx build sample_scenes/tetrahedra.obj -o tetra.h5
+    viscx plot eecell tetra.h5 --edges 2 7 -o tetra_2_7.png
+    """
+    from viscx.formats.hdf5 import ViscxFile, read_arcs, read_eecells
+    from viscx.render.eecells import plot_eecells
+    from viscx.skeleton.eecells import skew_pairs
+
+    with ViscxFile(file) as f:
+        if "V2" not in f.levels or "V2" not in f.h5:
+            raise ViscxError(f"{file} has no EE-cells (V2); build it with `viscx build --levels 2`")
+        scene = f.read_scene()
+        arcs = read_arcs(f.h5["V1"])
+        cells = read_eecells(f.h5["V2"])
+    e1, e2 = sorted(edges)
+    n_edges = len(scene.half_edges.edge_vertices)
+    for e in (e1, e2):
+        if not 0 <= e < n_edges or not scene.half_edges.edge_is_generator[e]:
+            raise ViscxError(f"--edges: {e} is not a generator edge of {file} "
+                             f"(it has {n_edges} edges, {len(scene.generator_edges)} generators)")
+    if e1 == e2 or not skew_pairs(scene, [e1], [e2])[0]:
+        raise ViscxError(f"--edges {e1} {e2}: the two edges share a vertex or a plane, so they have no square of EE-cells")
+    known = np.any((cells.edge1 == e1) & (cells.edge2 == e2)) or np.any((cells.open_edge1 == e1) & (cells.open_edge2 == e2))
+    if not known:
+        raise ViscxError(f"--edges {e1} {e2}: no EE-cells (no free segment joins the two edges, or V1 has no arc bounding them)")
+    result = plot_eecells(scene, arcs, cells, e1, e2, output, size=size)
+    note = f", {result['conflict']:.1%} of the square in several cells" if result["conflict"] else ""
+    click.echo(f"{result['cells']} EE-cells of edges {e1} and {e2} -> {output} "
+               f"({result['hidden']:.1%} in no cell){note}")

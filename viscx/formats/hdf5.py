@@ -246,6 +246,59 @@ def read_vcells(group):
     return VCells(**arrays)
 
 
+_EECELL_ARRAYS = ["edge1", "edge2", "back_kind", "back", "front_kind", "front", "area", "complete", "loop_offsets",
+                  "turning", "element_offsets", "element", "element_interval"]
+# open chains live in V2/ee/open/ under their names without the prefix
+_EE_OPEN_ARRAYS = ["offsets", "element", "interval", "edge1", "edge2", "back_kind", "back", "front_kind", "front"]
+
+
+def write_eecells(group, eecells):
+    """Fill ``V2/ee`` with :class:`viscx.skeleton.eecells.EECells` (see docs/format.md):
+    the cells with their boundary loops as CSR lists of signed arc ids, and ``open/``."""
+    ee = group.create_group("ee", track_order=True)
+    for name in _EECELL_ARRAYS:
+        write_dataset(ee, name, getattr(eecells, name))
+    ee.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2})
+    ee.attrs["counts"] = json.dumps(eecells.counts())
+    chains = ee.create_group("open", track_order=True)
+    for name in _EE_OPEN_ARRAYS:
+        write_dataset(chains, name, getattr(eecells, f"open_{name}"))
+    # the level's counts (what `viscx info` prints) gain the EE-cells'
+    counts = json.loads(group.attrs.get("counts", "{}"))
+    counts.update({f"ee_{k}": v for k, v in eecells.counts().items()})
+    group.attrs["counts"] = json.dumps(counts)
+
+
+def read_eecells(group):
+    """The :class:`viscx.skeleton.eecells.EECells` stored in a ``V2`` group."""
+    from viscx.skeleton.eecells import EECells
+
+    if "ee" not in group:
+        raise ViscxError("this file has no EE-cells (V2/ee); rebuild it with `viscx build --levels 2`")
+    ee = group["ee"]
+    try:
+        arrays = {name: ee[name][()] for name in _EECELL_ARRAYS}
+        arrays.update({f"open_{name}": ee["open"][name][()] for name in _EE_OPEN_ARRAYS})
+    except KeyError as exc:
+        raise ViscxError(f"damaged V2 level (missing ee/{exc.args[0]})") from None
+    c, loops, k = len(arrays["edge1"]), len(arrays["turning"]), len(arrays["element"])
+    o, m = len(arrays["open_edge1"]), len(arrays["open_element"])
+    shapes = {"edge2": (c,), "back_kind": (c,), "back": (c,), "front_kind": (c,), "front": (c,), "area": (c,),
+              "complete": (c,), "loop_offsets": (c + 1,), "element_offsets": (loops + 1,), "element_interval": (k, 2),
+              "open_offsets": (o + 1,), "open_interval": (m, 2), "open_edge2": (o,), "open_back_kind": (o,),
+              "open_back": (o,), "open_front_kind": (o,), "open_front": (o,)}
+    for name, shape in shapes.items():
+        if arrays[name].shape != shape:
+            where = f"open/{name[5:]}" if name.startswith("open_") else name
+            raise ViscxError(f"damaged V2 level (V2/ee/{where} has shape {arrays[name].shape}, expected {shape})")
+    for name, total in (("loop_offsets", loops), ("element_offsets", k), ("open_offsets", m)):
+        offsets = arrays[name]
+        if offsets[0] != 0 or offsets[-1] != total or np.any(np.diff(offsets) < 0):
+            where = "open/offsets" if name == "open_offsets" else name
+            raise ViscxError(f"damaged V2 level (V2/ee/{where} is not a CSR offset list)")
+    return EECells(**arrays)
+
+
 class ViscxFile:
     """An open, validated viscx file (use as a context manager).
 

@@ -349,11 +349,11 @@ def _pairs_in_groups(group):
 # FormLoops
 
 
-def form_loops(el, group):
+def form_loops(el, group, tolerance=JOIN_TOLERANCE):
     """Chain each group's elements end to start into loops (seed 000 §5.3 FormLoops).
 
     Candidates to follow an element are the elements of its group starting
-    within JOIN_TOLERANCE of its end; the first clockwise from the reversed
+    within ``tolerance`` of its end; the first clockwise from the reversed
     incoming tangent wins, exact ties to the smaller id, each element followed
     at most once. Elements that cannot lie on a loop (no candidate before or
     after them, repeatedly) choose last.
@@ -361,7 +361,12 @@ def form_loops(el, group):
     Parameters
     ----------
     el : Elements
+        Anything with ``start``, ``end``, ``start_tangent``, ``end_tangent`` ((k, 3)
+        float; signed angles are taken about ``end``: EE-cells embed their square as
+        the plane z = 1).
     group : (k,) int
+    tolerance : float or (k,) float
+        Per element: how far its end may be from a start it is joined to.
 
     Returns
     -------
@@ -376,7 +381,7 @@ def form_loops(el, group):
     if len(el) == 0:
         return np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64)
     i, j = _pairs_in_groups(group)
-    near = np.linalg.norm(el.end[i] - el.start[j], axis=1) <= JOIN_TOLERANCE
+    near = np.linalg.norm(el.end[i] - el.start[j], axis=1) <= np.broadcast_to(tolerance, (len(el),))[i]
     i, j = i[near], j[near]
     cw = np.mod(-_signed_angle(-el.end_tangent[i], el.start_tangent[j], el.end[i]), 2 * np.pi)
     cw = np.where(cw <= 1e-12, 2 * np.pi, cw)  # going straight back is the last choice
@@ -572,12 +577,14 @@ def inside_loops(el, loop_offsets, ref, loop, targets):
                    np.asarray(loop, np.int64), np.ascontiguousarray(targets, dtype=np.float64))
 
 
-def cells_of_loops(el, loop_offsets, loop_group, ref):
+def cells_of_loops(el, loop_offsets, loop_group, ref, inside=inside_loops):
     """Group the loops of each group into cells (§5.4 on the sphere).
 
     Loops i and j bound one cell iff every loop k of their group has i's and
     j's reference points on the same side (a loop's own reference point is on
     its left): the columns i and j of the group's side matrix are equal.
+    ``inside`` is the point-in-left-region test (:func:`inside_loops` on the
+    sphere; the EE-cells pass their square's).
 
     Returns
     -------
@@ -586,7 +593,7 @@ def cells_of_loops(el, loop_offsets, loop_group, ref):
     """
     nl = len(loop_group)
     k, i = _pairs_in_groups(loop_group)
-    side = inside_loops(el, loop_offsets, ref, k, ref[i]) | (k == i)
+    side = inside(el, loop_offsets, ref, k, ref[i]) | (k == i)
     # sort the pairs by (group, i, k): loop i's column is then one contiguous run
     order = np.lexsort([k, i])
     size = np.bincount(loop_group, minlength=loop_group.max() + 1 if nl else 0)[loop_group]

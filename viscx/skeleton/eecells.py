@@ -1,0 +1,1040 @@
+"""V2: the EE-cells (2-cells of an edge pair) of the visibility complex (seed 000 §6).
+
+The square of an edge pair
+--------------------------
+For two generator edges e1 < e2 on skew lines, parameterised like every edge of
+the skeleton (x = 0 at the smaller vertex id, 1 at the larger), a point
+(x1, x2) of the square [0, 1]² is the line through e1(x1) and e2(x2), and its
+*EE segment* σ(x1, x2) is the maximal free segment of that line through both
+points, judged by :func:`viscx.skeleton.nodes.maximal_free_segments` with the
+two edges as generators (the rule of every segment of the skeleton,
+docs/skeleton.md): the piece between the two points must be free; at e1 the
+line passes (tangent: both faces of e1 on one side of the plane of e1 and
+e2(x2)) and σ goes on to the first face or the sky, or it is blocked there
+and σ ends at e1 with the *edge* as blocker (BLOCK_EDGE); likewise at e2. The
+blocker pair (back, front) is read from e1's point towards e2's. An *EE-cell*
+is a maximal connected region of the square where the pair is constant; where
+the piece between the points is not free the square holds no segment
+(*hidden*), and no cell.
+
+Lines that enter a solid at e1 (not tangent) are kept, as the V-cells keep
+lines that enter the surface at their vertex (up = the vertex): they are the
+segments from the edge into the free space on the other side, a 2-parameter
+family with the edge as blocker. Pairs of edges on coplanar or meeting lines
+(two edges of a face, two edges at a vertex) have no square: every line
+through both lies in one plane, grazing (docs/skeleton.md) — no EE-cells.
+
+What bounds the cells (which V1 arcs, and the pair on each side)
+---------------------------------------------------------------
+Inside the square the pair changes only where the line meets a third
+generator: a third edge e3 (the EEE family (e1, e2, e3), a hyperbola arc
+x2(x1), linear-fractional, seed 000 §4.2), or a vertex (a VEE node: a point
+of the square, where such arcs meet). Along an EEE arc:
+
+* e3 beyond e2 (or before e1) on the line: one end of σ changes — e3 tangent:
+  the face of e3 on one side, what lies beyond e3 on the other; e3 blocking
+  (not a silhouette): e3's two faces. The arc's stored pair is the pair *on*
+  the arc (edge e3 as blocker, or what lies beyond e3), the other end is
+  common to both sides;
+* e3 between e1 and e2: one side is hidden (e3's faces cut the piece between
+  the points), the other is a cell with the arc's pair;
+* e3 coplanar with e1 (another edge of one of e1's faces, or an edge at one of
+  e1's endpoints): the EEE family is a *pencil* (V1 builds it): the lines in
+  that plane through the point where e2 crosses it, the segment x2 = const of
+  the square (Durand's face-edge event). Across it the plane of e1 and e2(x2)
+  passes a face of e1: tangency at e1 flips, so the back blocker turns from
+  the edge e1 to the face hit beyond e1. Likewise pencils of e2's faces are
+  segments x1 = const.
+
+The square's sides are the VE arcs (w, e2) through an endpoint w of e1
+(x1 = 0 or 1, parameterised by x2 = s) and (w, e1) through an endpoint of e2
+(x2 = 0 or 1); only their inner side bounds a cell. A VE arc has no event where
+the lines through e1 *next to* w change but the lines through w do not (a pencil
+of a face of e1 at w ends on the side there: tangency at e1 flips, while the
+line through w only touches the surface at w), so VE arcs are cut into pieces
+where other arcs of the square end on them (:func:`side_pieces`); EEE arcs need
+no cut (their crossings are V0 nodes or V1's planar events).
+
+Which side gets which pair is found like the VE half-cells' (arcs.py): the
+arc's middle point of the square is moved off the arc, across it on each side,
+by 50 epsilon along the edges, and that line is judged. A side whose line is
+hidden bounds nothing (the hidden region is not a cell); an EEE arc whose two
+sides have one pair bounds nothing.
+
+A *boundary element* is one side of one arc in one square, a curve directed so
+that its cell lies on its left in the (x1, x2) plane (x1 to the right, x2 up):
+``+(a + 1)`` runs along arc a with s increasing (cell on its left), ``-(a + 1)``
+with s decreasing (cell on the left of that, i.e. on the right of s
+increasing); an element runs along an arc piece, ``element_interval`` in the
+stored cells. Along an element each coordinate is a linear-fractional function
+of the arc's parameter, stored as a rational linear Bézier curve: coordinate
+c(u) = ((1 - u)(1 - w) c0 + u w c1) / ((1 - u)(1 - w) + u w) for u ∈ [0, 1]
+with c0, c1 the element's ends and w fixed by the middle sample
+(c(1/2) = (1 - w) c0 + w c1), exact for a projectivity and monotone in u.
+
+Algorithm (seed 000 §6 with the V-cells' Fig. 4)
+-----------------------------------------------
+Per edge pair and blocker pair (one *group*), :func:`vcells.form_loops`
+chains elements end to start where they meet in the square (within
+``JOIN_TOLERANCE`` times the square's epsilon, see below), choosing the first
+element clockwise at a corner where several start. The points of the square
+are embedded as (x1, x2, 1) and tangents as (t1, t2, 0), so that the sphere
+helpers' signed angles about "the point" are the plane's angles about +z.
+
+*Winding (Fig. 7).* A loop's winding is the sum of the turning angles at its
+corners (from the end tangent of an element to the start tangent of the next)
+plus the angle each element's tangent turns along it (a hyperbola arc turns by
+less than π, so this is the signed angle from its start to its end tangent):
++2π for a loop running counter-clockwise around its cell (its *outer* loop),
+−2π for a hole.
+
+*Holes* (§5.4): a loop's reference point lies just left of its longest
+element; a point p lies left of loop L iff the horizontal rays towards +x1 from
+p and from L's reference point cross L equally often modulo 2 (each element's
+x2 is monotone, so it crosses a ray at most once, found by inverting its
+Bézier coordinate). Loops of one group bound one cell iff every loop of the
+group sees their reference points on the same side (vcells.cells_of_loops).
+
+*Area*: Green's formula, exactly: along an element x2 is a linear-fractional
+function of x1 (a composition of two), integrated in closed form.
+
+Chains that do not close are kept as *open chains* (as for V-cells), and so are
+loops whose winding is not ±2π (they closed only within the join tolerance, e.g.
+one spurious V1 arc shorter than it); the cells of a pair with any open chain
+are not ``complete``.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from viscx.geometry.lines import segment_parameter
+from viscx.progress import bar
+from viscx.skeleton.arcs import EEE, VE, _skew, family_lines
+from viscx.skeleton.nodes import maximal_free_segments
+from viscx.skeleton.vcells import _signed_angle, cells_of_loops, form_loops, turning_sums
+
+#: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
+PROBE = 50
+#: Ends of two elements closer than this many epsilon (along the edges) are one point of
+#: the square: V1 merges events 4 epsilon apart along an edge.
+JOIN_TOLERANCE = 8
+#: A loop's reference point lies this far (square units, at most a thousandth of the
+#: element) left of its longest element.
+REFERENCE_OFFSET = 1e-9
+#: Where along its element (Bézier u) a loop's reference point lies: the golden section.
+REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
+#: A loop is closed when its winding is ±2π within this (else it is an open chain).
+WINDING_TOLERANCE = 1e-6
+#: A pair's cells cover the square when their areas sum to 1 within this.
+COVER_TOLERANCE = 1e-6
+#: Clamp of the Bézier weights (a coordinate constant along its element has w = 1/2).
+_W_MIN = 1e-12
+
+# slot layout of an EE line for maximal_free_segments: two edges
+_EE_SLOTS = np.array([[False] * 4])
+
+
+@dataclass
+class EECells:
+    """EE-cells as flat arrays, sorted by (edge1, edge2, back, front, first boundary element).
+
+    Attributes
+    ----------
+    edge1, edge2 : (c,) int
+        The edge pair, edge1 < edge2: x1 runs along edge1, x2 along edge2.
+    back_kind, front_kind : (c,) int8
+        BLOCK_FACE, BLOCK_SKY or BLOCK_EDGE (back: edge1 itself; front: edge2).
+    back, front : (c,) int
+        Blocker beyond edge1's point and beyond edge2's (face id, -1 sky, edge id).
+    area : (c,) float
+        Area of the cell in the square [0, 1]².
+    complete : (c,) bool
+        Every boundary element of its pair lies on a closed loop.
+    loop_offsets : (c + 1,) int
+        Loops of cell i, the outer loop first; a cell covering the whole square
+        without boundary has none.
+    turning : (l,) float
+        Winding of each loop (Fig. 7): +2π outer, −2π hole.
+    element_offsets : (l + 1,) int
+    element : (k,) int
+        Signed arc id: +(a + 1) runs along V1 arc a with s increasing, the cell
+        on its left in the (x1, x2) plane; -(a + 1) with s decreasing.
+    element_interval : (k, 2) float
+        The piece [s0, s1] of the arc's interval the element runs along: the arc's
+        own, but for a VE arc on the square's side cut where other arcs end on it.
+    open_offsets : (o + 1,) int
+    open_element : (m,) int
+    open_interval : (m, 2) float
+    open_edge1, open_edge2, open_back_kind, open_back, open_front_kind, open_front : (o,) int
+        The group of each chain that did not close.
+    """
+
+    edge1: np.ndarray
+    edge2: np.ndarray
+    back_kind: np.ndarray
+    back: np.ndarray
+    front_kind: np.ndarray
+    front: np.ndarray
+    area: np.ndarray
+    complete: np.ndarray
+    loop_offsets: np.ndarray
+    turning: np.ndarray
+    element_offsets: np.ndarray
+    element: np.ndarray
+    element_interval: np.ndarray
+    open_offsets: np.ndarray
+    open_element: np.ndarray
+    open_interval: np.ndarray
+    open_edge1: np.ndarray
+    open_edge2: np.ndarray
+    open_back_kind: np.ndarray
+    open_back: np.ndarray
+    open_front_kind: np.ndarray
+    open_front: np.ndarray
+
+    def __len__(self):
+        return len(self.edge1)
+
+    def counts(self):
+        """Numbers of cells, with holes, of holes, of open chains, of edge pairs with cells
+        or chains, of those complete and of complete pairs whose cells cover their square."""
+        loops = np.diff(self.loop_offsets)
+        pairs = np.unique(np.concatenate([self.edge1 * (1 << 32) + self.edge2,
+                                          self.open_edge1 * (1 << 32) + self.open_edge2]))
+        key = self.edge1 * (1 << 32) + self.edge2
+        done = np.unique(key[self.complete])
+        total = np.bincount(np.searchsorted(pairs, key), weights=self.area, minlength=len(pairs))
+        covered = np.abs(total[np.searchsorted(pairs, done)] - 1) <= COVER_TOLERANCE
+        return {
+            "cells": len(self),
+            "with_holes": int(np.count_nonzero(loops > 1)),
+            "holes": int(np.sum(np.maximum(loops - 1, 0))),
+            "open_chains": len(self.open_edge1),
+            "pairs": len(pairs),
+            "complete_pairs": len(done),
+            "covered_pairs": int(np.count_nonzero(covered)),
+        }
+
+
+# --------------------------------------------------------------------------------------
+# lines of the square
+
+
+def _edge_ends(scene, edges):
+    ev = scene.half_edges.edge_vertices[edges]
+    return scene.vertices[ev[..., 0]], scene.vertices[ev[..., 1]]
+
+
+def ee_points(scene, e1, e2, x1, x2):
+    """The points e1(x1) and e2(x2).
+
+    Parameters
+    ----------
+    e1, e2 : (n,) int
+    x1, x2 : (n,) float
+
+    Returns
+    -------
+    p1, p2 : (n, 3) float
+    """
+    a1, b1 = _edge_ends(scene, np.asarray(e1, np.int64))
+    a2, b2 = _edge_ends(scene, np.asarray(e2, np.int64))
+    return a1 + np.asarray(x1)[:, None] * (b1 - a1), a2 + np.asarray(x2)[:, None] * (b2 - a2)
+
+
+def ee_blockers(scene, e1, e2, x1, x2):
+    """Blocker pair of the EE segment of each point of a square (module docstring).
+
+    Parameters
+    ----------
+    e1, e2 : (n,) int
+        Edge pairs (e1 < e2, skew).
+    x1, x2 : (n,) float
+
+    Returns
+    -------
+    state : (n, 5) int
+        (valid, back kind, back, front kind, front), read from e1's point
+        towards e2's; -1 blockers where not valid (hidden, grazing, or a point
+        within epsilon of an edge's end).
+    """
+    e1, e2 = np.asarray(e1, np.int64), np.asarray(e2, np.int64)
+    n = len(e1)
+    p1, p2 = ee_points(scene, e1, e2, x1, x2)
+    d = p2 - p1
+    gens = np.full((n, 4), -1, np.int64)
+    gens[:, 0], gens[:, 1] = e1, e2
+    seg = maximal_free_segments(scene, np.broadcast_to(_EE_SLOTS, (n, 4)), np.full(n, 2), gens, p1,
+                                np.where(np.linalg.norm(d, axis=1)[:, None] > 0, d, 1.0))
+    # maximal_free_segments orients canonically: turn each to run from e1's point to e2's
+    flip = np.einsum("ij,ij->i", seg.direction, d) < 0
+    kind = np.where(flip[:, None], seg.blocker_kind[:, ::-1], seg.blocker_kind).astype(np.int64)
+    blocker = np.where(flip[:, None], seg.blocker[:, ::-1], seg.blocker)
+    state = np.stack([seg.valid.astype(np.int64), kind[:, 0], blocker[:, 0], kind[:, 1], blocker[:, 1]], axis=1)
+    state[~seg.valid, 1:] = -1
+    return state
+
+
+def skew_pairs(scene, e1, e2):
+    """Whether edge pairs have a square: no shared vertex, lines neither parallel nor
+    coplanar (farther than epsilon apart).
+
+    Parameters
+    ----------
+    e1, e2 : (n,) int
+
+    Returns
+    -------
+    (n,) bool
+    """
+    e1, e2 = np.asarray(e1, np.int64), np.asarray(e2, np.int64)
+    if len(e1) == 0:
+        return np.zeros(0, bool)
+    return _skew(scene, e1, e2)
+
+
+# --------------------------------------------------------------------------------------
+# arcs in a square
+
+
+def arc_squares(scene, arcs):
+    """Every (arc, square) incidence: the squares each V1 arc bounds.
+
+    EEE (p, q, r): the squares of its skew pairs among (p, q), (p, r), (q, r). VE (w, e):
+    the squares (e', e) of every generator edge e' at w skew to e (a side x' ∈ {0, 1}).
+
+    Returns
+    -------
+    arc : (k,) int
+    e1, e2 : (k,) int
+        The square's pair, e1 < e2.
+    """
+    kind, g = arcs.kind, arcs.generators
+    out_arc, out_a, out_b = [], [], []
+    eee = np.flatnonzero(kind == EEE)
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        out_arc.append(eee)
+        out_a.append(g[eee, i])
+        out_b.append(g[eee, j])
+    ve = np.flatnonzero(kind == VE)
+    if len(ve):
+        ge = scene.generator_edges
+        ev = scene.half_edges.edge_vertices[ge]
+        owner = np.concatenate([ev[:, 0], ev[:, 1]])
+        edges = np.concatenate([ge, ge])
+        order = np.argsort(owner, kind="stable")
+        owner, edges = owner[order], edges[order]
+        w = g[ve, 0]
+        lo, hi = np.searchsorted(owner, w, "left"), np.searchsorted(owner, w, "right")
+        cnt = hi - lo
+        rows = np.repeat(np.arange(len(ve)), cnt)
+        at = np.repeat(lo, cnt) + np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        out_arc.append(ve[rows])
+        out_a.append(edges[at])
+        out_b.append(g[ve[rows], 1])
+    arc, a, b = np.concatenate(out_arc), np.concatenate(out_a), np.concatenate(out_b)
+    keep = skew_pairs(scene, a, b)
+    arc, a, b = arc[keep], a[keep], b[keep]
+    return arc, np.minimum(a, b), np.maximum(a, b)
+
+
+def _coordinate(scene, arcs, arc, edge, s):
+    """Parameter x on ``edge`` of the line of each arc's family at s.
+
+    Parameters
+    ----------
+    arc, edge : (n,) int
+    s : (n,) float
+
+    Returns
+    -------
+    x : (n,) float
+        s itself where the edge is the family's parameter edge; 0 or 1 where the edge ends
+        at a VE arc's vertex; else where the family's line meets the edge.
+    defined : (n,) bool
+        False where the family's line is undefined (a pencil's parameter point at the
+        vertex its edge shares with another generator).
+    """
+    kind, g = arcs.kind[arc], arcs.generators[arc]
+    x = np.empty(len(arc))
+    defined = np.ones(len(arc), bool)
+    param = np.where(kind == EEE, g[:, 0], g[:, 1]) == edge
+    x[param] = s[param]
+    ev = scene.half_edges.edge_vertices[edge]
+    at_vertex = (kind == VE) & ~param
+    x[at_vertex] = (ev[at_vertex, 1] == g[at_vertex, 0]).astype(np.float64)
+    rest = np.flatnonzero(~param & ~at_vertex)
+    if len(rest):
+        o, d = family_lines(scene, kind[rest], g[rest], s[rest])
+        a, b = _edge_ends(scene, edge[rest])
+        # p's point at a vertex p shares with q or r: the line through it meeting both is
+        # undefined (its direction there is rounding noise, not always exactly zero)
+        gr = g[rest]
+        at_end = np.where(s[rest] <= 1e-12, 0, np.where(s[rest] >= 1 - 1e-12, 1, -1))
+        ev_p = scene.half_edges.edge_vertices[gr[:, 0]]
+        w = ev_p[np.arange(len(rest)), np.maximum(at_end, 0)]
+        shared = (at_end >= 0) & np.any(scene.half_edges.edge_vertices[gr[:, 1:]] == w[:, None, None], axis=(1, 2))
+        defined[rest] = (np.linalg.norm(d, axis=1) > 0) & ~shared
+        x[rest], _ = segment_parameter(o, np.where(defined[rest, None], d, 1.0), a, b)
+    return x, defined
+
+
+def _linear_fractional(u, x, at):
+    """Evaluate at ``at`` the linear-fractional map through three samples per row.
+
+    Parameters
+    ----------
+    u, x : (n, 3) float
+    at : (n,) float
+
+    Returns
+    -------
+    (n,) float
+    """
+    system = np.stack([u, np.ones_like(u), -x * u, -x], axis=2)
+    const = np.ptp(x, axis=1) <= 1e-13
+    coeff = np.linalg.svd(np.where(const[:, None, None], 1.0, system))[2][:, -1]
+    a, b, c, d = coeff.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        value = (a * at + b) / (c * at + d)
+    return np.where(const, x[:, 1], value)
+
+
+@dataclass
+class Elements:
+    """Boundary elements: one side of one arc in one square, a curve of the square with
+    its cell on the left (module docstring).
+
+    Attributes
+    ----------
+    arc : (k,) int
+    side : (k,) int
+        0: left of the arc run with s increasing (element +(a + 1)), 1: right (-(a + 1)).
+    e1, e2 : (k,) int
+    pair : (k, 4) int
+        (back kind, back, front kind, front) of the cell on the element's left.
+    interval : (k, 2) float
+        The piece [s0, s1] of the arc's parameter interval it runs along (the whole
+        interval but for VE arcs cut on the square's side, see :func:`side_pieces`).
+    start, end : (k, 3) float
+        (x1, x2, 1) where the element starts and ends.
+    weight : (k, 2) float
+        Bézier weight w of x1 and of x2 along the element.
+    start_tangent, end_tangent : (k, 3) float
+        Unit direction of travel (t1, t2, 0) there.
+    """
+
+    arc: np.ndarray
+    side: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    pair: np.ndarray
+    interval: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    weight: np.ndarray
+    start_tangent: np.ndarray
+    end_tangent: np.ndarray
+
+    def __len__(self):
+        return len(self.arc)
+
+    def take(self, index):
+        return Elements(**{name: getattr(self, name)[index] for name in self.__dataclass_fields__})
+
+    @property
+    def signed(self):
+        """(k,) int: +(a + 1) on the arc's left, -(a + 1) on its right."""
+        return np.where(self.side == 0, 1, -1) * (self.arc + 1)
+
+
+def _curves(scene, arcs, arc, e1, e2, interval):
+    """Each arc piece's curve in its square, run with s increasing.
+
+    Parameters
+    ----------
+    arc, e1, e2 : (k,) int
+    interval : (k, 2) float
+        The piece [s0, s1] of each arc's interval.
+
+    Returns
+    -------
+    start, middle, end : (k, 2) float
+        (x1, x2) at s0, (s0 + s1) / 2 and s1.
+    weight : (k, 2) float
+        Bézier weight of each coordinate (module docstring).
+    """
+    s0, s1 = interval[:, 0], interval[:, 1]
+    pts = []
+    for s in (s0, 0.5 * (s0 + s1), s1):
+        (c1, ok1), (c2, ok2) = _coordinate(scene, arcs, arc, e1, s), _coordinate(scene, arcs, arc, e2, s)
+        pts.append((np.stack([c1, c2], axis=1), np.stack([ok1, ok2], axis=1)))
+    # an end where the family's line is undefined (a pencil at its edge's shared vertex):
+    # the limit, from the map through three inner samples
+    bad = np.flatnonzero(~(pts[0][1].all(axis=1) & pts[2][1].all(axis=1)))
+    if len(bad):
+        fr = np.array([0.25, 0.5, 0.75])
+        s_in = (s0[bad, None] + fr * (s1 - s0)[bad, None]).reshape(-1)
+        inner = [_coordinate(scene, arcs, np.repeat(arc[bad], 3), np.repeat(e[bad], 3), s_in)[0] for e in (e1, e2)]
+        u = np.broadcast_to(fr, (len(bad), 3))
+        for k, at in ((0, 0.0), (2, 1.0)):
+            for c in (0, 1):
+                value = _linear_fractional(u, inner[c].reshape(-1, 3), np.full(len(bad), at))
+                broken = ~pts[k][1][bad, c]
+                pts[k][0][bad[broken], c] = value[broken]
+    pts = [p for p, _ in pts]
+    start, middle, end = pts
+    span = end - start
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = (middle - start) / span
+    # a constant coordinate (or one whose middle is off its ends' range: rounding) is linear
+    w = np.where(np.isfinite(w) & (np.abs(span) > 1e-14), w, 0.5)
+    return start, middle, end, np.clip(w, _W_MIN, 1 - _W_MIN)
+
+
+def _bezier_tangents(start, end, weight):
+    """Derivatives d(x1, x2)/du at u = 0 and u = 1 of the curves ((k, 2) float each)."""
+    span = end - start
+    return span * weight / (1 - weight), span * (1 - weight) / weight
+
+
+def _unit3(t):
+    out = np.zeros((len(t), 3))
+    size = np.linalg.norm(t, axis=1)
+    ok = size > 0
+    out[ok, :2] = t[ok] / size[ok, None]
+    out[~ok, 0] = 1.0
+    return out
+
+
+def _lift(p):
+    return np.concatenate([p, np.ones((len(p), 1))], axis=1)
+
+
+def element_geometry(scene, arcs, arc, side, e1, e2, pair, interval):
+    """The boundary elements of the given arc sides in the given squares.
+
+    Parameters
+    ----------
+    arc, side, e1, e2 : (k,) int
+    pair : (k, 4) int
+    interval : (k, 2) float
+        The piece of each arc's parameter interval the element runs along.
+
+    Returns
+    -------
+    Elements
+    """
+    arc, side = np.asarray(arc, np.int64), np.asarray(side, np.int64)
+    interval = np.asarray(interval, np.float64).reshape(-1, 2)
+    start, _, end, w = _curves(scene, arcs, arc, np.asarray(e1, np.int64), np.asarray(e2, np.int64), interval)
+    t0, t1 = _bezier_tangents(start, end, w)
+    rev = side == 1
+    return Elements(
+        arc=arc,
+        side=side,
+        e1=np.asarray(e1, np.int64),
+        e2=np.asarray(e2, np.int64),
+        pair=np.asarray(pair, np.int64).reshape(-1, 4),
+        interval=interval,
+        start=_lift(np.where(rev[:, None], end, start)),
+        end=_lift(np.where(rev[:, None], start, end)),
+        weight=np.where(rev[:, None], 1 - w, w),
+        start_tangent=_unit3(np.where(rev[:, None], -t1, t0)),
+        end_tangent=_unit3(np.where(rev[:, None], -t0, t1)),
+    )
+
+
+def side_pairs(scene, arcs, arc, e1, e2, interval):
+    """Blocker pairs of the cells on both sides of each arc in its square, by probes.
+
+    The arc's middle point is moved across it, to each side along the curve's normal,
+    by PROBE epsilon along the longer-moving edge (clamped into the square), and the
+    probe's line judged (:func:`ee_blockers`).
+
+    Parameters
+    ----------
+    arc, e1, e2 : (k,) int
+    interval : (k, 2) float
+
+    Returns
+    -------
+    pairs : (k, 2, 4) int
+        (back kind, back, front kind, front) on the left (0) and right (1) of the arc
+        run with s increasing.
+    bounds : (k, 2) bool
+        Whether that side bounds a cell (its probe is valid, the other side's pair differs).
+    """
+    start, middle, end, w = _curves(scene, arcs, arc, e1, e2, interval)
+    t0, t1 = _bezier_tangents(start, end, w)
+    # tangent at u = 1/2 of the Bézier curve: w0 w1 (c1 - c0) / (1/2)^2 up to a positive factor
+    tangent = (end - start) * w * (1 - w)
+    tangent = np.where(np.linalg.norm(tangent, axis=1)[:, None] > 0, tangent, t0 + t1)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    a1, b1 = _edge_ends(scene, e1)
+    a2, b2 = _edge_ends(scene, e2)
+    length = np.stack([np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1)], axis=1)
+    # move by PROBE epsilon along the edge that moves most
+    step = PROBE * scene.epsilon / np.max(np.abs(left) * length, axis=1)
+    raw = np.concatenate([middle + step[:, None] * left, middle - step[:, None] * left])
+    probes = np.clip(raw, 0.0, 1.0)
+    k = len(arc)
+    state = ee_blockers(scene, np.tile(e1, 2), np.tile(e2, 2), probes[:, 0], probes[:, 1]).reshape(2, k, 5)
+    pairs = np.transpose(state[:, :, 1:], (1, 0, 2))
+    valid = state[:, :, 0].T == 1
+    # a side off the square (the outer side of a VE arc on the square's side) bounds nothing
+    valid &= ~np.any((raw < 0) | (raw > 1), axis=1).reshape(2, k).T
+    differ = np.any(pairs[:, 0] != pairs[:, 1], axis=1) | (valid[:, 0] != valid[:, 1])
+    bounds = valid & differ[:, None]
+    return pairs, bounds
+
+
+def side_pieces(scene, arcs, arc, e1, e2):
+    """The arc pieces of each square: every arc whole, but VE arcs (the square's sides)
+    cut where another arc of the square ends on them.
+
+    A VE arc (w, e2) has no event where the lines through e1 next to w change: e.g. a
+    pencil of a face of e1 at w (tangency at e1 flips across it) ends on the side at
+    the line through w in that face's plane, which only touches the surface at w, so
+    the lines through w see nothing there. Only the side's pieces between such ends
+    have one pair beside them. EEE arcs need no cut: their crossings with other arcs
+    of the square are V0 nodes or planar events (arcs end there).
+
+    Parameters
+    ----------
+    arc, e1, e2 : (k,) int
+        Arc-square incidences (:func:`arc_squares`).
+
+    Returns
+    -------
+    arc, e1, e2 : (m,) int
+    interval : (m, 2) float
+    """
+    interval = arcs.interval[arc]
+    start, _, end, _ = _curves(scene, arcs, arc, e1, e2, interval)
+    tol = join_tolerance(scene, e1, e2)
+    pair_key = e1 * (1 << 32) + e2
+    # the side of each VE row (0: x1 = 0, 1: x1 = 1, 2: x2 = 0, 3: x2 = 1); s runs along it
+    ve = np.flatnonzero(arcs.kind[arc] == VE)
+    along_x2 = arcs.generators[arc[ve], 1] == e2[ve]  # the edge of the VE arc is e2: a side x1 = const
+    ve_side = np.where(along_x2, np.round(start[ve, 0]), 2 + np.round(start[ve, 1])).astype(np.int64)
+    # ends of the other (EEE) rows lying on a side: (side, position along it)
+    eee = np.flatnonzero(arcs.kind[arc] == EEE)
+    ends = np.concatenate([start[eee], end[eee]])
+    owner = np.concatenate([eee, eee])
+    cuts_key, cuts_pos = [], []
+    for side, coord, value in ((0, 0, 0.0), (1, 0, 1.0), (2, 1, 0.0), (3, 1, 1.0)):
+        on = np.abs(ends[:, coord] - value) <= tol[owner]
+        cuts_key.append(pair_key[owner[on]] * 4 + side)
+        cuts_pos.append(ends[on, 1 - coord])
+    cuts_key, cuts_pos = np.concatenate(cuts_key), np.concatenate(cuts_pos)
+    order = np.lexsort([cuts_pos, cuts_key])
+    cuts_key, cuts_pos = cuts_key[order], cuts_pos[order]
+    # for each VE row, the cuts strictly inside its interval (farther than tol from its ends)
+    row_key = pair_key[ve] * 4 + ve_side
+    s0, s1, t = interval[ve, 0], interval[ve, 1], tol[ve]
+    lo = np.searchsorted(cuts_key, row_key, "left")
+    hi = np.searchsorted(cuts_key, row_key, "right")
+    count = hi - lo
+    rows = np.repeat(np.arange(len(ve)), count)
+    at = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    pos = cuts_pos[at]
+    inner = (pos > s0[rows] + t[rows]) & (pos < s1[rows] - t[rows])
+    rows, pos = rows[inner], pos[inner]
+    # merge cuts closer than tol, then pieces between consecutive cut points
+    rows_all = np.concatenate([np.arange(len(ve)), rows, np.arange(len(ve))])
+    pos_all = np.concatenate([s0, pos, s1])
+    order = np.lexsort([pos_all, rows_all])
+    rows_all, pos_all = rows_all[order], pos_all[order]
+    keep = np.ones(len(rows_all), bool)
+    keep[1:] = (rows_all[1:] != rows_all[:-1]) | (pos_all[1:] - pos_all[:-1] > t[rows_all[1:]])
+    last = np.ones(len(rows_all), bool)
+    last[:-1] = rows_all[1:] != rows_all[:-1]
+    keep[last] = True  # always keep each row's s1
+    rows_all, pos_all = rows_all[keep], pos_all[keep]
+    nxt = np.flatnonzero(rows_all[1:] == rows_all[:-1])
+    piece_row = ve[rows_all[nxt]]
+    piece_interval = np.stack([pos_all[nxt], pos_all[nxt + 1]], axis=1)
+    nonempty = piece_interval[:, 1] > piece_interval[:, 0]
+    piece_row, piece_interval = piece_row[nonempty], piece_interval[nonempty]
+    rows = np.concatenate([eee, piece_row])
+    ivl = np.concatenate([interval[eee], piece_interval])
+    order = np.lexsort([ivl[:, 0], arc[rows], e2[rows], e1[rows]])
+    rows, ivl = rows[order], ivl[order]
+    return arc[rows], e1[rows], e2[rows], ivl
+
+
+def boundary_elements(scene, arcs):
+    """Every boundary element of every square, sorted by (e1, e2, arc, interval, side).
+
+    Returns
+    -------
+    Elements
+    """
+    arc, e1, e2, interval = side_pieces(scene, arcs, *arc_squares(scene, arcs))
+    pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval)
+    row, side = np.nonzero(bounds)
+    return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row])
+
+
+# --------------------------------------------------------------------------------------
+# loops in the square (elements of loop j contiguous: loop_offsets[j]:loop_offsets[j + 1])
+
+
+def windings(el, loop_offsets):
+    """Winding of each loop (seed 000 Fig. 7): the turning angles at its corners plus the
+    angle each element's tangent turns along it (left turns positive).
+
+    Returns
+    -------
+    (l,) float
+        +2π for a loop running counter-clockwise (an outer loop), −2π for a hole.
+    """
+    n = loop_offsets[-1]
+    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    along = _signed_angle(el.start_tangent[:n], el.end_tangent[:n], el.end[:n])
+    return turning_sums(el, loop_offsets) + np.bincount(loop_of, weights=along, minlength=len(loop_offsets) - 1)
+
+
+@njit(cache=True, inline="always")
+def _bezier(c0, c1, w, u):
+    """Coordinate at u of a rational linear Bézier curve (module docstring)."""
+    a = (1.0 - u) * (1.0 - w)
+    b = u * w
+    return (a * c0 + b * c1) / (a + b)
+
+
+@njit(cache=True, inline="always")
+def _bezier_inverse(c0, c1, w, c):
+    """The u at which the coordinate equals c (c between c0 and c1)."""
+    a = (1.0 - w) * (c - c0)
+    b = w * (c1 - c)
+    return a / (a + b)
+
+
+@njit(cache=True)
+def _crossings(starts, ends, weights, lo, hi, x, y):
+    """How often the ray {(t, y): t > x} crosses elements lo..hi-1 (x2 is monotone along
+    each: at most once; half-open in x2 so that a ray through a corner counts once)."""
+    count = 0
+    for e in range(lo, hi):
+        y0, y1 = starts[e, 1], ends[e, 1]
+        if (y0 > y) == (y1 > y):
+            continue
+        u = _bezier_inverse(y0, y1, weights[e, 1], y)
+        if _bezier(starts[e, 0], ends[e, 0], weights[e, 0], u) > x:
+            count += 1
+    return count
+
+
+@njit(cache=True)
+def _inside_square(ref, loop_offsets, starts, ends, weights, pair_loop, targets):
+    out = np.empty(len(pair_loop), np.bool_)
+    for t in range(len(pair_loop)):
+        L = pair_loop[t]
+        lo, hi = loop_offsets[L], loop_offsets[L + 1]
+        a = _crossings(starts, ends, weights, lo, hi, ref[L, 0], ref[L, 1])
+        b = _crossings(starts, ends, weights, lo, hi, targets[t, 0], targets[t, 1])
+        out[t] = (a - b) % 2 == 0
+    return out
+
+
+def inside_square_loops(el, loop_offsets, ref, loop, targets):
+    """Whether each target point lies in the left region of a loop: the horizontal rays
+    from it and from the loop's reference point cross the loop equally often mod 2.
+
+    Parameters
+    ----------
+    el : Elements
+    loop_offsets : (l + 1,) int
+    ref : (l, 3) float
+        Reference points (x1, x2, 1).
+    loop : (m,) int
+    targets : (m, 2 or 3) float
+        Points (x1, x2, ...) of the square.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    return _inside_square(np.ascontiguousarray(ref[:, :2]), np.asarray(loop_offsets, np.int64),
+                          np.ascontiguousarray(el.start[:, :2]), np.ascontiguousarray(el.end[:, :2]),
+                          np.ascontiguousarray(el.weight), np.asarray(loop, np.int64),
+                          np.ascontiguousarray(np.asarray(targets, np.float64)[:, :2]))
+
+
+def reference_points(el, loop_offsets):
+    """A point just left of each loop: REFERENCE_OFFSET (at most a thousandth of the
+    element's chord) off its longest element, along the normal, at u = REFERENCE_AT (not
+    the middle: in axis-aligned scenes the middle of a side is often level with a corner,
+    and a ray through a corner joined within tolerance could count it twice).
+
+    Returns
+    -------
+    (l, 3) float
+    """
+    n = loop_offsets[-1]
+    chord = np.linalg.norm(el.end[:n, :2] - el.start[:n, :2], axis=1)
+    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    pick = np.lexsort([-chord, loop_of])
+    best = pick[np.searchsorted(loop_of[pick], np.arange(len(loop_offsets) - 1))]
+    s, e, w = el.start[best, :2], el.end[best, :2], el.weight[best]
+    u = REFERENCE_AT
+    den = (1 - u) * (1 - w) + u * w
+    point = ((1 - u) * (1 - w) * s + u * w * e) / den
+    # d/du of each coordinate: w0 w1 (c1 - c0) / den² (w0 = 1 - w, w1 = w)
+    tangent = (e - s) * w * (1 - w) / den**2
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    ref = point + np.minimum(REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
+    return _lift(ref)
+
+
+def _phi_psi(q):
+    """φ(q) = log(1 + q) / q and ψ(q) = (1 - φ(q)) / q, by series near 0."""
+    small = np.abs(q) < 1e-3
+    qs = np.where(small, q, 0.0)
+    phi_s = 1 - qs / 2 + qs**2 / 3 - qs**3 / 4 + qs**4 / 5 - qs**5 / 6
+    psi_s = 0.5 - qs / 3 + qs**2 / 4 - qs**3 / 5 + qs**4 / 6 - qs**5 / 7
+    ql = np.where(small, 1.0, q)
+    phi_l = np.log1p(ql) / ql
+    psi_l = (1 - phi_l) / ql
+    return np.where(small, phi_s, phi_l), np.where(small, psi_s, psi_l)
+
+
+def _integral(a0, a1, wa, b0, b1, wb):
+    """∫ b da along elements whose coordinates a, b are rational linear Bézier curves
+    ((k,) float each), exactly: b = g(a) is linear-fractional, g = B ∘ A⁻¹ (2 × 2
+    matrices), and ∫ (P a + Q) / (R a + S) da over [a0, a1] is
+    Δ [g(a0) φ(q) + P Δ ψ(q) / D0] with Δ = a1 - a0, D0 = R a0 + S, q = R Δ / D0."""
+    # A⁻¹: a -> u = (1 - wa)(a - a0) / ((1 - wa)(a - a0) + wa (a1 - a))
+    inv = np.empty((len(a0), 2, 2))
+    inv[:, 0, 0], inv[:, 0, 1] = 1 - wa, -(1 - wa) * a0
+    inv[:, 1, 0], inv[:, 1, 1] = 1 - 2 * wa, wa * a1 - (1 - wa) * a0
+    # B: u -> (u (wb b1 - (1 - wb) b0) + (1 - wb) b0) / (u (2 wb - 1) + 1 - wb)
+    fwd = np.empty((len(a0), 2, 2))
+    fwd[:, 0, 0], fwd[:, 0, 1] = wb * b1 - (1 - wb) * b0, (1 - wb) * b0
+    fwd[:, 1, 0], fwd[:, 1, 1] = 2 * wb - 1, 1 - wb
+    g = fwd @ inv
+    P, R, S = g[:, 0, 0], g[:, 1, 0], g[:, 1, 1]
+    delta = a1 - a0
+    d0 = R * a0 + S
+    ok = (delta != 0) & (d0 != 0)
+    d0 = np.where(ok, d0, 1.0)
+    q = R * delta / d0
+    phi, psi = _phi_psi(np.maximum(q, -1 + 1e-15))
+    return np.where(ok, delta * (b0 * phi + P * delta * psi / d0), 0.0)
+
+
+def loop_areas(el, loop_offsets):
+    """Signed area of each loop's inside (Green: ½ ∮ x1 dx2 - x2 dx1), counter-clockwise
+    positive, integrated exactly along each element in its better-conditioned coordinate.
+
+    Returns
+    -------
+    (l,) float
+    """
+    n = loop_offsets[-1]
+    x0, y0 = el.start[:n, 0], el.start[:n, 1]
+    x1, y1 = el.end[:n, 0], el.end[:n, 1]
+    wx, wy = el.weight[:n, 0], el.weight[:n, 1]
+    over_x = np.abs(x1 - x0) >= np.abs(y1 - y0)
+    # ∫ y dx directly, or from ∫ x dy by parts: ∫ y dx = [x y] - ∫ x dy
+    y_dx = np.where(over_x, _integral(x0, x1, wx, y0, y1, wy), x1 * y1 - x0 * y0 - _integral(y0, y1, wy, x0, x1, wx))
+    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    # ½ ∮ (x dy - y dx) = ½ ∮ (d(xy) - 2 y dx) = -∮ y dx over a closed loop
+    return -np.bincount(loop_of, weights=y_dx, minlength=len(loop_offsets) - 1)
+
+
+# --------------------------------------------------------------------------------------
+# the builder
+
+
+def build_eecells(scene, arcs, quiet=True):
+    """The EE-cells (V2) of every skew pair of generator edges that V1 gives boundaries.
+
+    Parameters
+    ----------
+    scene : Scene
+    arcs : Arcs
+    quiet : bool
+        No progress bar.
+
+    Returns
+    -------
+    EECells
+    """
+    with bar(total=3, desc="EE-cells", quiet=quiet, unit="stage") as progress:
+        progress.set_postfix_str("elements")
+        el = boundary_elements(scene, arcs)
+        key = np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1)
+        _, group = np.unique(key, axis=0, return_inverse=True)
+        group = group.reshape(-1)
+        progress.update()
+
+        progress.set_postfix_str("loops")
+        order, loop_offsets, chain_offsets = form_loops(el, group, join_tolerance(scene, el.e1, el.e2))
+        turning = windings(el.take(order), loop_offsets)
+        # a closed boundary winds by ±2π; anything else closed only within the join tolerance
+        # (e.g. one spurious arc shorter than it, meeting itself) and is an open chain
+        order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets,
+                                                     np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE)
+        walk = el.take(order)
+        turning = windings(walk, loop_offsets)
+        area = loop_areas(walk, loop_offsets)
+        ref = reference_points(walk, loop_offsets)
+        progress.update()
+
+        progress.set_postfix_str("cells")
+        loop_group = group[order[loop_offsets[:-1]]]
+        cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
+        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell)
+        progress.update()
+    return result
+
+
+def _demote(order, loop_offsets, chain_offsets, bad):
+    """Move the loops flagged ``bad`` ((l,) bool) to the open chains (before the others);
+    returns (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`."""
+    if not bad.any():
+        return order, loop_offsets, chain_offsets
+    lens = np.diff(loop_offsets)
+    n_el = loop_offsets[-1]
+    keep = ~bad[np.repeat(np.arange(len(lens)), lens)]
+    order = np.concatenate([order[:n_el][keep], order[:n_el][~keep], order[n_el:]])
+    loop_offsets = np.concatenate([[0], np.cumsum(lens[~bad])]).astype(np.int64)
+    demoted = loop_offsets[-1] + np.concatenate([[0], np.cumsum(lens[bad])])
+    return order, loop_offsets, np.concatenate([demoted, chain_offsets[1:]]).astype(np.int64)
+
+
+def join_tolerance(scene, e1, e2):
+    """(k,) float: JOIN_TOLERANCE epsilon along the shorter edge of each element's pair, in
+    square units (events merged 4 epsilon apart along an edge end arcs there)."""
+    a1, b1 = _edge_ends(scene, e1)
+    a2, b2 = _edge_ends(scene, e2)
+    shorter = np.minimum(np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1))
+    return JOIN_TOLERANCE * scene.epsilon / shorter
+
+
+def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
+    """Cells in canonical order with their loops (outer first) and areas."""
+    n_loops = len(loop_offsets) - 1
+    n_cells = int(cell.max()) + 1 if n_loops else 0
+    first = order[loop_offsets[:-1]]
+    at_first = loop_offsets[:-1]
+    pair = np.concatenate([walk.e1[at_first, None], walk.e2[at_first, None], walk.pair[at_first]], axis=1)
+    # outer loop: the largest winding of the cell (+2π; holes -2π)
+    rank_in_cell = np.lexsort([first, -turning, cell])
+    outer = np.zeros(n_loops, bool)
+    outer[rank_in_cell[np.searchsorted(cell[rank_in_cell], np.arange(n_cells))]] = True
+    count = np.bincount(cell, minlength=n_cells)
+    cell_area = np.bincount(cell, weights=area, minlength=n_cells)
+    cell_pair = np.zeros((n_cells, 6), np.int64)
+    cell_pair[cell] = pair
+    cell_first = np.full(n_cells, np.iinfo(np.int64).max)
+    np.minimum.at(cell_first, cell, first)
+    cell_order = np.lexsort([cell_first, *cell_pair.T[::-1]])
+    rank = np.empty(n_cells, np.int64)
+    rank[cell_order] = np.arange(n_cells)
+    loop_order = np.lexsort([first, ~outer, rank[cell]])
+    lens = np.diff(loop_offsets)[loop_order]
+    idx = np.repeat(loop_offsets[:-1][loop_order], lens) + np.arange(lens.sum()) - np.repeat(np.cumsum(lens) - lens, lens)
+    n_el = loop_offsets[-1]
+    cp = cell_pair[cell_order]
+    chain = walk.take(np.arange(n_el, len(walk)))
+    chain_first = chain_offsets[:-1] - n_el
+    open_key = np.unique(chain.e1 * (1 << 32) + chain.e2)
+    complete = ~np.isin(cp[:, 0] * (1 << 32) + cp[:, 1], open_key)
+    return EECells(
+        edge1=cp[:, 0],
+        edge2=cp[:, 1],
+        back_kind=cp[:, 2].astype(np.int8),
+        back=cp[:, 3],
+        front_kind=cp[:, 4].astype(np.int8),
+        front=cp[:, 5],
+        area=cell_area[cell_order],
+        complete=complete,
+        loop_offsets=np.concatenate([[0], np.cumsum(count[cell_order])]).astype(np.int64),
+        turning=turning[loop_order],
+        element_offsets=np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
+        element=walk.signed[idx],
+        element_interval=walk.interval[idx],
+        open_offsets=(chain_offsets - n_el).astype(np.int64),
+        open_element=chain.signed,
+        open_interval=chain.interval,
+        open_edge1=chain.e1[chain_first],
+        open_edge2=chain.e2[chain_first],
+        open_back_kind=chain.pair[chain_first, 0].astype(np.int8),
+        open_back=chain.pair[chain_first, 1],
+        open_front_kind=chain.pair[chain_first, 2].astype(np.int8),
+        open_front=chain.pair[chain_first, 3],
+    )
+
+
+# --------------------------------------------------------------------------------------
+# queries
+
+
+def cell_elements(scene, arcs, eecells, cells):
+    """The boundary elements of the given cells, loop by loop.
+
+    Parameters
+    ----------
+    cells : (c,) int
+        Consecutive cell indices.
+
+    Returns
+    -------
+    el : Elements
+    offsets : (l + 1,) int
+        Loop j of these cells is ``el[offsets[j]:offsets[j + 1]]``.
+    loop_cell : (l,) int
+        The cell of each loop.
+    """
+    ee = eecells
+    first_loop, end_loop = ee.loop_offsets[cells[0]], ee.loop_offsets[cells[-1] + 1]
+    lo, hi = ee.element_offsets[first_loop], ee.element_offsets[end_loop]
+    signed = ee.element[lo:hi]
+    loop_cell = np.repeat(cells, np.diff(ee.loop_offsets[cells[0]: cells[-1] + 2]))
+    el_cell = np.repeat(loop_cell, np.diff(ee.element_offsets[first_loop: end_loop + 1]))
+    pair = np.stack([ee.back_kind, ee.back, ee.front_kind, ee.front], axis=1)[el_cell]
+    el = element_geometry(scene, arcs, np.abs(signed) - 1, (signed < 0).astype(np.int64), ee.edge1[el_cell],
+                          ee.edge2[el_cell], pair, ee.element_interval[lo:hi])
+    return el, ee.element_offsets[first_loop: end_loop + 1] - lo, loop_cell
+
+
+def locate(scene, arcs, eecells, e1, e2, points):
+    """The EE-cells of an edge pair holding each point of its square.
+
+    Parameters
+    ----------
+    e1, e2 : int
+        The pair, e1 < e2.
+    points : (n, 2) float
+        (x1, x2).
+
+    Returns
+    -------
+    cell : (n,) int
+        The cell (index into ``eecells``) holding each point, -1 where none (hidden, or
+        loops V1 left open) or several do.
+    holders : (n,) int
+    """
+    ee = eecells
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    cells = np.flatnonzero((ee.edge1 == e1) & (ee.edge2 == e2))
+    nd = len(pts)
+    if len(cells) == 0:
+        return np.full(nd, -1), np.zeros(nd, np.int64)
+    held = np.ones((len(cells), nd), bool)
+    el, offsets, loop_cell = cell_elements(scene, arcs, ee, cells)
+    nl = len(offsets) - 1
+    if nl:
+        ref = reference_points(el, offsets)
+        inside = inside_square_loops(el, offsets, ref, np.repeat(np.arange(nl), nd), np.tile(pts, (nl, 1)))
+        np.logical_and.at(held, np.searchsorted(cells, loop_cell), inside.reshape(nl, nd))
+    holders = held.sum(axis=0)
+    return np.where(holders == 1, cells[np.argmax(held, axis=0)], -1), holders

@@ -212,13 +212,15 @@ def bench_skeleton(sizes, budget):
                          "n": 0, "seconds": float("nan"), "rate": 0.0, "unit": "", "peak_mb": peak_mb(),
                          "note": "skipped: " + r["skipped"]})
             continue
-        n, a, v = r["nodes"], r["arcs"], r["vcells"]
+        n, a, v, ee = r["nodes"], r["arcs"], r["vcells"], r["eecells"]
         for stage, sec, count, unit, note in (
             ("V0 nodes", r["seconds_v0"], r["nodes_total"], "nodes/s",
              f"VV/VEE/E4 {n['VV']}/{n['VEE']}/{n['E4']}; {r['candidates_total']:,} candidates"),
             ("V1 arcs", r["seconds_v1"], a["EEE"] + a["VE"], "arcs/s", f"EEE/VE {a['EEE']}/{a['VE']}"),
-            ("V2 V-cells", r["seconds_v2"], v["cells"], "cells/s",
+            ("V2 V-cells", r["seconds_vcells"], v["cells"], "cells/s",
              f"complete vertices {v['complete_vertices']}/{v['vertices']}, open chains {v['open_chains']}"),
+            ("V2 EE-cells", r["seconds_eecells"], ee["cells"], "cells/s",
+             f"complete edge pairs {ee['complete_pairs']}/{ee['pairs']}, open chains {ee['open_chains']}"),
         ):
             rows.append({"section": "skeleton", "scene": r["scene"], "stage": stage, "triangles": r["polygons"],
                          "n": int(count), "seconds": sec, "rate": count / max(sec, 1e-9), "unit": unit,

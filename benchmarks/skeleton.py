@@ -1,4 +1,4 @@
-"""V0 (nodes), V1 (arcs) and V2 (V-cells) benchmark ladder: the skeleton builders on growing scenes.
+"""V0 (nodes), V1 (arcs) and V2 (V-cells, EE-cells) benchmark ladder: the skeleton builders on growing scenes.
 
     python benchmarks/skeleton.py                       # Cornell box, boxes 100 … 3000
     python benchmarks/skeleton.py --sizes 100 300       # a shorter ladder
@@ -6,8 +6,7 @@
 
 For each scene: V0 wall time (candidates + validation), candidate and node counts
 per kind, the time of each V0 stage, V1 wall time and arc counts per kind, V2
-(V-cells) wall time and cell counts; then
-the growth exponents of time against polygons and against nodes (least squares
+wall time (V-cells, EE-cells) and cell counts; then the growth exponents of time against polygons and against nodes (least squares
 on log-log). Prints a table and writes
 ``benchmarks/skeleton_results.json``. A size whose predicted time (from the
 exponent fitted so far) exceeds ``--budget`` seconds is recorded as skipped.
@@ -34,6 +33,7 @@ from viscx.scene import load_scene  # noqa: E402
 from viscx.skeleton.candidates import fast_candidates, validate_in_chunks  # noqa: E402
 from viscx.skeleton.arcs import build_arcs  # noqa: E402
 from viscx.skeleton.nodes import E4, VEE, VV  # noqa: E402
+from viscx.skeleton.eecells import build_eecells  # noqa: E402
 from viscx.skeleton.vcells import build_vcells  # noqa: E402
 
 KINDS = {"E4": E4, "VEE": VEE, "VV": VV}
@@ -44,7 +44,8 @@ def peak_mb():
 
 
 def run_skeleton(scene, name):
-    """Build V0 once, timing candidates and validation separately, then V1 and V2."""
+    """Build V0 once, timing candidates and validation separately, then V1 and V2 (V-cells,
+    EE-cells)."""
     stats = {}
     t0 = time.perf_counter()
     kind, gens, origins, dirs = fast_candidates(scene, stats=stats)
@@ -55,18 +56,23 @@ def run_skeleton(scene, name):
     t3 = time.perf_counter()
     vcells = build_vcells(scene, arcs)
     t4 = time.perf_counter()
+    eecells = build_eecells(scene, arcs)
+    t5 = time.perf_counter()
     row = {
         "scene": name,
         "polygons": int(scene.n_faces),
         "generator_edges": int(len(scene.generator_edges)),
         "generator_vertices": int(len(scene.generator_vertices)),
-        "seconds": t4 - t0,
+        "seconds": t5 - t0,
         "seconds_v0": t2 - t0,
         "seconds_candidates": t1 - t0,
         "seconds_validation": t2 - t1,
         "seconds_v1": t3 - t2,
-        "seconds_v2": t4 - t3,
+        "seconds_v2": t5 - t3,
+        "seconds_vcells": t4 - t3,
+        "seconds_eecells": t5 - t4,
         "vcells": vcells.counts(),
+        "eecells": eecells.counts(),
         "arcs": arcs.counts(),
         "candidates": {k: int(np.count_nonzero(kind == v)) for k, v in KINDS.items()},
         "nodes": nodes.counts(),
@@ -90,19 +96,20 @@ def fit_exponent(x, y):
 def table(rows):
     head = (
         f"{'scene':<22}{'polys':>7}{'V0 s':>9}{'cand s':>9}{'valid s':>9}{'V1 s':>9}{'V2 s':>8}"
-        f"{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}{'arcs EEE/VE':>16}{'V-cells':>9}{'complete':>11}"
+        f"{'cand VV/VEE/E4':>26}{'nodes VV/VEE/E4':>24}{'arcs EEE/VE':>16}{'V-cells':>9}{'complete':>11}{'EE-cells':>10}{'complete pairs':>16}"
     )
     lines = [head, "-" * len(head)]
     for r in rows:
         if r.get("skipped"):
             lines.append(f"{r['scene']:<22}{r['polygons']:>7}   skipped: {r['skipped']}")
             continue
-        c, n, a, v = r["candidates"], r["nodes"], r["arcs"], r["vcells"]
+        c, n, a, v, ee = r["candidates"], r["nodes"], r["arcs"], r["vcells"], r["eecells"]
         lines.append(
             f"{r['scene']:<22}{r['polygons']:>7}{r['seconds_v0']:>9.2f}{r['seconds_candidates']:>9.2f}"
             f"{r['seconds_validation']:>9.2f}{r['seconds_v1']:>9.2f}{r['seconds_v2']:>8.2f}"
             f"{c['VV']:>9}/{c['VEE']:>8}/{c['E4']:>7}{n['VV']:>8}/{n['VEE']:>7}/{n['E4']:>7}{a['EEE']:>9}/{a['VE']:>6}"
             f"{v['cells']:>9}{v['complete_vertices']:>6}/{v['vertices']:<5}"
+            f"{ee['cells']:>10}{ee['complete_pairs']:>9}/{ee['pairs']:<6}"
         )
     return "\n".join(lines)
 

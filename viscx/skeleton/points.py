@@ -537,13 +537,16 @@ def add_points(built, pc):
     out["V1"] = _concat(Arcs, a, b, end_node=end_node, planar=a.planar, half_cells=half)
     if "V2" not in built:
         return out
-    c, d = built["V2"], pc.vcells
+    # V2 holds the V-cells and the EE-cells (viscx.pipeline.TwoCells); the points' arcs come
+    # after the scene's, so the EE-cells' arc ids stay valid and only the V-cells grow
+    two = built["V2"]
+    c, d = two.vcells, pc.vcells
     nh, nc = len(ha), len(c)
 
     def shift_elements(el):
         return np.sign(el) * (np.abs(el) + nh)
 
-    out["V2"] = _concat(
+    out["V2"] = dataclasses.replace(two, vcells=_concat(
         VCells, c, d,
         twin=np.concatenate([c.twin, np.where(d.twin >= 0, d.twin + nc, -1)]),
         loop_offsets=np.concatenate([c.loop_offsets, d.loop_offsets[1:] + c.loop_offsets[-1]]),
@@ -551,5 +554,5 @@ def add_points(built, pc):
         element=np.concatenate([c.element, shift_elements(d.element)]),
         open_offsets=np.concatenate([c.open_offsets, d.open_offsets[1:] + c.open_offsets[-1]]),
         open_element=np.concatenate([c.open_element, shift_elements(d.open_element)]),
-    )
+    ))
     return out

@@ -275,7 +275,7 @@ def main():
     rows += bench_fast_vs_reference(["tetrahedra.obj", "cornell_box.obj"] if args.quick else
                                     ["two_triangles.obj", "tetrahedra.obj", "room_with_door.obj",
                                      "boxes_on_floor.obj", "cornell_box.obj"])
-    skeleton_rows, growth = bench_skeleton([100] if args.quick else [100, 300, 1000, 3000], budget=args.budget)
+    skeleton_rows, growth = bench_skeleton([50, 100] if args.quick else [100, 300, 1000, 3000], budget=args.budget)
     rows += skeleton_rows
 
     table = markdown(rows, machine)

@@ -56,5 +56,16 @@ def random_boxes(rng, count, axis_aligned, on_floor):
     return soup(vertices, polygons, groups)
 
 
+def general_position_scene(seed):
+    """Random tetrahedra (odd seeds) or rotated floating boxes (even seeds): general
+    position (the V- and EE-cell oracles' random scenes)."""
+    from viscx.scene import build_scene
+
+    rng = np.random.default_rng(seed)
+    if seed % 2:
+        return build_scene(random_tetrahedra(rng, int(rng.integers(2, 4))))
+    return build_scene(random_boxes(rng, int(rng.integers(1, 3)), axis_aligned=False, on_floor=False))
+
+
 def _unit_rows(x):
     return x / np.linalg.norm(x, axis=1, keepdims=True)

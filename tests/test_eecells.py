@@ -4,7 +4,7 @@ of its square, windings (seed Fig. 7), areas, holes, HDF5, determinism and the p
 import numpy as np
 import pytest
 from conftest import SAMPLES, soup
-from random_scenes import random_boxes, random_tetrahedra
+from random_scenes import general_position_scene
 
 from viscx.geometry.lines import segment_parameter
 from viscx.scene import build_scene, load_scene
@@ -28,18 +28,10 @@ CURVE_SAMPLES = 200
 _CACHE = {}
 
 
-def random_scene(seed):
-    """Random tetrahedra (odd seeds) or rotated floating boxes (even seeds): general position."""
-    rng = np.random.default_rng(seed)
-    if seed % 2:
-        return build_scene(random_tetrahedra(rng, int(rng.integers(2, 4))))
-    return build_scene(random_boxes(rng, int(rng.integers(1, 3)), axis_aligned=False, on_floor=False))
-
-
 def built(name):
     """(scene, arcs, eecells) of a sample scene or a random scene ("rand:seed")."""
     if name not in _CACHE:
-        scene = random_scene(int(name.split(":")[1])) if name.startswith("rand:") else load_scene(SAMPLES / name)
+        scene = general_position_scene(int(name.split(":")[1])) if name.startswith("rand:") else load_scene(SAMPLES / name)
         arcs = build_arcs(scene, build_nodes(scene))
         _CACHE[name] = scene, arcs, build_eecells(scene, arcs)
     return _CACHE[name]

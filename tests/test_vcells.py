@@ -6,7 +6,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import SAMPLES, soup
-from random_scenes import random_boxes, random_tetrahedra
+from random_scenes import general_position_scene
 
 from viscx.scene import build_scene, load_scene
 from viscx.skeleton.arcs import build_arcs
@@ -27,18 +27,10 @@ AGREEMENT = 0.999
 _CACHE = {}
 
 
-def random_scene(seed):
-    """Random tetrahedra (odd seeds) or rotated floating boxes (even seeds): general position."""
-    rng = np.random.default_rng(seed)
-    if seed % 2:
-        return build_scene(random_tetrahedra(rng, int(rng.integers(2, 4))))
-    return build_scene(random_boxes(rng, int(rng.integers(1, 3)), axis_aligned=False, on_floor=False))
-
-
 def built(name):
     """(scene, arcs, vcells) of a sample scene, a random scene ("rand:seed") or a scene object."""
     if name not in _CACHE:
-        scene = random_scene(int(name.split(":")[1])) if name.startswith("rand:") else load_scene(SAMPLES / name)
+        scene = general_position_scene(int(name.split(":")[1])) if name.startswith("rand:") else load_scene(SAMPLES / name)
         arcs = build_arcs(scene, build_nodes(scene))
         _CACHE[name] = scene, arcs, build_vcells(scene, arcs)
     return _CACHE[name]

@@ -166,53 +166,18 @@ def _first_hits(origins, directions, tmin, tmax, vertices, triangles, lo, hi, ce
 
 
 @njit(cache=True)
-def _near_counts(points, tol, vertices, triangles, lo, cell, dims, offsets, items, out_point, out_tri, fill):
-    """Pairs (point, triangle) with the point within ``tol`` of the closed triangle
-    (Euclidean distance); fills the out arrays when given room."""
-    k = 0
-    tol2 = tol * tol
-    for r in range(points.shape[0]):
-        p = points[r]
-        a0 = np.empty(3, dtype=np.int64)
-        a1 = np.empty(3, dtype=np.int64)
-        for d in range(3):
-            a0[d] = cell_of(p[d] - tol, lo[d], cell[d], dims[d])
-            a1[d] = cell_of(p[d] + tol, lo[d], cell[d], dims[d])
-        seen_start = k
-        for x in range(a0[0], a1[0] + 1):
-            for y in range(a0[1], a1[1] + 1):
-                for z in range(a0[2], a1[2] + 1):
-                    c = (x * dims[1] + y) * dims[2] + z
-                    for j in range(offsets[c], offsets[c + 1]):
-                        tri = items[j]
-                        t = triangles[tri]
-                        if _point_triangle_dist2(p, vertices[t[0]], vertices[t[1]], vertices[t[2]]) <= tol2:
-                            duplicate = False
-                            for q in range(seen_start, k):
-                                if fill and out_tri[q] == tri:
-                                    duplicate = True
-                                    break
-                            if fill and not duplicate:
-                                out_point[k] = r
-                                out_tri[k] = tri
-                                k += 1
-                            elif not fill:
-                                k += 1
-    return k
-
-
-@njit(cache=True)
-def _segments_near_counts(starts, ends, tol, vertices, triangles, lo, cell, dims, offsets, items, out_seg, out_tri, fill):
-    """Pairs (segment, triangle) within ``tol`` of each other (Euclidean distance between
-    the closed sets); fills the out arrays when given room. Every cell of a segment's
-    bounding box (grown by tol) is searched: fine for the short edges of a scene."""
+def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dims, offsets, items, out_row, out_tri, fill):
+    """Pairs (row, triangle) within ``tol`` of each other (Euclidean distance between the
+    closed sets): row r is the point ``starts[r]``, or with ``segments`` the segment
+    ``starts[r]``-``ends[r]``. Fills the out arrays when given room. Every cell of a
+    row's bounding box (grown by tol) is searched: fine for points and short edges."""
     k = 0
     tol2 = tol * tol
     stamp = np.full(triangles.shape[0], -1, dtype=np.int64)
+    a0 = np.empty(3, dtype=np.int64)
+    a1 = np.empty(3, dtype=np.int64)
     for r in range(starts.shape[0]):
         p0, p1 = starts[r], ends[r]
-        a0 = np.empty(3, dtype=np.int64)
-        a1 = np.empty(3, dtype=np.int64)
         for d in range(3):
             a0[d] = cell_of(min(p0[d], p1[d]) - tol, lo[d], cell[d], dims[d])
             a1[d] = cell_of(max(p0[d], p1[d]) + tol, lo[d], cell[d], dims[d])
@@ -222,13 +187,15 @@ def _segments_near_counts(starts, ends, tol, vertices, triangles, lo, cell, dims
                     c = (x * dims[1] + y) * dims[2] + z
                     for j in range(offsets[c], offsets[c + 1]):
                         tri = items[j]
-                        if stamp[tri] == r:
+                        if stamp[tri] == r:  # already seen in another cell
                             continue
                         stamp[tri] = r
                         t = triangles[tri]
-                        if _segment_triangle_dist2(p0, p1, vertices[t[0]], vertices[t[1]], vertices[t[2]]) <= tol2:
+                        a, b, cc = vertices[t[0]], vertices[t[1]], vertices[t[2]]
+                        dist2 = _segment_triangle_dist2(p0, p1, a, b, cc) if segments else _point_triangle_dist2(p0, a, b, cc)
+                        if dist2 <= tol2:
                             if fill:
-                                out_seg[k] = r
+                                out_row[k] = r
                                 out_tri[k] = tri
                             k += 1
     return k
@@ -397,12 +364,7 @@ class TriangleGrid:
             Sorted by point, then as found; no repeated pair.
         """
         points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        args = (points, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims, self.offsets, self.items)
-        upper = _near_counts(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
-        point = np.empty(upper, dtype=np.int64)
-        tri = np.empty(upper, dtype=np.int64)
-        k = _near_counts(*args, point, tri, True)
-        return point[:k], tri[:k]
+        return self._near(points, points, False, tol)
 
     def triangles_near_segments(self, starts, ends, tol):
         """Every (segment, triangle) pair within ``tol`` of each other.
@@ -420,10 +382,13 @@ class TriangleGrid:
         """
         starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 3)
         ends = np.ascontiguousarray(ends, dtype=np.float64).reshape(-1, 3)
-        args = (starts, ends, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims, self.offsets,
-                self.items)
-        upper = _segments_near_counts(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
-        segment = np.empty(upper, dtype=np.int64)
+        return self._near(starts, ends, True, tol)
+
+    def _near(self, starts, ends, segments, tol):
+        args = (starts, ends, segments, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims,
+                self.offsets, self.items)
+        upper = _near_counts(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
+        row = np.empty(upper, dtype=np.int64)
         tri = np.empty(upper, dtype=np.int64)
-        _segments_near_counts(*args, segment, tri, True)
-        return segment, tri
+        _near_counts(*args, row, tri, True)
+        return row, tri

@@ -11,7 +11,7 @@ lit on its back (``front`` says which side the light is on).
 
 import numpy as np
 
-from viscx.queries.visibility import open_query, view_from
+from viscx.queries.visibility import open_query, view_from, view_summary
 
 
 def shadow_result(scene, view, stored=False):
@@ -44,15 +44,7 @@ def shadow_result(scene, view, stored=False):
             "lit_area": fv.area(),
             "complete": fv.complete,
         })
-    return {
-        "light": p.tolist(),
-        "faces": faces,
-        "complete": bool(view.complete),
-        "cells": view.cells,
-        "incomplete_cells": view.incomplete_cells,
-        "open_chains": view.open_chains,
-        "source": "file" if stored else "on demand",
-    }
+    return {"light": p.tolist(), "faces": faces, **view_summary(view, stored)}
 
 
 def shadows(path, light, faces=()):

@@ -285,9 +285,12 @@ def visible_result(scene, view, stored=False):
             "area": fv.area(),
             "complete": fv.complete,
         })
+    return {"from": view.point.tolist(), "faces": faces, **view_summary(view, stored)}
+
+
+def view_summary(view, stored):
+    """The fields every point query reports about the point's cells."""
     return {
-        "from": view.point.tolist(),
-        "faces": faces,
         "complete": bool(view.complete),
         "cells": view.cells,
         "incomplete_cells": view.incomplete_cells,

@@ -21,6 +21,7 @@ demo: venv
 	mkdir -p $(OUT)
 	$(BIN)/viscx build sample_scenes/cornell_box.obj -o $(OUT)/cornell_box.h5
 	$(BIN)/viscx info $(OUT)/cornell_box.h5
+	$(BIN)/viscx query shadows $(OUT)/cornell_box.h5 --light 278,540,280 -o $(OUT)/cornell_shadows.ply
 
 test: venv
 	$(BIN)/python -m pytest -q

@@ -70,6 +70,10 @@ def labels_at(scene, setup, x, receiver):
         root = -c0 / slope
     inc, dec = slope > 0, slope < 0
     flat_bad = (slope == 0) & (c0 < 0)
+    # a light edge in the triangle's plane (a light face's neighbour): segments to it end on
+    # the triangle's boundary and are not hidden by it
+    scale = np.abs(c0).max() + np.abs(c1).max() + 1e-300
+    flat_bad[..., 3] |= (np.abs(c0[..., 3]) <= 1e-12 * scale) & (np.abs(c1[..., 3]) <= 1e-12 * scale)
     lo_cand = np.where(inc, root, -np.inf)
     hi_cand = np.where(dec, root, np.inf)
     lo_k, hi_k = np.argmax(lo_cand, axis=-1), np.argmin(hi_cand, axis=-1)

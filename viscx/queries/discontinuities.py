@@ -211,6 +211,22 @@ def select_events(scene, arcs, light):
         bad |= is_edge & ~le[np.where(is_edge, x, ne)] & np.isin(code_e, own_edge)
         code_v = face * nv + np.where(is_vert, x, 0)
         bad |= is_vert & ~lv[np.where(is_vert, x, 0)] & np.isin(code_v, own_vertex)
+    # degenerate families: every line through a generator vertex lying in f's plane meets
+    # f there (the trace is a point); a generator edge lying in f's plane is f's outline or
+    # a contact
+    snap = SNAP * scene.epsilon
+    n_f, c_f = scene.face_normal[face], scene.face_offset[face]
+    ev_ = he.edge_vertices
+    for slot_ in range(3):
+        x = gs[:, slot_]
+        is_vert = (k == VE) & (slot_ == 0)
+        is_edge = ((k == EEE) | ((k == VE) & (slot_ == 1))) & (x >= 0)
+        pv = scene.vertices[np.where(is_vert, x, 0)]
+        bad |= is_vert & (np.abs(np.einsum("ij,ij->i", pv, n_f) - c_f) <= snap)
+        xe = np.where(is_edge, x, 0)
+        da = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 0]], n_f) - c_f)
+        db = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 1]], n_f) - c_f)
+        bad |= is_edge & (da <= snap) & (db <= snap)
     sel, e, face = sel[~bad], e[~bad], face[~bad]
     order = np.lexsort([sel, face])
     sel, e, face = sel[order], e[order], face[order]

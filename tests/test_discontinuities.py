@@ -78,9 +78,13 @@ def test_small_scene_oracle(small):
     across a mesh line, different ones."""
     scene, mesh, res = _check(small, "light", 1)
     _assert_oracle(res, 20)
-    # every receiver is covered exactly by its regions
+    # every receiver is covered exactly by its regions; each region's point is inside it
+    from discontinuity_oracle import _parity
+
     for r in mesh.receivers:
         assert sum(g.area for g in r.regions) == pytest.approx(scene.face_area[r.face], rel=1e-6)
+        for g in r.regions:
+            assert _parity(g.point[None], [g.outer, *g.holes])[0]
 
 
 def test_oracle_sees_a_broken_mesh(small):

@@ -5,7 +5,7 @@ import click
 from viscx.cli.options import format_option, output_option, point_option, quiet
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows).")
+@click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows, discontinuities).")
 def query():
     """Questions to the complex stored in a viscx file. Each reads the file (the scene and,
     for a point stored by `viscx build --point`, its V-cells; any other point's V-cells
@@ -14,6 +14,7 @@ def query():
     \b
     viscx query visible cornell.h5 --from 278,273,-800
     viscx query shadows cornell.h5 --light 278,540,280 -o shadows.ply
+    viscx query discontinuities cornell.h5 --light-group light -o mesh.json
     """
 
 
@@ -108,3 +109,40 @@ def shadows(ctx, file, light, output, fmt, faces):
     else:
         write_result(result, output, fmt)
     _warn(ctx, result)
+
+
+@query.command(short_help="The discontinuity mesh of an area light on every receiver.")
+@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@click.option("--light-face", "light_face", type=int, default=None, metavar="I", help="The light is face I.")
+@click.option("--light-group", "light_group", default=None, metavar="NAME", help="The light is the faces of group NAME.")
+@output_option("Where to write: .json, .msgpack, or .ply (the receivers split into the "
+               "regions, a region id and colour per triangle). Default: JSON on standard output.", required=False)
+@format_option
+@face_option
+@click.pass_context
+def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
+    """The discontinuity mesh cast by an area light (seed 000 §7.5): on every receiver
+    face, the traces of the VE and EEE events involving the light's vertices and edges
+    (segments; EEE traces are conic arcs written as polylines) and the regions they cut
+    the face into (outer loop counter-clockwise seen from the face's front, holes
+    clockwise). Reads V1's arcs from the file; nothing is rebuilt.
+
+    \b
+    viscx build sample_scenes/cornell_box.obj -o cornell.h5
+    viscx query discontinuities cornell.h5 --light-group light -o mesh.json
+    viscx query discontinuities cornell.h5 --light-face 15 -o mesh.ply
+    """
+    from viscx.errors import ViscxError
+    from viscx.formats.queries import output_format, write_regions_ply, write_result
+    from viscx.queries.discontinuities import mesh_result, open_discontinuities
+
+    if (light_face is None) == (light_group is None):
+        raise ViscxError("give exactly one of --light-face I and --light-group NAME")
+    fmt = output_format(output, fmt, geometry=True)
+    scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group, faces=faces)
+    if fmt == "ply":
+        counts = write_regions_ply(output, mesh)
+        if not quiet(ctx):
+            click.echo(f"{output}: {counts['triangles']} triangles, {counts['regions']} regions", err=True)
+    else:
+        write_result(mesh_result(scene, mesh), output, fmt)

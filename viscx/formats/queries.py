@@ -231,3 +231,74 @@ def write_shadow_ply(path, scene, view):
             out.write(vertex.tobytes())
             out.write(rows.tobytes())
     return {"triangles": t, "lit_triangles": int(lit.sum())}
+
+
+# --------------------------------------------------------------------------------------
+# PLY: receivers split into the regions of a discontinuity mesh
+
+
+def region_triangles(mesh):
+    """Triangles of every region of a :class:`viscx.queries.discontinuities.DiscontinuityMesh`.
+
+    Returns
+    -------
+    triangles : (t, 3, 3) float64
+        Counter-clockwise about their receiver's normal.
+    face : (t,) int64
+    region : (t,) int64
+        Region index within its face (the ``regions`` list of the JSON).
+    """
+    tris, faces, regions = [], [], []
+    for r in mesh.receivers:
+        for j, g in enumerate(r.regions):
+            ring = bridge_holes(g.outer, g.holes)
+            for t in ear_clip(ring):
+                tri = ring[t]
+                if signed_area_2d(tri) > 0:
+                    tris.append(r.to3(tri))
+                    faces.append(r.face)
+                    regions.append(j)
+    return np.asarray(tris).reshape(-1, 3, 3), np.asarray(faces, np.int64), np.asarray(regions, np.int64)
+
+
+def _region_rgb(face, region):
+    """A deterministic colour per (face, region): (t, 3) uint8."""
+    h = (face.astype(np.uint64) * np.uint64(2654435761) + region.astype(np.uint64) * np.uint64(40503) + np.uint64(12345))
+    h = (h ^ (h >> np.uint64(13))) * np.uint64(1274126177)
+    rgb = np.stack([(h >> np.uint64(s)) & np.uint64(255) for s in (0, 8, 16)], axis=1)
+    return (64 + rgb.astype(np.int64) * 3 // 4).astype(np.uint8)
+
+
+def write_regions_ply(path, mesh):
+    """Binary PLY of the receivers split into the discontinuity mesh's regions: per
+    triangle its face id (``face``), region index (``region``) and a colour per region.
+
+    Returns
+    -------
+    dict
+        Counts: triangles, regions.
+    """
+    tris, face, region = region_triangles(mesh)
+    t = len(tris)
+    vertex = tris.reshape(-1, 3).astype("<f8")
+    fdt = np.dtype([("n", "u1"), ("v", "<i4", 3), ("face", "<i4"), ("region", "<i4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")])
+    rows = np.zeros(t, fdt)
+    rows["n"] = 3
+    rows["v"] = np.arange(3 * t).reshape(-1, 3)
+    rows["face"] = face
+    rows["region"] = region
+    rgb = _region_rgb(face, region)
+    rows["red"], rows["green"], rows["blue"] = rgb.T if t else (0, 0, 0)
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment viscx discontinuities: receivers split into regions\n"
+        f"comment light {mesh.light.name}\n"
+        f"element vertex {3 * t}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {t}\nproperty list uchar int vertex_indices\nproperty int face\nproperty int region\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    )
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as out:
+            out.write(header.encode())
+            out.write(vertex.tobytes())
+            out.write(rows.tobytes())
+    return {"triangles": t, "regions": sum(len(r.regions) for r in mesh.receivers)}

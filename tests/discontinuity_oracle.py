@@ -1,0 +1,233 @@
+"""Brute-force oracle of the discontinuity mesh: which features bound the part of an
+area light a point sees.
+
+Independent of the complex: it uses only the scene's triangles and the light's outline.
+From a receiver point x, every occluder triangle T hides the points y of the light for
+which the segment xy meets T; on a light edge y(t) = a + t (b - a) that is an interval
+of t cut out by four linear sign conditions (y beyond T's plane, and the ray x→y inside
+T's three edge wedges): exact polygon clipping of the light's outline, one edge at a
+time. The union of the hidden intervals on each light edge gives the *labels* of x:
+
+* ``("v", w)`` for each light vertex w that x sees;
+* ``("x", l, e)`` for each point where the boundary of the visible part of the light
+  meets light edge l, cast by occluder edge e (the triangle edge bounding the hidden
+  interval there; ``("p", l, F)`` when it is face F's plane crossing the light).
+
+These are exactly the features the light-involving events change (a light vertex
+appears behind an occluder edge: VE; an occluder vertex's image crosses a light edge:
+VE; two occluder edges' images cross on a light edge: EEE). Events between occluders
+alone (inside the light's image) do not change them; they are not part of the mesh.
+"""
+
+import numpy as np
+
+#: Parameter slack when merging hidden intervals on a light edge and testing ends.
+TSLACK = 1e-9
+
+
+def _det(a, b, c):
+    return np.einsum("...i,...i->...", a, np.cross(b, c))
+
+
+def oracle_setup(scene, light_faces):
+    """Light outline edges (vertex ids, edge ids) and triangle-edge → scene-edge table."""
+    he = scene.half_edges
+    in_light = np.zeros(scene.n_faces + 1, bool)
+    in_light[light_faces] = True
+    other = np.where(he.opp >= 0, he.face[np.maximum(he.opp, 0)], -1)
+    outline = in_light[he.face] & ~((he.opp >= 0) & in_light[other])
+    ledge = np.unique(he.edge[outline])
+    lverts = he.edge_vertices[ledge]
+    table = {(int(a), int(b)): k for k, (a, b) in enumerate(he.edge_vertices)}
+    tri = scene.triangles
+    tri_edge = np.array([[table.get((min(t[i], t[(i + 1) % 3]), max(t[i], t[(i + 1) % 3])), -1) for i in range(3)]
+                         for t in tri.tolist()], np.int64).reshape(-1, 3)
+    return {"ledge": ledge, "lverts": lverts, "tri_edge": tri_edge, "light_faces": np.asarray(light_faces)}
+
+
+def labels_at(scene, setup, x, receiver):
+    """The label set (frozenset) of the light's visible part from point x on face ``receiver``."""
+    x = np.asarray(x, dtype=np.float64)
+    tri_ok = ~np.isin(scene.triangle_face, np.r_[setup["light_faces"], receiver])
+    T = scene.vertices[scene.triangles[tri_ok]]  # (t, 3, 3)
+    tedge = setup["tri_edge"][tri_ok]
+    tface = scene.triangle_face[tri_ok]
+    A = scene.vertices[setup["lverts"][:, 0]]  # (k, 3)
+    B = scene.vertices[setup["lverts"][:, 1]]
+    sigma = np.sign(_det(T[:, 0] - x, T[:, 1] - x, T[:, 2] - x))  # (t,)
+    nrm = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    px = np.einsum("ti,ti->t", nrm, x - T[:, 0])
+
+    def cons(y):  # (k, 3) -> (t, k, 4) constraint values (>= 0 inside the hidden set)
+        y = y[None, :, :]
+        c = [sigma[:, None] * _det(T[:, None, i] - x, T[:, None, (i + 1) % 3] - x, y - x) for i in range(3)]
+        c.append(-np.sign(px)[:, None] * np.einsum("ti,tki->tk", nrm, y - T[:, None, 0]))
+        return np.stack(c, axis=-1)
+
+    c0, c1 = cons(A), cons(B)
+    slope = c1 - c0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = -c0 / slope
+    inc, dec = slope > 0, slope < 0
+    flat_bad = (slope == 0) & (c0 < 0)
+    # a light edge in the triangle's plane (a light face's neighbour): segments to it end on
+    # the triangle's boundary and are not hidden by it
+    scale = np.abs(c0).max() + np.abs(c1).max() + 1e-300
+    flat_bad[..., 3] |= (np.abs(c0[..., 3]) <= 1e-12 * scale) & (np.abs(c1[..., 3]) <= 1e-12 * scale)
+    lo_cand = np.where(inc, root, -np.inf)
+    hi_cand = np.where(dec, root, np.inf)
+    lo_k, hi_k = np.argmax(lo_cand, axis=-1), np.argmin(hi_cand, axis=-1)
+    lo = np.maximum(np.take_along_axis(lo_cand, lo_k[..., None], -1)[..., 0], 0.0)
+    hi = np.minimum(np.take_along_axis(hi_cand, hi_k[..., None], -1)[..., 0], 1.0)
+    ok = (sigma != 0)[:, None] & (px != 0)[:, None] & ~flat_bad.any(axis=-1) & (hi - lo > TSLACK)
+    labels = set()
+    nk = len(A)
+    covered0 = np.zeros(nk, bool)
+    covered1 = np.zeros(nk, bool)
+
+    # the receiver's own edges lie in x's plane: their images are one line, so which of
+    # them casts a crossing is a tie; they are one label
+    own = set(scene.half_edges.edge[scene.half_edges.face == receiver].tolist())
+
+    def lab(t, k):
+        if k == 3:
+            return ("p", int(tface[t]))
+        e = int(tedge[t, k])
+        return ("e", -2 if e in own else e)
+
+    for l in range(nk):
+        ts = np.flatnonzero(ok[:, l])
+        if not len(ts):
+            continue
+        iv = sorted(zip(lo[ts, l], hi[ts, l], ts))
+        merged = []
+        for a, b, t in iv:
+            if merged and a <= merged[-1][1] + TSLACK:
+                if b > merged[-1][1]:
+                    merged[-1][1], merged[-1][3] = b, lab(t, hi_k[t, l])
+            else:
+                merged.append([a, b, lab(t, lo_k[t, l]), lab(t, hi_k[t, l])])
+        for a, b, la, lb in merged:
+            if a <= TSLACK:
+                covered0[l] = True
+            else:
+                labels.add(("x", int(setup["ledge"][l])) + la)
+            if b >= 1 - TSLACK:
+                covered1[l] = True
+            else:
+                labels.add(("x", int(setup["ledge"][l])) + lb)
+    hidden = set(setup["lverts"][covered0, 0].tolist()) | set(setup["lverts"][covered1, 1].tolist())
+    for w in np.unique(setup["lverts"]).tolist():
+        if w not in hidden:
+            labels.add(("v", int(w)))
+    return frozenset(labels)
+
+
+def _seg_dist(q, a, b):
+    """Distance from 2-D points q (m, 2) to segments a, b (k, 2): (m, k)."""
+    ab = b - a
+    t = np.clip(np.einsum("mkj,kj->mk", q[:, None] - a[None], ab) / np.maximum(np.einsum("kj,kj->k", ab, ab), 1e-300), 0, 1)
+    return np.linalg.norm(q[:, None] - a[None] - t[..., None] * ab[None], axis=-1)
+
+
+def _parity(q, loops):
+    a = np.concatenate(loops)
+    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+    cond = (a[None, :, 1] > q[:, None, 1]) != (b[None, :, 1] > q[:, None, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = a[None, :, 0] + (q[:, None, 1] - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (b[None, :, 1] - a[None, :, 1])
+    return np.count_nonzero(cond & (q[:, None, 0] < xc), axis=1) % 2 == 1
+
+
+def receiver_plane_switch(diff):
+    """True when the labels differ only in which feature casts a crossing on one light
+    edge, one of them the receiver's own plane (``("e", -2)``): the light straddles the
+    receiver's plane and the crossing of its horizon with an occluder edge's image moves
+    along the light edge. The critical lines lie in the receiver's plane (grazing it);
+    V1 has no arcs of segments lying in a face's plane, so the mesh does not have them
+    (docs/queries.md, "What the mesh leaves out")."""
+    if not diff or any(lab[0] != "x" or lab[2] != "e" for lab in diff):
+        return False
+    return len({lab[1] for lab in diff}) == 1 and any(lab[3] == -2 for lab in diff)
+
+
+def check_mesh(scene, mesh, rng, margin, samples=4):
+    """Compare a DiscontinuityMesh with the oracle.
+
+    Same region: ``samples`` random points per region, at least ``margin`` from every
+    mesh line and outline; every pair must have equal labels. Crossing: each trace
+    polyline's middle chord, offset ±margin along its normal (points at least margin/2
+    from every other line); labels must differ.
+
+    Returns
+    -------
+    dict of counts and the failures (lists of tuples).
+    """
+    setup = oracle_setup(scene, mesh.light.faces)
+    out = {"same_pairs": 0, "same_agree": 0, "cross_pairs": 0, "cross_agree": 0, "regions": 0,
+           "regions_sampled": 0, "same_fail": [], "same_receiver_plane": 0, "cross_fail": [], "cross_same_region": 0}
+    for r in mesh.receivers:
+        u, v, o = r.frame
+        outline = [np.stack([lp @ u, lp @ v], axis=1) for lp in scene.face_loops(r.face)]
+        a = [np.concatenate(outline)]
+        b = [np.concatenate([np.roll(lp, -1, axis=0) for lp in outline])]
+        owner = [np.full(len(a[0]), -1)]
+        for k in r.events:
+            p = mesh.points[mesh.offsets[k]:mesh.offsets[k + 1]]
+            q = np.stack([p @ u, p @ v], axis=1)
+            a.append(q[:-1])
+            b.append(q[1:])
+            owner.append(np.full(len(q) - 1, k))
+        a, b, owner = np.concatenate(a), np.concatenate(b), np.concatenate(owner)
+
+        def region_of(q):
+            res = np.full(len(q), -1)
+            for j, g in enumerate(r.regions):
+                res[_parity(q, [g.outer, *g.holes]) & (res < 0)] = j
+            return res
+
+        out["regions"] += len(r.regions)
+        for j, g in enumerate(r.regions):
+            lo, hi = g.outer.min(axis=0), g.outer.max(axis=0)
+            q = lo + (hi - lo) * rng.uniform(size=(400, 2))
+            q = q[_parity(q, [g.outer, *g.holes])]
+            if len(q):
+                q = q[_seg_dist(q, a, b).min(axis=1) > margin]
+            q = q[:samples]
+            if len(q) < 2:
+                continue
+            out["regions_sampled"] += 1
+            labs = [labels_at(scene, setup, r.to3(x), r.face) for x in q]
+            for i in range(1, len(labs)):
+                out["same_pairs"] += 1
+                if labs[i] == labs[0]:
+                    out["same_agree"] += 1
+                elif receiver_plane_switch(labs[0] ^ labs[i]):
+                    out["same_receiver_plane"] += 1
+                else:
+                    out["same_fail"].append((r.face, j, r.to3(q[0]).tolist(), r.to3(q[i]).tolist(), labs[0] ^ labs[i]))
+        for k in r.events:
+            rows = np.flatnonzero(owner == k)
+            c = rows[len(rows) // 2]
+            m = 0.5 * (a[c] + b[c])
+            d = b[c] - a[c]
+            if np.linalg.norm(d) == 0:
+                continue
+            n2 = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+            q = np.stack([m + margin * n2, m - margin * n2])
+            if not _parity(q, outline).all():
+                continue
+            others = owner != k
+            near = _seg_dist(q, a[others], b[others]).min(axis=1) if others.any() else np.full(2, np.inf)
+            if (near < 0.5 * margin).any():
+                continue
+            out["cross_pairs"] += 1
+            reg = region_of(q)
+            if reg[0] == reg[1]:
+                out["cross_same_region"] += 1
+            la, lb = (labels_at(scene, setup, r.to3(x), r.face) for x in q)
+            if la != lb:
+                out["cross_agree"] += 1
+            else:
+                out["cross_fail"].append((r.face, int(k), r.to3(m).tolist()))
+    return out

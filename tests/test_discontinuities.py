@@ -1,0 +1,208 @@
+"""The discontinuity mesh of an area light (viscx query discontinuities), checked against a
+brute-force oracle: the features bounding the visible part of the light from receiver
+points (tests/discontinuity_oracle.py, exact clipping of the light's outline by the
+occluder triangles' images)."""
+
+import json
+import msgpack
+import numpy as np
+import pytest
+from conftest import SAMPLES
+from discontinuity_oracle import check_mesh, labels_at, oracle_setup
+
+from viscx.pipeline import build_file
+from viscx.queries.discontinuities import open_discontinuities
+
+#: Margin (of the diagonal) between judged points and mesh lines; the EEE traces' chordal
+#: tolerance is 10 epsilons = 1e-5 of the diagonal.
+MARGIN = 1e-4
+
+
+def light_scene_obj(path, seed, count=2):
+    """An OBJ: a 14 × 14 floor (y = 0), a square light (group ``light``, side 3, turned
+    about y, facing down, y ≈ 10) and ``count`` random tetrahedra in between."""
+    rng = np.random.default_rng(seed)
+    lines = ["o floor", "v -2 0 -2", "v 12 0 -2", "v 12 0 12", "v -2 0 12", "f 1 4 3 2"]
+    n = 4
+    a = rng.uniform(0, np.pi / 2)
+    c, s = np.cos(a), np.sin(a)
+    sq = np.array([[-1.5, -1.5], [1.5, -1.5], [1.5, 1.5], [-1.5, 1.5]]) @ np.array([[c, -s], [s, c]])
+    lines.append("o light")
+    for x, z in sq:
+        lines.append(f"v {5 + float(x)!r} {10 + 0.05 * float(x)!r} {5 + float(z)!r}")
+    lines.append(f"f {n + 1} {n + 2} {n + 3} {n + 4}")
+    n += 4
+    centers = []
+    while len(centers) < count:
+        ctr = rng.uniform([1.5, 3.0, 1.5], [8.5, 7.0, 8.5])
+        r = rng.uniform(0.8, 1.6)
+        if any(np.linalg.norm(ctr - q) < r + t + 0.2 for q, t in centers):
+            continue
+        centers.append((ctr, r))
+        d = rng.normal(size=(4, 3))
+        pts = ctr + r * d / np.linalg.norm(d, axis=1, keepdims=True)
+        if np.linalg.det(pts[1:] - pts[0]) < 0:
+            pts[[1, 2]] = pts[[2, 1]]
+        lines.append(f"o tet{len(centers)}")
+        lines += [f"v {float(p[0])!r} {float(p[1])!r} {float(p[2])!r}" for p in pts]
+        for tri in ((0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)):
+            lines.append("f " + " ".join(str(n + 1 + i) for i in tri))
+        n += 4
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _check(path, group, seed, samples=4):
+    scene, mesh = open_discontinuities(path, light_group=group)
+    res = check_mesh(scene, mesh, np.random.default_rng(seed), MARGIN * scene.diagonal, samples=samples)
+    return scene, mesh, res
+
+
+def _assert_oracle(res, min_pairs):
+    assert res["same_pairs"] >= min_pairs and res["cross_pairs"] >= 1
+    assert not res["same_fail"], res["same_fail"][:3]
+    assert not res["cross_fail"], res["cross_fail"][:3]
+    assert res["cross_same_region"] == 0
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    d = tmp_path_factory.mktemp("disc")
+    obj = light_scene_obj(d / "light1.obj", 3, count=1)
+    build_file(obj, d / "light1.h5", quiet=True)
+    return d / "light1.h5"
+
+
+def test_small_scene_oracle(small):
+    """One tetrahedron between a square light and a floor: same region, same features;
+    across a mesh line, different ones."""
+    scene, mesh, res = _check(small, "light", 1)
+    _assert_oracle(res, 20)
+    # every receiver is covered exactly by its regions; each region's point is inside it
+    from discontinuity_oracle import _parity
+
+    for r in mesh.receivers:
+        assert sum(g.area for g in r.regions) == pytest.approx(scene.face_area[r.face], rel=1e-6)
+        for g in r.regions:
+            assert _parity(g.point[None], [g.outer, *g.holes])[0]
+
+
+def test_oracle_sees_a_broken_mesh(small):
+    """Break the mesh (drop one event's trace): the oracle notices."""
+    from viscx.queries import discontinuities as dm
+
+    scene, mesh = open_discontinuities(small, light_group="light")
+    floor = mesh.receivers[0]
+    assert len(floor.events) >= 2
+    keep = floor.events[1:]
+    u, v, o = floor.frame
+    outline = [np.stack([lp @ u, lp @ v], axis=1) for lp in scene.face_loops(floor.face)]
+    chords, cev = [], []
+    for k in keep:
+        p = mesh.points[mesh.offsets[k]:mesh.offsets[k + 1]]
+        q = np.stack([p @ u, p @ v], axis=1)
+        chords.append(np.stack([q[:-1], q[1:]], axis=1))
+        cev.append(np.full(len(q) - 1, k))
+    floor.regions = dm.subdivide(outline, np.concatenate(chords), np.concatenate(cev), mesh.snap)
+    floor.events = keep
+    res = check_mesh(scene, mesh, np.random.default_rng(5), MARGIN * scene.diagonal, samples=12)
+    assert res["same_fail"]
+
+
+def test_oracle_labels_by_hand():
+    """The oracle on a hand-made case: a unit light square over a floor, a small square
+    occluder hiding its corner (1, 1)."""
+    from conftest import soup
+
+    from viscx.scene import build_scene
+
+    v = [[-5, 0, -5], [5, 0, -5], [5, 0, 5], [-5, 0, 5],
+         [0, 4, 0], [1, 4, 0], [1, 4, 1], [0, 4, 1],
+         [0.3, 2, 0.3], [1.3, 2, 0.3], [1.3, 2, 1.3], [0.3, 2, 1.3]]
+    scene = build_scene(soup(v, [[0, 3, 2, 1], [4, 5, 6, 7], [8, 9, 10, 11]], [0, 1, 2], ["floor", "light", "occ"]))
+    light = scene.group_faces("light")
+    setup = oracle_setup(scene, light)
+    # from below (0, 0, 0) the occluder's image in the light plane is [0.6, 2.6]²: it
+    # hides the corner (1, 1) and crosses the two light edges there
+    labs = labels_at(scene, setup, [0.0, 0.0, 0.0], int(scene.group_faces("floor")[0]))
+    visible = {lab[1] for lab in labs if lab[0] == "v"}
+    lv = scene.half_edges.edge_vertices[setup["ledge"]]
+    corner = [w for w in np.unique(lv) if np.allclose(scene.vertices[w], [1, 4, 1])][0]
+    assert corner not in visible and len(visible) == 3
+    assert sum(lab[0] == "x" for lab in labs) == 2
+    # far to the side, the occluder is not between the point and the light
+    labs = labels_at(scene, setup, [-4.0, 0.0, -4.0], int(scene.group_faces("floor")[0]))
+    assert labs == frozenset(("v", int(w)) for w in np.unique(lv))
+
+
+@pytest.mark.slow
+def test_cornell_oracle(tmp_path):
+    """Cornell box, light group ``light``: no pair contradicts the oracle except pairs
+    separated by a receiver-plane event (the light straddles a block's side: the
+    crossing of that side's horizon and an occluder edge's image on a light edge, not in
+    V1; docs/queries.md)."""
+    out = tmp_path / "cornell.h5"
+    build_file(SAMPLES / "cornell_box.obj", out, quiet=True)
+    scene, mesh, res = _check(out, "light", 2)
+    print({k: (len(v) if isinstance(v, list) else v) for k, v in res.items()})
+    _assert_oracle(res, 300)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_random_scenes_oracle(tmp_path, seed):
+    obj = light_scene_obj(tmp_path / f"s{seed}.obj", seed, count=2)
+    build_file(obj, tmp_path / "s.h5", quiet=True)
+    scene, mesh, res = _check(tmp_path / "s.h5", "light", seed)
+    print({k: (len(v) if isinstance(v, list) else v) for k, v in res.items()})
+    _assert_oracle(res, 30)
+
+
+class _Done:
+    def __init__(self, code, stdout, stderr):
+        self.returncode, self.stdout, self.stderr = code, stdout, stderr
+
+
+def _cli(capsys, *args):
+    """Run ``viscx ARGS`` in this process (the console script's entry point)."""
+    from viscx.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return _Done(exc.value.code, out, err)
+
+
+def test_cli_outputs(small, tmp_path, capsys):
+    """JSON, msgpack and PLY from the command line; the JSON's regions cover each face."""
+    j, m, p = tmp_path / "d.json", tmp_path / "d.msgpack", tmp_path / "d.ply"
+    for out in (j, m, p):
+        r = _cli(capsys, "query", "discontinuities", small, "--light-group", "light", "-o", out)
+        assert r.returncode == 0, r.stderr
+    data = json.loads(j.read_text())
+    assert data == msgpack.unpackb(m.read_bytes(), raw=False)
+    assert data["light"]["faces"] == [1] and data["events"] > 0
+    floor = data["faces"][0]
+    assert floor["face"] == 0 and floor["segments"] and len(floor["regions"]) > 1
+    assert sum(g["area"] for g in floor["regions"]) == pytest.approx(196.0, rel=1e-9)
+    assert all(len(s["points"]) >= 2 for s in floor["segments"])
+    head = p.read_bytes()[:600].decode(errors="replace")
+    assert "property int region" in head
+    # one face only, by face id of the light
+    r = _cli(capsys, "query", "discontinuities", small, "--light-face", "1", "--face", "0")
+    assert r.returncode == 0 and [f["face"] for f in json.loads(r.stdout)["faces"]] == [0]
+
+
+@pytest.mark.parametrize("args", [["--light-face", "99"], ["--light-group", "nope"], [],
+                                  ["--light-face", "1", "--light-group", "light"],
+                                  ["--light-group", "light", "--face", "-1"]])
+def test_cli_bad_queries(small, args, capsys):
+    r = _cli(capsys, "query", "discontinuities", small, *args)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_cli_file_without_v2(tmp_path, capsys):
+    obj = light_scene_obj(tmp_path / "l.obj", 3, count=1)
+    build_file(obj, tmp_path / "v1.h5", quiet=True, levels=1)
+    r = _cli(capsys, "query", "discontinuities", tmp_path / "v1.h5", "--light-group", "light")
+    assert r.returncode == 2 and "V2" in r.stderr and len(r.stderr.strip().splitlines()) == 1

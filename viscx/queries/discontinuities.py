@@ -1,0 +1,778 @@
+"""The discontinuity mesh of an area light (seed 000 §7.5): on every receiver face, the
+traces of the families of maximal free segments that involve a vertex or an edge of the
+light, and the regions they cut the receiver into.
+
+Events (which arcs of V1 are traced)
+------------------------------------
+An *area light* is a set of faces (``--light-face`` or ``--light-group``); its *light
+vertices* and *light edges* are the vertices and edges of its outline (edges shared by
+two light faces are inside the light and do not count). A point x of a receiver sees
+part of the light; that visible part changes combinatorially where x crosses the trace
+of one of these one-parameter families (the V-cells of the light's vertices and the
+EE-cells of its edges, seed 000 §7.5):
+
+* **VE (light vertex v, occluder edge e)**: the lines through v grazing e (x stops
+  seeing v behind e). Receiver end: the *front* end (the family is oriented from v
+  towards e).
+* **VE (occluder vertex w, light edge e)**: the lines through w meeting e (w's image
+  crosses the light's edge e). Receiver end: the *back* end (oriented from w towards e,
+  the receiver is behind w).
+* **EEE with exactly one light edge** (two occluder edges' images cross on the light
+  edge). Receiver end: the end on the side of the two occluder edges, away from the
+  light edge: kept only when the light edge's generator point is the first or the last
+  of the three along the segment (else the occluders are on both sides of the light
+  and x, at one end, sees the light past one of them only: no event for x).
+
+Families with two light generators lie in the light's plane and are left out (their
+trace is where a receiver crosses the light's plane, where the light is seen edge-on).
+An arc is traced on face f when its blocker at the receiver end is face f, f is not a
+light face, and no occluder generator of the arc is an edge or a vertex of f (such a
+trace runs along f's own outline or is a point).
+
+Traces
+------
+Every segment of an arc ends on f, so the trace is {line(s) ∩ plane(f) : s in the arc's
+parameter interval}; line(s) is :func:`viscx.skeleton.arcs.family_lines` (per-arc
+evaluation, nothing rebuilt). A VE family's lines lie in the plane of its vertex and
+edge, so its trace is the straight segment between the images of the interval's ends.
+An EEE family's lines rule a quadric; its trace is a conic arc, written as a polyline
+refined until each chord's middle parameter is within ``CHORD_TOLERANCE`` × epsilon of
+the chord. The traces lie in f (every trace point is where a segment ending on f meets
+f), so clipping to the receiver only snaps ends that are within the snap distance of
+its outline.
+
+Regions
+-------
+Per receiver, in the face's 2-D coordinates (:func:`viscx.geometry.polygon.plane_basis`
+of its normal): the outline edges and the trace chords are split at their crossings
+(and where an end lies on another chord), split points closer than ``SNAP`` × epsilon
+are merged, dangling edges pruned, and the faces of the planar subdivision traced on
+half-edges (faces on the left). Counter-clockwise cycles are the regions' outer loops,
+clockwise cycles their holes (each inside the smallest outer loop of another component
+that contains it) or the outside.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from viscx.geometry.polygon import plane_basis
+from viscx.skeleton.arcs import EEE, VE, KIND_NAMES, family_lines
+from viscx.skeleton.nodes import BLOCK_FACE
+
+#: Chordal tolerance of the EEE traces (conic arcs as polylines), in epsilons.
+CHORD_TOLERANCE = 10.0
+#: Split points of one receiver closer than this many epsilons are one vertex.
+SNAP = 10.0
+#: Chords per EEE trace before refinement, and refinement rounds at most.
+EEE_START, EEE_ROUNDS = 8, 16
+#: Where an EEE line is undefined at an end of its interval, the trace point is taken this
+#: fraction of the interval inside (the first that works).
+NUDGES = (1e-10, 1e-8, 1e-6)
+
+# which light feature an event involves
+LIGHT_VERTEX, LIGHT_EDGE = 0, 1
+
+
+@dataclass
+class Light:
+    """An area light: faces, outline vertices and edges.
+
+    Attributes
+    ----------
+    faces : (k,) int64
+    vertices : (a,) int64
+        Vertex ids on the light's outline.
+    edges : (b,) int64
+        Edge ids of the outline (edges of one light face only).
+    name : str
+        ``group NAME`` or ``face I``.
+    """
+
+    faces: np.ndarray
+    vertices: np.ndarray
+    edges: np.ndarray
+    name: str
+
+
+def light_of(scene, face=None, group=None):
+    """The :class:`Light` of one face or of the faces of a group (ViscxError when unknown)."""
+    from viscx.errors import ViscxError
+
+    if (face is None) == (group is None):
+        raise ViscxError("give exactly one of --light-face and --light-group")
+    if face is not None:
+        if not 0 <= face < scene.n_faces:
+            raise ViscxError(f"--light-face {face} is out of range (the scene has {scene.n_faces} faces: 0 to {scene.n_faces - 1})")
+        faces, name = np.array([face], np.int64), f"face {face}"
+    else:
+        faces, name = scene.group_faces(group).astype(np.int64), f"group {group}"
+    he = scene.half_edges
+    in_light = np.zeros(scene.n_faces + 1, bool)
+    in_light[faces] = True
+    mine = in_light[he.face]
+    other = np.where(he.opp >= 0, he.face[np.maximum(he.opp, 0)], -1)
+    outline = mine & ~(in_light[other] & (he.opp >= 0))
+    edges = np.unique(he.edge[outline])
+    vertices = np.unique(scene.half_edges.edge_vertices[edges])
+    return Light(faces, vertices.astype(np.int64), edges.astype(np.int64), name)
+
+
+@dataclass
+class Events:
+    """The arcs of V1 traced on receivers.
+
+    Attributes
+    ----------
+    arc : (m,) int64
+        Arc ids.
+    end : (m,) int64
+        Receiver end (0 back, 1 front, in the family's orientation).
+    face : (m,) int64
+        Receiver face.
+    light_kind : (m,) int8
+        LIGHT_VERTEX or LIGHT_EDGE.
+    light_feature : (m,) int64
+        The light vertex or edge id.
+    kind : (m,) int64
+        EEE or VE (of the arc).
+    generators : (m, 3) int64
+        The arc's generators.
+    """
+
+    arc: np.ndarray
+    end: np.ndarray
+    face: np.ndarray
+    light_kind: np.ndarray
+    light_feature: np.ndarray
+    kind: np.ndarray
+    generators: np.ndarray
+
+
+def select_events(scene, arcs, light):
+    """The arcs whose segments involve the light and end on a receiver (module docstring).
+
+    Returns
+    -------
+    Events
+    """
+    nv, ne = scene.n_vertices, len(scene.half_edges.edge_vertices)
+    lv = np.zeros(nv, bool)
+    lv[light.vertices] = True
+    le = np.zeros(ne + 1, bool)
+    le[light.edges] = True
+    kind = np.asarray(arcs.kind, np.int64)
+    g = np.asarray(arcs.generators, np.int64)
+    n = len(kind)
+    end = np.full(n, -1, np.int64)
+    lkind = np.full(n, -1, np.int8)
+    lfeat = np.full(n, -1, np.int64)
+    ve = kind == VE
+    gv, ge = np.where(ve, g[:, 0], 0), np.where(ve, g[:, 1], ne)
+    a = ve & lv[gv] & ~le[ge]
+    b = ve & ~lv[gv] & le[ge]
+    end[a], lkind[a], lfeat[a] = 1, LIGHT_VERTEX, gv[a]
+    end[b], lkind[b], lfeat[b] = 0, LIGHT_EDGE, ge[b]
+    eee = kind == EEE
+    ge3 = np.where(eee[:, None], g, ne)
+    lit = le[ge3]
+    one = eee & (lit.sum(axis=1) == 1)
+    slot = np.argmax(lit, axis=1)
+    gp = arcs.generator_points
+    t = np.einsum("nkj,nj->nk", gp - arcs.ends[:, :1], arcs.direction)
+    tl = t[np.arange(n), slot]
+    first = one & (tl <= t.min(axis=1))
+    last = one & ~first & (tl >= t.max(axis=1))
+    end[first], end[last] = 1, 0
+    ok = first | last
+    lkind[ok], lfeat[ok] = LIGHT_EDGE, ge3[ok, slot[ok]]
+    sel = np.flatnonzero(end >= 0)
+    e = end[sel]
+    bk = arcs.blocker_kind[sel, e]
+    face = arcs.blocker[sel, e]
+    in_light = np.zeros(scene.n_faces, bool)
+    in_light[light.faces] = True
+    keep = (bk == BLOCK_FACE) & (face >= 0)
+    keep[keep] &= ~in_light[face[keep]]
+    sel, e, face = sel[keep], e[keep], face[keep]
+    # no trace along the receiver's own outline
+    he = scene.half_edges
+    own_edge = np.unique(he.face.astype(np.int64) * (ne + 1) + he.edge)
+    own_vertex = np.unique(he.face.astype(np.int64) * nv + he.start)
+    gs = g[sel]
+    bad = np.zeros(len(sel), bool)
+    k = kind[sel]
+    for slot_ in range(3):
+        is_edge = (k == EEE) | ((k == VE) & (slot_ == 1))
+        is_vert = (k == VE) & (slot_ == 0)
+        x = gs[:, slot_]
+        code_e = face * (ne + 1) + np.where(is_edge, x, ne)
+        bad |= is_edge & ~le[np.where(is_edge, x, ne)] & np.isin(code_e, own_edge)
+        code_v = face * nv + np.where(is_vert, x, 0)
+        bad |= is_vert & ~lv[np.where(is_vert, x, 0)] & np.isin(code_v, own_vertex)
+    # degenerate families: every line through a generator vertex lying in f's plane meets
+    # f there (the trace is a point); a generator edge lying in f's plane is f's outline or
+    # a contact
+    snap = SNAP * scene.epsilon
+    n_f, c_f = scene.face_normal[face], scene.face_offset[face]
+    ev_ = he.edge_vertices
+    for slot_ in range(3):
+        x = gs[:, slot_]
+        is_vert = (k == VE) & (slot_ == 0)
+        is_edge = ((k == EEE) | ((k == VE) & (slot_ == 1))) & (x >= 0)
+        pv = scene.vertices[np.where(is_vert, x, 0)]
+        bad |= is_vert & (np.abs(np.einsum("ij,ij->i", pv, n_f) - c_f) <= snap)
+        xe = np.where(is_edge, x, 0)
+        da = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 0]], n_f) - c_f)
+        db = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 1]], n_f) - c_f)
+        bad |= is_edge & (da <= snap) & (db <= snap)
+    sel, e, face = sel[~bad], e[~bad], face[~bad]
+    order = np.lexsort([sel, face])
+    sel, e, face = sel[order], e[order], face[order]
+    return Events(sel, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel])
+
+
+def _trace_points(scene, kind, generators, s, face):
+    """line(s) ∩ plane(face): (m, 3) float64 (NaN where the line is parallel to it)."""
+    o, d = family_lines(scene, kind, generators, s)
+    n, c = scene.face_normal[face], scene.face_offset[face]
+    den = np.einsum("ij,ij->i", n, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (c - np.einsum("ij,ij->i", n, o)) / den
+        return o + t[:, None] * d
+
+
+def trace_events(scene, arcs, events, tolerance):
+    """The trace of each event on its receiver as a polyline.
+
+    Parameters
+    ----------
+    tolerance : float
+        Chordal tolerance (scene units) of the EEE conic arcs.
+
+    Returns
+    -------
+    offsets : (m + 1,) int64
+    points : (p, 3) float64
+        Polyline of event k: ``points[offsets[k]:offsets[k + 1]]``, in increasing s.
+    params : (p,) float64
+        The family parameter s of each point.
+    """
+    m = len(events.arc)
+    kind = arcs.kind[events.arc].astype(np.int64)
+    gens = arcs.generators[events.arc]
+    s0, s1 = arcs.interval[events.arc, 0], arcs.interval[events.arc, 1]
+    # chords: (event, sa, sb); VE one chord, EEE EEE_START chords refined
+    counts = np.where(kind == VE, 1, EEE_START)
+    ev = np.repeat(np.arange(m), counts)
+    j = np.arange(len(ev)) - np.repeat(np.cumsum(counts) - counts, counts)
+    cn = counts[ev]
+    sa = s0[ev] + (s1[ev] - s0[ev]) * j / cn
+    sb = s0[ev] + (s1[ev] - s0[ev]) * (j + 1) / cn
+    done_ev, done_s = [], []
+    for _ in range(EEE_ROUNDS):
+        if not len(ev):
+            break
+        k = kind[ev]
+        fa = events.face[ev]
+        pa = _trace_points(scene, k, gens[ev], sa, fa)
+        pb = _trace_points(scene, k, gens[ev], sb, fa)
+        pm = _trace_points(scene, k, gens[ev], 0.5 * (sa + sb), fa)
+        ab = pb - pa
+        w = np.clip(np.einsum("ij,ij->i", pm - pa, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
+        dev = np.linalg.norm(pm - (pa + w[:, None] * ab), axis=1)
+        split = (k == EEE) & (dev > tolerance)
+        done_ev.append(ev[~split])
+        done_s.append(np.stack([sa[~split], sb[~split]], axis=1))
+        mid = 0.5 * (sa[split] + sb[split])
+        ev = np.concatenate([ev[split], ev[split]])
+        sa, sb = np.concatenate([sa[split], mid]), np.concatenate([mid, sb[split]])
+    done_ev.append(ev)
+    done_s.append(np.stack([sa, sb], axis=1))
+    ev, sab = np.concatenate(done_ev), np.concatenate(done_s)
+    order = np.lexsort([sab[:, 0], ev])
+    ev, sab = ev[order], sab[order]
+    # each event's points: every chord's start, then its last chord's end
+    last = np.r_[ev[1:] != ev[:-1], True] if len(ev) else np.zeros(0, bool)
+    counts = np.bincount(ev, minlength=m) + 1
+    counts[np.bincount(ev, minlength=m) == 0] = 0
+    offsets = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    pev = np.concatenate([ev, ev[last]])
+    ps = np.concatenate([sab[:, 0], sab[last, 1]])
+    order = np.lexsort([ps, pev])
+    pev, ps = pev[order], ps[order]
+    pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev])
+    # an EEE line is undefined where its point of p is on the line of q or r (an
+    # "endpoint" end shared by two generator edges): take the limit from inside
+    for nudge in NUDGES:
+        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+        if not len(bad):
+            break
+        e = pev[bad]
+        width = s1[e] - s0[e]
+        inward = np.where(ps[bad] - s0[e] < s1[e] - ps[bad], 1.0, -1.0)
+        pts[bad] = _trace_points(scene, kind[e], gens[e], ps[bad] + inward * nudge * width, events.face[e])
+    return offsets, pts, ps
+
+
+# --------------------------------------------------------------------------------------
+# the planar subdivision of one receiver
+
+
+def _face_frame(scene, f):
+    n = scene.face_normal[f]
+    u, v = plane_basis(n)
+    return u, v, n * scene.face_offset[f]
+
+
+def _split_params(segs, snap):
+    """Where each 2-D segment is cut by the others.
+
+    Parameters
+    ----------
+    segs : (m, 2, 2) float64
+    snap : float
+
+    Returns
+    -------
+    seg : (q,) int64, t : (q,) float64
+        Segment id and parameter of every cut (ends included).
+    """
+    m = len(segs)
+    a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    out_s = [np.arange(m), np.arange(m)]
+    out_t = [np.zeros(m), np.ones(m)]
+    chunk = max(1, 2_000_000 // max(m, 1))
+    for lo in range(0, m, chunk):
+        i = np.arange(lo, min(m, lo + chunk))[:, None]
+        j = np.arange(m)[None, :]
+        di, dj = d[i], d[j]
+        den = di[..., 0] * dj[..., 1] - di[..., 1] * dj[..., 0]
+        r = a[j] - a[i]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ti = (r[..., 0] * dj[..., 1] - r[..., 1] * dj[..., 0]) / den
+            tj = (r[..., 0] * di[..., 1] - r[..., 1] * di[..., 0]) / den
+        ei, ej = snap / length[i], snap / length[j]
+        cross = (i != j) & (np.abs(den) > 1e-12 * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
+        ii, jj = np.nonzero(cross)
+        out_s.append(i[ii, 0])
+        out_t.append(np.clip(ti[ii, jj], 0, 1))
+        # ends of segment j within snap of segment i (T-junctions, collinear overlaps)
+        for k in (0, 1):
+            p = segs[:, k][j]
+            w = ((p[..., 0] - a[i][..., 0]) * di[..., 0] + (p[..., 1] - a[i][..., 1]) * di[..., 1]) / length[i] ** 2
+            q = a[i] + np.clip(w, 0, 1)[..., None] * di
+            near = (i != j) & (w > 0) & (w < 1) & (np.linalg.norm(p - q, axis=-1) <= snap)
+            ii, jj = np.nonzero(near)
+            out_s.append(i[ii, 0])
+            out_t.append(w[ii, jj])
+    return np.concatenate(out_s), np.concatenate(out_t)
+
+
+@njit(cache=True)
+def _cycles(nxt):
+    """Cycles of a permutation: (cycle id per element, elements in walk order, offsets)."""
+    h = len(nxt)
+    cid = np.full(h, -1, np.int64)
+    walk = np.empty(h, np.int64)
+    offsets = [0]
+    k = 0
+    c = 0
+    for s in range(h):
+        if cid[s] >= 0:
+            continue
+        x = s
+        while cid[x] < 0:
+            cid[x] = c
+            walk[k] = x
+            k += 1
+            x = nxt[x]
+        offsets.append(k)
+        c += 1
+    return cid, walk, np.array(offsets, dtype=np.int64)
+
+
+def _inside(points, loops_a, loops_b, loop_of, n_loops):
+    """Even-odd containment of each point in each loop: (p, n_loops) bool.
+
+    loops_a, loops_b : (h, 2) float64 edges; loop_of : (h,) int64.
+    """
+    res = np.zeros((len(points), n_loops), bool)
+    for k, p in enumerate(points):
+        ay, by = loops_a[:, 1], loops_b[:, 1]
+        straddle = (ay > p[1]) != (by > p[1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = loops_a[:, 0] + (p[1] - ay) * (loops_b[:, 0] - loops_a[:, 0]) / (by - ay)
+        hit = straddle & (x > p[0])
+        res[k] = np.bincount(loop_of[hit], minlength=n_loops) % 2 == 1
+    return res
+
+
+def interior_point(loops):
+    """A point strictly inside a polygon with holes: the middle of the widest interval of
+    a horizontal line through the largest gap between vertex heights.
+
+    loops : list of (k, 2) float64. Returns (2,) float64.
+    """
+    allp = np.concatenate(loops)
+    ys = np.unique(allp[:, 1])
+    if len(ys) < 2:
+        return allp.mean(axis=0)
+    gap = int(np.argmax(np.diff(ys)))
+    y = 0.5 * (ys[gap] + ys[gap + 1])
+    a = allp
+    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+    straddle = (a[:, 1] > y) != (b[:, 1] > y)
+    x = np.sort(a[straddle, 0] + (y - a[straddle, 1]) * (b[straddle, 0] - a[straddle, 0]) / (b[straddle, 1] - a[straddle, 1]))
+    if len(x) < 2:
+        return allp.mean(axis=0)
+    w = x[1::2][: len(x) // 2] - x[0::2][: len(x) // 2]
+    k = int(np.argmax(w))
+    return np.array([0.5 * (x[2 * k] + x[2 * k + 1]), y])
+
+
+@dataclass
+class Region:
+    """One face of a receiver's subdivision.
+
+    Attributes
+    ----------
+    outer : (k, 2) float64
+        Counter-clockwise about the receiver's normal (face 2-D coordinates).
+    holes : list of (m, 2) float64
+        Clockwise.
+    area : float
+    point : (2,) float64
+        A point strictly inside.
+    events : (b,) int64
+        Rows of :class:`Events` whose trace bounds the region.
+    """
+
+    outer: np.ndarray
+    holes: list = field(default_factory=list)
+    area: float = 0.0
+    point: np.ndarray = None
+    events: np.ndarray = None
+
+
+def subdivide(outline, chords, chord_event, snap):
+    """The regions a set of chords cuts a polygon into.
+
+    Parameters
+    ----------
+    outline : list of (k, 2) float64
+        The receiver's loops (outer first).
+    chords : (m, 2, 2) float64
+        Trace chords.
+    chord_event : (m,) int64
+        Event row of each chord.
+    snap : float
+
+    Returns
+    -------
+    list of Region
+    """
+    oa = np.concatenate(outline)
+    ob = np.concatenate([np.roll(lp, -1, axis=0) for lp in outline])
+    segs = np.concatenate([np.stack([oa, ob], axis=1), chords.reshape(-1, 2, 2)])
+    label = np.concatenate([np.full(len(oa), -1, np.int64), chord_event])
+    keep = np.linalg.norm(segs[:, 1] - segs[:, 0], axis=1) > 0
+    segs, label = segs[keep], label[keep]
+    sid, t = _split_params(segs, snap)
+    order = np.lexsort([t, sid])
+    sid, t = sid[order], t[order]
+    pts = segs[sid, 0] + t[:, None] * (segs[sid, 1] - segs[sid, 0])
+    # merge points within snap
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(pts).query_pairs(snap, output_type="ndarray")
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
+    _, vid = connected_components(g, directed=False)
+    nvert = vid.max() + 1
+    vpos = np.zeros((nvert, 2))
+    np.add.at(vpos, vid, pts)
+    vpos /= np.bincount(vid, minlength=nvert)[:, None]
+    same = sid[1:] == sid[:-1]
+    ea, eb, el = vid[:-1][same], vid[1:][same], label[sid[:-1][same]]
+    ok = ea != eb
+    ea, eb, el = ea[ok], eb[ok], el[ok]
+    lo, hi = np.minimum(ea, eb), np.maximum(ea, eb)
+    _, first = np.unique(lo * nvert + hi, return_index=True)
+    ea, eb, el = lo[first], hi[first], el[first]
+    # prune dangling edges
+    alive = np.ones(len(ea), bool)
+    while True:
+        deg = np.bincount(ea[alive], minlength=nvert) + np.bincount(eb[alive], minlength=nvert)
+        dead = alive & ((deg[ea] == 1) | (deg[eb] == 1))
+        if not dead.any():
+            break
+        alive &= ~dead
+    ea, eb, el = ea[alive], eb[alive], el[alive]
+    if not len(ea):
+        return []
+    # half-edges: 2k is ea->eb, 2k+1 is eb->ea
+    org = np.stack([ea, eb], axis=1).ravel()
+    dst = np.stack([eb, ea], axis=1).ravel()
+    hlab = np.repeat(el, 2)
+    vec = vpos[dst] - vpos[org]
+    ang = np.arctan2(vec[:, 1], vec[:, 0])
+    order = np.lexsort([ang, org])
+    pos = np.empty(len(org), np.int64)
+    pos[order] = np.arange(len(org))
+    start = np.searchsorted(org[order], np.arange(nvert))
+    deg = np.bincount(org, minlength=nvert)
+    twin = np.arange(len(org)) ^ 1
+    # next(h): at h's head, the outgoing half-edge just clockwise of twin(h)
+    tw = twin
+    head = dst
+    k = pos[tw] - start[head]
+    nxt = order[start[head] + (k - 1) % deg[head]]
+    cid, walk, offs = _cycles(nxt)
+    nc = len(offs) - 1
+    a, b = vpos[org[walk]], vpos[dst[walk]]
+    cyc = np.repeat(np.arange(nc), np.diff(offs))
+    area = 0.5 * np.bincount(cyc, weights=a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1], minlength=nc)
+    # components of the graph
+    gg = coo_matrix((np.ones(len(ea)), (ea, eb)), shape=(nvert, nvert))
+    _, comp = connected_components(gg, directed=False)
+    ccomp = comp[org[walk[offs[:-1]]]]
+    loops = [vpos[org[walk[offs[c]:offs[c + 1]]]] for c in range(nc)]
+    pos_c = np.flatnonzero(area > 0)
+    neg_c = np.flatnonzero(area <= 0)
+    # outer loops inside the receiver (not in a hole of it)
+    reps = np.array([interior_point([loops[c]]) for c in pos_c]).reshape(-1, 2)
+    fa = np.concatenate(outline)
+    fb = np.concatenate([np.roll(lp, -1, axis=0) for lp in outline])
+    in_face = _inside(reps, fa, fb, np.zeros(len(fa), np.int64), 1)[:, 0] if len(reps) else np.zeros(0, bool)
+    pos_c = pos_c[in_face]
+    holes = {int(c): [] for c in pos_c}
+    if len(pos_c) and len(neg_c):
+        sel = np.isin(cyc, pos_c)
+        remap = np.full(nc, -1, np.int64)
+        remap[pos_c] = np.arange(len(pos_c))
+        probes = np.array([loops[c][0] for c in neg_c])
+        inside = _inside(probes, a[sel], b[sel], remap[cyc[sel]], len(pos_c))
+        inside &= ccomp[pos_c][None, :] != ccomp[neg_c][:, None]
+        for r, c in enumerate(neg_c):
+            cand = np.flatnonzero(inside[r])
+            if len(cand):
+                best = cand[np.argmin(area[pos_c[cand]])]
+                holes[int(pos_c[best])].append(int(c))
+    regions = []
+    for c in pos_c:
+        hs = holes[int(c)]
+        rl = [loops[c]] + [loops[h] for h in hs]
+        cyc_set = np.isin(cyc, [c, *hs])
+        ev = np.unique(hlab[walk[cyc_set]])
+        regions.append(Region(outer=loops[c], holes=[loops[h] for h in hs],
+                              area=float(area[c] + sum(area[h] for h in hs)), point=interior_point(rl),
+                              events=ev[ev >= 0]))
+    return regions
+
+
+def contact_edges(scene, f, outline, basis, snap, light):
+    """Edges of other faces lying on receiver f (an occluder standing on it): the D0
+    discontinuities. Their VE families with a light vertex end *at* the edge (blocked by
+    it), so V1 has no arc ending on f there; the trace is the edge itself.
+
+    Parameters
+    ----------
+    outline : list of (k, 2) float64
+        f's loops in 2-D.
+    basis : (u, v), (3,) float64 each
+
+    Returns
+    -------
+    (c,) int64 edge ids: both ends within ``snap`` of f's plane and the middle inside f
+    (not an edge of f, not a light edge).
+    """
+    he = scene.half_edges
+    ev = he.edge_vertices
+    dist = np.abs(scene.vertices @ scene.face_normal[f] - scene.face_offset[f]) <= snap
+    cand = np.flatnonzero(dist[ev[:, 0]] & dist[ev[:, 1]])
+    own = np.unique(he.edge[he.face == f])
+    cand = cand[~np.isin(cand, own) & ~np.isin(cand, light.edges)]
+    if not len(cand):
+        return cand.astype(np.int64)
+    u, v = basis
+    mid = 0.5 * (scene.vertices[ev[cand, 0]] + scene.vertices[ev[cand, 1]])
+    q = np.stack([mid @ u, mid @ v], axis=1)
+    a = np.concatenate(outline)
+    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in outline])
+    inside = _inside(q, a, b, np.zeros(len(a), np.int64), 1)[:, 0]
+    return cand[inside].astype(np.int64)
+
+
+# --------------------------------------------------------------------------------------
+# the query
+
+
+@dataclass
+class ReceiverMesh:
+    """The discontinuity mesh on one receiver face.
+
+    Attributes
+    ----------
+    face : int
+    events : (m,) int64
+        Rows of :class:`Events` traced on this face.
+    regions : list of Region
+    frame : tuple of (3,) float64
+        ``(u, v, origin)``: 2-D coordinates (x @ u, x @ v); 3-D point origin + a u + b v.
+    contacts : (c,) int64
+        Edges of other faces lying on this receiver (:func:`contact_edges`).
+    """
+
+    face: int
+    events: np.ndarray
+    regions: list
+    frame: tuple
+    contacts: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def to3(self, q):
+        u, v, o = self.frame
+        q = np.asarray(q, dtype=np.float64)
+        return o + q[..., :1] * u + q[..., 1:] * v
+
+
+@dataclass
+class DiscontinuityMesh:
+    """Everything the query reports.
+
+    Attributes
+    ----------
+    light : Light
+    events : Events
+    offsets : (m + 1,) int64
+    points : (p, 3) float64
+        Trace polylines (:func:`trace_events`).
+    receivers : list of ReceiverMesh
+        Every face that is not a light face, in face order.
+    tolerance, snap : float
+        Chordal tolerance and snap distance (scene units).
+    """
+
+    light: Light
+    events: Events
+    offsets: np.ndarray
+    points: np.ndarray
+    receivers: list
+    tolerance: float
+    snap: float
+
+
+def discontinuity_mesh(scene, arcs, light, faces=None):
+    """The discontinuity mesh of an area light on every receiver (module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+    arcs : Arcs
+        V1 of the scene, as stored.
+    light : Light
+    faces : sequence of int, optional
+        Receivers to subdivide (default: every face that is not a light face).
+
+    Returns
+    -------
+    DiscontinuityMesh
+    """
+    tol = CHORD_TOLERANCE * scene.epsilon
+    snap = SNAP * scene.epsilon
+    events = select_events(scene, arcs, light)
+    offsets, points, _ = trace_events(scene, arcs, events, tol)
+    good = np.ones(len(events.arc), bool)
+    finite = np.isfinite(points).all(axis=1)
+    bad_ev = np.unique(np.searchsorted(offsets, np.flatnonzero(~finite), side="right") - 1)
+    good[bad_ev] = False
+    receivers = []
+    in_light = np.zeros(scene.n_faces, bool)
+    in_light[light.faces] = True
+    wanted = range(scene.n_faces) if not faces else sorted(set(int(f) for f in faces))
+    for f in wanted:
+        if in_light[f]:
+            continue
+        u, v, o = _face_frame(scene, f)
+        mine = np.flatnonzero((events.face == f) & good)
+        outline = [np.stack([lp @ u, lp @ v], axis=1) for lp in scene.face_loops(f)]
+        contact = contact_edges(scene, f, outline, (u, v), snap, light)
+        ends = scene.vertices[scene.half_edges.edge_vertices[contact]]
+        chords = [np.stack([ends @ u, ends @ v], axis=-1).reshape(-1, 2, 2)]
+        cev = [np.full(len(contact), -1, np.int64)]
+        for k in mine:
+            p = points[offsets[k]:offsets[k + 1]]
+            q = np.stack([p @ u, p @ v], axis=1)
+            chords.append(np.stack([q[:-1], q[1:]], axis=1))
+            cev.append(np.full(len(q) - 1, k))
+        regions = subdivide(outline, np.concatenate(chords), np.concatenate(cev), snap)
+        receivers.append(ReceiverMesh(f, mine, regions, (u, v, o), contact))
+    return DiscontinuityMesh(light, events, offsets, points, receivers, tol, snap)
+
+
+def open_discontinuities(path, light_face=None, light_group=None, faces=()):
+    """Read a viscx file (scene and V1; the file must hold V2) and compute the mesh.
+
+    ``faces``: receivers to report (default every face); ViscxError when out of range.
+
+    Returns
+    -------
+    scene : Scene
+    mesh : DiscontinuityMesh
+    """
+    from viscx.errors import ViscxError
+    from viscx.formats.hdf5 import ViscxFile, read_arcs
+
+    with ViscxFile(path) as f:
+        if "V2" not in f.levels or "V2" not in f.h5:
+            raise ViscxError(f"{path} has no V-cells and EE-cells (V2); build it with `viscx build` (all levels)")
+        scene = f.read_scene()
+        for face in faces:
+            if not 0 <= face < scene.n_faces:
+                raise ViscxError(f"--face {face} is out of range (the scene has {scene.n_faces} faces: 0 to {scene.n_faces - 1})")
+        light = light_of(scene, light_face, light_group)
+        arcs = read_arcs(f.h5["V1"])
+    return scene, discontinuity_mesh(scene, arcs, light, faces)
+
+
+def mesh_result(scene, mesh):
+    """The mesh as a plain dict (the JSON schema of docs/queries.md)."""
+    ev = mesh.events
+    faces = []
+    for r in mesh.receivers:
+        segs = []
+        for k in r.events:
+            segs.append({
+                "event": int(k),
+                "arc": int(ev.arc[k]),
+                "kind": KIND_NAMES[int(ev.kind[k])],
+                "generators": [int(x) for x in ev.generators[k] if x >= 0],
+                "light": ["vertex", "edge"][int(ev.light_kind[k])],
+                "light_feature": int(ev.light_feature[k]),
+                "points": mesh.points[mesh.offsets[k]:mesh.offsets[k + 1]].tolist(),
+            })
+        ends = scene.vertices[scene.half_edges.edge_vertices[r.contacts]]
+        faces.append({
+            "face": r.face,
+            "group": scene.group_names[scene.face_group[r.face]],
+            "segments": segs,
+            "contacts": [{"edge": int(e), "points": p.tolist()} for e, p in zip(r.contacts, ends)],
+            "regions": [{
+                "outer": r.to3(g.outer).tolist(),
+                "holes": [r.to3(h).tolist() for h in g.holes],
+                "area": g.area,
+                "point": r.to3(g.point).tolist(),
+                "events": g.events.tolist(),
+            } for g in r.regions],
+        })
+    return {
+        "light": {"name": mesh.light.name, "faces": mesh.light.faces.tolist(), "vertices": mesh.light.vertices.tolist(),
+                  "edges": mesh.light.edges.tolist()},
+        "tolerance": mesh.tolerance,
+        "snap": mesh.snap,
+        "events": int(len(ev.arc)),
+        "faces": faces,
+    }

@@ -115,7 +115,10 @@ def main(argv=None):
     except Exception as exc:  # a bug in viscx: say so in one line unless asked for more
         if os.environ.get("VISCX_DEBUG"):
             raise
-        code = _fail(f"internal error: {type(exc).__name__}: {exc} (set VISCX_DEBUG=1 for a traceback)", 1)
+        # a signal's exception raised inside a C extension (h5py) can come out as another
+        # exception: then it is the interruption, reported below, not a bug
+        code = 1 if received_signals else _fail(
+            f"internal error: {type(exc).__name__}: {exc} (set VISCX_DEBUG=1 for a traceback)", 1)
     if received_signals:  # also when the signal's exception was swallowed on the way
         code = 143 if received_signals[0] == signal.SIGTERM else 130
     if code in (130, 143):

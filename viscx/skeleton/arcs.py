@@ -16,24 +16,31 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    obtained by dropping one edge; a VEE node (v, e1, e2) on VE (v, e1),
    VE (v, e2) and EEE (e_v, e1, e2) for each generator edge e_v at v; a VV
    node (u, v) on VE (u, e) for each generator edge e at v and VE (v, e) for
-   each one at u.
+   each one at u. Besides, every *same-plane* VE family (a vertex and an edge
+   in the plane of a face touching the vertex), which may hold no node.
 3. *Parameters.* EEE (p, q, r) by the point s ∈ [0, 1] of the line on its
    parameter edge p (the line through a point of p meeting the lines of q and
    r is unique, seed 000 §4.2); VE (v, e) by the point s ∈ [0, 1] on e. Each
    family's events are sorted along s, together with the ends of its domain
    (s = 0, 1 and, for EEE, where the line reaches an endpoint of q or r: a
-   linear-fractional map, inverted exactly).
+   linear-fractional map, inverted exactly), the *junctions* of its edges
+   (another edge's vertex on the edge, or another edge crossing it: degenerate
+   scenes) and, for same-plane VE families, the *coplanar events* and
+   *crossings*: where the line passes a vertex or junction of its plane, or an
+   edge crossing the plane (the degenerate events of lines lying in a plane).
 4. *Arcs.* Between consecutive events the family is sampled (s at 1/4, 1/2,
    3/4 of the interval and 20 epsilon from each end) and every sample judged by
    :func:`viscx.skeleton.nodes.maximal_free_segments`, the nodes' own
-   definition with three generator conditions. Agreeing valid samples make
-   one arc whose ends are the two events. Disagreeing samples mean an event
-   V0 leaves out (a degenerate one, dropped by epsilon-visibility): the
-   interval is resampled and each change located by bisection; the arc ends
-   there with end type ``END_TRANSITION``.
+   definition with three generator conditions, and (VE) by its half-cells.
+   Agreeing valid samples make one arc whose ends are the two events (arcs
+   meeting at a crossing where nothing changes are joined). Disagreeing
+   samples mean an event V0 leaves out (a degenerate one, dropped by
+   epsilon-visibility): the interval is resampled and each change located by
+   bisection, then (VE) moved onto the vertex, junction or crossing that
+   explains it; the arc ends there with end type ``END_TRANSITION``.
 5. *VE half-cells* (seed 000 §4.1): the blocker pairs of the two V-cells on
-   either side of each VE arc, found by turning the arc's middle line about
-   its vertex off the plane of the vertex and the edge.
+   either side of each VE arc, found by turning the arc's sample line about
+   its vertex off the plane of the vertex and the edge by PROBE_ANGLE.
 
 All per-sample work is numpy over flat arrays; the only Python loops run over
 stages, bisection steps and small constant counts.
@@ -42,14 +49,18 @@ stages, bisection steps and small constant counts.
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
+from viscx.grid import bin_boxes
 from viscx.progress import bar
+from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.nodes import (
     E4,
     VEE,
     VV,
     Nodes,
+    face_planes,
     maximal_free_segments,
     validate_candidates,
     vertex_ray_blockers,
@@ -65,7 +76,15 @@ END_PLANAR = 1  # at a planar E4 event, not a V0 node (end_node indexes Arcs.pla
 END_ENDPOINT = 2  # the family reaches an edge's endpoint and V0 has no node there
 END_TRANSITION = 3  # the samples change there without a known event (a dropped, degenerate event)
 END_EDGE = 4  # a VE arc reaches the line along an edge of its vertex (end_node is that edge)
-END_NAMES = {END_NODE: "node", END_PLANAR: "planar", END_ENDPOINT: "endpoint", END_TRANSITION: "transition", END_EDGE: "edge"}
+END_JUNCTION = 5  # the line meets one of its edges where another edge touches it (end_node: the vertex, or -1)
+END_COPLANAR = 6  # a VE line lying in a face's plane passes a vertex or a junction of that plane (end_node: the vertex, or -1)
+END_CROSSING = 7  # a VE line lying in a face's plane passes where an edge crosses the plane (end_node: that edge)
+END_NAMES = {END_NODE: "node", END_PLANAR: "planar", END_ENDPOINT: "endpoint", END_TRANSITION: "transition", END_EDGE: "edge",
+             END_JUNCTION: "junction", END_COPLANAR: "coplanar", END_CROSSING: "crossing"}
+#: Which event wins where events of one family merge (lower first): nodes, planar events,
+#: domain ends (an edge's endpoint is the event there, whatever lies on the line), junctions,
+#: coplanar events, crossings.
+_END_RANK = np.array([0, 1, 2, 6, 7, 3, 4, 5])
 
 #: Where each interval between consecutive events is sampled (fractions of it; the first is
 #: the arc's sample), besides 20 epsilon from each end.
@@ -76,6 +95,15 @@ REFINE = 48
 BISECT = 40
 #: Intervals judged per batch in the first pass (5 samples each), samples per batch when refining.
 CHUNK = 100_000
+#: Angle (radians) by which a VE line is turned about its vertex, off the plane of the vertex
+#: and the edge, to find the V-cells on either side (half-cells): far above the rounding of
+#: directions (1e-16) and tangency's angle tolerance (1e-9), far below the thinnest cells of
+#: the samples (about 1e-4 rad between the Cornell light and the ceiling, seen from a wall).
+PROBE_ANGLE = 1e-8
+#: A transition of a VE family is moved onto the event that explains it (its line through a
+#: vertex, a junction or an edge's crossing with the family's plane) when that event lies
+#: within this many epsilon along the family's edge.
+SNAP = 20
 
 # slot layout of the family lines for maximal_free_segments (EEE: three edges; VE: vertex, edge)
 _SLOT_IS_VERTEX = np.array([[False] * 4, [True, False, False, False]])
@@ -142,9 +170,13 @@ class Arcs:
         Parameter interval s0 < s1: the point of the line on edge p (EEE) or e
         (VE), 0 at the edge's smaller vertex id, 1 at the larger.
     end_type : (n, 2) int8
-        END_NODE, END_PLANAR, END_ENDPOINT or END_TRANSITION at s0 and s1.
+        END_NODE, END_PLANAR, END_ENDPOINT, END_TRANSITION, END_EDGE, END_JUNCTION,
+        END_COPLANAR or END_CROSSING at s0 and s1.
     end_node : (n, 2) int
-        V0 node id (END_NODE), ``planar`` row (END_PLANAR), else -1.
+        V0 node id (END_NODE), ``planar`` row (END_PLANAR), the edge (END_EDGE), the
+        vertex lying on the edge (END_JUNCTION; -1 where two edges cross), the vertex
+        passed (END_COPLANAR; -1 for a junction), the edge crossing the plane
+        (END_CROSSING), else -1.
     blocker_kind : (n, 2) int8
     blocker : (n, 2) int
         Blocker pair (as in Nodes) of the arc's segments, in the family's
@@ -218,6 +250,120 @@ def _skew(scene, e1, e2):
     with np.errstate(invalid="ignore", divide="ignore"):
         gap = np.abs(np.einsum("ij,ij->i", a2 - a1, c)) / size
     return ~share & (size > 1e-9) & (gap > scene.epsilon)
+
+
+@dataclass
+class Junctions:
+    """Points strictly inside generator edges where the surface around the edge changes
+    although no vertex of the edge is there (degenerate scenes): another edge's vertex
+    lies on the edge (a T-junction: the inner wall's corner on the room's edge), or
+    another edge crosses it (two coplanar edges of touching boxes). Lines through such a
+    point are events of every family meeting the edge there, like the edge's endpoints.
+
+    Attributes
+    ----------
+    edge : (k,) int
+        Generator edge.
+    s : (k,) float
+        Where on it (0 at its smaller vertex id), farther than the weld tolerance from
+        both endpoints; sorted by (edge, s).
+    vertex : (k,) int
+        The vertex lying there, -1 where another edge crosses.
+    """
+
+    edge: np.ndarray
+    s: np.ndarray
+    vertex: np.ndarray
+
+    def __len__(self):
+        return len(self.edge)
+
+
+@njit(cache=True)
+def _contacts(a, b, ends, tol, offsets, items, out, fill):
+    """(edge i, s on i, vertex or -1) for every contact strictly inside edge i, per grid
+    cell and pair of edges listed there: an endpoint of edge j within ``tol`` of i, or a
+    crossing of non-parallel i and j (closest points within ``tol``, strictly inside
+    both). Edges sharing a vertex are skipped. Counts only unless ``fill``."""
+    k = 0
+    for c in range(len(offsets) - 1):
+        for p in range(offsets[c], offsets[c + 1]):
+            i = items[p]
+            u = b[i] - a[i]
+            uu = (u * u).sum()
+            li = np.sqrt(uu)
+            for q in range(offsets[c], offsets[c + 1]):
+                j = items[q]
+                if j == i or ends[i, 0] == ends[j, 0] or ends[i, 0] == ends[j, 1] or ends[i, 1] == ends[j, 0] \
+                        or ends[i, 1] == ends[j, 1]:
+                    continue
+                for w in range(2):  # an endpoint of j on i
+                    x = a[j] if w == 0 else b[j]
+                    s = ((x - a[i]) * u).sum() / uu
+                    if s * li <= tol or (1.0 - s) * li <= tol:
+                        continue
+                    gap = x - a[i] - s * u
+                    if np.sqrt((gap * gap).sum()) <= tol:
+                        if fill:
+                            out[k, 0], out[k, 1], out[k, 2] = i, s, ends[j, w]
+                        k += 1
+                if j < i:
+                    continue
+                v = b[j] - a[j]
+                vv = (v * v).sum()
+                uv = (u * v).sum()
+                den = uu * vv - uv * uv
+                if den <= 1e-24 * uu * vv:  # parallel: contacts are endpoints (above)
+                    continue
+                r = a[i] - a[j]
+                ur, vr = (u * r).sum(), (v * r).sum()
+                s = (uv * vr - vv * ur) / den
+                t = (uu * vr - uv * ur) / den
+                lj = np.sqrt(vv)
+                if s * li <= tol or (1.0 - s) * li <= tol or t * lj <= tol or (1.0 - t) * lj <= tol:
+                    continue
+                gap = a[i] + s * u - a[j] - t * v
+                if np.sqrt((gap * gap).sum()) <= tol:
+                    if fill:
+                        out[k, 0], out[k, 1], out[k, 2] = i, s, -1.0
+                        out[k + 1, 0], out[k + 1, 1], out[k + 1, 2] = j, t, -1.0
+                    k += 2
+    return k
+
+
+def edge_junctions(scene):
+    """The junctions of every generator edge (:class:`Junctions`).
+
+    Contacts are geometric within the weld tolerance, as tangency's
+    (:mod:`viscx.scene.neighbourhood`). Broad phase: the edges' boxes, grown by the
+    tolerance, binned in a uniform grid (about two cells per edge); each contact is
+    found in every cell both edges share and kept once. Cached on the scene.
+    """
+    cached = getattr(scene, "_viscx_junctions", None)
+    if cached is not None:
+        return cached
+    scene._viscx_junctions = _edge_junctions(scene)
+    return scene._viscx_junctions
+
+
+def _edge_junctions(scene):
+    tol = scene.weld_tolerance
+    ge = scene.generator_edges
+    if len(ge) < 2:
+        return Junctions(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+    ends = np.ascontiguousarray(scene.half_edges.edge_vertices[ge])
+    a, b = (np.ascontiguousarray(scene.vertices[ends[:, k]]) for k in (0, 1))
+    lo = np.minimum(a, b).min(axis=0) - 2 * tol
+    hi = np.maximum(a, b).max(axis=0) + 2 * tol
+    size = hi - lo
+    per_unit = (2 * len(ge) / np.prod(np.maximum(size, 1e-9 * size.max()))) ** (1 / 3)
+    dims = np.clip(np.ceil(size * per_unit), 1, 256).astype(np.int64)
+    offsets, items = bin_boxes(lo, size / dims, dims, np.minimum(a, b) - tol, np.maximum(a, b) + tol)
+    n = _contacts(a, b, ends, tol, offsets, items, np.zeros((0, 3)), False)
+    out = np.empty((n, 3))
+    _contacts(a, b, ends, tol, offsets, items, out, True)
+    rows = np.unique(out, axis=0)  # sorted by (edge index, s); repeats from shared cells
+    return Junctions(ge[rows[:, 0].astype(np.int64)], rows[:, 1], rows[:, 2].astype(np.int64))
 
 
 def canonical_eee(scene, triples):
@@ -296,9 +442,34 @@ class _Samples:
     direction: np.ndarray
     ends: np.ndarray
     generator_points: np.ndarray
+    sides: np.ndarray = None  # (m, 8) int: the VE half-cells' pairs (sides=True), -1 elsewhere
 
 
-def judge_samples(scene, kind, generators, s):
+def side_blockers(scene, vertex, edge, s):
+    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, seed 000 §4.1).
+
+    The line from the vertex to the edge's point s is turned about the vertex by
+    PROBE_ANGLE towards +n and -n (n = (b - a) × (v - a)) and judged by
+    :func:`viscx.skeleton.nodes.vertex_ray_blockers`.
+
+    Returns
+    -------
+    up_kind, up, down_kind, down : (m, 2) int
+        Side +n, side -n.
+    """
+    x = scene.vertices[vertex]
+    a, b = _edge_geometry(scene, edge)
+    d0 = a + np.asarray(s, dtype=np.float64)[:, None] * (b - a) - x
+    d0 /= np.linalg.norm(d0, axis=1, keepdims=True)
+    n = np.cross(b - a, x - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    m = len(vertex)
+    d = np.concatenate([d0 + PROBE_ANGLE * n, d0 - PROBE_ANGLE * n])
+    up_kind, up, down_kind, down, _ = vertex_ray_blockers(scene, np.concatenate([vertex, vertex]), d)
+    return tuple(np.stack([q[:m], q[m:]], axis=1).astype(np.int64) for q in (up_kind, up, down_kind, down))
+
+
+def judge_samples(scene, kind, generators, s, sides=False):
     """The maximal free segment of each family's line at s, in the family's orientation.
 
     Parameters
@@ -306,6 +477,8 @@ def judge_samples(scene, kind, generators, s):
     kind : (m,) int
     generators : (m, 3) int
     s : (m,) float
+    sides : bool
+        Also judge the half-cells of valid VE samples (:func:`side_blockers`).
 
     Returns
     -------
@@ -313,7 +486,10 @@ def judge_samples(scene, kind, generators, s):
     state : (m, 5) int
         (valid, back blocker kind, back blocker, front blocker kind, front
         blocker); -1 for the blockers of invalid lines. Two samples of a family
-        are on one arc only if their states agree.
+        are on one arc only if their states (and sides) agree.
+    sides : (m, 8) int or None
+        (up kind, up, down kind, down) on side +n, then on side -n, as in
+        :class:`HalfCells` (valid VE samples; -1 elsewhere).
     direction : (m, 3) float
     ends : (m, 2, 3) float
     generator_points : (m, 3, 3) float
@@ -335,7 +511,13 @@ def judge_samples(scene, kind, generators, s):
     b = np.where(flip[:, None], seg.blocker[:, ::-1], seg.blocker)
     state = np.stack([valid.astype(np.int64), bk[:, 0], b[:, 0], bk[:, 1], b[:, 1]], axis=1)
     state[~valid, 1:] = -1
-    return _Samples(valid, state, direction, ends, gp)
+    side = None
+    if sides:  # the V-cells beside valid VE lines: an arc's half-cells must hold all along it
+        side = np.full((len(kind), 8), -1, dtype=np.int64)
+        rows = np.flatnonzero(valid & (kind == VE))
+        if len(rows):
+            side[rows] = np.concatenate(side_blockers(scene, generators[rows, 0], generators[rows, 1], s[rows]), axis=1)
+    return _Samples(valid, state, direction, ends, gp, side)
 
 
 # --------------------------------------------------------------------------------------
@@ -510,16 +692,128 @@ def _incidences(scene, events):
     return kind[ok], gens[ok], rows[ok]
 
 
-def _same_face_ve(scene):
-    """(v, e, -1) for every generator vertex v and generator edge e of one face, e not at v."""
+def _same_plane_ve(scene):
+    """(v, e, -1) for every generator vertex v and generator edge e lying in the plane of a
+    face touching v, e not at v and v not on e's line.
+
+    Such families hold no node in general position when the face is a triangle (they
+    run between the lines along the vertex's two edges), and in degenerate scenes
+    their arcs often end only at dropped events (a block's corner on the floor and
+    another block's bottom edge: every line of the family lies on the floor). Contacts
+    are geometric (within the weld tolerance, as tangency's): v touches the face (a
+    block's bottom corner touches the floor) and e bounds a face of the plane or lies
+    on one (a block's bottom edge on the floor: its ends and middle touch it).
+    """
     he = scene.half_edges
-    order = np.argsort(he.face, kind="stable")
-    face = he.face[order]
-    i, j = _pairs_within_groups(face)
-    h1, h2 = order[np.concatenate([i, j])], order[np.concatenate([j, i])]
-    v, e = he.start[h1], he.edge[h2]
-    ok = he.edge_is_generator[e] & he.vertex_is_generator[v] & (he.edge_vertices[e] != v[:, None]).all(axis=1)
-    return np.unique(np.stack([v[ok], e[ok], np.full(ok.sum(), -1)], axis=1), axis=0).reshape(-1, 3)
+    tol = scene.weld_tolerance
+    plane = face_planes(scene)
+    gv, ge = scene.generator_vertices, scene.generator_edges
+    # (vertex, plane): the planes of the faces touching each generator vertex
+    pos, face = faces_near(scene, scene.vertices[gv], tol)
+    vp = np.unique(np.stack([gv[pos], plane[face]], axis=1), axis=0).reshape(-1, 2)
+    # (edge, plane): the planes of its own faces, and of faces it lies on
+    own = he.edge_is_generator[he.edge]
+    ep = [np.stack([he.edge[own], plane[he.face[own]]], axis=1)]
+    ev = he.edge_vertices[ge]
+    a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+    for point in (a, 0.5 * (a + b), b):
+        pos, face = faces_near(scene, point, tol)
+        n, off = scene.face_normal[face], scene.face_offset[face]
+        inside = (np.abs(np.einsum("ij,ij->i", n, a[pos]) - off) <= tol) & (np.abs(np.einsum("ij,ij->i", n, b[pos]) - off) <= tol)
+        ep.append(np.stack([ge[pos[inside]], plane[face[inside]]], axis=1))
+    ep = np.unique(np.concatenate(ep), axis=0).reshape(-1, 2)
+    # join on the plane
+    order = np.argsort(ep[:, 1], kind="stable")
+    first = np.searchsorted(ep[order, 1], vp[:, 1], "left")
+    count = np.searchsorted(ep[order, 1], vp[:, 1], "right") - first
+    r = np.repeat(np.arange(len(vp)), count)
+    k = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    v, e = vp[r, 0], ep[k, 0]
+    ends = he.edge_vertices[e]
+    x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
+    u = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+    off_line = np.linalg.norm(np.cross(x - a, u), axis=1) > tol
+    ok = (ends != v[:, None]).all(axis=1) & off_line
+    fam = np.unique(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1), axis=0).reshape(-1, 3)
+    return fam[:, :2], fam[:, 2], vp, ep
+
+
+def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
+    """Where each same-plane VE family's line passes a point of its plane at which the lines
+    of the plane can change: a generator vertex touching the plane, a junction of an edge
+    lying in it, a generator edge crossing it. Every line of such a family lies in the
+    plane (degenerate events V0 does not keep: a floor corner, a block's bottom corner
+    and a far edge of the floor in one line); so the family's state can change only
+    there, or at an event out of the plane (its nodes).
+
+    Parameters
+    ----------
+    ve : (m, 2) int
+        (v, e) of the families; ``ve_plane`` (m,) their plane (:func:`face_planes`).
+    vp, ep : (k, 2) int
+        (vertex, plane) and (edge, plane) incidences (:func:`_same_plane_ve`).
+
+    Returns
+    -------
+    family : (q,) int
+        Row of ``ve``.
+    s : (q,) float
+    kind : (q,) int
+        END_COPLANAR (a vertex or a junction) or END_CROSSING (an edge crossing the plane).
+    index : (q,) int
+        The vertex (-1 for a junction) or the crossing edge.
+    """
+    tol = scene.weld_tolerance
+    # the points of each plane: (plane, point, vertex)
+    pts_plane = [vp[:, 1]]
+    pts = [scene.vertices[vp[:, 0]]]
+    pts_vertex = [vp[:, 0]]  # the vertex, -1 for a junction, -2 - edge for a crossing
+    lo = np.searchsorted(ep[:, 0], junctions.edge, "left")  # ep is sorted by edge
+    hi = np.searchsorted(ep[:, 0], junctions.edge, "right")
+    count = hi - lo
+    r = np.repeat(np.arange(len(junctions)), count)
+    k = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    a, b = _edge_geometry(scene, junctions.edge[r])
+    pts_plane.append(ep[k, 1])
+    pts.append(a + junctions.s[r, None] * (b - a))
+    pts_vertex.append(junctions.vertex[r])
+    # generator edges crossing each plane of a family strictly (chunked: planes × edges)
+    planes = np.unique(ve_plane)
+    plane_of_face = face_planes(scene)
+    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
+    face_of[plane_of_face] = np.arange(scene.n_faces)
+    normal, offset = scene.face_normal[face_of[planes]], scene.face_offset[face_of[planes]]
+    ge = scene.generator_edges
+    ga, gb = _edge_geometry(scene, ge)
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for c in range(0, len(planes), chunk):
+        sl = slice(c, c + chunk)
+        h0 = normal[sl] @ ga.T - offset[sl, None]
+        h1 = normal[sl] @ gb.T - offset[sl, None]
+        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > tol) & (np.abs(h1) > tol))
+        f = h0[i, j] / (h0[i, j] - h1[i, j])
+        pts_plane.append(planes[sl][i])
+        pts.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
+        pts_vertex.append(-2 - ge[j])
+    pts_plane, pts, pts_vertex = np.concatenate(pts_plane), np.concatenate(pts), np.concatenate(pts_vertex)
+    # join families and points on the plane
+    order = np.argsort(pts_plane, kind="stable")
+    first = np.searchsorted(pts_plane[order], ve_plane, "left")
+    count = np.searchsorted(pts_plane[order], ve_plane, "right") - first
+    fam = np.repeat(np.arange(len(ve)), count)
+    w = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    x = scene.vertices[ve[fam, 0]]
+    direction = pts[w] - x
+    far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
+    fam, w, x, direction = fam[far], w[far], x[far], direction[far]
+    a, b = _edge_geometry(scene, ve[fam, 1])
+    s, _ = segment_parameter(x, direction, a, b)
+    with np.errstate(invalid="ignore"):
+        inside = np.isfinite(s) & (s > 0) & (s < 1)
+    which = pts_vertex[w[inside]]
+    crossing = which <= -2
+    return (fam[inside], s[inside], np.where(crossing, END_CROSSING, END_COPLANAR),
+            np.where(crossing, -2 - which, which))
 
 
 def _event_parameters(scene, kind, generators, events, rows):
@@ -530,24 +824,35 @@ def _event_parameters(scene, kind, generators, events, rows):
     return s
 
 
-def _domain_ends(scene, fam_kind, fam_gens):
-    """Parameters where each EEE family's line reaches an endpoint of q or r, or q's or r's
-    line at infinity (the linear-fractional map's pole), within [0, 1].
+def _domain_ends(scene, fam_kind, fam_gens, junctions):
+    """Parameters where each family's line reaches an endpoint or a junction of one of its
+    edges, or (EEE) q's or r's line at infinity (the linear-fractional map's pole), within
+    (0, 1) (s = 0 and 1, the parameter edge's endpoints, are added by the caller).
 
-    The map s -> x (x the line's point on q or r) is linear-fractional (a
-    projectivity between two lines of a regulus, or a central projection for a
-    pencil of lines in a plane), fixed by three samples; a pencil through a
-    point of the edge gives a constant map and no end.
+    VE (v, e): the junctions of e. EEE (p, q, r): those of p, and where the line
+    reaches an endpoint or a junction of q or r. The map s -> x (x the line's point
+    on q or r) is linear-fractional (a projectivity between two lines of a regulus, or
+    a central projection for a pencil of lines in a plane), fixed by three samples; a
+    pencil through a point of the edge gives a constant map and no end.
 
     Returns
     -------
     family : (k,) int
     s : (k,) float
+    kind : (k,) int
+        END_ENDPOINT or END_JUNCTION.
+    vertex : (k,) int
+        The junction's vertex (-1 for a crossing and for endpoints).
     """
+    fams, ss, kinds, verts = [], [], [], []
+    # junctions on the parameter edge (VE: e, EEE: p): s directly
+    param_edge = np.where(fam_kind == EEE, fam_gens[:, 0], fam_gens[:, 1])
+    f, k = _junctions_of(junctions, param_edge)
+    fams.append(f)
+    ss.append(junctions.s[k])
+    kinds.append(np.full(len(f), END_JUNCTION))
+    verts.append(junctions.vertex[k])
     e = np.flatnonzero(fam_kind == EEE)
-    fams, ss = [], []
-    if len(e) == 0:
-        return np.zeros(0, np.int64), np.zeros(0)
     probes = np.array([0.2, 0.5, 0.8])
     o, d = family_lines(scene, np.full(3 * len(e), EEE), np.repeat(fam_gens[e], 3, axis=0), np.tile(probes, len(e)))
     for slot in (1, 2):
@@ -562,16 +867,28 @@ def _domain_ends(scene, fam_kind, fam_gens):
         coeff = np.full((len(e), 4), np.nan)
         if fine.any():
             coeff[fine] = np.linalg.svd(system[fine])[2][:, -1]
-        al, be, ga, de = coeff.T
+        # the values of x to reach: the edge's endpoints, its junctions
+        rows, k = _junctions_of(junctions, fam_gens[e, slot])
+        fam = np.concatenate([np.arange(len(e)), np.arange(len(e)), rows])
+        value = np.concatenate([np.zeros(len(e)), np.ones(len(e)), junctions.s[k]])
+        al, be, ga, de = coeff[fam].T
         with np.errstate(divide="ignore", invalid="ignore"):
-            for value in (0.0, 1.0):
-                fams.append(e)
-                ss.append((be - value * de) / (value * ga - al))
-            fams.append(e)
-            ss.append(-de / ga)
-    fam, s = np.concatenate(fams), np.concatenate(ss)
+            fams += [e[fam], e]
+            ss += [(be - value * de) / (value * ga - al), -de[: len(e)] / ga[: len(e)]]
+        kinds += [np.where(np.arange(len(fam)) < 2 * len(e), END_ENDPOINT, END_JUNCTION), np.full(len(e), END_ENDPOINT)]
+        verts += [np.concatenate([np.full(2 * len(e), -1), junctions.vertex[k]]), np.full(len(e), -1)]
+    fam, s, kind, vertex = (np.concatenate(x) for x in (fams, ss, kinds, verts))
     keep = np.isfinite(s) & (s > 0) & (s < 1)
-    return fam[keep], s[keep]
+    return fam[keep].astype(np.int64), s[keep], kind[keep], vertex[keep].astype(np.int64)
+
+
+def _junctions_of(junctions, edges):
+    """(row of ``edges``, junction) for every junction of each edge."""
+    lo = np.searchsorted(junctions.edge, edges, "left")
+    count = np.searchsorted(junctions.edge, edges, "right") - lo
+    rows = np.repeat(np.arange(len(edges)), count)
+    k = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return rows, k
 
 
 # --------------------------------------------------------------------------------------
@@ -607,9 +924,9 @@ def build_arcs(scene, nodes, quiet=True):
             ev_kind.append(np.full(len(rows), code))
             ev_index.append(rows)
             ev_s.append(_event_parameters(scene, k, g, events, rows))
-        # VE families of a vertex and an edge of one face hold no node when the face is a
-        # triangle (they run between the lines along the vertex's two edges): seed them all
-        face_ve = _same_face_ve(scene)
+        # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
+        plane_ve, plane_of, vp, ep = _same_plane_ve(scene)
+        face_ve = np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1)
         fam_kind.append(np.full(len(face_ve), VE))
         fam_gens.append(face_ve)
         keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
@@ -617,14 +934,20 @@ def build_arcs(scene, nodes, quiet=True):
         fam_of = fam_of.reshape(-1)[: len(keys) - len(face_ve)]
         fkind, fgens = families[:, 0], families[:, 1:]
         ev_kind, ev_index, ev_s = np.concatenate(ev_kind), np.concatenate(ev_index), np.concatenate(ev_s)
-        # the ends of each family's domain
-        dom_f, dom_s = _domain_ends(scene, fkind, fgens)
+        # the ends of each family's domain, and its junctions
+        junctions = edge_junctions(scene)
+        dom_f, dom_s, dom_kind, dom_vertex = _domain_ends(scene, fkind, fgens, junctions)
+        # the points of their plane same-plane VE families pass
+        cop_f, cop_s, cop_kind, cop_index = _coplanar_events(scene, plane_ve, plane_of, vp, ep, junctions)
+        # (families is sorted and unique and holds every same-plane family)
+        _, where = np.unique(np.concatenate([families, np.concatenate([np.full((len(face_ve), 1), VE), face_ve], axis=1)]),
+                             axis=0, return_inverse=True)
+        cop_f = where.reshape(-1)[len(families):][cop_f]
         nf = len(families)
-        fam_of = np.concatenate([fam_of, dom_f, np.arange(nf), np.arange(nf)])
-        ev_s = np.concatenate([ev_s, dom_s, np.zeros(nf), np.ones(nf)])
-        extra = len(dom_f) + 2 * nf
-        ev_kind = np.concatenate([ev_kind, np.full(extra, END_ENDPOINT)])
-        ev_index = np.concatenate([ev_index, np.full(extra, -1)])
+        fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
+        ev_s = np.concatenate([ev_s, dom_s, cop_s, np.zeros(nf), np.ones(nf)])
+        ev_kind = np.concatenate([ev_kind, dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])
+        ev_index = np.concatenate([ev_index, dom_vertex, cop_index, np.full(2 * nf, -1)])
         # events on the family's edge (within rounding of its ends)
         ev_s = np.nan_to_num(ev_s, nan=-1.0)
         inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
@@ -644,6 +967,7 @@ def build_arcs(scene, nodes, quiet=True):
         _edge_line_ends(scene, arcs)
         arcs = _sorted(arcs)
         half_cells = _half_cells(scene, arcs)
+        del arcs["sides"]
         progress.update()
     return Arcs(**arcs, planar=planar, half_cells=half_cells)
 
@@ -655,16 +979,17 @@ def _param_scale(scene, fkind, fgens):
 
 
 def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index):
-    """Merge each family's events closer than epsilon along its edge (a node beats a
-    planar event beats a domain end) and return the intervals between consecutive ones."""
-    order = np.lexsort([ev_index, ev_kind, ev_s, fam_of])
+    """Merge each family's events closer than 4 epsilon along its edge (by _END_RANK: a node
+    beats a planar event beats a domain end beats a junction beats a coplanar event) and
+    return the intervals between consecutive ones."""
+    order = np.lexsort([ev_index, _END_RANK[ev_kind], ev_s, fam_of])
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
     tol = 4 * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
     new_group = np.ones(len(f), dtype=bool)
     new_group[1:] = (f[1:] != f[:-1]) | (s[1:] - s[:-1] > tol[1:])
     group = np.cumsum(new_group) - 1
-    # within a group, the best event: lowest type code, then lowest id
-    best = np.lexsort([i, k, group])
+    # within a group, the best event: lowest rank, then lowest id
+    best = np.lexsort([i, _END_RANK[k], group])
     first = best[np.r_[True, group[best][1:] != group[best][:-1]]]
     gf, gs, gk, gi = f[first], s[first], k[first], i[first]
     nxt = np.flatnonzero(gf[1:] == gf[:-1])
@@ -691,12 +1016,12 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     for lo in range(0, n, CHUNK):
         c = np.arange(lo, min(lo + CHUNK, n))
         smp = judge_samples(scene, np.repeat(fkind[f[c]], fr.shape[1]), np.repeat(fgens[f[c]], fr.shape[1], axis=0),
-                            ss[c].reshape(-1))
-        state = smp.state.reshape(len(c), fr.shape[1], 5)
+                            ss[c].reshape(-1), sides=True)
+        state = _full_state(smp).reshape(len(c), fr.shape[1], -1)
         uniform[c] = np.all(state == state[:, :1], axis=(1, 2))
         whole = np.flatnonzero(uniform[c] & (state[:, 0, 0] == 1))
         mid = whole * fr.shape[1]
-        kept.append((c[whole], smp.state[mid], smp.direction[mid], smp.ends[mid], smp.generator_points[mid]))
+        kept.append((c[whole], smp.state[mid], smp.sides[mid], smp.direction[mid], smp.ends[mid], smp.generator_points[mid]))
     whole = np.concatenate([k[0] for k in kept])
     pieces = {
         "family": f[whole],
@@ -705,16 +1030,19 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         "end_node": np.stack([i0[whole], i1[whole]], axis=1),
         "parameter": ss[whole, 0],
         "state": np.concatenate([k[1] for k in kept]),
-        "direction": np.concatenate([k[2] for k in kept]),
-        "ends": np.concatenate([k[3] for k in kept]),
-        "generator_points": np.concatenate([k[4] for k in kept]),
+        "sides": np.concatenate([k[2] for k in kept]),
+        "direction": np.concatenate([k[3] for k in kept]),
+        "ends": np.concatenate([k[4] for k in kept]),
+        "generator_points": np.concatenate([k[5] for k in kept]),
     }
     mixed = np.flatnonzero(~uniform)
     if len(mixed):
         more = _refine(scene, fkind, fgens, f[mixed], s0[mixed], t0[mixed], i0[mixed], s1[mixed], t1[mixed], i1[mixed])
         pieces = {k: np.concatenate([pieces[k], more[k]]) for k in pieces}
+    pieces = _merge_across_possible_events(scene, fkind, fgens, pieces)
     fam = pieces.pop("family")
     state = pieces.pop("state")
+    sides = pieces.pop("sides")
     return {
         "kind": fkind[fam].astype(np.int8),
         "generators": fgens[fam],
@@ -727,7 +1055,48 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         "direction": pieces["direction"],
         "ends": pieces["ends"],
         "generator_points": pieces["generator_points"],
+        "sides": sides,
     }
+
+
+def _merge_across_possible_events(scene, fkind, fgens, pieces):
+    """Join consecutive arcs of a family that meet at an edge crossing its plane where
+    nothing changes (the same blockers and half-cells on both sides): a line passing such
+    a point can change (a degenerate event), but in general position it changes only at
+    a node (a VEE line) and the arcs would otherwise end at every crossing. Every other
+    event ends its arcs (junctions and coplanar vertices: where collinear or coplanar
+    boundaries of other families begin and end, so that duplicates stay identical).
+    A joined arc's sample is taken again at the middle of its interval, as for an arc
+    between two events (the first piece's stands where that sample disagrees)."""
+    order = np.lexsort([pieces["interval"][:, 0], pieces["family"]])
+    p = {k: v[order] for k, v in pieces.items()}
+    full = np.concatenate([p["state"], p["sides"]], axis=1)
+    join = (p["family"][1:] == p["family"][:-1]) & (p["interval"][1:, 0] == p["interval"][:-1, 1])
+    join &= p["end_type"][:-1, 1] == END_CROSSING
+    join &= np.all(full[1:] == full[:-1], axis=1)
+    start = np.r_[True, ~join]
+    first = np.flatnonzero(start)
+    last = np.r_[first[1:] - 1, len(start) - 1]
+    out = {k: v[first] for k, v in p.items()}
+    out["interval"] = np.stack([p["interval"][first, 0], p["interval"][last, 1]], axis=1)
+    out["end_type"] = np.stack([p["end_type"][first, 0], p["end_type"][last, 1]], axis=1)
+    out["end_node"] = np.stack([p["end_node"][first, 0], p["end_node"][last, 1]], axis=1)
+    joined = np.flatnonzero(last > first)
+    if len(joined):
+        f = out["family"][joined]
+        s = 0.5 * (out["interval"][joined, 0] + out["interval"][joined, 1])
+        smp = judge_samples(scene, fkind[f], fgens[f], s, sides=True)
+        same = np.all(_full_state(smp) == full[first[joined]], axis=1)
+        rows = joined[same]
+        out["parameter"][rows] = s[same]
+        for k in ("state", "sides", "direction", "ends", "generator_points"):
+            out[k][rows] = getattr(smp, k)[same]
+    return out
+
+
+def _full_state(smp):
+    """(m, 13) int: a sample's state and its half-cells' pairs (what must hold along an arc)."""
+    return np.concatenate([smp.state, smp.sides], axis=1)
 
 
 def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
@@ -740,20 +1109,21 @@ def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     ss = s0[:, None] + fr * (s1 - s0)[:, None]
     # judged in batches of CHUNK samples (memory)
     k, g, flat = np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1)
-    parts = [judge_samples(scene, k[i : i + CHUNK], g[i : i + CHUNK], flat[i : i + CHUNK]) for i in range(0, len(k), CHUNK)]
+    parts = [judge_samples(scene, k[i : i + CHUNK], g[i : i + CHUNK], flat[i : i + CHUNK], sides=True)
+             for i in range(0, len(k), CHUNK)]
     smp = _Samples(*(np.concatenate([getattr(p, name) for p in parts]) for name in _Samples.__dataclass_fields__)) if parts \
-        else judge_samples(scene, k, g, flat)
-    state = smp.state.reshape(n, REFINE, 5)
+        else judge_samples(scene, k, g, flat, sides=True)
+    state = _full_state(smp).reshape(n, REFINE, -1)
     change = np.any(state[:, 1:] != state[:, :-1], axis=2)  # (n, REFINE - 1)
     ci, cj = np.nonzero(change)
     lo, hi = ss[ci, cj], ss[ci, cj + 1]
     left = state[ci, cj]
     for _ in range(BISECT):
         m = 0.5 * (lo + hi)
-        st = judge_samples(scene, fkind[f[ci]], fgens[f[ci]], m).state
+        st = _full_state(judge_samples(scene, fkind[f[ci]], fgens[f[ci]], m, sides=True))
         same = np.all(st == left, axis=1)
         lo, hi = np.where(same, m, lo), np.where(same, hi, m)
-    cut = 0.5 * (lo + hi)
+    cut = _snap_cuts(scene, fkind[f[ci]], fgens[f[ci]], 0.5 * (lo + hi), ss[ci, cj], ss[ci, cj + 1])
     # runs of equal state between cuts; keep the valid ones
     run_start = np.ones((n, REFINE), dtype=bool)
     run_start[:, 1:] = change
@@ -782,10 +1152,84 @@ def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         "end_node": np.stack([start_i, end_i], axis=1)[ok],
         "parameter": ss.reshape(-1)[pick][ok],
         "state": smp.state[pick][ok],
+        "sides": smp.sides[pick][ok],
         "direction": smp.direction[pick][ok],
         "ends": smp.ends[pick][ok],
         "generator_points": smp.generator_points[pick][ok],
     }
+
+
+def _snap_cuts(scene, kind, gens, cut, lo, hi):
+    """Move each VE transition onto the event that explains it, when one lies within SNAP
+    epsilon along the edge and strictly between the samples bracketing it.
+
+    A transition is an event V0 leaves out (degenerate), found by bisection; the
+    judging rules' tolerances (epsilon, the weld tolerance) and the half-cells' probe
+    angle put it slightly off the event, so the arcs meeting there on a vertex's
+    sphere would not meet. The events a VE (v, e) line can pass: through a generator
+    vertex or a junction lying in the plane of v and e, or through an edge crossing
+    that plane; each fixes s exactly (the line through v and the point, met with e).
+
+    Parameters
+    ----------
+    kind, gens : (c,) int, (c, 3) int
+        The family of each cut.
+    cut, lo, hi : (c,) float
+        The bisected parameter and the samples bracketing it.
+
+    Returns
+    -------
+    (c,) float
+    """
+    cut = cut.copy()
+    rows = np.flatnonzero(kind == VE)
+    if len(rows) == 0:
+        return cut
+    eps, tol = scene.epsilon, scene.weld_tolerance
+    v, e = gens[rows, 0], gens[rows, 1]
+    x = scene.vertices[v]
+    a, b = _edge_geometry(scene, e)
+    n = np.cross(b - a, x - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    length = np.linalg.norm(b - a, axis=1)
+    # candidate points: generator vertices, junctions, points of generator edges
+    junctions = edge_junctions(scene)
+    ja, jb = _edge_geometry(scene, junctions.edge)
+    points = np.concatenate([scene.vertices[scene.generator_vertices], ja + junctions.s[:, None] * (jb - ja)])
+    ga, gb = _edge_geometry(scene, scene.generator_edges)
+    best = np.full(len(rows), np.inf)
+    snapped = cut[rows].copy()
+    chunk = max(1, (1 << 22) // max(1, len(points) + len(ga)))
+    for c0 in range(0, len(rows), chunk):
+        r = np.arange(c0, min(len(rows), c0 + chunk))
+        # points in the plane of v and e
+        h = np.einsum("rk,pk->rp", n[r], points) - np.einsum("rk,rk->r", n[r], x[r])[:, None]
+        ri, pi = np.nonzero(np.abs(h) <= tol)
+        cand_r, cand_p = [r[ri]], [points[pi]]
+        # edges crossing it
+        h0 = np.einsum("rk,pk->rp", n[r], ga) - np.einsum("rk,rk->r", n[r], x[r])[:, None]
+        h1 = np.einsum("rk,pk->rp", n[r], gb) - np.einsum("rk,rk->r", n[r], x[r])[:, None]
+        ri, gi = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > tol) & (np.abs(h1) > tol))
+        fr = h0[ri, gi] / (h0[ri, gi] - h1[ri, gi])
+        cand_r.append(r[ri])
+        cand_p.append(ga[gi] + fr[:, None] * (gb[gi] - ga[gi]))
+        cr, cp = np.concatenate(cand_r), np.concatenate(cand_p)
+        direction = cp - x[cr]
+        fine = np.linalg.norm(direction, axis=1) > tol
+        cr, direction = cr[fine], direction[fine]
+        s, _ = segment_parameter(x[cr], direction, a[cr], b[cr])
+        k = rows[cr]
+        with np.errstate(invalid="ignore"):
+            dist = np.abs(s - cut[k]) * length[cr]
+            ok = np.isfinite(s) & (s > lo[k]) & (s < hi[k]) & (dist <= SNAP * eps)
+        cr, s, dist = cr[ok], s[ok], dist[ok]
+        order = np.lexsort([dist, cr])
+        first = order[np.r_[True, cr[order][1:] != cr[order][:-1]]] if len(order) else order
+        better = dist[first] < best[cr[first]]
+        best[cr[first][better]] = dist[first][better]
+        snapped[cr[first][better]] = s[first][better]
+    cut[rows] = snapped
+    return cut
 
 
 def _edge_line_ends(scene, arcs):
@@ -824,30 +1268,16 @@ def _sorted(arcs):
 def _half_cells(scene, arcs):
     """Blocker pairs of the V-cells on both sides of each VE arc (seed 000 §4.1).
 
-    The arc's sample line is turned about its vertex by an angle that moves it
-    50 epsilon off the edge, towards +n and -n (n = (b - a) × (v - a)); the
-    blockers of the turned lines are the half-cells' (up: the vertex's side,
-    the vertex itself where the surface separates the turned line's rays there;
-    down: the edge's side).
+    The arc's sample line turned about its vertex by PROBE_ANGLE, towards +n and
+    -n (n = (b - a) × (v - a)): :func:`side_blockers`, judged with every sample,
+    so that they hold all along the arc. Up: the vertex's side, the vertex itself
+    where the surface separates the turned line's rays there; down: the edge's side.
     """
-    eps = scene.epsilon
     ve = np.flatnonzero(arcs["kind"] == VE)
     v, e = arcs["generators"][ve, 0], arcs["generators"][ve, 1]
-    x = scene.vertices[v]
-    a, b = _edge_geometry(scene, e)
-    target = a + arcs["parameter"][ve, None] * (b - a)
-    d0 = target - x
-    length = np.linalg.norm(d0, axis=1, keepdims=True)
-    n = np.cross(b - a, x - a)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    h = len(ve)
-    up_kind = np.empty((h, 2), np.int8)
-    up = np.empty((h, 2), np.int64)
-    down_kind = np.empty((h, 2), np.int8)
-    down = np.empty((h, 2), np.int64)
-    for side, sign in ((0, 1.0), (1, -1.0)):
-        d = d0 / length + sign * (50 * eps / length) * n
-        up_kind[:, side], up[:, side], down_kind[:, side], down[:, side], _ = vertex_ray_blockers(scene, v, d)
+    sides = arcs["sides"][ve]  # the arc's sample's (side_blockers), equal all along the arc
+    up_kind, up, down_kind, down = (sides[:, 2 * k: 2 * k + 2] for k in range(4))
+    up_kind, down_kind = up_kind.astype(np.int8), down_kind.astype(np.int8)
     return HalfCells(
         arc=ve,
         vertex=v,

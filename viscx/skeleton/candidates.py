@@ -154,7 +154,7 @@ from numba import njit
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines, segment_parameter
 from viscx.grid import bin_boxes, cell_of
 from viscx.progress import bar
-from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, sort_nodes, validate_candidates
+from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
 
 #: Depth, in epsilons, a segment must reach inside a solid to be blocked by it.
@@ -1160,7 +1160,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     forward = np.einsum("ij,ij->i", scene.vertices[v] - origin, d) >= 0
     first = np.where(forward[:, None], scene.vertices[u], scene.vertices[v])
     last = np.where(forward[:, None], scene.vertices[v], scene.vertices[u])
-    free = scene.ray_caster.free_segments(first, last)
+    free = free_pieces(scene, first, last)
     pb.update(len(gv))
     pb.close()
     stats["VV pairs"] = int(len(gv) * (len(gv) - 1) // 2)

@@ -13,7 +13,8 @@ import numpy as np
 
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
-from viscx.scene.neighbourhood import generator_wedges
+from viscx.raycast import intersect_triangles
+from viscx.scene.neighbourhood import faces_near, generator_wedges
 
 # Node kinds.
 E4, VEE, VV = 0, 1, 2
@@ -222,7 +223,7 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
         piece_cand.append(c)
     piece_cand = np.concatenate(piece_cand)
     if len(piece_cand):
-        free = scene.ray_caster.free_segments(np.concatenate(pieces_a), np.concatenate(pieces_b))
+        free = free_pieces(scene, np.concatenate(pieces_a), np.concatenate(pieces_b))
         keep &= _all_of(piece_cand, free, m)
 
     # ... then tangency, the costly test, on the lines still standing
@@ -257,7 +258,7 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
         if len(go_on):
             start = point[row[go_on]]
             direction = sign * d[nodes[go_on]]
-            face, dist_hit = scene.ray_caster.first_hit(start, direction, tmin=eps)
+            face, dist_hit = first_faces(scene, start, direction, tmin=eps)
             sky = face < 0
             end = start + np.where(sky, 0.0, dist_hit)[:, None] * direction
             if sky.any():
@@ -287,7 +288,8 @@ def vertex_ray_blockers(scene, vertices, directions):
     The rule of :func:`maximal_free_segments` for one vertex: where the line is
     tangent at the vertex the segment runs from the first hit along -d (up) to
     the first hit along d (down); where the surface separates its rays there,
-    up is the vertex itself.
+    up is the vertex itself. Hits by :func:`first_faces` (float64, ties to the lowest
+    face): the half-cells' probes pass 1e-8 rad beside the cells' boundaries.
 
     Parameters
     ----------
@@ -307,7 +309,7 @@ def vertex_ray_blockers(scene, vertices, directions):
     d = d / np.linalg.norm(d, axis=1, keepdims=True)
     x = scene.vertices[vertices]
     tangent, degenerate = tangent_at_vertices(scene, vertices, d)
-    face, _ = scene.ray_caster.first_hit(np.concatenate([x, x]), np.concatenate([-d, d]), tmin=scene.epsilon)
+    face, _ = first_faces(scene, np.concatenate([x, x]), np.concatenate([-d, d]), tmin=scene.epsilon)
     back, front = face[: len(d)], face[len(d):]
     up_kind = np.where(~tangent, BLOCK_VERTEX, np.where(back < 0, BLOCK_SKY, BLOCK_FACE)).astype(np.int8)
     up = np.where(~tangent, vertices, back)
@@ -315,13 +317,219 @@ def vertex_ray_blockers(scene, vertices, directions):
     return up_kind, up, down_kind, front, degenerate
 
 
-def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=1e-9):
-    """For each generator row in ``rows``, whether its line lies in the plane of a
-    face that touches this generator's point and another generator point of the
-    same candidate.
+#: Slack (relative to the scene's diagonal) within which a hit point lies on another face,
+#: for the ties of :func:`first_faces`: rounding of the hit point only.
+TIE_SLACK = 1e-12
+#: Hits closer than this (relative to the diagonal) to their triangle's boundary, by their
+#: smallest barycentric coordinate times the triangle's longest side, are checked for ties
+#: (they may lie on an edge shared with other faces): ten times TIE_SLACK.
+TIE_MARGIN = 1e-11
+#: A ray lies in a face's plane when |cos| to its normal is at most this (tangency's angle
+#: tolerance) and its origin is within the weld tolerance of the plane.
+GRAZE_COSINE = 1e-9
+#: Bound on the faces a ray lying in their plane skips in one query of :func:`first_faces`.
+MAX_GRAZED = 8
 
-    Contacts are the geometric ones tangency uses (``wedges``): a block's bottom
-    edge lying on a floor is on the floor's face although no half-edge joins them.
+
+def first_faces(scene, origins, directions, tmin, tmax=np.inf):
+    """The first face hit along each ray on [tmin, tmax], deterministic where the hit point
+    lies on several faces: then the lowest id of those faces.
+
+    Cast in float64 alone (:class:`viscx.grid.TriangleGrid`, the ray caster's exact
+    stage), not with embree's float32 filter first: the filter may order two hits
+    closer than its band (about 2.4e-7 of the scene's diagonal) wrongly, so a ray
+    passing just beside an edge where two faces meet (a half-cell's probe) could
+    name the farther face.
+
+    Ties. A ray through an edge where faces meet (a line of a degenerate family
+    hitting the floor exactly at a box's bottom edge) or onto faces of one plane
+    that overlap (a box's bottom on the floor, two boxes' faces along their contact)
+    meets several faces at one distance, and float64 rounding alone would pick one:
+    rays of one region could name different faces (a V-cell split into pieces, an
+    arc into flickering samples). The faces holding the hit point are those within
+    TIE_SLACK of it, or, for faces of the hit face's plane (:func:`face_planes`:
+    offsets within the weld tolerance), those holding its projection onto their
+    plane within TIE_SLACK. Only hits within TIE_MARGIN of their triangle's boundary
+    or inside the bounding box of a coplanar face of lower id are examined.
+
+    Grazing. A ray lying in a face's plane (GRAZE_COSINE, the weld tolerance) does not
+    hit that face: the caster treats it as parallel only below 1e-12, and a line built
+    in a plane (a pencil of an EEE family, a VE line of a same-plane family) lies in
+    it only to rounding, so it would cross it at a point chosen by rounding. Such a hit
+    is skipped (the ray goes on from the weld tolerance beyond, up to MAX_GRAZED
+    times), as embree's float32 filter never saw it.
+
+    Returns
+    -------
+    face : (n,) int
+        -1 for the sky (nothing on [tmin, tmax]).
+    t : (n,) float
+        inf for the sky.
+    """
+    o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
+    lo = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (len(o),)).copy()
+    hi = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (len(o),)).copy()
+    tri = np.full(len(o), -1, dtype=np.int64)
+    t = np.full(len(o), np.inf)
+    todo = np.arange(len(o))
+    for _ in range(MAX_GRAZED + 1):
+        tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
+        todo = todo[tri[todo] >= 0]
+        f = scene.triangle_face[tri[todo]]
+        n = scene.face_normal[f]
+        grazing = (np.abs(np.einsum("ij,ij->i", n, d[todo])) <= GRAZE_COSINE) & (
+            np.abs(np.einsum("ij,ij->i", n, o[todo]) - scene.face_offset[f]) <= scene.weld_tolerance)
+        todo = todo[grazing]
+        if len(todo) == 0:
+            break
+        lo[todo] = t[todo] + scene.weld_tolerance
+    margin = np.full(len(o), np.inf)
+    hit = np.flatnonzero(tri >= 0)
+    _, margin[hit], _ = intersect_triangles(o[hit], d[hit], scene.ray_caster.vertices, scene.ray_caster.triangles, tri[hit])
+    t[tri < 0] = np.inf
+    face = np.where(tri >= 0, scene.triangle_face[np.maximum(tri, 0)], -1)
+    rows = np.flatnonzero(tri >= 0)
+    hit = o[rows] + t[rows, None] * d[rows]
+    examine = margin[rows] * _triangle_sizes(scene)[tri[rows]] <= TIE_MARGIN * scene.diagonal
+    # on a face with coplanar partners: only where a partner's bounding box holds the hit
+    p_off, p_face, lo_box, hi_box = _coplanar_partners(scene)
+    on = np.flatnonzero(~examine & (p_off[face[rows] + 1] > p_off[face[rows]]))
+    count = (p_off[face[rows[on]] + 1] - p_off[face[rows[on]]])
+    which = np.repeat(on, count)
+    partner = p_face[np.repeat(p_off[face[rows[on]]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    tol = 2 * scene.weld_tolerance
+    inside = np.all((hit[which] >= lo_box[partner] - tol) & (hit[which] <= hi_box[partner] + tol), axis=1)
+    slack = TIE_SLACK * scene.diagonal
+    # hits on a triangle's boundary: the faces holding the hit point
+    edge_rows = np.flatnonzero(examine)
+    pos_e, near_e = faces_near(scene, hit[edge_rows], slack)
+    pos_e = edge_rows[pos_e]
+    # hits inside a coplanar partner's box: the partners holding the hit's projection onto their plane
+    pos_p, near_p = which[inside], partner[inside]
+    n, off = scene.face_normal[near_p], scene.face_offset[near_p]
+    gap = np.einsum("ij,ij->i", n, hit[pos_p]) - off
+    q, tri_face = faces_near(scene, hit[pos_p] - gap[:, None] * n, slack)
+    holds = np.zeros(len(pos_p), dtype=bool)
+    holds[q[tri_face == near_p[q]]] = True
+    pos = np.concatenate([pos_e, pos_p[holds]])
+    near = np.concatenate([near_e, near_p[holds]])
+    if len(pos) == 0:
+        return face, t
+    best = face[rows].copy()
+    np.minimum.at(best, pos, near)
+    face = face.copy()
+    face[rows] = best
+    return face, t
+
+
+def free_pieces(scene, starts, ends):
+    """Whether each segment, trimmed by epsilon at both ends, is free: no closed triangle
+    met (:func:`first_faces`, float64 alone: embree's float32 filter may miss a segment
+    touching an edge, so a family of lines all touching one edge, in a degenerate
+    scene, would be free at random samples). The freeness rule of
+    :func:`maximal_free_segments` (and of builders that prefilter candidates by it).
+
+    Returns
+    -------
+    (n,) bool
+    """
+    starts = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
+    vec = np.asarray(ends, dtype=np.float64).reshape(-1, 3) - starts
+    length = np.linalg.norm(vec, axis=1)
+    eps = scene.epsilon
+    free = length <= 2 * eps
+    rays = np.flatnonzero(~free)
+    if len(rays):
+        face, _ = first_faces(scene, starts[rays], vec[rays], eps, length[rays] - eps)
+        free[rays] = face < 0
+    return free
+
+
+def face_planes(scene):
+    """(f,) int: a plane id per face, equal for faces lying in one plane (cached on the scene).
+
+    Planes are oriented (largest normal component positive), grouped by their normal
+    rounded to 1e-9, then sorted by offset: consecutive offsets within the weld
+    tolerance are one plane (a chain, so a plane is never split at a rounding
+    boundary of its offset).
+    """
+    cached = getattr(scene, "_viscx_face_planes", None)
+    if cached is not None:
+        return cached
+    nf = scene.n_faces
+    n = scene.face_normal.copy()
+    off = scene.face_offset.copy()
+    k = np.argmax(np.abs(n), axis=1)
+    flip = n[np.arange(nf), k] < 0
+    n[flip] *= -1
+    off[flip] *= -1
+    key_n = np.round(n / 1e-9).astype(np.int64)
+    order = np.lexsort([off, key_n[:, 2], key_n[:, 1], key_n[:, 0]])
+    new = np.ones(nf, dtype=bool)
+    new[1:] = np.any(key_n[order][1:] != key_n[order][:-1], axis=1) | (np.diff(off[order]) > scene.weld_tolerance)
+    plane = np.empty(nf, dtype=np.int64)
+    plane[order] = np.cumsum(new) - 1
+    scene._viscx_face_planes = plane
+    return plane
+
+
+def _triangle_sizes(scene):
+    """(t,) float: the longest side of each triangle (cached on the scene)."""
+    cached = getattr(scene, "_viscx_triangle_sizes", None)
+    if cached is None:
+        c = scene.vertices[scene.triangles]
+        cached = np.linalg.norm(c - np.roll(c, 1, axis=1), axis=2).max(axis=1)
+        scene._viscx_triangle_sizes = cached
+    return cached
+
+
+def _coplanar_partners(scene):
+    """Faces of lower id sharing each face's plane (:func:`face_planes`) whose bounding
+    boxes meet its own (grown by the weld tolerance), as CSR, with every face's bounding
+    box (cached on the scene).
+
+    Returns
+    -------
+    offsets : (f + 1,) int
+    partners : (k,) int
+    lo, hi : (f, 3) float
+    """
+    cached = getattr(scene, "_viscx_coplanar_partners", None)
+    if cached is not None:
+        return cached
+    nf = scene.n_faces
+    tol = scene.weld_tolerance
+    lo = np.full((nf, 3), np.inf)
+    hi = np.full((nf, 3), -np.inf)
+    corners = scene.vertices[scene.triangles]
+    np.minimum.at(lo, scene.triangle_face, corners.min(axis=1))
+    np.maximum.at(hi, scene.triangle_face, corners.max(axis=1))
+    plane = face_planes(scene)
+    order = np.argsort(plane, kind="stable")
+    first = np.searchsorted(plane[order], plane, "left")
+    count = np.searchsorted(plane[order], plane, "right") - first
+    i = np.repeat(np.arange(nf), count)
+    j = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    # (only lower ids: a tie goes to the lowest face, so a higher partner never wins)
+    ok = (j < i) & np.all((lo[i] <= hi[j] + tol) & (lo[j] <= hi[i] + tol), axis=1)
+    i, j = i[ok], j[ok]  # sorted by i
+    scene._viscx_coplanar_partners = np.searchsorted(i, np.arange(nf + 1)), j, lo, hi
+    return scene._viscx_coplanar_partners
+
+
+def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=1e-9):
+    """For each generator row in ``rows``, whether its line lies in the plane of a face
+    touching this generator's point, and a face of that plane (the same face or a
+    coplanar one, :func:`face_planes`) touches another generator point of the same
+    candidate.
+
+    Contacts are the geometric ones tangency uses (``wedges``, within the weld
+    tolerance): a block's bottom edge lying on a floor is on the floor's face
+    although no half-edge joins them. Coplanar faces count
+    as one: two boxes touching face to face make one plane, and a line of that
+    plane through a corner of one box and an edge of the other grazes both faces.
 
     cand : (k,) int
         Candidate of every generator row; every row of a candidate in ``rows``
@@ -336,15 +544,18 @@ def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_to
     -------
     (r,) bool
     """
+    plane = face_planes(scene)
+    n_planes = int(plane.max()) + 1
     row_of_wedge = np.repeat(np.arange(len(cand)), np.diff(wedges.offsets))
     here = np.isin(row_of_wedge, rows)
     pos = np.searchsorted(rows, row_of_wedge[here])
     face = wedges.face[here]
-    # a face is shared when another generator row of the candidate touches it too
-    # (the row itself is among its candidate's rows, hence "at least two")
+    # a plane is shared when another generator row of the candidate touches it too
+    # (the row itself is among its candidate's rows, hence "at least two" distinct rows)
     sib = np.isin(cand[row_of_wedge], cand[rows])
-    key_other = np.sort(cand[row_of_wedge[sib]] * scene.n_faces + wedges.face[sib])
-    key_here = cand[rows[pos]] * scene.n_faces + face
+    row_plane = np.unique(row_of_wedge[sib] * n_planes + plane[wedges.face[sib]])  # distinct (row, plane)
+    key_other = np.sort(cand[row_plane // n_planes] * n_planes + row_plane % n_planes)
+    key_here = cand[rows[pos]] * n_planes + plane[face]
     shared = np.searchsorted(key_other, key_here, "right") - np.searchsorted(key_other, key_here, "left") >= 2
     n, off = scene.face_normal[face], scene.face_offset[face]
     r = rows[pos]

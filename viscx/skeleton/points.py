@@ -313,7 +313,8 @@ def point_arcs(scene, point_ids, nodes):
     intervals = arcs_mod._intervals(scene, fkind, families, fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside])
     built = arcs_mod._arcs_on_intervals(scene, fkind, families, *intervals)
     built = arcs_mod._sorted(built)
-    half_cells = arcs_mod._half_cells(scene, built)
+    half_cells = arcs_mod._half_cells(scene, built)  # from the samples' side pairs
+    del built["sides"]
     return Arcs(**built, planar=validate_candidates(scene, np.zeros(0, np.int8), np.zeros((0, 4), np.int64),
                                                      np.zeros((0, 3)), np.zeros((0, 3))), half_cells=half_cells)
 

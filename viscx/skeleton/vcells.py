@@ -345,6 +345,32 @@ def _pairs_in_groups(group):
     return order[i], order[j]
 
 
+def unique_elements(el, group):
+    """The elements to keep: of elements of one group running between the same two points
+    (within JOIN_TOLERANCE), the first (smallest half-cell).
+
+    Two VE families whose lines coincide give the same boundary twice: collinear
+    edges overlapping (two boxes' bottom edges along their contact), or a vertex and
+    two edges in one plane (a line through v meets both). In general position no two
+    elements coincide.
+
+    Returns
+    -------
+    (k,) int
+        Increasing element indices.
+    """
+    if len(el) == 0:
+        return np.zeros(0, np.int64)
+    i, j = _pairs_in_groups(group)
+    later = j > i
+    i, j = i[later], j[later]
+    same = (np.linalg.norm(el.start[i] - el.start[j], axis=1) <= JOIN_TOLERANCE) & (
+        np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_TOLERANCE)
+    drop = np.zeros(len(el), bool)
+    drop[j[same]] = True
+    return np.flatnonzero(~drop)
+
+
 # --------------------------------------------------------------------------------------
 # FormLoops
 
@@ -640,6 +666,8 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         key = np.concatenate([el.vertex[:, None], el.pair], axis=1)
         _, group = np.unique(key, axis=0, return_inverse=True)
         group = group.reshape(-1)
+        keep = unique_elements(el, group)
+        el, group = el.take(keep), group[keep]
         progress.update()
 
         progress.set_postfix_str("loops")

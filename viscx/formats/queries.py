@@ -190,6 +190,44 @@ LIT_RGB = (255, 236, 170)
 UNLIT_RGB = (60, 60, 80)
 
 
+def write_triangle_ply(path, triangles, properties, rgb, comments):
+    """Binary little-endian PLY of separate triangles (three vertices each), written
+    atomically, with per-triangle properties and colours (MeshLab shows them).
+
+    Parameters
+    ----------
+    path : str or Path
+    triangles : (t, 3, 3) float
+    properties : list of (name, PLY numpy type code "<i4" or "u1", (t,) array)
+    rgb : (t, 3) uint8
+    comments : list of str
+    """
+    t = len(triangles)
+    vertex = np.asarray(triangles, dtype="<f8").reshape(-1, 3)
+    ply_type = {"<i4": "int", "u1": "uchar"}
+    fdt = np.dtype([("n", "u1"), ("v", "<i4", 3)] + [(name, code) for name, code, _ in properties]
+                   + [("red", "u1"), ("green", "u1"), ("blue", "u1")])
+    rows = np.zeros(t, fdt)
+    rows["n"] = 3
+    rows["v"] = np.arange(3 * t).reshape(-1, 3)
+    for name, _, values in properties:
+        rows[name] = values
+    if t:
+        rows["red"], rows["green"], rows["blue"] = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3).T
+    header = (
+        "ply\nformat binary_little_endian 1.0\n" + "".join(f"comment {c}\n" for c in comments)
+        + f"element vertex {3 * t}\nproperty double x\nproperty double y\nproperty double z\n"
+        + f"element face {t}\nproperty list uchar int vertex_indices\n"
+        + "".join(f"property {ply_type[code]} {name}\n" for name, code, _ in properties)
+        + "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    )
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as out:
+            out.write(header.encode())
+            out.write(vertex.tobytes())
+            out.write(rows.tobytes())
+
+
 def write_shadow_ply(path, scene, view):
     """Binary PLY of the scene split along the shadow boundaries: per triangle its face
     id (``face``), ``lit`` (0/1) and a colour (MeshLab shows per-face colours).
@@ -207,30 +245,12 @@ def write_shadow_ply(path, scene, view):
         Counts: triangles, lit triangles.
     """
     tris, face, lit = split_faces(scene, view)
-    t = len(tris)
     # the triangles' own normal follows the face's (the 2-D work is counter-clockwise about it)
-    vertex = tris.reshape(-1, 3).astype("<f8")
-    fdt = np.dtype([("n", "u1"), ("v", "<i4", 3), ("face", "<i4"), ("lit", "u1"), ("red", "u1"), ("green", "u1"), ("blue", "u1")])
-    rows = np.zeros(t, fdt)
-    rows["n"] = 3
-    rows["v"] = np.arange(3 * t).reshape(-1, 3)
-    rows["face"] = face
-    rows["lit"] = lit
-    rgb = np.where(lit[:, None], LIT_RGB, UNLIT_RGB)
-    rows["red"], rows["green"], rows["blue"] = rgb.T
-    header = (
-        "ply\nformat binary_little_endian 1.0\ncomment viscx shadows: lit 1 where the light sees the triangle\n"
-        f"comment light {view.point[0]!r} {view.point[1]!r} {view.point[2]!r}\n"
-        f"element vertex {3 * t}\nproperty double x\nproperty double y\nproperty double z\n"
-        f"element face {t}\nproperty list uchar int vertex_indices\nproperty int face\nproperty uchar lit\n"
-        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    )
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as out:
-            out.write(header.encode())
-            out.write(vertex.tobytes())
-            out.write(rows.tobytes())
-    return {"triangles": t, "lit_triangles": int(lit.sum())}
+    write_triangle_ply(path, tris, [("face", "<i4", face), ("lit", "u1", lit)],
+                       np.where(lit[:, None], LIT_RGB, UNLIT_RGB),
+                       ["viscx shadows: lit 1 where the light sees the triangle",
+                        "light " + " ".join(repr(float(x)) for x in view.point)])
+    return {"triangles": len(tris), "lit_triangles": int(lit.sum())}
 
 
 # --------------------------------------------------------------------------------------
@@ -279,26 +299,6 @@ def write_regions_ply(path, mesh):
         Counts: triangles, regions.
     """
     tris, face, region = region_triangles(mesh)
-    t = len(tris)
-    vertex = tris.reshape(-1, 3).astype("<f8")
-    fdt = np.dtype([("n", "u1"), ("v", "<i4", 3), ("face", "<i4"), ("region", "<i4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")])
-    rows = np.zeros(t, fdt)
-    rows["n"] = 3
-    rows["v"] = np.arange(3 * t).reshape(-1, 3)
-    rows["face"] = face
-    rows["region"] = region
-    rgb = _region_rgb(face, region)
-    rows["red"], rows["green"], rows["blue"] = rgb.T if t else (0, 0, 0)
-    header = (
-        "ply\nformat binary_little_endian 1.0\ncomment viscx discontinuities: receivers split into regions\n"
-        f"comment light {mesh.light.name}\n"
-        f"element vertex {3 * t}\nproperty double x\nproperty double y\nproperty double z\n"
-        f"element face {t}\nproperty list uchar int vertex_indices\nproperty int face\nproperty int region\n"
-        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    )
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as out:
-            out.write(header.encode())
-            out.write(vertex.tobytes())
-            out.write(rows.tobytes())
-    return {"triangles": t, "regions": sum(len(r.regions) for r in mesh.receivers)}
+    write_triangle_ply(path, tris, [("face", "<i4", face), ("region", "<i4", region)], _region_rgb(face, region),
+                       ["viscx discontinuities: receivers split into regions", f"light {mesh.light.name}"])
+    return {"triangles": len(tris), "regions": sum(len(r.regions) for r in mesh.receivers)}

@@ -358,30 +358,29 @@ class PairSetup:
 
     def outer_cuts(self):
         """Offsets of lines through the points of I' where the outer integrand may be
-        singular: occluder vertices touching I (corners of contact lines: jumps of the
-        integrand end there) and the VV points, where the line through a vertex of J' and a
-        vertex of an occluder, or through two occluders' vertices, meets I's plane (corners
-        of umbrae and penumbrae)."""
+        singular: occluder vertices touching I (corners of contact lines, where jumps of
+        the integrand end) and the VV points, where the line through a vertex of J' and a
+        vertex of an occluder meets I' (corners of umbrae and penumbrae). Cuts closer than
+        1e-3 of the extent are merged."""
         e = self.events
         vert, lab = e["vert"], e["vert_poly"]
         h = vert @ self.n_i - self.c_i
-        touch = vert[np.abs(h) <= self.tiny * 10]
-        occ = vert[lab > 0]
-        pairs = []
-        if len(occ):
-            a = np.repeat(vert, len(occ), axis=0)
-            b = np.tile(occ, (len(vert), 1))
-            la = np.repeat(lab, len(occ))
-            lb = np.tile(lab[lab > 0], len(vert))
-            keep = la != lb
-            a, b = a[keep], b[keep]
+        pts = [vert[np.abs(h) <= self.tiny * 10]]
+        jv, ov = vert[lab == 0], vert[lab > 0]
+        if len(ov):
+            a = np.repeat(jv, len(ov), axis=0)
+            b = np.tile(ov, (len(jv), 1))
             ha, hb = a @ self.n_i - self.c_i, b @ self.n_i - self.c_i
             ok = np.abs(ha - hb) > self.tiny
             a, b, ha, hb = a[ok], b[ok], ha[ok], hb[ok]
-            t = ha / (ha - hb)
-            pairs.append(a + t[:, None] * (b - a))
-        pts = np.concatenate([touch, *pairs]) if pairs else touch
-        return np.unique((pts - self.io) @ self.iv)
+            pts.append(a + (ha / (ha - hb))[:, None] * (b - a))
+        pts = np.concatenate(pts)
+        u, v = (pts - self.io) @ self.iu, (pts - self.io) @ self.iv
+        box = np.concatenate(self.i2)
+        inside = (u >= box[:, 0].min()) & (u <= box[:, 0].max()) & (v >= box[:, 1].min()) & (v <= box[:, 1].max())
+        v = np.unique(v[inside])
+        span = box[:, 1].max() - box[:, 1].min()
+        return v[np.concatenate([[True], np.diff(v) > 1e-3 * span])] if len(v) else v
 
     def f(self, points):
         k = self.kernel

@@ -224,7 +224,7 @@ def test_matrix_small_scene_reciprocity_and_rows():
 def test_cornell_matrix(cornell):
     """The acceptance: reciprocity to 1e-6 and every side's row (with its sky term: the open
     front and the outside) sums to 1 within 1e-6."""
-    m = ff.form_factor_matrix(cornell, tol=1e-8)
+    m = ff.form_factor_matrix(cornell, tol=1e-7)
     summary = m.summary()
     assert summary["reciprocity_max_error"] < 1e-6
     assert summary["row_sum_max_deviation"] < 1e-6
@@ -234,12 +234,10 @@ def test_cornell_matrix(cornell):
 def test_closed_cornell_rows_sum_to_one(cornell):
     """The Cornell box closed by a front wall at z = 0: rows sum to 1 without the sky for the
     inside faces."""
-    from viscx.scene import PolygonSoup
-
-    verts = [cornell.vertices[cornell.loop_vertices[cornell.loop_offsets[f]:cornell.loop_offsets[f + 1]]] for f in range(cornell.n_faces)]
-    polys = [v.tolist() for v in verts] + [[[0, 0, 0], [0, 548.8, 0], [556, 548.8, 0], [556, 0, 0]]]
+    polys = [cornell.face_loops(f)[0].tolist() for f in range(cornell.n_faces)]
+    polys.append([[556, 0, 0], [556, 548.8, 0], [0, 548.8, 0], [0, 0, 0]])  # facing +z, into the box
     closed = scene_of(polys)
-    m = ff.form_factor_matrix(closed, tol=1e-8)
+    m = ff.form_factor_matrix(closed, tol=1e-7)
     rows = m.row_sums()
     assert np.abs(rows - 1).max() < 1e-6
     # the front sides of the walls, floor and ceiling see no sky

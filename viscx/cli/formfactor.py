@@ -18,7 +18,7 @@ from viscx.cli.options import POINT, format_option, quiet
 @click.option("--to-group", "to_group", default=None, metavar="NAME", help="Receiving group.")
 @click.option("--matrix", is_flag=True, help="Every pair of face sides, sparse, written to -o F.h5.")
 @click.option("--tol", type=float, default=None, metavar="T",
-              help="Target absolute error of each polygon-to-polygon form factor (default 1e-9; 1e-8 for --matrix).")
+              help="Target absolute error of each polygon-to-polygon form factor (default 1e-8; 1e-7 for --matrix).")
 @click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None,
               help="Where to write: the .h5 matrix (--matrix), else .json or .msgpack (default: standard output).")
 @format_option
@@ -90,7 +90,7 @@ def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_gro
     elif matrix:
         from viscx.formats.formfactors import write_matrix
 
-        m = ff.form_factor_matrix(scene, tol=tol or 1e-8, quiet=quiet(ctx))
+        m = ff.form_factor_matrix(scene, tol=tol or ff.MATRIX_TOL, quiet=quiet(ctx))
         summary = write_matrix(output, m, scene)
         write_result({"matrix": str(output), **summary}, None, fmt)
         return

@@ -56,8 +56,10 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import line_events, visible_form_factors
 from viscx.geometry.polygon import newell_normal, plane_basis
 
-#: Default target on the absolute error of one form factor.
-DEFAULT_TOL = 1e-9
+#: Default target on the absolute error of one form factor (a pair, a group) ...
+DEFAULT_TOL = 1e-8
+#: ... and of each entry of the matrix.
+MATRIX_TOL = 1e-7
 
 # Gauss–Kronrod 7/15 (QUADPACK qk15): nodes on [-1, 1], Kronrod and Gauss weights
 _XGK = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,

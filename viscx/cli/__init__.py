@@ -27,6 +27,7 @@ COMMANDS = {
     "diff": "viscx.cli.diff:diff",
     "plot": "viscx.cli.plot:plot",
     "query": "viscx.cli.query:query",
+    "formfactor": "viscx.cli.formfactor:formfactor",
     "flatland": "viscx.cli.flatland:flatland",
 }
 

@@ -118,17 +118,53 @@ def clip_to_hemisphere(loop, point, normal):
 # geometrically toward a's ends, where the integrand has its (integrable)
 # logarithmic singularities when the polygons touch (a shared edge or vertex).
 
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(10)
+_GL = {n: np.polynomial.legendre.leggauss(n) for n in (6, 10)}
 
 
-def _graded_nodes(length, levels=40):
-    """Quadrature nodes and weights on [0, length], refined geometrically toward both ends."""
-    cuts = length * np.concatenate([[0.0], 0.5 ** np.arange(levels, 0, -1) / 2, [0.5], 1 - 0.5 ** np.arange(1, levels + 1) / 2, [1.0]])
-    a, b = cuts[:-1], cuts[1:]
+def _graded_nodes(length, levels=40, order=10, cuts=()):
+    """Quadrature nodes and weights on [0, length], refined geometrically toward both ends
+    and toward every interior cut (where the integrand may be singular)."""
+    x_gl, w_gl = _GL[order]
+    knots = np.unique(np.concatenate([[0.0, length], np.asarray(cuts, dtype=np.float64)]))
+    grade = np.concatenate([[0.0], 0.5 ** np.arange(levels, 0, -1) / 2, [0.5], 1 - 0.5 ** np.arange(1, levels + 1) / 2, [1.0]])
+    a0, b0 = knots[:-1], knots[1:]
+    keep = b0 - a0 > 1e-14 * length
+    a0, b0 = a0[keep], b0[keep]
+    edges = a0[:, None] + (b0 - a0)[:, None] * grade[None, :]
+    a, b = edges[:, :-1].ravel(), edges[:, 1:].ravel()
     half = (b - a) / 2
-    nodes = (a + half)[:, None] + half[:, None] * _GL_X[None, :]
-    weights = half[:, None] * _GL_W[None, :]
+    nodes = (a + half)[:, None] + half[:, None] * x_gl[None, :]
+    weights = half[:, None] * w_gl[None, :]
     return nodes.ravel(), weights.ravel()
+
+
+def _near_cuts(a0, u_a, len_a, loops_j):
+    """Parameters on edge a where the other polygon comes close (its vertices' projections
+    and the closest points of its edges, within a quarter of a's length): the places
+    where the inner integral's log kernel is (nearly) singular."""
+    cuts = []
+    for loop in loops_j:
+        p = np.asarray(loop, dtype=np.float64)
+        q = np.roll(p, -1, axis=0)
+        # vertices
+        t = (p - a0) @ u_a
+        dist = np.linalg.norm(p - a0 - t[:, None] * u_a, axis=1)
+        cuts.append(t[(dist < 0.25 * len_a) & (t > 0) & (t < len_a)])
+        # closest points of the segments p-q to the line of a (sampled where they cross its neighbourhood)
+        d = q - p
+        w0 = p - a0
+        b_ = d @ u_a
+        c_ = np.einsum("ij,ij->i", d, d)
+        d_ = w0 @ u_a
+        e_ = np.einsum("ij,ij->i", d, w0)
+        den = c_ - b_ * b_
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.clip(np.where(den > 1e-14 * c_, (b_ * d_ - e_) / den, 0.0), 0.0, 1.0)
+        y = p + s[:, None] * d
+        t = (y - a0) @ u_a
+        dist = np.linalg.norm(y - a0 - t[:, None] * u_a, axis=1)
+        cuts.append(t[(dist < 0.25 * len_a) & (t > 0) & (t < len_a)])
+    return np.concatenate(cuts) if cuts else np.zeros(0)
 
 
 def _log_distance_integral(x, start, direction, length):
@@ -163,7 +199,7 @@ def _edges(loops):
                 yield a, (b - a) / length, length
 
 
-def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j):
+def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j, order=10):
     """Unoccluded form factor F_ij between two planar polygons (holes allowed).
 
     Parameters
@@ -173,6 +209,9 @@ def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j):
     normal_i, normal_j : (3,) float
         Unit normals; polygon j must lie in front of i and i in front of j
         (their planes may meet only along their boundary).
+    order : int
+        Gauss–Legendre points per panel (6 or 10); panels are graded toward the ends of
+        every edge of i and toward where j comes close to it.
 
     Returns
     -------
@@ -195,7 +234,7 @@ def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j):
     area_i = sum(abs(np.cross(l, np.roll(l, -1, axis=0)).sum(axis=0) @ normal_i) / 2 * (1 if k == 0 else -1) for k, l in enumerate(li))
     total = 0.0
     for a0, u_a, len_a in _edges(li):
-        s, w = _graded_nodes(len_a)
+        s, w = _graded_nodes(len_a, order=order, cuts=_near_cuts(a0, u_a, len_a, lj))
         x = a0 + s[:, None] * u_a
         for b0, u_b, len_b in _edges(lj):
             cos_ab = u_a @ u_b

@@ -1,0 +1,341 @@
+"""Form-factor queries (viscx formfactor): the from-point hidden-surface kernel against the
+V-cells and Lambert, closed forms, Monte Carlo with embree rays, reciprocity and row sums."""
+
+import json
+import subprocess
+import sys
+
+import msgpack
+import numpy as np
+import pytest
+from conftest import ROOT, SAMPLES, soup
+from test_formfactor import corner_rectangle, parallel_rectangles, perpendicular_rectangles
+
+from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon
+from viscx.queries import formfactor as ff
+from viscx.queries.visibility import point_view
+from viscx.scene import build_scene, load_scene
+from viscx.skeleton.points import point_vcells
+
+GOLDEN_CORNELL = ROOT / "tests" / "golden" / "cornell_box.h5"
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    return load_scene(SAMPLES / "cornell_box.obj")
+
+
+def square(z, size=1.0, flip=False):
+    q = [[0, 0, z], [size, 0, z], [size, size, z], [0, size, z]]
+    return q[::-1] if flip else q
+
+
+def scene_of(polygons):
+    verts, faces = [], []
+    for poly in polygons:
+        faces.append(list(range(len(verts), len(verts) + len(poly))))
+        verts.extend(poly)
+    return build_scene(soup(verts, faces, groups=np.arange(len(faces)), names=[f"p{k}" for k in range(len(faces))]))
+
+
+def monte_carlo(scene, i, side_i, j, side_j=None, k=1_000_000, seed=0):
+    """F from a side of face i to face j (a side of it, or both) by k cosine-weighted rays
+    from area-uniform points of i (embree first hits): estimate and its σ."""
+    rng = np.random.default_rng(seed)
+    tri = scene.vertices[scene.triangles[scene.triangle_face == i]]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    t = rng.choice(len(tri), k, p=area / area.sum())
+    u, v = rng.random(k), rng.random(k)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    p = tri[t, 0] + u[:, None] * (tri[t, 1] - tri[t, 0]) + v[:, None] * (tri[t, 2] - tri[t, 0])
+    n = side_i * scene.face_normal[i]
+    a = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    u1, u2 = rng.random(k), rng.random(k)
+    r, phi = np.sqrt(u1), 2 * np.pi * u2
+    d = (r * np.cos(phi))[:, None] * a + (r * np.sin(phi))[:, None] * b + np.sqrt(1 - u1)[:, None] * n
+    face, _ = scene.ray_caster.first_hit(p, d, tmin=scene.epsilon)
+    hit = face == j
+    if side_j is not None:
+        hit &= np.where(d @ scene.face_normal[j] < 0, 1, -1) == side_j
+    est = hit.mean()
+    return est, np.sqrt(est * (1 - est) / k)
+
+
+# --------------------------------------------------------------------------------------
+# the integrand: visible part of J from a point, by clipping
+
+
+@pytest.mark.parametrize("pair", [(15, 0), (0, 15), (1, 0), (2, 3), (11, 4)])
+def test_clipping_kernel_equals_vcells(cornell, pair, rng):
+    """F(x → visible part of J) by polygon clipping equals Lambert over the V-cells' visible part."""
+    i, j = pair
+    setup = ff.PairSetup(cornell, i, 1, ff.face_target(cornell, j), 1)
+    setup.arrays()
+    loop = setup.I[0]
+    checked = 0
+    for _ in range(12):
+        # just off I (a point on a face is refused); both visible parts are clipped at I's
+        # plane (the kernel's J'), not at the point's
+        x = rng.dirichlet(np.ones(len(loop))) @ loop + 2e-3 * setup.n_i
+        try:
+            pc = point_vcells(cornell, x, epsilon=1e-5)  # epsilon-visibility at the default 1e-3 mm: ~1e-8
+        except Exception:  # inside a block (the floor under it)
+            continue
+        view = point_view(pc.scene, pc.arcs, pc.vcells, int(pc.point_ids[0]), x)
+        loops = [c for c in (clip_to_hemisphere(l, loop[0], setup.n_i) for l in view.faces[j].loops) if len(c) >= 3]
+        ref = point_to_polygon([x], [setup.n_i], loops)[0] if loops else 0.0
+        assert abs(setup.f(x[None])[0] - ref) < 1e-13
+        checked += 1
+    assert checked >= 6
+
+
+def test_clipping_kernel_unoccluded_is_lambert(rng):
+    tri = np.array([[0.2, -0.3, 1.0], [1.5, 0.4, 1.8], [-0.4, 1.2, 1.3]])
+    s = scene_of([[[-1, -1, 0], [2, -1, 0], [2, 2, 0], [-1, 2, 0]], tri.tolist()])
+    setup = ff.PairSetup(s, 0, 1, ff.face_target(s, 1), -1 if s.face_normal[1][2] > 0 else 1)
+    setup.arrays()
+    x = np.c_[rng.uniform(-1, 2, (500, 2)), np.zeros(500)]
+    got = setup.f(x)
+    ref = point_to_polygon(x, np.tile([0, 0, 1.0], (500, 1)), [tri])
+    assert np.abs(got - ref).max() < 1e-13
+
+
+# --------------------------------------------------------------------------------------
+# closed forms (unoccluded: contour integral and the quadrature path)
+
+
+def _forced_quadrature(scene, i, side_i, j, side_j, tol):
+    setup = ff.PairSetup(scene, i, side_i, ff.face_target(scene, j), side_j)
+    return ff._quadrature(setup, tol)
+
+
+def test_parallel_unit_squares():
+    s = scene_of([square(0), square(1, flip=True)])
+    exact = parallel_rectangles(1.0, 1.0)
+    r = ff.pair_form_factor(s, 0, 1, ff.face_target(s, 1), 1)
+    assert r.method == "contour" and abs(r.F - exact) < 1e-9
+    value, err, _, _ = _forced_quadrature(s, 0, 1, 1, 1, 1e-10)
+    assert abs(value - exact) < 1e-9 and err < 1e-9
+
+
+def test_perpendicular_unit_squares():
+    s = scene_of([square(0), [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]]])
+    exact = perpendicular_rectangles(1.0, 1.0)
+    side_wall = 1 if s.face_normal[1][1] > 0 else -1
+    r = ff.pair_form_factor(s, 0, 1, ff.face_target(s, 1), side_wall)
+    assert r.method == "contour" and abs(r.F - exact) < 1e-9
+    value, err, _, _ = _forced_quadrature(s, 0, 1, 1, side_wall, 1e-10)
+    assert abs(value - exact) < 1e-9
+    back = ff.pair_form_factor(s, 1, side_wall, ff.face_target(s, 0), 1)
+    assert abs(back.F - exact) < 1e-9  # reciprocity, equal areas
+
+
+def test_contour_with_a_partly_shared_edge(cornell):
+    """A block's side standing on the floor (its bottom edge inside the floor): contour integral
+    against the quadrature of the exact integrand."""
+    r = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 9), 1)
+    assert r.method == "contour"
+    value, err, _, _ = _forced_quadrature(cornell, 0, 1, 9, 1, 1e-8)
+    assert abs(value - r.F) < 1e-8 and err < 1e-8
+
+
+# --------------------------------------------------------------------------------------
+# events and outer cuts
+
+
+def test_line_events_leave_analytic_pieces(cornell):
+    """Cut at its events, every piece of a line is analytic: the first 7/15-point pair agrees
+    to rounding. Without the events the pieces hold the kinks of the discontinuity mesh."""
+    setup = ff.PairSetup(cornell, 0, 1, ff.face_target(cornell, 15), 1)
+    setup.arrays()
+    worst = 0.0
+    v = np.concatenate(setup.i2)[:, 1]
+    lines = 0
+    for y in np.linspace(v.min(), v.max(), 11)[1:-1]:
+        p = setup.pieces(y)
+        lines += len(p) > 0
+        half = 0.5 * (p[:, 1] - p[:, 0])
+        s = (p[:, 0] + half)[:, None] + half[:, None] * ff.GK_X
+        fv = setup.f((setup.io + y * setup.iv + s[:, :, None] * setup.iu).reshape(-1, 3)).reshape(-1, 15)
+        _, err = ff._gk(fv, half)
+        worst = max(worst, float((err / (2 * half)).max()))
+    assert lines == 9 and worst < 1e-7  # measured 2e-9; without the events 9e-4
+
+
+def test_contact_corners_cut_the_outer_integral(cornell):
+    """Floor → inside of the short block's top: the integrand is the unoccluded one on the
+    block's footprint and 0 elsewhere (a jump along the contact lines, ending at the block's
+    corners): equal to the contour integral over the footprint."""
+    top = cornell.face_loops(5)[0]
+    foot = top * [1, 0, 1]
+    exact = ff.polygon_to_polygon([foot], [0, 1, 0], [top], [0, -1, 0]) * cornell.face_area[5] / cornell.face_area[0]
+    r = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 5), -1, tol=1e-6)
+    assert r.method == "quadrature"
+    assert abs(r.F - exact) < 1e-9 and r.error < 1e-6
+
+
+# --------------------------------------------------------------------------------------
+# occluded pairs: Monte Carlo and reciprocity
+
+
+@pytest.mark.parametrize("pair", [(15, 1, 0, 1), (2, 1, 3, 1)])
+def test_occluded_against_monte_carlo(cornell, pair):
+    i, si, j, sj = pair
+    r = ff.pair_form_factor(cornell, i, si, ff.face_target(cornell, j), sj, tol=1e-7)
+    assert r.method == "quadrature" and r.error < 1e-7
+    est, sigma = monte_carlo(cornell, i, si, j, sj)
+    assert abs(r.F - est) < 4 * sigma
+
+
+def test_occluded_reciprocity_light_floor(cornell):
+    a = cornell.face_area
+    up = ff.pair_form_factor(cornell, 15, 1, ff.face_target(cornell, 0), 1, tol=1e-7)
+    down = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 15), 1, tol=1e-7)
+    assert abs(a[15] * up.F - a[0] * down.F) / a[15] < 2e-8  # measured 1.9e-9
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pair", [(0, 1, 15, 1), (1, 1, 0, 1), (3, 1, 4, 1), (10, 1, 15, 1), (1, 1, 15, -1), (6, -1, 0, 1)])
+def test_occluded_against_monte_carlo_slow(cornell, pair):
+    i, si, j, sj = pair
+    r = ff.pair_form_factor(cornell, i, si, ff.face_target(cornell, j), sj, tol=1e-7)
+    est, sigma = monte_carlo(cornell, i, si, j, sj, seed=7)
+    assert abs(r.F - est) < 4 * max(sigma, 1e-6)
+
+
+# --------------------------------------------------------------------------------------
+# the matrix
+
+
+def test_matrix_small_scene_reciprocity_and_rows():
+    """Two unit squares and a small occluder between them: rows + sky = 1, reciprocity."""
+    s = scene_of([square(0), square(1, flip=True), [[0.3, 0.3, 0.5], [0.6, 0.35, 0.5], [0.45, 0.7, 0.55]]])
+    m = ff.form_factor_matrix(s, tol=1e-9)
+    summary = m.summary()
+    assert summary["reciprocity_max_error"] < 1e-8
+    assert summary["row_sum_max_deviation"] < 1e-8
+    assert m.method_counts.get("quadrature", 0) >= 2
+
+
+@pytest.mark.slow
+def test_cornell_matrix(cornell):
+    """The acceptance: reciprocity to 1e-6 and every side's row (with its sky term: the open
+    front and the outside) sums to 1 within 1e-6."""
+    m = ff.form_factor_matrix(cornell, tol=1e-7)
+    summary = m.summary()
+    assert summary["reciprocity_max_error"] < 1e-6
+    assert summary["row_sum_max_deviation"] < 1e-6
+
+
+@pytest.mark.slow
+def test_closed_cornell_rows_sum_to_one(cornell):
+    """The Cornell box closed by a front wall at z = 0: rows sum to 1 without the sky for the
+    inside faces."""
+    polys = [cornell.face_loops(f)[0].tolist() for f in range(cornell.n_faces)]
+    polys.append([[556, 0, 0], [556, 548.8, 0], [0, 548.8, 0], [0, 0, 0]])  # facing +z, into the box
+    closed = scene_of(polys)
+    m = ff.form_factor_matrix(closed, tol=1e-7)
+    rows = m.row_sums()
+    assert np.abs(rows - 1).max() < 1e-6
+    # the front sides of the walls, floor and ceiling see no sky
+    inside = [2 * f for f in range(closed.n_faces) if closed.face_area[f] > 2e5]
+    assert m.sky[inside].max() < 1e-6
+
+
+# --------------------------------------------------------------------------------------
+# point to face
+
+
+def test_point_to_face_closed_form(tmp_path):
+    """A point below a corner of a parallel 1 × 2 rectangle at height 2 (Howell A-2), through
+    the file and its on-demand V-cells."""
+    from viscx.pipeline import build_file
+    from viscx.queries.visibility import open_query
+
+    obj = tmp_path / "rect.obj"
+    obj.write_text("o rect\nv 0 0 2\nv 2 0 2\nv 2 4 2\nv 0 4 2\nf 1 2 3 4\n")
+    build_file(obj, tmp_path / "rect.h5", quiet=True)
+    q = open_query(tmp_path / "rect.h5")
+    r = ff.point_to_faces(q, [0, 0, 0], [0, 0, 3.0], [0])
+    assert abs(r["F"] - corner_rectangle(1.0, 2.0)) < 1e-9
+
+
+def test_point_to_face_occluded_against_monte_carlo(cornell):
+    from viscx.queries.visibility import QueryScene
+
+    q = QueryScene(str(GOLDEN_CORNELL), cornell, np.zeros((0, 3)))
+    p, n = np.array([300.0, 1.0, 200.0]), np.array([0.0, 1.0, 0.0])
+    r = ff.point_to_faces(q, p, n, [15])
+    setup = ff.PairSetup(cornell, 0, 1, ff.face_target(cornell, 15), 1)
+    setup.arrays()
+    assert abs(r["F"] - setup.f(p[None])[0]) < 1e-12
+    k = 1_000_000
+    rng = np.random.default_rng(3)
+    u1, u2 = rng.random(k), rng.random(k)
+    d = np.c_[np.sqrt(u1) * np.cos(2 * np.pi * u2), np.sqrt(1 - u1), np.sqrt(u1) * np.sin(2 * np.pi * u2)]
+    face, _ = cornell.ray_caster.first_hit(np.tile(p, (k, 1)), d, tmin=cornell.epsilon)
+    est = (face == 15).mean()
+    sigma = np.sqrt(est * (1 - est) / k)
+    assert 0 < r["F"] and abs(r["F"] - est) < 4 * sigma
+
+
+# --------------------------------------------------------------------------------------
+# the command
+
+
+def _viscx(*args):
+    return subprocess.run([sys.executable, "-m", "viscx", *map(str, args)], capture_output=True, text=True)
+
+
+def test_cli_json_and_msgpack(tmp_path):
+    out = _viscx("formfactor", GOLDEN_CORNELL, "--from-face", 15, "--to-face", 0, "--tol", "1e-5")
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout)
+    assert set(r) >= {"F", "error", "from_face", "to_face", "sides"} and 0.1 < r["F"] < 0.15
+    out = _viscx("formfactor", GOLDEN_CORNELL, "--point", "278,1,280", "--normal", "0,1,0", "--to-group", "light",
+                 "--format", "msgpack", "-o", tmp_path / "p.msgpack")
+    assert out.returncode == 0, out.stderr
+    r = msgpack.unpackb((tmp_path / "p.msgpack").read_bytes())
+    assert r["to_group"] == "light" and 0 < r["F"] < 0.1
+
+
+def test_cli_matrix(tmp_path):
+    obj = tmp_path / "two.obj"
+    obj.write_text("o a\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\no b\nv 0 0 1\nv 0 1 1\nv 1 1 1\nv 1 0 1\nf 5 6 7 8\n")
+    from viscx.formats.formfactors import read_matrix
+    from viscx.pipeline import build_file
+
+    build_file(obj, tmp_path / "two.h5", quiet=True)
+    out = _viscx("-q", "formfactor", tmp_path / "two.h5", "--matrix", "-o", tmp_path / "F.h5")
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    m = read_matrix(tmp_path / "F.h5")
+    assert summary["elements"] == 4 and len(m["data"]) == 2
+    assert abs(m["data"][0] - parallel_rectangles(1.0, 1.0)) < 1e-9
+    assert np.abs(m["row_sum"] - 1).max() < 1e-9 and summary["reciprocity_max_error"] < 1e-9
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--from-face", "99", "--to-face", "0"], "out of range"),
+    (["--from-face", "0", "--to-face", "-1"], "out of range"),
+    (["--point", "200,50,150", "--normal", "0,1,0", "--to-face", "15"], "inside a solid"),
+    (["--point", "200,300,150", "--to-face", "15"], "--normal"),
+    (["--from-face", "0"], "--to-face"),
+    (["--matrix"], "-o"),
+    (["--from-group", "nope", "--to-face", "1"], "no group"),
+])
+def test_bad_queries(args, message):
+    out = _viscx("formfactor", GOLDEN_CORNELL, *args)
+    assert out.returncode == 2
+    assert len(out.stderr.strip().splitlines()) == 1 and message in out.stderr
+
+
+def test_file_without_v2(tmp_path):
+    from viscx.pipeline import build_file
+
+    build_file(SAMPLES / "two_triangles.obj", tmp_path / "v1.h5", quiet=True, levels=1)
+    out = _viscx("formfactor", tmp_path / "v1.h5", "--from-face", "0", "--to-face", "1")
+    assert out.returncode == 2 and "no V-cells" in out.stderr and len(out.stderr.strip().splitlines()) == 1

@@ -1,0 +1,632 @@
+"""From-point hidden-surface removal for form factors: the part of a target polygon J
+that a point x sees past a few occluding polygons, and Lambert's formula over it.
+
+Everything here is for one emitter/target pair whose occluders are known
+(:mod:`viscx.queries.formfactor` prepares them). For a point x:
+
+1. the occluders are clipped to the pyramid with apex x over the convex hull of
+   J (Sutherland–Hodgman against the planes through x and the hull's edges), so
+   every point left lies between x and J's plane and projects into the hull;
+2. they are projected centrally through x onto J's plane (2-D coordinates of a
+   basis of that plane whose normal faces x: a loop seen counter-clockwise from
+   x is counter-clockwise in 2-D);
+3. the visible part — J (non-zero winding) minus the union of the shadows — is cut
+   into trapezoids by vertical slabs at every vertex and every crossing of two
+   edges of different polygons, and Lambert's contour sum is taken over the
+   trapezoids' boundaries (interior sides cancel; the sum is additive along a
+   straight edge, so the cutting changes nothing but rounding).
+
+Nothing is sampled: the visible part is the exact polygon (float64 crossings),
+the same set the point's V-cells give (tests/test_formfactor_queries.py checks
+both against each other and against shadow rays).
+
+Also here: the *events* of a line of receiver points — the parameters where the
+combinatorial structure of the visible part changes (the discontinuity mesh of
+the pair met by the line): x crossing the plane through a vertex and an edge
+(VE), crossing an occluder's plane, or lying on a line that meets three edges
+(EEE, a quadric: a cubic in the line's parameter here). Candidates are kept
+only when the event line really meets its features between x and J's plane and
+passes through J's hull (occlusion by other objects is not checked: the set is
+a superset, which costs quadrature nodes, never accuracy).
+"""
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * np.pi
+
+
+@njit(cache=True)
+def _clip_loop(poly, n_in, out, px, m):
+    """Sutherland–Hodgman: the part of poly[:n_in] with (y - px)·m >= 0 into out; returns its size."""
+    k = 0
+    if n_in == 0:
+        return 0
+    prev = poly[n_in - 1]
+    hp = (prev[0] - px[0]) * m[0] + (prev[1] - px[1]) * m[1] + (prev[2] - px[2]) * m[2]
+    for i in range(n_in):
+        cur = poly[i]
+        hc = (cur[0] - px[0]) * m[0] + (cur[1] - px[1]) * m[1] + (cur[2] - px[2]) * m[2]
+        if (hc >= 0) != (hp >= 0):
+            t = hp / (hp - hc)
+            for c in range(3):
+                out[k, c] = prev[c] + t * (cur[c] - prev[c])
+            k += 1
+        if hc >= 0:
+            for c in range(3):
+                out[k, c] = cur[c]
+            k += 1
+        prev = cur
+        hp = hc
+    return k
+
+
+@njit(cache=True)
+def _gamma_dot(x, pa, pb, n):
+    """Γ · n of the directed edge pa → pb seen from x (Lambert's contour term)."""
+    ax, ay, az = pa[0] - x[0], pa[1] - x[1], pa[2] - x[2]
+    bx, by, bz = pb[0] - x[0], pb[1] - x[1], pb[2] - x[2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    size = np.sqrt(cx * cx + cy * cy + cz * cz)
+    if size == 0.0:
+        return 0.0
+    theta = np.arctan2(size, ax * bx + ay * by + az * bz)
+    return theta * (cx * n[0] + cy * n[1] + cz * n[2]) / size
+
+
+@njit(cache=True)
+def _to3(origin, eu, ev, u, v, out):
+    for c in range(3):
+        out[c] = origin[c] + u * eu[c] + v * ev[c]
+
+
+@njit(cache=True)
+def _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
+    """Γ · n of edge e's current run of boundary pieces (then cleared)."""
+    d, ua, ub = runs[e, 0], runs[e, 1], runs[e, 2]
+    runs[e, 0] = 0
+    slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
+    va = seg_a[e, 1] + (ua - seg_a[e, 0]) * slope
+    vb = seg_a[e, 1] + (ub - seg_a[e, 0]) * slope
+    _to3(origin, eu, ev, ua, va, p0)
+    _to3(origin, eu, ev, ub, vb, p1)
+    if d > 0:
+        return _gamma_dot(x, p0, p1, n_i)
+    return _gamma_dot(x, p1, p0, n_i)
+
+
+@njit(cache=True)
+def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
+    """Add the piece [u0, u1] of edge e (d = 1 bottom side, -1 top side) to its run; a run
+    that cannot be extended is flushed first. Returns what was flushed."""
+    out = 0.0
+    if runs[e, 0] == d and runs[e, 2] == u0:
+        runs[e, 2] = u1
+        return 0.0
+    if runs[e, 0] != 0:
+        out = _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+    runs[e, 0] = d
+    runs[e, 1] = u0
+    runs[e, 2] = u1
+    return out
+
+
+@njit(cache=True)
+def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly,
+                 poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0,
+                 act_v1, p0, p1):
+    """Form factor from (x, n_i) to the visible part of J (see the module docstring)."""
+    hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
+    if hx <= 0:
+        return 0.0
+    n_hull = hull.shape[0]
+    # pyramid planes through x and the hull's edges, oriented inwards
+    planes = np.empty((n_hull, 3))
+    cen = np.zeros(3)
+    for i in range(n_hull):
+        for c in range(3):
+            cen[c] += hull[i, c] / n_hull
+    for i in range(n_hull):
+        a = hull[i]
+        b = hull[(i + 1) % n_hull]
+        ax, ay, az = a[0] - x[0], a[1] - x[1], a[2] - x[2]
+        bx, by, bz = b[0] - x[0], b[1] - x[1], b[2] - x[2]
+        mx, my, mz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        if mx * (cen[0] - x[0]) + my * (cen[1] - x[1]) + mz * (cen[2] - x[2]) < 0:
+            mx, my, mz = -mx, -my, -mz
+        planes[i, 0], planes[i, 1], planes[i, 2] = mx, my, mz
+    n_seg = 0
+    # J's loops (2-D, outer counter-clockwise, holes clockwise): polygon 0
+    for L in range(j_loop.shape[0] - 1):
+        lo, hi = j_loop[L], j_loop[L + 1]
+        for i in range(lo, hi):
+            k = i + 1 if i + 1 < hi else lo
+            seg_a[n_seg, 0], seg_a[n_seg, 1] = j2[i, 0], j2[i, 1]
+            seg_b[n_seg, 0], seg_b[n_seg, 1] = j2[k, 0], j2[k, 1]
+            seg_p[n_seg] = 0
+            seg_w[n_seg] = 1
+            n_seg += 1
+    # occluders: clipped to the pyramid, projected through x
+    n_poly = poly_normal.shape[0]
+    for L in range(occ_loop.shape[0] - 1):
+        lo, hi = occ_loop[L], occ_loop[L + 1]
+        pid = occ_poly[L]
+        side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
+                + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
+        if abs(side) <= tiny:
+            continue  # x in the occluder's plane: it is seen edge-on and hides nothing
+        sgn = 1 if side > 0 else -1
+        # quick rejection: every vertex outside one plane
+        rejected = False
+        for i in range(n_hull):
+            out = True
+            for q in range(lo, hi):
+                if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
+                        + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
+                    out = False
+                    break
+            if out:
+                rejected = True
+                break
+        if rejected:
+            continue
+        n_in = hi - lo
+        for q in range(n_in):
+            for c in range(3):
+                buf_a[q, c] = occ[lo + q, c]
+        for i in range(n_hull):
+            n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+            for q in range(n_in):
+                for c in range(3):
+                    buf_a[q, c] = buf_b[q, c]
+            if n_in < 3:
+                break
+        if n_in < 3:
+            continue
+        # project
+        first = n_seg
+        for q in range(n_in):
+            h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
+            den = hx - h
+            if den <= 0:
+                den = tiny  # only x itself (the apex) projects to infinity
+            t = hx / den
+            zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
+            zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
+            zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
+            seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
+            seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
+        for q in range(n_in):
+            k = first + q + 1 if q + 1 < n_in else first
+            seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
+            seg_p[first + q] = pid + 1
+            seg_w[first + q] = sgn
+        n_seg += n_in
+    # winding weights: an edge running right to left adds its polygon's sign below it
+    n_brk = 0
+    for e in range(n_seg):
+        if seg_a[e, 0] > seg_b[e, 0]:
+            pass
+        elif seg_a[e, 0] < seg_b[e, 0]:
+            seg_w[e] = -seg_w[e]
+        else:
+            seg_w[e] = 0
+        brk[n_brk] = seg_a[e, 0]
+        n_brk += 1
+    # crossings of edges of different polygons
+    for e in range(n_seg):
+        if seg_w[e] == 0:
+            continue
+        ax, ay, bx, by = seg_a[e, 0], seg_a[e, 1], seg_b[e, 0], seg_b[e, 1]
+        for f in range(e + 1, n_seg):
+            if seg_p[f] == seg_p[e] or seg_w[f] == 0:
+                continue
+            cx, cy, dx, dy = seg_a[f, 0], seg_a[f, 1], seg_b[f, 0], seg_b[f, 1]
+            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
+                continue
+            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+                continue
+            rx, ry = bx - ax, by - ay
+            sx, sy = dx - cx, dy - cy
+            den = rx * sy - ry * sx
+            if den == 0.0:
+                continue
+            t = ((cx - ax) * sy - (cy - ay) * sx) / den
+            s = ((cx - ax) * ry - (cy - ay) * rx) / den
+            if 0.0 < t < 1.0 and 0.0 < s < 1.0:
+                brk[n_brk] = ax + t * rx
+                n_brk += 1
+    us = np.sort(brk[:n_brk])
+    has_vertical = False
+    for e in range(n_seg):
+        if seg_w[e] == 0 and seg_a[e, 1] != seg_b[e, 1]:
+            has_vertical = True
+    runs = np.zeros((n_seg, 3))  # per edge: direction (0 none), run start u, run end u
+    # sweep: edges by their left end, an active list updated slab by slab
+    lo_u = np.empty(n_seg)
+    hi_u = np.empty(n_seg)
+    n_live = 0
+    for e in range(n_seg):
+        if seg_w[e] != 0:
+            lo_u[n_live] = min(seg_a[e, 0], seg_b[e, 0])
+            act[n_live] = e
+            n_live += 1
+    by_lo = np.argsort(lo_u[:n_live])
+    nxt = 0
+    n_on = 0
+    on = np.empty(n_live, np.int64)
+    total = 0.0
+    for k in range(n_brk - 1):
+        u0, u1 = us[k], us[k + 1]
+        if not u1 > u0:
+            continue
+        um = 0.5 * (u0 + u1)
+        while nxt < n_live and lo_u[by_lo[nxt]] < um:
+            on[n_on] = act[by_lo[nxt]]
+            n_on += 1
+            nxt += 1
+        # drop edges that ended, compute the others' heights; insertion sort by height (descending)
+        m = 0
+        n_act = 0
+        for r in range(n_on):
+            e = on[r]
+            if max(seg_a[e, 0], seg_b[e, 0]) <= um:
+                continue
+            on[m] = e
+            m += 1
+            slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
+            vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
+            j = n_act
+            while j > 0 and act_v[j - 1] < vm:
+                act_v[j] = act_v[j - 1]
+                act_v0[j] = act_v0[j - 1]
+                act_v1[j] = act_v1[j - 1]
+                hi_u[j] = hi_u[j - 1]
+                j -= 1
+            act_v[j] = vm
+            act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
+            act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
+            hi_u[j] = e
+            n_act += 1
+        n_on = m
+        if n_act < 2:
+            continue
+        for p in range(n_poly + 1):
+            wind[p] = 0
+        busy = 0  # occluders with non-zero winding
+        visible = False
+        top = -1
+        for q in range(n_act):
+            e = int(hi_u[q])
+            p = seg_p[e]
+            before = wind[p]
+            wind[p] += seg_w[e]
+            if p > 0:
+                if before == 0 and wind[p] != 0:
+                    busy += 1
+                elif before != 0 and wind[p] == 0:
+                    busy -= 1
+            now = wind[0] != 0 and busy == 0
+            if now and not visible:
+                top = q
+            elif visible and not now:
+                if not has_vertical:
+                    # bottom side left to right, top side right to left; the vertical sides
+                    # cancel between neighbouring slabs (no input edge is vertical)
+                    total += _run(runs, int(hi_u[q]), 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    total += _run(runs, int(hi_u[top]), -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    visible = now
+                    continue
+                # trapezoid (u0, vb0) -> (u1, vb1) -> (u1, vt1) -> (u0, vt0), counter-clockwise
+                _to3(origin, eu, ev, u0, act_v0[q], p0)
+                _to3(origin, eu, ev, u1, act_v1[q], p1)
+                total += _gamma_dot(x, p0, p1, n_i)
+                _to3(origin, eu, ev, u1, act_v1[top], p0)
+                total += _gamma_dot(x, p1, p0, n_i)
+                _to3(origin, eu, ev, u0, act_v0[top], p1)
+                total += _gamma_dot(x, p0, p1, n_i)
+                _to3(origin, eu, ev, u0, act_v0[q], p0)
+                total += _gamma_dot(x, p1, p0, n_i)
+            visible = now
+    if not has_vertical:
+        for e in range(n_seg):
+            if runs[e, 0] != 0:
+                total += _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+    # counter-clockwise seen from x: Σ Γ points back at x, against n_i
+    return -total / TWO_PI
+
+
+@njit(cache=True)
+def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly, poly_normal,
+                         poly_point, tiny):
+    """Form factors from differential areas (points, common normal n_i) to the part of J
+    each point sees past the occluders.
+
+    Parameters
+    ----------
+    points : (m, 3) float64
+    n_i : (3,) float64
+        Unit normal of the emitting side.
+    j2 : (nj, 2) float64
+        J's loops in the 2-D basis (origin, eu, ev) of its plane, outer loops
+        counter-clockwise, holes clockwise; j_loop (l + 1,) int64 offsets.
+    origin, eu, ev, n_j : (3,) float64
+        The basis; ``(eu, ev, n_j)`` right-handed, n_j facing the points.
+    c_j : float
+        J's plane: ``n_j · y = c_j``; the points have ``n_j · x > c_j``.
+    hull : (h, 3) float64
+        Convex hull of J (3-D, in order).
+    occ : (no, 3) float64
+        Occluder loops (3-D), occ_loop (lo + 1,) int64 offsets, occ_poly (lo,) int64 their polygon.
+    poly_normal, poly_point : (P, 3) float64
+        Plane of each occluder polygon (loops counter-clockwise about the normal, holes clockwise).
+    tiny : float
+        Distance below which a point counts as in an occluder's plane.
+
+    Returns
+    -------
+    (m,) float64
+    """
+    m = points.shape[0]
+    out = np.empty(m)
+    n_hull = hull.shape[0]
+    n_loops = occ_loop.shape[0] - 1
+    kmax = 3
+    for L in range(n_loops):
+        kmax = max(kmax, occ_loop[L + 1] - occ_loop[L])
+    kmax += n_hull + 2
+    emax = j2.shape[0] + n_loops * kmax + 1
+    seg_a = np.empty((emax, 2))
+    seg_b = np.empty((emax, 2))
+    seg_p = np.empty(emax, np.int64)
+    seg_w = np.empty(emax, np.int64)
+    buf_a = np.empty((kmax, 3))
+    buf_b = np.empty((kmax, 3))
+    brk = np.empty(emax + emax * emax // 2 + 1)
+    wind = np.zeros(poly_normal.shape[0] + 1, np.int64)
+    act = np.empty(emax, np.int64)
+    act_v = np.empty(emax)
+    act_v0 = np.empty(emax)
+    act_v1 = np.empty(emax)
+    p0 = np.empty(3)
+    p1 = np.empty(3)
+    for i in range(m):
+        out[i] = _visible_one(points[i], n_i, j2, j_loop, 0, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly,
+                              poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
+                              act_v, act_v0, act_v1, p0, p1)
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# events along a line of receiver points
+
+
+@njit(cache=True)
+def _through_hull(x, w, n_j, c_j, origin, eu, ev, hull2, slack):
+    """Ray parameter where x + t w meets J's plane inside J's 2-D hull (counter-clockwise),
+    or -1."""
+    hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
+    dn = n_j[0] * w[0] + n_j[1] * w[1] + n_j[2] * w[2]
+    if dn >= 0 or hx <= 0:
+        return -1.0
+    t = hx / -dn
+    zx = x[0] + t * w[0] - origin[0]
+    zy = x[1] + t * w[1] - origin[1]
+    zz = x[2] + t * w[2] - origin[2]
+    u = zx * eu[0] + zy * eu[1] + zz * eu[2]
+    v = zx * ev[0] + zy * ev[1] + zz * ev[2]
+    h = hull2.shape[0]
+    for i in range(h):
+        a0, a1 = hull2[i, 0], hull2[i, 1]
+        b0, b1 = hull2[(i + 1) % h, 0], hull2[(i + 1) % h, 1]
+        ex, ey = b0 - a0, b1 - a1
+        cross = ex * (v - a1) - ey * (u - a0)
+        if cross < -slack * np.sqrt(ex * ex + ey * ey):
+            return -1.0
+    return t
+
+
+@njit(cache=True)
+def _meets_segment(x, w, t_max, a, b, slack):
+    """Whether the line x + t w (coplanar with segment ab) meets it at 0 < t <= t_max (1 + slack)."""
+    ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    # w × e
+    cx, cy, cz = w[1] * ez - w[2] * ey, w[2] * ex - w[0] * ez, w[0] * ey - w[1] * ex
+    cc = cx * cx + cy * cy + cz * cz
+    if cc == 0.0:
+        return False
+    px, py, pz = a[0] - x[0], a[1] - x[1], a[2] - x[2]
+    # t = ((a - x) × e)·(w × e) / |w × e|^2
+    qx, qy, qz = py * ez - pz * ey, pz * ex - px * ez, px * ey - py * ex
+    t = (qx * cx + qy * cy + qz * cz) / cc
+    # r = ((x - a) × w)·(e × w) / |e × w|^2 = ((a - x) × w)·(w × e) / cc
+    rx, ry, rz = py * w[2] - pz * w[1], pz * w[0] - px * w[2], px * w[1] - py * w[0]
+    r = (rx * cx + ry * cy + rz * cz) / cc
+    return (-slack <= r <= 1 + slack) and t > 0 and t <= t_max * (1 + slack)
+
+
+@njit(cache=True)
+def _det3(a, b, c):
+    return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]))
+
+
+@njit(cache=True)
+def _cubic_roots01(c0, c1, c2, c3, out):
+    """Real roots in [0, 1] of c0 + c1 s + c2 s² + c3 s³ (bisection between the
+    critical points); returns how many were written."""
+    cuts = np.empty(4)
+    nc = 0
+    cuts[nc] = 0.0
+    nc += 1
+    # derivative c1 + 2 c2 s + 3 c3 s²
+    qa, qb, qc = 3 * c3, 2 * c2, c1
+    if qa != 0.0:
+        disc = qb * qb - 4 * qa * qc
+        if disc > 0:
+            r = np.sqrt(disc)
+            s1 = (-qb - r) / (2 * qa)
+            s2 = (-qb + r) / (2 * qa)
+            if s1 > s2:
+                s1, s2 = s2, s1
+            if 0 < s1 < 1:
+                cuts[nc] = s1
+                nc += 1
+            if 0 < s2 < 1:
+                cuts[nc] = s2
+                nc += 1
+    elif qb != 0.0:
+        s1 = -qc / qb
+        if 0 < s1 < 1:
+            cuts[nc] = s1
+            nc += 1
+    cuts[nc] = 1.0
+    nc += 1
+    k = 0
+    for i in range(nc - 1):
+        lo, hi = cuts[i], cuts[i + 1]
+        flo = c0 + lo * (c1 + lo * (c2 + lo * c3))
+        fhi = c0 + hi * (c1 + hi * (c2 + hi * c3))
+        if flo == 0.0:
+            out[k] = lo
+            k += 1
+            continue
+        if (flo > 0) == (fhi > 0):
+            continue
+        for _ in range(64):
+            mid = 0.5 * (lo + hi)
+            fm = c0 + mid * (c1 + mid * (c2 + mid * c3))
+            if (fm > 0) == (flo > 0):
+                lo, flo = mid, fm
+            else:
+                hi = mid
+            if hi - lo <= 1e-16:
+                break
+        out[k] = 0.5 * (lo + hi)
+        k += 1
+    return k
+
+
+@njit(cache=True)
+def line_events(x0, d, length, vert, vert_poly, edge_a, edge_b, edge_poly, triples, poly_normal, poly_point, n_j, c_j,
+                origin, eu, ev, hull2, slack):
+    """Parameters s in (0, length) where the visible part of J from x0 + s d changes
+    combinatorially (a superset; see the module docstring). Unsorted, may repeat.
+
+    Parameters
+    ----------
+    x0, d : (3,) float64
+        The line (d unit); s in [0, length].
+    vert : (nv, 3) float64; vert_poly (nv,) int64
+        Feature vertices (J's and the occluders'), labelled by polygon (0: J).
+    edge_a, edge_b : (ne, 3) float64; edge_poly (ne,) int64
+        Feature edges.
+    triples : (nt, 3) int64
+        Edge triples that may carry an EEE event.
+    poly_normal, poly_point : (P, 3) float64
+        Occluder planes.
+    n_j, c_j, origin, eu, ev, hull2
+        J's plane, its 2-D basis and convex hull (counter-clockwise).
+    slack : float
+        Relative tolerance of the "meets the feature" tests.
+    """
+    nv, ne, nt = vert.shape[0], edge_a.shape[0], triples.shape[0]
+    out = np.empty(poly_normal.shape[0] + nv * ne + 3 * nt + 2)
+    k = 0
+    x = np.empty(3)
+    w = np.empty(3)
+    # x crossing an occluder's plane
+    for p in range(poly_normal.shape[0]):
+        dn = d[0] * poly_normal[p, 0] + d[1] * poly_normal[p, 1] + d[2] * poly_normal[p, 2]
+        if dn != 0.0:
+            s = ((poly_point[p, 0] - x0[0]) * poly_normal[p, 0] + (poly_point[p, 1] - x0[1]) * poly_normal[p, 1]
+                 + (poly_point[p, 2] - x0[2]) * poly_normal[p, 2]) / dn
+            if 0 < s < length:
+                out[k] = s
+                k += 1
+    # VE: x in the plane of a vertex and an edge of another polygon
+    for i in range(nv):
+        P = vert[i]
+        for e in range(ne):
+            if edge_poly[e] == vert_poly[i]:
+                continue
+            A, B = edge_a[e], edge_b[e]
+            ax, ay, az = A[0] - P[0], A[1] - P[1], A[2] - P[2]
+            bx, by, bz = B[0] - P[0], B[1] - P[1], B[2] - P[2]
+            mx, my, mz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+            mm = np.sqrt(mx * mx + my * my + mz * mz)
+            if mm <= 1e-14 * (ax * ax + ay * ay + az * az + bx * bx + by * by + bz * bz):
+                continue  # the vertex is on the edge's line
+            dn = d[0] * mx + d[1] * my + d[2] * mz
+            if abs(dn) <= 1e-14 * mm:
+                continue
+            s = ((P[0] - x0[0]) * mx + (P[1] - x0[1]) * my + (P[2] - x0[2]) * mz) / dn
+            if not 0 < s < length:
+                continue
+            for c in range(3):
+                x[c] = x0[c] + s * d[c]
+                w[c] = P[c] - x[c]
+            tj = _through_hull(x, w, n_j, c_j, origin, eu, ev, hull2, slack * length)
+            if tj < 0 or tj * (1 + slack) < 1.0:
+                continue
+            if _meets_segment(x, w, tj, A, B, slack):
+                out[k] = s
+                k += 1
+    # EEE: x on a line meeting three edges: det[n1, n2, n3] = 0, n_i = (A_i - x) × u_i
+    a = np.empty((3, 3))
+    b = np.empty((3, 3))
+    roots = np.empty(3)
+    for t in range(nt):
+        for q in range(3):
+            e = triples[t, q]
+            ux, uy, uz = edge_b[e, 0] - edge_a[e, 0], edge_b[e, 1] - edge_a[e, 1], edge_b[e, 2] - edge_a[e, 2]
+            px, py, pz = edge_a[e, 0] - x0[0], edge_a[e, 1] - x0[1], edge_a[e, 2] - x0[2]
+            a[q, 0], a[q, 1], a[q, 2] = py * uz - pz * uy, pz * ux - px * uz, px * uy - py * ux
+            # -(length d) × u
+            dx, dy, dz = length * d[0], length * d[1], length * d[2]
+            b[q, 0], b[q, 1], b[q, 2] = -(dy * uz - dz * uy), -(dz * ux - dx * uz), -(dx * uy - dy * ux)
+        c0 = _det3(a[0], a[1], a[2])
+        c1 = _det3(b[0], a[1], a[2]) + _det3(a[0], b[1], a[2]) + _det3(a[0], a[1], b[2])
+        c2 = _det3(a[0], b[1], b[2]) + _det3(b[0], a[1], b[2]) + _det3(b[0], b[1], a[2])
+        c3 = _det3(b[0], b[1], b[2])
+        scale = abs(c0) + abs(c1) + abs(c2) + abs(c3)
+        if scale == 0.0:
+            continue
+        nr = _cubic_roots01(c0 / scale, c1 / scale, c2 / scale, c3 / scale, roots)
+        for r in range(nr):
+            s = roots[r] * length
+            if not 0 < s < length:
+                continue
+            for c in range(3):
+                x[c] = x0[c] + s * d[c]
+            e1, e2 = triples[t, 0], triples[t, 1]
+            n1 = np.empty(3)
+            n2 = np.empty(3)
+            for q, e in ((0, e1), (1, e2)):
+                ux, uy, uz = edge_b[e, 0] - edge_a[e, 0], edge_b[e, 1] - edge_a[e, 1], edge_b[e, 2] - edge_a[e, 2]
+                px, py, pz = edge_a[e, 0] - x[0], edge_a[e, 1] - x[1], edge_a[e, 2] - x[2]
+                if q == 0:
+                    n1[0], n1[1], n1[2] = py * uz - pz * uy, pz * ux - px * uz, px * uy - py * ux
+                else:
+                    n2[0], n2[1], n2[2] = py * uz - pz * uy, pz * ux - px * uz, px * uy - py * ux
+            w[0] = n1[1] * n2[2] - n1[2] * n2[1]
+            w[1] = n1[2] * n2[0] - n1[0] * n2[2]
+            w[2] = n1[0] * n2[1] - n1[1] * n2[0]
+            ww = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+            if ww == 0.0:
+                continue
+            if w[0] * n_j[0] + w[1] * n_j[1] + w[2] * n_j[2] > 0:
+                for c in range(3):
+                    w[c] = -w[c]
+            tj = _through_hull(x, w, n_j, c_j, origin, eu, ev, hull2, slack * length)
+            if tj < 0:
+                continue
+            ok = True
+            for q in range(3):
+                e = triples[t, q]
+                if not _meets_segment(x, w, tj, edge_a[e], edge_b[e], slack):
+                    ok = False
+                    break
+            if ok:
+                out[k] = s
+                k += 1
+    return out[:k]

@@ -87,7 +87,9 @@ def test_clipping_kernel_equals_vcells(cornell, pair, rng):
         view = point_view(pc.scene, pc.arcs, pc.vcells, int(pc.point_ids[0]), x)
         loops = [c for c in (clip_to_hemisphere(l, loop[0], setup.n_i) for l in view.faces[j].loops) if len(c) >= 3]
         ref = point_to_polygon([x], [setup.n_i], loops)[0] if loops else 0.0
-        assert abs(setup.f(x[None])[0] - ref) < 1e-13
+        # the V-cells' loops end at bisected or snapped transitions (V1), exact to about
+        # epsilon over the scene (1e-5 / 550 here): F agrees far below that, not to rounding
+        assert abs(setup.f(x[None])[0] - ref) < 1e-9
         checked += 1
     assert checked >= 6
 

@@ -1101,18 +1101,22 @@ def _full_state(smp):
 
 def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     """Intervals whose samples disagree: resample, locate each change by bisection and
-    cut the interval there (end type END_TRANSITION)."""
+    cut the interval there (end type END_TRANSITION). In batches of intervals (each is
+    refined on its own, so the result does not depend on them): memory stays bounded."""
+    step = max(CHUNK // REFINE, 1)
+    parts = [_refine_batch(scene, fkind, fgens, *(a[i : i + step] for a in (f, s0, t0, i0, s1, t1, i1)))
+             for i in range(0, len(f), step)]
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
+    """:func:`_refine` on one batch of intervals (at most CHUNK samples)."""
     n = len(f)
     near = _end_fraction(scene, fkind, fgens, f, s0, s1)
     grid = np.broadcast_to((np.arange(REFINE - 2) + 0.5) / (REFINE - 2), (n, REFINE - 2))
     fr = np.concatenate([near[:, None], near[:, None] + grid * (1 - 2 * near[:, None]), 1 - near[:, None]], axis=1)
     ss = s0[:, None] + fr * (s1 - s0)[:, None]
-    # judged in batches of CHUNK samples (memory)
-    k, g, flat = np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1)
-    parts = [judge_samples(scene, k[i : i + CHUNK], g[i : i + CHUNK], flat[i : i + CHUNK], sides=True)
-             for i in range(0, len(k), CHUNK)]
-    smp = _Samples(*(np.concatenate([getattr(p, name) for p in parts]) for name in _Samples.__dataclass_fields__)) if parts \
-        else judge_samples(scene, k, g, flat, sides=True)
+    smp = judge_samples(scene, np.repeat(fkind[f], REFINE), np.repeat(fgens[f], REFINE, axis=0), ss.reshape(-1), sides=True)
     state = _full_state(smp).reshape(n, REFINE, -1)
     change = np.any(state[:, 1:] != state[:, :-1], axis=2)  # (n, REFINE - 1)
     ci, cj = np.nonzero(change)

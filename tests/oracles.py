@@ -81,3 +81,17 @@ def sample_on_triangles(vertices, triangles, n, rng):
     flip = r1 + r2 > 1
     r1[flip], r2[flip] = 1 - r1[flip], 1 - r2[flip]
     return a[tri] + r1[:, None] * (b[tri] - a[tri]) + r2[:, None] * (c[tri] - a[tri]), tri
+
+
+def assert_cells_round_trip(tmp_path, scene, cells, write, read, where):
+    """Write 2-cells into a viscx file's V2 group and read them back: every array equal,
+    dtypes included. ``where`` picks the group to read from the open file."""
+    from viscx.formats.hdf5 import ViscxFile, write_complex
+
+    out = tmp_path / "x.h5"
+    write_complex(out, scene, levels={"V2": lambda g: write(g, cells)})
+    with ViscxFile(out) as f:
+        back = read(where(f.h5))
+    for field in cells.__dataclass_fields__:
+        a, b = getattr(cells, field), getattr(back, field)
+        assert a.dtype == b.dtype and np.array_equal(a, b), field

@@ -212,13 +212,19 @@ def write_vcells(group, vcells):
     """Fill a ``V2`` group with :class:`viscx.skeleton.vcells.VCells` (see docs/format.md):
     the cells with their boundary loops as CSR lists, and ``open/`` (chains that did
     not close)."""
-    for name in _VCELL_ARRAYS:
-        write_dataset(group, name, getattr(vcells, name))
-    group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "vertex": 3})
-    group.attrs["counts"] = json.dumps(vcells.counts())
+    _write_cells(group, vcells, _VCELL_ARRAYS, _OPEN_ARRAYS, {"face": 0, "sky": 1, "vertex": 3})
+
+
+def _write_cells(group, cells, arrays, open_arrays, blocker_kinds):
+    """The 2-cells' arrays, blocker kinds and counts into ``group``, their open chains
+    into ``group/open`` (named without the ``open_`` prefix)."""
+    for name in arrays:
+        write_dataset(group, name, getattr(cells, name))
+    group.attrs["blocker_kinds"] = json.dumps(blocker_kinds)
+    group.attrs["counts"] = json.dumps(cells.counts())
     chains = group.create_group("open", track_order=True)
-    for name in _OPEN_ARRAYS:
-        write_dataset(chains, name, getattr(vcells, f"open_{name}"))
+    for name in open_arrays:
+        write_dataset(chains, name, getattr(cells, f"open_{name}"))
 
 
 def read_vcells(group):
@@ -256,13 +262,7 @@ def write_eecells(group, eecells):
     """Fill ``V2/ee`` with :class:`viscx.skeleton.eecells.EECells` (see docs/format.md):
     the cells with their boundary loops as CSR lists of signed arc ids, and ``open/``."""
     ee = group.create_group("ee", track_order=True)
-    for name in _EECELL_ARRAYS:
-        write_dataset(ee, name, getattr(eecells, name))
-    ee.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2})
-    ee.attrs["counts"] = json.dumps(eecells.counts())
-    chains = ee.create_group("open", track_order=True)
-    for name in _EE_OPEN_ARRAYS:
-        write_dataset(chains, name, getattr(eecells, f"open_{name}"))
+    _write_cells(ee, eecells, _EECELL_ARRAYS, _EE_OPEN_ARRAYS, {"face": 0, "sky": 1, "edge": 2})
     # the level's counts (what `viscx info` prints) gain the EE-cells'
     counts = json.loads(group.attrs.get("counts", "{}"))
     counts.update({f"ee_{k}": v for k, v in eecells.counts().items()})

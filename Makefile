@@ -3,8 +3,10 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 OUT    := out
+# the Cornell box's classic camera, one exposure for every image so they compare
+VIEW   := --camera 278,273,-800 --look-at 278,273,0 --fov 39.3 --size 512 512 --light-group light --exposure 6
 
-.PHONY: demo test venv bench clean golden
+.PHONY: demo test venv bench clean golden images
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +24,13 @@ demo: venv
 	$(BIN)/viscx build sample_scenes/cornell_box.obj -o $(OUT)/cornell_box.h5
 	$(BIN)/viscx info $(OUT)/cornell_box.h5
 	$(BIN)/viscx query shadows $(OUT)/cornell_box.h5 --light 278,540,280 -o $(OUT)/cornell_shadows.ply
+	$(BIN)/viscx render $(OUT)/cornell_box.h5 $(VIEW) -o $(OUT)/cornell_exact.png
+	$(BIN)/viscx render $(OUT)/cornell_box.h5 $(VIEW) --samples 500 --show-regions -o $(OUT)/cornell_sparse500.png
+	$(BIN)/viscx render $(OUT)/cornell_box.h5 $(VIEW) --reference 16 -o $(OUT)/cornell_mc16.png
+
+# The README's pictures are the demo's: refresh them after a change of output.
+images: demo
+	cp $(OUT)/cornell_exact.png $(OUT)/cornell_sparse500.png $(OUT)/cornell_mc16.png docs/images/
 
 test: venv
 	$(BIN)/python -m pytest -q

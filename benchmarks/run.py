@@ -166,6 +166,62 @@ def bench_formfactors(n_rays, rng, tolerance=1e-3):
     return rows
 
 
+def bench_render(size, mc_samples, runs=3, target=0.01):
+    """The Cornell box's direct illumination at size × size: the exact render (the whole
+    `viscx render` command, median of ``runs``), sparse reconstructions against it, and
+    Monte Carlo (embree shadow rays) with ``mc_samples`` light samples per pixel; the
+    Monte Carlo time to reach a relative RMSE ``target`` follows from its noise falling as
+    1/√K (time ∝ K)."""
+    import subprocess
+    import tempfile
+
+    from viscx.pipeline import build_file
+    from viscx.queries.discontinuities import open_discontinuities
+    from viscx.render.camera import Camera
+    from viscx.render.image import render
+
+    rows = []
+    view = dict(eye=[278, 273, -800], look_at=[278, 273, 0], up=[0, 1, 0], fov=39.3, width=size, height=size)
+    with tempfile.TemporaryDirectory() as tmp:
+        h5 = Path(tmp) / "cornell.h5"
+        build_file(ROOT / "sample_scenes" / "cornell_box.obj", h5, quiet=True)
+        cmd = [sys.executable, "-m", "viscx", "-q", "render", str(h5), "--camera", "278,273,-800", "--look-at",
+               "278,273,0", "--light-group", "light", "--size", str(size), str(size), "-o", str(Path(tmp) / "c.png")]
+        subprocess.run(cmd, check=True)  # numba caches warm
+        times = []
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            subprocess.run(cmd, check=True)
+            times.append(time.perf_counter() - t0)
+        scene, mesh = open_discontinuities(h5, light_group="light")
+    cam = Camera(**view)
+    sec, exact = timed(render, scene, mesh, cam)
+    px = size * size
+    command = float(np.median(times))
+    rows.append(_row("render", "cornell_box", f"exact {size}x{size}, whole command (seed 000: ~27 min at 512x512)",
+                     32, px, command, px / command, "pixels/s",
+                     f"runs {', '.join(f'{t:.2f}' for t in times)} s; in-process {sec:.2f} s "
+                     f"(primary {exact.stats['primary_s']:.2f} s, {exact.stats['regions']} regions)"))
+    lit = (exact.hits.face >= 0) & ~np.isin(exact.hits.face, mesh.light.faces)
+    lit = lit.reshape(size, size)
+    scale = float(np.sqrt(np.mean(exact.radiance[lit] ** 2)))
+    for n in (100, 500, 1000):
+        sec_s, sp = timed(render, scene, mesh, cam, samples=n, repeat=1)
+        rmse = float(np.sqrt(np.mean((sp.radiance[lit] - exact.radiance[lit]) ** 2)))
+        rows.append(_row("render", "cornell_box", f"sparse {n} samples, {size}x{size}", 32, sp.stats["evaluations"], sec_s,
+                         sp.stats["evaluations"] / sec_s, "evaluations/s",
+                         f"RMSE vs exact {rmse:.3g} ({rmse / scale:.2%} of RMS); {n} samples + {sp.stats['corners']} corners"))
+    sec_mc, mc = timed(render, scene, mesh, cam, reference=mc_samples, repeat=1)
+    rmse = float(np.sqrt(np.mean((mc.radiance[lit] - exact.radiance[lit]) ** 2)))
+    k_need = mc_samples * (rmse / (target * scale)) ** 2
+    t_need = sec_mc * k_need / mc_samples
+    rows.append(_row("render", "cornell_box", f"Monte Carlo {mc_samples} light samples/pixel, {size}x{size}", 32,
+                     mc.stats["rays"], sec_mc, mc.stats["rays"] / sec_mc, "rays/s",
+                     f"RMSE vs exact {rmse:.3g} ({rmse / scale:.2%}); {target:.0%} RMSE needs ~{k_need:,.0f} samples/pixel "
+                     f"= {t_need:,.0f} s = {t_need / sec:,.0f} x exact"))
+    return rows
+
+
 def bench_flatland(sizes):
     """Flatland build, and one object moved: update against rebuild (benchmarks/flatland.py)."""
     from flatland import measure
@@ -271,6 +327,7 @@ def main():
     )
     rows += bench_raycast(big, "spheres_in_room", n_rays, rng)
     rows += bench_formfactors(n_rays, rng)
+    rows += bench_render(256 if args.quick else 512, 16 if args.quick else 64)
     rows += bench_flatland([10, 100, 300] if args.quick else [10, 100, 300, 1000])
     rows += bench_fast_vs_reference(["tetrahedra.obj", "cornell_box.obj"] if args.quick else
                                     ["two_triangles.obj", "tetrahedra.obj", "room_with_door.obj",

@@ -28,6 +28,7 @@ COMMANDS = {
     "plot": "viscx.cli.plot:plot",
     "query": "viscx.cli.query:query",
     "formfactor": "viscx.cli.formfactor:formfactor",
+    "render": "viscx.cli.render:render",
     "flatland": "viscx.cli.flatland:flatland",
 }
 

@@ -2,7 +2,7 @@
 
 import click
 
-from viscx.cli.options import format_option, output_option, point_option, quiet
+from viscx.cli.options import format_option, light_options, output_option, point_option, quiet
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows, discontinuities).")
@@ -113,8 +113,7 @@ def shadows(ctx, file, light, output, fmt, faces):
 
 @query.command(short_help="The discontinuity mesh of an area light on every receiver.")
 @click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
-@click.option("--light-face", "light_face", type=int, default=None, metavar="I", help="The light is face I.")
-@click.option("--light-group", "light_group", default=None, metavar="NAME", help="The light is the faces of group NAME.")
+@light_options
 @output_option("Where to write: .json, .msgpack, or .ply (the receivers split into the "
                "regions, a region id and colour per triangle). Default: JSON on standard output.", required=False)
 @format_option
@@ -132,12 +131,9 @@ def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
     viscx query discontinuities cornell.h5 --light-group light -o mesh.json
     viscx query discontinuities cornell.h5 --light-face 15 -o mesh.ply
     """
-    from viscx.errors import ViscxError
     from viscx.formats.queries import output_format, write_regions_ply, write_result
     from viscx.queries.discontinuities import mesh_result, open_discontinuities
 
-    if (light_face is None) == (light_group is None):
-        raise ViscxError("give exactly one of --light-face I and --light-group NAME")
     fmt = output_format(output, fmt, geometry=True)
     scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group, faces=faces)
     if fmt == "ply":

@@ -45,6 +45,7 @@ inner estimates carried through the outer weights: an estimate of the error of t
 rule, so conservative for the 15-point values that are returned.
 """
 
+import functools
 import itertools
 import time
 from dataclasses import dataclass
@@ -189,6 +190,44 @@ def _separated(hull_pts, hull_edges, hull_normals, poly, poly_normal, tol):
     return bool(np.any((pb.max(axis=0) <= pa.min(axis=0) + tol) | (pa.max(axis=0) <= pb.min(axis=0) + tol)))
 
 
+def shaft_occluders(pts, occluders, tol):
+    """The occluders that meet the interior of the convex hull of ``pts`` (the shaft of
+    every segment between two point sets whose hull points these are).
+
+    Parameters
+    ----------
+    pts : (k, 3) float64
+    occluders : list of (loops, normal)
+        Planar polygons, outer loop first.
+    tol : float
+        Overlap below which a polygon only touching the hull is left out.
+
+    Returns
+    -------
+    list of (loops, normal)
+        The ones kept, in their order; ``[]`` when the hull is flat (nothing passes).
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        hull = ConvexHull(pts)
+    except (QhullError, ValueError):
+        return []  # flat: the two sets are coplanar, nothing passes between them
+    simp = hull.simplices
+    edges = np.concatenate([pts[simp[:, 1]] - pts[simp[:, 0]], pts[simp[:, 2]] - pts[simp[:, 1]], pts[simp[:, 0]] - pts[simp[:, 2]]])
+    hnormals = hull.equations[:, :3]
+    hp = pts[hull.vertices]
+    lo, hi = hp.min(axis=0) - tol, hp.max(axis=0) + tol
+    out = []
+    for loops, nk in occluders:
+        outer = loops[0]
+        if np.any(outer.min(axis=0) > hi) or np.any(outer.max(axis=0) < lo):
+            continue
+        if not _separated(hp, edges, hnormals, outer, nk, tol):
+            out.append((loops, nk))
+    return out
+
+
 def pair_occluders(scene, pts, n_i, c_i, n_t, c_t, exclude):
     """Faces that may block a segment from I' to J' (hull points ``pts``): clipped to the
     front of I and the receiving side of J, meeting the interior of the hull.
@@ -198,19 +237,9 @@ def pair_occluders(scene, pts, n_i, c_i, n_t, c_t, exclude):
     list of (loops, normal)
         Clipped loops (outer counter-clockwise about the face normal, holes clockwise).
     """
-    from scipy.spatial import ConvexHull, QhullError
-
     tol = 1e-9 * scene.diagonal
-    try:
-        hull = ConvexHull(pts)
-    except (QhullError, ValueError):
-        return []  # flat: I' and J' coplanar, nothing passes between them
-    simp = hull.simplices
-    edges = np.concatenate([pts[simp[:, 1]] - pts[simp[:, 0]], pts[simp[:, 2]] - pts[simp[:, 1]], pts[simp[:, 0]] - pts[simp[:, 2]]])
-    hnormals = hull.equations[:, :3]
-    hp = pts[hull.vertices]
-    lo, hi = hp.min(axis=0) - tol, hp.max(axis=0) + tol
-    out = []
+    lo, hi = pts.min(axis=0) - tol, pts.max(axis=0) + tol
+    clipped = []
     for k in range(scene.n_faces):
         if k in exclude:
             continue
@@ -219,12 +248,9 @@ def pair_occluders(scene, pts, n_i, c_i, n_t, c_t, exclude):
             continue
         nk = scene.face_normal[k]
         loops = clip_loops(clip_loops(oriented_loops(scene.face_loops(k), nk), n_i, c_i), n_t, c_t)
-        if not loops or abs(loops_area(loops, nk)) <= tol * tol:
-            continue
-        if _separated(hp, edges, hnormals, loops[0], nk, tol):
-            continue
-        out.append((loops, nk))
-    return out
+        if loops and abs(loops_area(loops, nk)) > tol * tol:
+            clipped.append((loops, nk))
+    return shaft_occluders(pts, clipped, tol)
 
 
 # --------------------------------------------------------------------------------------
@@ -276,36 +302,46 @@ class PairSetup:
         self.occluders = pair_occluders(scene, pts, n_i, c_i, n_t, c_t, exclude)
 
     # -- the quadrature's data ----------------------------------------------------------
-    def arrays(self):
+    @functools.cached_property
+    def frame(self):
+        """J' in a 2-D basis of its plane: ``(origin, eu, ev, j2, j_loop, hull2, hull3)``."""
         from scipy.spatial import ConvexHull
 
-        n_t = self.n_t
-        eu, ev = plane_basis(n_t)
+        eu, ev = plane_basis(self.n_t)
         # a generic rotation of the basis: no edge of an axis-aligned scene is vertical in
         # 2-D, so the slab sweep needs no vertical sides (viscx.geometry.occlusion)
         c, s_ = np.cos(GENERIC_ANGLE), np.sin(GENERIC_ANGLE)
         eu, ev = c * eu + s_ * ev, -s_ * eu + c * ev
         origin = self.J[0][0].copy()
         j2 = [np.stack([(l - origin) @ eu, (l - origin) @ ev], axis=1) for l in self.J]
-        allj = np.concatenate(j2)
+        allj = np.ascontiguousarray(np.concatenate(j2))
+        j_loop = np.concatenate([[0], np.cumsum([len(l) for l in j2])]).astype(np.int64)
         h = ConvexHull(allj).vertices  # counter-clockwise in 2-D
-        hull2 = allj[h]
-        hull3 = np.concatenate(self.J)[h]
+        return origin, eu, ev, allj, j_loop, np.ascontiguousarray(allj[h]), np.ascontiguousarray(np.concatenate(self.J)[h])
+
+    def kernel_for(self, occluders):
+        """The arrays of :func:`viscx.geometry.occlusion.visible_form_factors` with these
+        occluders (the pair's, or a subset that is known to be enough for some points)."""
+        origin, eu, ev, allj, j_loop, _, hull3 = self.frame
         occ, occ_loop, occ_poly, pn, pp = [], [0], [], [], []
-        for k, (loops, nk) in enumerate(self.occluders):
+        for k, (loops, nk) in enumerate(occluders):
             for loop in loops:
                 occ.append(loop)
                 occ_loop.append(occ_loop[-1] + len(loop))
                 occ_poly.append(k)
             pn.append(nk)
             pp.append(loops[0][0])
-        self.kernel = dict(
-            n_i=self.n_i, j2=np.ascontiguousarray(allj), j_loop=np.concatenate([[0], np.cumsum([len(l) for l in j2])]).astype(np.int64),
-            origin=origin, eu=eu, ev=ev, n_j=n_t, c_j=self.c_t, hull=np.ascontiguousarray(hull3),
+        return dict(
+            n_i=self.n_i, j2=allj, j_loop=j_loop, origin=origin, eu=eu, ev=ev, n_j=self.n_t, c_j=self.c_t, hull=hull3,
             occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=np.asarray(occ_loop, np.int64),
             occ_poly=np.asarray(occ_poly, np.int64), poly_normal=np.asarray(pn, np.float64).reshape(-1, 3),
             poly_point=np.asarray(pp, np.float64).reshape(-1, 3), tiny=self.tiny,
         )
+
+    def arrays(self):
+        n_t = self.n_t
+        origin, eu, ev, _, _, hull2, _ = self.frame
+        self.kernel = self.kernel_for(self.occluders)
         # features for the events: vertices and (deduplicated) edges, labelled by polygon
         vert, vlab, ea, eb, elab = [], [], [], [], []
         seen = set()
@@ -384,8 +420,10 @@ class PairSetup:
         span = box[:, 1].max() - box[:, 1].min()
         return v[np.concatenate([[True], np.diff(v) > 1e-3 * span])] if len(v) else v
 
-    def f(self, points):
-        k = self.kernel
+    def f(self, points, kernel=None):
+        """F from differential areas at ``points`` (m, 3) on I to the part of J' each sees;
+        ``kernel``: :meth:`kernel_for` a subset of the occluders (default all, :meth:`arrays`)."""
+        k = self.kernel if kernel is None else kernel
         return visible_form_factors(np.ascontiguousarray(points), k["n_i"], k["j2"], k["j_loop"], k["origin"], k["eu"], k["ev"],
                                     k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"], k["poly_normal"],
                                     k["poly_point"], k["tiny"])

@@ -15,7 +15,7 @@ cell's exit.
 """
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 #: Barycentric slack: points on a triangle's edge are on the (closed) triangle.
 BARY_SLACK = 1e-12
@@ -95,73 +95,82 @@ def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
     return offsets, items
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _first_hits(origins, directions, tmin, tmax, vertices, triangles, lo, hi, cell, dims, offsets, items):
+    # rays are independent: one per iteration of a parallel loop (same answers on any
+    # number of threads)
     n = origins.shape[0]
     best_tri = np.full(n, -1, dtype=np.int64)
     best_t = np.full(n, np.inf)
-    for r in range(n):
-        o = origins[r]
-        d = directions[r]
-        # clip [tmin, tmax] to the grid's box (slab method)
-        t0, t1 = tmin[r], tmax[r]
-        for k in range(3):
-            if d[k] != 0.0:
-                a = (lo[k] - o[k]) / d[k]
-                b = (hi[k] - o[k]) / d[k]
-                if a > b:
-                    a, b = b, a
-                t0 = max(t0, a)
-                t1 = min(t1, b)
-            elif o[k] < lo[k] or o[k] > hi[k]:
-                t1 = -np.inf
-        if t0 > t1:
-            continue
-        # first cell and the stepping state
-        idx = np.empty(3, dtype=np.int64)
-        step = np.empty(3, dtype=np.int64)
-        t_next = np.empty(3)
-        t_delta = np.empty(3)
-        for k in range(3):
-            p = o[k] + t0 * d[k]
-            c = int(np.floor((p - lo[k]) / cell[k]))
-            idx[k] = min(max(c, 0), dims[k] - 1)
-            if d[k] > 0:
-                step[k] = 1
-                t_next[k] = (lo[k] + (idx[k] + 1) * cell[k] - o[k]) / d[k]
-                t_delta[k] = cell[k] / d[k]
-            elif d[k] < 0:
-                step[k] = -1
-                t_next[k] = (lo[k] + idx[k] * cell[k] - o[k]) / d[k]
-                t_delta[k] = -cell[k] / d[k]
-            else:
-                step[k] = 0
-                t_next[k] = np.inf
-                t_delta[k] = np.inf
-        while True:
-            c = (idx[0] * dims[1] + idx[1]) * dims[2] + idx[2]
-            for j in range(offsets[c], offsets[c + 1]):
-                tri = items[j]
-                t, margin, _ = moller_trumbore(o, d, vertices, triangles, tri)
-                if margin < -BARY_SLACK:
-                    continue
-                # ties: the lower triangle id, so the answer does not depend on cell order
-                if tmin[r] <= t <= tmax[r] and (t < best_t[r] or (t == best_t[r] and tri < best_tri[r])):
-                    best_t[r] = t
-                    best_tri[r] = tri
-            exit_t = min(t_next[0], min(t_next[1], t_next[2]))
-            # a hit at or before this cell's exit cannot be beaten by later cells
-            if best_t[r] <= exit_t or exit_t > t1:
-                break
-            k = 0
-            if t_next[1] < t_next[k]:
-                k = 1
-            if t_next[2] < t_next[k]:
-                k = 2
-            idx[k] += step[k]
-            if idx[k] < 0 or idx[k] >= dims[k]:
-                break
-            t_next[k] += t_delta[k]
+    for r in prange(n):
+        best_tri[r], best_t[r] = _first_hit_one(origins[r], directions[r], tmin[r], tmax[r], vertices, triangles, lo, hi,
+                                                cell, dims, offsets, items)
+    return best_tri, best_t
+
+
+@njit(cache=True)
+def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, offsets, items):
+    """First triangle met by one ray on [tmin, tmax] (3-D DDA over the grid's cells)."""
+    best_tri, best_t = -1, np.inf
+    # clip [tmin, tmax] to the grid's box (slab method)
+    t0, t1 = tmin, tmax
+    for k in range(3):
+        if d[k] != 0.0:
+            a = (lo[k] - o[k]) / d[k]
+            b = (hi[k] - o[k]) / d[k]
+            if a > b:
+                a, b = b, a
+            t0 = max(t0, a)
+            t1 = min(t1, b)
+        elif o[k] < lo[k] or o[k] > hi[k]:
+            t1 = -np.inf
+    if t0 > t1:
+        return best_tri, best_t
+    # first cell and the stepping state
+    idx = np.empty(3, dtype=np.int64)
+    step = np.empty(3, dtype=np.int64)
+    t_next = np.empty(3)
+    t_delta = np.empty(3)
+    for k in range(3):
+        p = o[k] + t0 * d[k]
+        c = int(np.floor((p - lo[k]) / cell[k]))
+        idx[k] = min(max(c, 0), dims[k] - 1)
+        if d[k] > 0:
+            step[k] = 1
+            t_next[k] = (lo[k] + (idx[k] + 1) * cell[k] - o[k]) / d[k]
+            t_delta[k] = cell[k] / d[k]
+        elif d[k] < 0:
+            step[k] = -1
+            t_next[k] = (lo[k] + idx[k] * cell[k] - o[k]) / d[k]
+            t_delta[k] = -cell[k] / d[k]
+        else:
+            step[k] = 0
+            t_next[k] = np.inf
+            t_delta[k] = np.inf
+    while True:
+        c = (idx[0] * dims[1] + idx[1]) * dims[2] + idx[2]
+        for j in range(offsets[c], offsets[c + 1]):
+            tri = items[j]
+            t, margin, _ = moller_trumbore(o, d, vertices, triangles, tri)
+            if margin < -BARY_SLACK:
+                continue
+            # ties: the lower triangle id, so the answer does not depend on cell order
+            if tmin <= t <= tmax and (t < best_t or (t == best_t and tri < best_tri)):
+                best_t = t
+                best_tri = tri
+        exit_t = min(t_next[0], min(t_next[1], t_next[2]))
+        # a hit at or before this cell's exit cannot be beaten by later cells
+        if best_t <= exit_t or exit_t > t1:
+            break
+        k = 0
+        if t_next[1] < t_next[k]:
+            k = 1
+        if t_next[2] < t_next[k]:
+            k = 2
+        idx[k] += step[k]
+        if idx[k] < 0 or idx[k] >= dims[k]:
+            break
+        t_next[k] += t_delta[k]
     return best_tri, best_t
 
 

@@ -27,7 +27,8 @@ def file_summary(path):
             "levels": f.levels,
             "counts": {
                 "scene": scene_counts(scene),
-                **{level: level_counts(f.h5[level]) for level in f.levels if level != "scene" and level in f.h5},
+                **{level: level_counts(f.h5[level], float(attrs["epsilon"]))
+                   for level in f.levels if level != "scene" and level in f.h5},
             },
             "groups": groups,
             "timings": f.timings,
@@ -48,15 +49,22 @@ def scene_counts(scene):
     }
 
 
-def level_counts(group):
+def level_counts(group, epsilon):
     """Counts of a skeleton level: those it stores (attribute ``counts``), by kind where the
-    level says its kinds, else rows per dataset."""
+    level says its kinds, else rows per dataset; for V0 also its *sites*, the nodes merged
+    within epsilon (:mod:`viscx.skeleton.sites`)."""
     if "counts" in group.attrs:
         return {name: int(value) for name, value in json.loads(group.attrs["counts"]).items()}
     if "kind" in group and "kinds" in group.attrs:
         kinds = json.loads(group.attrs["kinds"])
         kind = group["kind"][()]
-        return {"total": int(len(kind)), **{name: int(np.count_nonzero(kind == k)) for name, k in kinds.items()}}
+        counts = {"total": int(len(kind)), **{name: int(np.count_nonzero(kind == k)) for name, k in kinds.items()}}
+        if group.name == "/V0":
+            from viscx.formats.hdf5 import read_nodes
+            from viscx.skeleton.sites import node_sites
+
+            counts["sites"] = int(len(np.unique(node_sites(read_nodes(group), epsilon))))
+        return counts
     return {name: int(group[name].shape[0]) for name in group if hasattr(group[name], "shape") and group[name].shape}
 
 

@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from viscx.arrays import expand_ranges
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
 from viscx.grid import bin_boxes
 from viscx.progress import bar
@@ -104,6 +105,9 @@ PROBE_ANGLE = 1e-8
 #: vertex, a junction or an edge's crossing with the family's plane) when that event lies
 #: within this many epsilon along the family's edge.
 SNAP = 20
+#: Margin (radians) of the direction ranges that pair a same-plane VE family with the points
+#: of its plane its lines can pass (the exact parameter test decides): far above rounding.
+ANGLE_MARGIN = 1e-6
 
 # slot layout of the family lines for maximal_free_segments (EEE: three edges; VE: vertex, edge)
 _SLOT_IS_VERTEX = np.array([[False] * 4, [True, False, False, False]])
@@ -796,24 +800,74 @@ def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
         pts.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
         pts_vertex.append(-2 - ge[j])
     pts_plane, pts, pts_vertex = np.concatenate(pts_plane), np.concatenate(pts), np.concatenate(pts_vertex)
-    # join families and points on the plane
     order = np.argsort(pts_plane, kind="stable")
-    first = np.searchsorted(pts_plane[order], ve_plane, "left")
-    count = np.searchsorted(pts_plane[order], ve_plane, "right") - first
-    fam = np.repeat(np.arange(len(ve)), count)
-    w = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
-    x = scene.vertices[ve[fam, 0]]
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    # Output-sensitive join (a family and a point of its plane pair up only when the line
+    # through the family's vertex and the point meets the family's edge): around each
+    # (vertex, plane) the plane's points are sorted by the direction of their line (an
+    # angle mod π), and each family takes the range of directions its edge spans.
+    first = np.searchsorted(pts_plane[order], vp[:, 1], "left")  # vp: sorted, unique rows
+    count = np.searchsorted(pts_plane[order], vp[:, 1], "right") - first
+    r, k = expand_ranges(first, count)
+    w = order[k]
+    x = scene.vertices[vp[r, 0]]
     direction = pts[w] - x
     far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
-    fam, w, x, direction = fam[far], w[far], x[far], direction[far]
+    r, w, direction = r[far], w[far], direction[far]
+    eu, ev = _plane_bases(scene, vp[r, 1])
+    angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
+    key = r * 4.0 + angle  # angles < π < 4: one sorted key per (vertex, plane) block
+    by_key = np.argsort(key, kind="stable")
+    key, r, w = key[by_key], r[by_key], w[by_key]
+    # each family's (vertex, plane) block and the directions its edge spans
+    row = np.searchsorted(vp[:, 0] * (vp[:, 1].max() + 1) + vp[:, 1],
+                          ve[:, 0] * (vp[:, 1].max() + 1) + ve_plane)
+    x = scene.vertices[ve[:, 0]]
+    a, b = _edge_geometry(scene, ve[:, 1])
+    eu, ev = _plane_bases(scene, ve_plane)
+    da = np.stack([np.einsum("ij,ij->i", a - x, eu), np.einsum("ij,ij->i", a - x, ev)], axis=1)
+    db = np.stack([np.einsum("ij,ij->i", b - x, eu), np.einsum("ij,ij->i", b - x, ev)], axis=1)
+    cross = da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]
+    span = np.arctan2(np.abs(cross), np.einsum("ij,ij->i", da, db))  # in [0, π)
+    start = np.mod(np.arctan2(np.where(cross >= 0, da[:, 1], db[:, 1]), np.where(cross >= 0, da[:, 0], db[:, 0])), np.pi)
+    # a margin far above rounding: the exact test below decides
+    lo, hi = start - ANGLE_MARGIN, start + span + ANGLE_MARGIN
+    pieces = [(lo, np.minimum(hi, np.pi)), (np.full_like(lo, 0.0), hi - np.pi), (lo + np.pi, np.full_like(lo, np.pi))]
+    fams, ws = [], []
+    for p_lo, p_hi in pieces:
+        live = p_hi > np.maximum(p_lo, 0.0)
+        f = np.flatnonzero(live)
+        i0 = np.searchsorted(key, row[f] * 4.0 + np.maximum(p_lo[f], 0.0), "left")
+        i1 = np.searchsorted(key, row[f] * 4.0 + np.minimum(p_hi[f], np.pi), "right")
+        rr, kk = expand_ranges(i0, np.maximum(i1 - i0, 0))
+        fams.append(f[rr])
+        ws.append(w[kk])
+    fam, w = np.concatenate(fams), np.concatenate(ws)
+    # the ranges overlap only within the margin; the order is the plain join's
+    fam_w = np.unique(np.stack([fam, rank[w]], axis=1), axis=0).reshape(-1, 2)
+    fam, w = fam_w[:, 0], order[fam_w[:, 1]]
+    x = scene.vertices[ve[fam, 0]]
     a, b = _edge_geometry(scene, ve[fam, 1])
-    s, _ = segment_parameter(x, direction, a, b)
+    s, _ = segment_parameter(x, pts[w] - x, a, b)
     with np.errstate(invalid="ignore"):
         inside = np.isfinite(s) & (s > 0) & (s < 1)
     which = pts_vertex[w[inside]]
     crossing = which <= -2
     return (fam[inside], s[inside], np.where(crossing, END_CROSSING, END_COPLANAR),
             np.where(crossing, -2 - which, which))
+
+
+def _plane_bases(scene, planes):
+    """(u, v): two unit vectors spanning each plane (:func:`face_planes` ids), (n, 3) each."""
+    plane_of_face = face_planes(scene)
+    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
+    face_of[plane_of_face] = np.arange(scene.n_faces)
+    n = scene.face_normal[face_of[planes]]
+    helper = np.eye(3)[np.argmin(np.abs(n), axis=1)]
+    u = np.cross(helper, n)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return u, np.cross(n, u)
 
 
 def _event_parameters(scene, kind, generators, events, rows):

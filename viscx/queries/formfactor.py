@@ -228,6 +228,17 @@ def shaft_occluders(pts, occluders, tol):
     return out
 
 
+def face_boxes(scene):
+    """Bounding boxes of the faces' outer loops, ``(lo, hi)`` (f, 3) float64 each (cached)."""
+    cached = getattr(scene, "_viscx_face_boxes", None)
+    if cached is None:
+        start = scene.loop_offsets[scene.face_loop_offsets[:-1]]
+        pts = scene.vertices[scene.loop_vertices]
+        cached = (np.minimum.reduceat(pts, start, axis=0), np.maximum.reduceat(pts, start, axis=0))
+        scene._viscx_face_boxes = cached
+    return cached
+
+
 def pair_occluders(scene, pts, n_i, c_i, n_t, c_t, exclude):
     """Faces that may block a segment from I' to J' (hull points ``pts``): clipped to the
     front of I and the receiving side of J, meeting the interior of the hull.
@@ -239,12 +250,11 @@ def pair_occluders(scene, pts, n_i, c_i, n_t, c_t, exclude):
     """
     tol = 1e-9 * scene.diagonal
     lo, hi = pts.min(axis=0) - tol, pts.max(axis=0) + tol
+    box_lo, box_hi = face_boxes(scene)
+    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
     clipped = []
-    for k in range(scene.n_faces):
+    for k in near:
         if k in exclude:
-            continue
-        raw = scene.vertices[scene.loop_vertices[scene.loop_offsets[scene.face_loop_offsets[k]]:scene.loop_offsets[scene.face_loop_offsets[k] + 1]]]
-        if np.any(raw.min(axis=0) > hi) or np.any(raw.max(axis=0) < lo):
             continue
         nk = scene.face_normal[k]
         loops = clip_loops(clip_loops(oriented_loops(scene.face_loops(k), nk), n_i, c_i), n_t, c_t)

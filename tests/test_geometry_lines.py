@@ -196,6 +196,54 @@ def test_vertex_blocking_matches_winding_numbers(rng):
     assert tangent.any() and (~tangent & decided).any()
 
 
+def test_vertex_blocking_near_a_fan_edge_and_a_face_plane(rng):
+    """Directions a hair off one face's plane (1e-9 to 1e-6 rad) and 1e-8 to 1e-4 rad from
+    an edge of the fan at a convex corner: the regime where the rounding of the wedges'
+    rays (1e-15), divided by the angle to the line, opened a false gap between two faces
+    of a closed fan (random scene 19, vertex 2: judged tangent while entering the solid).
+    Oracle: at a corner of a convex solid a line enters it iff d or -d lies strictly
+    inside the corner's cone, i.e. below every face plane through the corner (outward
+    normals); only directions at least 2e-9 from every plane and edge are judged."""
+    from random_scenes import random_tetrahedra
+
+    from viscx.geometry.tangency import tangent_at_vertices
+
+    scene = build_scene(random_tetrahedra(rng, 3))
+    he = scene.half_edges
+    verts, dirs, cones = [], [], []
+    for v in range(scene.n_vertices):
+        faces = np.unique(he.face[he.start == v])
+        normals = scene.face_normal[faces]
+        # outward: the solid's other vertices lie below each face
+        centroid = scene.vertices[he.end[he.start == v]].mean(axis=0)
+        normals = normals * np.where(normals @ (centroid - scene.vertices[v]) < 0, 1.0, -1.0)[:, None]
+        for w in np.unique(he.end[he.start == v]):
+            r = scene.vertices[w] - scene.vertices[v]
+            r /= np.linalg.norm(r)
+            for n in normals[np.abs(normals @ r) < 1e-12]:  # the two faces holding the edge
+                t = np.cross(n, r)
+                k = 400
+                delta = 10.0 ** rng.uniform(-8, -4, k)
+                eta = rng.choice([-1.0, 1.0], k) * 10.0 ** rng.uniform(-9, -6, k)
+                side = rng.choice([-1.0, 1.0], k)
+                d = np.cos(delta)[:, None] * r + (side * np.sin(delta))[:, None] * t + eta[:, None] * n
+                verts.append(np.full(k, v))
+                dirs.append(d / np.linalg.norm(d, axis=1, keepdims=True))
+                cones.append(np.repeat(normals[None], k, axis=0))
+    verts, dirs, cones = np.concatenate(verts), np.concatenate(dirs), np.concatenate(cones)
+    tangent, degenerate = tangent_at_vertices(scene, verts, dirs)
+    dot = np.einsum("ikj,ij->ik", cones, dirs)  # (q, 3 faces)
+    enters = np.all(dot < 0, axis=1) | np.all(dot > 0, axis=1)
+    edge_dist = np.array([np.min(np.linalg.norm(np.cross(scene.vertices[he.end[he.start == v]] - scene.vertices[v], d), axis=1)
+                                 / np.linalg.norm(scene.vertices[he.end[he.start == v]] - scene.vertices[v], axis=1))
+                          for v, d in zip(verts, dirs)])
+    judged = (np.abs(dot).min(axis=1) > 2e-9) & (edge_dist > 2e-9)
+    assert judged.sum() > 0.5 * len(dirs) and enters[judged].any() and (~enters[judged]).any()
+    assert not degenerate[judged].any()
+    wrong = np.flatnonzero(judged & (tangent == enters))
+    assert len(wrong) == 0, f"{len(wrong)} of {judged.sum()} wrong, e.g. vertex {verts[wrong[0]]} d {dirs[wrong[0]].tolist()}"
+
+
 def test_open_fans_separate_nothing(rng):
     from viscx.geometry.tangency import tangent_at_vertices
     from viscx.scene import load_scene

@@ -1088,12 +1088,14 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         "direction": np.concatenate([k[3] for k in kept]),
         "ends": np.concatenate([k[4] for k in kept]),
         "generator_points": np.concatenate([k[5] for k in kept]),
+        "loose": np.zeros((len(whole), 2), dtype=bool),
     }
     mixed = np.flatnonzero(~uniform)
     if len(mixed):
         more = _refine(scene, fkind, fgens, f[mixed], s0[mixed], t0[mixed], i0[mixed], s1[mixed], t1[mixed], i1[mixed])
         pieces = {k: np.concatenate([pieces[k], more[k]]) for k in pieces}
     pieces = _merge_across_possible_events(scene, fkind, fgens, pieces)
+    del pieces["loose"]
     fam = pieces.pop("family")
     state = pieces.pop("state")
     sides = pieces.pop("sides")
@@ -1120,14 +1122,27 @@ def _merge_across_possible_events(scene, fkind, fgens, pieces):
     a node (a VEE line) and the arcs would otherwise end at every crossing. Every other
     event ends its arcs (junctions and coplanar vertices: where collinear or coplanar
     boundaries of other families begin and end, so that duplicates stay identical).
+
+    Also joined: VE arcs meeting at a *loose* transition, where only the half-cells'
+    pairs changed and no event explains it (``pieces["loose"]``, :func:`_refine_batch`).
+    The V-cell beside a VE line of v changes only where another boundary of v's sphere
+    meets the line, i.e. where the line passes a vertex or an edge: an event the snap
+    would have found. A loose change is the probe's: near a corner of a cell thinner
+    than PROBE_ANGLE (random scene 161, vertex 3: a face seen 2e-4 off edge-on, whose
+    sliver narrows below 1e-8 rad within 8e-4 of its corners) the probe jumps over it.
+
     A joined arc's sample is taken again at the middle of its interval, as for an arc
-    between two events (the first piece's stands where that sample disagrees)."""
+    between two events (the first piece's stands where that sample's line disagrees or,
+    with no loose transition joined, its half-cells disagree)."""
     order = np.lexsort([pieces["interval"][:, 0], pieces["family"]])
     p = {k: v[order] for k, v in pieces.items()}
     full = np.concatenate([p["state"], p["sides"]], axis=1)
     join = (p["family"][1:] == p["family"][:-1]) & (p["interval"][1:, 0] == p["interval"][:-1, 1])
+    loose = join & (p["end_type"][:-1, 1] == END_TRANSITION) & p["loose"][:-1, 1] & p["loose"][1:, 0]
+    loose &= np.all(p["state"][1:] == p["state"][:-1], axis=1)
     join &= p["end_type"][:-1, 1] == END_CROSSING
     join &= np.all(full[1:] == full[:-1], axis=1)
+    join |= loose
     start = np.r_[True, ~join]
     first = np.flatnonzero(start)
     last = np.r_[first[1:] - 1, len(start) - 1]
@@ -1135,12 +1150,16 @@ def _merge_across_possible_events(scene, fkind, fgens, pieces):
     out["interval"] = np.stack([p["interval"][first, 0], p["interval"][last, 1]], axis=1)
     out["end_type"] = np.stack([p["end_type"][first, 0], p["end_type"][last, 1]], axis=1)
     out["end_node"] = np.stack([p["end_node"][first, 0], p["end_node"][last, 1]], axis=1)
+    out["loose"] = np.stack([p["loose"][first, 0], p["loose"][last, 1]], axis=1)
     joined = np.flatnonzero(last > first)
     if len(joined):
         f = out["family"][joined]
         s = 0.5 * (out["interval"][joined, 0] + out["interval"][joined, 1])
         smp = judge_samples(scene, fkind[f], fgens[f], s, sides=True)
-        same = np.all(_full_state(smp) == full[first[joined]], axis=1)
+        # arcs joined across a loose transition take the middle sample's half-cells
+        had_loose = np.add.reduceat(np.r_[loose, False].astype(np.int64), first)[joined] > 0
+        same = np.all(smp.state == p["state"][first[joined]], axis=1)
+        same &= had_loose | np.all(smp.sides == p["sides"][first[joined]], axis=1)
         rows = joined[same]
         out["parameter"][rows] = s[same]
         for k in ("state", "sides", "direction", "ends", "generator_points"):
@@ -1182,6 +1201,8 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         same = np.all(st == left, axis=1)
         lo, hi = np.where(same, m, lo), np.where(same, hi, m)
     cut = _snap_cuts(scene, fkind[f[ci]], fgens[f[ci]], 0.5 * (lo + hi), ss[ci, cj], ss[ci, cj + 1])
+    # loose: only the half-cells changed and no event explains it (see _merge_across_possible_events)
+    loose = (fkind[f[ci]] == VE) & (cut == 0.5 * (lo + hi)) & np.all(state[ci, cj, :5] == state[ci, cj + 1, :5], axis=1)
     # runs of equal state between cuts; keep the valid ones
     run_start = np.ones((n, REFINE), dtype=bool)
     run_start[:, 1:] = change
@@ -1195,6 +1216,8 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     end_s[after], end_t[after], end_i[after] = cut, END_TRANSITION, -1
     before = run_id[ci, cj + 1]
     start_s[before], start_t[before], start_i[before] = cut, END_TRANSITION, -1
+    run_loose = np.zeros((nrun, 2), dtype=bool)
+    run_loose[after, 1], run_loose[before, 0] = loose, loose
     # each run's middle sample stands for it
     last = np.r_[ri[1:] != ri[:-1], True] if nrun else np.zeros(0, bool)
     run_len = np.empty(nrun, dtype=np.int64)
@@ -1214,6 +1237,7 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         "direction": smp.direction[pick][ok],
         "ends": smp.ends[pick][ok],
         "generator_points": smp.generator_points[pick][ok],
+        "loose": run_loose[ok],
     }
 
 

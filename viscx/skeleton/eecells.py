@@ -53,7 +53,10 @@ the lines through e1 *next to* w change but the lines through w do not (a pencil
 of a face of e1 at w ends on the side there: tangency at e1 flips, while the
 line through w only touches the surface at w), so VE arcs are cut into pieces
 where other arcs of the square end on them (:func:`side_pieces`); EEE arcs need
-no cut (their crossings are V0 nodes or V1's planar events).
+no cut (their crossings are V0 nodes or V1's planar events). A vertex w lying
+strictly inside e1 (a T-junction) adds the segment x1 = s_w, the VE arc (w, e2):
+tangency at e1 changes across the lines through w (degenerate scenes;
+:func:`arc_squares`).
 
 Which side gets which pair is found like the VE half-cells' (arcs.py): the
 arc's middle point of the square is moved off the arc, across it on each side,
@@ -111,7 +114,7 @@ from numba import njit
 
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
-from viscx.skeleton.arcs import EEE, VE, _skew, family_lines
+from viscx.skeleton.arcs import EEE, VE, _skew, edge_junctions, family_lines
 from viscx.skeleton.nodes import maximal_free_segments
 from viscx.skeleton.vcells import _signed_angle, cells_of_loops, form_loops, turning_sums
 
@@ -303,7 +306,13 @@ def arc_squares(scene, arcs):
     """Every (arc, square) incidence: the squares each V1 arc bounds.
 
     EEE (p, q, r): the squares of its skew pairs among (p, q), (p, r), (q, r). VE (w, e):
-    the squares (e', e) of every generator edge e' at w skew to e (a side x' ∈ {0, 1}).
+    the squares (e', e) of every generator edge e' at w skew to e (a side x' ∈ {0, 1}),
+    and of every generator edge e' that w lies on strictly inside (a T-junction, V1's
+    :class:`~viscx.skeleton.arcs.Junctions`): the segment x' = s_w across the square.
+    Where the surface around e' changes at w, tangency at e' does for the lines through
+    w, and the pair of the square changes across that segment (room_with_door: the inner
+    wall's corners on the room's edges; boxes_on_floor: a box's corner on another box's
+    edge). Without it those cells' loops stayed open.
 
     Returns
     -------
@@ -334,6 +343,19 @@ def arc_squares(scene, arcs):
         out_arc.append(ve[rows])
         out_a.append(edges[at])
         out_b.append(g[ve[rows], 1])
+        # the edges each vertex lies on (junctions with a vertex)
+        junctions = edge_junctions(scene)
+        has = junctions.vertex >= 0
+        owner, edges = junctions.vertex[has], junctions.edge[has]
+        order = np.argsort(owner, kind="stable")
+        owner, edges = owner[order], edges[order]
+        lo, hi = np.searchsorted(owner, w, "left"), np.searchsorted(owner, w, "right")
+        cnt = hi - lo
+        rows = np.repeat(np.arange(len(ve)), cnt)
+        at = np.repeat(lo, cnt) + np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        out_arc.append(ve[rows])
+        out_a.append(edges[at])
+        out_b.append(g[ve[rows], 1])
     arc, a, b = np.concatenate(out_arc), np.concatenate(out_a), np.concatenate(out_b)
     keep = skew_pairs(scene, a, b)
     arc, a, b = arc[keep], a[keep], b[keep]
@@ -352,7 +374,8 @@ def _coordinate(scene, arcs, arc, edge, s):
     -------
     x : (n,) float
         s itself where the edge is the family's parameter edge; 0 or 1 where the edge ends
-        at a VE arc's vertex; else where the family's line meets the edge.
+        at a VE arc's vertex, the vertex's parameter where it lies inside the edge (a
+        junction); else where the family's line meets the edge.
     defined : (n,) bool
         False where the family's line is undefined (a pencil's parameter point at the
         vertex its edge shares with another generator).
@@ -364,7 +387,11 @@ def _coordinate(scene, arcs, arc, edge, s):
     x[param] = s[param]
     ev = scene.half_edges.edge_vertices[edge]
     at_vertex = (kind == VE) & ~param
-    x[at_vertex] = (ev[at_vertex, 1] == g[at_vertex, 0]).astype(np.float64)
+    w = g[at_vertex, 0]
+    a, b = _edge_ends(scene, edge[at_vertex])
+    # a junction's parameter, by the formula of arcs.edge_junctions (its events on the sides)
+    inside = np.einsum("ij,ij->i", scene.vertices[w] - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
+    x[at_vertex] = np.where(ev[at_vertex, 0] == w, 0.0, np.where(ev[at_vertex, 1] == w, 1.0, inside))
     rest = np.flatnonzero(~param & ~at_vertex)
     if len(rest):
         o, d = family_lines(scene, kind[rest], g[rest], s[rest])
@@ -593,8 +620,9 @@ def side_pairs(scene, arcs, arc, e1, e2, interval):
 
 
 def side_pieces(scene, arcs, arc, e1, e2):
-    """The arc pieces of each square: every arc whole, but VE arcs (the square's sides)
-    cut where another arc of the square ends on them.
+    """The arc pieces of each square: every arc whole, but VE arcs (the square's sides,
+    and the segments x' = s_w of a junction vertex w) cut where another arc of the square
+    ends on them.
 
     A VE arc (w, e2) has no event where the lines through e1 next to w change: e.g. a
     pencil of a face of e1 at w (tangency at e1 flips across it) ends on the side at
@@ -617,31 +645,27 @@ def side_pieces(scene, arcs, arc, e1, e2):
     start, _, end, _ = _curves(scene, arcs, arc, e1, e2, interval)
     tol = join_tolerance(scene, e1, e2)
     pair_key = e1 * (1 << 32) + e2
-    # the side of each VE row (0: x1 = 0, 1: x1 = 1, 2: x2 = 0, 3: x2 = 1); s runs along it
+    # each VE row is a segment x1 = const (its edge is e2) or x2 = const; s runs along it
     ve = np.flatnonzero(arcs.kind[arc] == VE)
-    along_x2 = arcs.generators[arc[ve], 1] == e2[ve]  # the edge of the VE arc is e2: a side x1 = const
-    ve_side = np.where(along_x2, np.round(start[ve, 0]), 2 + np.round(start[ve, 1])).astype(np.int64)
-    # ends of the other (EEE) rows lying on a side: (side, position along it)
+    const = np.where(arcs.generators[arc[ve], 1] == e2[ve], 0, 1)
+    value = start[ve, const]
+    # ends of the other (EEE) rows of the same square lying on the segment: (row, position along it)
     eee = np.flatnonzero(arcs.kind[arc] == EEE)
     ends = np.concatenate([start[eee], end[eee]])
     owner = np.concatenate([eee, eee])
-    cuts_key, cuts_pos = [], []
-    for side, coord, value in ((0, 0, 0.0), (1, 0, 1.0), (2, 1, 0.0), (3, 1, 1.0)):
-        on = np.abs(ends[:, coord] - value) <= tol[owner]
-        cuts_key.append(pair_key[owner[on]] * 4 + side)
-        cuts_pos.append(ends[on, 1 - coord])
-    cuts_key, cuts_pos = np.concatenate(cuts_key), np.concatenate(cuts_pos)
-    order = np.lexsort([cuts_pos, cuts_key])
-    cuts_key, cuts_pos = cuts_key[order], cuts_pos[order]
-    # for each VE row, the cuts strictly inside its interval (farther than tol from its ends)
-    row_key = pair_key[ve] * 4 + ve_side
-    s0, s1, t = interval[ve, 0], interval[ve, 1], tol[ve]
-    lo = np.searchsorted(cuts_key, row_key, "left")
-    hi = np.searchsorted(cuts_key, row_key, "right")
+    order = np.argsort(pair_key[owner], kind="stable")
+    ends, owner = ends[order], owner[order]
+    end_key = pair_key[owner]
+    lo = np.searchsorted(end_key, pair_key[ve], "left")
+    hi = np.searchsorted(end_key, pair_key[ve], "right")
     count = hi - lo
     rows = np.repeat(np.arange(len(ve)), count)
     at = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    pos = cuts_pos[at]
+    c = const[rows]
+    on = np.abs(ends[at, c] - value[rows]) <= tol[owner[at]]
+    rows, pos = rows[on], ends[at[on], 1 - c[on]]
+    # for each VE row, the cuts strictly inside its interval (farther than tol from its ends)
+    s0, s1, t = interval[ve, 0], interval[ve, 1], tol[ve]
     inner = (pos > s0[rows] + t[rows]) & (pos < s1[rows] - t[rows])
     rows, pos = rows[inner], pos[inner]
     # merge cuts closer than tol, then pieces between consecutive cut points

@@ -23,9 +23,13 @@ EE-cells of its edges, seed 000 §7.5):
   of the three along the segment (else the occluders are on both sides of the light
   and x, at one end, sees the light past one of them only: no event for x).
 
-Families with two light generators lie in the light's plane and are left out (their
-trace is where a receiver crosses the light's plane, where the light is seen edge-on).
-An arc is traced on face f when its blocker at the receiver end is face f, f is not a
+Families with two light generators lie in the light's plane and are left out: the light
+is one-sided (it emits from the front of its faces, as in ``viscx render``), so their
+trace is the line where a receiver crosses the light's plane, the boundary of the part
+that sees the light's front; the traces behind it are dropped
+(:mod:`viscx.queries.plane_events`, which also finds the *receiver-plane events*: an
+occluder edge's image crossing a receiver's horizon on a light edge, whose critical
+lines lie in the receiver's plane and are not arcs of V1). An arc is traced on face f when its blocker at the receiver end is face f, f is not a
 light face, and no occluder generator of the arc is an edge or a vertex of f (such a
 trace runs along f's own outline or is a point).
 
@@ -730,9 +734,8 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
         rp_pts.append(o + ends[..., :1] * u + ends[..., 1:] * v)
     # one-sided light: only what is in front of it (the traces behind change nothing)
     keep = np.flatnonzero(good)
-    idx = np.concatenate([np.arange(offsets[k], offsets[k + 1]) for k in keep]) if len(keep) else np.zeros(0, np.int64)
     counts = np.r_[np.diff(offsets)[keep], np.full(sum(len(r.arc) for r in rp_rows), 2)]
-    all_pts = np.concatenate([points[idx], *[p.reshape(-1, 3) for p in rp_pts]])
+    all_pts = np.concatenate([points[np.repeat(good, np.diff(offsets))], *[p.reshape(-1, 3) for p in rp_pts]])
     all_ev = Events.concat([events.take(keep), *rp_rows])
     planes = light_planes(scene, light, snap)
     row, offsets, points = clip_to_front(np.r_[0, np.cumsum(counts)].astype(np.int64), all_pts, planes, snap)

@@ -152,11 +152,12 @@ def test_cornell_oracle(cornell_built, seed):
     _assert_oracle(res, 300)
 
 
-def box_side_scene_obj(path, seed):
+def box_side_scene_obj(path, seed, vertex_in_plane=False):
     """An OBJ: a floor, a unit square light (y = 4, facing down, x and z in [0, 1]), a box
     (x in [0.5, 2.5], y in [0, 2], z in [-1, 2], no bottom) whose side x = 0.5 cuts the
     light in two, and a small random tetrahedron around (0.5, 3, 0.35) whose edges cross
-    that plane between the box and the light."""
+    that plane between the box and the light (``vertex_in_plane``: its first vertex moved
+    into the plane)."""
     rng = np.random.default_rng(seed)
     lines = ["o floor", "v -3 0 -3", "v 4 0 -3", "v 4 0 4", "v -3 0 4", "f 1 4 3 2",
              "o light", "v 0 4 0", "v 1 4 0", "v 1 4 1", "v 0 4 1", "f 5 6 7 8", "o box"]
@@ -164,6 +165,8 @@ def box_side_scene_obj(path, seed):
     lines += ["f " + " ".join(str(9 + i) for i in q) for q in ((0, 1, 2, 3), (4, 7, 6, 5), (3, 2, 6, 7), (0, 3, 7, 4), (1, 5, 6, 2))]
     d = rng.normal(size=(4, 3))
     pts = np.array([0.5, 3.0, 0.35]) + rng.uniform(-0.05, 0.05, 3) + 0.3 * d / np.linalg.norm(d, axis=1, keepdims=True)
+    if vertex_in_plane:
+        pts[0, 0] = 0.5
     if np.linalg.det(pts[1:] - pts[0]) < 0:
         pts[[1, 2]] = pts[[2, 1]]
     lines.append("o tet")
@@ -173,17 +176,20 @@ def box_side_scene_obj(path, seed):
     return path
 
 
-def test_receiver_plane_events(tmp_path):
+@pytest.mark.parametrize("seed, vertex_in_plane, kind", [(0, False, "RPE"), (2, True, "RPV")])
+def test_receiver_plane_events(tmp_path, seed, vertex_in_plane, kind):
     """The light straddles the plane of the box's side x = 0.5: where a tetrahedron edge's
-    image crosses the side's horizon on a light edge, the labels change, and the mesh has
-    those lines (RPE events, not arcs of V1), every one in the side's plane."""
-    from viscx.queries.discontinuities import EVENT_KINDS
-
-    build_file(box_side_scene_obj(tmp_path / "b.obj", 0), tmp_path / "b.h5", quiet=True)
-    scene, mesh, res = _check(tmp_path / "b.h5", "light", 0, samples=12)
+    (or its vertex in that plane's) image crosses the side's horizon on a light edge, the
+    labels change, and the mesh has those lines (RPE, RPV events, not arcs of V1), every
+    one in the side's plane."""
+    obj = box_side_scene_obj(tmp_path / "b.obj", seed, vertex_in_plane)
+    build_file(obj, tmp_path / "b.h5", quiet=True)
+    scene, mesh, res = _check(tmp_path / "b.h5", "light", seed, samples=12)
     ev = mesh.events
-    rp = np.flatnonzero(np.isin(ev.kind, [k for k, n in EVENT_KINDS.items() if n in ("RPE", "RPV")]))
-    assert len(rp) >= 2 and np.all(ev.arc[rp] == -1) and np.all(np.isin(ev.generators[rp, 1], mesh.light.edges))
+    names = np.array([mesh_kind(mesh, k) for k in range(len(ev.arc))])
+    rp = np.flatnonzero((names == "RPE") | (names == "RPV"))
+    assert kind in names[rp] and len(rp) >= 2
+    assert np.all(ev.arc[rp] == -1) and np.all(np.isin(ev.generators[rp, 1], mesh.light.edges))
     side = int(np.flatnonzero(np.isclose(scene.face_normal[:, 0], -1) & np.isclose(scene.face_offset, -0.5))[0])
     assert np.all(ev.face[rp] == side)
     for k in rp:

@@ -44,6 +44,8 @@ RP_EDGE, RP_VERTEX, LIGHT_PLANE = 2, 3, 4
 #: Section end features: a scene edge crossing P, a vertex in P, a triangle's inner
 #: diagonal (inside a face: never a critical point).
 END_EDGE, END_VERTEX, END_INNER = 0, 1, -1
+#: Candidate lines × sections per block (bounds temporary memory).
+PAIR_BLOCK = 2_000_000
 
 
 def light_planes(scene, light, snap):
@@ -64,8 +66,9 @@ def light_planes(scene, light, snap):
 
 
 def front_distance(points, planes):
-    """Signed distance in front of the light: the largest over its planes, (m,) float64
-    for points (m, 3) (> 0: the point sees some light face's front)."""
+    """Signed distance in front of the light: the largest over its planes (``planes`` of
+    :func:`light_planes`), (m,) float64 for points (m, 3); > 0 where a point is in front
+    of some light face's plane."""
     n, c, _ = planes
     return (points @ n.T - c[None, :]).max(axis=1)
 
@@ -79,7 +82,11 @@ def clip_to_front(offsets, points, planes, snap):
     offsets : (m + 1,) int64
     points : (p, 3) float64
         Polyline k is ``points[offsets[k]:offsets[k + 1]]``.
-    planes : light_planes(...)
+    planes : tuple
+        ``(normal (k, 3), offset (k,), face (k,))`` of :func:`light_planes`.
+    snap : float
+        Pieces not longer than this, or not reaching farther than this in front of the
+        light (a receiver lying in its plane sees it edge-on), are dropped.
 
     Returns
     -------
@@ -87,7 +94,6 @@ def clip_to_front(offsets, points, planes, snap):
         The polyline each piece comes from (one polyline may give several pieces).
     offsets : (q + 1,) int64
     points : (r, 3) float64
-        Pieces shorter than ``snap`` are dropped.
     """
     m = len(offsets) - 1
     count = np.diff(offsets)
@@ -122,7 +128,7 @@ def clip_to_front(offsets, points, planes, snap):
     off = np.r_[0, np.cumsum(np.bincount(pid, minlength=q))].astype(np.int64)
     inner = pid[1:] == pid[:-1]
     length = np.bincount(pid[1:][inner], weights=np.linalg.norm(np.diff(pts, axis=0), axis=1)[inner], minlength=q)
-    # pieces that only graze the light's plane (a receiver lying in it sees the light edge-on)
+    # pieces that only graze the light's plane
     reach = np.full(q, -np.inf)
     np.maximum.at(reach, pid, front_distance(pts, planes))
     good = (length > snap) & (reach > snap)
@@ -253,6 +259,42 @@ def clip_lines_to_polygon(p0, u, lo, hi, loops, snap):
     return row[inside], t0[inside], t1[inside]
 
 
+def _graze_interval(h, u, tC, seg, back, snap):
+    """Where along lines h + t u (through H at t = 0 and C at t = tC) a receiver point x
+    has a receiver-plane event: x→H grazes at C and is otherwise free in front, blocked
+    behind.
+
+    Parameters
+    ----------
+    h, u : (n, 2) float64
+        H and the unit direction towards C.
+    tC : (n,) float64
+    seg, back : (b, 2, 2), (b', 2, 2) float64
+        Sections seen from the front and from behind (:func:`plane_sections`).
+
+    Returns
+    -------
+    lo, hi : (n,) float64
+        The event's parameter interval (lo = inf: none).
+    """
+    C = h + tC[:, None] * u
+    near0 = np.linalg.norm(seg[None, :, 0] - C[:, None], axis=-1) <= snap
+    at_c = near0 | (np.linalg.norm(seg[None, :, 1] - C[:, None], axis=-1) <= snap)
+    # sections ending at C must lie on one side of the line (it grazes), else it pierces
+    other = np.where(near0[..., None], seg[None, :, 1], seg[None, :, 0])
+    side = _cross2(u[:, None], other - h[:, None])
+    pierced = (at_c & (side > snap)).any(axis=1) & (at_c & (side < -snap)).any(axis=1)
+    t = np.where(at_c, np.inf, _line_hits(h, u, seg, snap))
+    t = np.where(t > snap, t, np.inf)  # sections through H itself (the light's neighbours)
+    hidden = pierced | (t < tC[:, None] + snap).any(axis=1)
+    hi = np.where(t >= tC[:, None] + snap, t, np.inf).min(axis=1)
+    # behind P the segment x→H must be blocked (the horizon's hidden interval ends at H)
+    tb = _line_hits(h, u, back, snap) if len(back) else np.full((len(h), 1), np.inf)
+    lo = np.maximum(tC, np.where(tb > snap, tb, np.inf).min(axis=1))
+    lo[hidden] = np.inf
+    return lo, hi
+
+
 def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     """Receiver-plane events on receiver f (module docstring).
 
@@ -321,22 +363,12 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
             continue
         udir = vec / tC[:, None]
         h0 = H[hh]
-        # sections ending at C: on one side of the line (it grazes the occluder), else pierced
-        at_c = (np.linalg.norm(seg[None, :, 0] - C[cc][:, None], axis=-1) <= snap) | \
-               (np.linalg.norm(seg[None, :, 1] - C[cc][:, None], axis=-1) <= snap)
-        other = np.where((np.linalg.norm(seg[None, :, 0] - C[cc][:, None], axis=-1) <= snap)[..., None],
-                         seg[None, :, 1], seg[None, :, 0])
-        side = _cross2(udir[:, None], other - h0[:, None])
-        pierced = (at_c & (side > snap)).any(axis=1) & (at_c & (side < -snap)).any(axis=1)
-        t = np.where(at_c, np.inf, _line_hits(h0, udir, seg, snap))
-        t = np.where(t > snap, t, np.inf)  # sections through H itself (the light's neighbours)
-        hidden = pierced | (t < tC[:, None] + snap).any(axis=1)
-        t_end = np.where(t >= tC[:, None] + snap, t, np.inf).min(axis=1)
-        # behind P the segment x→H must be blocked (the horizon ends at H)
-        tb = _line_hits(h0, udir, back, snap) if len(back) else np.full((len(hh), 1), np.inf)
-        t_b = np.where(tb > snap, tb, np.inf).min(axis=1)
-        lo = np.maximum(tC, t_b)
-        keep = ~hidden & np.isfinite(lo) & (lo < t_end - snap)
+        lo, t_end = np.empty(len(hh)), np.empty(len(hh))
+        step = max(1, PAIR_BLOCK // (len(seg) + len(back)))
+        for a in range(0, len(hh), step):
+            sl = slice(a, a + step)
+            lo[sl], t_end[sl] = _graze_interval(h0[sl], udir[sl], tC[sl], seg, back, snap)
+        keep = np.isfinite(lo) & (lo < t_end - snap)
         if not keep.any():
             continue
         k = np.flatnonzero(keep)

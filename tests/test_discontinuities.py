@@ -135,17 +135,116 @@ def test_oracle_labels_by_hand():
     assert labs == frozenset(("v", int(w)) for w in np.unique(lv))
 
 
-@pytest.mark.slow
-def test_cornell_oracle(tmp_path):
-    """Cornell box, light group ``light``: no pair contradicts the oracle except pairs
-    separated by a receiver-plane event (the light straddles a block's side: the
-    crossing of that side's horizon and an occluder edge's image on a light edge, not in
-    V1; docs/queries.md)."""
-    out = tmp_path / "cornell.h5"
+@pytest.fixture(scope="module")
+def cornell_built(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cornell") / "cornell.h5"
     build_file(SAMPLES / "cornell_box.obj", out, quiet=True)
-    scene, mesh, res = _check(out, "light", 2)
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_cornell_oracle(cornell_built, seed):
+    """Cornell box, light group ``light``: no pair contradicts the oracle, receiver-plane
+    events included (the light straddles the plane of the short block's side 7)."""
+    scene, mesh, res = _check(cornell_built, "light", seed)
     print({k: (len(v) if isinstance(v, list) else v) for k, v in res.items()})
     _assert_oracle(res, 300)
+
+
+def box_side_scene_obj(path, seed, vertex_in_plane=False):
+    """An OBJ: a floor, a unit square light (y = 4, facing down, x and z in [0, 1]), a box
+    (x in [0.5, 2.5], y in [0, 2], z in [-1, 2], no bottom) whose side x = 0.5 cuts the
+    light in two, and a small random tetrahedron around (0.5, 3, 0.35) whose edges cross
+    that plane between the box and the light (``vertex_in_plane``: its first vertex moved
+    into the plane)."""
+    rng = np.random.default_rng(seed)
+    lines = ["o floor", "v -3 0 -3", "v 4 0 -3", "v 4 0 4", "v -3 0 4", "f 1 4 3 2",
+             "o light", "v 0 4 0", "v 1 4 0", "v 1 4 1", "v 0 4 1", "f 5 6 7 8", "o box"]
+    lines += [f"v {x} {y} {z}" for x in (0.5, 2.5) for y, z in ((0, -1), (0, 2), (2, 2), (2, -1))]
+    lines += ["f " + " ".join(str(9 + i) for i in q) for q in ((0, 1, 2, 3), (4, 7, 6, 5), (3, 2, 6, 7), (0, 3, 7, 4), (1, 5, 6, 2))]
+    d = rng.normal(size=(4, 3))
+    pts = np.array([0.5, 3.0, 0.35]) + rng.uniform(-0.05, 0.05, 3) + 0.3 * d / np.linalg.norm(d, axis=1, keepdims=True)
+    if vertex_in_plane:
+        pts[0, 0] = 0.5
+    if np.linalg.det(pts[1:] - pts[0]) < 0:
+        pts[[1, 2]] = pts[[2, 1]]
+    lines.append("o tet")
+    lines += [f"v {float(p[0])!r} {float(p[1])!r} {float(p[2])!r}" for p in pts]
+    lines += ["f " + " ".join(str(17 + i) for i in tri) for tri in ((0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3))]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("seed, vertex_in_plane, kind", [(0, False, "RPE"), (2, True, "RPV")])
+def test_receiver_plane_events(tmp_path, seed, vertex_in_plane, kind):
+    """The light straddles the plane of the box's side x = 0.5: where a tetrahedron edge's
+    (or its vertex in that plane's) image crosses the side's horizon on a light edge, the
+    labels change, and the mesh has those lines (RPE, RPV events, not arcs of V1), every
+    one in the side's plane."""
+    obj = box_side_scene_obj(tmp_path / "b.obj", seed, vertex_in_plane)
+    build_file(obj, tmp_path / "b.h5", quiet=True)
+    scene, mesh, res = _check(tmp_path / "b.h5", "light", seed, samples=12)
+    ev = mesh.events
+    names = np.array([mesh_kind(mesh, k) for k in range(len(ev.arc))])
+    rp = np.flatnonzero((names == "RPE") | (names == "RPV"))
+    assert kind in names[rp] and len(rp) >= 2
+    assert np.all(ev.arc[rp] == -1) and np.all(np.isin(ev.generators[rp, 1], mesh.light.edges))
+    side = int(np.flatnonzero(np.isclose(scene.face_normal[:, 0], -1) & np.isclose(scene.face_offset, -0.5))[0])
+    assert np.all(ev.face[rp] == side)
+    for k in rp:
+        assert np.allclose(mesh.points[mesh.offsets[k]:mesh.offsets[k + 1], 0], 0.5)
+    _assert_oracle(res, 500)
+
+
+def test_receiver_plane_events_cornell():
+    """Cornell box side 7 (the light straddles its plane): the edge of the tall block whose
+    image crosses the side's horizon on a light edge cuts a region in two (before, the
+    labels differed inside one region)."""
+    from discontinuity_oracle import GOLDEN
+
+    scene, mesh = open_discontinuities(GOLDEN / "cornell_box.h5", light_group="light", faces=[7])
+    names = [mesh_kind(mesh, k) for k in mesh.receivers[0].events]
+    assert names.count("RPE") == 1
+    res = check_mesh(scene, mesh, np.random.default_rng(7), MARGIN * scene.diagonal, samples=24)
+    _assert_oracle(res, 40)
+
+
+def mesh_kind(mesh, k):
+    from viscx.queries.discontinuities import EVENT_KINDS
+
+    return EVENT_KINDS[int(mesh.events.kind[k])]
+
+
+def test_one_sided_light():
+    """A box's side as the light (boxes_on_floor face 5, facing -z): it emits from its
+    front only (as ``viscx render`` does). Behind its plane (z > 1) nothing is seen and no
+    trace is kept; the light's plane crossing the floor is a mesh line."""
+    from discontinuity_oracle import BEHIND, GOLDEN
+
+    scene, mesh = open_discontinuities(GOLDEN / "boxes_on_floor.h5", light_face=5)
+    ev = mesh.events
+    assert np.all(mesh.points[:, 2] <= 1 + 1e-9)
+    lp = [k for k in range(len(ev.arc)) if mesh_kind(mesh, k) == "LP"]
+    assert len(lp) == 1 and ev.face[lp[0]] == 0 and ev.light_feature[lp[0]] == 5
+    assert np.allclose(mesh.points[mesh.offsets[lp[0]]:mesh.offsets[lp[0] + 1], 2], 1.0)
+    setup = oracle_setup(scene, mesh.light.faces)
+    assert labels_at(scene, setup, [5.0, 0.0, 5.0], 0) == BEHIND
+    assert labels_at(scene, setup, [5.0, 0.0, 0.5], 0) != BEHIND
+    res = check_mesh(scene, mesh, np.random.default_rng(3), MARGIN * scene.diagonal, samples=8)
+    _assert_oracle(res, 60)
+
+
+def test_clip_to_front():
+    """Polylines cut by the light's plane: the parts in front, one piece each."""
+    from viscx.queries.plane_events import clip_to_front
+
+    planes = (np.array([[0.0, 0.0, 1.0]]), np.array([0.0]), np.array([0]))
+    zig = np.array([[0, 0, 1], [1, 0, -1], [2, 0, 1], [3, 0, 1], [4, 0, -1.0]])
+    behind = np.array([[0, 1, -1], [1, 1, -2.0]])
+    row, off, pts = clip_to_front(np.array([0, 5, 7]), np.concatenate([zig, behind]), planes, 1e-9)
+    assert row.tolist() == [0, 0] and off.tolist() == [0, 2, 6]
+    assert np.allclose(pts, [[0, 0, 1], [0.5, 0, 0], [1.5, 0, 0], [2, 0, 1], [3, 0, 1], [3.5, 0, 0]])
 
 
 @pytest.mark.slow

@@ -122,8 +122,9 @@ def shadows(ctx, file, light, output, fmt, faces):
 def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
     """The discontinuity mesh cast by an area light (seed 000 §7.5): on every receiver
     face, the traces of the VE and EEE events involving the light's vertices and edges
-    (segments; EEE traces are conic arcs written as polylines) and the regions they cut
-    the face into (outer loop counter-clockwise seen from the face's front, holes
+    (segments; EEE traces are conic arcs written as polylines), the receiver-plane events
+    and the line where the light's plane crosses the face (the light emits from its
+    front only), and the regions they cut the face into (outer loop counter-clockwise seen from the face's front, holes
     clockwise). Reads V1's arcs from the file; nothing is rebuilt.
 
     \b

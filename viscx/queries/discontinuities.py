@@ -23,9 +23,13 @@ EE-cells of its edges, seed 000 §7.5):
   of the three along the segment (else the occluders are on both sides of the light
   and x, at one end, sees the light past one of them only: no event for x).
 
-Families with two light generators lie in the light's plane and are left out (their
-trace is where a receiver crosses the light's plane, where the light is seen edge-on).
-An arc is traced on face f when its blocker at the receiver end is face f, f is not a
+Families with two light generators lie in the light's plane and are left out: the light
+is one-sided (it emits from the front of its faces, as in ``viscx render``), so their
+trace is the line where a receiver crosses the light's plane, the boundary of the part
+that sees the light's front; the traces behind it are dropped
+(:mod:`viscx.queries.plane_events`, which also finds the *receiver-plane events*: an
+occluder edge's image crossing a receiver's horizon on a light edge, whose critical
+lines lie in the receiver's plane and are not arcs of V1). An arc is traced on face f when its blocker at the receiver end is face f, f is not a
 light face, and no occluder generator of the arc is an edge or a vertex of f (such a
 trace runs along f's own outline or is a point).
 
@@ -58,6 +62,8 @@ import numpy as np
 from numba import njit
 
 from viscx.geometry.polygon import plane_basis
+from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
+                                        light_plane_lines, light_planes, receiver_plane_events)
 from viscx.skeleton.arcs import EEE, VE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE
 
@@ -72,7 +78,10 @@ EEE_START, EEE_ROUNDS = 8, 16
 NUDGES = (1e-10, 1e-8, 1e-6)
 
 # which light feature an event involves
-LIGHT_VERTEX, LIGHT_EDGE = 0, 1
+LIGHT_VERTEX, LIGHT_EDGE, LIGHT_FACE = 0, 1, 2
+#: Names of the event kinds: V1's arcs, receiver-plane events (C on an occluder edge or an
+#: occluder vertex in the receiver's plane) and the light's plane.
+EVENT_KINDS = {**KIND_NAMES, RP_EDGE: "RPE", RP_VERTEX: "RPV", LIGHT_PLANE: "LP"}
 
 
 @dataclass
@@ -121,24 +130,26 @@ def light_of(scene, face=None, group=None):
 
 @dataclass
 class Events:
-    """The arcs of V1 traced on receivers.
+    """The events traced on receivers: pieces of arcs of V1 (in front of the light), then
+    the events in a face's plane (:mod:`viscx.queries.plane_events`).
 
     Attributes
     ----------
     arc : (m,) int64
-        Arc ids.
+        Arc ids (-1 for the events in a face's plane).
     end : (m,) int64
-        Receiver end (0 back, 1 front, in the family's orientation).
+        Receiver end (0 back, 1 front, in the family's orientation; -1 not an arc).
     face : (m,) int64
         Receiver face.
     light_kind : (m,) int8
-        LIGHT_VERTEX or LIGHT_EDGE.
+        LIGHT_VERTEX, LIGHT_EDGE or LIGHT_FACE.
     light_feature : (m,) int64
-        The light vertex or edge id.
+        The light vertex, edge or face id.
     kind : (m,) int64
-        EEE or VE (of the arc).
+        EEE or VE (of the arc), RP_EDGE, RP_VERTEX or LIGHT_PLANE (:data:`EVENT_KINDS`).
     generators : (m, 3) int64
-        The arc's generators.
+        The arc's generators; (occluder edge or vertex, light edge, -1) for a
+        receiver-plane event, (light face, -1, -1) for the light's plane.
     """
 
     arc: np.ndarray
@@ -148,6 +159,23 @@ class Events:
     light_feature: np.ndarray
     kind: np.ndarray
     generators: np.ndarray
+
+    def take(self, rows):
+        """The events of the given rows (repeats allowed): Events."""
+        return Events(*(getattr(self, k)[rows] for k in self.__dataclass_fields__))
+
+    @staticmethod
+    def concat(parts):
+        """One Events of several, rows in order."""
+        return Events(*(np.concatenate([getattr(p, k) for p in parts]) for k in Events.__dataclass_fields__))
+
+
+def _plane_rows(face, kind, light_kind, light_feature, generators):
+    """Events (arc -1) of events lying in a face's plane; arguments (m,) arrays, generators (m, 3)."""
+    m = len(face)
+    return Events(np.full(m, -1, np.int64), np.full(m, -1, np.int64), np.asarray(face, np.int64),
+                  np.asarray(light_kind, np.int8), np.asarray(light_feature, np.int64), np.asarray(kind, np.int64),
+                  np.asarray(generators, np.int64).reshape(m, 3))
 
 
 def select_events(scene, arcs, light):
@@ -685,20 +713,50 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     snap = SNAP * scene.epsilon
     events = select_events(scene, arcs, light)
     offsets, points, _ = trace_events(scene, arcs, events, tol)
-    good = np.ones(len(events.arc), bool)
     finite = np.isfinite(points).all(axis=1)
     bad_ev = np.unique(np.searchsorted(offsets, np.flatnonzero(~finite), side="right") - 1)
+    good = np.ones(len(events.arc), bool)
     good[bad_ev] = False
-    receivers = []
     in_light = np.zeros(scene.n_faces, bool)
     in_light[light.faces] = True
-    wanted = range(scene.n_faces) if not faces else sorted(set(int(f) for f in faces))
+    wanted = [f for f in (range(scene.n_faces) if not faces else sorted(set(int(f) for f in faces))) if not in_light[f]]
+    frames = {f: _face_frame(scene, f) for f in wanted}
+    outlines = {f: [np.stack([lp @ frames[f][0], lp @ frames[f][1]], axis=1) for lp in scene.face_loops(f)] for f in wanted}
+    # receiver-plane events (straight traces in the receiver's plane)
+    tri_edge = _triangle_edge_ids(scene)
+    rp_rows, rp_pts = [], []
     for f in wanted:
-        if in_light[f]:
-            continue
-        u, v, o = _face_frame(scene, f)
-        mine = np.flatnonzero((events.face == f) & good)
-        outline = [np.stack([lp @ u, lp @ v], axis=1) for lp in scene.face_loops(f)]
+        u, v, o = frames[f]
+        kind, occ, ledge, ends = receiver_plane_events(scene, light, f, (u, v), outlines[f], snap, tri_edge)
+        m = len(kind)
+        rp_rows.append(_plane_rows(np.full(m, f), kind, np.full(m, LIGHT_EDGE), ledge,
+                                   np.stack([occ, ledge, np.full(m, -1)], axis=1)))
+        rp_pts.append(o + ends[..., :1] * u + ends[..., 1:] * v)
+    # one-sided light: only what is in front of it (the traces behind change nothing)
+    keep = np.flatnonzero(good)
+    counts = np.r_[np.diff(offsets)[keep], np.full(sum(len(r.arc) for r in rp_rows), 2)]
+    all_pts = np.concatenate([points[np.repeat(good, np.diff(offsets))], *[p.reshape(-1, 3) for p in rp_pts]])
+    all_ev = Events.concat([events.take(keep), *rp_rows])
+    planes = light_planes(scene, light, snap)
+    row, offsets, points = clip_to_front(np.r_[0, np.cumsum(counts)].astype(np.int64), all_pts, planes, snap)
+    parts, lp_pts = [all_ev.take(row)], []
+    # the light's plane: where receivers stop seeing its front
+    for f in wanted:
+        u, v, o = frames[f]
+        lface, ends = light_plane_lines(scene, planes, f, (u, v), o, outlines[f], snap)
+        m = len(lface)
+        parts.append(_plane_rows(np.full(m, f), np.full(m, LIGHT_PLANE), np.full(m, LIGHT_FACE), lface,
+                                 np.stack([lface, np.full(m, -1), np.full(m, -1)], axis=1)))
+        lp_pts.append((o + ends[..., :1] * u + ends[..., 1:] * v).reshape(-1, 3))
+    events = Events.concat(parts)
+    n_lp = len(events.arc) - len(row)
+    offsets = np.r_[offsets, offsets[-1] + 2 * np.arange(1, n_lp + 1)].astype(np.int64)
+    points = np.concatenate([points, *lp_pts])
+    receivers = []
+    for f in wanted:
+        u, v, o = frames[f]
+        mine = np.flatnonzero(events.face == f)
+        outline = outlines[f]
         contact = contact_edges(scene, f, outline, (u, v), snap, light)
         ends = scene.vertices[scene.half_edges.edge_vertices[contact]]
         chords = [np.stack([ends @ u, ends @ v], axis=-1).reshape(-1, 2, 2)]
@@ -748,9 +806,9 @@ def mesh_result(scene, mesh):
             segs.append({
                 "event": int(k),
                 "arc": int(ev.arc[k]),
-                "kind": KIND_NAMES[int(ev.kind[k])],
+                "kind": EVENT_KINDS[int(ev.kind[k])],
                 "generators": [int(x) for x in ev.generators[k] if x >= 0],
-                "light": ["vertex", "edge"][int(ev.light_kind[k])],
+                "light": ["vertex", "edge", "face"][int(ev.light_kind[k])],
                 "light_feature": int(ev.light_feature[k]),
                 "points": mesh.points[mesh.offsets[k]:mesh.offsets[k + 1]].tolist(),
             })

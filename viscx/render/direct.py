@@ -273,13 +273,21 @@ def regions_of(lighting, face, points):
 
 def groups_of(*keys):
     """Rows with equal keys, in sorted key order: ``(keys (g, k), members)``, members a
-    list of (m_i,) int64 row indices (increasing)."""
-    key = np.stack(keys, axis=1)
-    groups, inverse = np.unique(key, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    order = np.argsort(inverse, kind="stable")
-    starts = np.searchsorted(inverse[order], np.arange(len(groups) + 1))
-    return groups, [order[starts[g]:starts[g + 1]] for g in range(len(groups))]
+    list of (m_i,) int64 row indices (increasing).
+
+    keys : (n,) int each (small: faces, sides, regions).
+    """
+    key = np.stack(keys, axis=1).astype(np.int64)
+    # one sortable code per row (the columns' ranges are small): a 1-D sort, not a row sort
+    lo = key.min(axis=0) if len(key) else np.zeros(key.shape[1], np.int64)
+    span = (key.max(axis=0) - lo + 1) if len(key) else np.ones(key.shape[1], np.int64)
+    code = np.zeros(len(key), np.int64)
+    for c in range(key.shape[1]):
+        code = code * span[c] + (key[:, c] - lo[c])
+    order = np.argsort(code, kind="stable")
+    first = np.flatnonzero(np.r_[True, code[order][1:] != code[order][:-1]]) if len(code) else np.zeros(0, np.int64)
+    bounds = np.r_[first, len(code)]
+    return key[order[first]], [order[bounds[g]:bounds[g + 1]] for g in range(len(first))]
 
 
 def shade(lighting, face, side, points):

@@ -647,9 +647,8 @@ def _incidences(scene, events):
         gens.append(np.stack([g[:, 0], g[:, slot], np.full(len(vee), -1)], axis=1))
         rows.append(vee)
     # EEE (e_v, e1, e2) for every generator edge e_v at v
-    count = np.diff(vo)[g[:, 0]]
-    r = np.repeat(np.arange(len(vee)), count)
-    e_v = ve[np.repeat(vo[g[:, 0]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    r, k = expand_ranges(vo[g[:, 0]], np.diff(vo)[g[:, 0]])
+    e_v = ve[k]
     kinds.append(np.full(len(r), EEE))
     gens.append(canonical_eee(scene, np.stack([e_v, g[r, 1], g[r, 2]], axis=1)))
     rows.append(vee[r])
@@ -659,9 +658,7 @@ def _incidences(scene, events):
     owner = np.repeat(np.arange(scene.n_vertices), np.diff(vo))
     pi, pj = _pairs_within_groups(owner)
     pair_offsets = np.searchsorted(owner[pi], np.arange(scene.n_vertices + 1))
-    count = np.diff(pair_offsets)[g[:, 0]]
-    r = np.repeat(np.arange(len(vee)), count)
-    pr = np.repeat(pair_offsets[g[:, 0]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    r, pr = expand_ranges(pair_offsets[g[:, 0]], np.diff(pair_offsets)[g[:, 0]])
     ea, eb = ve[pi[pr]], ve[pj[pr]]
     x = scene.vertices[g[r, 0]]
     a1, b1 = _edge_geometry(scene, ea)
@@ -681,9 +678,8 @@ def _incidences(scene, events):
     vv = np.flatnonzero(events.kind == VV)
     g = events.generators[vv]
     for own, other in ((0, 1), (1, 0)):
-        count = np.diff(vo)[g[:, other]]
-        r = np.repeat(np.arange(len(vv)), count)
-        e = ve[np.repeat(vo[g[:, other]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+        r, k = expand_ranges(vo[g[:, other]], np.diff(vo)[g[:, other]])
+        e = ve[k]
         kinds.append(np.full(len(r), VE))
         gens.append(np.stack([g[r, own], e, np.full(len(r), -1)], axis=1))
         rows.append(vv[r])
@@ -729,9 +725,8 @@ def _same_plane_ve(scene):
     # join on the plane
     order = np.argsort(ep[:, 1], kind="stable")
     first = np.searchsorted(ep[order, 1], vp[:, 1], "left")
-    count = np.searchsorted(ep[order, 1], vp[:, 1], "right") - first
-    r = np.repeat(np.arange(len(vp)), count)
-    k = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    r, k = expand_ranges(first, np.searchsorted(ep[order, 1], vp[:, 1], "right") - first)
+    k = order[k]
     v, e = vp[r, 0], ep[k, 0]
     ends = he.edge_vertices[e]
     x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
@@ -773,10 +768,7 @@ def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
     pts = [scene.vertices[vp[:, 0]]]
     pts_vertex = [vp[:, 0]]  # the vertex, -1 for a junction, -2 - edge for a crossing
     lo = np.searchsorted(ep[:, 0], junctions.edge, "left")  # ep is sorted by edge
-    hi = np.searchsorted(ep[:, 0], junctions.edge, "right")
-    count = hi - lo
-    r = np.repeat(np.arange(len(junctions)), count)
-    k = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    r, k = expand_ranges(lo, np.searchsorted(ep[:, 0], junctions.edge, "right") - lo)
     a, b = _edge_geometry(scene, junctions.edge[r])
     pts_plane.append(ep[k, 1])
     pts.append(a + junctions.s[r, None] * (b - a))
@@ -939,9 +931,7 @@ def _domain_ends(scene, fam_kind, fam_gens, junctions):
 def _junctions_of(junctions, edges):
     """(row of ``edges``, junction) for every junction of each edge."""
     lo = np.searchsorted(junctions.edge, edges, "left")
-    count = np.searchsorted(junctions.edge, edges, "right") - lo
-    rows = np.repeat(np.arange(len(edges)), count)
-    k = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    rows, k = expand_ranges(lo, np.searchsorted(junctions.edge, edges, "right") - lo)
     return rows, k
 
 

@@ -112,6 +112,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from viscx.arrays import expand_ranges
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, _skew, edge_junctions, family_lines
@@ -657,10 +658,7 @@ def side_pieces(scene, arcs, arc, e1, e2):
     ends, owner = ends[order], owner[order]
     end_key = pair_key[owner]
     lo = np.searchsorted(end_key, pair_key[ve], "left")
-    hi = np.searchsorted(end_key, pair_key[ve], "right")
-    count = hi - lo
-    rows = np.repeat(np.arange(len(ve)), count)
-    at = np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    rows, at = expand_ranges(lo, np.searchsorted(end_key, pair_key[ve], "right") - lo)
     c = const[rows]
     on = np.abs(ends[at, c] - value[rows]) <= tol[owner[at]]
     rows, pos = rows[on], ends[at[on], 1 - c[on]]

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from viscx.arrays import expand_ranges
 from viscx.errors import ViscxError
 from viscx.geometry.lines import line_through_point_and_two_lines
 from viscx.skeleton import arcs as arcs_mod
@@ -279,9 +280,8 @@ def point_arcs(scene, point_ids, nodes):
     vv = np.flatnonzero(nodes.kind == VV)
     u, p = nodes.generators[vv, 0], nodes.generators[vv, 1]
     vo, ve = arcs_mod._vertex_edges(scene)
-    count = np.diff(vo)[u]
-    r = np.repeat(np.arange(len(vv)), count)
-    at_u = ve[np.repeat(vo[u], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    r, k = expand_ranges(vo[u], np.diff(vo)[u])
+    at_u = ve[k]
     fam_rows.append(np.stack([p[r], at_u], axis=1))
     node_rows.append(vv[r])
     # ... and on (p, e) for every generator edge e passing through u (a T-junction: the
@@ -381,9 +381,8 @@ def _edges_through(scene, vertices):
     he = scene.half_edges
     by_face = np.argsort(he.face, kind="stable")
     first = np.searchsorted(he.face[by_face], face)
-    count = np.searchsorted(he.face[by_face], face, "right") - first
-    k = np.repeat(np.arange(len(face)), count)
-    h = by_face[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    k, h = expand_ranges(first, np.searchsorted(he.face[by_face], face, "right") - first)
+    h = by_face[h]
     e = he.edge[h]
     a, b = scene.vertices[he.start[h]], scene.vertices[he.end[h]]
     x = scene.vertices[uniq[owner[k]]]

@@ -11,6 +11,7 @@ from conftest import SAMPLES
 from random_scenes import random_boxes, random_tetrahedra
 from test_nodes import check_ends, check_free, line_point_distance, point_segment_distance
 
+import viscx.skeleton.arcs as arcs_module
 from viscx.scene import build_scene, load_scene
 from viscx.skeleton.arcs import (
     END_EDGE,
@@ -25,6 +26,7 @@ from viscx.skeleton.arcs import (
     family_lines,
     judge_samples,
 )
+from viscx.skeleton.candidates import build_nodes
 from viscx.skeleton.nodes import BLOCK_EDGE, BLOCK_VERTEX, E4, VEE, VV
 from viscx.skeleton.reference import reference_nodes
 
@@ -332,6 +334,93 @@ def test_arcs_cover_every_valid_line_of_every_family(name, per_family):
     assert smp.valid.sum() > 0
     assert not missing, f"{len(missing)} valid samples on no arc, e.g. {missing[:3]}"
     assert not wrong, f"{len(wrong)} invalid samples on an arc, e.g. {wrong[:3]}"
+
+
+# ---------------------------------------------------------------------------------------
+# hidden coplanar events
+
+
+def floor_scene(seed, boxes):
+    """Axis-aligned boxes standing on a floor: many same-plane VE families, most of their
+    coplanar events hidden behind other boxes."""
+    return build_scene(random_boxes(np.random.default_rng(seed), boxes, axis_aligned=True, on_floor=True))
+
+
+def coplanar_events(scene):
+    """(family (v, e), s, hidden) of every coplanar event, as build_arcs finds them."""
+    plane_ve, plane_of, vp, ep = arcs_module._same_plane_ve(scene)
+    f, s, _, _ = arcs_module._coplanar_events(scene, plane_ve, plane_of, vp, ep, arcs_module.edge_junctions(scene))
+    return plane_ve[f], s, arcs_module._hidden_events(scene, plane_ve[f], s)
+
+
+@pytest.mark.parametrize("seed,boxes", [(1, 6), (2, 10)])
+def test_hidden_events_are_blocked_on_both_sides(seed, boxes):
+    """Every hidden coplanar event's line is invalid (judge_samples, the arcs' own rule) at
+    the event and 1e-6 of the edge on either side; a good part of them are hidden."""
+    scene = floor_scene(seed, boxes)
+    ve, s, hidden = coplanar_events(scene)
+    assert 0.25 * len(s) < hidden.sum() < len(s)
+    gens = np.concatenate([ve[hidden], np.full((hidden.sum(), 1), -1)], axis=1)
+    for ds in (-1e-6, 0.0, 1e-6):
+        smp = judge_samples(scene, np.full(len(gens), VE), gens, np.clip(s[hidden] + ds, 0, 1))
+        assert not smp.valid.any(), f"valid lines at hidden events: {gens[smp.valid][:3]}"
+    # the visible ones do change something: some valid line passes through them
+    smp = judge_samples(scene, np.full((~hidden).sum(), VE), np.concatenate([ve[~hidden], np.full(((~hidden).sum(), 1), -1)], axis=1), s[~hidden])
+    assert smp.valid.any()
+
+
+@pytest.mark.parametrize("seed,boxes", [(1, 6), (3, 8)])
+def test_dropping_hidden_events_changes_no_arc(seed, boxes, monkeypatch):
+    """The arcs are the same, array for array, when every coplanar event is kept."""
+    scene = floor_scene(seed, boxes)
+    nodes = build_nodes(scene)
+    fast = build_arcs(scene, nodes)
+    monkeypatch.setattr(arcs_module, "_hidden_events", lambda scene, ve, s: np.zeros(len(s), dtype=bool))
+    full = build_arcs(scene, nodes)
+    for name in ("kind", "generators", "interval", "end_type", "end_node", "blocker_kind", "blocker", "parameter", "ends"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(full, name), err_msg=name)
+    for name in ("up", "down", "start", "end"):
+        np.testing.assert_array_equal(getattr(fast.half_cells, name), getattr(full.half_cells, name), err_msg=name)
+
+
+# ---------------------------------------------------------------------------------------
+# planar E4 events: corner-cutting pairs
+
+
+def test_corner_cutting_pairs_match_brute_force():
+    """The output-sensitive pairing (chords interleaving on the dual region's boundary)
+    finds every pair of points whose line crosses both sides of the corner (brute force),
+    in the order of _pairs_within_groups, and few others; points on the sides, their
+    lines and the corner included."""
+    rng = np.random.default_rng(3)
+    group = np.sort(rng.integers(0, 12, 900))
+    pts = rng.uniform(-2, 3, (900, 2))
+    pts[::17, 0] = 0.0  # points on the lines of the corner's sides
+    pts[8::17, 1] = 0.0
+    pts[5::101] = (1.0, 0.0)  # and at their ends
+    pts[7::101] = (0.0, 1.0)
+    i, j = arcs_module._pairs_within_groups(group)
+    p, q = pts[i], pts[j]
+    d = q - p
+    # where line pq meets y = 0 (alpha) and x = 0 (beta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = p[:, 0] - p[:, 1] * d[:, 0] / d[:, 1]
+        beta = p[:, 1] - p[:, 0] * d[:, 1] / d[:, 0]
+    # lines within 1e-9 of a side's end are left to validation (it wants epsilon)
+    cuts = (alpha > 1e-9) & (alpha < 1 - 1e-9) & (beta > 1e-9) & (beta < 1 - 1e-9)
+    fi, fj = arcs_module._corner_cutting_pairs(pts[:, 0], pts[:, 1], group)
+    found = set(zip(fi.tolist(), fj.tolist()))
+    brute = list(zip(i[cuts].tolist(), j[cuts].tolist()))
+    assert len(brute) > 1000
+    assert not [b for b in brute if b not in found]
+    # the others' lines pass within 1e-9 of the corner's vertices or run along a side
+    extra = np.array([k for k, b in enumerate(zip(i.tolist(), j.tolist())) if b in found and not cuts[k]])
+    with np.errstate(invalid="ignore"):
+        near = np.min(np.abs(np.stack([alpha, alpha - 1, beta, beta - 1]))[:, extra], axis=0) <= 1e-9
+    near |= ~np.isfinite(alpha[extra] + beta[extra])
+    assert near.all(), f"{(~near).sum()} pairs found whose line does not cut the corner"
+    rank = {b: k for k, b in enumerate(zip(i.tolist(), j.tolist()))}
+    assert [rank[b] for b in zip(fi.tolist(), fj.tolist())] == sorted(rank[b] for b in found)
 
 
 # ---------------------------------------------------------------------------------------

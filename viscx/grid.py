@@ -14,8 +14,14 @@ order along the ray and stopping once the best hit lies before the current
 cell's exit.
 """
 
+import threading
+
 import numpy as np
 from numba import njit, prange
+
+# One parallel kernel at a time: callers on several threads (viscx.parallel) would
+# otherwise launch nested parallel regions, which not every numba threading layer allows.
+_KERNEL_LOCK = threading.Lock()
 
 #: Barycentric slack: points on a triangle's edge are on the (closed) triangle.
 BARY_SLACK = 1e-12
@@ -174,7 +180,7 @@ def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, of
     return best_tri, best_t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dims, offsets, items, out_row, out_tri, fill):
     """Pairs (row, triangle) within ``tol`` of each other (Euclidean distance between the
     closed sets): row r is the point ``starts[r]``, or with ``segments`` the segment
@@ -343,20 +349,11 @@ class TriangleGrid:
             -1 for no hit; on ties (equal t), the lowest triangle id.
         t : (n,) float
         """
-        return _first_hits(
-            np.ascontiguousarray(origins, dtype=np.float64),
-            np.ascontiguousarray(directions, dtype=np.float64),
-            np.ascontiguousarray(tmin, dtype=np.float64),
-            np.ascontiguousarray(tmax, dtype=np.float64),
-            self.vertices,
-            self.triangles,
-            self.lo,
-            self.hi,
-            self.cell,
-            self.dims,
-            self.offsets,
-            self.items,
-        )
+        args = (np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
+                np.ascontiguousarray(tmin, dtype=np.float64), np.ascontiguousarray(tmax, dtype=np.float64),
+                self.vertices, self.triangles, self.lo, self.hi, self.cell, self.dims, self.offsets, self.items)
+        with _KERNEL_LOCK:
+            return _first_hits(*args)
 
     def triangles_near(self, points, tol):
         """Every (point, triangle) pair with the point within ``tol`` of the closed triangle.

@@ -50,7 +50,7 @@ CLEAR_MARGIN = 1e-6
 CLEAR_COSINE = 1e-4
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _intersect_pairs(origins, directions, vertices, triangles, tri):
     n = tri.shape[0]
     t = np.empty(n)

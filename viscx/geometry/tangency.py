@@ -39,7 +39,7 @@ def _angle_about(x0, x1, x2, e1, e2):
     return np.arctan2(x0 * e2[0] + x1 * e2[1] + x2 * e2[2], x0 * e1[0] + x1 * e1[1] + x2 * e1[2])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _separation(offsets, first, normal, span, directions, angle_tol):
     """Scalar code with buffers allocated once: it runs for every sample of every family.
 

@@ -102,7 +102,7 @@ def _unique_faces(point, face):
     return out_point[:k], out_face[:k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _classify(points, owner, face, half_first, half_last, start, end, prev, nxt, vertices, normal, tol):
     """The wedge each face makes at its point: a whole plane (the point is inside it), a
     corner (at one of its vertices) or a half-plane (on one of its edges), judged by the

@@ -54,6 +54,7 @@ from numba import njit
 from viscx.arrays import expand_ranges
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
 from viscx.grid import bin_boxes
+from viscx.parallel import map_chunks
 from viscx.progress import bar
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.nodes import (
@@ -62,6 +63,7 @@ from viscx.skeleton.nodes import (
     VV,
     Nodes,
     face_planes,
+    first_triangles,
     maximal_free_segments,
     validate_candidates,
     vertex_ray_blockers,
@@ -573,7 +575,13 @@ def planar_events(scene):
         cross_point.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
     cp, ce, cq = np.concatenate(cross_pair), np.concatenate(cross_edge), np.concatenate(cross_point)
     # (the pair's own edges and the edges at w do not cross the plane strictly)
-    ci, cj = _pairs_within_groups(cp)
+    # the crossings in the corner's affine frame: q - w = x ua + y ub
+    ua, ub, rel = ua[keep][cp], ub[keep][cp], cq - w[cp]
+    n = normal[cp]
+    det = np.einsum("ij,ij->i", np.cross(ua, ub), n)
+    x = np.einsum("ij,ij->i", np.cross(rel, ub), n) / det
+    y = np.einsum("ij,ij->i", np.cross(ua, rel), n) / det
+    ci, cj = _corner_cutting_pairs(x, y, cp)
     if len(ci) == 0:
         return _no_events(scene)
     pair = cp[ci]
@@ -595,6 +603,62 @@ def planar_events(scene):
     events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])
     _, first = np.unique(events.generators, axis=0, return_index=True)
     return Nodes(**{k: getattr(events, k)[np.sort(first)] for k in events.__dataclass_fields__})
+
+
+def _corner_cutting_pairs(x, y, group, slack=1e-9):
+    """Index pairs i < j within one group of points whose line may cross both open sides
+    of the corner at the origin, (0, 0)-(1, 0) and (0, 0)-(0, 1): a superset of those
+    whose line crosses them farther than ``slack`` from their ends (nearer, the line is
+    degenerate and validation, which wants epsilon, rejects it), in the order of
+    :func:`_pairs_within_groups`.
+
+    Output-sensitive, by duality: the line through (α, 0) and (0, β) holds P = (x, y)
+    iff x a + y b = 1 with (a, b) = (1/α, 1/β), so the lines crossing both sides are
+    the points of the region R = {a > 1, b > 1}, each point P is a line L_P, and two
+    points lie on a corner-cutting line iff L_P and L_Q meet inside R. R is convex:
+    two lines meet inside it iff their chords' ends interleave along its boundary,
+    walked from the corner (1, 1) along b = 1 (τ = 1 - α), over the line at infinity
+    (τ = 1 + |x| / (|x| + |y|), the chord's direction there) and back along a = 1
+    (τ = 2 + β). Sorting the chords by their first end, each chord's partners are
+    those starting within it and ending beyond it.
+
+    Parameters
+    ----------
+    x, y : (k,) float
+        The points in the corner's affine frame.
+    group : (k,) int
+        Sorted; pairs are formed within a group only.
+
+    Returns
+    -------
+    i, j : (p,) int
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = x / (1 - y)  # where L_P meets b = 1
+        beta = y / (1 - x)  # and a = 1
+        at_inf = 1 + np.abs(x) / (np.abs(x) + np.abs(y))
+    loose = lambda t: np.isfinite(t) & (t >= -slack) & (t <= 1 + slack)  # noqa: E731
+    margin = 10 * slack
+    ends = np.stack([np.where(loose(alpha), 1 - alpha, np.nan), np.where(loose(beta), 2 + beta, np.nan),
+                     np.where(x * y <= 0, at_inf, np.nan)], axis=1)
+    # a line through the corner (1, 1) meets both sides there: one end (τ = 0, also 3)
+    ends[(ends[:, 0] <= margin) & (ends[:, 1] >= 3 - margin), 1] = np.nan
+    has = np.sum(np.isfinite(ends), axis=1) >= 2  # the other lines miss R
+    idx = np.flatnonzero(has)
+    s0, s1 = np.nanmin(ends[idx], axis=1), np.nanmax(ends[idx], axis=1)
+    order = np.lexsort([s0, group[idx]])
+    idx, s0, s1 = idx[order], s0[order], s1[order]
+    key = group[idx] * 4.0 + s0  # τ < 3 < 4: one sorted key per group
+    lo = np.searchsorted(key, group[idx] * 4.0 + s0 - margin, "left")
+    hi = np.searchsorted(key, group[idx] * 4.0 + s1 + margin, "right")
+    a, b = expand_ranges(lo, hi - lo)
+    b = np.asarray(b)
+    keep = (b != a) & (s1[b] >= s1[a] - margin)
+    i, j = idx[a[keep]], idx[b[keep]]
+    pairs = np.unique(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1), axis=0).reshape(-1, 2)
+    i, j = pairs[:, 0], pairs[:, 1]
+    order = np.lexsort([i, j - i])
+    return i[order], j[order]
 
 
 def _pairs_within_groups(group):
@@ -850,6 +914,60 @@ def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
             np.where(crossing, -2 - which, which))
 
 
+def _hidden_events(scene, ve, s):
+    """Whether each coplanar event of a same-plane VE family is hidden: the family's line
+    there is blocked between its vertex and its edge, and stays blocked nearby.
+
+    Such an event cannot change the family's state (its lines are invalid on both
+    sides), so dropping it only joins two intervals that hold no arc. Most coplanar
+    events are hidden (a block's corner on the floor seen from another block's corner
+    through a third block): the intervals they would make grow as the cube of the
+    blocks on the floor, the visible ones as the output.
+
+    Blocked nearby: the piece from v to the edge (trimmed by epsilon, as
+    :func:`viscx.skeleton.nodes.free_pieces` trims it) meets a face farther than
+    epsilon from its trimmed ends and from the face's corners, and where it passes
+    within epsilon of the face's boundary that edge is closed (a second face there:
+    a block's side face and its bottom, which a line lying on the floor meets at
+    their common edge). Lines near it then meet that face or the one beyond the edge.
+
+    Parameters
+    ----------
+    ve : (m, 2) int
+        (v, e) of each event's family.
+    s : (m,) float
+        The event's parameter on e.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    eps = scene.epsilon
+    x = scene.vertices[ve[:, 0]]
+    a, b = _edge_geometry(scene, ve[:, 1])
+    vec = a + s[:, None] * (b - a) - x
+    length = np.linalg.norm(vec, axis=1)
+    long = np.flatnonzero(length > 4 * eps)
+    tri, t = first_triangles(scene, x[long], vec[long] / length[long, None], 2 * eps, length[long] - 2 * eps)
+    rows = long[tri >= 0]
+    face, t = scene.triangle_face[tri[tri >= 0]], t[tri >= 0]
+    hit = x[rows] + (t / length[rows])[:, None] * vec[rows]
+    # the boundary half-edges of each hit face
+    he = scene.half_edges
+    lo = scene.loop_offsets[scene.face_loop_offsets[face]]
+    hi = scene.loop_offsets[scene.face_loop_offsets[face + 1]]
+    r, h = expand_ranges(lo, hi - lo)
+    p0, p1 = scene.vertices[he.start[h]], scene.vertices[he.end[h]]
+    u = p1 - p0
+    w = np.clip(np.einsum("ij,ij->i", hit[r] - p0, u) / np.einsum("ij,ij->i", u, u), 0.0, 1.0)
+    to_edge = np.linalg.norm(hit[r] - p0 - w[:, None] * u, axis=1)
+    to_corner = np.linalg.norm(hit[r] - p0, axis=1)
+    doubtful = (to_corner <= eps) | ((to_edge <= eps) & (he.opp[h] < 0))
+    hidden = np.zeros(len(s), dtype=bool)
+    hidden[rows] = np.bincount(r, weights=doubtful, minlength=len(rows)) == 0
+    return hidden
+
+
 def _plane_bases(scene, planes):
     """(u, v): two unit vectors spanning each plane (:func:`face_planes` ids), (n, 3) each."""
     plane_of_face = face_planes(scene)
@@ -939,7 +1057,7 @@ def _junctions_of(junctions, edges):
 # the builder
 
 
-def build_arcs(scene, nodes, quiet=True):
+def build_arcs(scene, nodes, quiet=True, workers=None):
     """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
 
     Parameters
@@ -949,6 +1067,8 @@ def build_arcs(scene, nodes, quiet=True):
         The V0 nodes (any builder's; ids refer to their order).
     quiet : bool
         No progress bar.
+    workers : int, optional
+        Threads judging the samples (default: the CPU count); the arcs do not depend on it.
 
     Returns
     -------
@@ -983,6 +1103,7 @@ def build_arcs(scene, nodes, quiet=True):
         dom_f, dom_s, dom_kind, dom_vertex = _domain_ends(scene, fkind, fgens, junctions)
         # the points of their plane same-plane VE families pass
         cop_f, cop_s, cop_kind, cop_index = _coplanar_events(scene, plane_ve, plane_of, vp, ep, junctions)
+        cop_hidden = _hidden_events(scene, plane_ve[cop_f], cop_s)
         # (families is sorted and unique and holds every same-plane family)
         _, where = np.unique(np.concatenate([families, np.concatenate([np.full((len(face_ve), 1), VE), face_ve], axis=1)]),
                              axis=0, return_inverse=True)
@@ -992,19 +1113,21 @@ def build_arcs(scene, nodes, quiet=True):
         ev_s = np.concatenate([ev_s, dom_s, cop_s, np.zeros(nf), np.ones(nf)])
         ev_kind = np.concatenate([ev_kind, dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])
         ev_index = np.concatenate([ev_index, dom_vertex, cop_index, np.full(2 * nf, -1)])
+        ev_hidden = np.zeros(len(ev_s), dtype=bool)
+        ev_hidden[len(ev_s) - 2 * nf - len(cop_s): len(ev_s) - 2 * nf] = cop_hidden
         # events on the family's edge (within rounding of its ends)
         ev_s = np.nan_to_num(ev_s, nan=-1.0)
         inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
         ev_s = np.clip(ev_s, 0.0, 1.0)
-        fam_of, ev_s, ev_kind, ev_index = fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside]
+        fam_of, ev_s, ev_kind, ev_index, ev_hidden = (x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden))
         progress.update()
 
         progress.set_postfix_str("intervals")
-        lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id = _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index)
+        lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id = _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden)
         progress.update()
 
         progress.set_postfix_str("samples")
-        arcs = _arcs_on_intervals(scene, fkind, fgens, lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id)
+        arcs = _arcs_on_intervals(scene, fkind, fgens, lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id, workers)
         progress.update()
 
         progress.set_postfix_str("half-cells")
@@ -1022,19 +1145,23 @@ def _param_scale(scene, fkind, fgens):
     return np.linalg.norm(b - a, axis=1)
 
 
-def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index):
+def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=None):
     """Merge each family's events closer than 4 epsilon along its edge (by _END_RANK: a node
-    beats a planar event beats a domain end beats a junction beats a coplanar event) and
-    return the intervals between consecutive ones."""
+    beats a planar event beats a domain end beats a junction beats a coplanar event),
+    leave out the groups of hidden events alone (:func:`_hidden_events`) and return the
+    intervals between consecutive ones."""
     order = np.lexsort([ev_index, _END_RANK[ev_kind], ev_s, fam_of])
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
     tol = 4 * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
     new_group = np.ones(len(f), dtype=bool)
     new_group[1:] = (f[1:] != f[:-1]) | (s[1:] - s[:-1] > tol[1:])
     group = np.cumsum(new_group) - 1
+    hidden = np.zeros(len(f), bool) if ev_hidden is None else ev_hidden[order]
+    seen = np.bincount(group, weights=~hidden) > 0
     # within a group, the best event: lowest rank, then lowest id
     best = np.lexsort([i, _END_RANK[k], group])
     first = best[np.r_[True, group[best][1:] != group[best][:-1]]]
+    first = first[seen[group[first]]]
     gf, gs, gk, gi = f[first], s[first], k[first], i[first]
     nxt = np.flatnonzero(gf[1:] == gf[:-1])
     return gf[nxt], gs[nxt], gk[nxt], gi[nxt], gs[nxt + 1], gk[nxt + 1], gi[nxt + 1]
@@ -1048,24 +1175,27 @@ def _end_fraction(scene, fkind, fgens, f, s0, s1):
     return np.minimum(0.1, 20 * scene.epsilon / np.maximum(length, 1e-300))
 
 
-def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
+def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
     n = len(f)
     near = _end_fraction(scene, fkind, fgens, f, s0, s1)
     fr = np.concatenate([np.broadcast_to(np.asarray(SAMPLES), (n, len(SAMPLES))), near[:, None], 1 - near[:, None]], axis=1)
     ss = s0[:, None] + fr * (s1 - s0)[:, None]
-    # judged in chunks of intervals, keeping the whole segment only for the sample that
-    # stands for an arc (the first, at 1/2): memory stays bounded on large scenes
+    # judged in chunks of intervals (on threads), keeping the whole segment only for the
+    # sample that stands for an arc (the first, at 1/2): memory stays bounded on large scenes
     uniform = np.zeros(n, dtype=bool)
-    kept = []
-    for lo in range(0, n, CHUNK):
-        c = np.arange(lo, min(lo + CHUNK, n))
+
+    def judge_chunk(c):
         smp = judge_samples(scene, np.repeat(fkind[f[c]], fr.shape[1]), np.repeat(fgens[f[c]], fr.shape[1], axis=0),
                             ss[c].reshape(-1), sides=True)
         state = _full_state(smp).reshape(len(c), fr.shape[1], -1)
         uniform[c] = np.all(state == state[:, :1], axis=(1, 2))
         whole = np.flatnonzero(uniform[c] & (state[:, 0, 0] == 1))
         mid = whole * fr.shape[1]
-        kept.append((c[whole], smp.state[mid], smp.sides[mid], smp.direction[mid], smp.ends[mid], smp.generator_points[mid]))
+        return c[whole], smp.state[mid], smp.sides[mid], smp.direction[mid], smp.ends[mid], smp.generator_points[mid]
+
+    step = CHUNK // 4  # several chunks per thread: the threads finish together
+    chunks = [np.arange(lo, min(lo + step, n)) for lo in range(0, n, step)]
+    kept = map_chunks(judge_chunk, chunks, workers)
     whole = np.concatenate([k[0] for k in kept])
     pieces = {
         "family": f[whole],

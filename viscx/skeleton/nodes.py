@@ -369,22 +369,7 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf):
     o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
-    lo = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (len(o),)).copy()
-    hi = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (len(o),)).copy()
-    tri = np.full(len(o), -1, dtype=np.int64)
-    t = np.full(len(o), np.inf)
-    todo = np.arange(len(o))
-    for _ in range(MAX_GRAZED + 1):
-        tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
-        todo = todo[tri[todo] >= 0]
-        f = scene.triangle_face[tri[todo]]
-        n = scene.face_normal[f]
-        grazing = (np.abs(np.einsum("ij,ij->i", n, d[todo])) <= GRAZE_COSINE) & (
-            np.abs(np.einsum("ij,ij->i", n, o[todo]) - scene.face_offset[f]) <= scene.weld_tolerance)
-        todo = todo[grazing]
-        if len(todo) == 0:
-            break
-        lo[todo] = t[todo] + scene.weld_tolerance
+    tri, t = first_triangles(scene, o, d, tmin, tmax)
     margin = np.full(len(o), np.inf)
     hit = np.flatnonzero(tri >= 0)
     _, margin[hit], _ = intersect_triangles(o[hit], d[hit], scene.ray_caster.vertices, scene.ray_caster.triangles, tri[hit])
@@ -424,11 +409,49 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf):
     return face, t
 
 
+def first_triangles(scene, origins, directions, tmin, tmax):
+    """The first triangle each ray hits on [tmin, tmax] that it does not graze (the rule
+    of :func:`first_faces`, before its ties): the float64 caster's answer, going on
+    past triangles in whose plane the ray lies (up to MAX_GRAZED of them).
+
+    Parameters
+    ----------
+    origins, directions : (n, 3) float
+        Unit directions.
+    tmin, tmax : float or (n,) float
+
+    Returns
+    -------
+    triangle : (n,) int
+        -1 for the sky.
+    t : (n,) float
+    """
+    o, d = origins, directions
+    lo = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (len(o),)).copy()
+    hi = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (len(o),)).copy()
+    tri = np.full(len(o), -1, dtype=np.int64)
+    t = np.full(len(o), np.inf)
+    todo = np.arange(len(o))
+    for _ in range(MAX_GRAZED + 1):
+        tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
+        todo = todo[tri[todo] >= 0]
+        f = scene.triangle_face[tri[todo]]
+        n = scene.face_normal[f]
+        grazing = (np.abs(np.einsum("ij,ij->i", n, d[todo])) <= GRAZE_COSINE) & (
+            np.abs(np.einsum("ij,ij->i", n, o[todo]) - scene.face_offset[f]) <= scene.weld_tolerance)
+        todo = todo[grazing]
+        if len(todo) == 0:
+            break
+        lo[todo] = t[todo] + scene.weld_tolerance
+    return tri, t
+
+
 def free_pieces(scene, starts, ends):
     """Whether each segment, trimmed by epsilon at both ends, is free: no closed triangle
-    met (:func:`first_faces`, float64 alone: embree's float32 filter may miss a segment
-    touching an edge, so a family of lines all touching one edge, in a degenerate
-    scene, would be free at random samples). The freeness rule of
+    met but those it grazes (:func:`first_triangles`, float64 alone: embree's float32
+    filter may miss a segment touching an edge, so a family of lines all touching one
+    edge, in a degenerate scene, would be free at random samples; which face is met,
+    :func:`first_faces`' ties, does not matter here). The freeness rule of
     :func:`maximal_free_segments` (and of builders that prefilter candidates by it).
 
     Returns
@@ -442,8 +465,8 @@ def free_pieces(scene, starts, ends):
     free = length <= 2 * eps
     rays = np.flatnonzero(~free)
     if len(rays):
-        face, _ = first_faces(scene, starts[rays], vec[rays], eps, length[rays] - eps)
-        free[rays] = face < 0
+        tri, _ = first_triangles(scene, starts[rays], vec[rays] / length[rays, None], eps, length[rays] - eps)
+        free[rays] = tri < 0
     return free
 
 

@@ -479,3 +479,24 @@ def test_plot_vcells_needs_v2(tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1 and "--levels 2" in err
     code, _, err = run(["plot", "vcells", str(tmp_path / "missing.h5"), "--vertex", "0", "-o", str(tmp_path / "x.png")], capsys)
     assert code == 2 and err.count("\n") == 1
+
+
+def test_near_pairs_equal_the_brute_force_join():
+    """_near_pairs (binned) finds exactly the pairs of one group within each tolerance that
+    the all-pairs join finds, points on a sphere and clustered within the tolerance."""
+    from viscx.skeleton.vcells import _near_pairs, _pairs_in_groups
+
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(3000, 3))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = a[rng.permutation(len(a))] + rng.normal(scale=1e-7, size=a.shape)
+    b[::3] = a[::3] + 3e-8  # many pairs near the tolerance
+    group = rng.integers(0, 40, len(a))
+    tol = np.where(rng.random(len(a)) < 0.5, 1e-7, 2e-7)
+    i, j = _pairs_in_groups(group)
+    near = np.linalg.norm(a[i] - b[j], axis=1) <= tol[i]
+    brute = np.stack([i[near], j[near]], axis=1)
+    brute = brute[np.lexsort([brute[:, 1], brute[:, 0]])]
+    fi, fj = _near_pairs(a, b, group, tol)
+    assert len(brute) > 500
+    np.testing.assert_array_equal(np.stack([fi, fj], axis=1), brute)

@@ -79,6 +79,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from viscx.arrays import expand_ranges
 from viscx.progress import bar
 from viscx.skeleton.arcs import VE, family_lines
 from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
@@ -345,6 +346,55 @@ def _pairs_in_groups(group):
     return order[i], order[j]
 
 
+def _near_pairs(a, b, group, tolerance):
+    """All pairs (i, j) with group[i] == group[j] and |a[i] - b[j]| <= tolerance[i]: the
+    pairs of :func:`_pairs_in_groups` that pass that test, found output-sensitively.
+
+    Points are binned by (group, x, y) in square cells at least twice the largest
+    tolerance wide (2^15 across at most, so the keys fit an int64); each a[i] takes
+    the b of the 3 × 3 cells around its own, and the exact test filters them.
+
+    Parameters
+    ----------
+    a, b : (n, 3) float
+    group : (n,) int
+    tolerance : float or (n,) float
+
+    Returns
+    -------
+    i, j : (m,) int
+        Sorted by (i, j).
+    """
+    n = len(a)
+    tolerance = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (n,))
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    lo = np.minimum(a[:, :2].min(axis=0), b[:, :2].min(axis=0))
+    extent = float(np.max(np.maximum(a[:, :2].max(axis=0), b[:, :2].max(axis=0)) - lo))
+    width = max(2 * float(tolerance.max()), extent / 2**15, 1e-300)
+    cell_a = np.floor((a[:, :2] - lo) / width).astype(np.int64) + 1
+    cell_b = np.floor((b[:, :2] - lo) / width).astype(np.int64) + 1
+    m = int(max(cell_a.max(), cell_b.max())) + 2
+    _, g = np.unique(group, return_inverse=True)
+    g = g.reshape(-1).astype(np.int64)
+    key_b = (g * m + cell_b[:, 0]) * m + cell_b[:, 1]
+    order = np.argsort(key_b, kind="stable")
+    sorted_keys = key_b[order]
+    ii, kk = [], []
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            key = (g * m + cell_a[:, 0] + dx) * m + cell_a[:, 1] + dy
+            first = np.searchsorted(sorted_keys, key, "left")
+            i, k = expand_ranges(first, np.searchsorted(sorted_keys, key, "right") - first)
+            ii.append(i)
+            kk.append(k)
+    i, j = np.concatenate(ii), order[np.concatenate(kk)]
+    near = np.linalg.norm(a[i] - b[j], axis=1) <= tolerance[i]
+    i, j = i[near], j[near]
+    pick = np.lexsort([j, i])
+    return i[pick], j[pick]
+
+
 def unique_elements(el, group):
     """The elements to keep: of elements of one group running between the same two points
     (within JOIN_TOLERANCE), the first (smallest half-cell).
@@ -361,11 +411,10 @@ def unique_elements(el, group):
     """
     if len(el) == 0:
         return np.zeros(0, np.int64)
-    i, j = _pairs_in_groups(group)
+    i, j = _near_pairs(el.start, el.start, group, JOIN_TOLERANCE)
     later = j > i
     i, j = i[later], j[later]
-    same = (np.linalg.norm(el.start[i] - el.start[j], axis=1) <= JOIN_TOLERANCE) & (
-        np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_TOLERANCE)
+    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_TOLERANCE
     drop = np.zeros(len(el), bool)
     drop[j[same]] = True
     return np.flatnonzero(~drop)
@@ -406,9 +455,7 @@ def form_loops(el, group, tolerance=JOIN_TOLERANCE):
     """
     if len(el) == 0:
         return np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64)
-    i, j = _pairs_in_groups(group)
-    near = np.linalg.norm(el.end[i] - el.start[j], axis=1) <= np.broadcast_to(tolerance, (len(el),))[i]
-    i, j = i[near], j[near]
+    i, j = _near_pairs(el.end, el.start, group, tolerance)
     cw = np.mod(-_signed_angle(-el.end_tangent[i], el.start_tangent[j], el.end[i]), 2 * np.pi)
     cw = np.where(cw <= 1e-12, 2 * np.pi, cw)  # going straight back is the last choice
     closable = _closable_links(len(el), i, j)

@@ -108,15 +108,26 @@ def _first_hits(origins, directions, tmin, tmax, vertices, triangles, lo, hi, ce
     n = origins.shape[0]
     best_tri = np.full(n, -1, dtype=np.int64)
     best_t = np.full(n, np.inf)
-    for r in prange(n):
-        best_tri[r], best_t[r] = _first_hit_one(origins[r], directions[r], tmin[r], tmax[r], vertices, triangles, lo, hi,
-                                                cell, dims, offsets, items)
+    # rays in blocks, each block's scratch arrays allocated once
+    n_blocks = min(n, 256)
+    for b in prange(n_blocks):
+        steps = np.empty(6, dtype=np.int64)
+        times = np.empty(6)
+        mailbox = np.empty(MAILBOX, dtype=np.int64)
+        for r in range(b * n // n_blocks, (b + 1) * n // n_blocks):
+            best_tri[r], best_t[r] = _first_hit_one(origins[r], directions[r], tmin[r], tmax[r], vertices, triangles, lo,
+                                                    hi, cell, dims, offsets, items, steps, times, mailbox)
     return best_tri, best_t
 
 
+#: Triangles a ray remembers having tested (a triangle spanning several cells is tested once).
+MAILBOX = 16
+
+
 @njit(cache=True)
-def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, offsets, items):
-    """First triangle met by one ray on [tmin, tmax] (3-D DDA over the grid's cells)."""
+def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, offsets, items, steps, times, mailbox):
+    """First triangle met by one ray on [tmin, tmax] (3-D DDA over the grid's cells).
+    ``steps`` (6,) int, ``times`` (6,) float and ``mailbox`` (MAILBOX,) int are scratch."""
     best_tri, best_t = -1, np.inf
     # clip [tmin, tmax] to the grid's box (slab method)
     t0, t1 = tmin, tmax
@@ -133,10 +144,10 @@ def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, of
     if t0 > t1:
         return best_tri, best_t
     # first cell and the stepping state
-    idx = np.empty(3, dtype=np.int64)
-    step = np.empty(3, dtype=np.int64)
-    t_next = np.empty(3)
-    t_delta = np.empty(3)
+    idx, step = steps[:3], steps[3:]
+    t_next, t_delta = times[:3], times[3:]
+    mailbox[:] = -1
+    slot = 0
     for k in range(3):
         p = o[k] + t0 * d[k]
         c = int(np.floor((p - lo[k]) / cell[k]))
@@ -157,6 +168,14 @@ def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, of
         c = (idx[0] * dims[1] + idx[1]) * dims[2] + idx[2]
         for j in range(offsets[c], offsets[c + 1]):
             tri = items[j]
+            seen = False
+            for m in range(MAILBOX):
+                if mailbox[m] == tri:
+                    seen = True
+            if seen:  # its answer does not depend on the cell
+                continue
+            mailbox[slot] = tri
+            slot = (slot + 1) % MAILBOX
             t, margin, _ = moller_trumbore(o, d, vertices, triangles, tri)
             if margin < -BARY_SLACK:
                 continue

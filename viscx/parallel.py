@@ -16,8 +16,19 @@ def default_workers(workers=None):
     return max(1, int(workers or os.cpu_count() or 1))
 
 
+_worker = threading.local()
+
+
+def row_chunks(n, size):
+    """Consecutive slices covering ``range(n)``, ``size`` rows each (the last one shorter)."""
+    return [slice(lo, min(lo + size, n)) for lo in range(0, n, size)]
+
+
 def map_chunks(function, chunks, workers=None, progress=None):
     """``[function(c) for c in chunks]``, run on ``workers`` threads.
+
+    Called from inside a chunk (nested), it runs in the calling thread: the outer
+    call already keeps the threads busy.
 
     Parameters
     ----------
@@ -31,14 +42,19 @@ def map_chunks(function, chunks, workers=None, progress=None):
     lock = threading.Lock()
 
     def run(chunk):
-        out = function(chunk)
+        outer = getattr(_worker, "busy", False)
+        _worker.busy = True
+        try:
+            out = function(chunk)
+        finally:
+            _worker.busy = outer
         if progress is not None:
             with lock:
                 progress(chunk)
         return out
 
     workers = default_workers(workers)
-    if workers == 1 or len(chunks) <= 1:
+    if workers == 1 or len(chunks) <= 1 or getattr(_worker, "busy", False):
         return [run(c) for c in chunks]
     with ThreadPoolExecutor(max_workers=workers) as pool:
         return list(pool.map(run, chunks))

@@ -13,6 +13,7 @@ import numpy as np
 
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
+from viscx.parallel import map_chunks, row_chunks
 from viscx.raycast import intersect_triangles
 from viscx.scene.neighbourhood import faces_near, generator_wedges
 
@@ -139,7 +140,11 @@ class LineSegments:
     tangent: np.ndarray
 
 
-def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions):
+#: Lines judged per chunk by :func:`maximal_free_segments` (chunks run on threads).
+SEGMENT_CHUNK = 1 << 16
+
+
+def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions, workers=None):
     """The one definition of "a maximal free segment through these generators".
 
     Nodes use it with four conditions (k = 4, 3, 2 generator points), arcs
@@ -158,10 +163,26 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     origins, directions : (m, 3) float
         A point and a direction of each line.
 
+    workers : int, optional
+        Threads (default: the CPU count); each line is judged on its own, so the
+        result does not depend on them.
+
     Returns
     -------
     LineSegments
     """
+    slot_is_vertex, slot_count, generators, origins, directions = (
+        np.asarray(a) for a in (slot_is_vertex, slot_count, generators, origins, directions))
+    m = len(slot_count)
+    if m > SEGMENT_CHUNK:
+        parts = map_chunks(lambda r: _maximal_free_segments(scene, slot_is_vertex[r], slot_count[r], generators[r], origins[r],
+                                                            directions[r]), row_chunks(m, SEGMENT_CHUNK), workers)
+        return LineSegments(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in LineSegments.__dataclass_fields__})
+    return _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions)
+
+
+def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions):
+    """:func:`maximal_free_segments` on one chunk of lines."""
     eps = scene.epsilon
     slot_is_vertex = np.asarray(slot_is_vertex, dtype=bool)
     count = np.asarray(slot_count, dtype=np.int64)

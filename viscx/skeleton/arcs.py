@@ -42,8 +42,9 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    either side of each VE arc, found by turning the arc's sample line about
    its vertex off the plane of the vertex and the edge by PROBE_ANGLE.
 
-All per-sample work is numpy over flat arrays; the only Python loops run over
-stages, bisection steps and small constant counts.
+All per-sample work is numpy over flat arrays, judged in chunks of intervals on
+threads (:mod:`viscx.parallel`; the arcs do not depend on the thread count); the only
+Python loops run over stages, chunks, bisection steps and small constant counts.
 """
 
 from dataclasses import dataclass

@@ -441,19 +441,20 @@ def _pair_hidden(P0, P1, Q0, Q1, split_s, own1, own2, plane_offsets, planes, lo,
     stack = np.empty((4 * HIDDEN_DEPTH + 4, 5))
     stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3], stack[0, 4] = 0.0, 1.0, 0.0, 1.0, 0.0
     top = 1
-    dP, dQ = P1 - P0, Q1 - Q0
+    dP, dQ = _sub(P1, P0), _sub(Q1, Q0)
     small = min(cell[0], min(cell[1], cell[2]))
     while top > 0:
         top -= 1
         s0, s1, t0, t1, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4]
-        A0, A1, B0, B1 = P0 + s0 * dP, P0 + s1 * dP, Q0 + t0 * dQ, Q0 + t1 * dQ
+        A0, A1, B0, B1 = _axpy(P0, s0, dP), _axpy(P0, s1, dP), _axpy(Q0, t0, dQ), _axpy(Q0, t1, dQ)
         # candidate solids: those listed in the cells along the cell's middle segment
-        M, N = P0 + 0.5 * (s0 + s1) * dP, Q0 + 0.5 * (t0 + t1) * dQ
-        steps = int(np.sqrt(_dot(N - M, N - M)) / small) + 1
+        M, N = _axpy(P0, 0.5 * (s0 + s1), dP), _axpy(Q0, 0.5 * (t0 + t1), dQ)
+        MN = _sub(N, M)
+        steps = int(np.sqrt(_dot(MN, MN)) / small) + 1
         counter[0] += 1
         hidden = False
         for k in range(steps + 1):
-            X = M + (k / steps) * (N - M)
+            X = _axpy(M, k / steps, MN)
             c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(
                 X[2], lo[2], cell[2], dims[2]
             )
@@ -514,9 +515,34 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+# Small vectors are tuples in the kernels (no heap allocation in the hot loops); the
+# helpers do numpy's operations in numpy's order, so the floats are the same.
+
+
 @njit(cache=True, nogil=True)
 def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True, nogil=True)
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@njit(cache=True, nogil=True)
+def _add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@njit(cache=True, nogil=True)
+def _axpy(p, s, d):
+    """p + s d."""
+    return (p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2])
+
+
+@njit(cache=True, nogil=True)
+def _div(a, s):
+    return (a[0] / s, a[1] / s, a[2] / s)
 
 
 @njit(cache=True, nogil=True)
@@ -529,24 +555,25 @@ def _hull_axes(P, k):
     scale = 0.0
     for i in range(k):
         for j in range(i + 1, k):
-            scale = max(scale, np.sqrt(_dot(P[j] - P[i], P[j] - P[i])))
+            e = _sub(P[j], P[i])
+            scale = max(scale, np.sqrt(_dot(e, e)))
     if scale == 0.0:
         return axes[:0]
     for i in range(k):
         for j in range(i + 1, k):
             for l in range(j + 1, k):
-                n = _cross(P[j] - P[i], P[l] - P[i])
+                n = _cross(_sub(P[j], P[i]), _sub(P[l], P[i]))
                 size = np.sqrt(_dot(n, n))
                 if size <= 1e-9 * scale * scale:
                     continue
-                n = n / size
-                axes[m] = n
+                n = _div(n, size)
+                axes[m, 0], axes[m, 1], axes[m, 2] = n
                 m += 1
                 for (p, q) in ((i, j), (j, l), (i, l)):
-                    s = _cross(n, P[q] - P[p])
+                    s = _cross(n, _sub(P[q], P[p]))
                     ss = np.sqrt(_dot(s, s))
                     if ss > 1e-9 * scale:
-                        axes[m] = s / ss
+                        axes[m, 0], axes[m, 1], axes[m, 2] = _div(s, ss)
                         m += 1
     return axes[:m]
 
@@ -559,18 +586,18 @@ def _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
         sa, sb = _dot(A, axes[r]), _dot(B, axes[r])
         if min(sa, sb) > hmax[r] + tol or max(sa, sb) < hmin[r] - tol:
             return False
-    d = B - A
+    d = _sub(B, A)
     dd = _dot(d, d)
     if dd == 0.0:
         return True
     for i in range(k):
         for j in range(i + 1, k):
-            e = P[j] - P[i]
+            e = _sub(P[j], P[i])
             u = _cross(d, e)
             size = np.sqrt(_dot(u, u))
             if size <= 1e-9 * np.sqrt(dd * _dot(e, e)):
                 continue
-            u = u / size
+            u = _div(u, size)
             lo, hi = np.inf, -np.inf
             for q in range(k):
                 s = _dot(P[q], u)
@@ -583,9 +610,36 @@ def _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
 
 
 @njit(cache=True, nogil=True)
+def _slab_extent(P, k, x_lo, x_hi, ext):
+    """Box of the part of the hull of P[:k] with x_lo <= x <= x_hi, in y and z:
+    ``ext`` = (y_lo, y_hi, z_lo, z_hi). Its vertices are points of P in the slab
+    and the crossings of the segments between them with the slab's planes.
+    Returns False when the hull misses the slab."""
+    ext[0], ext[2] = np.inf, np.inf
+    ext[1], ext[3] = -np.inf, -np.inf
+    for q in range(k):
+        if x_lo <= P[q, 0] <= x_hi:
+            ext[0], ext[1] = min(ext[0], P[q, 1]), max(ext[1], P[q, 1])
+            ext[2], ext[3] = min(ext[2], P[q, 2]), max(ext[3], P[q, 2])
+        for r in range(q + 1, k):
+            for plane in (x_lo, x_hi):
+                if (P[q, 0] - plane) * (P[r, 0] - plane) < 0:
+                    f = (plane - P[q, 0]) / (P[r, 0] - P[q, 0])
+                    y, z = P[q, 1] + f * (P[r, 1] - P[q, 1]), P[q, 2] + f * (P[r, 2] - P[q, 2])
+                    ext[0], ext[1] = min(ext[0], y), max(ext[1], y)
+                    ext[2], ext[3] = min(ext[2], z), max(ext[3], z)
+    return ext[0] <= ext[1]
+
+
+@njit(cache=True, nogil=True)
 def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out):
     """Indices of the segments meeting the inflated hull of P[:k]; writes them to
-    ``out`` and returns their count (``stamp`` marks segments already seen)."""
+    ``out`` and returns their count (``stamp`` marks segments already seen).
+
+    Only the cells near the hull are visited: per x-slab of cells, those within
+    ``tol`` of the hull's part in the slab (widened by ``tol``). The indices come
+    in the order of a scan of every cell of the hull's box (x, y, z, then index),
+    so that the result does not depend on which cells were visited."""
     axes = _hull_axes(P, k)
     hmin = np.empty(axes.shape[0])
     hmax = np.empty(axes.shape[0])
@@ -608,10 +662,21 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
         bhi[d] += tol
         c0[d] = cell_of(blo[d], lo[d], cell[d], dims[d])
         c1[d] = cell_of(bhi[d], lo[d], cell[d], dims[d])
+    ext = np.empty(4)
+    n_items = seg_a.shape[0]
     m = 0
     for x in range(c0[0], c1[0] + 1):
-        for y in range(c0[1], c1[1] + 1):
-            for z in range(c0[2], c1[2] + 1):
+        # the slab of cell column x, unbounded at the grid's border (cell_of clamps)
+        x_lo = lo[0] + x * cell[0] - tol if x > 0 else -np.inf
+        x_hi = lo[0] + (x + 1) * cell[0] + tol if x < dims[0] - 1 else np.inf
+        if not _slab_extent(P, k, x_lo, x_hi, ext):
+            continue
+        y0 = max(c0[1], cell_of(ext[0] - tol, lo[1], cell[1], dims[1]))
+        y1 = min(c1[1], cell_of(ext[1] + tol, lo[1], cell[1], dims[1]))
+        z0 = max(c0[2], cell_of(ext[2] - tol, lo[2], cell[2], dims[2]))
+        z1 = min(c1[2], cell_of(ext[3] + tol, lo[2], cell[2], dims[2]))
+        for y in range(y0, y1 + 1):
+            for z in range(z0, z1 + 1):
                 c = (x * dims[1] + y) * dims[2] + z
                 for j in range(offsets[c], offsets[c + 1]):
                     s = items[j]
@@ -629,8 +694,16 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
                     ):
                         continue
                     if _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
-                        out[m] = s
+                        # sort key: the first cell of the box scan listing s (cells
+                        # list their segments by index)
+                        first = 0
+                        for d in range(3):
+                            first = first * dims[d] + max(c0[d], cell_of(min(A[d], B[d]), lo[d], cell[d], dims[d]))
+                        out[m] = first * n_items + s
                         m += 1
+    out[:m].sort()
+    for r in range(m):
+        out[r] %= n_items
     return m
 
 
@@ -706,10 +779,10 @@ def _through_point(p, a0, da, d0, dd):
     It lies in the plane through p and each line; it meets line a where a crosses
     the plane through p and line d (normal (d0 - p) × dd), and vice versa. nan
     where a line is parallel to the other's plane (no unique answer)."""
-    n_d = _cross(d0 - p, dd)
-    n_a = _cross(a0 - p, da)
-    s = _ratio(_dot(p - a0, n_d), _dot(da, n_d), np.sqrt(_dot(da, da) * _dot(n_d, n_d)))
-    t = _ratio(_dot(p - d0, n_a), _dot(dd, n_a), np.sqrt(_dot(dd, dd) * _dot(n_a, n_a)))
+    n_d = _cross(_sub(d0, p), dd)
+    n_a = _cross(_sub(a0, p), da)
+    s = _ratio(_dot(_sub(p, a0), n_d), _dot(da, n_d), np.sqrt(_dot(da, da) * _dot(n_d, n_d)))
+    t = _ratio(_dot(_sub(p, d0), n_a), _dot(dd, n_a), np.sqrt(_dot(dd, dd) * _dot(n_a, n_a)))
     return s, t
 
 
@@ -717,7 +790,7 @@ def _through_point(p, a0, da, d0, dd):
 def _param_on(o, d, b0, db):
     """Parameter on line b0 + u db of its point closest to the line o + λ d, and λ
     there (nan, nan when parallel)."""
-    w = b0 - o
+    w = _sub(b0, o)
     aa, bb, cc = _dot(d, d), _dot(d, db), _dot(db, db)
     dw, ew = _dot(d, w), _dot(db, w)
     den = aa * cc - bb * bb
@@ -732,8 +805,9 @@ def _param_on(o, d, b0, db):
 def _between(A, D, b0, db, eps):
     """Whether the line AD meets segment b away from its ends, between A and D and
     away from them (the ε rules of validation, with END_MARGIN)."""
-    u, lam = _param_on(A, D - A, b0, db)
-    return _within(u, _margin(eps, np.sqrt(_dot(db, db)))) and _within(lam, _margin(eps, np.sqrt(_dot(D - A, D - A))))
+    AD = _sub(D, A)
+    u, lam = _param_on(A, AD, b0, db)
+    return _within(u, _margin(eps, np.sqrt(_dot(db, db)))) and _within(lam, _margin(eps, np.sqrt(_dot(AD, AD))))
 
 
 @njit(cache=True, nogil=True)
@@ -745,7 +819,7 @@ def _side_coefficients(a0, da, d0, dd, b0, db, out):
     Returns whether f vanishes identically (to rounding): b lies in the plane of
     a and d."""
     mb = _cross(b0, db)
-    alpha = _dot(d0 - a0, mb) + _dot(db, _cross(a0, d0))
+    alpha = _dot(_sub(d0, a0), mb) + _dot(db, _cross(a0, d0))
     beta = -_dot(da, mb) + _dot(db, _cross(da, d0))
     gamma = _dot(dd, mb) + _dot(db, _cross(a0, dd))
     delta = _dot(db, _cross(da, dd))
@@ -768,7 +842,7 @@ def _coplanar(a0, da, d0, dd):
     scale = np.sqrt(_dot(da, da) * _dot(dd, dd))
     if size <= COPLANAR * scale:
         return True
-    w = d0 - a0
+    w = _sub(d0, a0)
     return abs(_dot(w, n)) <= COPLANAR * np.sqrt(_dot(w, w)) * scale
 
 
@@ -779,15 +853,17 @@ def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
 
     Then no line of the plane meets b farther than ε from its ends (see
     :func:`_four_lines_meet`)."""
-    n = _cross(da, d0 - a0)
-    if _dot(n, n) < _dot(_cross(da, d0 + dd - a0), _cross(da, d0 + dd - a0)):
-        n = _cross(da, d0 + dd - a0)
+    w = _sub(d0, a0)
+    n = _cross(da, w)
+    n_far = _cross(da, _sub(_add(d0, dd), a0))
+    if _dot(n, n) < _dot(n_far, n_far):
+        n = n_far
     size = np.sqrt(_dot(n, n))
     length = np.sqrt(_dot(db, db))
-    if size <= 1e-9 * np.sqrt(_dot(da, da)) * np.sqrt(_dot(d0 - a0, d0 - a0) + _dot(dd, dd)) or length == 0:
+    if size <= 1e-9 * np.sqrt(_dot(da, da)) * np.sqrt(_dot(w, w) + _dot(dd, dd)) or length == 0:
         return False
-    n = n / size
-    h0, h1 = _dot(b0 - a0, n), _dot(b0 + db - a0, n)
+    n = _div(n, size)
+    h0, h1 = _dot(_sub(b0, a0), n), _dot(_sub(_add(b0, db), a0), n)
     if abs(h1 - h0) < 0.1 * length:
         return False
     u = h0 / (h0 - h1)
@@ -795,23 +871,22 @@ def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
 
 
 @njit(cache=True, nogil=True)
-def _arc_box(a0, da, d0, dd, b0, db, slack):
-    """Box [s_lo, s_hi, t_lo, t_hi] in the (s, t) square of the lines through a point
+def _arc_box(a0, da, d0, dd, b0, db, slack, box):
+    """Writes to ``box`` (4,) the box [s_lo, s_hi, t_lo, t_hi] in the (s, t) square of the lines through a point
     of segment b meeting lines a and d; empty (s_lo > s_hi) when it misses the square.
 
     Along b, s(u) and t(u) are linear-fractional (numerator and denominator of
     :func:`_through_point` are linear in u: the quadratic term is a triple product
     with a repeated vector), so monotone between poles: the box is spanned by
     u = 0 and u = 1 unless a denominator changes sign on [0, 1]."""
-    box = np.empty(4)
-    b1 = b0 + db
+    b1 = _add(b0, db)
     for axis in range(2):
         if axis == 0:
-            n0, n1 = _cross(d0 - b0, dd), _cross(d0 - b1, dd)
-            x0, x1, dx = b0 - a0, b1 - a0, da
+            n0, n1 = _cross(_sub(d0, b0), dd), _cross(_sub(d0, b1), dd)
+            x0, x1, dx = _sub(b0, a0), _sub(b1, a0), da
         else:
-            n0, n1 = _cross(a0 - b0, da), _cross(a0 - b1, da)
-            x0, x1, dx = b0 - d0, b1 - d0, dd
+            n0, n1 = _cross(_sub(a0, b0), da), _cross(_sub(a0, b1), da)
+            x0, x1, dx = _sub(b0, d0), _sub(b1, d0), dd
         m0, m1 = _dot(dx, n0), _dot(dx, n1)
         scale = np.sqrt(_dot(dx, dx)) * max(np.sqrt(_dot(n0, n0)), np.sqrt(_dot(n1, n1)))
         if m0 * m1 <= 0 or min(abs(m0), abs(m1)) <= 1e-9 * scale:
@@ -821,7 +896,6 @@ def _arc_box(a0, da, d0, dd, b0, db, slack):
             lo, hi = min(v0, v1), max(v0, v1)
         box[2 * axis] = max(lo, -slack)
         box[2 * axis + 1] = min(hi, 1.0 + slack)
-    return box
 
 
 @njit(cache=True, nogil=True)
@@ -839,12 +913,12 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
     big = max(abs(q2), max(abs(q1), abs(q0)))
     if big <= 1e-8:
         return True  # dependent conditions: leave it to the exact solver
-    roots = np.empty(2)
+    root0 = root1 = 0.0
     n = 0
     if abs(q2) <= 1e-8 * big:
         if abs(q1) <= 1e-8 * big:
             return False  # Q is a non-zero constant
-        roots[0] = -q0 / q1
+        root0 = -q0 / q1
         n = 1
     else:
         disc = q1 * q1 - 4 * q2 * q0
@@ -854,12 +928,12 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
             return False
         root = np.sqrt(disc)
         q = -0.5 * (q1 + (root if q1 >= 0 else -root))
-        roots[0] = q / q2
-        roots[1] = q0 / q
+        root0 = q / q2
+        root1 = q0 / q
         n = 2
     ma, md = _margin(eps, np.sqrt(_dot(da, da))), _margin(eps, np.sqrt(_dot(dd, dd)))
     for r in range(n):
-        s = roots[r]
+        s = root0 if r == 0 else root1
         if not _within(s, ma):
             continue
         den_b, den_c = fb[2] + fb[3] * s, fc[2] + fc[3] * s
@@ -871,8 +945,8 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
             t = -(fc[0] + fc[1] * s) / den_c
         if not _within(t, md):
             continue
-        A = a0 + s * da
-        D = d0 + t * dd
+        A = _axpy(a0, s, da)
+        D = _axpy(d0, t, dd)
         if _between(A, D, b0, db, eps) and _between(A, D, c0, dc, eps):
             return True
     return False
@@ -880,13 +954,14 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
 
 @njit(cache=True, nogil=True)
 def _scan_edge_pairs(
-    first, ev, ea, eb, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
     all of them (exact filters, with slack).
 
-    ``ev`` holds the edges' endpoints as positions in the vertex table. Returns VEE
+    ``ev`` holds the edges' endpoints as positions in the vertex table, ``ed`` their
+    directions eb - ea. Returns VEE
     rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
     n_e = ev.shape[0]
     n_v = vx.shape[0]
@@ -911,7 +986,7 @@ def _scan_edge_pairs(
     query = 0
     for a in first:
         a0, a1 = ev[a, 0], ev[a, 1]
-        pa, da = ea[a], eb[a] - ea[a]
+        pa, da = ea[a], ed[a]
         len_a = np.sqrt(_dot(da, da))
         for d in range(a + 1, n_e):
             if _adjacent(ev, a, d):
@@ -923,7 +998,7 @@ def _scan_edge_pairs(
                 ea[a], eb[a], ea[d], eb[d], True, sov[a0], sov[d0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
             ):
                 continue
-            pd, dd = ea[d], eb[d] - ea[d]
+            pd, dd = ea[d], ed[d]
             len_d = np.sqrt(_dot(dd, dd))
             P[0], P[1], P[2], P[3] = vx[a0], vx[a1], vx[d0], vx[d1]
             query += 1
@@ -939,9 +1014,10 @@ def _scan_edge_pairs(
                 if not (_within(s, _margin(eps, len_a)) and _within(t, _margin(eps, len_d))):
                     continue
                 if not (np.isnan(s) or np.isnan(t)):
-                    A, D = pa + s * da, pd + t * dd
-                    dad = _dot(D - A, D - A)
-                    if dad > 0 and not _within(_dot(vx[v] - A, D - A) / dad, _margin(eps, np.sqrt(dad))):
+                    A = _axpy(pa, s, da)
+                    AD = _sub(_axpy(pd, t, dd), A)
+                    dad = _dot(AD, AD)
+                    if dad > 0 and not _within(_dot(_sub(vx[v], A), AD) / dad, _margin(eps, np.sqrt(dad))):
                         continue
                 row3[0], row3[1], row3[2] = v, a, d
                 vee = _push(vee, n_vee, row3)
@@ -957,21 +1033,21 @@ def _scan_edge_pairs(
                 b0, b1 = ev[b, 0], ev[b, 1]
                 if _edges_blocked(table, a0, a1, b0, b1) or _edges_blocked(table, b0, b1, d0, d1):
                     continue
-                bx = _arc_box(pa, da, pd, dd, ea[b], eb[b] - ea[b], 1e-6)
+                bx = box[m]
+                _arc_box(pa, da, pd, dd, ea[b], ed[b], 1e-6, bx)
                 if bx[0] > bx[1] or bx[2] > bx[3]:
                     continue
                 # b in the plane of a and d: three coplanar lines, so with any fourth
                 # the solutions form a family or there are none (module docstring)
-                if _side_coefficients(pa, da, pd, dd, ea[b], eb[b] - ea[b], coef[m]):
+                if _side_coefficients(pa, da, pd, dd, ea[b], ed[b], coef[m]):
                     continue
                 # a and d coplanar: every line meeting both lies in their plane and
                 # meets b where b crosses it; near b's end that is no node
-                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, ea[b], eb[b] - ea[b], eps):
+                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, ea[b], ed[b], eps):
                     continue
                 inner[m] = b
-                box[m] = bx
-                with_a[m] = _coplanar(pa, da, ea[b], eb[b] - ea[b])
-                with_d[m] = _coplanar(pd, dd, ea[b], eb[b] - ea[b])
+                with_a[m] = _coplanar(pa, da, ea[b], ed[b])
+                with_d[m] = _coplanar(pd, dd, ea[b], ed[b])
                 m += 1
             for i in range(m):
                 b = inner[i]
@@ -987,9 +1063,9 @@ def _scan_edge_pairs(
                         continue
                     # three pairwise coplanar lines (in one plane, or through one
                     # point): a family of solutions or none (module docstring)
-                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c]):
+                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(ea[b], ed[b], ea[c], ed[c]):
                         continue
-                    if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c], eps):
+                    if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], ed[b], ea[c], ed[c], eps):
                         continue
                     row4[0], row4[1], row4[2], row4[3] = a, b, c, d
                     quad = _push(quad, n_quad, row4)
@@ -999,7 +1075,7 @@ def _scan_edge_pairs(
 
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
-    first, ev, ea, eb, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
@@ -1025,7 +1101,7 @@ def _scan_vertex_edges(
                 pv, pv, ea[e], eb[e], False, sov[v], sov[e0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
             ):
                 continue
-            pe, de = ea[e], eb[e] - ea[e]
+            pe, de = ea[e], ed[e]
             P[0], P[1], P[2] = pv, vx[e0], vx[e1]
             query += 1
             ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
@@ -1038,12 +1114,12 @@ def _scan_vertex_edges(
                     continue
                 # lines through v meeting e at e(t) meet line b where v, e(t), b are
                 # coplanar: (e(t) - v) · n_b = 0 with n_b the normal of plane (v, b)
-                pb, db = ea[b], eb[b] - ea[b]
-                n_b = _cross(pb - pv, db)
-                t = _ratio(-_dot(pe - pv, n_b), _dot(de, n_b), np.sqrt(_dot(de, de) * _dot(n_b, n_b)))
+                pb, db = ea[b], ed[b]
+                n_b = _cross(_sub(pb, pv), db)
+                t = _ratio(-_dot(_sub(pe, pv), n_b), _dot(de, n_b), np.sqrt(_dot(de, de) * _dot(n_b, n_b)))
                 if not _within(t, _margin(eps, np.sqrt(_dot(de, de)))):
                     continue
-                if not np.isnan(t) and not _between(pv, pe + t * de, pb, db, eps):
+                if not np.isnan(t) and not _between(pv, _axpy(pe, t, de), pb, db, eps):
                     continue
                 row3[0], row3[1], row3[2] = v, b, e
                 vee = _push(vee, n_vee, row3)
@@ -1176,6 +1252,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     lo = vx.min(axis=0) - HULL_TOL * eps
     hi = vx.max(axis=0) + HULL_TOL * eps
     ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
+    ed = eb - ea
     grid = _Grid(lo, hi, len(ge) / 2)
     e_off, e_items = grid.fill(ea, eb)
     v_off, v_items = grid.fill(vx, vx)
@@ -1187,7 +1264,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1202,7 +1279,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (ev, ea, eb, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,

@@ -1142,9 +1142,11 @@ def _parallel(kernel, items, args, chunk, progress_bar, workers):
         return list(pool.map(run, chunks))
 
 
-def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
+def _met_loosely(scene, origins, directions, vertex_ids, edge_ids, solids):
     """(N1) with doubled tolerances: within 2ε of every generator, edge points at
-    least ε/2 inside their edges, consecutive points more than ε/2 apart.
+    least ε/2 inside their edges, consecutive points more than ε/2 apart; and no
+    two generators foreign to a blocking solid whose generator points (those of
+    validation) are joined across the solid's inner copy (Lemma 2 on this line).
 
     Parameters
     ----------
@@ -1152,6 +1154,9 @@ def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
     vertex_ids : (m, p) int
         Vertex generators (p may be 0).
     edge_ids : (m, q) int
+    solids : tuple
+        Blocking solid of each scene vertex (n_vertices,) int, then
+        :meth:`_SolidGrid.args`.
 
     Returns
     -------
@@ -1160,11 +1165,14 @@ def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
     eps = scene.epsilon
     d = canonical_directions(directions)
     ok = np.ones(len(d), dtype=bool)
-    ts = []
+    ts, points, owners = [], [], []
+    solid_of_vertex, solid_grid = solids[0], solids[1:]
     for col in vertex_ids.T:
         x = scene.vertices[col]
         ok &= np.linalg.norm(np.cross(x - origins, d), axis=1) <= 2 * eps
         ts.append(np.einsum("ij,ij->i", x - origins, d))
+        points.append(x)
+        owners.append(solid_of_vertex[col])
     ev = scene.half_edges.edge_vertices
     for col in edge_ids.T:
         a, b = scene.vertices[ev[col, 0]], scene.vertices[ev[col, 1]]
@@ -1174,9 +1182,76 @@ def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
             ok &= (dist <= 2 * eps) & (x * length > 0.5 * eps) & ((1 - x) * length > 0.5 * eps)
         p = a + np.nan_to_num(x)[:, None] * (b - a)
         ts.append(np.einsum("ij,ij->i", p - origins, d))
-    t = np.sort(np.stack(ts, axis=1), axis=1)
-    ok &= (np.diff(t, axis=1) > 0.5 * eps).all(axis=1)
+        points.append(p)
+        owners.append(solid_of_vertex[ev[col, 0]])
+    t = np.stack(ts, axis=1)
+    ok &= (np.diff(np.sort(t, axis=1), axis=1) > 0.5 * eps).all(axis=1)
+    rows = np.flatnonzero(ok)
+    if len(rows) and len(solid_grid[1]):
+        points = np.ascontiguousarray(np.stack(points, axis=1)[rows])
+        ok[rows] = ~_crosses_solid(points, np.stack(owners, axis=1)[rows], t[rows], *solid_grid)
     return ok
+
+
+@njit(cache=True, nogil=True)
+def _crosses_solid(points, owner, t, plane_offsets, planes, lo, cell, dims, offsets, items):
+    """Whether, for some blocking solid, the generator points of a line that are
+    foreign to it and outermost along the line are joined across its inner copy.
+    Lemma 2 on one line: then the line is no node. Conservative (the solids are
+    found along the line's span by steps shorter than a cell).
+
+    Parameters
+    ----------
+    points : (m, k, 3) float
+        Generator points of each line.
+    owner : (m, k) int
+        Blocking solid of each generator (-1 for none).
+    t : (m, k) float
+        Their parameters along the line.
+    plane_offsets, planes, lo, cell, dims, offsets, items
+        :meth:`_SolidGrid.args`.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    m, k = owner.shape
+    out = np.zeros(m, dtype=np.bool_)
+    stamp = np.full(max(plane_offsets.shape[0] - 1, 1), -1, dtype=np.int64)
+    small = min(cell[0], min(cell[1], cell[2]))
+    for i in range(m):
+        first, last = 0, 0
+        for j in range(1, k):
+            if t[i, j] < t[i, first]:
+                first = j
+            if t[i, j] > t[i, last]:
+                last = j
+        P = points[i, first]
+        span = _sub(points[i, last], P)
+        steps = int(np.sqrt(_dot(span, span)) / small) + 1
+        for step in range(steps + 1):
+            X = _axpy(P, step / steps, span)
+            c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(
+                X[2], lo[2], cell[2], dims[2]
+            )
+            for j in range(offsets[c], offsets[c + 1]):
+                solid = items[j]
+                if stamp[solid] == i:
+                    continue
+                stamp[solid] = i
+                x, y = -1, -1
+                for g in range(k):
+                    if owner[i, g] != solid:
+                        if x < 0 or t[i, g] < t[i, x]:
+                            x = g
+                        if y < 0 or t[i, g] > t[i, y]:
+                            y = g
+                if x >= 0 and x != y and _segment_meets_solid(points[i, x], points[i, y], solid, plane_offsets, planes):
+                    out[i] = True
+                    break
+            if out[i]:
+                break
+    return out
 
 
 def fast_candidates(scene, progress=None, workers=None, stats=None):
@@ -1217,6 +1292,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     solids = blocking_solids(scene)
     table, sov = blocked_table(scene, gv, solids)
     solid_grid = _SolidGrid(*solids[1:]).args()
+    line_solids = (solids[0],) + solid_grid
     stats["seconds solids"] = time.perf_counter() - clock
     vx = np.ascontiguousarray(scene.vertices[gv])
     ev = pos[ev_all[ge]]  # generator edges by vertex position
@@ -1295,7 +1371,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     stats["VEE tuples"] = int(len(vee))
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
-    vee = np.unique(np.stack([v_id, e_lo, e_hi], axis=1), axis=0) if len(vee) else np.zeros((0, 3), np.int64)
+    vee = _unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))
     v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
     # Plücker lines of the generator edges, once (the same floats as per tuple)
     line_of = np.zeros((len(ev_all), 6))
@@ -1303,7 +1379,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
     fine = np.linalg.norm(d, axis=1) > 0
     origin = scene.vertices[v]
-    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:])
+    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:], line_solids)
     gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]
     out.append((np.full(fine.sum(), VEE), gens, origin[fine], d[fine]))
     stats["VEE triples"] = int(len(vee))
@@ -1324,7 +1400,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
         q_idx, s_idx = np.nonzero(valid)
         d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]
         origins = np.cross(d, m) / np.einsum("ij,ij->i", d, d)[:, None]
-        ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), q[q_idx])
+        ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), q[q_idx], line_solids)
         e4.append((np.full(ok.sum(), E4), q[q_idx][ok], origins[ok], d[ok]))
     if e4:
         out.append(tuple(np.concatenate(x) for x in zip(*e4)))

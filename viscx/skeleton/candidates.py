@@ -151,7 +151,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numba import njit
 
-from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines, segment_parameter
+from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines
 from viscx.grid import bin_boxes, cell_of
 from viscx.progress import bar
 from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, sort_nodes, validate_candidates
@@ -165,8 +165,10 @@ ISOLATION = 3.0
 HULL_TOL = 4.0
 #: Largest (faces × vertices) of a component tested for convexity.
 CONVEXITY_BUDGET = 4_000_000
-#: Rays per call when filling the blocked table (and quadruples per line solve).
+#: Rays per call when filling the blocked table.
 RAY_CHUNK = 1 << 20
+#: Tuples per chunk when solving candidate lines (bounds memory; chunks run on threads).
+LINE_CHUNK = 1 << 18
 #: Candidates per call of the validator (bounds its memory).
 VALIDATE_CHUNK = 1 << 18
 
@@ -1145,8 +1147,8 @@ def _parallel(kernel, items, args, chunk, progress_bar, workers):
 def _met_loosely(scene, origins, directions, vertex_ids, edge_ids, solids):
     """(N1) with doubled tolerances: within 2ε of every generator, edge points at
     least ε/2 inside their edges, consecutive points more than ε/2 apart; and no
-    two generators foreign to a blocking solid whose generator points (those of
-    validation) are joined across the solid's inner copy (Lemma 2 on this line).
+    two generators foreign to a blocking solid whose generator points are joined
+    across the solid's inner copy (Lemma 2 on this line).
 
     Parameters
     ----------
@@ -1162,39 +1164,80 @@ def _met_loosely(scene, origins, directions, vertex_ids, edge_ids, solids):
     -------
     (m,) bool
     """
-    eps = scene.epsilon
-    d = canonical_directions(directions)
-    ok = np.ones(len(d), dtype=bool)
-    ts, points, owners = [], [], []
-    solid_of_vertex, solid_grid = solids[0], solids[1:]
-    for col in vertex_ids.T:
-        x = scene.vertices[col]
-        ok &= np.linalg.norm(np.cross(x - origins, d), axis=1) <= 2 * eps
-        ts.append(np.einsum("ij,ij->i", x - origins, d))
-        points.append(x)
-        owners.append(solid_of_vertex[col])
-    ev = scene.half_edges.edge_vertices
-    for col in edge_ids.T:
-        a, b = scene.vertices[ev[col, 0]], scene.vertices[ev[col, 1]]
-        x, dist = segment_parameter(origins, d, a, b)
-        length = np.linalg.norm(b - a, axis=1)
-        with np.errstate(invalid="ignore"):
-            ok &= (dist <= 2 * eps) & (x * length > 0.5 * eps) & ((1 - x) * length > 0.5 * eps)
-        p = a + np.nan_to_num(x)[:, None] * (b - a)
-        ts.append(np.einsum("ij,ij->i", p - origins, d))
-        points.append(p)
-        owners.append(solid_of_vertex[ev[col, 0]])
-    t = np.stack(ts, axis=1)
-    ok &= (np.diff(np.sort(t, axis=1), axis=1) > 0.5 * eps).all(axis=1)
-    rows = np.flatnonzero(ok)
-    if len(rows) and len(solid_grid[1]):
-        points = np.ascontiguousarray(np.stack(points, axis=1)[rows])
-        ok[rows] = ~_crosses_solid(points, np.stack(owners, axis=1)[rows], t[rows], *solid_grid)
+    return _loose_lines(
+        np.ascontiguousarray(origins, dtype=np.float64),
+        np.ascontiguousarray(directions, dtype=np.float64),
+        np.ascontiguousarray(vertex_ids, dtype=np.int64),
+        np.ascontiguousarray(edge_ids, dtype=np.int64),
+        scene.vertices,
+        scene.half_edges.edge_vertices,
+        scene.epsilon,
+        *solids,
+    )
+
+
+@njit(cache=True, nogil=True)
+def _loose_lines(origins, directions, vertex_ids, edge_ids, vertices, ev, eps, solid_of_vertex, plane_offsets, planes, lo, cell, dims, offsets, items):
+    """:func:`_met_loosely` row by row: validation's formulas (canonical unit direction,
+    closest points of the edges' lines) with its tolerances doubled; the solids
+    only for lines that pass."""
+    m, n_v, n_e = origins.shape[0], vertex_ids.shape[1], edge_ids.shape[1]
+    k = n_v + n_e
+    ok = np.zeros(m, dtype=np.bool_)
+    points = np.empty((k, 3))
+    owner = np.empty(k, dtype=np.int64)
+    t = np.empty(k)
+    stamp = np.full(max(plane_offsets.shape[0] - 1, 1), -1, dtype=np.int64)
+    has_solids = planes.shape[0] > 0
+    for i in range(m):
+        o, raw = origins[i], directions[i]
+        d = _div(raw, np.sqrt(_dot(raw, raw)))
+        if d[0] + 1e-3 * d[1] + 1e-6 * d[2] < 0:
+            d = (-d[0], -d[1], -d[2])
+        good = True
+        for j in range(n_v):
+            x = vertices[vertex_ids[i, j]]
+            w = _sub(x, o)
+            c = _cross(w, d)
+            if not np.sqrt(_dot(c, c)) <= 2 * eps:
+                good = False
+                break
+            points[j, 0], points[j, 1], points[j, 2] = x[0], x[1], x[2]
+            owner[j] = solid_of_vertex[vertex_ids[i, j]]
+            t[j] = _dot(w, d)
+        for j in range(n_e if good else 0):
+            a, b = vertices[ev[edge_ids[i, j], 0]], vertices[ev[edge_ids[i, j], 1]]
+            e, w = _sub(b, a), _sub(a, o)
+            aa, bb, cc, dw, ew = _dot(d, d), _dot(d, e), _dot(e, e), _dot(d, w), _dot(e, w)
+            den = aa * cc - bb * bb
+            if not den > 1e-14 * aa * cc:
+                good = False  # parallel
+                break
+            x = (bb * dw - aa * ew) / den
+            lam = (dw + bb * x) / aa
+            gap = _sub(_axpy(w, x, e), (lam * d[0], lam * d[1], lam * d[2]))
+            length = np.sqrt(cc)
+            if not (np.sqrt(_dot(gap, gap)) <= 2 * eps and x * length > 0.5 * eps and (1 - x) * length > 0.5 * eps):
+                good = False
+                break
+            q = _axpy(a, x, e)
+            points[n_v + j, 0], points[n_v + j, 1], points[n_v + j, 2] = q[0], q[1], q[2]
+            owner[n_v + j] = solid_of_vertex[ev[edge_ids[i, j], 0]]
+            t[n_v + j] = _dot(_sub(q, o), d)
+        if not good:
+            continue
+        ts = np.sort(t)
+        for j in range(k - 1):
+            if not ts[j + 1] - ts[j] > 0.5 * eps:
+                good = False
+        if good and has_solids:
+            good = not _crosses_solid(points, owner, t, i, stamp, plane_offsets, planes, lo, cell, dims, offsets, items)
+        ok[i] = good
     return ok
 
 
 @njit(cache=True, nogil=True)
-def _crosses_solid(points, owner, t, plane_offsets, planes, lo, cell, dims, offsets, items):
+def _crosses_solid(points, owner, t, stamp_id, stamp, plane_offsets, planes, lo, cell, dims, offsets, items):
     """Whether, for some blocking solid, the generator points of a line that are
     foreign to it and outermost along the line are joined across its inner copy.
     Lemma 2 on one line: then the line is no node. Conservative (the solids are
@@ -1202,56 +1245,46 @@ def _crosses_solid(points, owner, t, plane_offsets, planes, lo, cell, dims, offs
 
     Parameters
     ----------
-    points : (m, k, 3) float
-        Generator points of each line.
-    owner : (m, k) int
+    points : (k, 3) float
+        Generator points of the line.
+    owner : (k,) int
         Blocking solid of each generator (-1 for none).
-    t : (m, k) float
+    t : (k,) float
         Their parameters along the line.
+    stamp_id, stamp
+        ``stamp`` marks solids already tried for this line (``stamp_id``).
     plane_offsets, planes, lo, cell, dims, offsets, items
         :meth:`_SolidGrid.args`.
-
-    Returns
-    -------
-    (m,) bool
     """
-    m, k = owner.shape
-    out = np.zeros(m, dtype=np.bool_)
-    stamp = np.full(max(plane_offsets.shape[0] - 1, 1), -1, dtype=np.int64)
+    k = owner.shape[0]
     small = min(cell[0], min(cell[1], cell[2]))
-    for i in range(m):
-        first, last = 0, 0
-        for j in range(1, k):
-            if t[i, j] < t[i, first]:
-                first = j
-            if t[i, j] > t[i, last]:
-                last = j
-        P = points[i, first]
-        span = _sub(points[i, last], P)
-        steps = int(np.sqrt(_dot(span, span)) / small) + 1
-        for step in range(steps + 1):
-            X = _axpy(P, step / steps, span)
-            c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(
-                X[2], lo[2], cell[2], dims[2]
-            )
-            for j in range(offsets[c], offsets[c + 1]):
-                solid = items[j]
-                if stamp[solid] == i:
-                    continue
-                stamp[solid] = i
-                x, y = -1, -1
-                for g in range(k):
-                    if owner[i, g] != solid:
-                        if x < 0 or t[i, g] < t[i, x]:
-                            x = g
-                        if y < 0 or t[i, g] > t[i, y]:
-                            y = g
-                if x >= 0 and x != y and _segment_meets_solid(points[i, x], points[i, y], solid, plane_offsets, planes):
-                    out[i] = True
-                    break
-            if out[i]:
-                break
-    return out
+    first, last = 0, 0
+    for j in range(1, k):
+        if t[j] < t[first]:
+            first = j
+        if t[j] > t[last]:
+            last = j
+    P = points[first]
+    span = _sub(points[last], P)
+    steps = int(np.sqrt(_dot(span, span)) / small) + 1
+    for step in range(steps + 1):
+        X = _axpy(P, step / steps, span)
+        c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(X[2], lo[2], cell[2], dims[2])
+        for j in range(offsets[c], offsets[c + 1]):
+            solid = items[j]
+            if stamp[solid] == stamp_id:
+                continue
+            stamp[solid] = stamp_id
+            x, y = -1, -1
+            for g in range(k):
+                if owner[g] != solid:
+                    if x < 0 or t[g] < t[x]:
+                        x = g
+                    if y < 0 or t[g] > t[y]:
+                        y = g
+            if x >= 0 and x != y and _segment_meets_solid(points[x], points[y], solid, plane_offsets, planes):
+                return True
+    return False
 
 
 def fast_candidates(scene, progress=None, workers=None, stats=None):
@@ -1372,18 +1405,12 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
     vee = _unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))
-    v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
     # Plücker lines of the generator edges, once (the same floats as per tuple)
     line_of = np.zeros((len(ev_all), 6))
     line_of[ge] = edge_lines(scene, ge)
-    d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
-    fine = np.linalg.norm(d, axis=1) > 0
-    origin = scene.vertices[v]
-    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:], line_solids)
-    gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]
-    out.append((np.full(fine.sum(), VEE), gens, origin[fine], d[fine]))
+    out.append(_lines_in_chunks(_vee_lines, vee, (scene, line_of, line_solids), workers))
     stats["VEE triples"] = int(len(vee))
-    stats["VEE candidates"] = int(fine.sum())
+    stats["VEE candidates"] = int(len(out[-1][0]))
     stats["seconds VEE lines"] = time.perf_counter() - clock
     clock = time.perf_counter()
 
@@ -1392,21 +1419,44 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     quads = np.sort(ge[quads], axis=1)
     quads = _unique_rows(quads)
     stats["E4 quadruples"] = int(len(quads))
-    e4 = []
-    for lo_q in range(0, len(quads), RAY_CHUNK):
-        q = quads[lo_q : lo_q + RAY_CHUNK]
-        lines = line_of[q]
-        sol, valid, _ = lines_through_four_lines(lines)
-        q_idx, s_idx = np.nonzero(valid)
-        d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]
-        origins = np.cross(d, m) / np.einsum("ij,ij->i", d, d)[:, None]
-        ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), q[q_idx], line_solids)
-        e4.append((np.full(ok.sum(), E4), q[q_idx][ok], origins[ok], d[ok]))
-    if e4:
-        out.append(tuple(np.concatenate(x) for x in zip(*e4)))
-        stats["E4 candidates"] = int(len(out[-1][0]))
+    out.append(_lines_in_chunks(_e4_lines, quads, (scene, line_of, line_solids), workers))
+    stats["E4 candidates"] = int(len(out[-1][0]))
     stats["seconds E4 lines"] = time.perf_counter() - clock
     return _pack(out)
+
+
+def _vee_lines(vee, scene, line_of, solids):
+    """VEE candidates of canonical triples ``vee`` (n, 3) int (v, e1, e2), solved as
+    the reference does; ``line_of`` (n_edges, 6) float: Plücker lines by edge id.
+    Returns kind (m,), generators (m, 4) int, origins and directions (m, 3) float."""
+    v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
+    d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
+    fine = np.linalg.norm(d, axis=1) > 0
+    origin = scene.vertices[v]
+    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:], solids)
+    gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]
+    return np.full(len(gens), VEE), gens, origin[fine], d[fine]
+
+
+def _e4_lines(quads, scene, line_of, solids):
+    """E4 candidates of sorted quadruples ``quads`` (n, 4) int, solved as the reference
+    does (up to two lines each). Returns as :func:`_vee_lines`."""
+    sol, valid, _ = lines_through_four_lines(line_of[quads])
+    q_idx, s_idx = np.nonzero(valid)
+    d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]
+    origins = np.cross(d, m) / np.einsum("ij,ij->i", d, d)[:, None]
+    ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), quads[q_idx], solids)
+    return np.full(ok.sum(), E4), quads[q_idx][ok], origins[ok], d[ok]
+
+
+def _lines_in_chunks(solve, rows, args, workers):
+    """``solve(rows_chunk, *args)`` over chunks of LINE_CHUNK rows on threads (numpy and
+    the numba kernels release the GIL; each row is solved on its own), concatenated
+    in order."""
+    chunks = [rows[i : i + LINE_CHUNK] for i in range(0, len(rows), LINE_CHUNK)] or [rows]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        parts = list(pool.map(lambda chunk: solve(chunk, *args), chunks))
+    return tuple(np.concatenate(x) for x in zip(*parts))
 
 
 def _unique_rows(rows):

@@ -955,15 +955,28 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
 
 
 @njit(cache=True, nogil=True)
+def _no_vee_line(p, line1, line2):
+    """Whether :func:`viscx.geometry.lines.line_through_point_and_two_lines` finds no
+    line through point p meeting the Plücker lines (6,) because the normals of the
+    planes through p and each line, m - p × d, have a cross product of exactly zero
+    (its operations in its order, so the same floats): e.g. a vertex and two edges of
+    the floor. Tiny non-zero products are left to it."""
+    n1 = _sub((line1[3], line1[4], line1[5]), _cross(p, (line1[0], line1[1], line1[2])))
+    n2 = _sub((line2[3], line2[4], line2[5]), _cross(p, (line2[0], line2[1], line2[2])))
+    d = _cross(n1, n2)
+    return d[0] == 0.0 and d[1] == 0.0 and d[2] == 0.0
+
+
+@njit(cache=True, nogil=True)
 def _scan_edge_pairs(
-    first, ev, ea, eb, ed, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
     all of them (exact filters, with slack).
 
     ``ev`` holds the edges' endpoints as positions in the vertex table, ``ed`` their
-    directions eb - ea. Returns VEE
+    directions eb - ea, ``lines`` their Plücker lines (n_edges, 6). Returns VEE
     rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
     n_e = ev.shape[0]
     n_v = vx.shape[0]
@@ -1021,6 +1034,8 @@ def _scan_edge_pairs(
                     dad = _dot(AD, AD)
                     if dad > 0 and not _within(_dot(_sub(vx[v], A), AD) / dad, _margin(eps, np.sqrt(dad))):
                         continue
+                if _no_vee_line(vx[v], lines[a], lines[d]):
+                    continue
                 row3[0], row3[1], row3[2] = v, a, d
                 vee = _push(vee, n_vee, row3)
                 n_vee += 1
@@ -1077,7 +1092,7 @@ def _scan_edge_pairs(
 
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
-    first, ev, ea, eb, ed, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
@@ -1122,6 +1137,8 @@ def _scan_vertex_edges(
                 if not _within(t, _margin(eps, np.sqrt(_dot(de, de)))):
                     continue
                 if not np.isnan(t) and not _between(pv, _axpy(pe, t, de), pb, db, eps):
+                    continue
+                if _no_vee_line(pv, lines[b], lines[e]):
                     continue
                 row3[0], row3[1], row3[2] = v, b, e
                 vee = _push(vee, n_vee, row3)
@@ -1362,6 +1379,10 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     hi = vx.max(axis=0) + HULL_TOL * eps
     ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
     ed = eb - ea
+    # Plücker lines of the generator edges, once (the same floats as per tuple)
+    lines = edge_lines(scene, ge)
+    line_of = np.zeros((len(ev_all), 6))
+    line_of[ge] = lines
     grid = _Grid(lo, hi, len(ge) / 2)
     e_off, e_items = grid.fill(ea, eb)
     v_off, v_items = grid.fill(vx, vx)
@@ -1373,7 +1394,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, ed, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1388,7 +1409,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (ev, ea, eb, ed, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1405,9 +1426,6 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
     vee = _unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))
-    # Plücker lines of the generator edges, once (the same floats as per tuple)
-    line_of = np.zeros((len(ev_all), 6))
-    line_of[ge] = edge_lines(scene, ge)
     out.append(_lines_in_chunks(_vee_lines, vee, (scene, line_of, line_solids), workers))
     stats["VEE triples"] = int(len(vee))
     stats["VEE candidates"] = int(len(out[-1][0]))

@@ -594,19 +594,20 @@ def _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
         return True
     for i in range(k):
         for j in range(i + 1, k):
+            # the axis d × e unnormalised (one square root, no division): tol scales
             e = _sub(P[j], P[i])
             u = _cross(d, e)
-            size = np.sqrt(_dot(u, u))
-            if size <= 1e-9 * np.sqrt(dd * _dot(e, e)):
+            uu = _dot(u, u)
+            if uu <= 1e-18 * dd * _dot(e, e):
                 continue
-            u = _div(u, size)
+            slack = tol * np.sqrt(uu)
             lo, hi = np.inf, -np.inf
             for q in range(k):
                 s = _dot(P[q], u)
                 lo = min(lo, s)
                 hi = max(hi, s)
             sa, sb = _dot(A, u), _dot(B, u)
-            if min(sa, sb) > hi + tol or max(sa, sb) < lo - tol:
+            if min(sa, sb) > hi + slack or max(sa, sb) < lo - slack:
                 return False
     return True
 

@@ -151,7 +151,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numba import njit
 
-from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines, segment_parameter
+from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines
 from viscx.grid import bin_boxes, cell_of
 from viscx.progress import bar
 from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, sort_nodes, validate_candidates
@@ -165,8 +165,10 @@ ISOLATION = 3.0
 HULL_TOL = 4.0
 #: Largest (faces × vertices) of a component tested for convexity.
 CONVEXITY_BUDGET = 4_000_000
-#: Rays per call when filling the blocked table (and quadruples per line solve).
+#: Rays per call when filling the blocked table.
 RAY_CHUNK = 1 << 20
+#: Tuples per chunk when solving candidate lines (bounds memory; chunks run on threads).
+LINE_CHUNK = 1 << 18
 #: Candidates per call of the validator (bounds its memory).
 VALIDATE_CHUNK = 1 << 18
 
@@ -441,19 +443,20 @@ def _pair_hidden(P0, P1, Q0, Q1, split_s, own1, own2, plane_offsets, planes, lo,
     stack = np.empty((4 * HIDDEN_DEPTH + 4, 5))
     stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3], stack[0, 4] = 0.0, 1.0, 0.0, 1.0, 0.0
     top = 1
-    dP, dQ = P1 - P0, Q1 - Q0
+    dP, dQ = _sub(P1, P0), _sub(Q1, Q0)
     small = min(cell[0], min(cell[1], cell[2]))
     while top > 0:
         top -= 1
         s0, s1, t0, t1, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4]
-        A0, A1, B0, B1 = P0 + s0 * dP, P0 + s1 * dP, Q0 + t0 * dQ, Q0 + t1 * dQ
+        A0, A1, B0, B1 = _axpy(P0, s0, dP), _axpy(P0, s1, dP), _axpy(Q0, t0, dQ), _axpy(Q0, t1, dQ)
         # candidate solids: those listed in the cells along the cell's middle segment
-        M, N = P0 + 0.5 * (s0 + s1) * dP, Q0 + 0.5 * (t0 + t1) * dQ
-        steps = int(np.sqrt(_dot(N - M, N - M)) / small) + 1
+        M, N = _axpy(P0, 0.5 * (s0 + s1), dP), _axpy(Q0, 0.5 * (t0 + t1), dQ)
+        MN = _sub(N, M)
+        steps = int(np.sqrt(_dot(MN, MN)) / small) + 1
         counter[0] += 1
         hidden = False
         for k in range(steps + 1):
-            X = M + (k / steps) * (N - M)
+            X = _axpy(M, k / steps, MN)
             c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(
                 X[2], lo[2], cell[2], dims[2]
             )
@@ -514,9 +517,34 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+# Small vectors are tuples in the kernels (no heap allocation in the hot loops); the
+# helpers do numpy's operations in numpy's order, so the floats are the same.
+
+
 @njit(cache=True, nogil=True)
 def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True, nogil=True)
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@njit(cache=True, nogil=True)
+def _add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@njit(cache=True, nogil=True)
+def _axpy(p, s, d):
+    """p + s d."""
+    return (p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2])
+
+
+@njit(cache=True, nogil=True)
+def _div(a, s):
+    return (a[0] / s, a[1] / s, a[2] / s)
 
 
 @njit(cache=True, nogil=True)
@@ -529,24 +557,25 @@ def _hull_axes(P, k):
     scale = 0.0
     for i in range(k):
         for j in range(i + 1, k):
-            scale = max(scale, np.sqrt(_dot(P[j] - P[i], P[j] - P[i])))
+            e = _sub(P[j], P[i])
+            scale = max(scale, np.sqrt(_dot(e, e)))
     if scale == 0.0:
         return axes[:0]
     for i in range(k):
         for j in range(i + 1, k):
             for l in range(j + 1, k):
-                n = _cross(P[j] - P[i], P[l] - P[i])
+                n = _cross(_sub(P[j], P[i]), _sub(P[l], P[i]))
                 size = np.sqrt(_dot(n, n))
                 if size <= 1e-9 * scale * scale:
                     continue
-                n = n / size
-                axes[m] = n
+                n = _div(n, size)
+                axes[m, 0], axes[m, 1], axes[m, 2] = n
                 m += 1
                 for (p, q) in ((i, j), (j, l), (i, l)):
-                    s = _cross(n, P[q] - P[p])
+                    s = _cross(n, _sub(P[q], P[p]))
                     ss = np.sqrt(_dot(s, s))
                     if ss > 1e-9 * scale:
-                        axes[m] = s / ss
+                        axes[m, 0], axes[m, 1], axes[m, 2] = _div(s, ss)
                         m += 1
     return axes[:m]
 
@@ -559,33 +588,61 @@ def _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
         sa, sb = _dot(A, axes[r]), _dot(B, axes[r])
         if min(sa, sb) > hmax[r] + tol or max(sa, sb) < hmin[r] - tol:
             return False
-    d = B - A
+    d = _sub(B, A)
     dd = _dot(d, d)
     if dd == 0.0:
         return True
     for i in range(k):
         for j in range(i + 1, k):
-            e = P[j] - P[i]
+            # the axis d × e unnormalised (one square root, no division): tol scales
+            e = _sub(P[j], P[i])
             u = _cross(d, e)
-            size = np.sqrt(_dot(u, u))
-            if size <= 1e-9 * np.sqrt(dd * _dot(e, e)):
+            uu = _dot(u, u)
+            if uu <= 1e-18 * dd * _dot(e, e):
                 continue
-            u = u / size
+            slack = tol * np.sqrt(uu)
             lo, hi = np.inf, -np.inf
             for q in range(k):
                 s = _dot(P[q], u)
                 lo = min(lo, s)
                 hi = max(hi, s)
             sa, sb = _dot(A, u), _dot(B, u)
-            if min(sa, sb) > hi + tol or max(sa, sb) < lo - tol:
+            if min(sa, sb) > hi + slack or max(sa, sb) < lo - slack:
                 return False
     return True
 
 
 @njit(cache=True, nogil=True)
+def _slab_extent(P, k, x_lo, x_hi, ext):
+    """Box of the part of the hull of P[:k] with x_lo <= x <= x_hi, in y and z:
+    ``ext`` = (y_lo, y_hi, z_lo, z_hi). Its vertices are points of P in the slab
+    and the crossings of the segments between them with the slab's planes.
+    Returns False when the hull misses the slab."""
+    ext[0], ext[2] = np.inf, np.inf
+    ext[1], ext[3] = -np.inf, -np.inf
+    for q in range(k):
+        if x_lo <= P[q, 0] <= x_hi:
+            ext[0], ext[1] = min(ext[0], P[q, 1]), max(ext[1], P[q, 1])
+            ext[2], ext[3] = min(ext[2], P[q, 2]), max(ext[3], P[q, 2])
+        for r in range(q + 1, k):
+            for plane in (x_lo, x_hi):
+                if (P[q, 0] - plane) * (P[r, 0] - plane) < 0:
+                    f = (plane - P[q, 0]) / (P[r, 0] - P[q, 0])
+                    y, z = P[q, 1] + f * (P[r, 1] - P[q, 1]), P[q, 2] + f * (P[r, 2] - P[q, 2])
+                    ext[0], ext[1] = min(ext[0], y), max(ext[1], y)
+                    ext[2], ext[3] = min(ext[2], z), max(ext[3], z)
+    return ext[0] <= ext[1]
+
+
+@njit(cache=True, nogil=True)
 def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out):
     """Indices of the segments meeting the inflated hull of P[:k]; writes them to
-    ``out`` and returns their count (``stamp`` marks segments already seen)."""
+    ``out`` and returns their count (``stamp`` marks segments already seen).
+
+    Only the cells near the hull are visited: per x-slab of cells, those within
+    ``tol`` of the hull's part in the slab (widened by ``tol``). The indices come
+    in the order of a scan of every cell of the hull's box (x, y, z, then index),
+    so that the result does not depend on which cells were visited."""
     axes = _hull_axes(P, k)
     hmin = np.empty(axes.shape[0])
     hmax = np.empty(axes.shape[0])
@@ -608,10 +665,21 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
         bhi[d] += tol
         c0[d] = cell_of(blo[d], lo[d], cell[d], dims[d])
         c1[d] = cell_of(bhi[d], lo[d], cell[d], dims[d])
+    ext = np.empty(4)
+    n_items = seg_a.shape[0]
     m = 0
     for x in range(c0[0], c1[0] + 1):
-        for y in range(c0[1], c1[1] + 1):
-            for z in range(c0[2], c1[2] + 1):
+        # the slab of cell column x, unbounded at the grid's border (cell_of clamps)
+        x_lo = lo[0] + x * cell[0] - tol if x > 0 else -np.inf
+        x_hi = lo[0] + (x + 1) * cell[0] + tol if x < dims[0] - 1 else np.inf
+        if not _slab_extent(P, k, x_lo, x_hi, ext):
+            continue
+        y0 = max(c0[1], cell_of(ext[0] - tol, lo[1], cell[1], dims[1]))
+        y1 = min(c1[1], cell_of(ext[1] + tol, lo[1], cell[1], dims[1]))
+        z0 = max(c0[2], cell_of(ext[2] - tol, lo[2], cell[2], dims[2]))
+        z1 = min(c1[2], cell_of(ext[3] + tol, lo[2], cell[2], dims[2]))
+        for y in range(y0, y1 + 1):
+            for z in range(z0, z1 + 1):
                 c = (x * dims[1] + y) * dims[2] + z
                 for j in range(offsets[c], offsets[c + 1]):
                     s = items[j]
@@ -629,8 +697,16 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
                     ):
                         continue
                     if _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
-                        out[m] = s
+                        # sort key: the first cell of the box scan listing s (cells
+                        # list their segments by index)
+                        first = 0
+                        for d in range(3):
+                            first = first * dims[d] + max(c0[d], cell_of(min(A[d], B[d]), lo[d], cell[d], dims[d]))
+                        out[m] = first * n_items + s
                         m += 1
+    out[:m].sort()
+    for r in range(m):
+        out[r] %= n_items
     return m
 
 
@@ -706,10 +782,10 @@ def _through_point(p, a0, da, d0, dd):
     It lies in the plane through p and each line; it meets line a where a crosses
     the plane through p and line d (normal (d0 - p) × dd), and vice versa. nan
     where a line is parallel to the other's plane (no unique answer)."""
-    n_d = _cross(d0 - p, dd)
-    n_a = _cross(a0 - p, da)
-    s = _ratio(_dot(p - a0, n_d), _dot(da, n_d), np.sqrt(_dot(da, da) * _dot(n_d, n_d)))
-    t = _ratio(_dot(p - d0, n_a), _dot(dd, n_a), np.sqrt(_dot(dd, dd) * _dot(n_a, n_a)))
+    n_d = _cross(_sub(d0, p), dd)
+    n_a = _cross(_sub(a0, p), da)
+    s = _ratio(_dot(_sub(p, a0), n_d), _dot(da, n_d), np.sqrt(_dot(da, da) * _dot(n_d, n_d)))
+    t = _ratio(_dot(_sub(p, d0), n_a), _dot(dd, n_a), np.sqrt(_dot(dd, dd) * _dot(n_a, n_a)))
     return s, t
 
 
@@ -717,7 +793,7 @@ def _through_point(p, a0, da, d0, dd):
 def _param_on(o, d, b0, db):
     """Parameter on line b0 + u db of its point closest to the line o + λ d, and λ
     there (nan, nan when parallel)."""
-    w = b0 - o
+    w = _sub(b0, o)
     aa, bb, cc = _dot(d, d), _dot(d, db), _dot(db, db)
     dw, ew = _dot(d, w), _dot(db, w)
     den = aa * cc - bb * bb
@@ -732,8 +808,9 @@ def _param_on(o, d, b0, db):
 def _between(A, D, b0, db, eps):
     """Whether the line AD meets segment b away from its ends, between A and D and
     away from them (the ε rules of validation, with END_MARGIN)."""
-    u, lam = _param_on(A, D - A, b0, db)
-    return _within(u, _margin(eps, np.sqrt(_dot(db, db)))) and _within(lam, _margin(eps, np.sqrt(_dot(D - A, D - A))))
+    AD = _sub(D, A)
+    u, lam = _param_on(A, AD, b0, db)
+    return _within(u, _margin(eps, np.sqrt(_dot(db, db)))) and _within(lam, _margin(eps, np.sqrt(_dot(AD, AD))))
 
 
 @njit(cache=True, nogil=True)
@@ -745,7 +822,7 @@ def _side_coefficients(a0, da, d0, dd, b0, db, out):
     Returns whether f vanishes identically (to rounding): b lies in the plane of
     a and d."""
     mb = _cross(b0, db)
-    alpha = _dot(d0 - a0, mb) + _dot(db, _cross(a0, d0))
+    alpha = _dot(_sub(d0, a0), mb) + _dot(db, _cross(a0, d0))
     beta = -_dot(da, mb) + _dot(db, _cross(da, d0))
     gamma = _dot(dd, mb) + _dot(db, _cross(a0, dd))
     delta = _dot(db, _cross(da, dd))
@@ -768,7 +845,7 @@ def _coplanar(a0, da, d0, dd):
     scale = np.sqrt(_dot(da, da) * _dot(dd, dd))
     if size <= COPLANAR * scale:
         return True
-    w = d0 - a0
+    w = _sub(d0, a0)
     return abs(_dot(w, n)) <= COPLANAR * np.sqrt(_dot(w, w)) * scale
 
 
@@ -779,15 +856,17 @@ def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
 
     Then no line of the plane meets b farther than ε from its ends (see
     :func:`_four_lines_meet`)."""
-    n = _cross(da, d0 - a0)
-    if _dot(n, n) < _dot(_cross(da, d0 + dd - a0), _cross(da, d0 + dd - a0)):
-        n = _cross(da, d0 + dd - a0)
+    w = _sub(d0, a0)
+    n = _cross(da, w)
+    n_far = _cross(da, _sub(_add(d0, dd), a0))
+    if _dot(n, n) < _dot(n_far, n_far):
+        n = n_far
     size = np.sqrt(_dot(n, n))
     length = np.sqrt(_dot(db, db))
-    if size <= 1e-9 * np.sqrt(_dot(da, da)) * np.sqrt(_dot(d0 - a0, d0 - a0) + _dot(dd, dd)) or length == 0:
+    if size <= 1e-9 * np.sqrt(_dot(da, da)) * np.sqrt(_dot(w, w) + _dot(dd, dd)) or length == 0:
         return False
-    n = n / size
-    h0, h1 = _dot(b0 - a0, n), _dot(b0 + db - a0, n)
+    n = _div(n, size)
+    h0, h1 = _dot(_sub(b0, a0), n), _dot(_sub(_add(b0, db), a0), n)
     if abs(h1 - h0) < 0.1 * length:
         return False
     u = h0 / (h0 - h1)
@@ -795,23 +874,22 @@ def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
 
 
 @njit(cache=True, nogil=True)
-def _arc_box(a0, da, d0, dd, b0, db, slack):
-    """Box [s_lo, s_hi, t_lo, t_hi] in the (s, t) square of the lines through a point
+def _arc_box(a0, da, d0, dd, b0, db, slack, box):
+    """Writes to ``box`` (4,) the box [s_lo, s_hi, t_lo, t_hi] in the (s, t) square of the lines through a point
     of segment b meeting lines a and d; empty (s_lo > s_hi) when it misses the square.
 
     Along b, s(u) and t(u) are linear-fractional (numerator and denominator of
     :func:`_through_point` are linear in u: the quadratic term is a triple product
     with a repeated vector), so monotone between poles: the box is spanned by
     u = 0 and u = 1 unless a denominator changes sign on [0, 1]."""
-    box = np.empty(4)
-    b1 = b0 + db
+    b1 = _add(b0, db)
     for axis in range(2):
         if axis == 0:
-            n0, n1 = _cross(d0 - b0, dd), _cross(d0 - b1, dd)
-            x0, x1, dx = b0 - a0, b1 - a0, da
+            n0, n1 = _cross(_sub(d0, b0), dd), _cross(_sub(d0, b1), dd)
+            x0, x1, dx = _sub(b0, a0), _sub(b1, a0), da
         else:
-            n0, n1 = _cross(a0 - b0, da), _cross(a0 - b1, da)
-            x0, x1, dx = b0 - d0, b1 - d0, dd
+            n0, n1 = _cross(_sub(a0, b0), da), _cross(_sub(a0, b1), da)
+            x0, x1, dx = _sub(b0, d0), _sub(b1, d0), dd
         m0, m1 = _dot(dx, n0), _dot(dx, n1)
         scale = np.sqrt(_dot(dx, dx)) * max(np.sqrt(_dot(n0, n0)), np.sqrt(_dot(n1, n1)))
         if m0 * m1 <= 0 or min(abs(m0), abs(m1)) <= 1e-9 * scale:
@@ -821,7 +899,6 @@ def _arc_box(a0, da, d0, dd, b0, db, slack):
             lo, hi = min(v0, v1), max(v0, v1)
         box[2 * axis] = max(lo, -slack)
         box[2 * axis + 1] = min(hi, 1.0 + slack)
-    return box
 
 
 @njit(cache=True, nogil=True)
@@ -839,12 +916,12 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
     big = max(abs(q2), max(abs(q1), abs(q0)))
     if big <= 1e-8:
         return True  # dependent conditions: leave it to the exact solver
-    roots = np.empty(2)
+    root0 = root1 = 0.0
     n = 0
     if abs(q2) <= 1e-8 * big:
         if abs(q1) <= 1e-8 * big:
             return False  # Q is a non-zero constant
-        roots[0] = -q0 / q1
+        root0 = -q0 / q1
         n = 1
     else:
         disc = q1 * q1 - 4 * q2 * q0
@@ -854,12 +931,12 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
             return False
         root = np.sqrt(disc)
         q = -0.5 * (q1 + (root if q1 >= 0 else -root))
-        roots[0] = q / q2
-        roots[1] = q0 / q
+        root0 = q / q2
+        root1 = q0 / q
         n = 2
     ma, md = _margin(eps, np.sqrt(_dot(da, da))), _margin(eps, np.sqrt(_dot(dd, dd)))
     for r in range(n):
-        s = roots[r]
+        s = root0 if r == 0 else root1
         if not _within(s, ma):
             continue
         den_b, den_c = fb[2] + fb[3] * s, fc[2] + fc[3] * s
@@ -871,22 +948,36 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
             t = -(fc[0] + fc[1] * s) / den_c
         if not _within(t, md):
             continue
-        A = a0 + s * da
-        D = d0 + t * dd
+        A = _axpy(a0, s, da)
+        D = _axpy(d0, t, dd)
         if _between(A, D, b0, db, eps) and _between(A, D, c0, dc, eps):
             return True
     return False
 
 
 @njit(cache=True, nogil=True)
+def _no_vee_line(p, line1, line2):
+    """Whether :func:`viscx.geometry.lines.line_through_point_and_two_lines` finds no
+    line through point p meeting the Plücker lines (6,) because the normals of the
+    planes through p and each line, m - p × d, have a cross product of exactly zero
+    (its operations in its order, so the same floats): e.g. a vertex and two edges of
+    the floor. Tiny non-zero products are left to it."""
+    n1 = _sub((line1[3], line1[4], line1[5]), _cross(p, (line1[0], line1[1], line1[2])))
+    n2 = _sub((line2[3], line2[4], line2[5]), _cross(p, (line2[0], line2[1], line2[2])))
+    d = _cross(n1, n2)
+    return d[0] == 0.0 and d[1] == 0.0 and d[2] == 0.0
+
+
+@njit(cache=True, nogil=True)
 def _scan_edge_pairs(
-    first, ev, ea, eb, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
     all of them (exact filters, with slack).
 
-    ``ev`` holds the edges' endpoints as positions in the vertex table. Returns VEE
+    ``ev`` holds the edges' endpoints as positions in the vertex table, ``ed`` their
+    directions eb - ea, ``lines`` their Plücker lines (n_edges, 6). Returns VEE
     rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
     n_e = ev.shape[0]
     n_v = vx.shape[0]
@@ -911,7 +1002,7 @@ def _scan_edge_pairs(
     query = 0
     for a in first:
         a0, a1 = ev[a, 0], ev[a, 1]
-        pa, da = ea[a], eb[a] - ea[a]
+        pa, da = ea[a], ed[a]
         len_a = np.sqrt(_dot(da, da))
         for d in range(a + 1, n_e):
             if _adjacent(ev, a, d):
@@ -923,7 +1014,7 @@ def _scan_edge_pairs(
                 ea[a], eb[a], ea[d], eb[d], True, sov[a0], sov[d0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
             ):
                 continue
-            pd, dd = ea[d], eb[d] - ea[d]
+            pd, dd = ea[d], ed[d]
             len_d = np.sqrt(_dot(dd, dd))
             P[0], P[1], P[2], P[3] = vx[a0], vx[a1], vx[d0], vx[d1]
             query += 1
@@ -939,10 +1030,13 @@ def _scan_edge_pairs(
                 if not (_within(s, _margin(eps, len_a)) and _within(t, _margin(eps, len_d))):
                     continue
                 if not (np.isnan(s) or np.isnan(t)):
-                    A, D = pa + s * da, pd + t * dd
-                    dad = _dot(D - A, D - A)
-                    if dad > 0 and not _within(_dot(vx[v] - A, D - A) / dad, _margin(eps, np.sqrt(dad))):
+                    A = _axpy(pa, s, da)
+                    AD = _sub(_axpy(pd, t, dd), A)
+                    dad = _dot(AD, AD)
+                    if dad > 0 and not _within(_dot(_sub(vx[v], A), AD) / dad, _margin(eps, np.sqrt(dad))):
                         continue
+                if _no_vee_line(vx[v], lines[a], lines[d]):
+                    continue
                 row3[0], row3[1], row3[2] = v, a, d
                 vee = _push(vee, n_vee, row3)
                 n_vee += 1
@@ -957,21 +1051,21 @@ def _scan_edge_pairs(
                 b0, b1 = ev[b, 0], ev[b, 1]
                 if _edges_blocked(table, a0, a1, b0, b1) or _edges_blocked(table, b0, b1, d0, d1):
                     continue
-                bx = _arc_box(pa, da, pd, dd, ea[b], eb[b] - ea[b], 1e-6)
+                bx = box[m]
+                _arc_box(pa, da, pd, dd, ea[b], ed[b], 1e-6, bx)
                 if bx[0] > bx[1] or bx[2] > bx[3]:
                     continue
                 # b in the plane of a and d: three coplanar lines, so with any fourth
                 # the solutions form a family or there are none (module docstring)
-                if _side_coefficients(pa, da, pd, dd, ea[b], eb[b] - ea[b], coef[m]):
+                if _side_coefficients(pa, da, pd, dd, ea[b], ed[b], coef[m]):
                     continue
                 # a and d coplanar: every line meeting both lies in their plane and
                 # meets b where b crosses it; near b's end that is no node
-                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, ea[b], eb[b] - ea[b], eps):
+                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, ea[b], ed[b], eps):
                     continue
                 inner[m] = b
-                box[m] = bx
-                with_a[m] = _coplanar(pa, da, ea[b], eb[b] - ea[b])
-                with_d[m] = _coplanar(pd, dd, ea[b], eb[b] - ea[b])
+                with_a[m] = _coplanar(pa, da, ea[b], ed[b])
+                with_d[m] = _coplanar(pd, dd, ea[b], ed[b])
                 m += 1
             for i in range(m):
                 b = inner[i]
@@ -987,9 +1081,9 @@ def _scan_edge_pairs(
                         continue
                     # three pairwise coplanar lines (in one plane, or through one
                     # point): a family of solutions or none (module docstring)
-                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c]):
+                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(ea[b], ed[b], ea[c], ed[c]):
                         continue
-                    if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], eb[b] - ea[b], ea[c], eb[c] - ea[c], eps):
+                    if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], ed[b], ea[c], ed[c], eps):
                         continue
                     row4[0], row4[1], row4[2], row4[3] = a, b, c, d
                     quad = _push(quad, n_quad, row4)
@@ -999,7 +1093,7 @@ def _scan_edge_pairs(
 
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
-    first, ev, ea, eb, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
@@ -1025,7 +1119,7 @@ def _scan_vertex_edges(
                 pv, pv, ea[e], eb[e], False, sov[v], sov[e0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
             ):
                 continue
-            pe, de = ea[e], eb[e] - ea[e]
+            pe, de = ea[e], ed[e]
             P[0], P[1], P[2] = pv, vx[e0], vx[e1]
             query += 1
             ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
@@ -1038,12 +1132,14 @@ def _scan_vertex_edges(
                     continue
                 # lines through v meeting e at e(t) meet line b where v, e(t), b are
                 # coplanar: (e(t) - v) · n_b = 0 with n_b the normal of plane (v, b)
-                pb, db = ea[b], eb[b] - ea[b]
-                n_b = _cross(pb - pv, db)
-                t = _ratio(-_dot(pe - pv, n_b), _dot(de, n_b), np.sqrt(_dot(de, de) * _dot(n_b, n_b)))
+                pb, db = ea[b], ed[b]
+                n_b = _cross(_sub(pb, pv), db)
+                t = _ratio(-_dot(_sub(pe, pv), n_b), _dot(de, n_b), np.sqrt(_dot(de, de) * _dot(n_b, n_b)))
                 if not _within(t, _margin(eps, np.sqrt(_dot(de, de)))):
                     continue
-                if not np.isnan(t) and not _between(pv, pe + t * de, pb, db, eps):
+                if not np.isnan(t) and not _between(pv, _axpy(pe, t, de), pb, db, eps):
+                    continue
+                if _no_vee_line(pv, lines[b], lines[e]):
                     continue
                 row3[0], row3[1], row3[2] = v, b, e
                 vee = _push(vee, n_vee, row3)
@@ -1066,9 +1162,11 @@ def _parallel(kernel, items, args, chunk, progress_bar, workers):
         return list(pool.map(run, chunks))
 
 
-def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
+def _met_loosely(scene, origins, directions, vertex_ids, edge_ids, solids):
     """(N1) with doubled tolerances: within 2ε of every generator, edge points at
-    least ε/2 inside their edges, consecutive points more than ε/2 apart.
+    least ε/2 inside their edges, consecutive points more than ε/2 apart; and no
+    two generators foreign to a blocking solid whose generator points are joined
+    across the solid's inner copy (Lemma 2 on this line).
 
     Parameters
     ----------
@@ -1076,31 +1174,135 @@ def _met_loosely(scene, origins, directions, vertex_ids, edge_ids):
     vertex_ids : (m, p) int
         Vertex generators (p may be 0).
     edge_ids : (m, q) int
+    solids : tuple
+        Blocking solid of each scene vertex (n_vertices,) int, then
+        :meth:`_SolidGrid.args`.
 
     Returns
     -------
     (m,) bool
     """
-    eps = scene.epsilon
-    d = canonical_directions(directions)
-    ok = np.ones(len(d), dtype=bool)
-    ts = []
-    for col in vertex_ids.T:
-        x = scene.vertices[col]
-        ok &= np.linalg.norm(np.cross(x - origins, d), axis=1) <= 2 * eps
-        ts.append(np.einsum("ij,ij->i", x - origins, d))
-    ev = scene.half_edges.edge_vertices
-    for col in edge_ids.T:
-        a, b = scene.vertices[ev[col, 0]], scene.vertices[ev[col, 1]]
-        x, dist = segment_parameter(origins, d, a, b)
-        length = np.linalg.norm(b - a, axis=1)
-        with np.errstate(invalid="ignore"):
-            ok &= (dist <= 2 * eps) & (x * length > 0.5 * eps) & ((1 - x) * length > 0.5 * eps)
-        p = a + np.nan_to_num(x)[:, None] * (b - a)
-        ts.append(np.einsum("ij,ij->i", p - origins, d))
-    t = np.sort(np.stack(ts, axis=1), axis=1)
-    ok &= (np.diff(t, axis=1) > 0.5 * eps).all(axis=1)
+    return _loose_lines(
+        np.ascontiguousarray(origins, dtype=np.float64),
+        np.ascontiguousarray(directions, dtype=np.float64),
+        np.ascontiguousarray(vertex_ids, dtype=np.int64),
+        np.ascontiguousarray(edge_ids, dtype=np.int64),
+        scene.vertices,
+        scene.half_edges.edge_vertices,
+        scene.epsilon,
+        *solids,
+    )
+
+
+@njit(cache=True, nogil=True)
+def _loose_lines(origins, directions, vertex_ids, edge_ids, vertices, ev, eps, solid_of_vertex, plane_offsets, planes, lo, cell, dims, offsets, items):
+    """:func:`_met_loosely` row by row: validation's formulas (canonical unit direction,
+    closest points of the edges' lines) with its tolerances doubled; the solids
+    only for lines that pass."""
+    m, n_v, n_e = origins.shape[0], vertex_ids.shape[1], edge_ids.shape[1]
+    k = n_v + n_e
+    ok = np.zeros(m, dtype=np.bool_)
+    points = np.empty((k, 3))
+    owner = np.empty(k, dtype=np.int64)
+    t = np.empty(k)
+    stamp = np.full(max(plane_offsets.shape[0] - 1, 1), -1, dtype=np.int64)
+    has_solids = planes.shape[0] > 0
+    for i in range(m):
+        o, raw = origins[i], directions[i]
+        d = _div(raw, np.sqrt(_dot(raw, raw)))
+        if d[0] + 1e-3 * d[1] + 1e-6 * d[2] < 0:
+            d = (-d[0], -d[1], -d[2])
+        good = True
+        for j in range(n_v):
+            x = vertices[vertex_ids[i, j]]
+            w = _sub(x, o)
+            c = _cross(w, d)
+            if not np.sqrt(_dot(c, c)) <= 2 * eps:
+                good = False
+                break
+            points[j, 0], points[j, 1], points[j, 2] = x[0], x[1], x[2]
+            owner[j] = solid_of_vertex[vertex_ids[i, j]]
+            t[j] = _dot(w, d)
+        for j in range(n_e if good else 0):
+            a, b = vertices[ev[edge_ids[i, j], 0]], vertices[ev[edge_ids[i, j], 1]]
+            e, w = _sub(b, a), _sub(a, o)
+            aa, bb, cc, dw, ew = _dot(d, d), _dot(d, e), _dot(e, e), _dot(d, w), _dot(e, w)
+            den = aa * cc - bb * bb
+            if not den > 1e-14 * aa * cc:
+                good = False  # parallel
+                break
+            x = (bb * dw - aa * ew) / den
+            lam = (dw + bb * x) / aa
+            gap = _sub(_axpy(w, x, e), (lam * d[0], lam * d[1], lam * d[2]))
+            length = np.sqrt(cc)
+            if not (np.sqrt(_dot(gap, gap)) <= 2 * eps and x * length > 0.5 * eps and (1 - x) * length > 0.5 * eps):
+                good = False
+                break
+            q = _axpy(a, x, e)
+            points[n_v + j, 0], points[n_v + j, 1], points[n_v + j, 2] = q[0], q[1], q[2]
+            owner[n_v + j] = solid_of_vertex[ev[edge_ids[i, j], 0]]
+            t[n_v + j] = _dot(_sub(q, o), d)
+        if not good:
+            continue
+        ts = np.sort(t)
+        for j in range(k - 1):
+            if not ts[j + 1] - ts[j] > 0.5 * eps:
+                good = False
+        if good and has_solids:
+            good = not _crosses_solid(points, owner, t, i, stamp, plane_offsets, planes, lo, cell, dims, offsets, items)
+        ok[i] = good
     return ok
+
+
+@njit(cache=True, nogil=True)
+def _crosses_solid(points, owner, t, stamp_id, stamp, plane_offsets, planes, lo, cell, dims, offsets, items):
+    """Whether, for some blocking solid, the generator points of a line that are
+    foreign to it and outermost along the line are joined across its inner copy.
+    Lemma 2 on one line: then the line is no node. Conservative (the solids are
+    found along the line's span by steps shorter than a cell).
+
+    Parameters
+    ----------
+    points : (k, 3) float
+        Generator points of the line.
+    owner : (k,) int
+        Blocking solid of each generator (-1 for none).
+    t : (k,) float
+        Their parameters along the line.
+    stamp_id, stamp
+        ``stamp`` marks solids already tried for this line (``stamp_id``).
+    plane_offsets, planes, lo, cell, dims, offsets, items
+        :meth:`_SolidGrid.args`.
+    """
+    k = owner.shape[0]
+    small = min(cell[0], min(cell[1], cell[2]))
+    first, last = 0, 0
+    for j in range(1, k):
+        if t[j] < t[first]:
+            first = j
+        if t[j] > t[last]:
+            last = j
+    P = points[first]
+    span = _sub(points[last], P)
+    steps = int(np.sqrt(_dot(span, span)) / small) + 1
+    for step in range(steps + 1):
+        X = _axpy(P, step / steps, span)
+        c = (cell_of(X[0], lo[0], cell[0], dims[0]) * dims[1] + cell_of(X[1], lo[1], cell[1], dims[1])) * dims[2] + cell_of(X[2], lo[2], cell[2], dims[2])
+        for j in range(offsets[c], offsets[c + 1]):
+            solid = items[j]
+            if stamp[solid] == stamp_id:
+                continue
+            stamp[solid] = stamp_id
+            x, y = -1, -1
+            for g in range(k):
+                if owner[g] != solid:
+                    if x < 0 or t[g] < t[x]:
+                        x = g
+                    if y < 0 or t[g] > t[y]:
+                        y = g
+            if x >= 0 and x != y and _segment_meets_solid(points[x], points[y], solid, plane_offsets, planes):
+                return True
+    return False
 
 
 def fast_candidates(scene, progress=None, workers=None, stats=None):
@@ -1141,6 +1343,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     solids = blocking_solids(scene)
     table, sov = blocked_table(scene, gv, solids)
     solid_grid = _SolidGrid(*solids[1:]).args()
+    line_solids = (solids[0],) + solid_grid
     stats["seconds solids"] = time.perf_counter() - clock
     vx = np.ascontiguousarray(scene.vertices[gv])
     ev = pos[ev_all[ge]]  # generator edges by vertex position
@@ -1176,6 +1379,11 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     lo = vx.min(axis=0) - HULL_TOL * eps
     hi = vx.max(axis=0) + HULL_TOL * eps
     ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
+    ed = eb - ea
+    # Plücker lines of the generator edges, once (the same floats as per tuple)
+    lines = edge_lines(scene, ge)
+    line_of = np.zeros((len(ev_all), 6))
+    line_of[ge] = lines
     grid = _Grid(lo, hi, len(ge) / 2)
     e_off, e_items = grid.fill(ea, eb)
     v_off, v_items = grid.fill(vx, vx)
@@ -1187,7 +1395,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1202,7 +1410,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (ev, ea, eb, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1218,19 +1426,10 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     stats["VEE tuples"] = int(len(vee))
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
-    vee = np.unique(np.stack([v_id, e_lo, e_hi], axis=1), axis=0) if len(vee) else np.zeros((0, 3), np.int64)
-    v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
-    # Plücker lines of the generator edges, once (the same floats as per tuple)
-    line_of = np.zeros((len(ev_all), 6))
-    line_of[ge] = edge_lines(scene, ge)
-    d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
-    fine = np.linalg.norm(d, axis=1) > 0
-    origin = scene.vertices[v]
-    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:])
-    gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]
-    out.append((np.full(fine.sum(), VEE), gens, origin[fine], d[fine]))
+    vee = _unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))
+    out.append(_lines_in_chunks(_vee_lines, vee, (scene, line_of, line_solids), workers))
     stats["VEE triples"] = int(len(vee))
-    stats["VEE candidates"] = int(fine.sum())
+    stats["VEE candidates"] = int(len(out[-1][0]))
     stats["seconds VEE lines"] = time.perf_counter() - clock
     clock = time.perf_counter()
 
@@ -1239,21 +1438,44 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     quads = np.sort(ge[quads], axis=1)
     quads = _unique_rows(quads)
     stats["E4 quadruples"] = int(len(quads))
-    e4 = []
-    for lo_q in range(0, len(quads), RAY_CHUNK):
-        q = quads[lo_q : lo_q + RAY_CHUNK]
-        lines = line_of[q]
-        sol, valid, _ = lines_through_four_lines(lines)
-        q_idx, s_idx = np.nonzero(valid)
-        d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]
-        origins = np.cross(d, m) / np.einsum("ij,ij->i", d, d)[:, None]
-        ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), q[q_idx])
-        e4.append((np.full(ok.sum(), E4), q[q_idx][ok], origins[ok], d[ok]))
-    if e4:
-        out.append(tuple(np.concatenate(x) for x in zip(*e4)))
-        stats["E4 candidates"] = int(len(out[-1][0]))
+    out.append(_lines_in_chunks(_e4_lines, quads, (scene, line_of, line_solids), workers))
+    stats["E4 candidates"] = int(len(out[-1][0]))
     stats["seconds E4 lines"] = time.perf_counter() - clock
     return _pack(out)
+
+
+def _vee_lines(vee, scene, line_of, solids):
+    """VEE candidates of canonical triples ``vee`` (n, 3) int (v, e1, e2), solved as
+    the reference does; ``line_of`` (n_edges, 6) float: Plücker lines by edge id.
+    Returns kind (m,), generators (m, 4) int, origins and directions (m, 3) float."""
+    v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
+    d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
+    fine = np.linalg.norm(d, axis=1) > 0
+    origin = scene.vertices[v]
+    fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:], solids)
+    gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]
+    return np.full(len(gens), VEE), gens, origin[fine], d[fine]
+
+
+def _e4_lines(quads, scene, line_of, solids):
+    """E4 candidates of sorted quadruples ``quads`` (n, 4) int, solved as the reference
+    does (up to two lines each). Returns as :func:`_vee_lines`."""
+    sol, valid, _ = lines_through_four_lines(line_of[quads])
+    q_idx, s_idx = np.nonzero(valid)
+    d, m = sol[q_idx, s_idx, :3], sol[q_idx, s_idx, 3:]
+    origins = np.cross(d, m) / np.einsum("ij,ij->i", d, d)[:, None]
+    ok = _met_loosely(scene, origins, d, np.zeros((len(d), 0), np.int64), quads[q_idx], solids)
+    return np.full(ok.sum(), E4), quads[q_idx][ok], origins[ok], d[ok]
+
+
+def _lines_in_chunks(solve, rows, args, workers):
+    """``solve(rows_chunk, *args)`` over chunks of LINE_CHUNK rows on threads (numpy and
+    the numba kernels release the GIL; each row is solved on its own), concatenated
+    in order."""
+    chunks = [rows[i : i + LINE_CHUNK] for i in range(0, len(rows), LINE_CHUNK)] or [rows]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        parts = list(pool.map(lambda chunk: solve(chunk, *args), chunks))
+    return tuple(np.concatenate(x) for x in zip(*parts))
 
 
 def _unique_rows(rows):

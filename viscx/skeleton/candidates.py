@@ -144,15 +144,14 @@ the hull scans run in numba (nogil) on a thread per core.
 """
 
 import os
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numba import njit
 
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines
 from viscx.grid import bin_boxes, cell_of
+from viscx.parallel import map_chunks
 from viscx.progress import bar
 from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
@@ -1148,18 +1147,10 @@ def _scan_vertex_edges(
 
 
 def _parallel(kernel, items, args, chunk, progress_bar, workers):
-    """Run ``kernel(items_chunk, *args)`` over chunks on threads (the kernels release the GIL)."""
+    """``kernel(items_chunk, *args)`` over chunks of ``items`` on threads (the kernels
+    release the GIL), in order."""
     chunks = [items[i : i + chunk] for i in range(0, len(items), chunk)]
-    lock = threading.Lock()
-
-    def run(part):
-        out = kernel(part, *args)
-        with lock:
-            progress_bar.update(len(part))
-        return out
-
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(run, chunks))
+    return map_chunks(lambda part: kernel(part, *args), chunks, workers, progress=lambda part: progress_bar.update(len(part)))
 
 
 def _met_loosely(scene, origins, directions, vertex_ids, edge_ids, solids):
@@ -1473,8 +1464,7 @@ def _lines_in_chunks(solve, rows, args, workers):
     the numba kernels release the GIL; each row is solved on its own), concatenated
     in order."""
     chunks = [rows[i : i + LINE_CHUNK] for i in range(0, len(rows), LINE_CHUNK)] or [rows]
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        parts = list(pool.map(lambda chunk: solve(chunk, *args), chunks))
+    parts = map_chunks(lambda chunk: solve(chunk, *args), chunks, workers)
     return tuple(np.concatenate(x) for x in zip(*parts))
 
 

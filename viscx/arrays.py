@@ -21,3 +21,46 @@ def expand_ranges(first, count):
     row = np.repeat(np.arange(len(count)), count)
     start = np.cumsum(count) - count
     return row, np.repeat(np.asarray(first, dtype=np.int64), count) + np.arange(int(count.sum())) - start[row]
+
+
+def unique_sorted(keys):
+    """The distinct values of ``keys``, ascending: ``np.unique(keys)`` by a sort.
+
+    numpy 2.4's ``np.unique`` without ``return_*`` takes a hash table, which is about
+    100 times slower than sorting on millions of distinct integers (6 M int64: 6 s
+    against 0.04 s); the hot paths use this instead.
+
+    Parameters
+    ----------
+    keys : (n,) array
+
+    Returns
+    -------
+    (u,) array
+    """
+    s = np.sort(np.asarray(keys).reshape(-1))
+    return s[np.r_[True, s[1:] != s[:-1]]] if len(s) else s
+
+
+def unique_rows(rows):
+    """The distinct rows of an integer array, in lexicographic order, and the index of each
+    input row among them: ``np.unique(rows, axis=0, return_inverse=True)`` by one lexsort
+    (about 4 times faster on millions of rows).
+
+    Parameters
+    ----------
+    rows : (n, k) int
+
+    Returns
+    -------
+    unique : (u, k) int
+    inverse : (n,) int64
+    """
+    rows = np.asarray(rows)
+    order = np.lexsort(rows.T[::-1])
+    s = rows[order]
+    new = np.ones(len(s), dtype=bool)
+    new[1:] = np.any(s[1:] != s[:-1], axis=1)
+    inverse = np.empty(len(s), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return s[new], inverse

@@ -235,6 +235,24 @@ def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dim
     return k
 
 
+@njit(cache=True, nogil=True)
+def _near_listed(points, group, offsets, items, tol, vertices, triangles, out_row, out_tri):
+    """Pairs (row, triangle) with the point ``points[r]`` within ``tol`` of the closed
+    triangle, among the triangles listed for its group (CSR ``offsets``/``items``)."""
+    k = 0
+    tol2 = tol * tol
+    for r in range(points.shape[0]):
+        g = group[r]
+        for j in range(offsets[g], offsets[g + 1]):
+            tri = items[j]
+            t = triangles[tri]
+            if _point_triangle_dist2(points[r], vertices[t[0]], vertices[t[1]], vertices[t[2]]) <= tol2:
+                out_row[k] = r
+                out_tri[k] = tri
+                k += 1
+    return k
+
+
 @njit(cache=True)
 def _point_triangle_dist2(p, a, b, c):
     """Squared distance from p to the closed triangle abc: the closest point lies in the
@@ -408,6 +426,34 @@ class TriangleGrid:
         starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 3)
         ends = np.ascontiguousarray(ends, dtype=np.float64).reshape(-1, 3)
         return self._near(starts, ends, True, tol)
+
+    def triangles_near_listed(self, points, group, offsets, items, tol):
+        """Every (point, triangle) pair within ``tol``, among the triangles listed for each
+        point's group: :meth:`triangles_near` when the lists are known to hold every
+        triangle that can be that near (e.g. those near the edge a point lies on).
+
+        Parameters
+        ----------
+        points : (n, 3) float
+        group : (n,) int
+            The list of each point.
+        offsets : (g + 1,) int
+        items : (k,) int
+            Triangles of list i: ``items[offsets[i]:offsets[i + 1]]``.
+        tol : float
+
+        Returns
+        -------
+        point : (m,) int
+        triangle : (m,) int
+            Sorted by point; no repeated pair.
+        """
+        points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        group = np.asarray(group, dtype=np.int64)
+        room = int((offsets[group + 1] - offsets[group]).sum())
+        row, tri = np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64)
+        k = _near_listed(points, group, offsets, items, float(tol), self.vertices, self.triangles, row, tri)
+        return row[:k], tri[:k]
 
     def _near(self, starts, ends, segments, tol):
         args = (starts, ends, segments, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims,

@@ -14,11 +14,12 @@ from a by span (2π for the whole plane).
 Generators are asked about again and again (every sample of every arc family),
 so :class:`GeneratorContacts` finds the wedges once per scene: at every vertex,
 and along every edge that no foreign face comes near (its wedges are then its
-own faces' half-planes at every inner point). Only points of the other edges
-(a block's bottom edge on a floor) are searched geometrically each time.
+own faces' half-planes at every inner point). Points of the other edges (a block's
+bottom edge on a floor) are tested each time, but only against the few triangles
+found near their edge once.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
@@ -166,9 +167,14 @@ def surface_wedges(scene, points):
     -------
     Wedges
     """
-    he = scene.half_edges
     points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-    owner, face = faces_near(scene, points, scene.weld_tolerance)
+    return _wedges_of_contacts(scene, points, *faces_near(scene, points, scene.weld_tolerance))
+
+
+def _wedges_of_contacts(scene, points, owner, face):
+    """The wedges of the faces touching each point, given as (point, face) pairs sorted by
+    point, then face."""
+    he = scene.half_edges
     prev = np.empty_like(he.next)
     prev[he.next] = np.arange(len(he.next))
     # a face's half-edges are contiguous, loop after loop
@@ -228,19 +234,25 @@ class GeneratorContacts:
         edge shortened by ``shrink`` at both ends: there ``edge`` holds the wedges
         of every inner point.
     shrink : float
+    near_offsets : (e + 1,) int
+    near_triangles : (k,) int
+        The triangles within twice the weld tolerance of each (whole) edge, as CSR: the
+        only ones that can touch a point of it, so that points of unclean edges are
+        searched among these instead of over the grid.
     """
 
     vertex: Wedges
     edge: Wedges
     edge_clean: np.ndarray
     shrink: float
+    near_offsets: np.ndarray
+    near_triangles: np.ndarray
 
     def with_free_points(self, k):
         """The contacts after k free points (touching no face) are appended as vertices."""
         v = self.vertex
         offsets = np.concatenate([v.offsets, np.full(k, v.offsets[-1])])
-        return GeneratorContacts(vertex=Wedges(offsets, v.face, v.first, v.normal, v.span), edge=self.edge,
-                                 edge_clean=self.edge_clean, shrink=self.shrink)
+        return replace(self, vertex=Wedges(offsets, v.face, v.first, v.normal, v.span))
 
 
 def generator_contacts(scene):
@@ -274,7 +286,9 @@ def generator_contacts(scene):
     key = seg * scene.n_faces + scene.triangle_face[tri]
     foreign = ~np.isin(key, own_key)
     clean[seg[foreign]] = False
-    return GeneratorContacts(vertex=vertex, edge=edge, edge_clean=clean, shrink=shrink)
+    seg, tri = scene.ray_caster.exact.triangles_near_segments(p, q, 2 * scene.weld_tolerance)
+    return GeneratorContacts(vertex=vertex, edge=edge, edge_clean=clean, shrink=shrink,
+                             near_offsets=np.searchsorted(seg, np.arange(n_edges + 1)), near_triangles=tri)
 
 
 def generator_wedges(scene, is_vertex, generator, points):
@@ -306,8 +320,16 @@ def generator_wedges(scene, is_vertex, generator, points):
     along = np.einsum("ij,ij->i", points[ie] - a, _unit(b - a))
     inner = (along >= c.shrink) & (along <= np.linalg.norm(b - a, axis=1) - c.shrink)
     cached = inner & c.edge_clean[generator[ie]]
-    ic, ig = ie[cached], ie[~cached]
+    # a point within the weld tolerance of its edge touches only faces near the edge
+    off_edge = np.linalg.norm(points[ie] - a - along[:, None] * _unit(b - a), axis=1)
+    listed = ~cached & (off_edge <= scene.weld_tolerance) & (along >= -scene.weld_tolerance) & (
+        along <= np.linalg.norm(b - a, axis=1) + scene.weld_tolerance)
+    ic, il, ig = ie[cached], ie[listed], ie[~cached & ~listed]
     parts = [(iv, take_wedges(c.vertex, generator[iv])), (ic, take_wedges(c.edge, generator[ic]))]
+    if len(il):
+        row, tri = scene.ray_caster.exact.triangles_near_listed(points[il], generator[il], c.near_offsets,
+                                                                c.near_triangles, scene.weld_tolerance)
+        parts.append((il, _wedges_of_contacts(scene, points[il], *_unique_faces(row, scene.triangle_face[tri]))))
     if len(ig):
         parts.append((ig, surface_wedges(scene, points[ig])))
     return merge_wedges(len(points), parts)

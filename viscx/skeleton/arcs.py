@@ -52,10 +52,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges
+from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
 from viscx.grid import bin_boxes
-from viscx.parallel import map_chunks
+from viscx.parallel import map_chunks, row_chunks
 from viscx.progress import bar
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.nodes import (
@@ -902,8 +902,8 @@ def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
         ws.append(w[kk])
     fam, w = np.concatenate(fams), np.concatenate(ws)
     # the ranges overlap only within the margin; the order is the plain join's
-    fam_w = np.unique(np.stack([fam, rank[w]], axis=1), axis=0).reshape(-1, 2)
-    fam, w = fam_w[:, 0], order[fam_w[:, 1]]
+    fam_w = unique_sorted(fam * len(order) + rank[w])
+    fam, w = fam_w // len(order), order[fam_w % len(order)]
     x = scene.vertices[ve[fam, 0]]
     a, b = _edge_geometry(scene, ve[fam, 1])
     s, _ = segment_parameter(x, pts[w] - x, a, b)
@@ -943,6 +943,13 @@ def _hidden_events(scene, ve, s):
     -------
     (m,) bool
     """
+    # each event on its own: in chunks on threads
+    parts = map_chunks(lambda r: _hidden_events_chunk(scene, ve[r], s[r]), row_chunks(len(s), CHUNK))
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=bool)
+
+
+def _hidden_events_chunk(scene, ve, s):
+    """:func:`_hidden_events` on one chunk of events."""
     eps = scene.epsilon
     x = scene.vertices[ve[:, 0]]
     a, b = _edge_geometry(scene, ve[:, 1])
@@ -1095,8 +1102,8 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         fam_kind.append(np.full(len(face_ve), VE))
         fam_gens.append(face_ve)
         keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
-        families, fam_of = np.unique(keys.reshape(-1, 4), axis=0, return_inverse=True)
-        fam_of = fam_of.reshape(-1)[: len(keys) - len(face_ve)]
+        families, fam_of = unique_rows(keys.reshape(-1, 4))
+        fam_of = fam_of[: len(keys) - len(face_ve)]
         fkind, fgens = families[:, 0], families[:, 1:]
         ev_kind, ev_index, ev_s = np.concatenate(ev_kind), np.concatenate(ev_index), np.concatenate(ev_s)
         # the ends of each family's domain, and its junctions
@@ -1106,9 +1113,8 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         cop_f, cop_s, cop_kind, cop_index = _coplanar_events(scene, plane_ve, plane_of, vp, ep, junctions)
         cop_hidden = _hidden_events(scene, plane_ve[cop_f], cop_s)
         # (families is sorted and unique and holds every same-plane family)
-        _, where = np.unique(np.concatenate([families, np.concatenate([np.full((len(face_ve), 1), VE), face_ve], axis=1)]),
-                             axis=0, return_inverse=True)
-        cop_f = where.reshape(-1)[len(families):][cop_f]
+        _, where = unique_rows(np.concatenate([families, np.concatenate([np.full((len(face_ve), 1), VE), face_ve], axis=1)]))
+        cop_f = where[len(families):][cop_f]
         nf = len(families)
         fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
         ev_s = np.concatenate([ev_s, dom_s, cop_s, np.zeros(nf), np.ones(nf)])

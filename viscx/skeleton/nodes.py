@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viscx.arrays import unique_sorted
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
@@ -597,7 +598,7 @@ def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_to
     # a plane is shared when another generator row of the candidate touches it too
     # (the row itself is among its candidate's rows, hence "at least two" distinct rows)
     sib = np.isin(cand[row_of_wedge], cand[rows])
-    row_plane = np.unique(row_of_wedge[sib] * n_planes + plane[wedges.face[sib]])  # distinct (row, plane)
+    row_plane = unique_sorted(row_of_wedge[sib] * n_planes + plane[wedges.face[sib]])  # distinct (row, plane)
     key_other = np.sort(cand[row_plane // n_planes] * n_planes + row_plane % n_planes)
     key_here = cand[rows[pos]] * n_planes + plane[face]
     shared = np.searchsorted(key_other, key_here, "right") - np.searchsorted(key_other, key_here, "left") >= 2

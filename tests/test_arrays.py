@@ -1,0 +1,31 @@
+"""The array idioms of viscx.arrays against their plain numpy definitions."""
+
+import numpy as np
+import pytest
+
+from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 5000])
+def test_unique_sorted_is_np_unique(n, rng):
+    keys = rng.integers(-50, 50, n)
+    assert np.array_equal(unique_sorted(keys), np.unique(keys))
+    floats = rng.random(n).round(2)
+    assert np.array_equal(unique_sorted(floats), np.unique(floats))
+
+
+@pytest.mark.parametrize("n", [0, 1, 9, 5000])
+def test_unique_rows_is_np_unique_along_rows(n, rng):
+    rows = rng.integers(-2, 3, (n, 4))  # small values: many repeats, negative entries
+    u, inverse = unique_rows(rows)
+    ref, ref_inverse = np.unique(rows, axis=0, return_inverse=True)
+    assert np.array_equal(u, ref.reshape(-1, 4))
+    assert np.array_equal(inverse, ref_inverse.reshape(-1))
+    assert np.array_equal(u[inverse], rows)
+
+
+def test_expand_ranges_is_the_concatenated_ranges():
+    first, count = np.array([5, 0, 2]), np.array([2, 0, 3])
+    row, index = expand_ranges(first, count)
+    assert row.tolist() == [0, 0, 2, 2, 2]
+    assert index.tolist() == [5, 6, 2, 3, 4]

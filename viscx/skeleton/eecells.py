@@ -112,12 +112,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges
+from viscx.arrays import expand_ranges, unique_sorted
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, _skew, edge_junctions, family_lines
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.vcells import _signed_angle, cells_of_loops, form_loops, turning_sums
+from viscx.skeleton.vcells import TURNING_DECIMALS, _signed_angle, cells_of_loops, form_loops, turning_sums
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
@@ -205,10 +205,10 @@ class EECells:
         """Numbers of cells, with holes, of holes, of open chains, of edge pairs with cells
         or chains, of those complete and of complete pairs whose cells cover their square."""
         loops = np.diff(self.loop_offsets)
-        pairs = np.unique(np.concatenate([self.edge1 * (1 << 32) + self.edge2,
+        pairs = unique_sorted(np.concatenate([self.edge1 * (1 << 32) + self.edge2,
                                           self.open_edge1 * (1 << 32) + self.open_edge2]))
         key = self.edge1 * (1 << 32) + self.edge2
-        done = np.unique(key[self.complete])
+        done = unique_sorted(key[self.complete])
         total = np.bincount(np.searchsorted(pairs, key), weights=self.area, minlength=len(pairs))
         covered = np.abs(total[np.searchsorted(pairs, done)] - 1) <= COVER_TOLERANCE
         return {
@@ -948,8 +948,8 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
     first = order[loop_offsets[:-1]]
     at_first = loop_offsets[:-1]
     pair = np.concatenate([walk.e1[at_first, None], walk.e2[at_first, None], walk.pair[at_first]], axis=1)
-    # outer loop: the largest winding of the cell (+2π; holes -2π)
-    rank_in_cell = np.lexsort([first, -turning, cell])
+    # outer loop: the largest winding of the cell (+2π; holes -2π), equal windings tie
+    rank_in_cell = np.lexsort([first, -np.round(turning, TURNING_DECIMALS), cell])
     outer = np.zeros(n_loops, bool)
     outer[rank_in_cell[np.searchsorted(cell[rank_in_cell], np.arange(n_cells))]] = True
     count = np.bincount(cell, minlength=n_cells)
@@ -968,7 +968,7 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
     cp = cell_pair[cell_order]
     chain = walk.take(np.arange(n_el, len(walk)))
     chain_first = chain_offsets[:-1] - n_el
-    open_key = np.unique(chain.e1 * (1 << 32) + chain.e2)
+    open_key = unique_sorted(chain.e1 * (1 << 32) + chain.e2)
     complete = ~np.isin(cp[:, 0] * (1 << 32) + cp[:, 1], open_key)
     return EECells(
         edge1=cp[:, 0],

@@ -79,7 +79,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges
+from viscx.arrays import expand_ranges, unique_sorted
 from viscx.progress import bar
 from viscx.skeleton.arcs import VE, family_lines
 from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
@@ -175,8 +175,8 @@ class VCells:
             "with_holes": int(np.count_nonzero(loops > 1)),
             "holes": int(np.sum(np.maximum(loops - 1, 0))),
             "open_chains": len(self.open_vertex),
-            "vertices": len(np.unique(np.concatenate([self.vertex, self.open_vertex]))),
-            "complete_vertices": len(np.unique(self.vertex[self.complete])),
+            "vertices": len(unique_sorted(np.concatenate([self.vertex, self.open_vertex]))),
+            "complete_vertices": len(unique_sorted(self.vertex[self.complete])),
         }
 
 
@@ -732,6 +732,9 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
     return result
 
 
+#: Decimals to which turning sums are compared when choosing a cell's outer loop.
+TURNING_DECIMALS = 9
+
 #: Directions tried, in order, for the pair of a vertex whose sphere is one cell.
 _PROBES = np.array([[0.267, 0.534, 0.802], [-0.577, 0.211, 0.789], [0.432, -0.898, 0.083]])
 
@@ -769,8 +772,10 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole):
     first = order[loop_offsets[:-1]]  # each loop's smallest element (ids of the sorted table)
     at_first = loop_offsets[:-1]
     pair = np.concatenate([walk.vertex[at_first, None], walk.pair[at_first]], axis=1)
-    # the outer loop: the largest turning sum of the cell
-    rank_in_cell = np.lexsort([first, -turning, cell])
+    # the outer loop: the largest turning sum of the cell. Sums equal but for rounding tie
+    # and go to the smallest element (two loops along one great circle: a cell of zero
+    # area in a degenerate scene): the last bits differ between CPUs' vector units.
+    rank_in_cell = np.lexsort([first, -np.round(turning, TURNING_DECIMALS), cell])
     outer = np.zeros(n_loops, bool)
     outer[rank_in_cell[np.searchsorted(cell[rank_in_cell], np.arange(n_bounded))]] = True
     count = np.bincount(cell, minlength=n_cells)

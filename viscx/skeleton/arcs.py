@@ -28,8 +28,8 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    scenes) and, for same-plane VE families, the *coplanar events* and
    *crossings*: where the line passes a vertex or junction of its plane, or an
    edge crossing the plane (the degenerate events of lines lying in a plane).
-4. *Arcs.* Between consecutive events the family is sampled (s at 1/4, 1/2,
-   3/4 of the interval and 20 epsilon from each end) and every sample judged by
+4. *Arcs.* Between consecutive events the family is sampled (s at the middle
+   of the interval and 20 epsilon from each end) and every sample judged by
    :func:`viscx.skeleton.nodes.maximal_free_segments`, the nodes' own
    definition with three generator conditions, and (VE) by its half-cells.
    Agreeing valid samples make one arc whose ends are the two events (arcs
@@ -91,13 +91,17 @@ END_NAMES = {END_NODE: "node", END_PLANAR: "planar", END_ENDPOINT: "endpoint", E
 _END_RANK = np.array([0, 1, 2, 6, 7, 3, 4, 5])
 
 #: Where each interval between consecutive events is sampled (fractions of it; the first is
-#: the arc's sample), besides 20 epsilon from each end.
-SAMPLES = (0.5, 0.25, 0.75)
+#: the arc's sample), besides 20 epsilon from each end. Between events the state is constant;
+#: the end samples and the middle see one change the events miss anywhere in the interval.
+#: Samples at 1/4 and 3/4 as well found no other change on 186 test scenes nor on the
+#: random_boxes cities of 300 and 1000 polygons, and cost 40 % more (on an axis-aligned scene
+#: they can land on an exactly degenerate line, s = 1/4 on integer coordinates).
+SAMPLES = (0.5,)
 #: Samples of an interval whose samples disagree, before bisection.
 REFINE = 48
 #: Bisection steps locating a change inside such an interval.
 BISECT = 40
-#: Intervals judged per batch in the first pass (5 samples each), samples per batch when refining.
+#: Intervals judged per batch in the first pass (3 samples each), samples per batch when refining.
 CHUNK = 100_000
 #: Angle (radians) by which a VE line is turned about its vertex, off the plane of the vertex
 #: and the edge, to find the V-cells on either side (half-cells): far above the rounding of

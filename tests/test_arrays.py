@@ -15,8 +15,12 @@ def test_unique_sorted_is_np_unique(n, rng):
 
 
 @pytest.mark.parametrize("n", [0, 1, 9, 5000])
-def test_unique_rows_is_np_unique_along_rows(n, rng):
-    rows = rng.integers(-2, 3, (n, 4))  # small values: many repeats, negative entries
+@pytest.mark.parametrize("low, high", [(-2, 3), (0, 5), (0, 2**40)])
+def test_unique_rows_is_np_unique_along_rows(n, low, high, rng):
+    """Small ids (packed keys), negative entries and large ids (lexsort)."""
+    rows = rng.integers(low, high, (n, 4))
+    if n > 100:
+        rows[n // 2:] = rows[: n - n // 2]  # repeats at every range
     u, inverse = unique_rows(rows)
     ref, ref_inverse = np.unique(rows, axis=0, return_inverse=True)
     assert np.array_equal(u, ref.reshape(-1, 4))

@@ -200,10 +200,11 @@ def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, of
 
 
 @njit(cache=True, nogil=True)
-def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dims, offsets, items, out_row, out_tri, fill):
+def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dims, offsets, items, out_row, out_tri):
     """Pairs (row, triangle) within ``tol`` of each other (Euclidean distance between the
     closed sets): row r is the point ``starts[r]``, or with ``segments`` the segment
-    ``starts[r]``-``ends[r]``. Fills the out arrays when given room. Every cell of a
+    ``starts[r]``-``ends[r]``. Returns how many there are and stores as many as the out
+    arrays have room for (the caller retries with room enough). Every cell of a
     row's bounding box (grown by tol) is searched: fine for points and short edges."""
     k = 0
     tol2 = tol * tol
@@ -228,7 +229,7 @@ def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dim
                         a, b, cc = vertices[t[0]], vertices[t[1]], vertices[t[2]]
                         dist2 = _segment_triangle_dist2(p0, p1, a, b, cc) if segments else _point_triangle_dist2(p0, a, b, cc)
                         if dist2 <= tol2:
-                            if fill:
+                            if k < out_row.shape[0]:
                                 out_row[k] = r
                                 out_tri[k] = tri
                             k += 1
@@ -458,8 +459,11 @@ class TriangleGrid:
     def _near(self, starts, ends, segments, tol):
         args = (starts, ends, segments, float(tol), self.vertices, self.triangles, self.lo, self.cell, self.dims,
                 self.offsets, self.items)
-        upper = _near_counts(*args, np.zeros(0, np.int64), np.zeros(0, np.int64), False)
-        row = np.empty(upper, dtype=np.int64)
-        tri = np.empty(upper, dtype=np.int64)
-        _near_counts(*args, row, tri, True)
-        return row, tri
+        # one pass when a few pairs per row fit (the usual case), else count, then fill
+        room = 4 * len(starts) + 64
+        row, tri = np.empty(room, dtype=np.int64), np.empty(room, dtype=np.int64)
+        k = _near_counts(*args, row, tri)
+        if k > room:
+            row, tri = np.empty(k, dtype=np.int64), np.empty(k, dtype=np.int64)
+            _near_counts(*args, row, tri)
+        return row[:k], tri[:k]

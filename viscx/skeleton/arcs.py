@@ -1161,7 +1161,8 @@ def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=N
     beats a planar event beats a domain end beats a junction beats a coplanar event),
     leave out the groups of hidden events alone (:func:`_hidden_events`) and return the
     intervals between consecutive ones."""
-    order = np.lexsort([ev_index, _END_RANK[ev_kind], ev_s, fam_of])
+    # by (family, s) only: events at one (family, s) fall in one group whatever their order
+    order = np.lexsort([ev_s, fam_of])
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
     tol = 4 * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
     new_group = np.ones(len(f), dtype=bool)
@@ -1169,10 +1170,16 @@ def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=N
     group = np.cumsum(new_group) - 1
     hidden = np.zeros(len(f), bool) if ev_hidden is None else ev_hidden[order]
     seen = np.bincount(group, weights=~hidden) > 0
-    # within a group, the best event: lowest rank, then lowest id
-    best = np.lexsort([i, _END_RANK[k], group])
-    first = best[np.r_[True, group[best][1:] != group[best][:-1]]]
-    first = first[seen[group[first]]]
+    # within a group (a run), the best event: lowest rank, then lowest id, then lowest s
+    if len(f) == 0:
+        first = np.zeros(0, np.int64)
+    else:
+        merit = _END_RANK[k].astype(np.int64) * (int(i.max()) - int(i.min()) + 1) + (i - i.min())
+        start = np.flatnonzero(new_group)
+        at_best = merit == np.repeat(np.minimum.reduceat(merit, start), np.diff(np.r_[start, len(f)]))
+        first = np.flatnonzero(at_best)
+        first = first[np.r_[True, group[first][1:] != group[first][:-1]]]
+        first = first[seen[group[first]]]
     gf, gs, gk, gi = f[first], s[first], k[first], i[first]
     nxt = np.flatnonzero(gf[1:] == gf[:-1])
     return gf[nxt], gs[nxt], gk[nxt], gi[nxt], gs[nxt + 1], gk[nxt + 1], gi[nxt + 1]

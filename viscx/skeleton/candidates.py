@@ -149,6 +149,7 @@ import time
 import numpy as np
 from numba import njit
 
+from viscx.arrays import unique_rows
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines
 from viscx.grid import bin_boxes, cell_of
 from viscx.parallel import map_chunks
@@ -1417,7 +1418,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     stats["VEE tuples"] = int(len(vee))
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
-    vee = _unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))
+    vee = unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))[0]
     out.append(_lines_in_chunks(_vee_lines, vee, (scene, line_of, line_solids), workers))
     stats["VEE triples"] = int(len(vee))
     stats["VEE candidates"] = int(len(out[-1][0]))
@@ -1427,7 +1428,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     # E4: sorted quadruples of scene ids, deduplicated, solved as the reference does
     stats["E4 tuples"] = int(len(quads))
     quads = np.sort(ge[quads], axis=1)
-    quads = _unique_rows(quads)
+    quads = unique_rows(quads)[0]
     stats["E4 quadruples"] = int(len(quads))
     out.append(_lines_in_chunks(_e4_lines, quads, (scene, line_of, line_solids), workers))
     stats["E4 candidates"] = int(len(out[-1][0]))
@@ -1466,20 +1467,6 @@ def _lines_in_chunks(solve, rows, args, workers):
     chunks = [rows[i : i + LINE_CHUNK] for i in range(0, len(rows), LINE_CHUNK)] or [rows]
     parts = map_chunks(lambda chunk: solve(chunk, *args), chunks, workers)
     return tuple(np.concatenate(x) for x in zip(*parts))
-
-
-def _unique_rows(rows):
-    """Unique rows of a small-int (n, k) array, sorted."""
-    if len(rows) == 0:
-        return rows
-    bits = int(rows.max()).bit_length()
-    if bits * rows.shape[1] <= 63:
-        key = np.zeros(len(rows), dtype=np.int64)
-        for col in rows.T:
-            key = (key << bits) | col
-        _, first = np.unique(key, return_index=True)
-        return rows[first]
-    return np.unique(rows, axis=0)
 
 
 def _pack(out):

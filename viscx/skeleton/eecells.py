@@ -112,7 +112,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_sorted
+from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, _skew, edge_junctions, family_lines
@@ -893,8 +893,7 @@ def build_eecells(scene, arcs, quiet=True):
         progress.set_postfix_str("elements")
         el = boundary_elements(scene, arcs)
         key = np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1)
-        _, group = np.unique(key, axis=0, return_inverse=True)
-        group = group.reshape(-1)
+        _, group = unique_rows(key)
         progress.update()
 
         progress.set_postfix_str("loops")

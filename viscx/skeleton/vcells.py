@@ -79,7 +79,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_sorted
+from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.progress import bar
 from viscx.skeleton.arcs import VE, family_lines
 from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
@@ -676,8 +676,7 @@ def cells_of_loops(el, loop_offsets, loop_group, ref, inside=inside_loops):
         loops = np.flatnonzero(size == m)  # sorted by loop id; each is a column of length m
         cols = column[np.searchsorted(i[order], loops)[:, None] + np.arange(m)]
         key = np.concatenate([loop_group[loops, None], cols], axis=1)
-        _, cls = np.unique(key, axis=0, return_inverse=True)
-        cls = cls.reshape(-1)
+        _, cls = unique_rows(key)
         smallest = np.full(cls.max() + 1, nl)
         np.minimum.at(smallest, cls, loops)
         cell[loops] = smallest[cls]
@@ -711,8 +710,7 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         progress.set_postfix_str("elements")
         el = boundary_elements(scene, arcs)
         key = np.concatenate([el.vertex[:, None], el.pair], axis=1)
-        _, group = np.unique(key, axis=0, return_inverse=True)
-        group = group.reshape(-1)
+        _, group = unique_rows(key)
         keep = unique_elements(el, group)
         el, group = el.take(keep), group[keep]
         progress.update()

@@ -84,6 +84,11 @@ def run_skeleton(scene, name):
     return row
 
 
+def machine_memory_gb():
+    """The machine's physical memory (GB)."""
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 1024**3
+
+
 def fit_exponent(x, y):
     """Slope of log y against log x (least squares), None with fewer than two points."""
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -116,7 +121,8 @@ def table(rows):
 
 def run_ladder(sizes, budget, report=print):
     """The Cornell box, then random boxes cities of the given sizes (a size predicted
-    to take longer than ``budget`` seconds is recorded as skipped).
+    to take longer than ``budget`` seconds, or more than the machine's memory, is
+    recorded as skipped: both extrapolated from the sizes measured so far).
 
     Returns
     -------
@@ -133,10 +139,18 @@ def run_ladder(sizes, budget, report=print):
         scene = random_boxes(size, seed=0)
         name = f"random_boxes({size})"
         if len(ladder) >= 2:
-            k = fit_exponent([r["polygons"] for r in ladder], [r["seconds"] for r in ladder])
-            predicted = ladder[-1]["seconds"] * (scene.n_faces / ladder[-1]["polygons"]) ** k
+            polys = [r["polygons"] for r in ladder]
+            ratio = scene.n_faces / ladder[-1]["polygons"]
+            predicted = ladder[-1]["seconds"] * ratio ** fit_exponent(polys, [r["seconds"] for r in ladder])
+            # memory by the last two sizes: a fixed base (the interpreter, numba) flattens the small ones
+            memory = ladder[-1]["peak_mb"] * ratio ** fit_exponent(polys[-2:], [r["peak_mb"] for r in ladder[-2:]]) / 1024
+            skip = []
             if predicted > budget:
-                rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": f"predicted {predicted:.0f} s > budget {budget:.0f} s"})
+                skip.append(f"predicted {predicted:.0f} s > budget {budget:.0f} s")
+            if memory > machine_memory_gb():
+                skip.append(f"predicted peak {memory:.0f} GB > {machine_memory_gb():.0f} GB of memory")
+            if skip:
+                rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": "; ".join(skip)})
                 report(table(rows[-1:]))
                 continue
         rows.append(run_skeleton(scene, name))

@@ -331,8 +331,11 @@ def vertex_ray_blockers(scene, vertices, directions):
     d = d / np.linalg.norm(d, axis=1, keepdims=True)
     x = scene.vertices[vertices]
     tangent, degenerate = tangent_at_vertices(scene, vertices, d)
-    face, _ = first_faces(scene, np.concatenate([x, x]), np.concatenate([-d, d]), tmin=scene.epsilon)
-    back, front = face[: len(d)], face[len(d):]
+    # the ray back along -d matters only where the line passes the vertex
+    passing = np.flatnonzero(tangent)
+    face, _ = first_faces(scene, np.concatenate([x[passing], x]), np.concatenate([-d[passing], d]), tmin=scene.epsilon)
+    back = np.full(len(d), -1, dtype=face.dtype)
+    back[passing], front = face[: len(passing)], face[len(passing):]
     up_kind = np.where(~tangent, BLOCK_VERTEX, np.where(back < 0, BLOCK_SKY, BLOCK_FACE)).astype(np.int8)
     up = np.where(~tangent, vertices, back)
     down_kind = np.where(front < 0, BLOCK_SKY, BLOCK_FACE).astype(np.int8)

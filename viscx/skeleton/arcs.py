@@ -1213,26 +1213,26 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=N
 
     step = CHUNK // 4  # several chunks per thread: the threads finish together
     chunks = [np.arange(lo, min(lo + step, n)) for lo in range(0, n, step)]
-    kept = map_chunks(judge_chunk, chunks, workers)
-    whole = np.concatenate([k[0] for k in kept])
-    pieces = {
-        "family": f[whole],
-        "interval": np.stack([s0[whole], s1[whole]], axis=1),
-        "end_type": np.stack([t0[whole], t1[whole]], axis=1),
-        "end_node": np.stack([i0[whole], i1[whole]], axis=1),
-        "parameter": ss[whole, 0],
-        "state": np.concatenate([k[1] for k in kept]),
-        "sides": np.concatenate([k[2] for k in kept]),
-        "direction": np.concatenate([k[3] for k in kept]),
-        "ends": np.concatenate([k[4] for k in kept]),
-        "generator_points": np.concatenate([k[5] for k in kept]),
-        "loose": np.zeros((len(whole), 2), dtype=bool),
-    }
+    parts = [
+        {
+            "family": f[w],
+            "interval": np.stack([s0[w], s1[w]], axis=1),
+            "end_type": np.stack([t0[w], t1[w]], axis=1),
+            "end_node": np.stack([i0[w], i1[w]], axis=1),
+            "parameter": ss[w, 0],
+            "state": state,
+            "sides": sides,
+            "direction": direction,
+            "ends": ends,
+            "generator_points": points,
+            "loose": np.zeros((len(w), 2), dtype=bool),
+        }
+        for w, state, sides, direction, ends, points in map_chunks(judge_chunk, chunks, workers)
+    ]
     mixed = np.flatnonzero(~uniform)
     if len(mixed):
-        more = _refine(scene, fkind, fgens, f[mixed], s0[mixed], t0[mixed], i0[mixed], s1[mixed], t1[mixed], i1[mixed])
-        pieces = {k: np.concatenate([pieces[k], more[k]]) for k in pieces}
-    pieces = _merge_across_possible_events(scene, fkind, fgens, pieces)
+        parts += _refine(scene, fkind, fgens, f[mixed], s0[mixed], t0[mixed], i0[mixed], s1[mixed], t1[mixed], i1[mixed])
+    pieces = _merge_across_possible_events(scene, fkind, fgens, _concatenate_parts(parts))
     del pieces["loose"]
     fam = pieces.pop("family")
     state = pieces.pop("state")
@@ -1273,35 +1273,46 @@ def _merge_across_possible_events(scene, fkind, fgens, pieces):
     between two events (the first piece's stands where that sample's line disagrees or,
     with no loose transition joined, its half-cells disagree)."""
     order = np.lexsort([pieces["interval"][:, 0], pieces["family"]])
-    p = {k: v[order] for k, v in pieces.items()}
-    full = np.concatenate([p["state"], p["sides"]], axis=1)
+    # the join is decided on the sorted keys; every other field is gathered once, at the end
+    p = {k: pieces[k][order] for k in ("family", "interval", "end_type", "end_node", "loose", "state", "sides")}
+    same_full = np.all(p["state"][1:] == p["state"][:-1], axis=1)
     join = (p["family"][1:] == p["family"][:-1]) & (p["interval"][1:, 0] == p["interval"][:-1, 1])
-    loose = join & (p["end_type"][:-1, 1] == END_TRANSITION) & p["loose"][:-1, 1] & p["loose"][1:, 0]
-    loose &= np.all(p["state"][1:] == p["state"][:-1], axis=1)
-    join &= p["end_type"][:-1, 1] == END_CROSSING
-    join &= np.all(full[1:] == full[:-1], axis=1)
+    loose = join & (p["end_type"][:-1, 1] == END_TRANSITION) & p["loose"][:-1, 1] & p["loose"][1:, 0] & same_full
+    same_full &= np.all(p["sides"][1:] == p["sides"][:-1], axis=1)
+    join &= (p["end_type"][:-1, 1] == END_CROSSING) & same_full
     join |= loose
-    start = np.r_[True, ~join]
-    first = np.flatnonzero(start)
-    last = np.r_[first[1:] - 1, len(start) - 1]
+    first = np.flatnonzero(np.r_[True, ~join]) if len(order) else np.zeros(0, np.int64)
+    last = np.r_[first[1:] - 1, len(order) - 1] if len(order) else first
     out = {k: v[first] for k, v in p.items()}
-    out["interval"] = np.stack([p["interval"][first, 0], p["interval"][last, 1]], axis=1)
-    out["end_type"] = np.stack([p["end_type"][first, 0], p["end_type"][last, 1]], axis=1)
-    out["end_node"] = np.stack([p["end_node"][first, 0], p["end_node"][last, 1]], axis=1)
-    out["loose"] = np.stack([p["loose"][first, 0], p["loose"][last, 1]], axis=1)
+    for k in ("interval", "end_type", "end_node", "loose"):
+        out[k] = np.stack([p[k][first, 0], p[k][last, 1]], axis=1)
+    del p
+    kept = order[first]
+    for k in ("parameter", "direction", "ends", "generator_points"):
+        out[k] = pieces.pop(k)[kept]
     joined = np.flatnonzero(last > first)
-    if len(joined):
-        f = out["family"][joined]
-        s = 0.5 * (out["interval"][joined, 0] + out["interval"][joined, 1])
+    # arcs joined across a loose transition take the middle sample's half-cells
+    had_loose = np.add.reduceat(np.r_[loose, False].astype(np.int64), first)[joined] > 0
+    for c in row_chunks(len(joined), CHUNK):
+        rows = joined[c]
+        f = out["family"][rows]
+        s = 0.5 * (out["interval"][rows, 0] + out["interval"][rows, 1])
         smp = judge_samples(scene, fkind[f], fgens[f], s, sides=True)
-        # arcs joined across a loose transition take the middle sample's half-cells
-        had_loose = np.add.reduceat(np.r_[loose, False].astype(np.int64), first)[joined] > 0
-        same = np.all(smp.state == p["state"][first[joined]], axis=1)
-        same &= had_loose | np.all(smp.sides == p["sides"][first[joined]], axis=1)
-        rows = joined[same]
+        same = np.all(smp.state == out["state"][rows], axis=1)
+        same &= had_loose[c] | np.all(smp.sides == out["sides"][rows], axis=1)
+        rows = rows[same]
         out["parameter"][rows] = s[same]
         for k in ("state", "sides", "direction", "ends", "generator_points"):
             out[k][rows] = getattr(smp, k)[same]
+    return out
+
+
+def _concatenate_parts(parts):
+    """One dict of arrays from a list of dicts with the same keys, each key's pieces
+    freed once joined (the parts are emptied): peak memory one copy, not two."""
+    out = {}
+    for key in list(parts[0]):
+        out[key] = np.concatenate([p.pop(key) for p in parts])
     return out
 
 
@@ -1313,11 +1324,11 @@ def _full_state(smp):
 def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     """Intervals whose samples disagree: resample, locate each change by bisection and
     cut the interval there (end type END_TRANSITION). In batches of intervals (each is
-    refined on its own, so the result does not depend on them): memory stays bounded."""
+    refined on its own, so the result does not depend on them): memory stays bounded.
+    Returns the batches' pieces, a dict of arrays each."""
     step = max(CHUNK // REFINE, 1)
-    parts = [_refine_batch(scene, fkind, fgens, *(a[i : i + step] for a in (f, s0, t0, i0, s1, t1, i1)))
-             for i in range(0, len(f), step)]
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return [_refine_batch(scene, fkind, fgens, *(a[i : i + step] for a in (f, s0, t0, i0, s1, t1, i1)))
+            for i in range(0, len(f), step)]
 
 
 def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):

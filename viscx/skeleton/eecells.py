@@ -113,6 +113,7 @@ import numpy as np
 from numba import njit
 
 from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+from viscx.parallel import row_chunks
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, _skew, edge_junctions, family_lines
@@ -133,6 +134,9 @@ REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
 WINDING_TOLERANCE = 1e-6
 #: A pair's cells cover the square when their areas sum to 1 within this.
 COVER_TOLERANCE = 1e-6
+#: Points judged per call of :func:`maximal_free_segments` by :func:`ee_blockers`: its
+#: whole segments are ~200 bytes a line, the state kept 40.
+BLOCKER_CHUNK = 1 << 20
 #: Clamp of the Bézier weights (a coordinate constant along its element has w = 1/2).
 _W_MIN = 1e-12
 
@@ -265,6 +269,10 @@ def ee_blockers(scene, e1, e2, x1, x2):
         within epsilon of an edge's end).
     """
     e1, e2 = np.asarray(e1, np.int64), np.asarray(e2, np.int64)
+    x1, x2 = np.asarray(x1, np.float64), np.asarray(x2, np.float64)
+    if len(e1) > BLOCKER_CHUNK:
+        # each point on its own: chunks keep only the state, not every whole segment
+        return np.concatenate([ee_blockers(scene, e1[r], e2[r], x1[r], x2[r]) for r in row_chunks(len(e1), BLOCKER_CHUNK)])
     n = len(e1)
     p1, p2 = ee_points(scene, e1, e2, x1, x2)
     d = p2 - p1

@@ -697,14 +697,19 @@ def side_pieces(scene, arcs, arc, e1, e2):
     return arc[rows], e1[rows], e2[rows], ivl
 
 
-def boundary_elements(scene, arcs):
+def boundary_elements(scene, arcs, squares=None):
     """Every boundary element of every square, sorted by (e1, e2, arc, interval, side).
+
+    Parameters
+    ----------
+    squares : tuple of (k,) int, optional
+        (arc, e1, e2) incidences, every square whole: default all (:func:`arc_squares`).
 
     Returns
     -------
     Elements
     """
-    arc, e1, e2, interval = side_pieces(scene, arcs, *arc_squares(scene, arcs))
+    arc, e1, e2, interval = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares))
     pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval)
     row, side = np.nonzero(bounds)
     return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row])
@@ -886,6 +891,10 @@ def loop_areas(el, loop_offsets):
 def build_eecells(scene, arcs, quiet=True):
     """The EE-cells (V2) of every skew pair of generator edges that V1 gives boundaries.
 
+    Squares are independent: they are built in chunks of about SQUARE_CHUNK arc-square
+    incidences (each square whole, in (e1, e2) order), so that the elements, the largest
+    intermediate arrays, exist for one chunk at a time; the cells are the same.
+
     Parameters
     ----------
     scene : Scene
@@ -897,32 +906,80 @@ def build_eecells(scene, arcs, quiet=True):
     -------
     EECells
     """
-    with bar(total=3, desc="EE-cells", quiet=quiet, unit="stage") as progress:
-        progress.set_postfix_str("elements")
-        el = boundary_elements(scene, arcs)
-        key = np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1)
-        _, group = unique_rows(key)
-        progress.update()
+    arc, e1, e2 = arc_squares(scene, arcs)
+    key = e1 * (1 << 32) + e2
+    by_square = np.argsort(key, kind="stable")  # a square's incidences keep their order
+    arc, e1, e2, key = arc[by_square], e1[by_square], e2[by_square], key[by_square]
+    square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    # cut at the start of the square holding every SQUARE_CHUNK-th incidence
+    cuts = square_start[np.searchsorted(square_start, np.arange(SQUARE_CHUNK, len(key), SQUARE_CHUNK), "right") - 1]
+    bounds = np.unique(np.r_[0, cuts, len(key)])
+    parts = []
+    with bar(total=len(key), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
+        for lo, hi in zip(bounds[:-1], bounds[1:]) if len(bounds) > 1 else [(0, 0)]:
+            parts.append(_squares_cells(scene, arcs, (arc[lo:hi], e1[lo:hi], e2[lo:hi])))
+            progress.update(hi - lo)
+    return _concatenate_cells(parts)
 
-        progress.set_postfix_str("loops")
-        order, loop_offsets, chain_offsets = form_loops(el, group, join_tolerance(scene, el.e1, el.e2))
-        turning = windings(el.take(order), loop_offsets)
-        # a closed boundary winds by ±2π; anything else closed only within the join tolerance
-        # (e.g. one spurious arc shorter than it, meeting itself) and is an open chain
-        order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets,
-                                                     np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE)
-        walk = el.take(order)
-        turning = windings(walk, loop_offsets)
-        area = loop_areas(walk, loop_offsets)
-        ref = reference_points(walk, loop_offsets)
-        progress.update()
 
-        progress.set_postfix_str("cells")
-        loop_group = group[order[loop_offsets[:-1]]]
-        cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
-        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell)
-        progress.update()
-    return result
+#: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).
+SQUARE_CHUNK = 1 << 20
+
+
+def _squares_cells(scene, arcs, squares):
+    """The EE-cells of some squares ((arc, e1, e2) incidences, every square whole) and the
+    number of their open chains that are demoted loops (listed first)."""
+    el = boundary_elements(scene, arcs, squares)
+    key = np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1)
+    _, group = unique_rows(key)
+    order, loop_offsets, chain_offsets = form_loops(el, group, join_tolerance(scene, el.e1, el.e2))
+    turning = windings(el.take(order), loop_offsets)
+    # a closed boundary winds by ±2π; anything else closed only within the join tolerance
+    # (e.g. one spurious arc shorter than it, meeting itself) and is an open chain
+    bad = np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE
+    order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets, bad)
+    walk = el.take(order)
+    del el
+    turning = windings(walk, loop_offsets)
+    area = loop_areas(walk, loop_offsets)
+    ref = reference_points(walk, loop_offsets)
+    loop_group = group[order[loop_offsets[:-1]]]
+    cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
+    return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell), int(np.count_nonzero(bad))
+
+
+def _concatenate_cells(parts):
+    """One EECells from the cells of consecutive chunks of squares ((EECells, demoted)
+    pairs): cells, loops and elements in chunk order, as one build gives them; open
+    chains too, but the demoted loops of every chunk first (as :func:`_demote` puts them)."""
+    if len(parts) == 1:
+        return parts[0][0]
+    cells = [p for p, _ in parts]
+
+    def ragged(offsets, values):
+        """Joined CSR lists: (offsets, each value array joined)."""
+        sizes = np.concatenate([np.diff(o) for o in offsets])
+        return np.r_[0, np.cumsum(sizes)].astype(np.int64), [np.concatenate(v) for v in zip(*values)]
+
+    per_cell = ("edge1", "edge2", "back_kind", "back", "front_kind", "front", "area", "complete")
+    out = {k: np.concatenate([getattr(c, k) for c in cells]) for k in per_cell}
+    out["loop_offsets"], (out["turning"],) = ragged([c.loop_offsets for c in cells], [(c.turning,) for c in cells])
+    out["element_offsets"], (out["element"], out["element_interval"]) = ragged(
+        [c.element_offsets for c in cells], [(c.element, c.element_interval) for c in cells])
+    # open chains: every chunk's demoted loops, then every chunk's other chains
+    per_chain = ("open_edge1", "open_edge2", "open_back_kind", "open_back", "open_front_kind", "open_front")
+    chains = []
+    for demoted in (True, False):
+        for c, n in parts:
+            rows = np.arange(n) if demoted else np.arange(n, len(c.open_edge1))
+            lo, hi = c.open_offsets[rows], c.open_offsets[rows + 1]
+            idx = expand_ranges(lo, hi - lo)[1]
+            chains.append((np.r_[0, np.cumsum(hi - lo)], (c.open_element[idx], c.open_interval[idx])
+                           + tuple(getattr(c, k)[rows] for k in per_chain)))
+    out["open_offsets"], joined = ragged([o for o, _ in chains], [v for _, v in chains])
+    out["open_element"], out["open_interval"] = joined[:2]
+    out.update(zip(per_chain, joined[2:]))
+    return EECells(**out)
 
 
 def _demote(order, loop_offsets, chain_offsets, bad):

@@ -41,7 +41,8 @@ evaluation, nothing rebuilt). A VE family's lines lie in the plane of its vertex
 edge, so its trace is the straight segment between the images of the interval's ends.
 An EEE family's lines rule a quadric; its trace is a conic arc, written as a polyline
 refined until each chord's middle parameter is within ``CHORD_TOLERANCE`` × epsilon of
-the chord. The traces lie in f (every trace point is where a segment ending on f meets
+the chord; a planar EEE family is a pencil of lines through one point, its trace
+straight. The traces lie in f (every trace point is where a segment ending on f meets
 f), so clipping to the receiver only snaps ends that are within the snap distance of
 its outline.
 
@@ -73,10 +74,6 @@ CHORD_TOLERANCE = 10.0
 SNAP = 10.0
 #: Chords per EEE trace before refinement, and refinement rounds at most.
 EEE_START, EEE_ROUNDS = 8, 16
-#: Where an EEE line is undefined at an end of its interval, the trace point is taken this
-#: fraction of the interval inside (the first that works).
-NUDGES = (1e-10, 1e-8, 1e-6)
-
 # which light feature an event involves
 LIGHT_VERTEX, LIGHT_EDGE, LIGHT_FACE = 0, 1, 2
 #: Names of the event kinds: V1's arcs, receiver-plane events (C on an occluder edge or an
@@ -261,9 +258,83 @@ def select_events(scene, arcs, light):
     return Events(sel, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel])
 
 
-def _trace_points(scene, kind, generators, s, face):
-    """line(s) ∩ plane(face): (m, 3) float64 (NaN where the line is parallel to it)."""
+def pencil_points(scene, kind, generators):
+    """The point every line of a *planar* EEE family passes through.
+
+    When p's line and that of q or r lie in one plane (within epsilon: two edges of one
+    face), the line through a point of p meeting the other one's line lies in that plane,
+    so it meets the third edge where that edge crosses the plane: the family is the
+    pencil of lines through that point X and the points of p. Its trace on a receiver is
+    straight, and its line is defined at the end of p on the other edge's line too (the
+    limit :func:`viscx.skeleton.arcs.family_lines` cannot evaluate).
+
+    Returns
+    -------
+    planar : (m,) bool
+    partner : (m,) int64
+        Slot (1 or 2) of the edge coplanar with p (0 elsewhere).
+    x : (m, 3) float64
+        X (NaN elsewhere).
+    normal : (m, 3) float64
+        Unit normal of the plane (NaN elsewhere).
+    """
+    kind = np.asarray(kind)
+    g = np.asarray(generators, np.int64)
+    m = len(kind)
+    partner = np.zeros(m, np.int64)
+    x = np.full((m, 3), np.nan)
+    normal = np.full((m, 3), np.nan)
+    e = np.flatnonzero(kind == EEE)
+    if not len(e):
+        return partner > 0, partner, x, normal
+    V, ev = scene.vertices, scene.half_edges.edge_vertices
+    a = V[ev[g[e]][..., 0]]  # (k, 3 slots, 3)
+    b = V[ev[g[e]][..., 1]]
+    dp = b[:, 0] - a[:, 0]
+    up = dp / np.linalg.norm(dp, axis=1, keepdims=True)
+    eps = scene.epsilon
+    for j in (1, 2):
+        # the plane of p and the end of edge j farther from p's line; the other end within eps
+        ra, rb = a[:, j] - a[:, 0], b[:, j] - a[:, 0]
+        oa = ra - np.einsum("ij,ij->i", ra, up)[:, None] * up
+        ob = rb - np.einsum("ij,ij->i", rb, up)[:, None] * up
+        la, lb = np.linalg.norm(oa, axis=1), np.linalg.norm(ob, axis=1)
+        far = np.where((la >= lb)[:, None], oa, ob)
+        near = np.where((la >= lb)[:, None], ob, oa)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n = np.cross(up, far / np.maximum(np.maximum(la, lb), 1e-300)[:, None])
+            n /= np.linalg.norm(n, axis=1, keepdims=True)
+            flat = (np.maximum(la, lb) > eps) & (np.abs(np.einsum("ij,ij->i", near, n)) <= eps)
+            t = 3 - j
+            dt = b[:, t] - a[:, t]
+            den = np.einsum("ij,ij->i", n, dt)
+            xt = a[:, t] + (np.einsum("ij,ij->i", n, a[:, 0] - a[:, t]) / den)[:, None] * dt
+        ok = flat & (np.abs(den) > 1e-12 * np.linalg.norm(dt, axis=1)) & (partner[e] == 0)
+        partner[e[ok]] = j
+        x[e[ok]] = xt[ok]
+        normal[e[ok]] = n[ok]
+    return partner > 0, partner, x, normal
+
+
+def _family_lines(scene, kind, generators, s, pencil=None):
+    """:func:`viscx.skeleton.arcs.family_lines`, planar EEE families exactly (through their
+    pencil point). ``pencil``: (planar, x) of :func:`pencil_points` for these rows."""
     o, d = family_lines(scene, kind, generators, s)
+    if pencil is None:
+        planar, _, x, _ = pencil_points(scene, kind, generators)
+    else:
+        planar, x = pencil
+    if planar.any():
+        ev = scene.half_edges.edge_vertices[np.asarray(generators, np.int64)[planar, 0]]
+        a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+        o[planar] = a + np.asarray(s, np.float64)[planar, None] * (b - a)
+        d[planar] = o[planar] - x[planar]
+    return o, d
+
+
+def _trace_points(scene, kind, generators, s, face, pencil=None):
+    """line(s) ∩ plane(face): (m, 3) float64 (NaN where the line is parallel to it)."""
+    o, d = _family_lines(scene, kind, generators, s, pencil)
     n, c = scene.face_normal[face], scene.face_offset[face]
     den = np.einsum("ij,ij->i", n, d)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -271,13 +342,15 @@ def _trace_points(scene, kind, generators, s, face):
         return o + t[:, None] * d
 
 
-def trace_events(scene, arcs, events, tolerance):
+def trace_events(scene, arcs, events, tolerance, interval=None):
     """The trace of each event on its receiver as a polyline.
 
     Parameters
     ----------
     tolerance : float
         Chordal tolerance (scene units) of the EEE conic arcs.
+    interval : (m, 2) float64, optional
+        The family parameters to trace (default: each arc's interval).
 
     Returns
     -------
@@ -290,9 +363,12 @@ def trace_events(scene, arcs, events, tolerance):
     m = len(events.arc)
     kind = arcs.kind[events.arc].astype(np.int64)
     gens = arcs.generators[events.arc]
-    s0, s1 = arcs.interval[events.arc, 0], arcs.interval[events.arc, 1]
+    if interval is None:
+        interval = arcs.interval[events.arc]
+    s0, s1 = interval[:, 0], interval[:, 1]
     # chords: (event, sa, sb); VE one chord, EEE EEE_START chords refined
-    counts = np.where(kind == VE, 1, EEE_START)
+    planar, _, x, _ = pencil_points(scene, kind, gens)
+    counts = np.where((kind == VE) | planar, 1, EEE_START)
     ev = np.repeat(np.arange(m), counts)
     j = np.arange(len(ev)) - np.repeat(np.cumsum(counts) - counts, counts)
     cn = counts[ev]
@@ -304,9 +380,10 @@ def trace_events(scene, arcs, events, tolerance):
             break
         k = kind[ev]
         fa = events.face[ev]
-        pa = _trace_points(scene, k, gens[ev], sa, fa)
-        pb = _trace_points(scene, k, gens[ev], sb, fa)
-        pm = _trace_points(scene, k, gens[ev], 0.5 * (sa + sb), fa)
+        pen = (planar[ev], x[ev])
+        pa = _trace_points(scene, k, gens[ev], sa, fa, pen)
+        pb = _trace_points(scene, k, gens[ev], sb, fa, pen)
+        pm = _trace_points(scene, k, gens[ev], 0.5 * (sa + sb), fa, pen)
         ab = pb - pa
         w = np.clip(np.einsum("ij,ij->i", pm - pa, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
         dev = np.linalg.norm(pm - (pa + w[:, None] * ab), axis=1)
@@ -330,17 +407,7 @@ def trace_events(scene, arcs, events, tolerance):
     ps = np.concatenate([sab[:, 0], sab[last, 1]])
     order = np.lexsort([ps, pev])
     pev, ps = pev[order], ps[order]
-    pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev])
-    # an EEE line is undefined where its point of p is on the line of q or r (an
-    # "endpoint" end shared by two generator edges): take the limit from inside
-    for nudge in NUDGES:
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if not len(bad):
-            break
-        e = pev[bad]
-        width = s1[e] - s0[e]
-        inward = np.where(ps[bad] - s0[e] < s1[e] - ps[bad], 1.0, -1.0)
-        pts[bad] = _trace_points(scene, kind[e], gens[e], ps[bad] + inward * nudge * width, events.face[e])
+    pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev], (planar[pev], x[pev]))
     return offsets, pts, ps
 
 

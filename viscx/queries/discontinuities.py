@@ -44,7 +44,9 @@ refined until each chord's middle parameter is within ``CHORD_TOLERANCE`` × eps
 the chord; a planar EEE family is a pencil of lines through one point, its trace
 straight. The traces lie in f (every trace point is where a segment ending on f meets
 f), so clipping to the receiver only snaps ends that are within the snap distance of
-its outline.
+its outline. A trace ending where V1 ended its arc at a transition, and meeting no
+other line there, is continued to the first line it meets
+(:func:`continue_transitions`).
 
 Regions
 -------
@@ -62,10 +64,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
-from viscx.skeleton.arcs import EEE, VE, KIND_NAMES, family_lines
+from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE
 
 #: Chordal tolerance of the EEE traces (conic arcs as polylines), in epsilons.
@@ -409,6 +412,140 @@ def trace_events(scene, arcs, events, tolerance, interval=None):
     pev, ps = pev[order], ps[order]
     pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev], (planar[pev], x[pev]))
     return offsets, pts, ps
+
+
+def _in_domain(scene, kind, generators, s):
+    """(m,) bool: the family's line at s meets the segments of its generator edges (p's and
+    a VE's edge by construction, for s in [0, 1]; an EEE's q and r within epsilon of their
+    ends)."""
+    ok = (s >= 0) & (s <= 1)
+    e = np.flatnonzero(kind == EEE)
+    if len(e):
+        o, d = _family_lines(scene, kind[e], generators[e], s[e])
+        ev = scene.half_edges.edge_vertices
+        for j in (1, 2):
+            a, b = scene.vertices[ev[generators[e, j], 0]], scene.vertices[ev[generators[e, j], 1]]
+            x, _ = segment_parameter(o, d, a, b)
+            slack = scene.epsilon / np.linalg.norm(b - a, axis=1)
+            ok[e] &= (x >= -slack) & (x <= 1 + slack)
+    return ok
+
+
+def _first_hit(line, segs, snap):
+    """Where a 2-D polyline first meets segments: crossing one, or passing within ``snap``
+    of one's end, or ending within ``snap`` of one.
+
+    line : (k, 2) float64; segs : (n, 2, 2) float64. Returns (chord index, parameter on
+    it) or None.
+    """
+    a, b = line[:-1, None], line[1:, None]
+    d = b - a
+    c, e = segs[None, :, 0], segs[None, :, 1] - segs[None, :, 0]
+    li = np.maximum(np.linalg.norm(d, axis=-1), 1e-300)
+    lj = np.maximum(np.linalg.norm(e, axis=-1), 1e-300)
+    den = d[..., 0] * e[..., 1] - d[..., 1] * e[..., 0]
+    r = c - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = (r[..., 0] * e[..., 1] - r[..., 1] * e[..., 0]) / den
+        tj = (r[..., 0] * d[..., 1] - r[..., 1] * d[..., 0]) / den
+    cross = ((np.abs(den) > 1e-12 * li * lj) & (ti >= 0) & (ti <= 1 + snap / li)
+             & (tj >= -snap / lj) & (tj <= 1 + snap / lj))
+    t = np.where(cross, np.minimum(ti, 1.0), np.inf)
+    for p in (segs[None, :, 0], segs[None, :, 1]):  # a segment's end on the line
+        w = np.einsum("ijk,ijk->ij", p - a, d) / li ** 2
+        q = a + np.clip(w, 0, 1)[..., None] * d
+        t = np.where((w >= 0) & (w <= 1) & (np.linalg.norm(p - q, axis=-1) <= snap), np.minimum(t, w), t)
+    # the line's last point on a segment
+    w = np.clip(np.einsum("ijk,ijk->ij", b - c, e) / lj ** 2, 0, 1)
+    on = np.linalg.norm(b - c - w[..., None] * e, axis=-1) <= snap
+    t = np.where(on, np.minimum(t, 1.0), t)
+    best = t.min(axis=1)
+    hit = np.flatnonzero(np.isfinite(best))
+    if not len(hit):
+        return None
+    return int(hit[0]), float(best[hit[0]])
+
+
+def continue_transitions(scene, arcs, events, offsets, points, lines, tolerance, snap):
+    """Traces that stop short at a transition, continued to the first line they meet.
+
+    V1 ends an arc at a *transition* (END_TRANSITION) where its samples change with no
+    event to explain it: epsilon-visibility judging features closer than epsilon as
+    touching (random scene 29: a sliver tetrahedron's edge runs within the weld tolerance
+    of another of its faces for 15 epsilons from their common vertex, so V1 judges the
+    family's lines there to cross that face and ends the arc 21 epsilons along its edge
+    short of the vertex). An exact family stops only at a node, on other families' lines,
+    so its trace ends on another trace; a transition end that meets no other line within
+    ``snap`` stopped short. Its family is traced on from there towards the end of its
+    parameter domain (s = 0 or 1, while its lines meet its generator segments) and kept
+    up to the first line of the receiver it meets (nothing is added where it meets none).
+
+    Parameters
+    ----------
+    lines : dict
+        Receiver face -> (frame (u, v, o), (c, 2, 2) 2-D segments of its outline and
+        contacts).
+
+    Returns
+    -------
+    offsets, points
+        The polylines, continued ones lengthened at that end.
+    """
+    has_arc = np.flatnonzero(events.arc >= 0)
+    row = np.repeat(has_arc, 2)
+    side = np.tile([0, 1], len(has_arc))
+    sel = (arcs.end_type[events.arc[row], side] == END_TRANSITION) & np.isin(events.face[row], list(lines))
+    row, side = row[sel], side[sel]
+    if not len(row):
+        return offsets, points
+    end = np.where(side == 0, offsets[row], offsets[row + 1] - 1)
+    s_t = arcs.interval[events.arc[row], side]
+    at = _trace_points(scene, arcs.kind[events.arc[row]].astype(np.int64), arcs.generators[events.arc[row]], s_t,
+                       events.face[row])
+    row, side, end, s_t = (x[np.linalg.norm(points[end] - at, axis=1) <= snap] for x in (row, side, end, s_t))
+    pieces = np.split(points, offsets[1:-1])
+    for f in np.unique(events.face[row]):
+        (u, v, _), segs = lines[f]
+        mine = np.flatnonzero(events.face == f)
+        chords, owner = [segs], [np.full(len(segs), -1)]
+        for k in mine:
+            q = np.stack([pieces[k] @ u, pieces[k] @ v], axis=1)
+            chords.append(np.stack([q[:-1], q[1:]], axis=1))
+            owner.append(np.full(len(q) - 1, k))
+        chords, owner = np.concatenate(chords), np.concatenate(owner)
+        here = np.flatnonzero(events.face[row] == f)
+        p2 = np.stack([points[end[here]] @ u, points[end[here]] @ v], axis=1)
+        a, d = chords[None, :, 0], chords[None, :, 1] - chords[None, :, 0]
+        dd = np.maximum(np.einsum("ijk,ijk->ij", d, d), 1e-300)
+        w = np.clip(np.einsum("ijk,ijk->ij", p2[:, None] - a, d) / dd, 0, 1)
+        dist = np.linalg.norm(p2[:, None] - a - w[..., None] * d, axis=-1)
+        dist[owner[None, :] == row[here][:, None]] = np.inf
+        here = here[dist.min(axis=1) > snap]
+        if not len(here):
+            continue
+        s_e = side[here].astype(np.float64)
+        span = np.stack([np.minimum(s_t[here], s_e), np.maximum(s_t[here], s_e)], axis=1)
+        ext_off, ext_pts, ext_s = trace_events(scene, arcs, events.take(row[here]), tolerance, span)
+        a_ = events.arc[np.repeat(row[here], np.diff(ext_off))]
+        valid = _in_domain(scene, arcs.kind[a_].astype(np.int64), arcs.generators[a_], ext_s)
+        valid &= np.isfinite(ext_pts).all(axis=1)
+        for i, h in enumerate(here):
+            e3, ok = ext_pts[ext_off[i]:ext_off[i + 1]], valid[ext_off[i]:ext_off[i + 1]]
+            if side[h] == 0:
+                e3, ok = e3[::-1], ok[::-1]  # from the transition outwards
+            e3 = e3[:np.argmin(ok) if not ok.all() else len(ok)]  # up to where the family ends
+            if len(e3) < 2:
+                continue
+            e2 = np.stack([e3 @ u, e3 @ v], axis=1)
+            hit = _first_hit(e2, chords[owner != row[h]], snap)
+            if hit is None:
+                continue
+            k, t = hit
+            tail = np.concatenate([e3[1:k + 1], (e3[k] + t * (e3[k + 1] - e3[k]))[None]])
+            r = row[h]
+            pieces[r] = np.concatenate([tail[::-1], pieces[r]]) if side[h] == 0 else np.concatenate([pieces[r], tail])
+    counts = np.array([len(p) for p in pieces], np.int64)
+    return np.r_[0, np.cumsum(counts)].astype(np.int64), np.concatenate(pieces)
 
 
 # --------------------------------------------------------------------------------------
@@ -819,12 +956,23 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     n_lp = len(events.arc) - len(row)
     offsets = np.r_[offsets, offsets[-1] + 2 * np.arange(1, n_lp + 1)].astype(np.int64)
     points = np.concatenate([points, *lp_pts])
+    # traces that stop short of every line (V1's transitions) go on to the first one
+    contacts, lines = {}, {}
+    for f in wanted:
+        u, v, o = frames[f]
+        contacts[f] = contact_edges(scene, f, outlines[f], (u, v), snap, light)
+        ends = scene.vertices[scene.half_edges.edge_vertices[contacts[f]]]
+        oa = np.concatenate(outlines[f])
+        ob = np.concatenate([np.roll(lp, -1, axis=0) for lp in outlines[f]])
+        lines[f] = (frames[f], np.concatenate([np.stack([oa, ob], axis=1),
+                                               np.stack([ends @ u, ends @ v], axis=-1).reshape(-1, 2, 2)]))
+    offsets, points = continue_transitions(scene, arcs, events, offsets, points, lines, tol, snap)
     receivers = []
     for f in wanted:
         u, v, o = frames[f]
         mine = np.flatnonzero(events.face == f)
         outline = outlines[f]
-        contact = contact_edges(scene, f, outline, (u, v), snap, light)
+        contact = contacts[f]
         ends = scene.vertices[scene.half_edges.edge_vertices[contact]]
         chords = [np.stack([ends @ u, ends @ v], axis=-1).reshape(-1, 2, 2)]
         cev = [np.full(len(contact), -1, np.int64)]

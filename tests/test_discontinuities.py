@@ -302,6 +302,52 @@ def test_transition_end_continued(tmp_path, monkeypatch):
     assert res["dangling"] and res["cross_same_region"] == 1
 
 
+def panel_scene_obj(path, tilt=0.0, fold=False):
+    """An OBJ: a floor, a square light (side 3, turned about y, facing down, y ≈ 10) and a
+    lone quad panel (2.5 high, its top shifted by ``tilt`` in x) standing on the floor, its
+    plane cutting the light (``fold``: a second quad hinged on the panel's side edge, off
+    its plane)."""
+    c, s = np.cos(0.3), np.sin(0.3)
+    sq = np.array([[-1.5, -1.5], [1.5, -1.5], [1.5, 1.5], [-1.5, 1.5]]) @ np.array([[c, -s], [s, c]])
+    lines = ["o floor", "v -2 0 -2", "v 12 0 -2", "v 12 0 12", "v -2 0 12", "f 1 4 3 2", "o light"]
+    lines += [f"v {5 + float(x)!r} {10 + 0.05 * float(x)!r} {5 + float(z)!r}" for x, z in sq]
+    lines += ["f 5 6 7 8", "o panel"]
+    b0, b1 = np.array([3.6, 0, 2.0]), np.array([4.7, 0, 3.4])
+    up, side = np.array([tilt, 2.5, 0]), np.array([1.2, 0, -0.4])
+    pts = [b0, b1, b1 + up, b0 + up] + ([b1 + side, b1 + up + side] if fold else [])
+    lines += [f"v {float(p[0])!r} {float(p[1])!r} {float(p[2])!r}" for p in pts]
+    lines += ["f 9 10 11 12"] + (["f 10 13 14 11"] if fold else [])
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("tilt, fold", [(0.0, False), (0.3, True)])
+def test_lone_panel(tmp_path, monkeypatch, tilt, fold):
+    """A panel whose plane cuts the light: its planar EEE families (two of its edges and a
+    light edge) trace its line on the floor beyond it, where nothing changes (both edges
+    bound the panel's thin hidden interval from either side). They are dropped; the
+    families through an edge with a face off the plane (the hinge of a folded panel) are
+    kept, and crossing them changes the labels. Every trace of the floor is crossed."""
+    from viscx.queries import discontinuities as dm
+
+    obj = panel_scene_obj(tmp_path / "p.obj", tilt, fold)
+    build_file(obj, tmp_path / "p.h5", quiet=True)
+    # the folded panel's own faces as receivers: a separate limitation (docs/queries.md)
+    faces = [0] if fold else ()
+    scene, mesh = open_discontinuities(tmp_path / "p.h5", light_group="light", faces=faces)
+    res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
+    _assert_oracle(res, 60)
+    assert res["cross_pairs"] == sum(len(r.events) for r in mesh.receivers)
+    ev = mesh.events
+    planar = dm.pencil_points(scene, ev.kind, ev.generators)[0]
+    assert planar.any() == fold  # the hinge's families
+    # without the rule the panel's families are traced, and crossing them changes nothing
+    monkeypatch.setattr(dm, "panel_pencils", lambda scene, kind, *a: np.zeros(len(kind), bool))
+    scene, mesh = open_discontinuities(tmp_path / "p.h5", light_group="light", faces=faces)
+    res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
+    assert len(res["cross_fail"]) >= 2
+
+
 def test_planar_families_exact():
     """Cornell box: an EEE family with two edges of one block face (sharing a vertex) is the
     pencil of lines through the light edge's point in that face's plane. Its trace is one

@@ -31,7 +31,10 @@ that sees the light's front; the traces behind it are dropped
 occluder edge's image crossing a receiver's horizon on a light edge, whose critical
 lines lie in the receiver's plane and are not arcs of V1). An arc is traced on face f when its blocker at the receiver end is face f, f is not a
 light face, and no occluder generator of the arc is an edge or a vertex of f (such a
-trace runs along f's own outline or is a point).
+trace runs along f's own outline or is a point). A *planar* EEE family (two of its edges
+in one plane: :func:`pencil_points`) is left out where both of those edges have all
+their faces in that plane (a lone panel: :func:`panel_pencils`, nothing changes across
+its trace).
 
 Traces
 ------
@@ -64,6 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from viscx.arrays import expand_ranges
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
@@ -255,6 +259,8 @@ def select_events(scene, arcs, light):
         da = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 0]], n_f) - c_f)
         db = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 1]], n_f) - c_f)
         bad |= is_edge & (da <= snap) & (db <= snap)
+    # a lone panel's planar families: nothing changes across their trace
+    bad |= panel_pencils(scene, k, gs, snap)
     sel, e, face = sel[~bad], e[~bad], face[~bad]
     order = np.lexsort([sel, face])
     sel, e, face = sel[order], e[order], face[order]
@@ -317,6 +323,43 @@ def pencil_points(scene, kind, generators):
         x[e[ok]] = xt[ok]
         normal[e[ok]] = n[ok]
     return partner > 0, partner, x, normal
+
+
+def panel_pencils(scene, kind, generators, snap):
+    """Planar EEE families (:func:`pencil_points`) across whose trace nothing changes: both
+    coplanar generator edges have all their faces in the family's plane P (a lone panel
+    standing in the light, its plane cutting the light).
+
+    Why: x crossing P turns over every face lying in P and no other face near the
+    family's lines (a face off P through an edge in P keeps x on one side: the lines meet
+    its plane only on that edge). An edge with a face off P is a contour edge from one
+    side of P only, so crossing P changes which edges bound the light's hidden part (a
+    tetrahedron's face edge-on: its outline passes from one edge to the other two). An
+    edge whose faces all lie in P is a contour edge from both sides: two such edges
+    bound the same thin hidden interval of the light edge on both sides (the panel seen
+    almost edge-on, then from its back): no label changes.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    planar, partner, _, normal = pencil_points(scene, kind, generators)
+    out = np.zeros(len(planar), bool)
+    rows = np.flatnonzero(planar)
+    if not len(rows):
+        return out
+    g = np.asarray(generators, np.int64)
+    he = scene.half_edges
+    order = np.argsort(he.edge, kind="stable")
+    first = np.searchsorted(he.edge[order], np.arange(len(he.edge_vertices) + 1))
+    pair = np.stack([g[rows, 0], g[rows, partner[rows]]], axis=1).ravel()
+    row, h = expand_ranges(first[pair], first[pair + 1] - first[pair])
+    face = he.face[order[h]]
+    c = rows[row // 2]
+    # the face lies in P: its normal within snap / diagonal (radians) of P's
+    off = np.linalg.norm(np.cross(scene.face_normal[face], normal[c]), axis=1) > snap / scene.diagonal
+    out[rows] = np.bincount(row // 2, weights=off, minlength=len(rows)) == 0
+    return out
 
 
 def _family_lines(scene, kind, generators, s, pencil=None):

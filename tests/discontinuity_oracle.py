@@ -155,13 +155,42 @@ def _parity(q, loops):
     return np.count_nonzero(cond & (q[:, None, 0] < xc), axis=1) % 2 == 1
 
 
+#: Where along a trace (fractions of its length) the crossing check is tried, in order.
+CROSS_AT = (0.5, 0.3, 0.7, 0.15, 0.85, 0.05, 0.95, 0.01, 0.99)
+
+
+def _crossing_points(a, b, margin):
+    """Point pairs across a 2-D polyline (chords a, b: (c, 2) each) at each of
+    :data:`CROSS_AT`, offset ±margin along its normal: (len(CROSS_AT), 2, 2)."""
+    length = np.linalg.norm(b - a, axis=1)
+    cum = np.r_[0.0, np.cumsum(length)]
+    at = np.asarray(CROSS_AT) * cum[-1]
+    c = np.clip(np.searchsorted(cum, at, side="right") - 1, 0, len(a) - 1)
+    # a zero-length chord has no normal: take the nearest chord with one
+    ok = np.flatnonzero(length > 0)
+    if not len(ok):
+        return np.zeros((0, 2, 2))
+    c = ok[np.clip(np.searchsorted(ok, c), 0, len(ok) - 1)]
+    w = np.clip((at - cum[c]) / length[c], 0, 1)
+    d = (b[c] - a[c]) / length[c, None]
+    m = a[c] + w[:, None] * (b[c] - a[c])
+    n2 = np.stack([-d[:, 1], d[:, 0]], axis=1)
+    return np.stack([m + margin * n2, m - margin * n2], axis=1)
+
+
 def check_mesh(scene, mesh, rng, margin, samples=4):
     """Compare a DiscontinuityMesh with the oracle.
 
     Same region: ``samples`` random points per region, at least ``margin`` from every
-    mesh line and outline; every pair must have equal labels. Crossing: each trace
-    polyline's middle chord, offset ±margin along its normal (points at least margin/2
-    from every other line); labels must differ.
+    mesh line, contact and outline; every pair must have equal labels. Crossing: every
+    trace, at its middle (by length), offset ±margin along its normal; where those points
+    are outside the face or within margin/2 of another line, at the first of
+    :data:`CROSS_AT` where they are not, then the same with margin/4; labels must differ
+    and the points be in different regions. A trace with no such place is listed in
+    ``cross_skipped`` (face, event, why: "on the outline" for a trace along the face's
+    outline, which has no other side). Trace ends inside the face farther
+    than the mesh's snap distance from every other line are listed in ``dangling``
+    (face, event, point, distance).
 
     Returns
     -------
@@ -169,13 +198,17 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
     """
     setup = oracle_setup(scene, mesh.light.faces)
     out = {"same_pairs": 0, "same_agree": 0, "cross_pairs": 0, "cross_agree": 0, "regions": 0,
-           "regions_sampled": 0, "same_fail": [], "cross_fail": [], "cross_same_region": 0}
+           "regions_sampled": 0, "same_fail": [], "cross_fail": [], "cross_same_region": 0,
+           "cross_skipped": [], "dangling": []}
     for r in mesh.receivers:
         u, v, o = r.frame
         outline = [np.stack([lp @ u, lp @ v], axis=1) for lp in scene.face_loops(r.face)]
-        a = [np.concatenate(outline)]
-        b = [np.concatenate([np.roll(lp, -1, axis=0) for lp in outline])]
-        owner = [np.full(len(a[0]), -1)]
+        # the outline and the contact edges (D0 lines) are lines of no event (owner -1)
+        ce = scene.vertices[scene.half_edges.edge_vertices[r.contacts]]
+        a = [np.concatenate(outline), np.stack([ce[:, 0] @ u, ce[:, 0] @ v], axis=1)]
+        b = [np.concatenate([np.roll(lp, -1, axis=0) for lp in outline]),
+             np.stack([ce[:, 1] @ u, ce[:, 1] @ v], axis=1)]
+        owner = [np.full(len(a[0]) + len(a[1]), -1)]
         for k in r.events:
             p = mesh.points[mesh.offsets[k]:mesh.offsets[k + 1]]
             q = np.stack([p @ u, p @ v], axis=1)
@@ -208,21 +241,38 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
                     out["same_agree"] += 1
                 else:
                     out["same_fail"].append((r.face, j, r.to3(q[0]).tolist(), r.to3(q[i]).tolist(), labs[0] ^ labs[i]))
+        # every trace ends on another line (or runs out of the face): a dangling end
+        # leaves one region on both sides of the trace
         for k in r.events:
             rows = np.flatnonzero(owner == k)
-            c = rows[len(rows) // 2]
-            m = 0.5 * (a[c] + b[c])
-            d = b[c] - a[c]
-            if np.linalg.norm(d) == 0:
-                continue
-            n2 = np.array([-d[1], d[0]]) / np.linalg.norm(d)
-            q = np.stack([m + margin * n2, m - margin * n2])
-            if not _parity(q, outline).all():
-                continue
+            ends = np.stack([a[rows[0]], b[rows[-1]]])
+            inside = _parity(ends, outline)
+            gap = _seg_dist(ends, a[owner != k], b[owner != k]).min(axis=1)
+            for e in np.flatnonzero(inside & (gap > mesh.snap)):
+                out["dangling"].append((r.face, int(k), r.to3(ends[e]).tolist(), float(gap[e])))
+        nb = len(np.concatenate(outline))
+        for k in r.events:
+            rows = np.flatnonzero(owner == k)
             others = owner != k
-            near = _seg_dist(q, a[others], b[others]).min(axis=1) if others.any() else np.full(2, np.inf)
-            if (near < 0.5 * margin).any():
+            why, good = "zero length", []
+            for off in (margin, 0.25 * margin):  # a trace close to the outline: nearer
+                q = _crossing_points(a[rows], b[rows], off)
+                if not len(q):
+                    break
+                inside = _parity(q.reshape(-1, 2), outline).reshape(-1, 2).all(axis=1)
+                near = _seg_dist(q.reshape(-1, 2), a[others], b[others]).min(axis=1).reshape(-1, 2).min(axis=1)
+                good = np.flatnonzero(inside & (near >= 0.5 * off))
+                if len(good):
+                    break
+                why = "outside" if not inside.any() else "near another line"
+            if not len(good):
+                # a trace along the receiver's outline has no other side to cross to
+                mid = 0.5 * (a[rows] + b[rows])
+                if _seg_dist(mid, a[:nb], b[:nb]).min(axis=1).max() <= mesh.snap:
+                    why = "on the outline"
+                out["cross_skipped"].append((r.face, int(k), why))
                 continue
+            q = q[good[0]]
             out["cross_pairs"] += 1
             reg = region_of(q)
             if reg[0] == reg[1]:
@@ -231,5 +281,5 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
             if la != lb:
                 out["cross_agree"] += 1
             else:
-                out["cross_fail"].append((r.face, int(k), r.to3(m).tolist()))
+                out["cross_fail"].append((r.face, int(k), r.to3(q.mean(axis=0)).tolist()))
     return out

@@ -31,7 +31,10 @@ that sees the light's front; the traces behind it are dropped
 occluder edge's image crossing a receiver's horizon on a light edge, whose critical
 lines lie in the receiver's plane and are not arcs of V1). An arc is traced on face f when its blocker at the receiver end is face f, f is not a
 light face, and no occluder generator of the arc is an edge or a vertex of f (such a
-trace runs along f's own outline or is a point).
+trace runs along f's own outline or is a point). A *planar* EEE family (two of its edges
+in one plane: :func:`pencil_points`) is left out where both of those edges have all
+their faces in that plane (a lone panel: :func:`panel_pencils`, nothing changes across
+its trace).
 
 Traces
 ------
@@ -41,9 +44,12 @@ evaluation, nothing rebuilt). A VE family's lines lie in the plane of its vertex
 edge, so its trace is the straight segment between the images of the interval's ends.
 An EEE family's lines rule a quadric; its trace is a conic arc, written as a polyline
 refined until each chord's middle parameter is within ``CHORD_TOLERANCE`` × epsilon of
-the chord. The traces lie in f (every trace point is where a segment ending on f meets
+the chord; a planar EEE family is a pencil of lines through one point, its trace
+straight. The traces lie in f (every trace point is where a segment ending on f meets
 f), so clipping to the receiver only snaps ends that are within the snap distance of
-its outline.
+its outline. A trace ending where V1 ended its arc at a transition, and meeting no
+other line there, is continued to the first line it meets
+(:func:`continue_transitions`).
 
 Regions
 -------
@@ -61,10 +67,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from viscx.arrays import expand_ranges
+from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
-from viscx.skeleton.arcs import EEE, VE, KIND_NAMES, family_lines
+from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE
 
 #: Chordal tolerance of the EEE traces (conic arcs as polylines), in epsilons.
@@ -73,10 +81,6 @@ CHORD_TOLERANCE = 10.0
 SNAP = 10.0
 #: Chords per EEE trace before refinement, and refinement rounds at most.
 EEE_START, EEE_ROUNDS = 8, 16
-#: Where an EEE line is undefined at an end of its interval, the trace point is taken this
-#: fraction of the interval inside (the first that works).
-NUDGES = (1e-10, 1e-8, 1e-6)
-
 # which light feature an event involves
 LIGHT_VERTEX, LIGHT_EDGE, LIGHT_FACE = 0, 1, 2
 #: Names of the event kinds: V1's arcs, receiver-plane events (C on an occluder edge or an
@@ -255,15 +259,128 @@ def select_events(scene, arcs, light):
         da = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 0]], n_f) - c_f)
         db = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 1]], n_f) - c_f)
         bad |= is_edge & (da <= snap) & (db <= snap)
+    # a lone panel's planar families: nothing changes across their trace
+    bad |= panel_pencils(scene, k, gs, snap)
     sel, e, face = sel[~bad], e[~bad], face[~bad]
     order = np.lexsort([sel, face])
     sel, e, face = sel[order], e[order], face[order]
     return Events(sel, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel])
 
 
-def _trace_points(scene, kind, generators, s, face):
-    """line(s) ∩ plane(face): (m, 3) float64 (NaN where the line is parallel to it)."""
+def pencil_points(scene, kind, generators):
+    """The point every line of a *planar* EEE family passes through.
+
+    When p's line and that of q or r lie in one plane (within epsilon: two edges of one
+    face), the line through a point of p meeting the other one's line lies in that plane,
+    so it meets the third edge where that edge crosses the plane: the family is the
+    pencil of lines through that point X and the points of p. Its trace on a receiver is
+    straight, and its line is defined at the end of p on the other edge's line too (the
+    limit :func:`viscx.skeleton.arcs.family_lines` cannot evaluate).
+
+    Returns
+    -------
+    planar : (m,) bool
+    partner : (m,) int64
+        Slot (1 or 2) of the edge coplanar with p (0 elsewhere).
+    x : (m, 3) float64
+        X (NaN elsewhere).
+    normal : (m, 3) float64
+        Unit normal of the plane (NaN elsewhere).
+    """
+    kind = np.asarray(kind)
+    g = np.asarray(generators, np.int64)
+    m = len(kind)
+    partner = np.zeros(m, np.int64)
+    x = np.full((m, 3), np.nan)
+    normal = np.full((m, 3), np.nan)
+    e = np.flatnonzero(kind == EEE)
+    if not len(e):
+        return partner > 0, partner, x, normal
+    V, ev = scene.vertices, scene.half_edges.edge_vertices
+    a = V[ev[g[e]][..., 0]]  # (k, 3 slots, 3)
+    b = V[ev[g[e]][..., 1]]
+    dp = b[:, 0] - a[:, 0]
+    up = dp / np.linalg.norm(dp, axis=1, keepdims=True)
+    eps = scene.epsilon
+    for j in (1, 2):
+        # the plane of p and the end of edge j farther from p's line; the other end within eps
+        ra, rb = a[:, j] - a[:, 0], b[:, j] - a[:, 0]
+        oa = ra - np.einsum("ij,ij->i", ra, up)[:, None] * up
+        ob = rb - np.einsum("ij,ij->i", rb, up)[:, None] * up
+        la, lb = np.linalg.norm(oa, axis=1), np.linalg.norm(ob, axis=1)
+        far = np.where((la >= lb)[:, None], oa, ob)
+        near = np.where((la >= lb)[:, None], ob, oa)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n = np.cross(up, far / np.maximum(np.maximum(la, lb), 1e-300)[:, None])
+            n /= np.linalg.norm(n, axis=1, keepdims=True)
+            flat = (np.maximum(la, lb) > eps) & (np.abs(np.einsum("ij,ij->i", near, n)) <= eps)
+            t = 3 - j
+            dt = b[:, t] - a[:, t]
+            den = np.einsum("ij,ij->i", n, dt)
+            xt = a[:, t] + (np.einsum("ij,ij->i", n, a[:, 0] - a[:, t]) / den)[:, None] * dt
+        ok = flat & (np.abs(den) > 1e-12 * np.linalg.norm(dt, axis=1)) & (partner[e] == 0)
+        partner[e[ok]] = j
+        x[e[ok]] = xt[ok]
+        normal[e[ok]] = n[ok]
+    return partner > 0, partner, x, normal
+
+
+def panel_pencils(scene, kind, generators, snap):
+    """Planar EEE families (:func:`pencil_points`) across whose trace nothing changes: both
+    coplanar generator edges have all their faces in the family's plane P (a lone panel
+    standing in the light, its plane cutting the light).
+
+    Why: x crossing P turns over every face lying in P and no other face near the
+    family's lines (a face off P through an edge in P keeps x on one side: the lines meet
+    its plane only on that edge). An edge with a face off P is a contour edge from one
+    side of P only, so crossing P changes which edges bound the light's hidden part (a
+    tetrahedron's face edge-on: its outline passes from one edge to the other two). An
+    edge whose faces all lie in P is a contour edge from both sides: two such edges
+    bound the same thin hidden interval of the light edge on both sides (the panel seen
+    almost edge-on, then from its back): no label changes.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    planar, partner, _, normal = pencil_points(scene, kind, generators)
+    out = np.zeros(len(planar), bool)
+    rows = np.flatnonzero(planar)
+    if not len(rows):
+        return out
+    g = np.asarray(generators, np.int64)
+    he = scene.half_edges
+    order = np.argsort(he.edge, kind="stable")
+    first = np.searchsorted(he.edge[order], np.arange(len(he.edge_vertices) + 1))
+    pair = np.stack([g[rows, 0], g[rows, partner[rows]]], axis=1).ravel()
+    row, h = expand_ranges(first[pair], first[pair + 1] - first[pair])
+    face = he.face[order[h]]
+    c = rows[row // 2]
+    # the face lies in P: its normal within snap / diagonal (radians) of P's
+    off = np.linalg.norm(np.cross(scene.face_normal[face], normal[c]), axis=1) > snap / scene.diagonal
+    out[rows] = np.bincount(row // 2, weights=off, minlength=len(rows)) == 0
+    return out
+
+
+def _family_lines(scene, kind, generators, s, pencil=None):
+    """:func:`viscx.skeleton.arcs.family_lines`, planar EEE families exactly (through their
+    pencil point). ``pencil``: (planar, x) of :func:`pencil_points` for these rows."""
     o, d = family_lines(scene, kind, generators, s)
+    if pencil is None:
+        planar, _, x, _ = pencil_points(scene, kind, generators)
+    else:
+        planar, x = pencil
+    if planar.any():
+        ev = scene.half_edges.edge_vertices[np.asarray(generators, np.int64)[planar, 0]]
+        a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+        o[planar] = a + np.asarray(s, np.float64)[planar, None] * (b - a)
+        d[planar] = o[planar] - x[planar]
+    return o, d
+
+
+def _trace_points(scene, kind, generators, s, face, pencil=None):
+    """line(s) ∩ plane(face): (m, 3) float64 (NaN where the line is parallel to it)."""
+    o, d = _family_lines(scene, kind, generators, s, pencil)
     n, c = scene.face_normal[face], scene.face_offset[face]
     den = np.einsum("ij,ij->i", n, d)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -271,13 +388,15 @@ def _trace_points(scene, kind, generators, s, face):
         return o + t[:, None] * d
 
 
-def trace_events(scene, arcs, events, tolerance):
+def trace_events(scene, arcs, events, tolerance, interval=None):
     """The trace of each event on its receiver as a polyline.
 
     Parameters
     ----------
     tolerance : float
         Chordal tolerance (scene units) of the EEE conic arcs.
+    interval : (m, 2) float64, optional
+        The family parameters to trace (default: each arc's interval).
 
     Returns
     -------
@@ -290,9 +409,12 @@ def trace_events(scene, arcs, events, tolerance):
     m = len(events.arc)
     kind = arcs.kind[events.arc].astype(np.int64)
     gens = arcs.generators[events.arc]
-    s0, s1 = arcs.interval[events.arc, 0], arcs.interval[events.arc, 1]
+    if interval is None:
+        interval = arcs.interval[events.arc]
+    s0, s1 = interval[:, 0], interval[:, 1]
     # chords: (event, sa, sb); VE one chord, EEE EEE_START chords refined
-    counts = np.where(kind == VE, 1, EEE_START)
+    planar, _, x, _ = pencil_points(scene, kind, gens)
+    counts = np.where((kind == VE) | planar, 1, EEE_START)
     ev = np.repeat(np.arange(m), counts)
     j = np.arange(len(ev)) - np.repeat(np.cumsum(counts) - counts, counts)
     cn = counts[ev]
@@ -304,9 +426,10 @@ def trace_events(scene, arcs, events, tolerance):
             break
         k = kind[ev]
         fa = events.face[ev]
-        pa = _trace_points(scene, k, gens[ev], sa, fa)
-        pb = _trace_points(scene, k, gens[ev], sb, fa)
-        pm = _trace_points(scene, k, gens[ev], 0.5 * (sa + sb), fa)
+        pen = (planar[ev], x[ev])
+        pa = _trace_points(scene, k, gens[ev], sa, fa, pen)
+        pb = _trace_points(scene, k, gens[ev], sb, fa, pen)
+        pm = _trace_points(scene, k, gens[ev], 0.5 * (sa + sb), fa, pen)
         ab = pb - pa
         w = np.clip(np.einsum("ij,ij->i", pm - pa, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
         dev = np.linalg.norm(pm - (pa + w[:, None] * ab), axis=1)
@@ -330,18 +453,142 @@ def trace_events(scene, arcs, events, tolerance):
     ps = np.concatenate([sab[:, 0], sab[last, 1]])
     order = np.lexsort([ps, pev])
     pev, ps = pev[order], ps[order]
-    pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev])
-    # an EEE line is undefined where its point of p is on the line of q or r (an
-    # "endpoint" end shared by two generator edges): take the limit from inside
-    for nudge in NUDGES:
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if not len(bad):
-            break
-        e = pev[bad]
-        width = s1[e] - s0[e]
-        inward = np.where(ps[bad] - s0[e] < s1[e] - ps[bad], 1.0, -1.0)
-        pts[bad] = _trace_points(scene, kind[e], gens[e], ps[bad] + inward * nudge * width, events.face[e])
+    pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev], (planar[pev], x[pev]))
     return offsets, pts, ps
+
+
+def _in_domain(scene, kind, generators, s):
+    """(m,) bool: the family's line at s meets the segments of its generator edges (p's and
+    a VE's edge by construction, for s in [0, 1]; an EEE's q and r within epsilon of their
+    ends)."""
+    ok = (s >= 0) & (s <= 1)
+    e = np.flatnonzero(kind == EEE)
+    if len(e):
+        o, d = _family_lines(scene, kind[e], generators[e], s[e])
+        ev = scene.half_edges.edge_vertices
+        for j in (1, 2):
+            a, b = scene.vertices[ev[generators[e, j], 0]], scene.vertices[ev[generators[e, j], 1]]
+            x, _ = segment_parameter(o, d, a, b)
+            slack = scene.epsilon / np.linalg.norm(b - a, axis=1)
+            ok[e] &= (x >= -slack) & (x <= 1 + slack)
+    return ok
+
+
+def _first_hit(line, segs, snap):
+    """Where a 2-D polyline first meets segments: crossing one, or passing within ``snap``
+    of one's end, or ending within ``snap`` of one.
+
+    line : (k, 2) float64; segs : (n, 2, 2) float64. Returns (chord index, parameter on
+    it) or None.
+    """
+    a, b = line[:-1, None], line[1:, None]
+    d = b - a
+    c, e = segs[None, :, 0], segs[None, :, 1] - segs[None, :, 0]
+    li = np.maximum(np.linalg.norm(d, axis=-1), 1e-300)
+    lj = np.maximum(np.linalg.norm(e, axis=-1), 1e-300)
+    den = d[..., 0] * e[..., 1] - d[..., 1] * e[..., 0]
+    r = c - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = (r[..., 0] * e[..., 1] - r[..., 1] * e[..., 0]) / den
+        tj = (r[..., 0] * d[..., 1] - r[..., 1] * d[..., 0]) / den
+    cross = ((np.abs(den) > 1e-12 * li * lj) & (ti >= 0) & (ti <= 1 + snap / li)
+             & (tj >= -snap / lj) & (tj <= 1 + snap / lj))
+    t = np.where(cross, np.minimum(ti, 1.0), np.inf)
+    for p in (segs[None, :, 0], segs[None, :, 1]):  # a segment's end on the line
+        w = np.einsum("ijk,ijk->ij", p - a, d) / li ** 2
+        q = a + np.clip(w, 0, 1)[..., None] * d
+        t = np.where((w >= 0) & (w <= 1) & (np.linalg.norm(p - q, axis=-1) <= snap), np.minimum(t, w), t)
+    # the line's last point on a segment
+    w = np.clip(np.einsum("ijk,ijk->ij", b - c, e) / lj ** 2, 0, 1)
+    on = np.linalg.norm(b - c - w[..., None] * e, axis=-1) <= snap
+    t = np.where(on, np.minimum(t, 1.0), t)
+    best = t.min(axis=1)
+    hit = np.flatnonzero(np.isfinite(best))
+    if not len(hit):
+        return None
+    return int(hit[0]), float(best[hit[0]])
+
+
+def continue_transitions(scene, arcs, events, offsets, points, lines, tolerance, snap):
+    """Traces that stop short at a transition, continued to the first line they meet.
+
+    V1 ends an arc at a *transition* (END_TRANSITION) where its samples change with no
+    event to explain it: epsilon-visibility judging features closer than epsilon as
+    touching (random scene 29: a sliver tetrahedron's edge runs within the weld tolerance
+    of another of its faces for 15 epsilons from their common vertex, so V1 judges the
+    family's lines there to cross that face and ends the arc 21 epsilons along its edge
+    short of the vertex). An exact family stops only at a node, on other families' lines,
+    so its trace ends on another trace; a transition end that meets no other line within
+    ``snap`` stopped short. Its family is traced on from there towards the end of its
+    parameter domain (s = 0 or 1, while its lines meet its generator segments) and kept
+    up to the first line of the receiver it meets (nothing is added where it meets none).
+
+    Parameters
+    ----------
+    lines : dict
+        Receiver face -> (frame (u, v, o), (c, 2, 2) 2-D segments of its outline and
+        contacts).
+
+    Returns
+    -------
+    offsets, points
+        The polylines, continued ones lengthened at that end.
+    """
+    has_arc = np.flatnonzero(events.arc >= 0)
+    row = np.repeat(has_arc, 2)
+    side = np.tile([0, 1], len(has_arc))
+    sel = (arcs.end_type[events.arc[row], side] == END_TRANSITION) & np.isin(events.face[row], list(lines))
+    row, side = row[sel], side[sel]
+    if not len(row):
+        return offsets, points
+    end = np.where(side == 0, offsets[row], offsets[row + 1] - 1)
+    s_t = arcs.interval[events.arc[row], side]
+    at = _trace_points(scene, arcs.kind[events.arc[row]].astype(np.int64), arcs.generators[events.arc[row]], s_t,
+                       events.face[row])
+    row, side, end, s_t = (x[np.linalg.norm(points[end] - at, axis=1) <= snap] for x in (row, side, end, s_t))
+    pieces = np.split(points, offsets[1:-1])
+    for f in np.unique(events.face[row]):
+        (u, v, _), segs = lines[f]
+        mine = np.flatnonzero(events.face == f)
+        chords, owner = [segs], [np.full(len(segs), -1)]
+        for k in mine:
+            q = np.stack([pieces[k] @ u, pieces[k] @ v], axis=1)
+            chords.append(np.stack([q[:-1], q[1:]], axis=1))
+            owner.append(np.full(len(q) - 1, k))
+        chords, owner = np.concatenate(chords), np.concatenate(owner)
+        here = np.flatnonzero(events.face[row] == f)
+        p2 = np.stack([points[end[here]] @ u, points[end[here]] @ v], axis=1)
+        a, d = chords[None, :, 0], chords[None, :, 1] - chords[None, :, 0]
+        dd = np.maximum(np.einsum("ijk,ijk->ij", d, d), 1e-300)
+        w = np.clip(np.einsum("ijk,ijk->ij", p2[:, None] - a, d) / dd, 0, 1)
+        dist = np.linalg.norm(p2[:, None] - a - w[..., None] * d, axis=-1)
+        dist[owner[None, :] == row[here][:, None]] = np.inf
+        here = here[dist.min(axis=1) > snap]
+        if not len(here):
+            continue
+        s_e = side[here].astype(np.float64)
+        span = np.stack([np.minimum(s_t[here], s_e), np.maximum(s_t[here], s_e)], axis=1)
+        ext_off, ext_pts, ext_s = trace_events(scene, arcs, events.take(row[here]), tolerance, span)
+        a_ = events.arc[np.repeat(row[here], np.diff(ext_off))]
+        valid = _in_domain(scene, arcs.kind[a_].astype(np.int64), arcs.generators[a_], ext_s)
+        valid &= np.isfinite(ext_pts).all(axis=1)
+        for i, h in enumerate(here):
+            e3, ok = ext_pts[ext_off[i]:ext_off[i + 1]], valid[ext_off[i]:ext_off[i + 1]]
+            if side[h] == 0:
+                e3, ok = e3[::-1], ok[::-1]  # from the transition outwards
+            e3 = e3[:np.argmin(ok) if not ok.all() else len(ok)]  # up to where the family ends
+            if len(e3) < 2:
+                continue
+            e2 = np.stack([e3 @ u, e3 @ v], axis=1)
+            hit = _first_hit(e2, chords[owner != row[h]], snap)
+            if hit is None:
+                continue
+            k, t = hit
+            tail = np.concatenate([e3[1:k + 1], (e3[k] + t * (e3[k + 1] - e3[k]))[None]])
+            r = row[h]
+            pieces[r] = np.concatenate([tail[::-1], pieces[r]]) if side[h] == 0 else np.concatenate([pieces[r], tail])
+    counts = np.array([len(p) for p in pieces], np.int64)
+    return np.r_[0, np.cumsum(counts)].astype(np.int64), np.concatenate(pieces)
 
 
 # --------------------------------------------------------------------------------------
@@ -752,12 +999,23 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     n_lp = len(events.arc) - len(row)
     offsets = np.r_[offsets, offsets[-1] + 2 * np.arange(1, n_lp + 1)].astype(np.int64)
     points = np.concatenate([points, *lp_pts])
+    # traces that stop short of every line (V1's transitions) go on to the first one
+    contacts, lines = {}, {}
+    for f in wanted:
+        u, v, o = frames[f]
+        contacts[f] = contact_edges(scene, f, outlines[f], (u, v), snap, light)
+        ends = scene.vertices[scene.half_edges.edge_vertices[contacts[f]]]
+        oa = np.concatenate(outlines[f])
+        ob = np.concatenate([np.roll(lp, -1, axis=0) for lp in outlines[f]])
+        lines[f] = (frames[f], np.concatenate([np.stack([oa, ob], axis=1),
+                                               np.stack([ends @ u, ends @ v], axis=-1).reshape(-1, 2, 2)]))
+    offsets, points = continue_transitions(scene, arcs, events, offsets, points, lines, tol, snap)
     receivers = []
     for f in wanted:
         u, v, o = frames[f]
         mine = np.flatnonzero(events.face == f)
         outline = outlines[f]
-        contact = contact_edges(scene, f, outline, (u, v), snap, light)
+        contact = contacts[f]
         ends = scene.vertices[scene.half_edges.edge_vertices[contact]]
         chords = [np.stack([ends @ u, ends @ v], axis=-1).reshape(-1, 2, 2)]
         cev = [np.full(len(contact), -1, np.int64)]

@@ -219,7 +219,7 @@ def test_ray_oracle_on_all_complete_pairs_of_degenerate_samples(name):
 #: open chains (before the junction segments: 187/244/83, 390/398/8, 100/124/26). A change
 #: means V1 or the squares' boundaries changed: update the docs.
 MEASURED_GAPS = {
-    "boxes_on_floor.obj": (192, 244, 75),
+    "boxes_on_floor.obj": (210, 244, 40),
     "cornell_box.obj": (390, 398, 8),
     "room_with_door.obj": (124, 124, 0),
 }
@@ -254,6 +254,35 @@ def test_junction_segments_close_the_room():
     assert len(pairs) >= 10 and np.all(np.isin(pairs, on).any(axis=1))
     assert len(ee.open_edge1) == 0 and np.all(ee.complete)
     assert_oracle(scene, arcs, ee, pairs)
+
+
+def test_crossing_junction_segments_close_boxes_on_floor():
+    """boxes_on_floor: box 0's edge 15 and box 1's edge 21 cross at X = (3, 1.5, 3) on
+    their contact plane x = 3 (an X-junction). In the squares (e, 15) and (e, 21) the
+    lines through X and e (V1's XE arcs) are the segment x' = s_X: tangency at 15 and 21
+    changes across it, and so does the pair. With those segments 18 more pairs close
+    (before: open chains ending on them), and they agree with the ray caster."""
+    from viscx.skeleton.arcs import XE, edge_crossings
+
+    scene, arcs, ee = built("boxes_on_floor.obj")
+    cr = edge_crossings(scene)
+    assert cr.edges.tolist() == [[15, 21]] and np.allclose(cr.point, [[3.0, 1.5, 3.0]])
+    assert np.all(arcs.kind[-np.count_nonzero(arcs.kind == XE):] == XE)  # after the VE arcs
+    # XE arcs run through X: generators (15, e, 21), the line at s through X and e(s)
+    xe = np.flatnonzero(arcs.kind == XE)
+    assert len(xe) and np.all(arcs.generators[xe][:, [0, 2]] == [15, 21]) and arcs.counts()["XE"] == len(xe)
+    assert "XE" not in built("room_with_door.obj")[1].counts()  # T-junctions only
+    o, d = family_lines(scene, arcs.kind[xe], arcs.generators[xe], arcs.parameter[xe])
+    assert np.allclose(o, cr.point[0])
+    # pairs whose complete cells are bounded by a crossing segment
+    cells = np.repeat(np.arange(len(ee)), np.diff(ee.element_offsets[ee.loop_offsets]))
+    on = arcs.kind[np.abs(ee.element) - 1] == XE
+    bounded = np.unique(np.stack([ee.edge1[cells[on]], ee.edge2[cells[on]]], axis=1), axis=0)
+    done = {tuple(p) for p in complete_pairs(ee).tolist()}
+    closed = np.array([p for p in bounded.tolist() if tuple(p) in done])
+    assert {(0, 15), (15, 18), (15, 23), (2, 21), (8, 21), (21, 29)} <= {tuple(p) for p in closed.tolist()}
+    assert np.all(np.isin(closed, [15, 21]).any(axis=1))
+    assert_oracle(scene, arcs, ee, closed)
 
 
 def check_random_scene(seed, points_seed=0):

@@ -165,11 +165,13 @@ def write_arcs(group, arcs):
     """Fill a ``V1`` group with :class:`viscx.skeleton.arcs.Arcs` (see docs/format.md):
     the arcs, ``planar/`` (the planar E4 events arcs end at, laid out like ``/V0``) and
     ``half_cells/`` (one VE half-cell per VE arc)."""
-    from viscx.skeleton.arcs import END_NAMES, KIND_NAMES
+    from viscx.skeleton.arcs import END_NAMES, KIND_NAMES, XE
 
     for name in _ARC_ARRAYS:
         write_dataset(group, name, getattr(arcs, name))
-    group.attrs["kinds"] = json.dumps({v: k for k, v in KIND_NAMES.items()})
+    # XE only where the scene has crossing junctions: other files stay as they were
+    kinds = {v: k for k, v in KIND_NAMES.items() if k != XE or np.any(arcs.kind == XE)}
+    group.attrs["kinds"] = json.dumps(kinds)
     group.attrs["end_types"] = json.dumps({v: k for k, v in END_NAMES.items()})
     group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2, "vertex": 3})
     write_nodes(group.create_group("planar", track_order=True), arcs.planar)

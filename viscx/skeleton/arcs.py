@@ -41,6 +41,10 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
 5. *VE half-cells* (seed 000 §4.1): the blocker pairs of the two V-cells on
    either side of each VE arc, found by turning the arc's sample line about
    its vertex off the plane of the vertex and the edge by PROBE_ANGLE.
+6. *XE arcs* (degenerate scenes): where two generator edges cross at a point X
+   inside both, the lines through X meeting a third edge, built as VE families
+   of X (:func:`crossing_arcs`); they bound EE-cells, not V-cells, and follow
+   the VE arcs.
 
 All per-sample work is numpy over flat arrays, judged in chunks of intervals on
 threads (:mod:`viscx.parallel`; the arcs do not depend on the thread count); the only
@@ -59,6 +63,8 @@ from viscx.parallel import map_chunks, row_chunks
 from viscx.progress import bar
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.nodes import (
+    BLOCK_EDGE,
+    BLOCK_VERTEX,
     E4,
     VEE,
     VV,
@@ -71,8 +77,10 @@ from viscx.skeleton.nodes import (
 )
 
 # Arc kinds.
-EEE, VE = 0, 1
-KIND_NAMES = {EEE: "EEE", VE: "VE"}
+# XE: lines through a crossing point X of two generator edges a < b and meeting a third edge
+# e, generators (a, e, b), stored after the VE arcs (docs/skeleton.md, "Crossing junctions").
+EEE, VE, XE = 0, 1, 2
+KIND_NAMES = {EEE: "EEE", VE: "VE", XE: "XE"}
 
 # How an arc ends (one code per end).
 END_NODE = 0  # at a V0 node (end_node is its id)
@@ -224,8 +232,11 @@ class Arcs:
         return len(self.kind)
 
     def counts(self):
-        """Number of arcs per kind name."""
-        return {name: int(np.count_nonzero(self.kind == k)) for k, name in KIND_NAMES.items()}
+        """Number of arcs per kind name (XE only where the scene has crossing junctions)."""
+        out = {name: int(np.count_nonzero(self.kind == k)) for k, name in KIND_NAMES.items()}
+        if out["XE"] == 0:
+            del out["XE"]
+        return out
 
 
 # --------------------------------------------------------------------------------------
@@ -292,10 +303,11 @@ class Junctions:
 
 @njit(cache=True)
 def _contacts(a, b, ends, tol, offsets, items, out, fill):
-    """(edge i, s on i, vertex or -1) for every contact strictly inside edge i, per grid
-    cell and pair of edges listed there: an endpoint of edge j within ``tol`` of i, or a
-    crossing of non-parallel i and j (closest points within ``tol``, strictly inside
-    both). Edges sharing a vertex are skipped. Counts only unless ``fill``."""
+    """(edge i, s on i, vertex or -1, crossing edge j or -1, t on j) for every contact
+    strictly inside edge i, per grid cell and pair of edges listed there: an endpoint of
+    edge j within ``tol`` of i, or a crossing of non-parallel i and j (closest points
+    within ``tol``, strictly inside both). Edges sharing a vertex are skipped. Counts
+    only unless ``fill``."""
     k = 0
     for c in range(len(offsets) - 1):
         for p in range(offsets[c], offsets[c + 1]):
@@ -316,7 +328,7 @@ def _contacts(a, b, ends, tol, offsets, items, out, fill):
                     gap = x - a[i] - s * u
                     if np.sqrt((gap * gap).sum()) <= tol:
                         if fill:
-                            out[k, 0], out[k, 1], out[k, 2] = i, s, ends[j, w]
+                            out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4] = i, s, ends[j, w], -1.0, 0.0
                         k += 1
                 if j < i:
                     continue
@@ -336,8 +348,8 @@ def _contacts(a, b, ends, tol, offsets, items, out, fill):
                 gap = a[i] + s * u - a[j] - t * v
                 if np.sqrt((gap * gap).sum()) <= tol:
                     if fill:
-                        out[k, 0], out[k, 1], out[k, 2] = i, s, -1.0
-                        out[k + 1, 0], out[k + 1, 1], out[k + 1, 2] = j, t, -1.0
+                        out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4] = i, s, -1.0, j, t
+                        out[k + 1, 0], out[k + 1, 1], out[k + 1, 2], out[k + 1, 3], out[k + 1, 4] = j, t, -1.0, i, s
                     k += 2
     return k
 
@@ -353,15 +365,68 @@ def edge_junctions(scene):
     cached = getattr(scene, "_viscx_junctions", None)
     if cached is not None:
         return cached
-    scene._viscx_junctions = _edge_junctions(scene)
+    scene._viscx_junctions, scene._viscx_crossings = _edge_junctions(scene)
     return scene._viscx_junctions
+
+
+@dataclass
+class Crossings:
+    """X-junctions: pairs of generator edges crossing at a point strictly inside both
+    (within the weld tolerance), sorted by (a, b).
+
+    Attributes
+    ----------
+    edges : (k, 2) int
+        (a, b), a < b.
+    s : (k, 2) float
+        The crossing's parameter on a and on b (as in :class:`Junctions`).
+    point : (k, 3) float
+        The crossing point X: the middle of the two edges' closest points.
+    """
+
+    edges: np.ndarray
+    s: np.ndarray
+    point: np.ndarray
+
+    def __len__(self):
+        return len(self.edges)
+
+    def find(self, a, b):
+        """Row of each crossing (a, b), a < b (they must exist)."""
+        n = int(self.edges.max()) + 1 if len(self) else 1
+        return np.searchsorted(self.edges[:, 0] * n + self.edges[:, 1], np.asarray(a) * n + np.asarray(b))
+
+
+def edge_crossings(scene):
+    """The X-junctions of the generator edges (:class:`Crossings`), found with
+    :func:`edge_junctions` and cached on the scene."""
+    edge_junctions(scene)
+    return scene._viscx_crossings
+
+
+def _crossings_of(scene, rows):
+    """:class:`Crossings` from contact rows (i, s, -1, j, t) of generator indices."""
+    ge = scene.generator_edges
+    rows = rows[(rows[:, 2] < 0) & (rows[:, 3] > rows[:, 0])]
+    ab = ge[rows[:, [0, 3]].astype(np.int64)].reshape(-1, 2)
+    s = rows[:, [1, 4]].reshape(-1, 2)
+    flip = ab[:, 0] > ab[:, 1]
+    ab = np.where(flip[:, None], ab[:, ::-1], ab)
+    s = np.where(flip[:, None], s[:, ::-1], s)
+    order = np.lexsort([ab[:, 1], ab[:, 0]])
+    ab, s = ab[order], s[order]
+    ends = scene.half_edges.edge_vertices[ab]
+    x, y = (scene.vertices[ends[:, k, 0]] + s[:, k, None] * (scene.vertices[ends[:, k, 1]] - scene.vertices[ends[:, k, 0]])
+            for k in (0, 1))
+    return Crossings(ab, s, 0.5 * (x + y))
 
 
 def _edge_junctions(scene):
     tol = scene.weld_tolerance
     ge = scene.generator_edges
     if len(ge) < 2:
-        return Junctions(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+        return (Junctions(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)),
+                Crossings(np.zeros((0, 2), np.int64), np.zeros((0, 2)), np.zeros((0, 3))))
     ends = np.ascontiguousarray(scene.half_edges.edge_vertices[ge])
     a, b = (np.ascontiguousarray(scene.vertices[ends[:, k]]) for k in (0, 1))
     lo = np.minimum(a, b).min(axis=0) - 2 * tol
@@ -371,10 +436,11 @@ def _edge_junctions(scene):
     dims = np.clip(np.ceil(size * per_unit), 1, 256).astype(np.int64)
     offsets, items = bin_boxes(lo, size / dims, dims, np.minimum(a, b) - tol, np.maximum(a, b) + tol)
     n = _contacts(a, b, ends, tol, offsets, items, np.zeros((0, 3)), False)
-    out = np.empty((n, 3))
+    out = np.empty((n, 5))
     _contacts(a, b, ends, tol, offsets, items, out, True)
-    rows = np.unique(out, axis=0)  # sorted by (edge index, s); repeats from shared cells
-    return Junctions(ge[rows[:, 0].astype(np.int64)], rows[:, 1], rows[:, 2].astype(np.int64))
+    rows = np.unique(out[:, :3], axis=0)  # sorted by (edge index, s); repeats from shared cells
+    return (Junctions(ge[rows[:, 0].astype(np.int64)], rows[:, 1], rows[:, 2].astype(np.int64)),
+            _crossings_of(scene, np.unique(out, axis=0)))
 
 
 def canonical_eee(scene, triples):
@@ -443,6 +509,12 @@ def family_lines(scene, kind, generators, s):
         a, b = _edge_geometry(scene, generators[v, 1])
         origins[v] = scene.vertices[generators[v, 0]]
         directions[v] = a + s[v, None] * (b - a) - origins[v]
+    x = np.flatnonzero(kind == XE)
+    if len(x):
+        cr = edge_crossings(scene)
+        a, b = _edge_geometry(scene, generators[x, 1])
+        origins[x] = cr.point[cr.find(generators[x, 0], generators[x, 2])]
+        directions[x] = a + s[x, None] * (b - a) - origins[x]
     return origins, directions
 
 
@@ -507,6 +579,17 @@ def judge_samples(scene, kind, generators, s, sides=False):
     """
     kind = np.asarray(kind, dtype=np.int64)
     generators = np.asarray(generators, dtype=np.int64)
+    if np.any(kind == XE):  # as VE families of the crossing points (crossing_scene)
+        xs, first = crossing_scene(scene)
+        x = kind == XE
+        cr = edge_crossings(scene)
+        generators = generators.copy()
+        generators[x] = np.stack([first + cr.find(generators[x, 0], generators[x, 2]), generators[x, 1],
+                                  np.full(np.count_nonzero(x), -1)], axis=1)
+        out = judge_samples(xs, np.where(x, VE, kind), generators, s, sides)
+        out.generator_points[x, 2] = out.generator_points[x, 0]
+        _blocked_at_crossings(out.state[:, [1, 3]], out.state[:, [2, 4]], generators[:, 0] - first, x, cr, out.state)
+        return out
     o, d = family_lines(scene, kind, generators, s)
     undefined = np.linalg.norm(d, axis=1) == 0
     d[undefined] = (1.0, 0.0, 0.0)
@@ -1086,7 +1169,7 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
     -------
     Arcs
     """
-    with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
+    with bar(total=6, desc="arcs", quiet=quiet, unit="stage") as progress:
         progress.set_postfix_str("planar events")
         planar = planar_events(scene)
         progress.update()
@@ -1146,6 +1229,12 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         arcs = _sorted(arcs)
         half_cells = _half_cells(scene, arcs)
         del arcs["sides"]
+        progress.update()
+
+        progress.set_postfix_str("crossing junctions")
+        xe = crossing_arcs(scene, workers)
+        if xe is not None:  # after the VE arcs: the other arcs' ids do not change
+            arcs = {k: np.concatenate([v, xe[k]]) for k, v in arcs.items()}
         progress.update()
     return Arcs(**arcs, planar=planar, half_cells=half_cells)
 
@@ -1490,6 +1579,133 @@ def _sorted(arcs):
     g = arcs["generators"]
     order = np.lexsort([arcs["interval"][:, 0], g[:, 2], g[:, 1], g[:, 0], arcs["kind"]])
     return {k: v[order] for k, v in arcs.items()}
+
+
+# --------------------------------------------------------------------------------------
+# crossing junctions (XE families)
+
+
+def crossing_scene(scene):
+    """The scene with the crossing points X of its X-junctions (:func:`edge_crossings`)
+    appended as generator vertices n, n + 1, … (n its vertex count), so that the VE
+    machinery judges the lines through them; tangency at X from the faces touching it,
+    found geometrically like a vertex's. Cached on the scene.
+
+    Returns
+    -------
+    xs : Scene
+        Shares the faces, half-edges (but ``vertex_is_generator``) and the ray caster.
+    first : int
+        Id of the first crossing point (n).
+    """
+    cached = getattr(scene, "_viscx_crossing_scene", None)
+    if cached is not None:
+        return cached
+    import dataclasses
+
+    from viscx.scene.neighbourhood import Wedges, surface_wedges
+
+    cr = edge_crossings(scene)
+    he = dataclasses.replace(scene.half_edges, vertex_is_generator=np.concatenate(
+        [scene.half_edges.vertex_is_generator, np.ones(len(cr), bool)]))
+    xs = dataclasses.replace(scene, vertices=np.concatenate([scene.vertices, cr.point]), half_edges=he)
+    xs._caster = scene.ray_caster  # X lies on the scene's faces: nothing to add
+    c, w = scene.contacts, surface_wedges(scene, cr.point)
+    v = c.vertex
+    xs._contacts = dataclasses.replace(c, vertex=Wedges(
+        np.concatenate([v.offsets, v.offsets[-1] + w.offsets[1:]]), np.concatenate([v.face, w.face]),
+        np.concatenate([v.first, w.first]), np.concatenate([v.normal, w.normal]), np.concatenate([v.span, w.span])))
+    xs._viscx_junctions, xs._viscx_crossings = edge_junctions(scene), cr
+    scene._viscx_crossing_scene = xs, scene.n_vertices
+    return scene._viscx_crossing_scene
+
+
+def _blocked_at_crossings(kinds, ids, row, xe, cr, state=None):
+    """Where an XE line is blocked at its crossing point (judged as the pseudo-vertex of
+    :func:`crossing_scene`), name the blocker as the edge a (kind BLOCK_EDGE): X is no
+    vertex of the scene. ``kinds``, ``ids`` (m, 2) are changed in place (or ``state``'s
+    columns 1-4 when given); ``row`` is each line's crossing, used where ``xe``."""
+    at_x = xe[:, None] & (kinds == BLOCK_VERTEX)
+    kinds[at_x] = BLOCK_EDGE
+    ids[at_x] = np.broadcast_to(cr.edges[np.where(xe, row, 0), 0][:, None], ids.shape)[at_x]
+    if state is not None:
+        state[:, [1, 3]], state[:, [2, 4]] = kinds, ids
+
+
+def crossing_arcs(scene, workers=None):
+    """The XE arcs: for each X-junction (generator edges a < b crossing at X) and each
+    generator edge e skew to a or b, the lines through X meeting e (a VE family whose
+    vertex is the junction point), cut at events and sampled by the VE stages.
+
+    Events: e's endpoints and junctions (as every VE family's), and the lines through X
+    and a generator vertex (VV) or meeting two more generator edges (VEE), validated as
+    nodes on :func:`crossing_scene`. V0 drops those (X is a point of two of their
+    generators); an arc ending there has end type END_TRANSITION, end_node -1.
+
+    Returns
+    -------
+    dict of arrays or None
+        Rows as :func:`_sorted` (kind XE, generators (a, e, b)), no ``sides``; None
+        without X-junctions.
+    """
+    from viscx.skeleton import points  # (imports this module)
+
+    cr = edge_crossings(scene)
+    if len(cr) == 0:
+        return None
+    xs, first = crossing_scene(scene)
+    ids = first + np.arange(len(cr))
+    ge = scene.generator_edges
+    j, e = np.repeat(np.arange(len(cr)), len(ge)), np.tile(ge, len(cr))
+    a, b = cr.edges[j, 0], cr.edges[j, 1]
+    keep = (e != a) & (e != b)
+    keep[keep] = _skew(scene, e[keep], a[keep]) | _skew(scene, e[keep], b[keep])
+    families = np.stack([ids[j[keep]], e[keep], np.full(np.count_nonzero(keep), -1)], axis=1)  # sorted by (X, e)
+    fkind = np.full(len(families), VE)
+    nf = len(families)
+    nodes = points.point_nodes(xs, ids)
+    # the families each node lies on: VEE (X, e1, e2) on (X, e1), (X, e2); VV (u, X) on (X, e)
+    # for the edges e at u and those u lies inside (a T-junction)
+    inc, rows = [], []
+    vee = np.flatnonzero(nodes.kind == VEE)
+    for slot in (1, 2):
+        inc.append(nodes.generators[vee][:, [0, slot]])
+        rows.append(vee)
+    vv = np.flatnonzero(nodes.kind == VV)
+    u, x = nodes.generators[vv, 0], nodes.generators[vv, 1]
+    vo, ve = _vertex_edges(xs)
+    r, k = expand_ranges(vo[u], np.diff(vo)[u])
+    inc.append(np.stack([x[r], ve[k]], axis=1))
+    rows.append(vv[r])
+    r, through = points._edges_through(xs, u)
+    inc.append(np.stack([x[r], through], axis=1))
+    rows.append(vv[r])
+    inc, rows = np.concatenate(inc).reshape(-1, 2), np.concatenate(rows).astype(np.int64)
+    n_edges = len(scene.half_edges.edge_vertices)
+    key = families[:, 0] * n_edges + families[:, 1]
+    pos = np.minimum(np.searchsorted(key, inc[:, 0] * n_edges + inc[:, 1]), max(nf - 1, 0))
+    on = key[pos] == inc[:, 0] * n_edges + inc[:, 1]
+    fam_of, rows = pos[on], rows[on]
+    ev_s = _event_parameters(xs, fkind[fam_of], families[fam_of], nodes, rows)
+    dom_f, dom_s, dom_kind, dom_vertex = _domain_ends(xs, fkind, families, edge_junctions(scene))
+    fam_of = np.concatenate([fam_of, dom_f, np.arange(nf), np.arange(nf)])
+    ev_s = np.concatenate([ev_s, dom_s, np.zeros(nf), np.ones(nf)])
+    ev_kind = np.concatenate([np.full(len(rows), END_TRANSITION), dom_kind, np.full(2 * nf, END_ENDPOINT)])
+    ev_index = np.concatenate([np.full(len(rows), -1), dom_vertex, np.full(2 * nf, -1)])
+    ev_s = np.nan_to_num(ev_s, nan=-1.0)
+    inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+    ev_s = np.clip(ev_s, 0.0, 1.0)
+    intervals = _intervals(xs, fkind, families, fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside])
+    built = _arcs_on_intervals(xs, fkind, families, *intervals, workers=workers)
+    del built["sides"]  # X's own sphere: no V-cells
+    row = built["generators"][:, 0] - first
+    kinds, ids = built["blocker_kind"].astype(np.int64), built["blocker"]
+    _blocked_at_crossings(kinds, ids, row, np.ones(len(row), bool), cr)
+    built["blocker_kind"], built["blocker"] = kinds.astype(np.int8), ids
+    built["kind"] = np.full(len(row), XE, np.int8)
+    built["generators"] = np.stack([cr.edges[row, 0], built["generators"][:, 1], cr.edges[row, 1]], axis=1)
+    built["generator_points"][:, 2] = built["generator_points"][:, 0]
+    return _sorted(built)
 
 
 # --------------------------------------------------------------------------------------

@@ -116,7 +116,7 @@ from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.parallel import row_chunks
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
-from viscx.skeleton.arcs import EEE, VE, _skew, edge_junctions, family_lines
+from viscx.skeleton.arcs import EEE, VE, XE, _skew, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.nodes import maximal_free_segments
 from viscx.skeleton.vcells import TURNING_DECIMALS, _signed_angle, cells_of_loops, form_loops, turning_sums
 
@@ -321,7 +321,9 @@ def arc_squares(scene, arcs):
     Where the surface around e' changes at w, tangency at e' does for the lines through
     w, and the pair of the square changes across that segment (room_with_door: the inner
     wall's corners on the room's edges; boxes_on_floor: a box's corner on another box's
-    edge). Without it those cells' loops stayed open.
+    edge). Without it those cells' loops stayed open. XE (a, e, b), the lines through
+    the crossing point X of a and b: likewise the segment x' = s_X of the squares
+    (a, e) and (b, e).
 
     Returns
     -------
@@ -365,6 +367,12 @@ def arc_squares(scene, arcs):
         out_arc.append(ve[rows])
         out_a.append(edges[at])
         out_b.append(g[ve[rows], 1])
+    # XE (a, e, b): the segment x' = s_X of the squares (a, e) and (b, e) (crossing junctions)
+    xe = np.flatnonzero(kind == XE)
+    for slot in (0, 2):
+        out_arc.append(xe)
+        out_a.append(g[xe, slot])
+        out_b.append(g[xe, 1])
     arc, a, b = np.concatenate(out_arc), np.concatenate(out_a), np.concatenate(out_b)
     keep = skew_pairs(scene, a, b)
     arc, a, b = arc[keep], a[keep], b[keep]
@@ -394,6 +402,12 @@ def _coordinate(scene, arcs, arc, edge, s):
     defined = np.ones(len(arc), bool)
     param = np.where(kind == EEE, g[:, 0], g[:, 1]) == edge
     x[param] = s[param]
+    # XE: the crossing's parameter on a or b
+    cross = np.flatnonzero((kind == XE) & ~param)
+    if len(cross):
+        cr = edge_crossings(scene)
+        on_b = (g[cross, 2] == edge[cross]).astype(np.int64)
+        x[cross] = cr.s[cr.find(g[cross, 0], g[cross, 2]), on_b]
     ev = scene.half_edges.edge_vertices[edge]
     at_vertex = (kind == VE) & ~param
     w = g[at_vertex, 0]
@@ -401,7 +415,7 @@ def _coordinate(scene, arcs, arc, edge, s):
     # a junction's parameter, by the formula of arcs.edge_junctions (its events on the sides)
     inside = np.einsum("ij,ij->i", scene.vertices[w] - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
     x[at_vertex] = np.where(ev[at_vertex, 0] == w, 0.0, np.where(ev[at_vertex, 1] == w, 1.0, inside))
-    rest = np.flatnonzero(~param & ~at_vertex)
+    rest = np.flatnonzero(~param & ~at_vertex & (kind != XE))
     if len(rest):
         o, d = family_lines(scene, kind[rest], g[rest], s[rest])
         a, b = _edge_ends(scene, edge[rest])
@@ -630,8 +644,8 @@ def side_pairs(scene, arcs, arc, e1, e2, interval):
 
 def side_pieces(scene, arcs, arc, e1, e2):
     """The arc pieces of each square: every arc whole, but VE arcs (the square's sides,
-    and the segments x' = s_w of a junction vertex w) cut where another arc of the square
-    ends on them.
+    and the segments x' = s_w of a junction vertex w) and XE arcs (the segments x' = s_X
+    of a crossing point) cut where another arc of the square ends on them.
 
     A VE arc (w, e2) has no event where the lines through e1 next to w change: e.g. a
     pencil of a face of e1 at w (tangency at e1 flips across it) ends on the side at
@@ -654,8 +668,8 @@ def side_pieces(scene, arcs, arc, e1, e2):
     start, _, end, _ = _curves(scene, arcs, arc, e1, e2, interval)
     tol = join_tolerance(scene, e1, e2)
     pair_key = e1 * (1 << 32) + e2
-    # each VE row is a segment x1 = const (its edge is e2) or x2 = const; s runs along it
-    ve = np.flatnonzero(arcs.kind[arc] == VE)
+    # each VE or XE row is a segment x1 = const (its edge is e2) or x2 = const; s runs along it
+    ve = np.flatnonzero(arcs.kind[arc] != EEE)
     const = np.where(arcs.generators[arc[ve], 1] == e2[ve], 0, 1)
     value = start[ve, const]
     # ends of the other (EEE) rows of the same square lying on the segment: (row, position along it)

@@ -348,6 +348,60 @@ def test_lone_panel(tmp_path, monkeypatch, tilt, fold):
     assert len(res["cross_fail"]) >= 2
 
 
+def crossing_scene_obj(path):
+    """An OBJ: the floor and square light of :func:`panel_scene_obj`, a tall box and a short
+    box touching it on the plane x = 4.6, where the tall box's vertical edge (z = 4.4) and
+    the short box's top edge (y = 2) cross at X = (4.6, 2, 4.4): an X-junction."""
+    lines = ["o floor", "v -2 0 -2", "v 12 0 -2", "v 12 0 12", "v -2 0 12", "f 1 4 3 2", "o light"]
+    c, s = np.cos(0.3), np.sin(0.3)
+    sq = np.array([[-1.5, -1.5], [1.5, -1.5], [1.5, 1.5], [-1.5, 1.5]]) @ np.array([[c, -s], [s, c]])
+    lines += [f"v {5 + float(x)!r} {10 + 0.05 * float(x)!r} {5 + float(z)!r}" for x, z in sq] + ["f 5 6 7 8"]
+    n = 8
+    for name, (x0, x1, y1, z0, z1) in (("tall", (3.0, 4.6, 4.0, 3.0, 4.4)), ("short", (4.6, 6.2, 2.0, 3.6, 5.4))):
+        lines.append(f"o {name}")
+        lines += [f"v {x!r} {y!r} {z!r}" for x in (x0, x1) for y in (0.0, y1) for z in (z0, z1)]
+        for q in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
+            lines.append("f " + " ".join(str(n + 1 + i) for i in q))
+        n += 8
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_crossing_junction_events(tmp_path, monkeypatch):
+    """Touching boxes whose edges a and b cross at X: where X's image (a corner of the
+    boxes' outline) crosses a light edge e, the occluder edge bounding e's hidden part
+    turns from a to b. Those are the XE arcs (X, e) of V1; traced like an occluder
+    vertex's VE arcs, the floor's regions hold one label set on either side of them, and
+    without them the oracle finds regions holding both (labels of a and b on one light
+    edge). The floor's other failures are the grazing pencil of the tall box's face
+    x = 4.6 and the contact line under the boxes (docs/queries.md, limitation 6)."""
+    from viscx.queries import discontinuities as dm
+    from viscx.skeleton.arcs import XE, edge_crossings
+
+    obj = crossing_scene_obj(tmp_path / "x.obj")
+    build_file(obj, tmp_path / "x.h5", quiet=True)
+
+    def failures():
+        scene, mesh = open_discontinuities(tmp_path / "x.h5", light_group="light", faces=[0])
+        cr = edge_crossings(scene)
+        assert len(cr.point) == 1 and np.allclose(cr.point[0], [4.6, 2.0, 4.4])
+        crossing = set(cr.edges[0].tolist())
+        xe = set(np.flatnonzero(mesh.events.kind == XE).tolist())
+        at_x = 0
+        for seed in (1, 2):
+            res = check_mesh(scene, mesh, np.random.default_rng(seed), MARGIN * scene.diagonal, samples=8)
+            edges = [{lab[3] for lab in f[-1]} for f in res["same_fail"]]
+            at_x += sum(crossing <= e for e in edges)
+            assert not xe & {f[1] for f in res["cross_fail"]} and not xe & {f[1] for f in res["cross_skipped"]}
+        return xe, at_x
+
+    xe, at_x = failures()
+    assert len(xe) >= 2 and at_x == 0
+    monkeypatch.setattr(dm, "XE", -1)  # no XE event selected
+    xe, at_x = failures()
+    assert not xe and at_x >= 5
+
+
 def test_planar_families_exact():
     """Cornell box: an EEE family with two edges of one block face (sharing a vertex) is the
     pencil of lines through the light edge's point in that face's plane. Its trace is one

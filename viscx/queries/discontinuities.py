@@ -17,6 +17,10 @@ EE-cells of its edges, seed 000 §7.5):
 * **VE (occluder vertex w, light edge e)**: the lines through w meeting e (w's image
   crosses the light's edge e). Receiver end: the *back* end (oriented from w towards e,
   the receiver is behind w).
+* **XE (crossing point X of occluder edges a and b, light edge e)**: the lines through X
+  meeting e (degenerate scenes: touching objects whose edges cross; X's image, a corner
+  of the occluders' outline, crosses e, and the occluder edge bounding e's hidden part
+  turns from a to b). Receiver end: the back end, as for an occluder vertex.
 * **EEE with exactly one light edge** (two occluder edges' images cross on the light
   edge). Receiver end: the end on the side of the two occluder edges, away from the
   light edge: kept only when the light edge's generator point is the first or the last
@@ -72,7 +76,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
-from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, KIND_NAMES, family_lines
+from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE
 
 #: Chordal tolerance of the EEE traces (conic arcs as polylines), in epsilons.
@@ -206,6 +210,10 @@ def select_events(scene, arcs, light):
     b = ve & ~lv[gv] & le[ge]
     end[a], lkind[a], lfeat[a] = 1, LIGHT_VERTEX, gv[a]
     end[b], lkind[b], lfeat[b] = 0, LIGHT_EDGE, ge[b]
+    # XE (a, e, b): the crossing of occluder edges a and b plays an occluder vertex
+    gx = np.where((kind == XE)[:, None], g, ne)
+    x = (kind == XE) & le[gx[:, 1]] & ~le[gx[:, 0]] & ~le[gx[:, 2]]
+    end[x], lkind[x], lfeat[x] = 0, LIGHT_EDGE, g[x, 1]
     eee = kind == EEE
     ge3 = np.where(eee[:, None], g, ne)
     lit = le[ge3]
@@ -236,7 +244,7 @@ def select_events(scene, arcs, light):
     bad = np.zeros(len(sel), bool)
     k = kind[sel]
     for slot_ in range(3):
-        is_edge = (k == EEE) | ((k == VE) & (slot_ == 1))
+        is_edge = (k == EEE) | (k == XE) | ((k == VE) & (slot_ == 1))
         is_vert = (k == VE) & (slot_ == 0)
         x = gs[:, slot_]
         code_e = face * (ne + 1) + np.where(is_edge, x, ne)
@@ -252,7 +260,7 @@ def select_events(scene, arcs, light):
     for slot_ in range(3):
         x = gs[:, slot_]
         is_vert = (k == VE) & (slot_ == 0)
-        is_edge = ((k == EEE) | ((k == VE) & (slot_ == 1))) & (x >= 0)
+        is_edge = ((k == EEE) | (k == XE) | ((k == VE) & (slot_ == 1))) & (x >= 0)
         pv = scene.vertices[np.where(is_vert, x, 0)]
         bad |= is_vert & (np.abs(np.einsum("ij,ij->i", pv, n_f) - c_f) <= snap)
         xe = np.where(is_edge, x, 0)
@@ -412,9 +420,9 @@ def trace_events(scene, arcs, events, tolerance, interval=None):
     if interval is None:
         interval = arcs.interval[events.arc]
     s0, s1 = interval[:, 0], interval[:, 1]
-    # chords: (event, sa, sb); VE one chord, EEE EEE_START chords refined
+    # chords: (event, sa, sb); VE and XE (lines through a point) one chord, EEE EEE_START refined
     planar, _, x, _ = pencil_points(scene, kind, gens)
-    counts = np.where((kind == VE) | planar, 1, EEE_START)
+    counts = np.where((kind == VE) | (kind == XE) | planar, 1, EEE_START)
     ev = np.repeat(np.arange(m), counts)
     j = np.arange(len(ev)) - np.repeat(np.cumsum(counts) - counts, counts)
     cn = counts[ev]

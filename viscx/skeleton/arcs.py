@@ -1664,23 +1664,8 @@ def crossing_arcs(scene, workers=None):
     fkind = np.full(len(families), VE)
     nf = len(families)
     nodes = points.point_nodes(xs, ids)
-    # the families each node lies on: VEE (X, e1, e2) on (X, e1), (X, e2); VV (u, X) on (X, e)
-    # for the edges e at u and those u lies inside (a T-junction)
-    inc, rows = [], []
-    vee = np.flatnonzero(nodes.kind == VEE)
-    for slot in (1, 2):
-        inc.append(nodes.generators[vee][:, [0, slot]])
-        rows.append(vee)
-    vv = np.flatnonzero(nodes.kind == VV)
-    u, x = nodes.generators[vv, 0], nodes.generators[vv, 1]
-    vo, ve = _vertex_edges(xs)
-    r, k = expand_ranges(vo[u], np.diff(vo)[u])
-    inc.append(np.stack([x[r], ve[k]], axis=1))
-    rows.append(vv[r])
-    r, through = points._edges_through(xs, u)
-    inc.append(np.stack([x[r], through], axis=1))
-    rows.append(vv[r])
-    inc, rows = np.concatenate(inc).reshape(-1, 2), np.concatenate(rows).astype(np.int64)
+    # the families each node lies on, as a free point's
+    inc, rows = points.point_node_incidences(xs, nodes)
     n_edges = len(scene.half_edges.edge_vertices)
     key = families[:, 0] * n_edges + families[:, 1]
     pos = np.minimum(np.searchsorted(key, inc[:, 0] * n_edges + inc[:, 1]), max(nf - 1, 0))

@@ -249,6 +249,43 @@ def point_nodes(scene, point_ids):
 # V1: the point's VE arcs and half-cells
 
 
+def point_node_incidences(scene, nodes):
+    """The families (p, e) of points p that each node of theirs lies on: VEE (p, e1, e2) on
+    (p, e1) and (p, e2); VV (u, p) on (p, e) for every generator edge e at u, and for every
+    generator edge passing through u (a T-junction: the half-edges do not join u to e, yet
+    the family's lines turn the corner there).
+
+    Parameters
+    ----------
+    scene : Scene
+        Holding the points as vertices.
+    nodes : Nodes
+        The points' nodes (:func:`point_nodes`: the point last in VV, first in VEE).
+
+    Returns
+    -------
+    families : (m, 2) int
+        (p, e) of each incidence.
+    rows : (m,) int
+        The node's row.
+    """
+    fam_rows, node_rows = [], []
+    vee = np.flatnonzero(nodes.kind == VEE)
+    for slot in (1, 2):
+        fam_rows.append(nodes.generators[vee][:, [0, slot]])
+        node_rows.append(vee)
+    vv = np.flatnonzero(nodes.kind == VV)
+    u, p = nodes.generators[vv, 0], nodes.generators[vv, 1]
+    vo, ve = arcs_mod._vertex_edges(scene)
+    r, k = expand_ranges(vo[u], np.diff(vo)[u])
+    fam_rows.append(np.stack([p[r], ve[k]], axis=1))
+    node_rows.append(vv[r])
+    r, through = _edges_through(scene, u)
+    fam_rows.append(np.stack([p[r], through], axis=1))
+    node_rows.append(vv[r])
+    return np.concatenate(fam_rows).reshape(-1, 2), np.concatenate(node_rows).astype(np.int64)
+
+
 def point_arcs(scene, point_ids, nodes):
     """The VE arcs (p, e) and half-cells of free points, by the stages of
     :func:`viscx.skeleton.arcs.build_arcs` (events, intervals, samples, half-cells).
@@ -272,25 +309,7 @@ def point_arcs(scene, point_ids, nodes):
     # VV (u, p) on (p, e) for every generator edge e at u)
     families = np.stack([np.repeat(point_ids, len(ge)), np.tile(ge, len(point_ids)), np.full(len(ge) * len(point_ids), -1)], axis=1)
     ev = scene.half_edges.edge_vertices
-    fam_rows, node_rows = [], []
-    vee = np.flatnonzero(nodes.kind == VEE)
-    for slot in (1, 2):
-        fam_rows.append(nodes.generators[vee][:, [0, slot]])
-        node_rows.append(vee)
-    vv = np.flatnonzero(nodes.kind == VV)
-    u, p = nodes.generators[vv, 0], nodes.generators[vv, 1]
-    vo, ve = arcs_mod._vertex_edges(scene)
-    r, k = expand_ranges(vo[u], np.diff(vo)[u])
-    at_u = ve[k]
-    fam_rows.append(np.stack([p[r], at_u], axis=1))
-    node_rows.append(vv[r])
-    # ... and on (p, e) for every generator edge e passing through u (a T-junction: the
-    # half-edges do not join u to e, yet the family's lines turn the corner there)
-    r, through = _edges_through(scene, u)
-    fam_rows.append(np.stack([p[r], through], axis=1))
-    node_rows.append(vv[r])
-    inc = np.concatenate(fam_rows).reshape(-1, 2)
-    rows = np.concatenate(node_rows)
+    inc, rows = point_node_incidences(scene, nodes)
     key = families[:, 0] * (len(ev) + 1) + families[:, 1]
     fam_of = np.searchsorted(key, inc[:, 0] * (len(ev) + 1) + inc[:, 1])
     fkind = np.full(len(families), VE)

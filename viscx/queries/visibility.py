@@ -31,7 +31,7 @@ import numpy as np
 
 from viscx.geometry.polygon import plane_basis, signed_area_2d
 from viscx.skeleton.nodes import BLOCK_FACE
-from viscx.skeleton.vcells import cells_of_loops, form_loops, reference_points, stored_elements, turning_sums
+from viscx.skeleton.vcells import cells_of_loops, reference_points, sphere_loops, stored_elements, turning_sums
 
 
 @dataclass
@@ -151,11 +151,11 @@ def point_view(scene, arcs, vcells, vertex, point):
     keep = (down >= 0) & ~same
     signed, anti, down = signed[keep], anti[keep], down[keep]
     el = stored_elements(scene, arcs, signed, anti)
-    walk_order, loop_offsets, chain_offsets = form_loops(el, down)
+    walk_order, loop_offsets, chain_offsets = sphere_loops(scene, el, down)
     walk = el.take(walk_order)
     walk_down = down[walk_order]
     n_loops = len(loop_offsets) - 1
-    turning = turning_sums(walk, loop_offsets)
+    turning = turning_sums(walk, loop_offsets, bridge=True)
     ref = reference_points(walk, loop_offsets)
     loop_face = walk_down[loop_offsets[:-1]]
     cell = cells_of_loops(walk, loop_offsets, loop_face, ref) if n_loops else np.zeros(0, np.int64)

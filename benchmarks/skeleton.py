@@ -9,11 +9,15 @@ per kind, the time of each V0 stage, V1 wall time and arc counts per kind, V2
 wall time (V-cells, EE-cells) and cell counts; then the growth exponents of time against polygons and against nodes (least squares
 on log-log). Prints a table and writes
 ``benchmarks/skeleton_results.json``. A size whose predicted time (from the
-exponent fitted so far) exceeds ``--budget`` seconds is recorded as skipped.
+exponent fitted so far) exceeds ``--budget`` seconds is recorded as skipped. Each city
+is built in a child process whose data segment is limited to the machine's memory less
+2 GB: a size that runs out of memory is recorded as such (with the stage it reached) and
+the ladder goes on.
 """
 
 import argparse
 import json
+import multiprocessing
 import os
 import platform
 import resource
@@ -43,19 +47,25 @@ def peak_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def run_skeleton(scene, name):
+def run_skeleton(scene, name, stage=None):
     """Build V0 once, timing candidates and validation separately, then V1 and V2 (V-cells,
-    EE-cells)."""
+    EE-cells). ``stage`` (a one-item list), if given, holds the name of the stage running."""
+    stage = [None] if stage is None else stage
     stats = {}
     t0 = time.perf_counter()
+    stage[0] = "V0 candidates"
     kind, gens, origins, dirs = fast_candidates(scene, stats=stats)
     t1 = time.perf_counter()
+    stage[0] = "V0 validation"
     nodes = validate_in_chunks(scene, kind, gens, origins, dirs)
     t2 = time.perf_counter()
+    stage[0] = "V1 arcs"
     arcs = build_arcs(scene, nodes)
     t3 = time.perf_counter()
+    stage[0] = "V2 V-cells"
     vcells = build_vcells(scene, arcs)
     t4 = time.perf_counter()
+    stage[0] = "V2 EE-cells"
     eecells = build_eecells(scene, arcs)
     t5 = time.perf_counter()
     row = {
@@ -81,6 +91,38 @@ def run_skeleton(scene, name):
     }
     row["candidates_total"] = int(len(kind))
     row["nodes_total"] = int(len(nodes))
+    return row
+
+
+def _skeleton_child(size, conn):
+    """Child process of :func:`run_isolated`: one city's row, or how it ran out of memory."""
+    limit = int((machine_memory_gb() - 2.0) * 1024**3)
+    resource.setrlimit(resource.RLIMIT_DATA, (limit, limit))  # MemoryError, not the OOM killer
+    stage = [None]
+    name = f"random_boxes({size})"
+    scene = random_boxes(size, seed=0)
+    try:
+        conn.send(run_skeleton(scene, name, stage))
+    except MemoryError:
+        conn.send({"scene": name, "polygons": int(scene.n_faces),
+                   "skipped": f"out of memory in {stage[0]} (> {limit / 1024**3:.1f} GB)", "peak_mb": peak_mb()})
+
+
+def run_isolated(size):
+    """:func:`run_skeleton` on random_boxes(size) in a child process (forked: the numba
+    kernels compiled here), its data segment limited to the machine's memory less 2 GB,
+    so that a size that does not fit is reported and the ladder goes on."""
+    parent, child = multiprocessing.get_context("fork").Pipe(duplex=False)
+    proc = multiprocessing.get_context("fork").Process(target=_skeleton_child, args=(size, child))
+    proc.start()
+    child.close()
+    try:
+        row = parent.recv()
+    except EOFError:  # the child died without a word
+        row = None
+    proc.join()
+    if row is None:
+        row = {"scene": f"random_boxes({size})", "polygons": None, "skipped": f"the build died (exit code {proc.exitcode})"}
     return row
 
 
@@ -153,9 +195,13 @@ def run_ladder(sizes, budget, report=print):
                 rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": "; ".join(skip)})
                 report(table(rows[-1:]))
                 continue
-        rows.append(run_skeleton(scene, name))
-        ladder.append(rows[-1])
+        del scene
+        rows.append(run_isolated(size))
+        if rows[-1].get("polygons") is None:
+            rows[-1]["polygons"] = int(random_boxes(size, seed=0).n_faces)
         report(table(rows[-1:]))
+        if not rows[-1].get("skipped"):
+            ladder.append(rows[-1])
 
     polys = [r["polygons"] for r in ladder]
     secs = [r["seconds"] for r in ladder]

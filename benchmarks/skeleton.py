@@ -109,11 +109,13 @@ def _skeleton_child(size, conn):
 
 
 def run_isolated(size):
-    """:func:`run_skeleton` on random_boxes(size) in a child process (forked: the numba
-    kernels compiled here), its data segment limited to the machine's memory less 2 GB,
-    so that a size that does not fit is reported and the ladder goes on."""
-    parent, child = multiprocessing.get_context("fork").Pipe(duplex=False)
-    proc = multiprocessing.get_context("fork").Process(target=_skeleton_child, args=(size, child))
+    """:func:`run_skeleton` on random_boxes(size) in a child process (spawned: forking
+    after OpenMP has run is unsafe; the numba kernels load from their cache), its data
+    segment limited to the machine's memory less 2 GB, so that a size that does not fit
+    is reported and the ladder goes on."""
+    spawn = multiprocessing.get_context("spawn")
+    parent, child = spawn.Pipe(duplex=False)
+    proc = spawn.Process(target=_skeleton_child, args=(size, child))
     proc.start()
     child.close()
     try:

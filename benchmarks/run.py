@@ -12,7 +12,6 @@ stage of one scene: wall time, a rate, peak memory and counts.
 import argparse
 import json
 import platform
-import resource
 import sys
 import time
 from pathlib import Path
@@ -25,12 +24,11 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(ROOT / "tests"))
 
 from scenes import spheres_in_room  # noqa: E402
+from skeleton import peak_mb  # noqa: E402
 
 from viscx.scene import load_scene  # noqa: E402
 
 
-def peak_mb():
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def timed(fn, *args, repeat=3, **kwargs):

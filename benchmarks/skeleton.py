@@ -113,8 +113,8 @@ def _skeleton_child(size, conn):
     try:
         conn.send(run_skeleton(scene, name, stage))
     except MemoryError:
-        conn.send({"scene": name, "polygons": int(scene.n_faces),
-                   "skipped": f"out of memory in {stage[0]} (> {limit / 1024**3:.1f} GB)", "peak_mb": peak_mb()})
+        conn.send({"scene": name, "skipped": f"out of memory in {stage[0]} (> {limit / 1024**3:.1f} GB)",
+                   "peak_mb": peak_mb()})
 
 
 def run_isolated(size):
@@ -133,7 +133,7 @@ def run_isolated(size):
         row = None
     proc.join()
     if row is None:
-        row = {"scene": f"random_boxes({size})", "polygons": None, "skipped": f"the build died (exit code {proc.exitcode})"}
+        row = {"scene": f"random_boxes({size})", "skipped": f"the build died (exit code {proc.exitcode})"}
     return row
 
 
@@ -206,10 +206,10 @@ def run_ladder(sizes, budget, report=print):
                 rows.append({"scene": name, "polygons": int(scene.n_faces), "skipped": "; ".join(skip)})
                 report(table(rows[-1:]))
                 continue
-        del scene
+        polygons = int(scene.n_faces)
+        del scene  # the child builds its own
         rows.append(run_isolated(size))
-        if rows[-1].get("polygons") is None:
-            rows[-1]["polygons"] = int(random_boxes(size, seed=0).n_faces)
+        rows[-1]["polygons"] = polygons
         report(table(rows[-1:]))
         if not rows[-1].get("skipped"):
             ladder.append(rows[-1])

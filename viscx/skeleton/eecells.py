@@ -927,10 +927,10 @@ def build_eecells(scene, arcs, quiet=True):
     square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     # cut at the start of the square holding every SQUARE_CHUNK-th incidence
     cuts = square_start[np.searchsorted(square_start, np.arange(SQUARE_CHUNK, len(key), SQUARE_CHUNK), "right") - 1]
-    bounds = np.unique(np.r_[0, cuts, len(key)])
+    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]  # one chunk, maybe empty, at least
     parts = []
     with bar(total=len(key), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
-        for lo, hi in zip(bounds[:-1], bounds[1:]) if len(bounds) > 1 else [(0, 0)]:
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
             parts.append(_squares_cells(scene, arcs, (arc[lo:hi], e1[lo:hi], e2[lo:hi])))
             progress.update(hi - lo)
     return _concatenate_cells(parts)

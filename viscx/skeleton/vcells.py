@@ -491,8 +491,8 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     V1 merges a family's events closer than 4 epsilon along its edge into one (the
     best by rank): where the two families meeting at a corner of a cell keep different
     events of such a group, the cell's boundary jumps there (random boxes cities: the
-    chains' ends lie a median 1e-5 rad, up to 2e-4, from the next start of their cell,
-    a few epsilon along the edge; a fifth of the 300-polygon city's vertices kept open
+    chains' ends lie a median 1.2e-5 rad, up to 1.6e-4, from the next start of their cell,
+    a few epsilon along the edge; a sixth of the 300-polygon city's vertices kept open
     chains). Features closer than epsilon are one (epsilon-visibility), so such ends
     are one corner. Only chains are joined (FormLoops' loops stay as they are), by the
     rules of :func:`form_loops` over whole chains, each chain's end tolerance
@@ -512,7 +512,7 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     ends = el.take(first)  # a chain as one element: its first's start, its last's end
     ends.end, ends.end_tangent, ends.end_reach = el.end[last], el.end_tangent[last], el.end_reach[last]
     tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(ends.end_reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
-    walk, joined, still = form_loops(ends, group[first], tolerance)
+    walk, joined, _ = form_loops(ends, group[first], tolerance)
     sizes = np.diff(chain_offsets)
     # a loop of fewer than three elements closed across a gap is a sliver, no boundary
     few = np.bincount(np.repeat(np.arange(len(joined) - 1), np.diff(joined)), weights=sizes[walk[: joined[-1]]],
@@ -534,12 +534,13 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     pos = np.arange(len(elements)) - start[loop_of]
     smallest = np.full(len(lengths), np.iinfo(np.int64).max)
     np.minimum.at(smallest, loop_of, elements)
+    at_smallest = elements == smallest[loop_of]
     shift = np.zeros(len(lengths), np.int64)
-    shift[loop_of[elements == smallest[loop_of]]] = pos[elements == smallest[loop_of]]
+    shift[loop_of[at_smallest]] = pos[at_smallest]
     turned = np.empty_like(elements)
     turned[start[loop_of] + (pos - shift[loop_of]) % lengths[loop_of]] = elements
     rest = walk[joined[-1]:]
-    r_rows, r_idx = expand_ranges(chain_offsets[rest], sizes[rest])
+    _, r_idx = expand_ranges(chain_offsets[rest], sizes[rest])
     n_loop = loop_offsets[-1]
     new_order = np.concatenate([order[:n_loop], turned, order[r_idx]])
     new_loops = np.concatenate([loop_offsets, n_loop + np.cumsum(lengths)])

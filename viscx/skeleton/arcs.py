@@ -889,6 +889,121 @@ def _same_plane_ve(scene):
     return fam[:, :2], fam[:, 2], vp, ep
 
 
+@dataclass
+class _PlanePoints:
+    """The points of each plane where lines lying in it can change (:func:`_plane_points`),
+    sorted by direction around each (vertex, plane) row of ``vp``.
+
+    Attributes
+    ----------
+    vp : (k, 2) int
+        (vertex, plane) rows, sorted and unique.
+    point : (p, 3) float
+        The points; ``vertex`` (p,) names each: the vertex, -1 for a junction, -2 - edge
+        for an edge crossing the plane; ``rank`` (p,) is its position in plane order,
+        ``order`` (p,) the inverse permutation.
+    key : (j,) float
+        ``row * 4 + angle`` of every (vp row, point of its plane) pair, sorted (angle
+        mod π in [0, π) of the line from the row's vertex to the point), with ``point_of``
+        (j,) the point.
+    """
+
+    vp: np.ndarray
+    point: np.ndarray
+    vertex: np.ndarray
+    rank: np.ndarray
+    order: np.ndarray
+    key: np.ndarray
+    point_of: np.ndarray
+
+
+def _plane_points(scene, planes, vp, ep, junctions):
+    """The points of the given planes (:func:`face_planes` ids) at which the lines of a
+    same-plane VE family can change: a generator vertex touching the plane, a junction of
+    an edge lying in it, a generator edge crossing it; sorted by direction around every
+    (vertex, plane) row of ``vp`` (:class:`_PlanePoints`), for :func:`_coplanar_join`."""
+    tol = scene.weld_tolerance
+    # the points of each plane: (plane, point, vertex)
+    pts_plane = [vp[:, 1]]
+    pts = [scene.vertices[vp[:, 0]]]
+    pts_vertex = [vp[:, 0]]  # the vertex, -1 for a junction, -2 - edge for a crossing
+    lo = np.searchsorted(ep[:, 0], junctions.edge, "left")  # ep is sorted by edge
+    r, k = expand_ranges(lo, np.searchsorted(ep[:, 0], junctions.edge, "right") - lo)
+    a, b = _edge_geometry(scene, junctions.edge[r])
+    pts_plane.append(ep[k, 1])
+    pts.append(a + junctions.s[r, None] * (b - a))
+    pts_vertex.append(junctions.vertex[r])
+    # generator edges crossing each plane strictly (chunked: planes × edges)
+    plane_of_face = face_planes(scene)
+    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
+    face_of[plane_of_face] = np.arange(scene.n_faces)
+    normal, offset = scene.face_normal[face_of[planes]], scene.face_offset[face_of[planes]]
+    ge = scene.generator_edges
+    ga, gb = _edge_geometry(scene, ge)
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for c in range(0, len(planes), chunk):
+        sl = slice(c, c + chunk)
+        h0 = normal[sl] @ ga.T - offset[sl, None]
+        h1 = normal[sl] @ gb.T - offset[sl, None]
+        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > tol) & (np.abs(h1) > tol))
+        f = h0[i, j] / (h0[i, j] - h1[i, j])
+        pts_plane.append(planes[sl][i])
+        pts.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
+        pts_vertex.append(-2 - ge[j])
+    pts_plane, pts, pts_vertex = np.concatenate(pts_plane), np.concatenate(pts), np.concatenate(pts_vertex)
+    order = np.argsort(pts_plane, kind="stable")
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    # around each (vertex, plane) the plane's points sorted by the direction of their line
+    first = np.searchsorted(pts_plane[order], vp[:, 1], "left")  # vp: sorted, unique rows
+    count = np.searchsorted(pts_plane[order], vp[:, 1], "right") - first
+    r, k = expand_ranges(first, count)
+    w = order[k]
+    x = scene.vertices[vp[r, 0]]
+    direction = pts[w] - x
+    far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
+    r, w, direction = r[far], w[far], direction[far]
+    eu, ev = _plane_bases(scene, vp[r, 1])
+    angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
+    key = r * 4.0 + angle  # angles < π < 4: one sorted key per (vertex, plane) block
+    by_key = np.argsort(key, kind="stable")
+    return _PlanePoints(vp, pts, pts_vertex, rank, order, key[by_key], w[by_key])
+
+
+def _coplanar_candidates(scene, ve, ve_plane, points):
+    """The range of :class:`_PlanePoints` ``key`` each same-plane VE family's edge spans
+    seen from its vertex (with ANGLE_MARGIN), as up to three pieces of its (vertex, plane)
+    block (a span crossing the angle 0 = π wraps).
+
+    Returns
+    -------
+    family, first, last : (q,) int
+        Row of ``ve`` and the key range [first, last) of each piece.
+    """
+    vp = points.vp
+    row = np.searchsorted(vp[:, 0] * (vp[:, 1].max() + 1) + vp[:, 1], ve[:, 0] * (vp[:, 1].max() + 1) + ve_plane)
+    x = scene.vertices[ve[:, 0]]
+    a, b = _edge_geometry(scene, ve[:, 1])
+    eu, ev = _plane_bases(scene, ve_plane)
+    da = np.stack([np.einsum("ij,ij->i", a - x, eu), np.einsum("ij,ij->i", a - x, ev)], axis=1)
+    db = np.stack([np.einsum("ij,ij->i", b - x, eu), np.einsum("ij,ij->i", b - x, ev)], axis=1)
+    cross = da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]
+    span = np.arctan2(np.abs(cross), np.einsum("ij,ij->i", da, db))  # in [0, π)
+    start = np.mod(np.arctan2(np.where(cross >= 0, da[:, 1], db[:, 1]), np.where(cross >= 0, da[:, 0], db[:, 0])), np.pi)
+    # a margin far above rounding: the exact test of _coplanar_events decides
+    lo, hi = start - ANGLE_MARGIN, start + span + ANGLE_MARGIN
+    pieces = [(lo, np.minimum(hi, np.pi)), (np.full_like(lo, 0.0), hi - np.pi), (lo + np.pi, np.full_like(lo, np.pi))]
+    fams, firsts, lasts = [], [], []
+    for p_lo, p_hi in pieces:
+        f = np.flatnonzero(p_hi > np.maximum(p_lo, 0.0))
+        i0 = np.searchsorted(points.key, row[f] * 4.0 + np.maximum(p_lo[f], 0.0), "left")
+        i1 = np.searchsorted(points.key, row[f] * 4.0 + np.minimum(p_hi[f], np.pi), "right")
+        fams.append(f)
+        firsts.append(i0)
+        lasts.append(np.maximum(i1, i0))
+    return np.concatenate(fams), np.concatenate(firsts), np.concatenate(lasts)
+
+
 def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
     """Where each same-plane VE family's line passes a point of its plane at which the lines
     of the plane can change: a generator vertex touching the plane, a junction of an edge
@@ -914,89 +1029,27 @@ def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
     index : (q,) int
         The vertex (-1 for a junction) or the crossing edge.
     """
-    tol = scene.weld_tolerance
-    # the points of each plane: (plane, point, vertex)
-    pts_plane = [vp[:, 1]]
-    pts = [scene.vertices[vp[:, 0]]]
-    pts_vertex = [vp[:, 0]]  # the vertex, -1 for a junction, -2 - edge for a crossing
-    lo = np.searchsorted(ep[:, 0], junctions.edge, "left")  # ep is sorted by edge
-    r, k = expand_ranges(lo, np.searchsorted(ep[:, 0], junctions.edge, "right") - lo)
-    a, b = _edge_geometry(scene, junctions.edge[r])
-    pts_plane.append(ep[k, 1])
-    pts.append(a + junctions.s[r, None] * (b - a))
-    pts_vertex.append(junctions.vertex[r])
-    # generator edges crossing each plane of a family strictly (chunked: planes × edges)
-    planes = np.unique(ve_plane)
-    plane_of_face = face_planes(scene)
-    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
-    face_of[plane_of_face] = np.arange(scene.n_faces)
-    normal, offset = scene.face_normal[face_of[planes]], scene.face_offset[face_of[planes]]
-    ge = scene.generator_edges
-    ga, gb = _edge_geometry(scene, ge)
-    chunk = max(1, (1 << 22) // max(1, len(ge)))
-    for c in range(0, len(planes), chunk):
-        sl = slice(c, c + chunk)
-        h0 = normal[sl] @ ga.T - offset[sl, None]
-        h1 = normal[sl] @ gb.T - offset[sl, None]
-        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > tol) & (np.abs(h1) > tol))
-        f = h0[i, j] / (h0[i, j] - h1[i, j])
-        pts_plane.append(planes[sl][i])
-        pts.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
-        pts_vertex.append(-2 - ge[j])
-    pts_plane, pts, pts_vertex = np.concatenate(pts_plane), np.concatenate(pts), np.concatenate(pts_vertex)
-    order = np.argsort(pts_plane, kind="stable")
-    rank = np.empty(len(order), np.int64)
-    rank[order] = np.arange(len(order))
-    # Output-sensitive join (a family and a point of its plane pair up only when the line
-    # through the family's vertex and the point meets the family's edge): around each
-    # (vertex, plane) the plane's points are sorted by the direction of their line (an
-    # angle mod π), and each family takes the range of directions its edge spans.
-    first = np.searchsorted(pts_plane[order], vp[:, 1], "left")  # vp: sorted, unique rows
-    count = np.searchsorted(pts_plane[order], vp[:, 1], "right") - first
-    r, k = expand_ranges(first, count)
-    w = order[k]
-    x = scene.vertices[vp[r, 0]]
-    direction = pts[w] - x
-    far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
-    r, w, direction = r[far], w[far], direction[far]
-    eu, ev = _plane_bases(scene, vp[r, 1])
-    angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
-    key = r * 4.0 + angle  # angles < π < 4: one sorted key per (vertex, plane) block
-    by_key = np.argsort(key, kind="stable")
-    key, r, w = key[by_key], r[by_key], w[by_key]
-    # each family's (vertex, plane) block and the directions its edge spans
-    row = np.searchsorted(vp[:, 0] * (vp[:, 1].max() + 1) + vp[:, 1],
-                          ve[:, 0] * (vp[:, 1].max() + 1) + ve_plane)
-    x = scene.vertices[ve[:, 0]]
-    a, b = _edge_geometry(scene, ve[:, 1])
-    eu, ev = _plane_bases(scene, ve_plane)
-    da = np.stack([np.einsum("ij,ij->i", a - x, eu), np.einsum("ij,ij->i", a - x, ev)], axis=1)
-    db = np.stack([np.einsum("ij,ij->i", b - x, eu), np.einsum("ij,ij->i", b - x, ev)], axis=1)
-    cross = da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]
-    span = np.arctan2(np.abs(cross), np.einsum("ij,ij->i", da, db))  # in [0, π)
-    start = np.mod(np.arctan2(np.where(cross >= 0, da[:, 1], db[:, 1]), np.where(cross >= 0, da[:, 0], db[:, 0])), np.pi)
-    # a margin far above rounding: the exact test below decides
-    lo, hi = start - ANGLE_MARGIN, start + span + ANGLE_MARGIN
-    pieces = [(lo, np.minimum(hi, np.pi)), (np.full_like(lo, 0.0), hi - np.pi), (lo + np.pi, np.full_like(lo, np.pi))]
-    fams, ws = [], []
-    for p_lo, p_hi in pieces:
-        live = p_hi > np.maximum(p_lo, 0.0)
-        f = np.flatnonzero(live)
-        i0 = np.searchsorted(key, row[f] * 4.0 + np.maximum(p_lo[f], 0.0), "left")
-        i1 = np.searchsorted(key, row[f] * 4.0 + np.minimum(p_hi[f], np.pi), "right")
-        rr, kk = expand_ranges(i0, np.maximum(i1 - i0, 0))
-        fams.append(f[rr])
-        ws.append(w[kk])
-    fam, w = np.concatenate(fams), np.concatenate(ws)
-    # the ranges overlap only within the margin; the order is the plain join's
-    fam_w = unique_sorted(fam * len(order) + rank[w])
-    fam, w = fam_w // len(order), order[fam_w % len(order)]
+    return _coplanar_join(scene, ve, ve_plane, _plane_points(scene, np.unique(ve_plane), vp, ep, junctions))
+
+
+def _coplanar_join(scene, ve, ve_plane, points):
+    """:func:`_coplanar_events` with the points of the families' planes found
+    (:func:`_plane_points`): each family and the points in the range of directions its
+    edge spans (output-sensitive: a family and a point of its plane pair up only when the
+    line through the family's vertex and the point meets the family's edge)."""
+    fam, first, last = _coplanar_candidates(scene, ve, ve_plane, points)
+    r, k = expand_ranges(first, last - first)
+    fam, w = fam[r], points.point_of[k]
+    # the ranges overlap only within the margin; the order is (family, point in plane order)
+    n = len(points.point)
+    fam_w = unique_sorted(fam * n + points.rank[w])
+    fam, w = fam_w // n, points.order[fam_w % n]
     x = scene.vertices[ve[fam, 0]]
     a, b = _edge_geometry(scene, ve[fam, 1])
-    s, _ = segment_parameter(x, pts[w] - x, a, b)
+    s, _ = segment_parameter(x, points.point[w] - x, a, b)
     with np.errstate(invalid="ignore"):
         inside = np.isfinite(s) & (s > 0) & (s < 1)
-    which = pts_vertex[w[inside]]
+    which = points.vertex[w[inside]]
     crossing = which <= -2
     return (fam[inside], s[inside], np.where(crossing, END_CROSSING, END_COPLANAR),
             np.where(crossing, -2 - which, which))
@@ -1155,6 +1208,12 @@ def _junctions_of(junctions, edges):
 def build_arcs(scene, nodes, quiet=True, workers=None):
     """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
 
+    The families are found once for the whole scene (:func:`_families`); their events,
+    intervals, samples and arcs are built in chunks of consecutive families, end to end
+    (:func:`_arcs_of_families`, on threads): every stage of an arc is decided within its
+    family, so memory stays bounded by a chunk's events besides the result, and the
+    chunks' arcs, each sorted, concatenate in the canonical order.
+
     Parameters
     ----------
     scene : Scene
@@ -1163,70 +1222,35 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
     quiet : bool
         No progress bar.
     workers : int, optional
-        Threads judging the samples (default: the CPU count); the arcs do not depend on it.
+        Threads building the chunks (default: the CPU count); the arcs do not depend on it.
 
     Returns
     -------
     Arcs
     """
-    with bar(total=6, desc="arcs", quiet=quiet, unit="stage") as progress:
+    with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
         progress.set_postfix_str("planar events")
         planar = planar_events(scene)
         progress.update()
 
         progress.set_postfix_str("families")
-        ev_kind, ev_index, fam_kind, fam_gens, fam_of, ev_s = [], [], [], [], [], []
-        for code, events in ((END_NODE, nodes), (END_PLANAR, planar)):
-            k, g, rows = _incidences(scene, events)
-            fam_kind.append(k)
-            fam_gens.append(g)
-            ev_kind.append(np.full(len(rows), code))
-            ev_index.append(rows)
-            ev_s.append(_event_parameters(scene, k, g, events, rows))
-        # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
-        plane_ve, plane_of, vp, ep = _same_plane_ve(scene)
-        face_ve = np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1)
-        fam_kind.append(np.full(len(face_ve), VE))
-        fam_gens.append(face_ve)
-        keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
-        families, fam_of = unique_rows(keys.reshape(-1, 4))
-        fam_of = fam_of[: len(keys) - len(face_ve)]
-        fkind, fgens = families[:, 0], families[:, 1:]
-        ev_kind, ev_index, ev_s = np.concatenate(ev_kind), np.concatenate(ev_index), np.concatenate(ev_s)
-        # the ends of each family's domain, and its junctions
-        junctions = edge_junctions(scene)
-        dom_f, dom_s, dom_kind, dom_vertex = _domain_ends(scene, fkind, fgens, junctions)
-        # the points of their plane same-plane VE families pass
-        cop_f, cop_s, cop_kind, cop_index = _coplanar_events(scene, plane_ve, plane_of, vp, ep, junctions)
-        cop_hidden = _hidden_events(scene, plane_ve[cop_f], cop_s)
-        # (families is sorted and unique and holds every same-plane family)
-        _, where = unique_rows(np.concatenate([families, np.concatenate([np.full((len(face_ve), 1), VE), face_ve], axis=1)]))
-        cop_f = where[len(families):][cop_f]
-        nf = len(families)
-        fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
-        ev_s = np.concatenate([ev_s, dom_s, cop_s, np.zeros(nf), np.ones(nf)])
-        ev_kind = np.concatenate([ev_kind, dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])
-        ev_index = np.concatenate([ev_index, dom_vertex, cop_index, np.full(2 * nf, -1)])
-        ev_hidden = np.zeros(len(ev_s), dtype=bool)
-        ev_hidden[len(ev_s) - 2 * nf - len(cop_s): len(ev_s) - 2 * nf] = cop_hidden
-        # events on the family's edge (within rounding of its ends)
-        ev_s = np.nan_to_num(ev_s, nan=-1.0)
-        inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
-        ev_s = np.clip(ev_s, 0.0, 1.0)
-        fam_of, ev_s, ev_kind, ev_index, ev_hidden = (x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden))
+        families = _families(scene, nodes, planar)
         progress.update()
 
-        progress.set_postfix_str("intervals")
-        lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id = _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden)
-        progress.update()
+        chunks = _family_chunks(families)
+        done = []
 
-        progress.set_postfix_str("samples")
-        arcs = _arcs_on_intervals(scene, fkind, fgens, lo_f, lo_s, lo_type, lo_id, hi_s, hi_type, hi_id, workers)
+        def chunk_done(_):
+            done.append(1)
+            progress.set_postfix_str(f"arcs: {len(done)}/{len(chunks)} chunks of families")
+
+        progress.set_postfix_str(f"arcs: 0/{len(chunks)} chunks of families")
+        parts = map_chunks(lambda c: _arcs_of_families(scene, families, c), chunks, workers, progress=chunk_done)
+        del families
+        arcs = _concatenate_parts(parts)
         progress.update()
 
         progress.set_postfix_str("half-cells")
-        _edge_line_ends(scene, arcs)
-        arcs = _sorted(arcs)
         half_cells = _half_cells(scene, arcs)
         del arcs["sides"]
         progress.update()
@@ -1237,6 +1261,128 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
             arcs = {k: np.concatenate([v, xe[k]]) for k, v in arcs.items()}
         progress.update()
     return Arcs(**arcs, planar=planar, half_cells=half_cells)
+
+
+@dataclass
+class _Families:
+    """Every arc family of a scene, sorted by (kind, generators), with the events found
+    for all of them at once: the V0 nodes and planar events on each, as CSR.
+
+    Attributes
+    ----------
+    kind : (f,) int
+    generators : (f, 3) int
+        Canonical (:class:`Arcs`).
+    event_offsets : (f + 1,) int
+        Family i's node and planar events are rows ``event_offsets[i]:event_offsets[i + 1]``
+        of ``event_s`` (float), ``event_kind`` (END_NODE or END_PLANAR) and ``event_index``
+        (the node, or the row of the planar events).
+    plane_family : (m,) int
+        The same-plane VE families (:func:`_same_plane_ve`), ascending, with their (v, e)
+        ``plane_ve`` (m, 2) and plane ``plane_of`` (m,).
+    plane_points : _PlanePoints
+        The points of their planes (:func:`_plane_points`).
+    weight : (f,) int
+        The events each family is known to hold (nodes, planar events, coplanar
+        candidates) plus a few for its domain's ends: what sizes the chunks.
+    """
+
+    kind: np.ndarray
+    generators: np.ndarray
+    event_offsets: np.ndarray
+    event_s: np.ndarray
+    event_kind: np.ndarray
+    event_index: np.ndarray
+    plane_family: np.ndarray
+    plane_ve: np.ndarray
+    plane_of: np.ndarray
+    plane_points: _PlanePoints
+    weight: np.ndarray
+
+    def __len__(self):
+        return len(self.kind)
+
+
+def _families(scene, nodes, planar):
+    """The families through the nodes and the planar events, and every same-plane VE
+    family (which may hold no node), with their node and planar events (:class:`_Families`)."""
+    fam_kind, fam_gens, ev_kind, ev_index, ev_s = [], [], [], [], []
+    for code, events in ((END_NODE, nodes), (END_PLANAR, planar)):
+        k, g, rows = _incidences(scene, events)
+        fam_kind.append(k)
+        fam_gens.append(g)
+        ev_kind.append(np.full(len(rows), code, np.int8))
+        ev_index.append(rows)
+        ev_s.append(_event_parameters(scene, k, g, events, rows))
+    plane_ve, plane_of, vp, ep = _same_plane_ve(scene)
+    fam_kind.append(np.full(len(plane_ve), VE))
+    fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))
+    keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
+    del fam_kind, fam_gens
+    families, fam_of = unique_rows(keys.reshape(-1, 4))
+    del keys
+    n_events = len(fam_of) - len(plane_ve)
+    plane_family, fam_of = fam_of[n_events:], fam_of[:n_events]
+    # (plane_ve is sorted by (v, e) and families by (VE, v, e): plane_family ascends)
+    order = np.argsort(fam_of, kind="stable")
+    nf = len(families)
+    count = np.bincount(fam_of, minlength=nf)
+    points = _plane_points(scene, np.unique(plane_of), vp, ep, junctions=edge_junctions(scene))
+    weight = count + np.where(families[:, 0] == EEE, 8, 2)
+    if len(plane_ve):
+        fam, first, last = _coplanar_candidates(scene, plane_ve, plane_of, points)
+        weight += np.bincount(plane_family[fam], weights=last - first, minlength=nf).astype(np.int64)
+    return _Families(families[:, 0], families[:, 1:], np.r_[0, np.cumsum(count)], np.concatenate(ev_s)[order],
+                     np.concatenate(ev_kind)[order], np.concatenate(ev_index)[order], plane_family, plane_ve, plane_of,
+                     points, weight)
+
+
+#: Events (known, see :class:`_Families`) per chunk of families built at once by
+#: :func:`build_arcs`: a few hundred bytes each in flight.
+FAMILY_CHUNK = 1 << 19
+
+
+def _family_chunks(families):
+    """Consecutive ranges of families (slices) of about FAMILY_CHUNK events each."""
+    end = np.cumsum(families.weight)
+    cuts = np.searchsorted(end, np.arange(FAMILY_CHUNK, int(end[-1]) if len(end) else 0, FAMILY_CHUNK), "right")
+    bounds = unique_sorted(np.r_[0, cuts, len(families)])
+    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])] or [slice(0, 0)]
+
+
+def _arcs_of_families(scene, families, chunk):
+    """The arcs of a chunk of consecutive families (a slice), sorted as :func:`_sorted`,
+    with their samples' half-cell pairs (``sides``): their events (nodes and planar
+    events, domain ends and junctions, coplanar events), intervals and samples."""
+    lo, hi = chunk.start, chunk.stop
+    fkind, fgens = families.kind[chunk], families.generators[chunk]
+    nf = hi - lo
+    ev = slice(families.event_offsets[lo], families.event_offsets[hi])
+    counts = np.diff(families.event_offsets[lo: hi + 1])
+    fam_of = np.repeat(np.arange(nf), counts)
+    # the ends of each family's domain, and its junctions
+    dom_f, dom_s, dom_kind, dom_vertex = _domain_ends(scene, fkind, fgens, edge_junctions(scene))
+    # the points of their plane same-plane VE families pass
+    p0, p1 = np.searchsorted(families.plane_family, [lo, hi])
+    plane_ve = families.plane_ve[p0:p1]
+    cop_f, cop_s, cop_kind, cop_index = _coplanar_join(scene, plane_ve, families.plane_of[p0:p1], families.plane_points)
+    cop_hidden = _hidden_events(scene, plane_ve[cop_f], cop_s)
+    cop_f = families.plane_family[p0:p1][cop_f] - lo
+    fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
+    ev_s = np.concatenate([families.event_s[ev], dom_s, cop_s, np.zeros(nf), np.ones(nf)])
+    ev_kind = np.concatenate([families.event_kind[ev], dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])
+    ev_index = np.concatenate([families.event_index[ev], dom_vertex, cop_index, np.full(2 * nf, -1)])
+    ev_hidden = np.zeros(len(ev_s), dtype=bool)
+    ev_hidden[len(ev_s) - 2 * nf - len(cop_s): len(ev_s) - 2 * nf] = cop_hidden
+    # events on the family's edge (within rounding of its ends)
+    ev_s = np.nan_to_num(ev_s, nan=-1.0)
+    inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+    ev_s = np.clip(ev_s, 0.0, 1.0)
+    intervals = _intervals(scene, fkind, fgens, *(x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden)))
+    del fam_of, ev_s, ev_kind, ev_index, ev_hidden
+    arcs = _arcs_on_intervals(scene, fkind, fgens, *intervals)
+    _edge_line_ends(scene, arcs)
+    return _sorted(arcs)
 
 
 def _param_scale(scene, fkind, fgens):

@@ -19,9 +19,14 @@ import threading
 import numpy as np
 from numba import njit, prange
 
-# One parallel kernel at a time: callers on several threads (viscx.parallel) would
-# otherwise launch nested parallel regions, which not every numba threading layer allows.
+from viscx.parallel import in_pool
+
+# One parallel kernel at a time: callers on several threads would otherwise launch nested
+# parallel regions, which not every numba threading layer allows. The pooled threads of
+# viscx.parallel cast in their own thread instead (they already keep the cores busy), as
+# does a call of fewer than SERIAL_RAYS rays (a parallel region costs more than it saves).
 _KERNEL_LOCK = threading.Lock()
+SERIAL_RAYS = 1024
 
 #: Barycentric slack: points on a triangle's edge are on the (closed) triangle.
 BARY_SLACK = 1e-12
@@ -31,8 +36,33 @@ PARALLEL_COSINE = 1e-12
 
 
 @njit(cache=True)
-def moller_trumbore(o, d, vertices, triangles, t_index):
-    """Closed float64 Möller–Trumbore of one ray and one triangle.
+def triangle_frame(vertices, triangles, t_index):
+    """(a, e1, e2, |e1 × e2|) of one triangle abc, e1 = b - a and e2 = c - a: the ten
+    numbers of Möller–Trumbore that do not depend on the ray (flat, (10,) float)."""
+    ia, ib, ic = triangles[t_index, 0], triangles[t_index, 1], triangles[t_index, 2]
+    ax, ay, az = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
+    e1x, e1y, e1z = vertices[ib, 0] - ax, vertices[ib, 1] - ay, vertices[ib, 2] - az
+    e2x, e2y, e2z = vertices[ic, 0] - ax, vertices[ic, 1] - ay, vertices[ic, 2] - az
+    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    out = np.empty(10)
+    out[0], out[1], out[2], out[3], out[4], out[5] = ax, ay, az, e1x, e1y, e1z
+    out[6], out[7], out[8], out[9] = e2x, e2y, e2z, np.sqrt(nx * nx + ny * ny + nz * nz)
+    return out
+
+
+@njit(cache=True)
+def triangle_frames(vertices, triangles):
+    """(t, 10) float: :func:`triangle_frame` of every triangle."""
+    out = np.empty((triangles.shape[0], 10))
+    for i in range(triangles.shape[0]):
+        out[i] = triangle_frame(vertices, triangles, i)
+    return out
+
+
+@njit(cache=True)
+def crossing(ox, oy, oz, dx, dy, dz, d_norm, frame):
+    """Closed float64 Möller–Trumbore of one ray (origin, direction, |direction|) and one
+    triangle given by its :func:`triangle_frame` (a row of :func:`triangle_frames`).
 
     Returns
     -------
@@ -43,26 +73,29 @@ def moller_trumbore(o, d, vertices, triangles, t_index):
     cosine : float
         |cos| of the angle between the ray and the triangle's normal.
     """
-    ia, ib, ic = triangles[t_index, 0], triangles[t_index, 1], triangles[t_index, 2]
-    ax, ay, az = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
-    e1x, e1y, e1z = vertices[ib, 0] - ax, vertices[ib, 1] - ay, vertices[ib, 2] - az
-    e2x, e2y, e2z = vertices[ic, 0] - ax, vertices[ic, 1] - ay, vertices[ic, 2] - az
-    dx, dy, dz = d[0], d[1], d[2]
+    e1x, e1y, e1z = frame[3], frame[4], frame[5]
+    e2x, e2y, e2z = frame[6], frame[7], frame[8]
     # p = d × e2 and det = e1 · p = -d · (e1 × e2)
     px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
     det = e1x * px + e1y * py + e1z * pz
-    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
-    size = np.sqrt(nx * nx + ny * ny + nz * nz) * np.sqrt(dx * dx + dy * dy + dz * dz)
+    size = frame[9] * d_norm
     cosine = abs(det) / size if size > 0 else 0.0
     if cosine <= PARALLEL_COSINE:
         return np.inf, -np.inf, cosine
     inv = 1.0 / det
-    sx, sy, sz = o[0] - ax, o[1] - ay, o[2] - az
+    sx, sy, sz = ox - frame[0], oy - frame[1], oz - frame[2]
     u = (sx * px + sy * py + sz * pz) * inv
     qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
     v = (dx * qx + dy * qy + dz * qz) * inv
     t = (e2x * qx + e2y * qy + e2z * qz) * inv
     return t, min(u, min(v, 1.0 - u - v)), cosine
+
+
+@njit(cache=True)
+def moller_trumbore(o, d, vertices, triangles, t_index):
+    """:func:`crossing` of one ray (o, d: (3,) float) and one triangle of a mesh."""
+    d_norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return crossing(o[0], o[1], o[2], d[0], d[1], d[2], d_norm, triangle_frame(vertices, triangles, t_index))
 
 
 @njit(cache=True)
@@ -102,32 +135,58 @@ def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
 
 
 @njit(cache=True, parallel=True)
-def _first_hits(origins, directions, tmin, tmax, vertices, triangles, lo, hi, cell, dims, offsets, items):
-    # rays are independent: one per iteration of a parallel loop (same answers on any
-    # number of threads)
+def _first_hits(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items):
+    # rays are independent: blocks of them on the threads of a parallel loop (same answers
+    # on any number of threads)
     n = origins.shape[0]
     best_tri = np.full(n, -1, dtype=np.int64)
     best_t = np.full(n, np.inf)
-    # rays in blocks, each block's scratch arrays allocated once
     n_blocks = min(n, 256)
     for b in prange(n_blocks):
-        steps = np.empty(6, dtype=np.int64)
-        times = np.empty(6)
-        mailbox = np.empty(MAILBOX, dtype=np.int64)
-        for r in range(b * n // n_blocks, (b + 1) * n // n_blocks):
-            best_tri[r], best_t[r] = _first_hit_one(origins[r], directions[r], tmin[r], tmax[r], vertices, triangles, lo,
-                                                    hi, cell, dims, offsets, items, steps, times, mailbox)
+        _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, b * n // n_blocks,
+                       (b + 1) * n // n_blocks, best_tri, best_t)
     return best_tri, best_t
+
+
+@njit(cache=True, nogil=True)
+def _first_hits_serial(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items):
+    # in the calling thread, without the GIL: threads of viscx.parallel overlap
+    n = origins.shape[0]
+    best_tri = np.full(n, -1, dtype=np.int64)
+    best_t = np.full(n, np.inf)
+    _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, 0, n, best_tri, best_t)
+    return best_tri, best_t
+
+
+@njit(cache=True, nogil=True)
+def _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, start, stop, best_tri, best_t):
+    """:func:`_first_hit_one` of rays start..stop - 1, into ``best_tri`` and ``best_t``."""
+    mailbox = np.empty(MAILBOX, dtype=np.int64)
+    for r in range(start, stop):
+        best_tri[r], best_t[r] = _first_hit_one(origins[r], directions[r], tmin[r], tmax[r], frames, lo, hi, cell, dims,
+                                                offsets, items, mailbox)
 
 
 #: Triangles a ray remembers having tested (a triangle spanning several cells is tested once).
 MAILBOX = 16
 
 
+@njit(cache=True, inline="always")
+def _first_cell(o, d, lo, cell, n, t0):
+    """The DDA's start along one axis, at ray parameter t0: (cell index, step, ray
+    parameter of the next cell boundary, parameter per cell)."""
+    c = cell_of(o + t0 * d, lo, cell, n)
+    if d > 0:
+        return c, 1, (lo + (c + 1) * cell - o) / d, cell / d
+    if d < 0:
+        return c, -1, (lo + c * cell - o) / d, -cell / d
+    return c, 0, np.inf, np.inf
+
+
 @njit(cache=True)
-def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, offsets, items, steps, times, mailbox):
-    """First triangle met by one ray on [tmin, tmax] (3-D DDA over the grid's cells).
-    ``steps`` (6,) int, ``times`` (6,) float and ``mailbox`` (MAILBOX,) int are scratch."""
+def _first_hit_one(o, d, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, mailbox):
+    """First triangle met by one ray on [tmin, tmax] (3-D DDA over the grid's cells, its
+    state in scalars). ``mailbox`` (MAILBOX,) int is scratch."""
     best_tri, best_t = -1, np.inf
     # clip [tmin, tmax] to the grid's box (slab method)
     t0, t1 = tmin, tmax
@@ -143,29 +202,15 @@ def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, of
             t1 = -np.inf
     if t0 > t1:
         return best_tri, best_t
-    # first cell and the stepping state
-    idx, step = steps[:3], steps[3:]
-    t_next, t_delta = times[:3], times[3:]
+    ox, oy, oz, dx, dy, dz = o[0], o[1], o[2], d[0], d[1], d[2]
+    d_norm = np.sqrt(dx * dx + dy * dy + dz * dz)
+    ix, sx, next_x, delta_x = _first_cell(ox, dx, lo[0], cell[0], dims[0], t0)
+    iy, sy, next_y, delta_y = _first_cell(oy, dy, lo[1], cell[1], dims[1], t0)
+    iz, sz, next_z, delta_z = _first_cell(oz, dz, lo[2], cell[2], dims[2], t0)
     mailbox[:] = -1
     slot = 0
-    for k in range(3):
-        p = o[k] + t0 * d[k]
-        c = int(np.floor((p - lo[k]) / cell[k]))
-        idx[k] = min(max(c, 0), dims[k] - 1)
-        if d[k] > 0:
-            step[k] = 1
-            t_next[k] = (lo[k] + (idx[k] + 1) * cell[k] - o[k]) / d[k]
-            t_delta[k] = cell[k] / d[k]
-        elif d[k] < 0:
-            step[k] = -1
-            t_next[k] = (lo[k] + idx[k] * cell[k] - o[k]) / d[k]
-            t_delta[k] = -cell[k] / d[k]
-        else:
-            step[k] = 0
-            t_next[k] = np.inf
-            t_delta[k] = np.inf
     while True:
-        c = (idx[0] * dims[1] + idx[1]) * dims[2] + idx[2]
+        c = (ix * dims[1] + iy) * dims[2] + iz
         for j in range(offsets[c], offsets[c + 1]):
             tri = items[j]
             seen = False
@@ -176,26 +221,33 @@ def _first_hit_one(o, d, tmin, tmax, vertices, triangles, lo, hi, cell, dims, of
                 continue
             mailbox[slot] = tri
             slot = (slot + 1) % MAILBOX
-            t, margin, _ = moller_trumbore(o, d, vertices, triangles, tri)
+            t, margin, _ = crossing(ox, oy, oz, dx, dy, dz, d_norm, frames[tri])
             if margin < -BARY_SLACK:
                 continue
             # ties: the lower triangle id, so the answer does not depend on cell order
             if tmin <= t <= tmax and (t < best_t or (t == best_t and tri < best_tri)):
                 best_t = t
                 best_tri = tri
-        exit_t = min(t_next[0], min(t_next[1], t_next[2]))
+        exit_t = min(next_x, min(next_y, next_z))
         # a hit at or before this cell's exit cannot be beaten by later cells
         if best_t <= exit_t or exit_t > t1:
             break
-        k = 0
-        if t_next[1] < t_next[k]:
-            k = 1
-        if t_next[2] < t_next[k]:
-            k = 2
-        idx[k] += step[k]
-        if idx[k] < 0 or idx[k] >= dims[k]:
-            break
-        t_next[k] += t_delta[k]
+        # step along the axis whose boundary comes first (the lowest axis on ties)
+        if next_x <= next_y and next_x <= next_z:
+            ix += sx
+            if ix < 0 or ix >= dims[0]:
+                break
+            next_x += delta_x
+        elif next_y <= next_z:
+            iy += sy
+            if iy < 0 or iy >= dims[1]:
+                break
+            next_y += delta_y
+        else:
+            iz += sz
+            if iz < 0 or iz >= dims[2]:
+                break
+            next_z += delta_z
     return best_tri, best_t
 
 
@@ -356,6 +408,7 @@ class TriangleGrid:
     def __init__(self, vertices, triangles):
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
+        self.frames = triangle_frames(self.vertices, self.triangles)
         corners = self.vertices[self.triangles]
         scene_lo, scene_hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
         extent = np.maximum(scene_hi - scene_lo, 1e-9 * max(float(np.max(scene_hi - scene_lo)), 1e-300))
@@ -389,7 +442,9 @@ class TriangleGrid:
         """
         args = (np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
                 np.ascontiguousarray(tmin, dtype=np.float64), np.ascontiguousarray(tmax, dtype=np.float64),
-                self.vertices, self.triangles, self.lo, self.hi, self.cell, self.dims, self.offsets, self.items)
+                self.frames, self.lo, self.hi, self.cell, self.dims, self.offsets, self.items)
+        if in_pool() or len(args[0]) < SERIAL_RAYS:
+            return _first_hits_serial(*args)
         with _KERNEL_LOCK:
             return _first_hits(*args)
 

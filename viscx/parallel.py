@@ -19,6 +19,13 @@ def default_workers(workers=None):
 _worker = threading.local()
 
 
+def in_pool():
+    """Whether the calling thread is one of the threads of a :func:`map_chunks` running
+    on several: they keep the cores busy, so numba kernels it calls need no threads of
+    their own."""
+    return getattr(_worker, "pooled", False)
+
+
 def row_chunks(n, size):
     """Consecutive slices covering ``range(n)``, ``size`` rows each (the last one shorter)."""
     return [slice(lo, min(lo + size, n)) for lo in range(0, n, size)]
@@ -56,5 +63,10 @@ def map_chunks(function, chunks, workers=None, progress=None):
     workers = default_workers(workers)
     if workers == 1 or len(chunks) <= 1 or getattr(_worker, "busy", False):
         return [run(c) for c in chunks]
+
+    def run_pooled(chunk):
+        _worker.pooled = True
+        return run(chunk)
+
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(run, chunks))
+        return list(pool.map(run_pooled, chunks))

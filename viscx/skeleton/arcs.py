@@ -59,7 +59,7 @@ from numba import njit
 from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
 from viscx.grid import bin_boxes
-from viscx.parallel import map_chunks, row_chunks
+from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.progress import bar
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.nodes import (
@@ -1208,10 +1208,14 @@ def _junctions_of(junctions, edges):
 def build_arcs(scene, nodes, quiet=True, workers=None):
     """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
 
-    The families are found once for the whole scene (:func:`_families`); their events,
-    intervals, samples and arcs are built in chunks of consecutive families, end to end
-    (:func:`_arcs_of_families`, on threads): every stage of an arc is decided within its
-    family, so memory stays bounded by a chunk's events besides the result, and the
+    The families are found once for the whole scene (:func:`_families`). Their events,
+    intervals and first samples are made in chunks of consecutive families
+    (:func:`_first_pass_of_families`, on threads); the few intervals whose samples
+    disagree are refined all together (:func:`_refine`: its bisection is a sequence of
+    small batches); then each chunk's pieces are merged into its arcs
+    (:func:`_arcs_of_families`). Every stage of an arc is decided within its family, so
+    the arcs do not depend on the chunks; memory holds the result, the first pass's
+    pieces (about as large, freed chunk by chunk) and a chunk's events per thread; the
     chunks' arcs, each sorted, concatenate in the canonical order.
 
     Parameters
@@ -1242,11 +1246,18 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
 
         def chunk_done(_):
             done.append(1)
-            progress.set_postfix_str(f"arcs: {len(done)}/{len(chunks)} chunks of families")
+            progress.set_postfix_str(f"samples: {len(done)}/{len(chunks)} chunks of families")
 
-        progress.set_postfix_str(f"arcs: 0/{len(chunks)} chunks of families")
-        parts = map_chunks(lambda c: _arcs_of_families(scene, families, c), chunks, workers, progress=chunk_done)
-        del families
+        progress.set_postfix_str(f"samples: 0/{len(chunks)} chunks of families")
+        first = map_chunks(lambda c: _first_pass_of_families(scene, families, c), chunks, workers, progress=chunk_done)
+        # the intervals whose samples disagree, of all chunks at once (few: in batches)
+        progress.set_postfix_str("refining")
+        mixed = [np.concatenate(x) for x in zip(*(m for _, m in first))]
+        refined = _refine(scene, families.kind, families.generators, *mixed, workers=workers)
+        refined = _concatenate_parts(refined) if refined else None
+        progress.set_postfix_str("merging")
+        parts = map_chunks(lambda i: _arcs_of_families(scene, families, chunks, i, first, refined), range(len(chunks)), workers)
+        del families, first, refined
         arcs = _concatenate_parts(parts)
         progress.update()
 
@@ -1350,16 +1361,16 @@ def _family_chunks(families):
     return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])] or [slice(0, 0)]
 
 
-def _arcs_of_families(scene, families, chunk):
-    """The arcs of a chunk of consecutive families (a slice), sorted as :func:`_sorted`,
-    with their samples' half-cell pairs (``sides``): their events (nodes and planar
-    events, domain ends and junctions, coplanar events), intervals and samples."""
+def _first_pass_of_families(scene, families, chunk):
+    """The events, intervals and first pass (:func:`_first_pass`) of a chunk of
+    consecutive families (a slice): their nodes and planar events, domain ends and
+    junctions, coplanar events. Families are the chunk's (0 its first); the mixed
+    intervals' are the scene's."""
     lo, hi = chunk.start, chunk.stop
     fkind, fgens = families.kind[chunk], families.generators[chunk]
     nf = hi - lo
     ev = slice(families.event_offsets[lo], families.event_offsets[hi])
-    counts = np.diff(families.event_offsets[lo: hi + 1])
-    fam_of = np.repeat(np.arange(nf), counts)
+    fam_of = np.repeat(np.arange(nf), np.diff(families.event_offsets[lo: hi + 1]))
     # the ends of each family's domain, and its junctions
     dom_f, dom_s, dom_kind, dom_vertex = _domain_ends(scene, fkind, fgens, edge_junctions(scene))
     # the points of their plane same-plane VE families pass
@@ -1380,7 +1391,24 @@ def _arcs_of_families(scene, families, chunk):
     ev_s = np.clip(ev_s, 0.0, 1.0)
     intervals = _intervals(scene, fkind, fgens, *(x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden)))
     del fam_of, ev_s, ev_kind, ev_index, ev_hidden
-    arcs = _arcs_on_intervals(scene, fkind, fgens, *intervals)
+    parts, mixed = _first_pass(scene, fkind, fgens, *intervals)
+    return parts, (mixed[0] + lo,) + mixed[1:]
+
+
+def _arcs_of_families(scene, families, chunks, i, first, refined):
+    """The arcs of the chunk of families ``chunks[i]``, sorted as :func:`_sorted`, with
+    their samples' half-cell pairs (``sides``), from its first pass (``first[i]``, taken
+    out of the list: the first pass is freed as the arcs are made) and its families'
+    refined pieces (``refined``: of all chunks, by ascending family; or None)."""
+    chunk = chunks[i]
+    parts, _ = first[i]
+    first[i] = None
+    if refined is not None:
+        a, b = np.searchsorted(refined["family"], [chunk.start, chunk.stop])
+        mine = {k: v[a:b] for k, v in refined.items()}
+        mine["family"] = mine["family"] - chunk.start
+        parts = parts + [mine]
+    arcs = _arcs_of_pieces(scene, families.kind[chunk], families.generators[chunk], parts)
     _edge_line_ends(scene, arcs)
     return _sorted(arcs)
 
@@ -1429,6 +1457,32 @@ def _end_fraction(scene, fkind, fgens, f, s0, s1):
 
 
 def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
+    """The arcs on the intervals between consecutive events of families (``f`` the family
+    of each, s0 < s1 its ends, t and i their end types and ids): the samples of every
+    interval (:func:`_first_pass`), the intervals whose samples disagree refined
+    (:func:`_refine`), the pieces merged (:func:`_arcs_of_pieces`).
+
+    Returns
+    -------
+    dict of arrays
+        The fields of :class:`Arcs` (not sorted) and ``sides`` (m, 8), the half-cells'
+        pairs of each arc's sample.
+    """
+    parts, mixed = _first_pass(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers)
+    return _arcs_of_pieces(scene, fkind, fgens, parts + _refine(scene, fkind, fgens, *mixed, workers=workers))
+
+
+def _first_pass(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
+    """Every interval judged at its samples (SAMPLES and 20 epsilon from each end).
+
+    Returns
+    -------
+    parts : list of dict
+        The intervals whose samples agree and are valid, one arc piece each (its sample
+        the first, at 1/2), in pieces as :func:`_refine_batch`'s.
+    mixed : tuple
+        ``(f, s0, t0, i0, s1, t1, i1)`` of the intervals whose samples disagree.
+    """
     n = len(f)
     near = _end_fraction(scene, fkind, fgens, f, s0, s1)
     fr = np.concatenate([np.broadcast_to(np.asarray(SAMPLES), (n, len(SAMPLES))), near[:, None], 1 - near[:, None]], axis=1)
@@ -1465,8 +1519,13 @@ def _arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=N
         for w, state, sides, direction, ends, points in map_chunks(judge_chunk, chunks, workers)
     ]
     mixed = np.flatnonzero(~uniform)
-    if len(mixed):
-        parts += _refine(scene, fkind, fgens, f[mixed], s0[mixed], t0[mixed], i0[mixed], s1[mixed], t1[mixed], i1[mixed])
+    return parts, tuple(x[mixed] for x in (f, s0, t0, i0, s1, t1, i1))
+
+
+def _arcs_of_pieces(scene, fkind, fgens, parts):
+    """The arcs (as :func:`_arcs_on_intervals`) from the pieces of the first pass and the
+    refinement (dicts of arrays, all of the families' pieces): merged where nothing
+    changes (:func:`_merge_across_possible_events`)."""
     pieces = _merge_across_possible_events(scene, fkind, fgens, _concatenate_parts(parts))
     del pieces["loose"]
     fam = pieces.pop("family")
@@ -1556,14 +1615,16 @@ def _full_state(smp):
     return np.concatenate([smp.state, smp.sides], axis=1)
 
 
-def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
+def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
     """Intervals whose samples disagree: resample, locate each change by bisection and
     cut the interval there (end type END_TRANSITION). In batches of intervals (each is
-    refined on its own, so the result does not depend on them): memory stays bounded.
-    Returns the batches' pieces, a dict of arrays each."""
+    refined on its own, so the result does not depend on them; on threads): memory stays
+    bounded. Returns the batches' pieces, a dict of arrays each, in the intervals' order."""
     step = max(CHUNK // REFINE, 1)
-    return [_refine_batch(scene, fkind, fgens, *(a[i : i + step] for a in (f, s0, t0, i0, s1, t1, i1)))
-            for i in range(0, len(f), step)]
+    # at least one batch per thread when there are several of them
+    step = min(step, max(1, -(-len(f) // default_workers(workers))))
+    return map_chunks(lambda r: _refine_batch(scene, fkind, fgens, *(a[r] for a in (f, s0, t0, i0, s1, t1, i1))),
+                      row_chunks(len(f), step), workers)
 
 
 def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):

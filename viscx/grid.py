@@ -59,7 +59,7 @@ def triangle_frames(vertices, triangles):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def crossing(ox, oy, oz, dx, dy, dz, d_norm, frame):
     """Closed float64 Möller–Trumbore of one ray (origin, direction, |direction|) and one
     triangle given by its :func:`triangle_frame` (a row of :func:`triangle_frames`).
@@ -137,14 +137,16 @@ def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
 @njit(cache=True, parallel=True)
 def _first_hits(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items):
     # rays are independent: blocks of them on the threads of a parallel loop (same answers
-    # on any number of threads)
+    # on any number of threads), each block with its own tested-triangle stamps (blocks of
+    # at least a sixteenth as many rays as triangles: filling them costs less than the rays)
     n = origins.shape[0]
     best_tri = np.full(n, -1, dtype=np.int64)
     best_t = np.full(n, np.inf)
-    n_blocks = min(n, 256)
+    n_blocks = max(1, min(n, 256, 16 * n // max(1, frames.shape[0])))
     for b in prange(n_blocks):
+        stamps = np.full(frames.shape[0], -1, dtype=np.int64)
         _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, b * n // n_blocks,
-                       (b + 1) * n // n_blocks, best_tri, best_t)
+                       (b + 1) * n // n_blocks, best_tri, best_t, stamps)
     return best_tri, best_t
 
 
@@ -154,21 +156,20 @@ def _first_hits_serial(origins, directions, tmin, tmax, frames, lo, hi, cell, di
     n = origins.shape[0]
     best_tri = np.full(n, -1, dtype=np.int64)
     best_t = np.full(n, np.inf)
-    _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, 0, n, best_tri, best_t)
+    stamps = np.full(frames.shape[0], -1, dtype=np.int64)
+    _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, 0, n, best_tri, best_t, stamps)
     return best_tri, best_t
 
 
 @njit(cache=True, nogil=True)
-def _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, start, stop, best_tri, best_t):
-    """:func:`_first_hit_one` of rays start..stop - 1, into ``best_tri`` and ``best_t``."""
-    mailbox = np.empty(MAILBOX, dtype=np.int64)
+def _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, start, stop, best_tri, best_t,
+                   stamps):
+    """:func:`_first_hit_one` of rays start..stop - 1, into ``best_tri`` and ``best_t``;
+    ``stamps`` (t,) int: the last ray (index) that tested each triangle, none of these."""
     for r in range(start, stop):
-        best_tri[r], best_t[r] = _first_hit_one(origins[r], directions[r], tmin[r], tmax[r], frames, lo, hi, cell, dims,
-                                                offsets, items, mailbox)
-
-
-#: Triangles a ray remembers having tested (a triangle spanning several cells is tested once).
-MAILBOX = 16
+        best_tri[r], best_t[r] = _first_hit_one(origins[r, 0], origins[r, 1], origins[r, 2], directions[r, 0], directions[r, 1],
+                                                directions[r, 2], tmin[r], tmax[r], frames, lo, hi, cell, dims, offsets, items,
+                                                stamps, r)
 
 
 @njit(cache=True, inline="always")
@@ -184,43 +185,38 @@ def _first_cell(o, d, lo, cell, n, t0):
 
 
 @njit(cache=True)
-def _first_hit_one(o, d, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, mailbox):
-    """First triangle met by one ray on [tmin, tmax] (3-D DDA over the grid's cells, its
-    state in scalars). ``mailbox`` (MAILBOX,) int is scratch."""
+def _first_hit_one(ox, oy, oz, dx, dy, dz, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, stamps, ray):
+    """First triangle met by one ray (origin, direction) on [tmin, tmax] (3-D DDA over the
+    grid's cells, its state in scalars). A triangle spanning several cells is tested once:
+    ``stamps`` (t,) int holds the last ray that tested each, ``ray`` this one's distinct id."""
     best_tri, best_t = -1, np.inf
     # clip [tmin, tmax] to the grid's box (slab method)
     t0, t1 = tmin, tmax
     for k in range(3):
-        if d[k] != 0.0:
-            a = (lo[k] - o[k]) / d[k]
-            b = (hi[k] - o[k]) / d[k]
+        ok, dk = (ox, oy, oz)[k], (dx, dy, dz)[k]
+        if dk != 0.0:
+            a = (lo[k] - ok) / dk
+            b = (hi[k] - ok) / dk
             if a > b:
                 a, b = b, a
             t0 = max(t0, a)
             t1 = min(t1, b)
-        elif o[k] < lo[k] or o[k] > hi[k]:
+        elif ok < lo[k] or ok > hi[k]:
             t1 = -np.inf
     if t0 > t1:
         return best_tri, best_t
-    ox, oy, oz, dx, dy, dz = o[0], o[1], o[2], d[0], d[1], d[2]
     d_norm = np.sqrt(dx * dx + dy * dy + dz * dz)
     ix, sx, next_x, delta_x = _first_cell(ox, dx, lo[0], cell[0], dims[0], t0)
     iy, sy, next_y, delta_y = _first_cell(oy, dy, lo[1], cell[1], dims[1], t0)
     iz, sz, next_z, delta_z = _first_cell(oz, dz, lo[2], cell[2], dims[2], t0)
-    mailbox[:] = -1
-    slot = 0
+    ny, nz = dims[1], dims[2]
     while True:
-        c = (ix * dims[1] + iy) * dims[2] + iz
+        c = (ix * ny + iy) * nz + iz
         for j in range(offsets[c], offsets[c + 1]):
             tri = items[j]
-            seen = False
-            for m in range(MAILBOX):
-                if mailbox[m] == tri:
-                    seen = True
-            if seen:  # its answer does not depend on the cell
+            if stamps[tri] == ray:  # its answer does not depend on the cell
                 continue
-            mailbox[slot] = tri
-            slot = (slot + 1) % MAILBOX
+            stamps[tri] = ray
             t, margin, _ = crossing(ox, oy, oz, dx, dy, dz, d_norm, frames[tri])
             if margin < -BARY_SLACK:
                 continue
@@ -240,12 +236,12 @@ def _first_hit_one(o, d, tmin, tmax, frames, lo, hi, cell, dims, offsets, items,
             next_x += delta_x
         elif next_y <= next_z:
             iy += sy
-            if iy < 0 or iy >= dims[1]:
+            if iy < 0 or iy >= ny:
                 break
             next_y += delta_y
         else:
             iz += sz
-            if iz < 0 or iz >= dims[2]:
+            if iz < 0 or iz >= nz:
                 break
             next_z += delta_z
     return best_tri, best_t

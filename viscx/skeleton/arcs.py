@@ -955,19 +955,34 @@ def _plane_points(scene, planes, vp, ep, junctions):
     rank = np.empty(len(order), np.int64)
     rank[order] = np.arange(len(order))
     # around each (vertex, plane) the plane's points sorted by the direction of their line
+    # (in blocks of rows: the keys of a row lie in [4 row, 4 row + π), blocks never interleave)
     first = np.searchsorted(pts_plane[order], vp[:, 1], "left")  # vp: sorted, unique rows
     count = np.searchsorted(pts_plane[order], vp[:, 1], "right") - first
-    r, k = expand_ranges(first, count)
-    w = order[k]
-    x = scene.vertices[vp[r, 0]]
-    direction = pts[w] - x
-    far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
-    r, w, direction = r[far], w[far], direction[far]
-    eu, ev = _plane_bases(scene, vp[r, 1])
-    angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
-    key = r * 4.0 + angle  # angles < π < 4: one sorted key per (vertex, plane) block
-    by_key = np.argsort(key, kind="stable")
-    return _PlanePoints(vp, pts, pts_vertex, rank, order, key[by_key], w[by_key])
+    keys, point_of = [], []
+    for rows in _row_blocks(count, CHUNK * 10):
+        r, k = expand_ranges(first[rows], count[rows])
+        r += rows.start
+        w = order[k]
+        x = scene.vertices[vp[r, 0]]
+        direction = pts[w] - x
+        far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
+        r, w, direction = r[far], w[far], direction[far]
+        eu, ev = _plane_bases(scene, vp[r, 1])
+        angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
+        key = r * 4.0 + angle  # angles < π < 4: one sorted key per (vertex, plane) block
+        by_key = np.argsort(key, kind="stable")
+        keys.append(key[by_key])
+        point_of.append(w[by_key])
+    return _PlanePoints(vp, pts, pts_vertex, rank, order, np.concatenate(keys), np.concatenate(point_of))
+
+
+def _row_blocks(count, size):
+    """Consecutive slices of rows whose counts sum to about ``size`` (at least one row
+    each; one empty slice for no rows)."""
+    end = np.cumsum(count)
+    cuts = np.searchsorted(end, np.arange(size, int(end[-1]) if len(end) else 0, size), "right")
+    bounds = unique_sorted(np.r_[0, cuts, len(count)])
+    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])] or [slice(0, 0)]
 
 
 def _coplanar_candidates(scene, ve, ve_plane, points):
@@ -1319,16 +1334,19 @@ def _families(scene, nodes, planar):
     family (which may hold no node), with their node and planar events (:class:`_Families`)."""
     fam_kind, fam_gens, ev_kind, ev_index, ev_s = [], [], [], [], []
     for code, events in ((END_NODE, nodes), (END_PLANAR, planar)):
-        k, g, rows = _incidences(scene, events)
-        fam_kind.append(k)
-        fam_gens.append(g)
-        ev_kind.append(np.full(len(rows), code, np.int8))
-        ev_index.append(rows)
-        ev_s.append(_event_parameters(scene, k, g, events, rows))
+        # in chunks of events (each on its own): their temporaries stay bounded
+        for lo in range(0, max(len(events), 1), CHUNK // 4):
+            part = Nodes(**{k: getattr(events, k)[lo: lo + CHUNK // 4] for k in Nodes.__dataclass_fields__})
+            k, g, rows = _incidences(scene, part)
+            fam_kind.append(k.astype(np.int8))
+            fam_gens.append(g)
+            ev_kind.append(np.full(len(rows), code, np.int8))
+            ev_index.append(rows + lo)
+            ev_s.append(_event_parameters(scene, k, g, part, rows))
     plane_ve, plane_of, vp, ep = _same_plane_ve(scene)
-    fam_kind.append(np.full(len(plane_ve), VE))
+    fam_kind.append(np.full(len(plane_ve), VE, np.int8))
     fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))
-    keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
+    keys = np.concatenate([np.concatenate(fam_kind).astype(np.int64)[:, None], np.concatenate(fam_gens)], axis=1)
     del fam_kind, fam_gens
     families, fam_of = unique_rows(keys.reshape(-1, 4))
     del keys
@@ -1340,9 +1358,9 @@ def _families(scene, nodes, planar):
     count = np.bincount(fam_of, minlength=nf)
     points = _plane_points(scene, np.unique(plane_of), vp, ep, junctions=edge_junctions(scene))
     weight = count + np.where(families[:, 0] == EEE, 8, 2)
-    if len(plane_ve):
-        fam, first, last = _coplanar_candidates(scene, plane_ve, plane_of, points)
-        weight += np.bincount(plane_family[fam], weights=last - first, minlength=nf).astype(np.int64)
+    for rows in row_chunks(len(plane_ve), CHUNK):
+        fam, first, last = _coplanar_candidates(scene, plane_ve[rows], plane_of[rows], points)
+        weight += np.bincount(plane_family[rows][fam], weights=last - first, minlength=nf).astype(np.int64)
     return _Families(families[:, 0], families[:, 1:], np.r_[0, np.cumsum(count)], np.concatenate(ev_s)[order],
                      np.concatenate(ev_kind)[order], np.concatenate(ev_index)[order], plane_family, plane_ve, plane_of,
                      points, weight)
@@ -1355,10 +1373,7 @@ FAMILY_CHUNK = 1 << 19
 
 def _family_chunks(families):
     """Consecutive ranges of families (slices) of about FAMILY_CHUNK events each."""
-    end = np.cumsum(families.weight)
-    cuts = np.searchsorted(end, np.arange(FAMILY_CHUNK, int(end[-1]) if len(end) else 0, FAMILY_CHUNK), "right")
-    bounds = unique_sorted(np.r_[0, cuts, len(families)])
-    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])] or [slice(0, 0)]
+    return _row_blocks(families.weight, FAMILY_CHUNK)
 
 
 def _first_pass_of_families(scene, families, chunk):

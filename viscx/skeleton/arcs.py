@@ -1115,20 +1115,37 @@ def _hidden_events_chunk(scene, ve, s):
     rows = long[tri >= 0]
     face, t = scene.triangle_face[tri[tri >= 0]], t[tri >= 0]
     hit = x[rows] + (t / length[rows])[:, None] * vec[rows]
-    # the boundary half-edges of each hit face
     he = scene.half_edges
-    lo = scene.loop_offsets[scene.face_loop_offsets[face]]
-    hi = scene.loop_offsets[scene.face_loop_offsets[face + 1]]
-    r, h = expand_ranges(lo, hi - lo)
-    p0, p1 = scene.vertices[he.start[h]], scene.vertices[he.end[h]]
-    u = p1 - p0
-    w = np.clip(np.einsum("ij,ij->i", hit[r] - p0, u) / np.einsum("ij,ij->i", u, u), 0.0, 1.0)
-    to_edge = np.linalg.norm(hit[r] - p0 - w[:, None] * u, axis=1)
-    to_corner = np.linalg.norm(hit[r] - p0, axis=1)
-    doubtful = (to_corner <= eps) | ((to_edge <= eps) & (he.opp[h] < 0))
     hidden = np.zeros(len(s), dtype=bool)
-    hidden[rows] = np.bincount(r, weights=doubtful, minlength=len(rows)) == 0
+    hidden[rows] = ~_near_doubtful_boundary(hit, scene.loop_offsets[scene.face_loop_offsets[face]],
+                                            scene.loop_offsets[scene.face_loop_offsets[face + 1]], he.start, he.end, he.opp,
+                                            scene.vertices, eps)
     return hidden
+
+
+@njit(cache=True, nogil=True)
+def _near_doubtful_boundary(hit, first, last, start, end, opp, vertices, eps):
+    """Whether each hit point lies within eps of a corner of its face, or of an open edge
+    of it (no second face there), over the face's boundary half-edges first..last - 1.
+
+    Returns
+    -------
+    (k,) bool
+    """
+    out = np.zeros(hit.shape[0], dtype=np.bool_)
+    for i in range(hit.shape[0]):
+        for h in range(first[i], last[i]):
+            a, b = vertices[start[h]], vertices[end[h]]
+            u0, u1, u2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+            d0, d1, d2 = hit[i, 0] - a[0], hit[i, 1] - a[1], hit[i, 2] - a[2]
+            # the closest point of the edge, at w along it; sums in numpy einsum's order
+            w = min(max(((d0 * u0 + d2 * u2) + d1 * u1) / ((u0 * u0 + u2 * u2) + u1 * u1), 0.0), 1.0)
+            e0, e1, e2 = d0 - w * u0, d1 - w * u1, d2 - w * u2
+            to_edge = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
+            to_corner = np.sqrt((d0 * d0 + d1 * d1) + d2 * d2)
+            if to_corner <= eps or (to_edge <= eps and opp[h] < 0):
+                out[i] = True
+    return out
 
 
 def _plane_bases(scene, planes):
@@ -1425,7 +1442,9 @@ def _arcs_of_families(scene, families, chunks, i, first, refined):
         parts = parts + [mine]
     arcs = _arcs_of_pieces(scene, families.kind[chunk], families.generators[chunk], parts)
     _edge_line_ends(scene, arcs)
-    return _sorted(arcs)
+    # (already sorted: the merge orders the arcs by family, then s, and families are sorted
+    # by kind and generators, the order of _sorted)
+    return arcs
 
 
 def _param_scale(scene, fkind, fgens):
@@ -1440,7 +1459,7 @@ def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=N
     leave out the groups of hidden events alone (:func:`_hidden_events`) and return the
     intervals between consecutive ones."""
     # by (family, s) only: events at one (family, s) fall in one group whatever their order
-    order = np.lexsort([ev_s, fam_of])
+    order = _by_family_and_s(fam_of, ev_s)
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
     tol = 4 * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
     new_group = np.ones(len(f), dtype=bool)
@@ -1461,6 +1480,12 @@ def _intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=N
     gf, gs, gk, gi = f[first], s[first], k[first], i[first]
     nxt = np.flatnonzero(gf[1:] == gf[:-1])
     return gf[nxt], gs[nxt], gk[nxt], gi[nxt], gs[nxt + 1], gk[nxt + 1], gi[nxt + 1]
+
+
+def _by_family_and_s(family, s):
+    """``np.lexsort([s, family])``, 2.5 times faster: a stable sort of the complex numbers
+    family + i s, which numpy orders lexicographically (family < 2^53 is exact in float64)."""
+    return np.argsort(family + 1j * s, kind="stable")
 
 
 def _end_fraction(scene, fkind, fgens, f, s0, s1):
@@ -1581,7 +1606,7 @@ def _merge_across_possible_events(scene, fkind, fgens, pieces):
     A joined arc's sample is taken again at the middle of its interval, as for an arc
     between two events (the first piece's stands where that sample's line disagrees or,
     with no loose transition joined, its half-cells disagree)."""
-    order = np.lexsort([pieces["interval"][:, 0], pieces["family"]])
+    order = _by_family_and_s(pieces["family"], pieces["interval"][:, 0])
     # the join is decided on the sorted keys; every other field is gathered once, at the end
     p = {k: pieces[k][order] for k in ("family", "interval", "end_type", "end_node", "loose", "state", "sides")}
     same_full = np.all(p["state"][1:] == p["state"][:-1], axis=1)

@@ -1270,7 +1270,7 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         progress.update()
 
         progress.set_postfix_str("families")
-        families = _families(scene, nodes, planar)
+        families = _families(scene, nodes, planar, workers)
         progress.update()
 
         chunks = _family_chunks(families)
@@ -1346,20 +1346,19 @@ class _Families:
         return len(self.kind)
 
 
-def _families(scene, nodes, planar):
+def _families(scene, nodes, planar, workers=None):
     """The families through the nodes and the planar events, and every same-plane VE
     family (which may hold no node), with their node and planar events (:class:`_Families`)."""
-    fam_kind, fam_gens, ev_kind, ev_index, ev_s = [], [], [], [], []
-    for code, events in ((END_NODE, nodes), (END_PLANAR, planar)):
-        # in chunks of events (each on its own): their temporaries stay bounded
-        for lo in range(0, max(len(events), 1), CHUNK // 4):
-            part = Nodes(**{k: getattr(events, k)[lo: lo + CHUNK // 4] for k in Nodes.__dataclass_fields__})
-            k, g, rows = _incidences(scene, part)
-            fam_kind.append(k.astype(np.int8))
-            fam_gens.append(g)
-            ev_kind.append(np.full(len(rows), code, np.int8))
-            ev_index.append(rows + lo)
-            ev_s.append(_event_parameters(scene, k, g, part, rows))
+    def incidences(chunk):
+        code, events, rows = chunk
+        part = Nodes(**{k: getattr(events, k)[rows] for k in Nodes.__dataclass_fields__})
+        k, g, at = _incidences(scene, part)
+        return k.astype(np.int8), g, np.full(len(at), code, np.int8), at + rows.start, _event_parameters(scene, k, g, part, at)
+
+    # in chunks of events (each on its own, on threads): their temporaries stay bounded
+    chunks = [(code, events, rows) for code, events in ((END_NODE, nodes), (END_PLANAR, planar))
+              for rows in row_chunks(max(len(events), 1), CHUNK // 4)]
+    fam_kind, fam_gens, ev_kind, ev_index, ev_s = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
     plane_ve, plane_of, vp, ep = _same_plane_ve(scene)
     fam_kind.append(np.full(len(plane_ve), VE, np.int8))
     fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))

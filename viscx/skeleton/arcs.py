@@ -739,14 +739,28 @@ def _corner_cutting_pairs(x, y, group, slack=1e-9):
     key = group[idx] * 4.0 + s0  # τ < 3 < 4: one sorted key per group
     lo = np.searchsorted(key, group[idx] * 4.0 + s0 - margin, "left")
     hi = np.searchsorted(key, group[idx] * 4.0 + s1 + margin, "right")
-    a, b = expand_ranges(lo, hi - lo)
-    b = np.asarray(b)
-    keep = (b != a) & (s1[b] >= s1[a] - margin)
-    i, j = idx[a[keep]], idx[b[keep]]
-    pairs = np.unique(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1), axis=0).reshape(-1, 2)
+    count = _interleaving(idx, s1, lo, hi, margin, np.zeros((0, 2), np.int64))
+    pairs = np.empty((count, 2), np.int64)
+    _interleaving(idx, s1, lo, hi, margin, pairs)
+    pairs, _ = unique_rows(pairs)
     i, j = pairs[:, 0], pairs[:, 1]
     order = np.lexsort([i, j - i])
     return i[order], j[order]
+
+
+@njit(cache=True, nogil=True)
+def _interleaving(idx, s1, lo, hi, margin, out):
+    """(min, max) of idx[a], idx[b] for every chord a and chord b starting within it
+    (lo[a] <= b < hi[a], b != a) that ends beyond it (s1[b] >= s1[a] - margin), into
+    ``out`` when it has room: how many there are."""
+    k = 0
+    for a in range(len(lo)):
+        for b in range(lo[a], hi[a]):
+            if b != a and s1[b] >= s1[a] - margin:
+                if k < len(out):
+                    out[k, 0], out[k, 1] = min(idx[a], idx[b]), max(idx[a], idx[b])
+                k += 1
+    return k
 
 
 def _pairs_within_groups(group):

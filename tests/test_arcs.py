@@ -473,3 +473,44 @@ def test_many_random_scenes(seed):
     test_arc_ends_are_events_with_the_arc_generators(name)
     test_node_degrees(name)
     check_half_cells(name, strict=False)
+
+
+# ---------------------------------------------------------------------------------------
+# chunks of families
+
+
+def arcs_equal(a, b):
+    """Every field of two Arcs (and of their planar events and half-cells), array for array."""
+    for field in a.__dataclass_fields__:
+        x, y = getattr(a, field), getattr(b, field)
+        if field in ("planar", "half_cells"):
+            arcs_equal(x, y)
+        else:
+            assert x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True), field
+
+
+@pytest.mark.parametrize("seed,boxes", [(1, 6), (3, 8)])
+def test_arcs_do_not_depend_on_the_chunks_of_families(seed, boxes, monkeypatch):
+    """V1 builds its families in chunks (first pass, then one refinement of all chunks,
+    then the merge per chunk): chunks of a few families each, on one thread or two, give
+    the arcs of one chunk, array for array (a scene with coplanar events, transitions,
+    merged crossings)."""
+    scene = floor_scene(seed, boxes)
+    nodes = build_nodes(scene)
+    monkeypatch.setattr(arcs_module, "FAMILY_CHUNK", 1 << 40)
+    whole = build_arcs(scene, nodes)
+    assert len(arcs_module._family_chunks(arcs_module._families(scene, nodes, whole.planar))) == 1
+    assert (whole.end_type == arcs_module.END_TRANSITION).any()
+    monkeypatch.setattr(arcs_module, "FAMILY_CHUNK", 200)
+    assert len(arcs_module._family_chunks(arcs_module._families(scene, nodes, whole.planar))) > 20
+    for workers in (1, 2):
+        arcs_equal(build_arcs(scene, nodes, workers=workers), whole)
+
+
+def test_events_sort_by_family_then_s():
+    """The complex-number sort of the events is np.lexsort([s, family]), ties (equal
+    family and s, 0 and -0) in input order."""
+    rng = np.random.default_rng(7)
+    family = rng.integers(0, 50, 20000)
+    s = rng.choice(np.r_[np.linspace(0, 1, 7), -0.0, rng.random(30)], 20000)
+    assert np.array_equal(arcs_module._by_family_and_s(family, s), np.lexsort([s, family]))

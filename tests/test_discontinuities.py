@@ -373,8 +373,7 @@ def test_crossing_junction_events(tmp_path, monkeypatch):
     turns from a to b. Those are the XE arcs (X, e) of V1; traced like an occluder
     vertex's VE arcs, the floor's regions hold one label set on either side of them, and
     without them the oracle finds regions holding both (labels of a and b on one light
-    edge). The floor's other failures are the grazing pencil of the tall box's face
-    x = 4.6 and the contact line under the boxes (docs/queries.md, limitation 6)."""
+    edge). The scene's other events: :func:`test_touching_blocks`."""
     from viscx.queries import discontinuities as dm
     from viscx.skeleton.arcs import XE, edge_crossings
 
@@ -400,6 +399,71 @@ def test_crossing_junction_events(tmp_path, monkeypatch):
     monkeypatch.setattr(dm, "XE", -1)  # no XE event selected
     xe, at_x = failures()
     assert not xe and at_x >= 5
+
+
+def _touching_failures(tmp_path, name):
+    """(same-region failures, crossing failures, crack traces dropped) of the floor of
+    :func:`crossing_scene_obj`, oracle seeds 1 and 2."""
+    from viscx.formats.hdf5 import ViscxFile, read_arcs
+    from viscx.queries.cracks import through_cracks
+
+    obj = crossing_scene_obj(tmp_path / "x.obj")
+    build_file(obj, tmp_path / f"{name}.h5", quiet=True)
+    scene, mesh = open_discontinuities(tmp_path / f"{name}.h5", light_group="light", faces=[0])
+    with ViscxFile(tmp_path / f"{name}.h5") as f:
+        arcs = read_arcs(f.h5["V1"])
+    cracks = int(through_cracks(scene, arcs.ends[:, 0], arcs.ends[:, 1]).sum())
+    same = cross = 0
+    for seed in (1, 2):
+        res = check_mesh(scene, mesh, np.random.default_rng(seed), MARGIN * scene.diagonal, samples=8)
+        assert res["same_pairs"] >= 600 and res["cross_pairs"] >= 70 and not res["dangling"]
+        same += len(res["same_fail"])
+        cross += len(res["cross_fail"]) + len(res["cross_skipped"])
+    return same, cross, cracks
+
+
+def test_touching_blocks(tmp_path, monkeypatch):
+    """Two blocks touching face to face on the plane x = 4.6 (:func:`crossing_scene_obj`).
+    (1) The pencils of lines in that plane through a light edge's crossing H, across the
+    tall block's face: in front of the face the hidden part of that light edge ends at the
+    image of the face's vertical edge on one side of the plane and of its top edge on the
+    other. The family holds no node (its end lines pass the other block's corner while
+    grazing its face), so V1 seeds it (``contact_pencils``); without it 13 same-region
+    pairs held both labels. (2) Families of lines in the plane passing between the two
+    blocks (a crack) reach the floor under them, where nothing changes across their
+    traces: dropped (``through_cracks``); without that 8 crossings changed nothing.
+    Every same-region pair and every crossing agrees with the oracle."""
+    from viscx.queries import discontinuities as dm
+    from viscx.skeleton import arcs as arcs_module
+
+    same, cross, cracks = _touching_failures(tmp_path, "all")
+    assert same == 0 and cross == 0 and cracks >= 2
+    monkeypatch.setattr(dm, "through_cracks", lambda scene, a, b: np.zeros(len(a), bool))
+    assert _touching_failures(tmp_path, "no_cracks")[1] >= 4
+    monkeypatch.undo()
+    monkeypatch.setattr(arcs_module, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
+    assert _touching_failures(tmp_path, "no_pencils")[0] >= 5
+
+
+def test_cracks_by_hand():
+    """through_cracks on two unit cubes touching on x = 1 (their faces overlap in
+    y in [0, 1], z in [0.5, 1]): segments in that plane through the overlap are cracks;
+    along its outline, beside it, off the plane or crossing it are not."""
+    from conftest import soup
+    from viscx.queries.cracks import through_cracks
+    from viscx.scene import build_scene
+
+    verts, quads = [], []
+    for x0, z0 in ((0.0, 0.0), (1.0, 0.5)):
+        base = len(verts)
+        verts += [[x0 + x, y, z0 + z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]
+        quads += [[base + i for i in q] for q in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3))]
+    scene = build_scene(soup(np.array(verts, float), quads))
+    a = np.array([[1, 0.5, 0.6], [1, 0.5, 0.2], [1, 0.2, 0.5], [1, -1, 0.75], [1.001, 0.5, 0.6], [0.5, 0.5, 0.75], [1, 0.2, 0.4]])
+    b = np.array([[1, 0.5, 0.9], [1, 0.5, 0.4], [1, 0.8, 0.5], [1, 2, 0.75], [1.001, 0.5, 0.9], [1.5, 0.5, 0.75], [1, 0.4, 0.4]])
+    # inside; beside it (z < 0.5); along its outline z = 0.5; across it; off the plane;
+    # through it transversally; beside it again
+    assert through_cracks(scene, a, b).tolist() == [True, False, False, True, False, False, False]
 
 
 def test_planar_families_exact():

@@ -74,6 +74,7 @@ from numba import njit
 from viscx.arrays import expand_ranges
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
+from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
@@ -267,8 +268,10 @@ def select_events(scene, arcs, light):
         da = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 0]], n_f) - c_f)
         db = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 1]], n_f) - c_f)
         bad |= is_edge & (da <= snap) & (db <= snap)
-    # a lone panel's planar families: nothing changes across their trace
+    # a lone panel's planar families, and segments through a crack between two blocks in
+    # contact: nothing changes across their trace
     bad |= panel_pencils(scene, k, gs, snap)
+    bad |= through_cracks(scene, arcs.ends[sel, 0], arcs.ends[sel, 1])
     sel, e, face = sel[~bad], e[~bad], face[~bad]
     order = np.lexsort([sel, face])
     sel, e, face = sel[order], e[order], face[order]

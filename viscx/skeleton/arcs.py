@@ -69,6 +69,7 @@ from viscx.skeleton.nodes import (
     VEE,
     VV,
     Nodes,
+    _coplanar_partners,
     face_planes,
     first_triangles,
     maximal_free_segments,
@@ -889,6 +890,77 @@ def _same_plane_ve(scene):
     return fam[:, :2], fam[:, 2], vp, ep
 
 
+def contact_pencils(scene):
+    """EEE families (l, e1, e2) of the pencils at the corners of faces in contact: e1, e2
+    two edges of a face F meeting at its corner c, where another face lies in F's plane
+    over F's box (:func:`viscx.skeleton.nodes._coplanar_partners`: two blocks touching
+    face to face), and l a generator edge crossing that plane P strictly, at H.
+
+    Such a family is the pencil of lines in P through H that cross e1 and e2 (lines
+    meeting the coplanar e1 and e2 lie in P or pass through c; through a point of l they
+    lie in P only at H). Its lines graze F between e1 and e2, and where they leave F
+    (H seen across F's corner) the visible part of l from a receiver point turns from
+    one of F's edges to the other. A lone face's pencil ends at nodes (VEE: lines
+    through H and a vertex of F), but with a foreign face in P those lines pass the
+    foreign face's vertices while grazing it, which node condition (N2) rejects: the
+    family holds no node, like a same-plane VE family, and is seeded. (Two touching
+    boxes: without it the receiver regions in front of the contact face held both
+    edges' labels, docs/queries.md.)
+
+    The pencil through H crosses both open edges iff, in the corner's frame
+    H - c = x u1 + y u2 (u1, u2 the edges' vectors from c), some s, t in (0, 1) have
+    x / s + y / t = 1: x > 0 or y > 0, and not (x > 0, y > 0, x + y >= 1).
+
+    Returns
+    -------
+    (m, 3) int
+        Canonical EEE generators (:func:`canonical_eee`), unique, sorted.
+    """
+    he = scene.half_edges
+    off, partner, _, _ = _coplanar_partners(scene)
+    touching = np.zeros(scene.n_faces, dtype=bool)
+    touching[np.diff(off) > 0] = True
+    touching[partner] = True
+    # the corners of those faces: a half-edge and the next one around its face
+    h = np.flatnonzero(touching[he.face])
+    h1, h2 = h, he.next[h]
+    e1, e2 = he.edge[h1], he.edge[h2]
+    ok = he.edge_is_generator[e1] & he.edge_is_generator[e2]
+    h1, h2, e1, e2 = h1[ok], h2[ok], e1[ok], e2[ok]
+    if len(e1) == 0:
+        return np.empty((0, 3), dtype=np.int64)
+    c = scene.vertices[he.end[h1]]
+    u1 = scene.vertices[he.start[h1]] - c
+    u2 = scene.vertices[he.end[h2]] - c
+    normal = np.cross(u1, u2)
+    size = np.linalg.norm(normal, axis=1)
+    corner = size > 1e-9 * np.linalg.norm(u1, axis=1) * np.linalg.norm(u2, axis=1)  # not collinear edges
+    c, u1, u2, e1, e2, normal = c[corner], u1[corner], u2[corner], e1[corner], e2[corner], normal[corner] / size[corner, None]
+    ge = scene.generator_edges
+    ga, gb = _edge_geometry(scene, ge)
+    eps = scene.epsilon
+    rows, lines = [], []
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for lo in range(0, len(c), chunk):
+        sl = slice(lo, lo + chunk)
+        h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], c[sl])[:, None]
+        h1_ = normal[sl] @ gb.T - np.einsum("ij,ij->i", normal[sl], c[sl])[:, None]
+        i, j = np.nonzero((h0 * h1_ < 0) & (np.abs(h0) > eps) & (np.abs(h1_) > eps))
+        f = h0[i, j] / (h0[i, j] - h1_[i, j])
+        rel = ga[j] + f[:, None] * (gb[j] - ga[j]) - c[i + lo]
+        n, a, b = normal[i + lo], u1[i + lo], u2[i + lo]
+        det = np.einsum("ij,ij->i", np.cross(a, b), n)
+        x = np.einsum("ij,ij->i", np.cross(rel, b), n) / det
+        y = np.einsum("ij,ij->i", np.cross(a, rel), n) / det
+        cuts = ((x > 0) | (y > 0)) & ~((x > 0) & (y > 0) & (x + y >= 1))
+        rows.append(i[cuts] + lo)
+        lines.append(ge[j[cuts]])
+    rows, lines = np.concatenate(rows), np.concatenate(lines)
+    gens = canonical_eee(scene, np.stack([lines, e1[rows], e2[rows]], axis=1))
+    gens = gens[gens[:, 0] >= 0]
+    return np.unique(gens, axis=0).reshape(-1, 3)
+
+
 def _coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
     """Where each same-plane VE family's line passes a point of its plane at which the lines
     of the plane can change: a generator vertex touching the plane, a junction of an edge
@@ -1188,9 +1260,13 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         face_ve = np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1)
         fam_kind.append(np.full(len(face_ve), VE))
         fam_gens.append(face_ve)
+        # so may the pencils at the corners of faces in contact
+        pencils = contact_pencils(scene)
+        fam_kind.append(np.full(len(pencils), EEE))
+        fam_gens.append(pencils)
         keys = np.concatenate([np.concatenate(fam_kind)[:, None], np.concatenate(fam_gens)], axis=1)
         families, fam_of = unique_rows(keys.reshape(-1, 4))
-        fam_of = fam_of[: len(keys) - len(face_ve)]
+        fam_of = fam_of[: len(keys) - len(face_ve) - len(pencils)]
         fkind, fgens = families[:, 0], families[:, 1:]
         ev_kind, ev_index, ev_s = np.concatenate(ev_kind), np.concatenate(ev_index), np.concatenate(ev_s)
         # the ends of each family's domain, and its junctions

@@ -32,7 +32,8 @@ is one-sided (it emits from the front of its faces, as in ``viscx render``), so 
 trace is the line where a receiver crosses the light's plane, the boundary of the part
 that sees the light's front; the traces behind it are dropped
 (:mod:`viscx.queries.plane_events`, which also finds the *receiver-plane events*: an
-occluder edge's image crossing a receiver's horizon on a light edge, whose critical
+occluder edge's image crossing a receiver's horizon on a light edge, or the image of
+an occluder vertex lying in the receiver's plane crossing a light edge, whose critical
 lines lie in the receiver's plane and are not arcs of V1). An arc is traced on face f when its blocker at the receiver end is face f, f is not a
 light face, and no occluder generator of the arc is an edge or a vertex of f (such a
 trace runs along f's own outline or is a point). A *planar* EEE family (two of its edges

@@ -550,6 +550,30 @@ def test_touching_blocks(tmp_path, monkeypatch):
     assert _touching_failures(tmp_path, "no_pencils")[0] >= 5
 
 
+@pytest.mark.parametrize("seed", [0, 11])
+def test_pencil_of_a_face_with_a_vertex_in_its_plane(tmp_path, monkeypatch, seed):
+    """Box side scenes whose tetrahedron vertex lies in the side's plane, off the side: the
+    pencil at the side's top corner (light edge 4; edges 11 and 13) holds no node (its end
+    line through the vertex grazes the side), so V1 seeds it; without it 8 same-region
+    pairs (3 oracle seeds) held both edges' labels."""
+    from viscx.skeleton import arcs as arcs_module
+
+    def failures(name):
+        obj = box_side_scene_obj(tmp_path / f"{name}.obj", seed, vertex_in_plane=True)
+        build_file(obj, tmp_path / f"{name}.h5", quiet=True)
+        scene, mesh = open_discontinuities(tmp_path / f"{name}.h5", light_group="light")
+        fails = 0
+        for oracle_seed in (1, 2, 3):
+            res = check_mesh(scene, mesh, np.random.default_rng(oracle_seed), MARGIN * scene.diagonal, samples=8)
+            assert res["same_pairs"] >= 500 and not res["cross_fail"] and not res["dangling"]
+            fails += len(res["same_fail"])
+        return fails
+
+    assert failures("seeded") == 0
+    monkeypatch.setattr(arcs_module, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
+    assert failures("unseeded") >= 3
+
+
 def test_cracks_by_hand():
     """through_cracks on two unit cubes touching on x = 1 (their faces overlap in
     y in [0, 1], z in [0.5, 1]): segments in that plane through the overlap are cracks;

@@ -17,7 +17,8 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    VE (v, e2) and EEE (e_v, e1, e2) for each generator edge e_v at v; a VV
    node (u, v) on VE (u, e) for each generator edge e at v and VE (v, e) for
    each one at u. Besides, every *same-plane* VE family (a vertex and an edge
-   in the plane of a face touching the vertex), which may hold no node.
+   in the plane of a face touching the vertex) and every *pencil at a corner
+   of a touched face* (:func:`contact_pencils`), which may hold no node.
 3. *Parameters.* EEE (p, q, r) by the point s ∈ [0, 1] of the line on its
    parameter edge p (the line through a point of p meeting the lines of q and
    r is unique, seed 000 §4.2); VE (v, e) by the point s ∈ [0, 1] on e. Each
@@ -890,22 +891,46 @@ def _same_plane_ve(scene):
     return fam[:, :2], fam[:, 2], vp, ep
 
 
+def _touched_faces(scene):
+    """(f,) bool: faces whose plane holds another face over the face's bounding box
+    (:func:`viscx.skeleton.nodes._coplanar_partners`) or, anywhere, a generator vertex not
+    on the face's outline (within the weld tolerance, as tangency's contacts)."""
+    off, partner, _, _ = _coplanar_partners(scene)
+    touched = np.zeros(scene.n_faces, dtype=bool)
+    touched[np.diff(off) > 0] = True
+    touched[partner] = True
+    he = scene.half_edges
+    gv = scene.generator_vertices
+    x = scene.vertices[gv]
+    tol = scene.weld_tolerance
+    own = np.unique(he.face.astype(np.int64) * scene.n_vertices + he.start)
+    chunk = max(1, (1 << 22) // max(1, len(gv)))
+    for first in range(0, scene.n_faces, chunk):
+        f = np.arange(first, min(first + chunk, scene.n_faces))
+        near = np.abs(x @ scene.face_normal[f].T - scene.face_offset[f]) <= tol  # (v, f)
+        v, k = np.nonzero(near)
+        foreign = ~np.isin(f[k] * scene.n_vertices + gv[v], own)
+        touched[f[k[foreign]]] = True
+    return touched
+
+
 def contact_pencils(scene):
-    """EEE families (l, e1, e2) of the pencils at the corners of faces in contact: e1, e2
-    two edges of a face F meeting at its corner c, where another face lies in F's plane
-    over F's box (:func:`viscx.skeleton.nodes._coplanar_partners`: two blocks touching
-    face to face), and l a generator edge crossing that plane P strictly, at H.
+    """EEE families (l, e1, e2) of the pencils at the corners of touched faces: e1, e2
+    two edges of a face F meeting at its corner c, where another face or a foreign
+    vertex lies in F's plane (:func:`_touched_faces`: two blocks touching
+    face to face, a tetrahedron's corner on a box's side plane), and l a generator edge
+    crossing that plane P strictly, at H.
 
     Such a family is the pencil of lines in P through H that cross e1 and e2 (lines
     meeting the coplanar e1 and e2 lie in P or pass through c; through a point of l they
     lie in P only at H). Its lines graze F between e1 and e2, and where they leave F
     (H seen across F's corner) the visible part of l from a receiver point turns from
     one of F's edges to the other. A lone face's pencil ends at nodes (VEE: lines
-    through H and a vertex of F), but with a foreign face in P those lines pass the
-    foreign face's vertices while grazing it, which node condition (N2) rejects: the
-    family holds no node, like a same-plane VE family, and is seeded. (Two touching
-    boxes: without it the receiver regions in front of the contact face held both
-    edges' labels, docs/queries.md.)
+    through H and a vertex of F), but with a foreign face or vertex in P those lines
+    can pass the foreign vertex while grazing F, which node condition (N2) rejects: the
+    family may hold no node, like a same-plane VE family, and is seeded. (Two touching
+    boxes, a box side with a tetrahedron's vertex in its plane: without it receiver
+    regions in front of the face held both edges' labels, docs/queries.md.)
 
     The pencil through H crosses both open edges iff, in the corner's frame
     H - c = x u1 + y u2 (u1, u2 the edges' vectors from c), some s, t in (0, 1) have
@@ -917,10 +942,7 @@ def contact_pencils(scene):
         Canonical EEE generators (:func:`canonical_eee`), unique, sorted.
     """
     he = scene.half_edges
-    off, partner, _, _ = _coplanar_partners(scene)
-    touching = np.zeros(scene.n_faces, dtype=bool)
-    touching[np.diff(off) > 0] = True
-    touching[partner] = True
+    touching = _touched_faces(scene)
     # the corners of those faces: a half-edge and the next one around its face
     h = np.flatnonzero(touching[he.face])
     h1, h2 = h, he.next[h]

@@ -32,7 +32,8 @@ is one-sided (it emits from the front of its faces, as in ``viscx render``), so 
 trace is the line where a receiver crosses the light's plane, the boundary of the part
 that sees the light's front; the traces behind it are dropped
 (:mod:`viscx.queries.plane_events`, which also finds the *receiver-plane events*: an
-occluder edge's image crossing a receiver's horizon on a light edge, whose critical
+occluder edge's image crossing a receiver's horizon on a light edge, or the image of
+an occluder vertex lying in the receiver's plane crossing a light edge, whose critical
 lines lie in the receiver's plane and are not arcs of V1). An arc is traced on face f when its blocker at the receiver end is face f, f is not a
 light face, and no occluder generator of the arc is an edge or a vertex of f (such a
 trace runs along f's own outline or is a point). A *planar* EEE family (two of its edges
@@ -74,6 +75,7 @@ from numba import njit
 from viscx.arrays import expand_ranges
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
+from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
@@ -267,8 +269,10 @@ def select_events(scene, arcs, light):
         da = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 0]], n_f) - c_f)
         db = np.abs(np.einsum("ij,ij->i", scene.vertices[ev_[xe, 1]], n_f) - c_f)
         bad |= is_edge & (da <= snap) & (db <= snap)
-    # a lone panel's planar families: nothing changes across their trace
+    # a lone panel's planar families, and segments through a crack between two blocks in
+    # contact: nothing changes across their trace
     bad |= panel_pencils(scene, k, gs, snap)
+    bad |= through_cracks(scene, arcs.ends[sel, 0], arcs.ends[sel, 1])
     sel, e, face = sel[~bad], e[~bad], face[~bad]
     order = np.lexsort([sel, face])
     sel, e, face = sel[order], e[order], face[order]

@@ -17,9 +17,15 @@ from C away from H where
 * the segment x→H, pushed infinitesimally to the front of P, is free apart from
   touching the occluder at C (the line grazes the occluder there: the occluder's
   sections by P that end at C lie on one side of it),
-* the same segment pushed behind P is *not* free (it is blocked: the horizon's hidden
-  interval on l ends at H; when nothing hides the back side of H, e's image moves
-  along l continuously and nothing changes).
+* for C on an edge e crossing P (``RPE``), the same segment pushed behind P is *not*
+  free (it is blocked: the horizon's hidden interval on l ends at H; when nothing
+  hides the back side of H, e's image moves along l continuously and nothing
+  changes). For C a vertex (``RPV``) nothing is asked of the back when the occluder
+  at C lies in front of P (a panel hinged on the receiver's edge, whose edge in P
+  ends at C; a vertex touching P): C's image crossing l changes which of C's edges
+  bound the hidden part of l next to H, and whether H ends one; when the occluder at
+  C reaches both sides of P, the event is where either side is free
+  (:func:`front_decides`).
 
 (And the same with front and back exchanged, for a receiver seen from both sides.)
 These lines lie in P, so P's own faces and every face with an edge in P are grazed:
@@ -259,10 +265,10 @@ def clip_lines_to_polygon(p0, u, lo, hi, loops, snap):
     return row[inside], t0[inside], t1[inside]
 
 
-def _graze_interval(h, u, tC, seg, back, snap):
+def _graze_interval(h, u, tC, seg, back, front_free, snap):
     """Where along lines h + t u (through H at t = 0 and C at t = tC) a receiver point x
-    has a receiver-plane event: x→H grazes at C and is otherwise free in front, blocked
-    behind.
+    has a receiver-plane event: x→H grazes at C and is otherwise free in front, and
+    blocked behind unless ``front_free``.
 
     Parameters
     ----------
@@ -271,6 +277,8 @@ def _graze_interval(h, u, tC, seg, back, snap):
     tC : (n,) float64
     seg, back : (b, 2, 2), (b', 2, 2) float64
         Sections seen from the front and from behind (:func:`plane_sections`).
+    front_free : (n,) bool
+        C's event needs nothing behind (:func:`front_decides`).
 
     Returns
     -------
@@ -288,11 +296,55 @@ def _graze_interval(h, u, tC, seg, back, snap):
     t = np.where(t > snap, t, np.inf)  # sections through H itself (the light's neighbours)
     hidden = pierced | (t < tC[:, None] + snap).any(axis=1)
     hi = np.where(t >= tC[:, None] + snap, t, np.inf).min(axis=1)
-    # behind P the segment x→H must be blocked (the horizon's hidden interval ends at H)
+    # behind P the segment x→H must be blocked (the horizon's hidden interval ends at H),
+    # unless C is a vertex (front_decides)
     tb = _line_hits(h, u, back, snap) if len(back) else np.full((len(h), 1), np.inf)
     lo = np.maximum(tC, np.where(tb > snap, tb, np.inf).min(axis=1))
+    lo[front_free] = tC[front_free]
     lo[hidden] = np.inf
     return lo, hi
+
+
+def front_decides(kind, ids, back_kind, back_ids, sigma):
+    """The critical points C whose event holds wherever x→H is free in front, whatever
+    lies behind P: the vertices.
+
+    Why: seen from x, the light edge l next to H has a front half (in P⁺) and a back
+    half, and the sections ending at C decide both halves next to H.
+
+    * C on an edge e crossing P (RPE): e's image crosses l next to H on the front half
+      on one side of the line HC, on the back half on the other: the label (l, e)
+      stays. What changes is H itself, an end of a hidden interval on one side only
+      when exactly one half is blocked by other occluders: free in front and blocked
+      behind in this pass, the other way round in the other pass (σ = −1).
+    * C a vertex of an occluder: its edges leaving P are different edges, so which of
+      them bound the hidden part of l next to H changes (C's image crosses l: the VE
+      event of C and l, whose one line meeting f lies in P); and when C ends a section
+      lying in P (an edge of a face touching P, such as a panel hinged on the
+      receiver's edge), whether x→H crosses it decides whether H ends a hidden
+      interval, cast by that edge. The labels change wherever a half that changes is
+      not blocked by other occluders. If no section seen from behind ends at C (the
+      occluder lies in front of P), only the front half changes: the event is where
+      the front is free. If sections on both sides end at C, both halves change: the
+      event is where either half is free; this pass (σ = +1) takes where the front is
+      free, the pass σ = −1 (its behind-blocked rule) where its front is free and ours
+      blocked, so the two do not overlap.
+
+    Parameters
+    ----------
+    kind, ids : (n,) int64
+        Each C's feature (END_EDGE or END_VERTEX, scene id).
+    back_kind, back_ids : (b,) int64
+        The end features of the sections seen from behind.
+    sigma : float
+        +1 or −1: which side of P is the front in this pass.
+
+    Returns
+    -------
+    (n,) bool
+    """
+    behind = np.isin(ids, back_ids[back_kind == END_VERTEX])
+    return (kind == END_VERTEX) & (~behind | (sigma > 0))
 
 
 def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
@@ -345,7 +397,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     out = []
     for sigma in (1.0, -1.0):
         seg, ekind, eid = plane_sections(scene, sigma * d, tri_ok, tri_edge, basis)
-        back, _, _ = plane_sections(scene, -sigma * d, tri_ok, tri_edge, basis)
+        back, bkind, bid = plane_sections(scene, -sigma * d, tri_ok, tri_edge, basis)
         if not len(seg):
             continue
         # critical points C: section ends on scene edges or vertices, each feature once
@@ -354,6 +406,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
         ends, ek, ei = ends[sel], ek[sel], ei[sel]
         _, first = np.unique(ek * (max(scene.n_vertices, len(ev)) + 1) + ei, return_index=True)
         C, ck, ci = ends[first], ek[first], ei[first]
+        free = front_decides(ck, ci, bkind.ravel(), bid.ravel(), sigma)
         hh, cc = np.repeat(np.arange(len(H)), len(C)), np.tile(np.arange(len(C)), len(H))
         vec = C[cc] - H[hh]
         tC = np.linalg.norm(vec, axis=1)
@@ -367,7 +420,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
         step = max(1, PAIR_BLOCK // (len(seg) + len(back)))
         for a in range(0, len(hh), step):
             sl = slice(a, a + step)
-            lo[sl], t_end[sl] = _graze_interval(h0[sl], udir[sl], tC[sl], seg, back, snap)
+            lo[sl], t_end[sl] = _graze_interval(h0[sl], udir[sl], tC[sl], seg, back, free[cc[sl]], snap)
         keep = np.isfinite(lo) & (lo < t_end - snap)
         if not keep.any():
             continue

@@ -17,7 +17,8 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    VE (v, e2) and EEE (e_v, e1, e2) for each generator edge e_v at v; a VV
    node (u, v) on VE (u, e) for each generator edge e at v and VE (v, e) for
    each one at u. Besides, every *same-plane* VE family (a vertex and an edge
-   in the plane of a face touching the vertex), which may hold no node.
+   in the plane of a face touching the vertex) and every *pencil at a corner
+   of a touched face* (:func:`contact_pencils`), which may hold no node.
 3. *Parameters.* EEE (p, q, r) by the point s ∈ [0, 1] of the line on its
    parameter edge p (the line through a point of p meeting the lines of q and
    r is unique, seed 000 §4.2); VE (v, e) by the point s ∈ [0, 1] on e. Each
@@ -69,6 +70,7 @@ from viscx.skeleton.nodes import (
     VEE,
     VV,
     Nodes,
+    _coplanar_partners,
     face_planes,
     first_triangles,
     maximal_free_segments,
@@ -903,6 +905,98 @@ def _same_plane_ve(scene):
     return fam[:, :2], fam[:, 2], vp, ep
 
 
+def _touched_faces(scene):
+    """(f,) bool: faces whose plane holds another face over the face's bounding box
+    (:func:`viscx.skeleton.nodes._coplanar_partners`) or, anywhere, a generator vertex not
+    on the face's outline (within the weld tolerance, as tangency's contacts)."""
+    off, partner, _, _ = _coplanar_partners(scene)
+    touched = np.zeros(scene.n_faces, dtype=bool)
+    touched[np.diff(off) > 0] = True
+    touched[partner] = True
+    he = scene.half_edges
+    gv = scene.generator_vertices
+    x = scene.vertices[gv]
+    tol = scene.weld_tolerance
+    own = np.unique(he.face.astype(np.int64) * scene.n_vertices + he.start)
+    chunk = max(1, (1 << 22) // max(1, len(gv)))
+    for first in range(0, scene.n_faces, chunk):
+        f = np.arange(first, min(first + chunk, scene.n_faces))
+        near = np.abs(x @ scene.face_normal[f].T - scene.face_offset[f]) <= tol  # (v, f)
+        v, k = np.nonzero(near)
+        foreign = ~np.isin(f[k] * scene.n_vertices + gv[v], own)
+        touched[f[k[foreign]]] = True
+    return touched
+
+
+def contact_pencils(scene):
+    """EEE families (l, e1, e2) of the pencils at the corners of touched faces: e1, e2
+    two edges of a face F meeting at its corner c, where another face or a foreign
+    vertex lies in F's plane (:func:`_touched_faces`: two blocks touching
+    face to face, a tetrahedron's corner on a box's side plane), and l a generator edge
+    crossing that plane P strictly, at H.
+
+    Such a family is the pencil of lines in P through H that cross e1 and e2 (lines
+    meeting the coplanar e1 and e2 lie in P or pass through c; through a point of l they
+    lie in P only at H). Its lines graze F between e1 and e2, and where they leave F
+    (H seen across F's corner) the visible part of l from a receiver point turns from
+    one of F's edges to the other. A lone face's pencil ends at nodes (VEE: lines
+    through H and a vertex of F), but with a foreign face or vertex in P those lines
+    can pass the foreign vertex while grazing F, which node condition (N2) rejects: the
+    family may hold no node, like a same-plane VE family, and is seeded. (Two touching
+    boxes, a box side with a tetrahedron's vertex in its plane: without it receiver
+    regions in front of the face held both edges' labels, docs/queries.md.)
+
+    The pencil through H crosses both open edges iff, in the corner's frame
+    H - c = x u1 + y u2 (u1, u2 the edges' vectors from c), some s, t in (0, 1) have
+    x / s + y / t = 1: x > 0 or y > 0, and not (x > 0, y > 0, x + y >= 1).
+
+    Returns
+    -------
+    (m, 3) int
+        Canonical EEE generators (:func:`canonical_eee`), unique, sorted.
+    """
+    he = scene.half_edges
+    touching = _touched_faces(scene)
+    # the corners of those faces: a half-edge and the next one around its face
+    h = np.flatnonzero(touching[he.face])
+    h1, h2 = h, he.next[h]
+    e1, e2 = he.edge[h1], he.edge[h2]
+    ok = he.edge_is_generator[e1] & he.edge_is_generator[e2]
+    h1, h2, e1, e2 = h1[ok], h2[ok], e1[ok], e2[ok]
+    if len(e1) == 0:
+        return np.empty((0, 3), dtype=np.int64)
+    c = scene.vertices[he.end[h1]]
+    u1 = scene.vertices[he.start[h1]] - c
+    u2 = scene.vertices[he.end[h2]] - c
+    normal = np.cross(u1, u2)
+    size = np.linalg.norm(normal, axis=1)
+    corner = size > 1e-9 * np.linalg.norm(u1, axis=1) * np.linalg.norm(u2, axis=1)  # not collinear edges
+    c, u1, u2, e1, e2, normal = c[corner], u1[corner], u2[corner], e1[corner], e2[corner], normal[corner] / size[corner, None]
+    ge = scene.generator_edges
+    ga, gb = _edge_geometry(scene, ge)
+    eps = scene.epsilon
+    rows, lines = [], []
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for lo in range(0, len(c), chunk):
+        sl = slice(lo, lo + chunk)
+        h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], c[sl])[:, None]
+        h1_ = normal[sl] @ gb.T - np.einsum("ij,ij->i", normal[sl], c[sl])[:, None]
+        i, j = np.nonzero((h0 * h1_ < 0) & (np.abs(h0) > eps) & (np.abs(h1_) > eps))
+        f = h0[i, j] / (h0[i, j] - h1_[i, j])
+        rel = ga[j] + f[:, None] * (gb[j] - ga[j]) - c[i + lo]
+        n, a, b = normal[i + lo], u1[i + lo], u2[i + lo]
+        det = np.einsum("ij,ij->i", np.cross(a, b), n)
+        x = np.einsum("ij,ij->i", np.cross(rel, b), n) / det
+        y = np.einsum("ij,ij->i", np.cross(a, rel), n) / det
+        cuts = ((x > 0) | (y > 0)) & ~((x > 0) & (y > 0) & (x + y >= 1))
+        rows.append(i[cuts] + lo)
+        lines.append(ge[j[cuts]])
+    rows, lines = np.concatenate(rows), np.concatenate(lines)
+    gens = canonical_eee(scene, np.stack([lines, e1[rows], e2[rows]], axis=1))
+    gens = gens[gens[:, 0] >= 0]
+    return np.unique(gens, axis=0).reshape(-1, 3)
+
+
 @dataclass
 class _PlanePoints:
     """The points of each plane where lines lying in it can change (:func:`_plane_points`),
@@ -1361,8 +1455,9 @@ class _Families:
 
 
 def _families(scene, nodes, planar, workers=None):
-    """The families through the nodes and the planar events, and every same-plane VE
-    family (which may hold no node), with their node and planar events (:class:`_Families`)."""
+    """The families through the nodes and the planar events, every same-plane VE family
+    and every pencil at a corner of a touched face (which may hold no node), with their
+    node and planar events (:class:`_Families`)."""
     def incidences(chunk):
         code, events, rows = chunk
         part = Nodes(**{k: getattr(events, k)[rows] for k in Nodes.__dataclass_fields__})
@@ -1373,15 +1468,20 @@ def _families(scene, nodes, planar, workers=None):
     chunks = [(code, events, rows) for code, events in ((END_NODE, nodes), (END_PLANAR, planar))
               for rows in row_chunks(max(len(events), 1), CHUNK // 4)]
     fam_kind, fam_gens, ev_kind, ev_index, ev_s = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
+    # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
     plane_ve, plane_of, vp, ep = _same_plane_ve(scene)
     fam_kind.append(np.full(len(plane_ve), VE, np.int8))
     fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))
+    # so may the pencils at the corners of faces in contact
+    pencils = contact_pencils(scene)
+    fam_kind.append(np.full(len(pencils), EEE, np.int8))
+    fam_gens.append(pencils)
     keys = np.concatenate([np.concatenate(fam_kind).astype(np.int64)[:, None], np.concatenate(fam_gens)], axis=1)
     del fam_kind, fam_gens
     families, fam_of = unique_rows(keys.reshape(-1, 4))
     del keys
-    n_events = len(fam_of) - len(plane_ve)
-    plane_family, fam_of = fam_of[n_events:], fam_of[:n_events]
+    n_events = len(fam_of) - len(plane_ve) - len(pencils)
+    plane_family, fam_of = fam_of[n_events: n_events + len(plane_ve)], fam_of[:n_events]
     # (plane_ve is sorted by (v, e) and families by (VE, v, e): plane_family ascends)
     order = np.argsort(fam_of, kind="stable")
     nf = len(families)

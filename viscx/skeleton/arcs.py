@@ -47,8 +47,10 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    of X (:func:`crossing_arcs`); they bound EE-cells, not V-cells, and follow
    the VE arcs.
 
-All per-sample work is numpy over flat arrays, judged in chunks of intervals on
-threads (:mod:`viscx.parallel`; the arcs do not depend on the thread count); the only
+All per-sample work is numpy over flat arrays (numba where a loop is unavoidable).
+Large scenes are built in chunks of consecutive families on threads
+(:func:`build_arcs`, :mod:`viscx.parallel`): every stage decides an arc within its
+family, so the arcs depend neither on the chunks nor on the thread count; the only
 Python loops run over stages, chunks, bisection steps and small constant counts.
 """
 
@@ -1498,7 +1500,7 @@ def _families(scene, nodes, planar, workers=None):
 
 #: Events (known, see :class:`_Families`) per chunk of families built at once by
 #: :func:`build_arcs`: a few hundred bytes each in flight.
-FAMILY_CHUNK = 1 << 19
+FAMILY_CHUNK = 1 << 18
 
 
 def _family_chunks(families):
@@ -1656,14 +1658,14 @@ def _first_pass(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
     step = CHUNK // 4  # several chunks per thread: the threads finish together
     chunks = [np.arange(lo, min(lo + step, n)) for lo in range(0, n, step)]
     parts = [
-        {
-            "family": f[w],
+        {  # (narrow where the values allow: the pieces of every chunk wait for the refinement)
+            "family": f[w].astype(np.int32),
             "interval": np.stack([s0[w], s1[w]], axis=1),
-            "end_type": np.stack([t0[w], t1[w]], axis=1),
+            "end_type": np.stack([t0[w], t1[w]], axis=1).astype(np.int8),
             "end_node": np.stack([i0[w], i1[w]], axis=1),
             "parameter": ss[w, 0],
-            "state": state,
-            "sides": sides,
+            "state": state.astype(np.int32),
+            "sides": sides.astype(np.int32),
             "direction": direction,
             "ends": ends,
             "generator_points": points,
@@ -1691,12 +1693,12 @@ def _arcs_of_pieces(scene, fkind, fgens, parts):
         "end_type": pieces["end_type"].astype(np.int8),
         "end_node": pieces["end_node"],
         "blocker_kind": state[:, [1, 3]].astype(np.int8),
-        "blocker": state[:, [2, 4]],
+        "blocker": state[:, [2, 4]].astype(np.int64),
         "parameter": pieces["parameter"],
         "direction": pieces["direction"],
         "ends": pieces["ends"],
         "generator_points": pieces["generator_points"],
-        "sides": sides,
+        "sides": sides.astype(np.int64),
     }
 
 
@@ -1773,9 +1775,10 @@ def _refine(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
     cut the interval there (end type END_TRANSITION). In batches of intervals (each is
     refined on its own, so the result does not depend on them; on threads): memory stays
     bounded. Returns the batches' pieces, a dict of arrays each, in the intervals' order."""
-    step = max(CHUNK // REFINE, 1)
-    # at least one batch per thread when there are several of them
-    step = min(step, max(1, -(-len(f) // default_workers(workers))))
+    # batches of at most CHUNK samples, as many as a multiple of the threads (they finish together)
+    workers = default_workers(workers)
+    batches = workers * -(-len(f) // (workers * max(CHUNK // REFINE, 1)))
+    step = max(1, -(-len(f) // max(batches, 1)))
     return map_chunks(lambda r: _refine_batch(scene, fkind, fgens, *(a[r] for a in (f, s0, t0, i0, s1, t1, i1))),
                       row_chunks(len(f), step), workers)
 

@@ -1607,7 +1607,7 @@ def _end_fraction(scene, fkind, fgens, f, s0, s1):
     """Fraction of each interval that is 20 epsilon along the parameter edge (at most 0.1):
     where the samples next to the interval's events are taken, so that a short piece next
     to an event is seen even when the event closing it is missing."""
-    length = _param_scale(scene, fkind, fgens)[f] * (s1 - s0)
+    length = _param_scale(scene, fkind[f], fgens[f]) * (s1 - s0)  # (f: a few of the families)
     return np.minimum(0.1, 20 * scene.epsilon / np.maximum(length, 1e-300))
 
 

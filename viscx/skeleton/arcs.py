@@ -62,6 +62,7 @@ from numba import njit
 from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
 from viscx.grid import bin_boxes
+from viscx.memory import release_free_memory
 from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.progress import bar
 from viscx.scene.neighbourhood import faces_near
@@ -1394,16 +1395,20 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         first = map_chunks(lambda c: _first_pass_of_families(scene, families, c), chunks, workers, progress=chunk_done)
         # the intervals whose samples disagree, of all chunks at once (few: in batches)
         progress.set_postfix_str("refining")
+        release_free_memory()
         mixed = [np.concatenate(x) for x in zip(*(m for _, m in first))]
         refined = _refine(scene, families.kind, families.generators, *mixed, workers=workers)
         refined = _concatenate_parts(refined) if refined else None
         progress.set_postfix_str("merging")
+        release_free_memory()
         parts = map_chunks(lambda i: _arcs_of_families(scene, families, chunks, i, first, refined), range(len(chunks)), workers)
         del families, first, refined
+        release_free_memory()
         arcs = _concatenate_parts(parts)
         progress.update()
 
         progress.set_postfix_str("half-cells")
+        release_free_memory()
         half_cells = _half_cells(scene, arcs)
         del arcs["sides"]
         progress.update()

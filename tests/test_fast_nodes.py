@@ -263,3 +263,22 @@ def test_elimination_root_of_parallel_edges_is_decided():
                 inside.append(u)
     assert len(inside) == 1 and n == 1
     assert abs(s0 - inside[0][0]) < 1e-9 and abs(t0 - inside[0][3]) < 1e-9
+
+
+def test_free_points_equal_reference():
+    """Generator vertices without a generator edge (free points made generators,
+    :func:`viscx.skeleton.points.with_points`): the E4 scan finds the vertices in a
+    hull through their edges, these through a grid of their own."""
+    from viscx.skeleton.points import with_points
+
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    lo, hi = scene.bbox
+    rng = np.random.default_rng(0)
+    points = lo + rng.random((3, 3)) * (hi - lo)
+    points[:, 1] = lo[1] + 0.3 + rng.random(3) * (hi[1] - lo[1]) * 0.5
+    ext = with_points(scene, points)
+    nodes = build_nodes(ext)
+    assert_same_nodes(nodes, reference_nodes(ext))
+    # some VEE nodes pass a free point between their edges
+    vee = nodes.generators[nodes.kind == 1]
+    assert (vee[:, 0] >= scene.n_vertices).sum() > 5

@@ -675,15 +675,10 @@ def _inflated_box(P, k, tol):
 
 
 @njit(cache=True, nogil=True)
-def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out, axes, hmin, hmax):
-    """Indices of the segments meeting the inflated hull of P[:k]; writes them to
-    ``out`` and returns their count (``stamp`` marks segments already seen).
-    ``axes`` (16, 3), ``hmin`` and ``hmax`` (16,) are scratch.
-
-    Only the cells near the hull are visited: per x-slab of cells, those within
-    ``tol`` of the hull's part in the slab (widened by ``tol``). The indices come
-    in the order of a scan of every cell of the hull's box (x, y, z, then index),
-    so that the result does not depend on which cells were visited."""
+def _hull_setup(P, k, axes, hmin, hmax):
+    """The separating axes of the hull of P[:k] (:func:`_hull_axes`) written to
+    ``axes`` (16, 3), the hull's extent along them to ``hmin``, ``hmax`` (16,);
+    returns their number."""
     n_axes = _hull_axes(P, k, axes)
     for r in range(n_axes):
         hmin[r], hmax[r] = np.inf, -np.inf
@@ -692,6 +687,19 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
             s = _dot(_row(P, q), axis)
             hmin[r] = min(hmin[r], s)
             hmax[r] = max(hmax[r], s)
+    return n_axes
+
+
+@njit(cache=True, nogil=True)
+def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out, axes, n_axes, hmin, hmax):
+    """Indices of the segments meeting the inflated hull of P[:k]; writes them to
+    ``out`` and returns their count (``stamp`` marks segments already seen).
+    ``axes``, ``n_axes``, ``hmin``, ``hmax``: :func:`_hull_setup` of the hull.
+
+    Only the cells near the hull are visited: per x-slab of cells, those within
+    ``tol`` of the hull's part in the slab (widened by ``tol``). The indices come
+    in the order of a scan of every cell of the hull's box (x, y, z, then index),
+    so that the result does not depend on which cells were visited."""
     blo, bhi = _inflated_box(P, k, tol)
     c0 = (cell_of(blo[0], lo[0], cell[0], dims[0]), cell_of(blo[1], lo[1], cell[1], dims[1]), cell_of(blo[2], lo[2], cell[2], dims[2]))
     c1 = (cell_of(bhi[0], lo[0], cell[0], dims[0]), cell_of(bhi[1], lo[1], cell[1], dims[1]), cell_of(bhi[2], lo[2], cell[2], dims[2]))
@@ -737,6 +745,31 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
     out[:m].sort()
     for r in range(m):
         out[r] %= n_items
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _hull_vertices(edges, n_edges, ev, vx, P, k, tol, axes, n_axes, hmin, hmax, stamp, stamp_id, out):
+    """The vertices within ``tol`` of the hull of P[:k] (the test of :func:`_query`)
+    among the endpoints of ``edges[:n_edges]``, the edges :func:`_query` found:
+    every vertex the test passes is among them when each vertex has an edge, as
+    the test passes the vertex's edges too (they contain it). Writes positions in
+    the vertex table to ``out``, returns their count; ``stamp`` marks vertices
+    already seen."""
+    blo, bhi = _inflated_box(P, k, tol)
+    m = 0
+    for r in range(n_edges):
+        for end in range(2):
+            v = ev[edges[r], end]
+            if stamp[v] == stamp_id:
+                continue
+            stamp[v] = stamp_id
+            x = _row(vx, v)
+            if x[0] > bhi[0] or x[0] < blo[0] or x[1] > bhi[1] or x[1] < blo[1] or x[2] > bhi[2] or x[2] < blo[2]:
+                continue
+            if _meets_hull(x, x, axes, n_axes, hmin, hmax, tol):
+                out[m] = v
+                m += 1
     return m
 
 
@@ -1032,8 +1065,10 @@ def _scan_edge_pairs(
     all of them (exact filters, with slack).
 
     ``ev`` holds the edges' endpoints as positions in the vertex table, ``ed`` their
-    directions eb - ea, ``lines`` their Plücker lines (n_edges, 6). Returns VEE
-    rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
+    directions eb - ea, ``lines`` their Plücker lines (n_edges, 6); ``e_off``,
+    ``e_items`` the grid of the edges, ``v_off``, ``v_items`` that of the vertices
+    without an edge (none in a scene of polygons). Returns VEE rows (v, a, d) and
+    E4 rows (a, b, c, d) unsorted, by position."""
     n_e = ev.shape[0]
     n_v = vx.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
@@ -1083,7 +1118,11 @@ def _scan_edge_pairs(
             _set_row(P, 2, _row(vx, d0))
             _set_row(P, 3, _row(vx, d1))
             query += 1
-            nv = _query(P, 4, tol, vx, vx, lo, cell, dims, v_off, v_items, v_stamp, query, v_out, axes, hmin, hmax)
+            n_axes = _hull_setup(P, 4, axes, hmin, hmax)
+            ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, n_axes, hmin, hmax)
+            nv = _hull_vertices(e_out, ne, ev, vx, P, 4, tol, axes, n_axes, hmin, hmax, v_stamp, query, v_out)
+            if v_items.shape[0]:  # vertices without a generator edge
+                nv += _query(P, 4, tol, vx, vx, lo, cell, dims, v_off, v_items, v_stamp, query, v_out[nv:], axes, n_axes, hmin, hmax)
             for r in range(nv):
                 v = v_out[r]
                 if v == a0 or v == a1 or v == d0 or v == d1:
@@ -1113,7 +1152,6 @@ def _scan_edge_pairs(
                 row3[0], row3[1], row3[2] = v, a, d
                 vee = _push(vee, n_vee, row3)
                 n_vee += 1
-            ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, hmin, hmax)
             coplanar = _coplanar(pa, da, pd, dd)
             # inner edge candidates and their arcs in the (s, t) square of lines meeting a and d
             m = 0
@@ -1223,7 +1261,8 @@ def _scan_vertex_edges(
             _set_row(P, 1, _row(vx, e0))
             _set_row(P, 2, _row(vx, e1))
             query += 1
-            ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, hmin, hmax)
+            n_axes = _hull_setup(P, 3, axes, hmin, hmax)
+            ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, n_axes, hmin, hmax)
             for r in range(ne):
                 b = e_out[r]
                 b0, b1 = ev[b, 0], ev[b, 1]
@@ -1490,7 +1529,11 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     line_of[ge] = lines
     grid = _Grid(lo, hi, len(ge) / 2)
     e_off, e_items = grid.fill(ea, eb)
-    v_off, v_items = grid.fill(vx, vx)
+    # the E4 scan finds the vertices in a hull through their edges; those without
+    # one (free points made generators) have a grid of their own
+    lone = np.setdiff1d(np.arange(len(gv)), ev.ravel())
+    v_off, v_items = grid.fill(vx[lone], vx[lone])
+    v_items = lone[v_items]
     tol = HULL_TOL * eps + 1e-12 * scene.diagonal
 
     # VEE with the vertex at an end: (v, e) pairs and the edges in their triangle

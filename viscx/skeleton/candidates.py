@@ -779,6 +779,29 @@ def _edges_blocked(table, a0, a1, b0, b1):
     return t >= 0 and table[a0, b1] == t and table[a1, b0] == t and table[a1, b1] == t
 
 
+@njit(cache=True)
+def _edge_pairs_blocked(table, ev):
+    """:func:`_edges_blocked` for every pair of edges (endpoints ``ev`` (n, 2) as
+    positions in ``table``), packed 64 pairs to a word: bit b of row a tells whether
+    edges a and b are blocked; (n, ⌈n/64⌉) uint64. Half a megabyte for 2000 edges,
+    where the four look-ups in the vertex table per pair missed the cache."""
+    n = ev.shape[0]
+    bits = np.zeros((n, (n + 63) // 64), dtype=np.uint64)
+    one = np.uint64(1)
+    for a in range(n):
+        for b in range(a + 1, n):
+            if _edges_blocked(table, ev[a, 0], ev[a, 1], ev[b, 0], ev[b, 1]):
+                bits[a, b >> 6] |= one << np.uint64(b & 63)
+                bits[b, a >> 6] |= one << np.uint64(a & 63)
+    return bits
+
+
+@njit(cache=True, nogil=True)
+def _blocked(bits, a, b):
+    """Whether edges a and b are blocked (:func:`_edge_pairs_blocked`)."""
+    return (bits[a, b >> 6] >> np.uint64(b & 63)) & np.uint64(1) != 0
+
+
 @njit(cache=True, nogil=True)
 def _vertex_edge_blocked(table, v, b0, b1):
     t = table[v, b0]
@@ -1058,7 +1081,7 @@ def _no_vee_line(p, lines, e1, e2):
 
 @njit(cache=True, nogil=True)
 def _scan_edge_pairs(
-    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
@@ -1105,7 +1128,7 @@ def _scan_edge_pairs(
             if _adjacent(ev, a, d):
                 continue
             d0, d1 = ev[d, 0], ev[d, 1]
-            if _edges_blocked(table, a0, a1, d0, d1):
+            if _blocked(blocked, a, d):
                 continue
             pd, qd, dd = _row(ea, d), _row(eb, d), _row(ed, d)
             if _pair_hidden(pa, qa, pd, qd, True, sov[a0], sov[d0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter):
@@ -1159,8 +1182,7 @@ def _scan_edge_pairs(
                 b = e_out[r]
                 if b == a or b == d or _adjacent(ev, a, b) or _adjacent(ev, b, d):
                     continue
-                b0, b1 = ev[b, 0], ev[b, 1]
-                if _edges_blocked(table, a0, a1, b0, b1) or _edges_blocked(table, b0, b1, d0, d1):
+                if _blocked(blocked, a, b) or _blocked(blocked, b, d):
                     continue
                 pb, db = _row(ea, b), _row(ed, b)
                 arc = _arc_box(pa, da, pd, dd, pb, db, 1e-6)
@@ -1183,7 +1205,6 @@ def _scan_edge_pairs(
                 m += 1
             for i in range(m):
                 b = inner[i]
-                b0, b1 = ev[b, 0], ev[b, 1]
                 pb, db, fb = _row(ea, b), _row(ed, b), _row4(coef, i)
                 for j in range(i + 1, m):
                     if box[j, 0] > box[i, 1] or box[i, 0] > box[j, 1] or box[j, 2] > box[i, 3] or box[i, 2] > box[j, 3]:
@@ -1191,8 +1212,7 @@ def _scan_edge_pairs(
                     c = inner[j]
                     if _adjacent(ev, b, c):
                         continue
-                    c0, c1 = ev[c, 0], ev[c, 1]
-                    if _edges_blocked(table, b0, b1, c0, c1):
+                    if _blocked(blocked, b, c):
                         continue
                     pc, dc = _row(ea, c), _row(ed, c)
                     # three pairwise coplanar lines (in one plane, or through one
@@ -1205,15 +1225,15 @@ def _scan_edge_pairs(
                     if n_lines > 0:
                         # Lemma 2 on each line: a, d foreign to a solid whose inner copy
                         # [A, D] crosses (with the slack of the closed form)
-                        blocked = True
+                        all_blocked = True
                         for r in range(n_lines):
                             _set_row(ends, 0, _axpy(pa, s0 if r == 0 else s1, da))
                             _set_row(ends, 1, _axpy(pd, t0 if r == 0 else t1, dd))
                             s_counter[0] += 1
                             if not _crosses_solid(ends, ends_owner, ends_t, s_counter[0], s_stamp, slack, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items):
-                                blocked = False
+                                all_blocked = False
                                 break
-                        if blocked:
+                        if all_blocked:
                             continue
                     row4[0], row4[1], row4[2], row4[3] = a, b, c, d
                     quad = _push(quad, n_quad, row4)
@@ -1223,7 +1243,7 @@ def _scan_edge_pairs(
 
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
-    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
@@ -1268,7 +1288,7 @@ def _scan_vertex_edges(
                 b0, b1 = ev[b, 0], ev[b, 1]
                 if b == e or b0 == v or b1 == v or _adjacent(ev, b, e):
                     continue
-                if _vertex_edge_blocked(table, v, b0, b1) or _edges_blocked(table, b0, b1, e0, e1):
+                if _vertex_edge_blocked(table, v, b0, b1) or _blocked(blocked, b, e):
                     continue
                 # lines through v meeting e at e(t) meet line b where v, e(t), b are
                 # coplanar: (e(t) - v) · n_b = 0 with n_b the normal of plane (v, b)
@@ -1523,6 +1543,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     hi = vx.max(axis=0) + HULL_TOL * eps
     ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
     ed = eb - ea
+    blocked = _edge_pairs_blocked(table, ev)
     # Plücker lines of the generator edges, once (the same floats as per tuple)
     lines = edge_lines(scene, ge)
     line_of = np.zeros((len(ev_all), 6))
@@ -1542,7 +1563,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1557,7 +1578,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,

@@ -171,7 +171,7 @@ from viscx.geometry.lines import line_through_point_and_two_lines, lines_through
 from viscx.grid import bin_boxes, cell_of
 from viscx.parallel import map_chunks
 from viscx.progress import bar
-from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, sort_nodes, validate_candidates
+from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, nodes_among, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
 
 #: Depth, in epsilons, a segment must reach inside a solid to be blocked by it.
@@ -1655,13 +1655,11 @@ def _pack(out):
 def validate_in_chunks(scene, kind, generators, origins, directions, chunk=VALIDATE_CHUNK):
     """:func:`viscx.skeleton.nodes.validate_candidates` over chunks of candidates
     (each candidate is judged on its own, so the result is the same; memory stays
-    bounded). Parameters as there."""
+    bounded), sorted once. Parameters as there."""
     parts = [
-        validate_candidates(scene, kind[i : i + chunk], generators[i : i + chunk], origins[i : i + chunk], directions[i : i + chunk])
+        nodes_among(scene, kind[i : i + chunk], generators[i : i + chunk], origins[i : i + chunk], directions[i : i + chunk])
         for i in range(0, len(kind), chunk)
     ]
-    if len(parts) == 1:
-        return parts[0]
     if not parts:
         return validate_candidates(scene, kind, generators, origins, directions)
     merged = Nodes(**{name: np.concatenate([getattr(p, name) for p in parts]) for name in Nodes.__dataclass_fields__})

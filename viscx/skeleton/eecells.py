@@ -1505,7 +1505,7 @@ def _with_segments(scene, arcs, squares, segments, el, loops):
     sizes = np.concatenate([sizes[mine], np.diff(again_loops)])
     n_loop = int(sizes.sum())
     flat = np.concatenate([walks[0], walks[1][: again_loops[-1]]])
-    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    starts = np.cumsum(sizes) - sizes  # (empty when no loop is left)
     by_first = np.argsort(flat[starts], kind="stable")
     flat = flat[expand_ranges(starts[by_first], sizes[by_first])[1]]
     new_order = np.concatenate([flat, walks[1][again_loops[-1]:]])

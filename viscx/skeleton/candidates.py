@@ -156,8 +156,13 @@ validation's own first test, so rounding cannot drop a node.
 
 Cost: one ray per vertex pair (against the solids only), one hull query per
 unblocked pair of generators (grid cells of the hull's box, then a few dot
-products per listed edge), and a candidate per pair of edges meeting one hull;
-the hull scans run in numba (nogil) on a thread per core.
+products per listed edge; the E4 scan takes the vertices in the hull from the
+edges found), a closed-form solve per pair of inner edges whose arcs' boxes
+meet, and about one tuple per candidate; the hull scans run in numba (nogil) on
+a thread per core. At 997 polygons (``random_boxes(997)``): 2 million outer edge
+pairs, 1.3 million hull queries, 60 million pairs of inner edges solved, 0.26
+million E4 quadruples for 0.24 million E4 candidates; about 17 s of CPU for the
+candidates (E4 scan 10, VEE scan 4.5) and 3.6 s for their validation.
 """
 
 import os

@@ -177,3 +177,108 @@ def test_hidden_pairs_have_no_free_segment():
     # the test has teeth: many pairs are claimed hidden, many others see each other
     assert hidden.mean() > 0.04 and free.any(axis=1).mean() > 0.2
     assert not (hidden & free.any(axis=1)).any()
+
+
+def test_scans_leave_about_one_tuple_per_candidate():
+    """Lemma 2 on the closed-form lines (module docstring, "Solids on the line"): on
+    a city of boxes the scans propose little more than the candidates that pass
+    the looser copy of validation, and the nodes stay the reference's (above)."""
+    from scenes import random_boxes
+
+    stats = {}
+    fast_candidates(random_boxes(60, seed=3), stats=stats)
+    assert stats["E4 candidates"] > 100 and stats["VEE candidates"] > 100
+    assert stats["E4 quadruples"] <= 1.2 * stats["E4 candidates"]
+    assert stats["VEE triples"] <= 1.2 * stats["VEE candidates"]
+
+
+def test_segments_across_moved_in_solids_are_not_free():
+    """_crosses_solid with a margin δ claims the segment crosses a solid's inner copy
+    moved inwards by δ: then every segment whose ends lie within δ of its ends
+    crosses the solid itself, so none may be free for the ray caster (the step
+    the scans' Lemma 2 on the closed-form lines rests on)."""
+    from scenes import random_boxes
+
+    from viscx.skeleton.candidates import POINT_SLACK, _crosses_solid, _SolidGrid, blocking_solids
+
+    scene = random_boxes(200, seed=5)
+    solids = blocking_solids(scene)
+    grid = _SolidGrid(*solids[1:])
+    ev = scene.half_edges.edge_vertices[scene.generator_edges]
+    x = scene.vertices
+    rng = np.random.default_rng(1)
+    a, d = rng.integers(0, len(ev), (2, 4000))
+    mid = 0.5 * (x[ev[:, 0]] + x[ev[:, 1]])
+    keep = ~(ev[a][:, :, None] == ev[d][:, None, :]).any(axis=(1, 2)) & (np.linalg.norm(mid[a] - mid[d], axis=1) < 8)
+    a, d = a[keep], d[keep]
+    s, t = rng.random((2, len(a)))
+    A = x[ev[a, 0]] + s[:, None] * (x[ev[a, 1]] - x[ev[a, 0]])
+    D = x[ev[d, 0]] + t[:, None] * (x[ev[d, 1]] - x[ev[d, 0]])
+    owner = np.stack([solids[0][ev[a, 0]], solids[0][ev[d, 0]]], axis=1)
+    delta = POINT_SLACK * scene.epsilon
+    stamp = np.full(grid.n_solids, -1, dtype=np.int64)
+    crosses = np.array(
+        [_crosses_solid(np.stack([A[i], D[i]]), owner[i], np.array([0.0, 1.0]), i, stamp, delta, *grid.args()) for i in range(len(a))]
+    )
+    # ends moved by δ (less a hair) in random directions, several times each
+    k = 8
+    idx = np.repeat(np.flatnonzero(crosses), k)
+    shift = rng.normal(size=(2, len(idx), 3))
+    shift *= 0.999 * delta / np.linalg.norm(shift, axis=2, keepdims=True)
+    free = scene.ray_caster.free_segments(A[idx] + shift[0], D[idx] + shift[1])
+    assert 0.2 < crosses.mean() < 0.9
+    assert not free.any()
+
+
+def test_elimination_root_of_parallel_edges_is_decided():
+    """A tilted outer edge a whose line meets the floor edge b, and two parallel
+    vertical edges c, d: eliminating t puts a root of Q at a's crossing with b (the
+    line through that point meets b for every t), where no line meets c and d. The
+    closed form must not leave the tuple undecided there (it did, for a third of
+    the E4 tuples of the city), and must still find the one line meeting all four
+    segments, as the reference solver does."""
+    from viscx.geometry.lines import lines_through_four_lines, plucker
+    from viscx.skeleton.candidates import _four_lines_meet, _side_coefficients
+
+    p = np.array([[0.8, -1.0, -1.0], [0.0, 0, 0], [2.0, 0.0, 1.0], [3.0, 0.0, 2.5]])
+    v = np.array([[0.5, 2.5, 2.5], [4.0, 0, 0], [0.0, 2.0, 0.0], [0.0, 4.0, 0.0]])
+    pa, pb, pc, pd = (tuple(r) for r in p)
+    da, db, dc, dd = (tuple(r) for r in v)
+    _, fb = _side_coefficients(pa, da, pd, dd, pb, db)
+    _, fc = _side_coefficients(pa, da, pd, dd, pc, dc)
+    n, s0, t0, _, _ = _four_lines_meet(pa, da, pd, dd, fb, fc, pb, db, pc, dc, 1e-6)
+    # the reference's lines, kept where they meet all four segments inside
+    sol, valid, _ = lines_through_four_lines(plucker(p, v)[None])
+    assert valid.all()  # the line and the one through a's crossing with b
+    inside = []
+    for line in sol[0]:
+        d, m = line[:3], line[3:]
+        o = np.cross(d, m) / (d @ d)
+        w = p - o
+        bb, cc = v @ d, np.einsum("ij,ij->i", v, v)
+        den = (d @ d) * cc - bb * bb
+        if (den > 1e-12).all():
+            u = (bb * (w @ d) - (d @ d) * np.einsum("ij,ij->i", v, w)) / den
+            if ((u > 0.01) & (u < 0.99)).all():
+                inside.append(u)
+    assert len(inside) == 1 and n == 1
+    assert abs(s0 - inside[0][0]) < 1e-9 and abs(t0 - inside[0][3]) < 1e-9
+
+
+def test_free_points_equal_reference():
+    """Generator vertices without a generator edge (free points made generators,
+    :func:`viscx.skeleton.points.with_points`): the E4 scan finds the vertices in a
+    hull through their edges, these through a grid of their own."""
+    from viscx.skeleton.points import with_points
+
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    lo, hi = scene.bbox
+    rng = np.random.default_rng(0)
+    points = lo + rng.random((3, 3)) * (hi - lo)
+    points[:, 1] = lo[1] + 0.3 + rng.random(3) * (hi[1] - lo[1]) * 0.5
+    ext = with_points(scene, points)
+    nodes = build_nodes(ext)
+    assert_same_nodes(nodes, reference_nodes(ext))
+    # some VEE nodes pass a free point between their edges
+    vee = nodes.generators[nodes.kind == 1]
+    assert (vee[:, 0] >= scene.n_vertices).sum() > 5

@@ -255,20 +255,32 @@ def read_vcells(group):
 
 
 _EECELL_ARRAYS = ["edge1", "edge2", "back_kind", "back", "front_kind", "front", "area", "complete", "loop_offsets",
-                  "turning", "element_offsets", "element", "element_interval"]
+                  "turning", "element_offsets", "element", "element_kind", "element_interval"]
 # open chains live in V2/ee/open/ under their names without the prefix
-_EE_OPEN_ARRAYS = ["offsets", "element", "interval", "edge1", "edge2", "back_kind", "back", "front_kind", "front"]
+_EE_OPEN_ARRAYS = ["offsets", "element", "element_kind", "interval", "edge1", "edge2", "back_kind", "back", "front_kind",
+                   "front"]
 
 
 def write_eecells(group, eecells):
     """Fill ``V2/ee`` with :class:`viscx.skeleton.eecells.EECells` (see docs/format.md):
     the cells with their boundary loops as CSR lists of signed arc ids, and ``open/``."""
+    from viscx.skeleton.eecells import ARC, PENCIL1, PENCIL2, SIDE
+
     ee = group.create_group("ee", track_order=True)
     _write_cells(ee, eecells, _EECELL_ARRAYS, _EE_OPEN_ARRAYS, {"face": 0, "sky": 1, "edge": 2})
+    ee.attrs["element_kinds"] = json.dumps({"arc": ARC, "side": SIDE, "pencil1": PENCIL1, "pencil2": PENCIL2})
     # the level's counts (what `viscx info` prints) gain the EE-cells'
     counts = json.loads(group.attrs.get("counts", "{}"))
     counts.update({f"ee_{k}": v for k, v in eecells.counts().items()})
     group.attrs["counts"] = json.dumps(counts)
+
+
+def _ee_dataset(ee, name):
+    """A dataset of ``V2/ee`` (``open/...``: of its open chains). Files written before the
+    square sides have no ``element_kind``: every element there is an arc (kind 0)."""
+    if name.endswith("element_kind") and name not in ee:
+        return np.zeros(len(ee[name.replace("element_kind", "element")]), np.int8)
+    return ee[name][()]
 
 
 def read_eecells(group):
@@ -279,16 +291,17 @@ def read_eecells(group):
         raise ViscxError("this file has no EE-cells (V2/ee); rebuild it with `viscx build --levels 2`")
     ee = group["ee"]
     try:
-        arrays = {name: ee[name][()] for name in _EECELL_ARRAYS}
-        arrays.update({f"open_{name}": ee["open"][name][()] for name in _EE_OPEN_ARRAYS})
+        arrays = {name: _ee_dataset(ee, name) for name in _EECELL_ARRAYS}
+        arrays.update({f"open_{name}": _ee_dataset(ee, f"open/{name}") for name in _EE_OPEN_ARRAYS})
     except KeyError as exc:
         raise ViscxError(f"damaged V2 level (missing ee/{exc.args[0]})") from None
     c, loops, k = len(arrays["edge1"]), len(arrays["turning"]), len(arrays["element"])
     o, m = len(arrays["open_edge1"]), len(arrays["open_element"])
     shapes = {"edge2": (c,), "back_kind": (c,), "back": (c,), "front_kind": (c,), "front": (c,), "area": (c,),
-              "complete": (c,), "loop_offsets": (c + 1,), "element_offsets": (loops + 1,), "element_interval": (k, 2),
-              "open_offsets": (o + 1,), "open_interval": (m, 2), "open_edge2": (o,), "open_back_kind": (o,),
-              "open_back": (o,), "open_front_kind": (o,), "open_front": (o,)}
+              "complete": (c,), "loop_offsets": (c + 1,), "element_offsets": (loops + 1,), "element_kind": (k,),
+              "element_interval": (k, 2), "open_offsets": (o + 1,), "open_element_kind": (m,), "open_interval": (m, 2),
+              "open_edge2": (o,), "open_back_kind": (o,), "open_back": (o,), "open_front_kind": (o,),
+              "open_front": (o,)}
     for name, shape in shapes.items():
         if arrays[name].shape != shape:
             where = f"open/{name[5:]}" if name.startswith("open_") else name

@@ -37,7 +37,8 @@ by ``HULL_TOL`` ε (≥ 2ε plus rounding):
 
 So the builder visits pairs (edge, edge) and (vertex, edge) and asks a uniform
 grid of generator edges and vertices which of them meet the inflated hull
-(separating-axis test; any subset of the axes is conservative, degenerate axes
+(separating axes: the normals of the hull's faces and, in each face, of its
+sides; any subset of the axes of an exact test is conservative, degenerate axes
 are skipped). Edges sharing an endpoint are never two generators of one node
 (the line through both meets them at the shared endpoint, which (N1) rejects,
 or it is not unique); the reference enumerates those tuples and validation
@@ -111,6 +112,22 @@ conditions) the filter accepts.
   line through b(u) are linear-fractional in u, so each inner edge's arc has a
   box spanned by its ends (unless it crosses a pole); boxes that miss the square
   or each other are dropped, and for the rest f_b = f_c = 0 is a quadratic in s.
+  Eliminating t adds a root where neither f depends on t (γ + δs = 0 for both,
+  e.g. s where a meets b while c and d are parallel: the floor's edges and the
+  boxes' vertical ones); there a line needs α + βs = 0 for both as well, and
+  where one is clearly not zero the root is dropped instead of accepted.
+
+Solids on the line. Where the closed form gives the line, the scans also apply
+Lemma 2 to it: when the outer generators (a and d, or v and e) are foreign to a
+blocking solid and the segment between their points A, D of the closed form
+meets that solid's C_in moved inwards by δ = ``POINT_SLACK`` ε + ``PARAM_SLACK``
+times the edge's length, the tuple is not a node. The reference's generator
+points A', D' lie within δ of A, D (the accuracy the ε filters above already
+assume, and more), so the point of [A', D'] with the same weights as a point
+of [A, D] deep inside lies within δ of it, in C_in: Lemma 2 holds for the
+reference's line. Where the closed form is ill-conditioned no line is tested.
+This leaves about one tuple per candidate (ten times fewer E4 quadruples, half
+the VEE triples, on the city of boxes).
 
 Coplanar edges. If b lies in the plane π of a and d (f_b vanishes identically),
 the three conditions "meets a, b, d" hold for every line of π, a 3-dimensional
@@ -139,8 +156,13 @@ validation's own first test, so rounding cannot drop a node.
 
 Cost: one ray per vertex pair (against the solids only), one hull query per
 unblocked pair of generators (grid cells of the hull's box, then a few dot
-products per listed edge), and a candidate per pair of edges meeting one hull;
-the hull scans run in numba (nogil) on a thread per core.
+products per listed edge; the E4 scan takes the vertices in the hull from the
+edges found), a closed-form solve per pair of inner edges whose arcs' boxes
+meet, and about one tuple per candidate; the hull scans run in numba (nogil) on
+a thread per core. At 997 polygons (``random_boxes(997)``): 2 million outer edge
+pairs, 1.3 million hull queries, 60 million pairs of inner edges solved, 0.26
+million E4 quadruples for 0.24 million E4 candidates; about 17 s of CPU for the
+candidates (E4 scan 10, VEE scan 4.5) and 3.6 s for their validation.
 """
 
 import os
@@ -154,7 +176,7 @@ from viscx.geometry.lines import line_through_point_and_two_lines, lines_through
 from viscx.grid import bin_boxes, cell_of
 from viscx.parallel import map_chunks
 from viscx.progress import bar
-from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, sort_nodes, validate_candidates
+from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, nodes_among, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
 
 #: Depth, in epsilons, a segment must reach inside a solid to be blocked by it.
@@ -408,14 +430,18 @@ class _SolidGrid:
 
 
 @njit(cache=True, nogil=True)
-def _segment_meets_solid(A, B, solid, plane_offsets, planes):
-    """Whether segment AB meets the convex solid (clipped by each of its planes)."""
+def _segment_meets_solid(A, B, solid, plane_offsets, planes, margin=0.0):
+    """Whether segment AB meets the convex solid (clipped by each of its planes), its
+    planes moved inwards by ``margin`` (unit normals: points it then meets lie that
+    deep inside)."""
     if plane_offsets[solid] == plane_offsets[solid + 1]:
         return False  # not a solid
     t0, t1 = 0.0, 1.0
     for k in range(plane_offsets[solid], plane_offsets[solid + 1]):
-        fa = planes[k, 0] * A[0] + planes[k, 1] * A[1] + planes[k, 2] * A[2] - planes[k, 3]
-        fb = planes[k, 0] * B[0] + planes[k, 1] * B[1] + planes[k, 2] * B[2] - planes[k, 3]
+        # offset - 0.0 is the offset exactly: without a margin, the same floats
+        offset = planes[k, 3] - margin
+        fa = planes[k, 0] * A[0] + planes[k, 1] * A[1] + planes[k, 2] * A[2] - offset
+        fb = planes[k, 0] * B[0] + planes[k, 1] * B[1] + planes[k, 2] * B[2] - offset
         if fa > 0 and fb > 0:
             return False
         if fa > 0:
@@ -518,7 +544,28 @@ def _dot(a, b):
 
 
 # Small vectors are tuples in the kernels (no heap allocation in the hot loops); the
-# helpers do numpy's operations in numpy's order, so the floats are the same.
+# helpers do numpy's operations in numpy's order, so the floats are the same. Rows of
+# arrays are read into tuples (:func:`_row`), never taken as views: each view of an
+# array costs an atomic update of the array's reference count, and the scan threads
+# share the arrays, so those updates contend (they made the hull scans several times
+# slower).
+
+
+@njit(cache=True, nogil=True)
+def _row(x, i):
+    """Row i of an (n, 3) array as a tuple."""
+    return (x[i, 0], x[i, 1], x[i, 2])
+
+
+@njit(cache=True, nogil=True)
+def _row4(x, i):
+    """Row i of an (n, 4) array as a tuple."""
+    return (x[i, 0], x[i, 1], x[i, 2], x[i, 3])
+
+
+@njit(cache=True, nogil=True)
+def _set_row(x, i, v):
+    x[i, 0], x[i, 1], x[i, 2] = v[0], v[1], v[2]
 
 
 @njit(cache=True, nogil=True)
@@ -548,136 +595,132 @@ def _div(a, s):
 
 
 @njit(cache=True, nogil=True)
-def _hull_axes(P, k):
-    """Fixed separating axes of the hull of k = 3 or 4 points: the normal of every
-    triple and, in each triple's plane, the normals of its sides (the axes that
-    matter when the hull is flat). Unit rows; degenerate ones left out."""
-    axes = np.empty((16, 3))
+def _hull_axes(P, k, axes):
+    """Fixed separating axes of the hull of k = 3 or 4 points P (k, 3): the normal of
+    every triple and, in each triple's plane, the normals of its sides (the axes that
+    matter when the hull is flat). Written as unit rows of ``axes`` (16, 3), degenerate
+    ones left out; returns their number."""
     m = 0
     scale = 0.0
     for i in range(k):
         for j in range(i + 1, k):
-            e = _sub(P[j], P[i])
+            e = _sub(_row(P, j), _row(P, i))
             scale = max(scale, np.sqrt(_dot(e, e)))
     if scale == 0.0:
-        return axes[:0]
+        return 0
     for i in range(k):
         for j in range(i + 1, k):
             for l in range(j + 1, k):
-                n = _cross(_sub(P[j], P[i]), _sub(P[l], P[i]))
+                pi, pj, pl = _row(P, i), _row(P, j), _row(P, l)
+                n = _cross(_sub(pj, pi), _sub(pl, pi))
                 size = np.sqrt(_dot(n, n))
                 if size <= 1e-9 * scale * scale:
                     continue
                 n = _div(n, size)
-                axes[m, 0], axes[m, 1], axes[m, 2] = n
+                _set_row(axes, m, n)
                 m += 1
-                for (p, q) in ((i, j), (j, l), (i, l)):
-                    s = _cross(n, _sub(P[q], P[p]))
+                for (p, q) in ((pi, pj), (pj, pl), (pi, pl)):
+                    s = _cross(n, _sub(q, p))
                     ss = np.sqrt(_dot(s, s))
                     if ss > 1e-9 * scale:
-                        axes[m, 0], axes[m, 1], axes[m, 2] = _div(s, ss)
+                        _set_row(axes, m, _div(s, ss))
                         m += 1
-    return axes[:m]
+    return m
 
 
 @njit(cache=True, nogil=True)
-def _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
-    """Whether segment AB comes within ``tol`` of the hull of P[:k] (conservative:
-    False only when an axis separates them by more than tol)."""
-    for r in range(axes.shape[0]):
-        sa, sb = _dot(A, axes[r]), _dot(B, axes[r])
+def _meets_hull(A, B, axes, n_axes, hmin, hmax, tol):
+    """Whether segment AB comes within ``tol`` of a hull (conservative: False only
+    when an axis separates them by more than tol). ``axes[:n_axes]`` are
+    :func:`_hull_axes`, ``hmin``, ``hmax`` the hull's extent along them.
+
+    Only these fixed axes: the cross products of AB with the hull's edges, the
+    other axes of an exact separation test, rejected 0.3 % of the edges the fixed
+    axes let through (tetrahedra of the city of boxes) at more than half the cost
+    of the test; the exact filters behind the queries drop those edges anyway."""
+    for r in range(n_axes):
+        axis = _row(axes, r)
+        sa, sb = _dot(A, axis), _dot(B, axis)
         if min(sa, sb) > hmax[r] + tol or max(sa, sb) < hmin[r] - tol:
             return False
-    d = _sub(B, A)
-    dd = _dot(d, d)
-    if dd == 0.0:
-        return True
-    for i in range(k):
-        for j in range(i + 1, k):
-            # the axis d × e unnormalised (one square root, no division): tol scales
-            e = _sub(P[j], P[i])
-            u = _cross(d, e)
-            uu = _dot(u, u)
-            if uu <= 1e-18 * dd * _dot(e, e):
-                continue
-            slack = tol * np.sqrt(uu)
-            lo, hi = np.inf, -np.inf
-            for q in range(k):
-                s = _dot(P[q], u)
-                lo = min(lo, s)
-                hi = max(hi, s)
-            sa, sb = _dot(A, u), _dot(B, u)
-            if min(sa, sb) > hi + slack or max(sa, sb) < lo - slack:
-                return False
     return True
 
 
 @njit(cache=True, nogil=True)
-def _slab_extent(P, k, x_lo, x_hi, ext):
+def _slab_extent(P, k, x_lo, x_hi):
     """Box of the part of the hull of P[:k] with x_lo <= x <= x_hi, in y and z:
-    ``ext`` = (y_lo, y_hi, z_lo, z_hi). Its vertices are points of P in the slab
-    and the crossings of the segments between them with the slab's planes.
-    Returns False when the hull misses the slab."""
-    ext[0], ext[2] = np.inf, np.inf
-    ext[1], ext[3] = -np.inf, -np.inf
+    (y_lo, y_hi, z_lo, z_hi). Its vertices are points of P in the slab and the
+    crossings of the segments between them with the slab's planes. Empty
+    (y_lo > y_hi) when the hull misses the slab."""
+    y_lo, z_lo = np.inf, np.inf
+    y_hi, z_hi = -np.inf, -np.inf
     for q in range(k):
         if x_lo <= P[q, 0] <= x_hi:
-            ext[0], ext[1] = min(ext[0], P[q, 1]), max(ext[1], P[q, 1])
-            ext[2], ext[3] = min(ext[2], P[q, 2]), max(ext[3], P[q, 2])
+            y_lo, y_hi = min(y_lo, P[q, 1]), max(y_hi, P[q, 1])
+            z_lo, z_hi = min(z_lo, P[q, 2]), max(z_hi, P[q, 2])
         for r in range(q + 1, k):
             for plane in (x_lo, x_hi):
                 if (P[q, 0] - plane) * (P[r, 0] - plane) < 0:
                     f = (plane - P[q, 0]) / (P[r, 0] - P[q, 0])
                     y, z = P[q, 1] + f * (P[r, 1] - P[q, 1]), P[q, 2] + f * (P[r, 2] - P[q, 2])
-                    ext[0], ext[1] = min(ext[0], y), max(ext[1], y)
-                    ext[2], ext[3] = min(ext[2], z), max(ext[3], z)
-    return ext[0] <= ext[1]
+                    y_lo, y_hi = min(y_lo, y), max(y_hi, y)
+                    z_lo, z_hi = min(z_lo, z), max(z_hi, z)
+    return y_lo, y_hi, z_lo, z_hi
 
 
 @njit(cache=True, nogil=True)
-def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out):
+def _inflated_box(P, k, tol):
+    """Bounding box of P[:k] grown by tol: (lo, hi) as tuples."""
+    l0, l1, l2 = np.inf, np.inf, np.inf
+    h0, h1, h2 = -np.inf, -np.inf, -np.inf
+    for q in range(k):
+        l0, l1, l2 = min(l0, P[q, 0]), min(l1, P[q, 1]), min(l2, P[q, 2])
+        h0, h1, h2 = max(h0, P[q, 0]), max(h1, P[q, 1]), max(h2, P[q, 2])
+    return (l0 - tol, l1 - tol, l2 - tol), (h0 + tol, h1 + tol, h2 + tol)
+
+
+@njit(cache=True, nogil=True)
+def _hull_setup(P, k, axes, hmin, hmax):
+    """The separating axes of the hull of P[:k] (:func:`_hull_axes`) written to
+    ``axes`` (16, 3), the hull's extent along them to ``hmin``, ``hmax`` (16,);
+    returns their number."""
+    n_axes = _hull_axes(P, k, axes)
+    for r in range(n_axes):
+        hmin[r], hmax[r] = np.inf, -np.inf
+        axis = _row(axes, r)
+        for q in range(k):
+            s = _dot(_row(P, q), axis)
+            hmin[r] = min(hmin[r], s)
+            hmax[r] = max(hmax[r], s)
+    return n_axes
+
+
+@njit(cache=True, nogil=True)
+def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp_id, out, axes, n_axes, hmin, hmax):
     """Indices of the segments meeting the inflated hull of P[:k]; writes them to
     ``out`` and returns their count (``stamp`` marks segments already seen).
+    ``axes``, ``n_axes``, ``hmin``, ``hmax``: :func:`_hull_setup` of the hull.
 
     Only the cells near the hull are visited: per x-slab of cells, those within
     ``tol`` of the hull's part in the slab (widened by ``tol``). The indices come
     in the order of a scan of every cell of the hull's box (x, y, z, then index),
     so that the result does not depend on which cells were visited."""
-    axes = _hull_axes(P, k)
-    hmin = np.empty(axes.shape[0])
-    hmax = np.empty(axes.shape[0])
-    for r in range(axes.shape[0]):
-        hmin[r], hmax[r] = np.inf, -np.inf
-        for q in range(k):
-            s = _dot(P[q], axes[r])
-            hmin[r] = min(hmin[r], s)
-            hmax[r] = max(hmax[r], s)
-    blo = np.empty(3)
-    bhi = np.empty(3)
-    c0 = np.empty(3, dtype=np.int64)
-    c1 = np.empty(3, dtype=np.int64)
-    for d in range(3):
-        blo[d], bhi[d] = np.inf, -np.inf
-        for q in range(k):
-            blo[d] = min(blo[d], P[q, d])
-            bhi[d] = max(bhi[d], P[q, d])
-        blo[d] -= tol
-        bhi[d] += tol
-        c0[d] = cell_of(blo[d], lo[d], cell[d], dims[d])
-        c1[d] = cell_of(bhi[d], lo[d], cell[d], dims[d])
-    ext = np.empty(4)
+    blo, bhi = _inflated_box(P, k, tol)
+    c0 = (cell_of(blo[0], lo[0], cell[0], dims[0]), cell_of(blo[1], lo[1], cell[1], dims[1]), cell_of(blo[2], lo[2], cell[2], dims[2]))
+    c1 = (cell_of(bhi[0], lo[0], cell[0], dims[0]), cell_of(bhi[1], lo[1], cell[1], dims[1]), cell_of(bhi[2], lo[2], cell[2], dims[2]))
     n_items = seg_a.shape[0]
     m = 0
     for x in range(c0[0], c1[0] + 1):
         # the slab of cell column x, unbounded at the grid's border (cell_of clamps)
         x_lo = lo[0] + x * cell[0] - tol if x > 0 else -np.inf
         x_hi = lo[0] + (x + 1) * cell[0] + tol if x < dims[0] - 1 else np.inf
-        if not _slab_extent(P, k, x_lo, x_hi, ext):
+        y_lo, y_hi, z_lo, z_hi = _slab_extent(P, k, x_lo, x_hi)
+        if not y_lo <= y_hi:
             continue
-        y0 = max(c0[1], cell_of(ext[0] - tol, lo[1], cell[1], dims[1]))
-        y1 = min(c1[1], cell_of(ext[1] + tol, lo[1], cell[1], dims[1]))
-        z0 = max(c0[2], cell_of(ext[2] - tol, lo[2], cell[2], dims[2]))
-        z1 = min(c1[2], cell_of(ext[3] + tol, lo[2], cell[2], dims[2]))
+        y0 = max(c0[1], cell_of(y_lo - tol, lo[1], cell[1], dims[1]))
+        y1 = min(c1[1], cell_of(y_hi + tol, lo[1], cell[1], dims[1]))
+        z0 = max(c0[2], cell_of(z_lo - tol, lo[2], cell[2], dims[2]))
+        z1 = min(c1[2], cell_of(z_hi + tol, lo[2], cell[2], dims[2]))
         for y in range(y0, y1 + 1):
             for z in range(z0, z1 + 1):
                 c = (x * dims[1] + y) * dims[2] + z
@@ -686,7 +729,7 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
                     if stamp[s] == stamp_id:
                         continue
                     stamp[s] = stamp_id
-                    A, B = seg_a[s], seg_b[s]
+                    A, B = _row(seg_a, s), _row(seg_b, s)
                     if (
                         min(A[0], B[0]) > bhi[0]
                         or max(A[0], B[0]) < blo[0]
@@ -696,7 +739,7 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
                         or max(A[2], B[2]) < blo[2]
                     ):
                         continue
-                    if _meets_hull(A, B, P, k, axes, hmin, hmax, tol):
+                    if _meets_hull(A, B, axes, n_axes, hmin, hmax, tol):
                         # sort key: the first cell of the box scan listing s (cells
                         # list their segments by index)
                         first = 0
@@ -711,9 +754,57 @@ def _query(P, k, tol, seg_a, seg_b, lo, cell, dims, offsets, items, stamp, stamp
 
 
 @njit(cache=True, nogil=True)
+def _hull_vertices(edges, n_edges, ev, vx, P, k, tol, axes, n_axes, hmin, hmax, stamp, stamp_id, out):
+    """The vertices within ``tol`` of the hull of P[:k] (the test of :func:`_query`)
+    among the endpoints of ``edges[:n_edges]``, the edges :func:`_query` found:
+    every vertex the test passes is among them when each vertex has an edge, as
+    the test passes the vertex's edges too (they contain it). Writes positions in
+    the vertex table to ``out``, returns their count; ``stamp`` marks vertices
+    already seen."""
+    blo, bhi = _inflated_box(P, k, tol)
+    m = 0
+    for r in range(n_edges):
+        for end in range(2):
+            v = ev[edges[r], end]
+            if stamp[v] == stamp_id:
+                continue
+            stamp[v] = stamp_id
+            x = _row(vx, v)
+            if x[0] > bhi[0] or x[0] < blo[0] or x[1] > bhi[1] or x[1] < blo[1] or x[2] > bhi[2] or x[2] < blo[2]:
+                continue
+            if _meets_hull(x, x, axes, n_axes, hmin, hmax, tol):
+                out[m] = v
+                m += 1
+    return m
+
+
+@njit(cache=True, nogil=True)
 def _edges_blocked(table, a0, a1, b0, b1):
     t = table[a0, b0]
     return t >= 0 and table[a0, b1] == t and table[a1, b0] == t and table[a1, b1] == t
+
+
+@njit(cache=True)
+def _edge_pairs_blocked(table, ev):
+    """:func:`_edges_blocked` for every pair of edges (endpoints ``ev`` (n, 2) as
+    positions in ``table``), packed 64 pairs to a word: bit b of row a tells whether
+    edges a and b are blocked; (n, ⌈n/64⌉) uint64. Half a megabyte for 2000 edges,
+    where the four look-ups in the vertex table per pair missed the cache."""
+    n = ev.shape[0]
+    bits = np.zeros((n, (n + 63) // 64), dtype=np.uint64)
+    one = np.uint64(1)
+    for a in range(n):
+        for b in range(a + 1, n):
+            if _edges_blocked(table, ev[a, 0], ev[a, 1], ev[b, 0], ev[b, 1]):
+                bits[a, b >> 6] |= one << np.uint64(b & 63)
+                bits[b, a >> 6] |= one << np.uint64(a & 63)
+    return bits
+
+
+@njit(cache=True, nogil=True)
+def _blocked(bits, a, b):
+    """Whether edges a and b are blocked (:func:`_edge_pairs_blocked`)."""
+    return (bits[a, b >> 6] >> np.uint64(b & 63)) & np.uint64(1) != 0
 
 
 @njit(cache=True, nogil=True)
@@ -754,6 +845,11 @@ COPLANAR = 1e-14
 #: Relative size below which a side-product form counts as identically zero
 #: (the edge lies in the plane of the outer pair, to rounding).
 IN_PLANE = 1e-14
+#: How far, in epsilons, a generator point of the closed forms may lie from the
+#: reference's when a scan prunes a line that crosses a solid (the solids' planes
+#: move inwards by this, plus PARAM_SLACK of the edge's length): more than the
+#: END_MARGIN allowance the other filters already rely on.
+POINT_SLACK = 1.0
 
 
 @njit(cache=True, nogil=True)
@@ -814,13 +910,13 @@ def _between(A, D, b0, db, eps):
 
 
 @njit(cache=True, nogil=True)
-def _side_coefficients(a0, da, d0, dd, b0, db, out):
+def _side_coefficients(a0, da, d0, dd, b0, db):
     """f(s, t) = α + βs + γt + δst, the side product of line b with the line through
-    a0 + s da and d0 + t dd (zero iff they meet), normalised into ``out``. The line
-    is (D - A, A × D), and side(L, L_b) = (D - A)·m_b + d_b·(A × D) is bilinear.
+    a0 + s da and d0 + t dd (zero iff they meet). The line is (D - A, A × D), and
+    side(L, L_b) = (D - A)·m_b + d_b·(A × D) is bilinear.
 
-    Returns whether f vanishes identically (to rounding): b lies in the plane of
-    a and d."""
+    Returns whether f vanishes identically (to rounding: b lies in the plane of
+    a and d), and (α, β, γ, δ) normalised (zeros when f is exactly zero)."""
     mb = _cross(b0, db)
     alpha = _dot(_sub(d0, a0), mb) + _dot(db, _cross(a0, d0))
     beta = -_dot(da, mb) + _dot(db, _cross(da, d0))
@@ -830,11 +926,10 @@ def _side_coefficients(a0, da, d0, dd, b0, db, out):
     # a bound on every term: what rounding is relative to
     na, nd, nb = np.sqrt(_dot(a0, a0)) + np.sqrt(_dot(da, da)), np.sqrt(_dot(d0, d0)) + np.sqrt(_dot(dd, dd)), np.sqrt(_dot(db, db))
     scale = (na + nd) * np.sqrt(_dot(mb, mb)) + nb * na * nd
-    for k in range(4):
-        out[k] = 0.0
+    f = (0.0, 0.0, 0.0, 0.0)
     if size > 0:
-        out[0], out[1], out[2], out[3] = alpha / size, beta / size, gamma / size, delta / size
-    return size <= IN_PLANE * scale
+        f = (alpha / size, beta / size, gamma / size, delta / size)
+    return size <= IN_PLANE * scale, f
 
 
 @njit(cache=True, nogil=True)
@@ -874,74 +969,91 @@ def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
 
 
 @njit(cache=True, nogil=True)
-def _arc_box(a0, da, d0, dd, b0, db, slack, box):
-    """Writes to ``box`` (4,) the box [s_lo, s_hi, t_lo, t_hi] in the (s, t) square of the lines through a point
-    of segment b meeting lines a and d; empty (s_lo > s_hi) when it misses the square.
+def _arc_box(a0, da, d0, dd, b0, db, slack):
+    """The box (s_lo, s_hi, t_lo, t_hi) in the (s, t) square of the lines through a
+    point of segment b meeting lines a and d; empty (s_lo > s_hi) when it misses the
+    square.
 
     Along b, s(u) and t(u) are linear-fractional (numerator and denominator of
     :func:`_through_point` are linear in u: the quadratic term is a triple product
     with a repeated vector), so monotone between poles: the box is spanned by
     u = 0 and u = 1 unless a denominator changes sign on [0, 1]."""
     b1 = _add(b0, db)
-    for axis in range(2):
-        if axis == 0:
-            n0, n1 = _cross(_sub(d0, b0), dd), _cross(_sub(d0, b1), dd)
-            x0, x1, dx = _sub(b0, a0), _sub(b1, a0), da
-        else:
-            n0, n1 = _cross(_sub(a0, b0), da), _cross(_sub(a0, b1), da)
-            x0, x1, dx = _sub(b0, d0), _sub(b1, d0), dd
-        m0, m1 = _dot(dx, n0), _dot(dx, n1)
-        scale = np.sqrt(_dot(dx, dx)) * max(np.sqrt(_dot(n0, n0)), np.sqrt(_dot(n1, n1)))
-        if m0 * m1 <= 0 or min(abs(m0), abs(m1)) <= 1e-9 * scale:
-            lo, hi = -np.inf, np.inf  # through a pole: unbounded
-        else:
-            v0, v1 = _dot(x0, n0) / m0, _dot(x1, n1) / m1
-            lo, hi = min(v0, v1), max(v0, v1)
-        box[2 * axis] = max(lo, -slack)
-        box[2 * axis + 1] = min(hi, 1.0 + slack)
+    s_lo, s_hi = _arc_range(_sub(b0, a0), _sub(b1, a0), da, _cross(_sub(d0, b0), dd), _cross(_sub(d0, b1), dd), slack)
+    t_lo, t_hi = _arc_range(_sub(b0, d0), _sub(b1, d0), dd, _cross(_sub(a0, b0), da), _cross(_sub(a0, b1), da), slack)
+    return s_lo, s_hi, t_lo, t_hi
+
+
+@njit(cache=True, nogil=True)
+def _arc_range(x0, x1, dx, n0, n1, slack):
+    """One side of :func:`_arc_box`: the range of x·n / dx·n between the ends of b
+    (x from the outer edge's origin to b's end, n the normal of the plane through
+    that end and the other outer edge), clipped to [-slack, 1 + slack]."""
+    m0, m1 = _dot(dx, n0), _dot(dx, n1)
+    scale = np.sqrt(_dot(dx, dx)) * max(np.sqrt(_dot(n0, n0)), np.sqrt(_dot(n1, n1)))
+    if m0 * m1 <= 0 or min(abs(m0), abs(m1)) <= 1e-9 * scale:
+        lo, hi = -np.inf, np.inf  # through a pole: unbounded
+    else:
+        v0, v1 = _dot(x0, n0) / m0, _dot(x1, n1) / m1
+        lo, hi = min(v0, v1), max(v0, v1)
+    return max(lo, -slack), min(hi, 1.0 + slack)
 
 
 @njit(cache=True, nogil=True)
 def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
-    """Whether a line meets segments a and d (at s, t), and segments b and c between
-    them, with the ε margins of validation. Conservative: True wherever the
-    closed form is ill-conditioned (a family of lines, a double root, a pole).
+    """The lines meeting segments a and d (at s, t), and segments b and c between
+    them, with the ε margins of validation.
+
+    Returns (n, s₀, t₀, s₁, t₁): the n ≤ 2 such lines found by the closed form, or
+    n = -1 (undecided: any line may) wherever it is ill-conditioned (a family of
+    lines, a double root, a pole).
 
     Solves f_b = f_c = 0 (bilinear): eliminating t gives
     Q(s) = (α_c + β_c s)(γ_b + δ_b s) - (α_b + β_b s)(γ_c + δ_c s) = 0; two
     well-separated roots are accurate to rounding."""
+    nan = np.nan
     q2 = fc[1] * fb[3] - fb[1] * fc[3]
     q1 = fc[0] * fb[3] + fc[1] * fb[2] - fb[0] * fc[3] - fb[1] * fc[2]
     q0 = fc[0] * fb[2] - fb[0] * fc[2]
     big = max(abs(q2), max(abs(q1), abs(q0)))
     if big <= 1e-8:
-        return True  # dependent conditions: leave it to the exact solver
+        return -1, nan, nan, nan, nan  # dependent conditions: leave it to the exact solver
     root0 = root1 = 0.0
     n = 0
     if abs(q2) <= 1e-8 * big:
         if abs(q1) <= 1e-8 * big:
-            return False  # Q is a non-zero constant
+            return 0, nan, nan, nan, nan  # Q is a non-zero constant
         root0 = -q0 / q1
         n = 1
     else:
         disc = q1 * q1 - 4 * q2 * q0
         if abs(disc) <= 1e-6 * (q1 * q1 + 4 * abs(q2 * q0)):
-            return True  # a (near) double root: its position is ill-conditioned
+            return -1, nan, nan, nan, nan  # a (near) double root: its position is ill-conditioned
         if disc < 0:
-            return False
+            return 0, nan, nan, nan, nan
         root = np.sqrt(disc)
         q = -0.5 * (q1 + (root if q1 >= 0 else -root))
         root0 = q / q2
         root1 = q0 / q
         n = 2
     ma, md = _margin(eps, np.sqrt(_dot(da, da))), _margin(eps, np.sqrt(_dot(dd, dd)))
+    found = 0
+    s_found, t_found = nan, nan
     for r in range(n):
         s = root0 if r == 0 else root1
         if not _within(s, ma):
             continue
         den_b, den_c = fb[2] + fb[3] * s, fc[2] + fc[3] * s
         if max(abs(den_b), abs(den_c)) <= 1e-6:
-            return True  # f_b and f_c (nearly) hold for every t at this s
+            # f_b and f_c hardly depend on t at this s, so Q vanishes here whatever
+            # the lines (a root of the elimination, not of the system: e.g. where a
+            # meets b while c and d are parallel). A line at s needs f = α + βs +
+            # den·t = 0 for both, |α + βs| ≤ 1e-6 |t|: a clearly non-zero one leaves
+            # no t in [-9, 10], also at the true root (within rounding of this one,
+            # α..δ being normalised); otherwise any t may do
+            if max(abs(fb[0] + fb[1] * s), abs(fc[0] + fc[1] * s)) > 1e-5:
+                continue
+            return -1, nan, nan, nan, nan
         if abs(den_b) >= abs(den_c):
             t = -(fb[0] + fb[1] * s) / den_b
         else:
@@ -951,34 +1063,40 @@ def _four_lines_meet(a0, da, d0, dd, fb, fc, b0, db, c0, dc, eps):
         A = _axpy(a0, s, da)
         D = _axpy(d0, t, dd)
         if _between(A, D, b0, db, eps) and _between(A, D, c0, dc, eps):
-            return True
-    return False
+            if found == 0:
+                s_found, t_found = s, t
+            found += 1
+    if found == 2:
+        return 2, s_found, t_found, s, t
+    return found, s_found, t_found, nan, nan
 
 
 @njit(cache=True, nogil=True)
-def _no_vee_line(p, line1, line2):
+def _no_vee_line(p, lines, e1, e2):
     """Whether :func:`viscx.geometry.lines.line_through_point_and_two_lines` finds no
-    line through point p meeting the Plücker lines (6,) because the normals of the
+    line through point p meeting the Plücker lines ``lines[e1]`` and ``lines[e2]`` (6,) because the normals of the
     planes through p and each line, m - p × d, have a cross product of exactly zero
     (its operations in its order, so the same floats): e.g. a vertex and two edges of
     the floor. Tiny non-zero products are left to it."""
-    n1 = _sub((line1[3], line1[4], line1[5]), _cross(p, (line1[0], line1[1], line1[2])))
-    n2 = _sub((line2[3], line2[4], line2[5]), _cross(p, (line2[0], line2[1], line2[2])))
+    n1 = _sub((lines[e1, 3], lines[e1, 4], lines[e1, 5]), _cross(p, (lines[e1, 0], lines[e1, 1], lines[e1, 2])))
+    n2 = _sub((lines[e2, 3], lines[e2, 4], lines[e2, 5]), _cross(p, (lines[e2, 0], lines[e2, 1], lines[e2, 2])))
     d = _cross(n1, n2)
     return d[0] == 0.0 and d[1] == 0.0 and d[2] == 0.0
 
 
 @njit(cache=True, nogil=True)
 def _scan_edge_pairs(
-    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
     all of them (exact filters, with slack).
 
     ``ev`` holds the edges' endpoints as positions in the vertex table, ``ed`` their
-    directions eb - ea, ``lines`` their Plücker lines (n_edges, 6). Returns VEE
-    rows (v, a, d) and E4 rows (a, b, c, d) unsorted, by position."""
+    directions eb - ea, ``lines`` their Plücker lines (n_edges, 6); ``e_off``,
+    ``e_items`` the grid of the edges, ``v_off``, ``v_items`` that of the vertices
+    without an edge (none in a scene of polygons). Returns VEE rows (v, a, d) and
+    E4 rows (a, b, c, d) unsorted, by position."""
     n_e = ev.shape[0]
     n_v = vx.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
@@ -997,28 +1115,42 @@ def _scan_edge_pairs(
     n_vee = 0
     n_quad = 0
     P = np.empty((4, 3))
+    axes = np.empty((16, 3))
+    hmin = np.empty(16)
+    hmax = np.empty(16)
     row3 = np.empty(3, dtype=np.int64)
     row4 = np.empty(4, dtype=np.int64)
+    # the outer generator points of a line, for Lemma 2 (:func:`_crosses_solid`)
+    ends = np.empty((2, 3))
+    ends_owner = np.empty(2, dtype=np.int64)
+    ends_t = np.array([0.0, 1.0])
     query = 0
     for a in first:
         a0, a1 = ev[a, 0], ev[a, 1]
-        pa, da = ea[a], ed[a]
+        pa, qa, da = _row(ea, a), _row(eb, a), _row(ed, a)
         len_a = np.sqrt(_dot(da, da))
         for d in range(a + 1, n_e):
             if _adjacent(ev, a, d):
                 continue
             d0, d1 = ev[d, 0], ev[d, 1]
-            if _edges_blocked(table, a0, a1, d0, d1):
+            if _blocked(blocked, a, d):
                 continue
-            if _pair_hidden(
-                ea[a], eb[a], ea[d], eb[d], True, sov[a0], sov[d0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
-            ):
+            pd, qd, dd = _row(ea, d), _row(eb, d), _row(ed, d)
+            if _pair_hidden(pa, qa, pd, qd, True, sov[a0], sov[d0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter):
                 continue
-            pd, dd = ea[d], ed[d]
             len_d = np.sqrt(_dot(dd, dd))
-            P[0], P[1], P[2], P[3] = vx[a0], vx[a1], vx[d0], vx[d1]
+            ends_owner[0], ends_owner[1] = sov[a0], sov[d0]
+            slack = POINT_SLACK * eps + PARAM_SLACK * max(len_a, len_d)
+            _set_row(P, 0, _row(vx, a0))
+            _set_row(P, 1, _row(vx, a1))
+            _set_row(P, 2, _row(vx, d0))
+            _set_row(P, 3, _row(vx, d1))
             query += 1
-            nv = _query(P, 4, tol, vx, vx, lo, cell, dims, v_off, v_items, v_stamp, query, v_out)
+            n_axes = _hull_setup(P, 4, axes, hmin, hmax)
+            ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, n_axes, hmin, hmax)
+            nv = _hull_vertices(e_out, ne, ev, vx, P, 4, tol, axes, n_axes, hmin, hmax, v_stamp, query, v_out)
+            if v_items.shape[0]:  # vertices without a generator edge
+                nv += _query(P, 4, tol, vx, vx, lo, cell, dims, v_off, v_items, v_stamp, query, v_out[nv:], axes, n_axes, hmin, hmax)
             for r in range(nv):
                 v = v_out[r]
                 if v == a0 or v == a1 or v == d0 or v == d1:
@@ -1026,21 +1158,28 @@ def _scan_edge_pairs(
                 if _vertex_edge_blocked(table, v, a0, a1) or _vertex_edge_blocked(table, v, d0, d1):
                     continue
                 # the line through v meeting lines a and d: inside both segments, v between
-                s, t = _through_point(vx[v], pa, da, pd, dd)
+                pv = _row(vx, v)
+                s, t = _through_point(pv, pa, da, pd, dd)
                 if not (_within(s, _margin(eps, len_a)) and _within(t, _margin(eps, len_d))):
                     continue
                 if not (np.isnan(s) or np.isnan(t)):
                     A = _axpy(pa, s, da)
-                    AD = _sub(_axpy(pd, t, dd), A)
+                    D = _axpy(pd, t, dd)
+                    AD = _sub(D, A)
                     dad = _dot(AD, AD)
-                    if dad > 0 and not _within(_dot(_sub(vx[v], A), AD) / dad, _margin(eps, np.sqrt(dad))):
+                    if dad > 0 and not _within(_dot(_sub(pv, A), AD) / dad, _margin(eps, np.sqrt(dad))):
                         continue
-                if _no_vee_line(vx[v], lines[a], lines[d]):
+                    # Lemma 2 on the line: a, d foreign to a solid whose inner copy [A, D] crosses
+                    _set_row(ends, 0, A)
+                    _set_row(ends, 1, D)
+                    s_counter[0] += 1
+                    if _crosses_solid(ends, ends_owner, ends_t, s_counter[0], s_stamp, slack, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items):
+                        continue
+                if _no_vee_line(pv, lines, a, d):
                     continue
                 row3[0], row3[1], row3[2] = v, a, d
                 vee = _push(vee, n_vee, row3)
                 n_vee += 1
-            ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
             coplanar = _coplanar(pa, da, pd, dd)
             # inner edge candidates and their arcs in the (s, t) square of lines meeting a and d
             m = 0
@@ -1048,43 +1187,59 @@ def _scan_edge_pairs(
                 b = e_out[r]
                 if b == a or b == d or _adjacent(ev, a, b) or _adjacent(ev, b, d):
                     continue
-                b0, b1 = ev[b, 0], ev[b, 1]
-                if _edges_blocked(table, a0, a1, b0, b1) or _edges_blocked(table, b0, b1, d0, d1):
+                if _blocked(blocked, a, b) or _blocked(blocked, b, d):
                     continue
-                bx = box[m]
-                _arc_box(pa, da, pd, dd, ea[b], ed[b], 1e-6, bx)
-                if bx[0] > bx[1] or bx[2] > bx[3]:
+                pb, db = _row(ea, b), _row(ed, b)
+                arc = _arc_box(pa, da, pd, dd, pb, db, 1e-6)
+                if arc[0] > arc[1] or arc[2] > arc[3]:
                     continue
                 # b in the plane of a and d: three coplanar lines, so with any fourth
                 # the solutions form a family or there are none (module docstring)
-                if _side_coefficients(pa, da, pd, dd, ea[b], ed[b], coef[m]):
+                in_plane, f = _side_coefficients(pa, da, pd, dd, pb, db)
+                if in_plane:
                     continue
                 # a and d coplanar: every line meeting both lies in their plane and
                 # meets b where b crosses it; near b's end that is no node
-                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, ea[b], ed[b], eps):
+                if coplanar and _crosses_plane_at_end(pa, da, pd, dd, pb, db, eps):
                     continue
                 inner[m] = b
-                with_a[m] = _coplanar(pa, da, ea[b], ed[b])
-                with_d[m] = _coplanar(pd, dd, ea[b], ed[b])
+                box[m, 0], box[m, 1], box[m, 2], box[m, 3] = arc
+                coef[m, 0], coef[m, 1], coef[m, 2], coef[m, 3] = f
+                with_a[m] = _coplanar(pa, da, pb, db)
+                with_d[m] = _coplanar(pd, dd, pb, db)
                 m += 1
             for i in range(m):
                 b = inner[i]
-                b0, b1 = ev[b, 0], ev[b, 1]
+                pb, db, fb = _row(ea, b), _row(ed, b), _row4(coef, i)
                 for j in range(i + 1, m):
                     if box[j, 0] > box[i, 1] or box[i, 0] > box[j, 1] or box[j, 2] > box[i, 3] or box[i, 2] > box[j, 3]:
                         continue
                     c = inner[j]
                     if _adjacent(ev, b, c):
                         continue
-                    c0, c1 = ev[c, 0], ev[c, 1]
-                    if _edges_blocked(table, b0, b1, c0, c1):
+                    if _blocked(blocked, b, c):
                         continue
+                    pc, dc = _row(ea, c), _row(ed, c)
                     # three pairwise coplanar lines (in one plane, or through one
                     # point): a family of solutions or none (module docstring)
-                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(ea[b], ed[b], ea[c], ed[c]):
+                    if ((with_a[i] and with_a[j]) or (with_d[i] and with_d[j])) and _coplanar(pb, db, pc, dc):
                         continue
-                    if not _four_lines_meet(pa, da, pd, dd, coef[i], coef[j], ea[b], ed[b], ea[c], ed[c], eps):
+                    n_lines, s0, t0, s1, t1 = _four_lines_meet(pa, da, pd, dd, fb, _row4(coef, j), pb, db, pc, dc, eps)
+                    if n_lines == 0:
                         continue
+                    if n_lines > 0:
+                        # Lemma 2 on each line: a, d foreign to a solid whose inner copy
+                        # [A, D] crosses (with the slack of the closed form)
+                        all_blocked = True
+                        for r in range(n_lines):
+                            _set_row(ends, 0, _axpy(pa, s0 if r == 0 else s1, da))
+                            _set_row(ends, 1, _axpy(pd, t0 if r == 0 else t1, dd))
+                            s_counter[0] += 1
+                            if not _crosses_solid(ends, ends_owner, ends_t, s_counter[0], s_stamp, slack, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items):
+                                all_blocked = False
+                                break
+                        if all_blocked:
+                            continue
                     row4[0], row4[1], row4[2], row4[3] = a, b, c, d
                     quad = _push(quad, n_quad, row4)
                     n_quad += 1
@@ -1093,7 +1248,7 @@ def _scan_edge_pairs(
 
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
-    first, ev, ea, eb, ed, lines, vx, table, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
@@ -1107,39 +1262,57 @@ def _scan_vertex_edges(
     vee = np.empty((1024, 3), dtype=np.int64)
     n_vee = 0
     P = np.empty((4, 3))
+    axes = np.empty((16, 3))
+    hmin = np.empty(16)
+    hmax = np.empty(16)
     row3 = np.empty(3, dtype=np.int64)
+    # the outer generator points of a line, for Lemma 2 (:func:`_crosses_solid`)
+    ends = np.empty((2, 3))
+    ends_owner = np.empty(2, dtype=np.int64)
+    ends_t = np.array([0.0, 1.0])
     query = 0
     for v in first:
-        pv = vx[v]
+        pv = _row(vx, v)
         for e in range(n_e):
             e0, e1 = ev[e, 0], ev[e, 1]
             if e0 == v or e1 == v or _vertex_edge_blocked(table, v, e0, e1):
                 continue
-            if _pair_hidden(
-                pv, pv, ea[e], eb[e], False, sov[v], sov[e0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter
-            ):
+            pe, qe, de = _row(ea, e), _row(eb, e), _row(ed, e)
+            if _pair_hidden(pv, pv, pe, qe, False, sov[v], sov[e0], s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items, s_stamp, s_counter):
                 continue
-            pe, de = ea[e], ed[e]
-            P[0], P[1], P[2] = pv, vx[e0], vx[e1]
+            ends_owner[0], ends_owner[1] = sov[v], sov[e0]
+            slack = POINT_SLACK * eps + PARAM_SLACK * np.sqrt(_dot(de, de))
+            _set_row(P, 0, pv)
+            _set_row(P, 1, _row(vx, e0))
+            _set_row(P, 2, _row(vx, e1))
             query += 1
-            ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out)
+            n_axes = _hull_setup(P, 3, axes, hmin, hmax)
+            ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, n_axes, hmin, hmax)
             for r in range(ne):
                 b = e_out[r]
                 b0, b1 = ev[b, 0], ev[b, 1]
                 if b == e or b0 == v or b1 == v or _adjacent(ev, b, e):
                     continue
-                if _vertex_edge_blocked(table, v, b0, b1) or _edges_blocked(table, b0, b1, e0, e1):
+                if _vertex_edge_blocked(table, v, b0, b1) or _blocked(blocked, b, e):
                     continue
                 # lines through v meeting e at e(t) meet line b where v, e(t), b are
                 # coplanar: (e(t) - v) · n_b = 0 with n_b the normal of plane (v, b)
-                pb, db = ea[b], ed[b]
+                pb, db = _row(ea, b), _row(ed, b)
                 n_b = _cross(_sub(pb, pv), db)
                 t = _ratio(-_dot(_sub(pe, pv), n_b), _dot(de, n_b), np.sqrt(_dot(de, de) * _dot(n_b, n_b)))
                 if not _within(t, _margin(eps, np.sqrt(_dot(de, de)))):
                     continue
-                if not np.isnan(t) and not _between(pv, _axpy(pe, t, de), pb, db, eps):
-                    continue
-                if _no_vee_line(pv, lines[b], lines[e]):
+                if not np.isnan(t):
+                    E = _axpy(pe, t, de)
+                    if not _between(pv, E, pb, db, eps):
+                        continue
+                    # Lemma 2 on the line: v, e foreign to a solid whose inner copy [v, E] crosses
+                    _set_row(ends, 0, pv)
+                    _set_row(ends, 1, E)
+                    s_counter[0] += 1
+                    if _crosses_solid(ends, ends_owner, ends_t, s_counter[0], s_stamp, slack, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items):
+                        continue
+                if _no_vee_line(pv, lines, b, e):
                     continue
                 row3[0], row3[1], row3[2] = v, b, e
                 vee = _push(vee, n_vee, row3)
@@ -1200,13 +1373,13 @@ def _loose_lines(origins, directions, vertex_ids, edge_ids, vertices, ev, eps, s
     stamp = np.full(max(plane_offsets.shape[0] - 1, 1), -1, dtype=np.int64)
     has_solids = planes.shape[0] > 0
     for i in range(m):
-        o, raw = origins[i], directions[i]
+        o, raw = _row(origins, i), _row(directions, i)
         d = _div(raw, np.sqrt(_dot(raw, raw)))
         if d[0] + 1e-3 * d[1] + 1e-6 * d[2] < 0:
             d = (-d[0], -d[1], -d[2])
         good = True
         for j in range(n_v):
-            x = vertices[vertex_ids[i, j]]
+            x = _row(vertices, vertex_ids[i, j])
             w = _sub(x, o)
             c = _cross(w, d)
             if not np.sqrt(_dot(c, c)) <= 2 * eps:
@@ -1216,7 +1389,7 @@ def _loose_lines(origins, directions, vertex_ids, edge_ids, vertices, ev, eps, s
             owner[j] = solid_of_vertex[vertex_ids[i, j]]
             t[j] = _dot(w, d)
         for j in range(n_e if good else 0):
-            a, b = vertices[ev[edge_ids[i, j], 0]], vertices[ev[edge_ids[i, j], 1]]
+            a, b = _row(vertices, ev[edge_ids[i, j], 0]), _row(vertices, ev[edge_ids[i, j], 1])
             e, w = _sub(b, a), _sub(a, o)
             aa, bb, cc, dw, ew = _dot(d, d), _dot(d, e), _dot(e, e), _dot(d, w), _dot(e, w)
             den = aa * cc - bb * bb
@@ -1241,13 +1414,13 @@ def _loose_lines(origins, directions, vertex_ids, edge_ids, vertices, ev, eps, s
             if not ts[j + 1] - ts[j] > 0.5 * eps:
                 good = False
         if good and has_solids:
-            good = not _crosses_solid(points, owner, t, i, stamp, plane_offsets, planes, lo, cell, dims, offsets, items)
+            good = not _crosses_solid(points, owner, t, i, stamp, 0.0, plane_offsets, planes, lo, cell, dims, offsets, items)
         ok[i] = good
     return ok
 
 
 @njit(cache=True, nogil=True)
-def _crosses_solid(points, owner, t, stamp_id, stamp, plane_offsets, planes, lo, cell, dims, offsets, items):
+def _crosses_solid(points, owner, t, stamp_id, stamp, margin, plane_offsets, planes, lo, cell, dims, offsets, items):
     """Whether, for some blocking solid, the generator points of a line that are
     foreign to it and outermost along the line are joined across its inner copy.
     Lemma 2 on one line: then the line is no node. Conservative (the solids are
@@ -1263,6 +1436,9 @@ def _crosses_solid(points, owner, t, stamp_id, stamp, plane_offsets, planes, lo,
         Their parameters along the line.
     stamp_id, stamp
         ``stamp`` marks solids already tried for this line (``stamp_id``).
+    margin : float
+        The solids' planes are moved inwards by this much (0: the inner copies
+        themselves).
     plane_offsets, planes, lo, cell, dims, offsets, items
         :meth:`_SolidGrid.args`.
     """
@@ -1274,8 +1450,8 @@ def _crosses_solid(points, owner, t, stamp_id, stamp, plane_offsets, planes, lo,
             first = j
         if t[j] > t[last]:
             last = j
-    P = points[first]
-    span = _sub(points[last], P)
+    P = _row(points, first)
+    span = _sub(_row(points, last), P)
     steps = int(np.sqrt(_dot(span, span)) / small) + 1
     for step in range(steps + 1):
         X = _axpy(P, step / steps, span)
@@ -1292,7 +1468,7 @@ def _crosses_solid(points, owner, t, stamp_id, stamp, plane_offsets, planes, lo,
                         x = g
                     if y < 0 or t[g] > t[y]:
                         y = g
-            if x >= 0 and x != y and _segment_meets_solid(points[x], points[y], solid, plane_offsets, planes):
+            if x >= 0 and x != y and _segment_meets_solid(_row(points, x), _row(points, y), solid, plane_offsets, planes, margin):
                 return True
     return False
 
@@ -1372,13 +1548,18 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     hi = vx.max(axis=0) + HULL_TOL * eps
     ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
     ed = eb - ea
+    blocked = _edge_pairs_blocked(table, ev)
     # Plücker lines of the generator edges, once (the same floats as per tuple)
     lines = edge_lines(scene, ge)
     line_of = np.zeros((len(ev_all), 6))
     line_of[ge] = lines
     grid = _Grid(lo, hi, len(ge) / 2)
     e_off, e_items = grid.fill(ea, eb)
-    v_off, v_items = grid.fill(vx, vx)
+    # the E4 scan finds the vertices in a hull through their edges; those without
+    # one (free points made generators) have a grid of their own
+    lone = np.setdiff1d(np.arange(len(gv)), ev.ravel())
+    v_off, v_items = grid.fill(vx[lone], vx[lone])
+    v_items = lone[v_items]
     tol = HULL_TOL * eps + 1e-12 * scene.diagonal
 
     # VEE with the vertex at an end: (v, e) pairs and the edges in their triangle
@@ -1387,7 +1568,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1402,7 +1583,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (ev, ea, eb, ed, lines, vx, table, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1479,13 +1660,11 @@ def _pack(out):
 def validate_in_chunks(scene, kind, generators, origins, directions, chunk=VALIDATE_CHUNK):
     """:func:`viscx.skeleton.nodes.validate_candidates` over chunks of candidates
     (each candidate is judged on its own, so the result is the same; memory stays
-    bounded). Parameters as there."""
+    bounded), sorted once. Parameters as there."""
     parts = [
-        validate_candidates(scene, kind[i : i + chunk], generators[i : i + chunk], origins[i : i + chunk], directions[i : i + chunk])
+        nodes_among(scene, kind[i : i + chunk], generators[i : i + chunk], origins[i : i + chunk], directions[i : i + chunk])
         for i in range(0, len(kind), chunk)
     ]
-    if len(parts) == 1:
-        return parts[0]
     if not parts:
         return validate_candidates(scene, kind, generators, origins, directions)
     merged = Nodes(**{name: np.concatenate([getattr(p, name) for p in parts]) for name in Nodes.__dataclass_fields__})

@@ -58,6 +58,14 @@ strictly inside e1 (a T-junction) adds the segment x1 = s_w, the VE arc (w, e2):
 tangency at e1 changes across the lines through w (degenerate scenes;
 :func:`arc_squares`).
 
+Where the lines through w hold no segment but the lines next to them do, the side
+has no VE arc, yet the cell inside reaches it (boxes_on_floor, two edges of one
+box: the side's lines lie on a face of the box, grazing, while the lines through
+the box next to them are segments from edge to edge). Such a piece of a side is a
+boundary element of its own kind, a *square side* (:func:`square_sides`): the
+parts of the sides that no VE arc of the square covers, cut where the other
+elements of the square end on them, each bounding the cell its inner probe finds.
+
 Which side gets which pair is found like the VE half-cells' (arcs.py): the
 arc's middle point of the square is moved off the arc, across it on each side,
 by 50 epsilon along the edges, and that line is judged. A side whose line is
@@ -69,7 +77,11 @@ that its cell lies on its left in the (x1, x2) plane (x1 to the right, x2 up):
 ``+(a + 1)`` runs along arc a with s increasing (cell on its left), ``-(a + 1)``
 with s decreasing (cell on the left of that, i.e. on the right of s
 increasing); an element runs along an arc piece, ``element_interval`` in the
-stored cells. Along an element each coordinate is a linear-fractional function
+stored cells. A square side's element (kind SIDE) is ``±(k + 1)`` for side k
+(SIDE_CODES: 0 is x1 = 0, 1 is x1 = 1, 2 is x2 = 0, 3 is x2 = 1), its parameter t
+the side's other coordinate, + with t increasing: the piece of the VE family
+(w, e) of the side (w the endpoint of the edge held constant, e the other edge,
+s = t) over which V1 has no arc. Along an element each coordinate is a linear-fractional function
 of the arc's parameter, stored as a rational linear Bézier curve: coordinate
 c(u) = ((1 - u)(1 - w) c0 + u w c1) / ((1 - u)(1 - w) + u w) for u ∈ [0, 1]
 with c0, c1 the element's ends and w fixed by the middle sample
@@ -122,6 +134,8 @@ from viscx.skeleton.vcells import TURNING_DECIMALS, _signed_angle, cells_of_loop
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
+#: ... and this many in the squares whose loops stayed open with PROBE (:func:`_squares_cells`).
+FINE_PROBE = 5
 #: Ends of two elements closer than this many epsilon (along the edges) are one point of
 #: the square: V1 merges events 4 epsilon apart along an edge.
 JOIN_TOLERANCE = 8
@@ -139,6 +153,13 @@ COVER_TOLERANCE = 1e-6
 BLOCKER_CHUNK = 1 << 20
 #: Clamp of the Bézier weights (a coordinate constant along its element has w = 1/2).
 _W_MIN = 1e-12
+#: Kinds of boundary element: a piece of a V1 arc; V2's own segments of the square (a
+#: side; a pencil x1 = c, the lines through e1(c) in the plane of e2 and a third edge;
+#: a pencil x2 = c likewise), where V1 has no arc (:func:`segment_pieces`).
+ARC, SIDE, PENCIL1, PENCIL2 = 0, 1, 2, 3
+#: Sides of the square, code k = 2 * (coordinate held constant) + (its value):
+#: x1 = 0, x1 = 1, x2 = 0, x2 = 1.
+SIDE_CODES = {"x1=0": 0, "x1=1": 1, "x2=0": 2, "x2=1": 3}
 
 # slot layout of an EE line for maximal_free_segments: two edges
 _EE_SLOTS = np.array([[False] * 4])
@@ -168,12 +189,18 @@ class EECells:
     element_offsets : (l + 1,) int
     element : (k,) int
         Signed arc id: +(a + 1) runs along V1 arc a with s increasing, the cell
-        on its left in the (x1, x2) plane; -(a + 1) with s decreasing.
+        on its left in the (x1, x2) plane; -(a + 1) with s decreasing. For a square
+        side (``element_kind`` SIDE) the signed side code ±(k + 1) (SIDE_CODES), +
+        with the side's free coordinate increasing.
+    element_kind : (k,) int8
+        ARC or SIDE.
     element_interval : (k, 2) float
         The piece [s0, s1] of the arc's interval the element runs along: the arc's
-        own, but for a VE arc on the square's side cut where other arcs end on it.
+        own, but for a VE arc on the square's side cut where other arcs end on it;
+        for a square side the piece [t0, t1] of its free coordinate.
     open_offsets : (o + 1,) int
     open_element : (m,) int
+    open_element_kind : (m,) int8
     open_interval : (m, 2) float
     open_edge1, open_edge2, open_back_kind, open_back, open_front_kind, open_front : (o,) int
         The group of each chain that did not close.
@@ -191,9 +218,11 @@ class EECells:
     turning: np.ndarray
     element_offsets: np.ndarray
     element: np.ndarray
+    element_kind: np.ndarray
     element_interval: np.ndarray
     open_offsets: np.ndarray
     open_element: np.ndarray
+    open_element_kind: np.ndarray
     open_interval: np.ndarray
     open_edge1: np.ndarray
     open_edge2: np.ndarray
@@ -459,7 +488,10 @@ class Elements:
 
     Attributes
     ----------
+    kind : (k,) int8
+        ARC or SIDE (a piece of a side of the square, :func:`square_sides`).
     arc : (k,) int
+        The V1 arc, or the side's code (SIDE_CODES).
     side : (k,) int
         0: left of the arc run with s increasing (element +(a + 1)), 1: right (-(a + 1)).
     e1, e2 : (k,) int
@@ -476,6 +508,7 @@ class Elements:
         Unit direction of travel (t1, t2, 0) there.
     """
 
+    kind: np.ndarray
     arc: np.ndarray
     side: np.ndarray
     e1: np.ndarray
@@ -494,20 +527,28 @@ class Elements:
     def take(self, index):
         return Elements(**{name: getattr(self, name)[index] for name in self.__dataclass_fields__})
 
+    @staticmethod
+    def concatenate(parts):
+        return Elements(**{name: np.concatenate([getattr(p, name) for p in parts]) for name in Elements.__dataclass_fields__})
+
     @property
     def signed(self):
         """(k,) int: +(a + 1) on the arc's left, -(a + 1) on its right."""
         return np.where(self.side == 0, 1, -1) * (self.arc + 1)
 
 
-def _curves(scene, arcs, arc, e1, e2, interval):
+def _curves(scene, arcs, arc, e1, e2, interval, kind=None):
     """Each arc piece's curve in its square, run with s increasing.
 
     Parameters
     ----------
     arc, e1, e2 : (k,) int
+        The arc, or for V2's own segments (kinds SIDE, PENCIL1, PENCIL2) its identity
+        (:func:`segment_lines`).
     interval : (k, 2) float
-        The piece [s0, s1] of each arc's interval.
+        The piece [s0, s1] of each arc's interval (a segment's: of its free coordinate).
+    kind : (k,) int, optional
+        ARC (default) or a segment's kind.
 
     Returns
     -------
@@ -516,6 +557,40 @@ def _curves(scene, arcs, arc, e1, e2, interval):
     weight : (k, 2) float
         Bézier weight of each coordinate (module docstring).
     """
+    if kind is None or np.all(kind == ARC):
+        return _arc_curves(scene, arcs, arc, e1, e2, interval)
+    seg, rest = np.flatnonzero(kind != ARC), np.flatnonzero(kind == ARC)
+    axis, value = segment_lines(scene, kind[seg], arc[seg], e1[seg], e2[seg])
+    out = [np.empty((len(arc), 2)) for _ in range(4)]
+    for rows, part in ((seg, _segment_curves(axis, value, interval[seg])),
+                       (rest, _arc_curves(scene, arcs, arc[rest], e1[rest], e2[rest], interval[rest]))):
+        for o, p in zip(out, part):
+            o[rows] = p
+    return tuple(out)
+
+
+def _segment_curves(axis, value, interval):
+    """Segments x_axis = value of the square as :func:`_curves` gives arcs: the other
+    coordinate runs from t0 to t1 (weights 1/2).
+
+    Parameters
+    ----------
+    axis : (k,) int
+        The coordinate held constant (0: x1, 1: x2).
+    value : (k,) float
+    interval : (k, 2) float
+    """
+    rows = np.arange(len(axis))
+    pts = []
+    for t in (interval[:, 0], 0.5 * (interval[:, 0] + interval[:, 1]), interval[:, 1]):
+        p = np.empty((len(axis), 2))
+        p[rows, axis], p[rows, 1 - axis] = value, t
+        pts.append(p)
+    return (*pts, np.full((len(axis), 2), 0.5))
+
+
+def _arc_curves(scene, arcs, arc, e1, e2, interval):
+    """:func:`_curves` of V1 arcs."""
     s0, s1 = interval[:, 0], interval[:, 1]
     pts = []
     for s in (s0, 0.5 * (s0 + s1), s1):
@@ -563,26 +638,35 @@ def _lift(p):
     return np.concatenate([p, np.ones((len(p), 1))], axis=1)
 
 
-def element_geometry(scene, arcs, arc, side, e1, e2, pair, interval):
+def element_geometry(scene, arcs, arc, side, e1, e2, pair, interval, kind=None, curves=None):
     """The boundary elements of the given arc sides in the given squares.
 
     Parameters
     ----------
     arc, side, e1, e2 : (k,) int
+        The arc (a square side's code for kind SIDE), which side of it.
     pair : (k, 4) int
     interval : (k, 2) float
         The piece of each arc's parameter interval the element runs along.
+    kind : (k,) int, optional
+        ARC (default) or a segment's kind.
+    curves : tuple, optional
+        Their :func:`_curves`, if known.
 
     Returns
     -------
     Elements
     """
     arc, side = np.asarray(arc, np.int64), np.asarray(side, np.int64)
+    kind = np.full(len(arc), ARC, np.int8) if kind is None else np.asarray(kind, np.int8)
     interval = np.asarray(interval, np.float64).reshape(-1, 2)
-    start, _, end, w = _curves(scene, arcs, arc, np.asarray(e1, np.int64), np.asarray(e2, np.int64), interval)
+    if curves is None:
+        curves = _curves(scene, arcs, arc, np.asarray(e1, np.int64), np.asarray(e2, np.int64), interval, kind)
+    start, _, end, w = curves
     t0, t1 = _bezier_tangents(start, end, w)
     rev = side == 1
     return Elements(
+        kind=kind,
         arc=arc,
         side=side,
         e1=np.asarray(e1, np.int64),
@@ -597,7 +681,7 @@ def element_geometry(scene, arcs, arc, side, e1, e2, pair, interval):
     )
 
 
-def side_pairs(scene, arcs, arc, e1, e2, interval):
+def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curves=None):
     """Blocker pairs of the cells on both sides of each arc in its square, by probes.
 
     The arc's middle point is moved across it, to each side along the curve's normal,
@@ -608,6 +692,12 @@ def side_pairs(scene, arcs, arc, e1, e2, interval):
     ----------
     arc, e1, e2 : (k,) int
     interval : (k, 2) float
+    kind : (k,) int, optional
+        ARC (default) or a segment's kind (``arc`` is then its identity).
+    probe : float
+        How many epsilon the probes move.
+    curves : tuple, optional
+        The pieces' :func:`_curves`, if known.
 
     Returns
     -------
@@ -617,7 +707,7 @@ def side_pairs(scene, arcs, arc, e1, e2, interval):
     bounds : (k, 2) bool
         Whether that side bounds a cell (its probe is valid, the other side's pair differs).
     """
-    start, middle, end, w = _curves(scene, arcs, arc, e1, e2, interval)
+    start, middle, end, w = _curves(scene, arcs, arc, e1, e2, interval, kind) if curves is None else curves
     t0, t1 = _bezier_tangents(start, end, w)
     # tangent at u = 1/2 of the Bézier curve: w0 w1 (c1 - c0) / (1/2)^2 up to a positive factor
     tangent = (end - start) * w * (1 - w)
@@ -628,7 +718,7 @@ def side_pairs(scene, arcs, arc, e1, e2, interval):
     a2, b2 = _edge_ends(scene, e2)
     length = np.stack([np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1)], axis=1)
     # move by PROBE epsilon along the edge that moves most
-    step = PROBE * scene.epsilon / np.max(np.abs(left) * length, axis=1)
+    step = probe * scene.epsilon / np.max(np.abs(left) * length, axis=1)
     raw = np.concatenate([middle + step[:, None] * left, middle - step[:, None] * left])
     probes = np.clip(raw, 0.0, 1.0)
     k = len(arc)
@@ -642,10 +732,11 @@ def side_pairs(scene, arcs, arc, e1, e2, interval):
     return pairs, bounds
 
 
-def side_pieces(scene, arcs, arc, e1, e2):
+def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     """The arc pieces of each square: every arc whole, but VE arcs (the square's sides,
     and the segments x' = s_w of a junction vertex w) and XE arcs (the segments x' = s_X
-    of a crossing point) cut where another arc of the square ends on them.
+    of a crossing point) cut where another arc of the square ends on them, and where
+    V2's own segments of the square (if given) cross them.
 
     A VE arc (w, e2) has no event where the lines through e1 next to w change: e.g. a
     pencil of a face of e1 at w (tangency at e1 flips across it) ends on the side at
@@ -658,6 +749,8 @@ def side_pieces(scene, arcs, arc, e1, e2):
     ----------
     arc, e1, e2 : (k,) int
         Arc-square incidences (:func:`arc_squares`).
+    segments : Segments, optional
+        V2's segments of these squares (:func:`open_segments`).
 
     Returns
     -------
@@ -678,55 +771,449 @@ def side_pieces(scene, arcs, arc, e1, e2):
     owner = np.concatenate([eee, eee])
     order = np.argsort(pair_key[owner], kind="stable")
     ends, owner = ends[order], owner[order]
-    end_key = pair_key[owner]
-    lo = np.searchsorted(end_key, pair_key[ve], "left")
-    rows, at = expand_ranges(lo, np.searchsorted(end_key, pair_key[ve], "right") - lo)
+    rows, at = _same_square(pair_key[owner], pair_key[ve])
     c = const[rows]
     on = np.abs(ends[at, c] - value[rows]) <= tol[owner[at]]
-    rows, pos = rows[on], ends[at[on], 1 - c[on]]
-    # for each VE row, the cuts strictly inside its interval (farther than tol from its ends)
-    s0, s1, t = interval[ve, 0], interval[ve, 1], tol[ve]
-    inner = (pos > s0[rows] + t[rows]) & (pos < s1[rows] - t[rows])
-    rows, pos = rows[inner], pos[inner]
-    # merge cuts closer than tol, then pieces between consecutive cut points
-    rows_all = np.concatenate([np.arange(len(ve)), rows, np.arange(len(ve))])
-    pos_all = np.concatenate([s0, pos, s1])
-    order = np.lexsort([pos_all, rows_all])
-    rows_all, pos_all = rows_all[order], pos_all[order]
-    keep = np.ones(len(rows_all), bool)
-    keep[1:] = (rows_all[1:] != rows_all[:-1]) | (pos_all[1:] - pos_all[:-1] > t[rows_all[1:]])
-    last = np.ones(len(rows_all), bool)
-    last[:-1] = rows_all[1:] != rows_all[:-1]
-    keep[last] = True  # always keep each row's s1
-    rows_all, pos_all = rows_all[keep], pos_all[keep]
-    nxt = np.flatnonzero(rows_all[1:] == rows_all[:-1])
-    piece_row = ve[rows_all[nxt]]
-    piece_interval = np.stack([pos_all[nxt], pos_all[nxt + 1]], axis=1)
-    nonempty = piece_interval[:, 1] > piece_interval[:, 0]
-    piece_row, piece_interval = piece_row[nonempty], piece_interval[nonempty]
-    rows = np.concatenate([eee, piece_row])
+    cut_row, cut_pos = [rows[on]], [ends[at[on], 1 - c[on]]]
+    if segments is not None:
+        # V2's segments of the other coordinate cross the row where their coordinate is theirs
+        rows, at = _same_square(segments.e1 * (1 << 32) + segments.e2, pair_key[ve])
+        across = segments.axis[at] != const[rows]
+        cut_row.append(rows[across])
+        cut_pos.append(segments.value[at[across]])
+    piece_row, piece_interval = _cut_intervals(interval[ve], tol[ve], np.concatenate(cut_row), np.concatenate(cut_pos))
+    rows = np.concatenate([eee, ve[piece_row]])
     ivl = np.concatenate([interval[eee], piece_interval])
     order = np.lexsort([ivl[:, 0], arc[rows], e2[rows], e1[rows]])
     rows, ivl = rows[order], ivl[order]
     return arc[rows], e1[rows], e2[rows], ivl
 
 
-def boundary_elements(scene, arcs, squares=None):
-    """Every boundary element of every square, sorted by (e1, e2, arc, interval, side).
+def _same_square(sorted_key, key):
+    """Every (i, j) with sorted_key[j] == key[i] ((m,) int each, sorted_key ascending)."""
+    lo = np.searchsorted(sorted_key, key, "left")
+    return expand_ranges(lo, np.searchsorted(sorted_key, key, "right") - lo)
+
+
+def _cut_intervals(interval, tol, rows, pos):
+    """Intervals cut at points: the pieces between consecutive cuts.
+
+    Parameters
+    ----------
+    interval : (n, 2) float
+        [s0, s1] each.
+    tol : (n,) float
+        Cuts closer than this to an end or to each other are one point (the end wins).
+    rows, pos : (m,) int, (m,) float
+        Cut points: the interval and the position in it.
+
+    Returns
+    -------
+    piece_row : (p,) int
+        The interval each piece comes from, in order of the intervals, then of s.
+    piece_interval : (p, 2) float
+    """
+    s0, s1 = interval[:, 0], interval[:, 1]
+    # the cuts strictly inside their interval (farther than tol from its ends)
+    inner = (pos > s0[rows] + tol[rows]) & (pos < s1[rows] - tol[rows])
+    rows, pos = rows[inner], pos[inner]
+    # merge cuts closer than tol, then pieces between consecutive cut points
+    rows_all = np.concatenate([np.arange(len(s0)), rows, np.arange(len(s0))])
+    pos_all = np.concatenate([s0, pos, s1])
+    order = np.lexsort([pos_all, rows_all])
+    rows_all, pos_all = rows_all[order], pos_all[order]
+    keep = np.ones(len(rows_all), bool)
+    keep[1:] = (rows_all[1:] != rows_all[:-1]) | (pos_all[1:] - pos_all[:-1] > tol[rows_all[1:]])
+    last = np.ones(len(rows_all), bool)
+    last[:-1] = rows_all[1:] != rows_all[:-1]
+    keep[last] = True  # always keep each row's s1
+    rows_all, pos_all = rows_all[keep], pos_all[keep]
+    nxt = np.flatnonzero(rows_all[1:] == rows_all[:-1])
+    piece_interval = np.stack([pos_all[nxt], pos_all[nxt + 1]], axis=1)
+    nonempty = piece_interval[:, 1] > piece_interval[:, 0]
+    return rows_all[nxt][nonempty], piece_interval[nonempty]
+
+
+# --------------------------------------------------------------------------------------
+# V2's own segments: boundaries of a square that are no V1 arc (degenerate scenes)
+
+
+@dataclass
+class Segments:
+    """Candidate boundaries of some squares that V1 may lack: segments x_axis = value right
+    across the square (:func:`open_segments`), sorted by (e1, e2, axis, value).
+
+    Attributes
+    ----------
+    kind : (n,) int8
+        SIDE, PENCIL1 (x1 constant) or PENCIL2 (x2 constant).
+    ident : (n,) int
+        The side's code (SIDE_CODES), or the pencil's third edge.
+    e1, e2 : (n,) int
+        The square.
+    axis : (n,) int
+        The coordinate held constant: 0 (x1) or 1 (x2).
+    value : (n,) float
+        Its value (:func:`segment_lines`).
+    """
+
+    kind: np.ndarray
+    ident: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    axis: np.ndarray
+    value: np.ndarray
+
+    def take(self, index):
+        return Segments(**{name: getattr(self, name)[index] for name in self.__dataclass_fields__})
+
+
+def segment_lines(scene, kind, ident, e1, e2):
+    """The line of the square each of V2's segments lies on.
+
+    A side k holds coordinate k // 2 at k % 2 (SIDE_CODES). A pencil is the lines through
+    a point P of one edge of the square lying in the plane of the other edge and a third
+    edge coplanar with it (PENCIL1: P = e1(c), the plane of e2 and the third edge, the
+    segment x1 = c; PENCIL2: P = e2(c), x2 = c); c by :func:`pencil_value`.
+
+    Parameters
+    ----------
+    kind : (k,) int
+    ident : (k,) int
+        Side code or third edge.
+    e1, e2 : (k,) int
+
+    Returns
+    -------
+    axis : (k,) int
+    value : (k,) float
+    """
+    kind, ident = np.asarray(kind), np.asarray(ident, np.int64)
+    side = kind == SIDE
+    axis = np.where(side, ident // 2, kind - PENCIL1)
+    value = (ident % 2).astype(np.float64)
+    p = np.flatnonzero(~side)
+    if len(p):
+        on1 = axis[p] == 0
+        value[p] = pencil_value(scene, np.where(on1, e1[p], e2[p]), np.where(on1, e2[p], e1[p]), ident[p])
+    return axis, value
+
+
+def pencil_value(scene, crossed, held, third):
+    """Where the line of edge ``crossed`` crosses the plane of the coplanar edges ``held``
+    and ``third``: its parameter on ``crossed``.
+
+    The plane's normal is d_h × d_t, or d_h × (a_t - a_h) for parallel edges; the line
+    a + x (b - a) meets it at x = n · (a_h - a) / n · (b - a).
+
+    Parameters
+    ----------
+    crossed, held, third : (k,) int
+
+    Returns
+    -------
+    (k,) float
+        NaN where the line runs parallel to the plane or the two edges are collinear.
+    """
+    a, b = _edge_ends(scene, crossed)
+    ah, bh = _edge_ends(scene, held)
+    at, bt = _edge_ends(scene, third)
+    dh, dt = bh - ah, bt - at
+    n = np.cross(dh, dt)
+    parallel = np.linalg.norm(n, axis=1) <= 1e-9 * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
+    n = np.where(parallel[:, None], np.cross(dh, at - ah), n)
+    den = np.einsum("ij,ij->i", n, b - a)
+    ok = np.abs(den) > 1e-12 * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
+    return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
+
+
+#: Chain ends times generator edges compared at once by :func:`_pencils_through`.
+PENCIL_CHUNK = 1 << 20
+
+
+def _pencils_through(scene, crossed, held, x, tol):
+    """The pencils whose segment passes each point: third edges t (generator edges coplanar
+    with ``held``) whose plane with ``held`` crosses ``crossed`` within ``tol`` of x.
+
+    Prefilter: both ends of t lie near the plane through held's line and q = crossed(x).
+    Moving q by tol along ``crossed`` (|δ| = tol |crossed|) turns that plane about held's
+    line by at most |δ| / r_q (r_q: q's distance from the line), which moves a point at
+    distance r by that angle times r; four times that, plus epsilon, is the test. Then
+    exactly: t not skew to ``held`` (coplanar, arcs' rule) and :func:`pencil_value`
+    within tol of x, strictly inside the edge.
+
+    Parameters
+    ----------
+    crossed, held : (n,) int
+    x, tol : (n,) float
+
+    Returns
+    -------
+    row : (m,) int
+        The point.
+    third : (m,) int
+    value : (m,) float
+        The pencil's parameter on ``crossed``.
+    """
+    ge = scene.generator_edges
+    a, b = _edge_ends(scene, crossed)
+    q = a + x[:, None] * (b - a)
+    ah, bh = _edge_ends(scene, held)
+    unit = (bh - ah) / np.linalg.norm(bh - ah, axis=1, keepdims=True)
+    normal = np.cross(unit, q - ah)
+    r_q = np.linalg.norm(normal, axis=1)
+    normal /= np.maximum(r_q, 1e-300)[:, None]
+    turn = 4 * tol * np.linalg.norm(b - a, axis=1) / np.maximum(r_q, 1e-300)
+    ta, tb = _edge_ends(scene, ge)
+    rows, thirds = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for chunk in row_chunks(len(x), max(1, PENCIL_CHUNK // max(len(ge), 1))):
+        i, j = np.nonzero(_near_plane(normal[chunk], ah[chunk], unit[chunk], turn[chunk], scene.epsilon, ta, tb))
+        rows.append(chunk.start + i)
+        thirds.append(ge[j])
+    rows, third = np.concatenate(rows), np.concatenate(thirds)
+    keep = (third != held[rows]) & (third != crossed[rows]) & ~_skew(scene, held[rows], third)
+    rows, third = rows[keep], third[keep]
+    value = pencil_value(scene, crossed[rows], held[rows], third)
+    with np.errstate(invalid="ignore"):
+        keep = (np.abs(value - x[rows]) <= tol[rows]) & (value > tol[rows]) & (value < 1 - tol[rows])
+    return rows[keep], third[keep], value[keep]
+
+
+@njit(cache=True)
+def _near_plane(normal, origin, unit, turn, eps, ta, tb):
+    """(n, g) bool: whether both ends of each segment (ta, tb: (g, 3) float) lie within
+    turn[i] r + eps of plane i (unit normal, through origin[i], holding the line of
+    direction unit[i]), r their distance from that line (a brute force without
+    temporaries: the ends of the open chains against every generator edge)."""
+    out = np.zeros((len(normal), len(ta)), np.bool_)
+    for i in range(len(normal)):
+        n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
+        u0, u1, u2 = unit[i, 0], unit[i, 1], unit[i, 2]
+        for j in range(len(ta)):
+            near = True
+            for t in (ta, tb):
+                r0, r1, r2 = t[j, 0] - origin[i, 0], t[j, 1] - origin[i, 1], t[j, 2] - origin[i, 2]
+                off = abs(n0 * r0 + n1 * r1 + n2 * r2)
+                c0, c1, c2 = u1 * r2 - u2 * r1, u2 * r0 - u0 * r2, u0 * r1 - u1 * r0
+                near &= off <= turn[i] * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + eps
+            out[i, j] = near
+    return out
+
+
+def open_segments(scene, el, order, chain_offsets):
+    """V2's candidate segments of the squares whose loops stayed open: the four sides, and
+    the pencils through the open chains' ends.
+
+    A chain stays open where V1 has no arc for a piece of its cell's boundary, and its
+    ends lie on that piece. Two such boundaries of degenerate scenes are lines of the
+    square x' = const, the lines through one point of e' and the other edge e:
+
+    * a *side* (x1 = 0 or 1, x2 = 0 or 1) where the lines through the edge's end w hold no
+      segment, yet the lines next to them do (boxes_on_floor, two edges of one box such
+      as (6, 15): the side x1 = 1 is the lines from vertex 8 to edge 15, lying on the
+      box's face x = 3, while the lines next to them run through the box from edge to
+      edge), so V1 has no VE arc there;
+    * a *pencil*: the lines through the point P where e' crosses the plane of e and a
+      third edge t coplanar with e (a face of e: tangency at e flips across it, Durand's
+      face-edge event; an edge parallel to e: every line through P and e meets t). V1
+      builds a pencil only as the EEE family of an event V0 found on it; in degenerate
+      scenes those are dropped (boxes_on_floor, pair (1, 12): edge 1 crosses the plane
+      x = 3 of edge 12's face at x1 = 0.3, and V1 has that pencil only up to x2 = 0.5).
+
+    Parameters
+    ----------
+    el : Elements
+    order, chain_offsets : (k,) int, (o + 1,) int
+        The open chains (:func:`vcells.form_loops`).
+
+    Returns
+    -------
+    Segments
+        Every side of each square holding a chain, and every pencil whose segment passes
+        within the join tolerance of a chain's end (strictly inside its edge); of pencils
+        on one line (within the tolerance) the first by value.
+    """
+    first, last = order[chain_offsets[:-1]], order[chain_offsets[1:] - 1]
+    e1 = np.concatenate([el.e1[first], el.e1[last]])
+    e2 = np.concatenate([el.e2[first], el.e2[last]])
+    point = np.concatenate([el.start[first, :2], el.end[last, :2]])
+    tol = join_tolerance(scene, e1, e2)
+    squares = unique_sorted(e1 * (1 << 32) + e2)
+    parts = [(np.full(4 * len(squares), SIDE), np.tile(np.arange(4), len(squares)), np.repeat(squares, 4),
+              np.tile([0, 0, 1, 1], len(squares)), np.tile([0.0, 1.0, 0.0, 1.0], len(squares)))]
+    for axis, crossed, held in ((0, e1, e2), (1, e2, e1)):
+        row, third, value = _pencils_through(scene, crossed, held, point[:, axis], tol)
+        parts.append((np.full(len(row), PENCIL1 + axis), third, e1[row] * (1 << 32) + e2[row],
+                      np.full(len(row), axis), value))
+    kind, ident, key, axis, value = (np.concatenate(p) for p in zip(*parts))
+    order = np.lexsort([ident, kind, value, axis, key])
+    kind, ident, key, axis, value = kind[order], ident[order], key[order], axis[order], value[order]
+    e1, e2 = key >> 32, key & ((1 << 32) - 1)
+    # one segment per line of the square: the first of values closer than the tolerance
+    tol = join_tolerance(scene, e1, e2)
+    keep = np.ones(len(key), bool)
+    keep[1:] = (key[1:] != key[:-1]) | (axis[1:] != axis[:-1]) | (value[1:] - value[:-1] > tol[1:])
+    return Segments(kind[keep].astype(np.int8), ident[keep], e1[keep], e2[keep], axis[keep], value[keep])
+
+
+def segment_pieces(scene, arcs, segments, pieces, el):
+    """The pieces of V2's segments that may bound a cell: the parts no V1 arc runs along,
+    cut where the square's other boundaries meet them.
+
+    Covered: the arc pieces lying on the segment's line (both ends within the join
+    tolerance of it; each coordinate is monotone along an arc, so the whole piece is).
+    Cuts of the rest: the elements' ends on the segment and their crossings of it (where
+    the element's monotone Bézier coordinate takes the segment's value, inverted in
+    closed form), the other segments of the square crossing it, and for a pencil the lines
+    through its point and the ends of its third edge (where its lines stop meeting it).
+    Each is a closed-form point of an element or an end of an arc piece: nothing is
+    sampled. Between two cuts one pair lies on each side, found by the probes
+    (:func:`side_pairs`) like every piece's; a side's outer probe is off the square.
+
+    Parameters
+    ----------
+    segments : Segments
+    pieces : tuple
+        (arc, e1, e2, interval) of the squares' arcs (:func:`side_pieces`).
+    el : Elements
+        Their elements.
+
+    Returns
+    -------
+    ident, e1, e2 : (m,) int
+    interval : (m, 2) float
+        The piece [t0, t1] of the segment's free coordinate.
+    kind : (m,) int8
+    """
+    seg_key = segments.e1 * (1 << 32) + segments.e2
+    tol = join_tolerance(scene, segments.e1, segments.e2)
+    axis, value = segments.axis, segments.value
+    arc, p_e1, p_e2, interval = pieces
+    start, _, end, _ = _curves(scene, arcs, arc, p_e1, p_e2, interval)
+    # arc pieces on a segment's line: the free coordinate's range
+    row, seg = _same_square(seg_key, p_e1 * (1 << 32) + p_e2)
+    a = axis[seg]
+    on = (np.abs(start[row, a] - value[seg]) <= tol[seg]) & (np.abs(end[row, a] - value[seg]) <= tol[seg])
+    row, seg, a = row[on], seg[on], a[on]
+    lo, hi = np.minimum(start[row, 1 - a], end[row, 1 - a]), np.maximum(start[row, 1 - a], end[row, 1 - a])
+    order = np.lexsort([lo, seg])
+    gap_seg, gap_lo, gap_hi = _uncovered(seg[order], lo[order], hi[order], len(seg_key), tol)
+    # cuts: each element's ends on the segment and its crossing of it
+    cut_seg, cut_pos = [], []
+    row, seg = _same_square(seg_key, el.e1 * (1 << 32) + el.e2)
+    a, v = axis[seg], value[seg]
+    for p in (el.start, el.end):
+        near = np.abs(p[row, a] - v) <= tol[seg]
+        cut_seg.append(seg[near])
+        cut_pos.append(p[row[near], 1 - a[near]])
+    c0, c1 = el.start[row, a], el.end[row, a]
+    across = np.flatnonzero((c0 - v) * (c1 - v) < 0)
+    r, a, v = row[across], a[across], v[across]
+    w = el.weight[r, a]
+    u = (1 - w) * (v - c0[across]) / ((1 - w) * (v - c0[across]) + w * (c1[across] - v))
+    wo, o0, o1 = el.weight[r, 1 - a], el.start[r, 1 - a], el.end[r, 1 - a]
+    cut_seg.append(seg[across])
+    cut_pos.append(((1 - u) * (1 - wo) * o0 + u * wo * o1) / ((1 - u) * (1 - wo) + u * wo))
+    # the other segments of the square crossing it
+    row, seg = _same_square(seg_key, seg_key)
+    across = axis[row] != axis[seg]
+    cut_seg.append(row[across])
+    cut_pos.append(value[seg[across]])
+    # a pencil's lines through the ends of its third edge
+    pencil = np.flatnonzero(segments.kind != SIDE)
+    held = np.where(axis[pencil] == 0, segments.e2[pencil], segments.e1[pencil])
+    crossed = np.where(axis[pencil] == 0, segments.e1[pencil], segments.e2[pencil])
+    a, b = _edge_ends(scene, crossed)
+    p = a + value[pencil, None] * (b - a)
+    ah, bh = _edge_ends(scene, held)
+    for t in _edge_ends(scene, segments.ident[pencil]):
+        x, _ = segment_parameter(p, t - p, ah, bh)
+        ok = np.isfinite(x)
+        cut_seg.append(pencil[ok])
+        cut_pos.append(x[ok])
+    # the gaps of each segment cut there
+    cut_seg, cut_pos = np.concatenate(cut_seg), np.concatenate(cut_pos)
+    cut, gap = _same_square(gap_seg, cut_seg)
+    piece, piece_interval = _cut_intervals(np.stack([gap_lo, gap_hi], axis=1), tol[gap_seg], gap, cut_pos[cut])
+    s = gap_seg[piece]
+    return segments.ident[s], segments.e1[s], segments.e2[s], piece_interval, segments.kind[s]
+
+
+@njit(cache=True)
+def _uncovered(seg, lo, hi, n, tol):
+    """The parts of [0, 1] no interval covers, longer than tol, for each of n segments.
+
+    Parameters
+    ----------
+    seg : (k,) int
+        The segment of each covering interval, sorted (then by lo).
+    lo, hi : (k,) float
+    n : int
+    tol : (n,) float
+
+    Returns
+    -------
+    gap_seg : (g,) int
+        Ascending.
+    gap_lo, gap_hi : (g,) float
+        Ends of the gaps: 0, 1, or ends of the covering intervals.
+    """
+    out_seg = np.empty(len(seg) + n, np.int64)
+    out_lo = np.empty(len(seg) + n)
+    out_hi = np.empty(len(seg) + n)
+    g = 0
+    k = 0
+    for s in range(n):
+        reach = 0.0
+        while k < len(seg) and seg[k] == s:
+            if lo[k] - reach > tol[s]:
+                out_seg[g], out_lo[g], out_hi[g] = s, reach, lo[k]
+                g += 1
+            reach = max(reach, hi[k])
+            k += 1
+        if 1.0 - reach > tol[s]:
+            out_seg[g], out_lo[g], out_hi[g] = s, reach, 1.0
+            g += 1
+    return out_seg[:g], out_lo[:g], out_hi[:g]
+
+
+def boundary_elements(scene, arcs, squares=None, segments=None):
+    """Every boundary element of every square, sorted by (e1, e2, kind, arc, interval, side):
+    the arcs' (:func:`side_pieces`), then V2's own segments' (:func:`segment_pieces`).
 
     Parameters
     ----------
     squares : tuple of (k,) int, optional
         (arc, e1, e2) incidences, every square whole: default all (:func:`arc_squares`).
+    segments : Segments, optional
+        V2's segments of these squares (:func:`open_segments`): none by default.
 
     Returns
     -------
     Elements
     """
-    arc, e1, e2, interval = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares))
-    pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval)
+    pieces = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares), segments)
+    if segments is None:
+        return _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), PROBE)
+    el = _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), FINE_PROBE)
+    more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el), FINE_PROBE)
+    el = Elements.concatenate([el, more])
+    return el.take(_element_order(el))
+
+
+def _element_order(el):
+    """(k,) int: the order of :func:`boundary_elements`: by (e1, e2, kind, arc, interval, side)."""
+    return np.lexsort([el.side, el.interval[:, 0], el.arc, el.kind, el.e2, el.e1])
+
+
+def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe):
+    """The elements of the given pieces (arcs or segments): their sides that bound a cell,
+    by the probes of :func:`side_pairs`, in the order of the pieces, left side first."""
+    curves = _curves(scene, arcs, arc, e1, e2, interval, kind)
+    pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval, kind, probe, curves)
     row, side = np.nonzero(bounds)
-    return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row])
+    return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row], kind[row],
+                            tuple(c[row] for c in curves))
 
 
 # --------------------------------------------------------------------------------------
@@ -766,16 +1253,25 @@ def _bezier_inverse(c0, c1, w, c):
 
 @njit(cache=True)
 def _crossings(starts, ends, weights, lo, hi, x, y):
-    """How often the ray {(t, y): t > x} crosses elements lo..hi-1 (x2 is monotone along
-    each: at most once; half-open in x2 so that a ray through a corner counts once)."""
+    """How often the ray {(t, y): t > x} crosses the loop of elements lo..hi-1 (x2 is
+    monotone along each: at most once; half-open in x2 so that a ray through a corner
+    counts once). Ends joined within the join tolerance are bridged by the straight
+    segment to the next start: a ray through such a gap would otherwise leave the loop
+    without crossing it (a sliver cell's reference point, 1e-9 off an element ending there,
+    then saw the whole square as inside)."""
     count = 0
     for e in range(lo, hi):
         y0, y1 = starts[e, 1], ends[e, 1]
-        if (y0 > y) == (y1 > y):
-            continue
-        u = _bezier_inverse(y0, y1, weights[e, 1], y)
-        if _bezier(starts[e, 0], ends[e, 0], weights[e, 0], u) > x:
-            count += 1
+        if (y0 > y) != (y1 > y):
+            u = _bezier_inverse(y0, y1, weights[e, 1], y)
+            if _bezier(starts[e, 0], ends[e, 0], weights[e, 0], u) > x:
+                count += 1
+        nxt = e + 1 if e + 1 < hi else lo
+        g0, g1 = ends[e, 1], starts[nxt, 1]
+        if (g0 > y) != (g1 > y):
+            a = (y - g0) / (g1 - g0)
+            if ends[e, 0] + a * (starts[nxt, 0] - ends[e, 0]) > x:
+                count += 1
     return count
 
 
@@ -944,9 +1440,12 @@ def _squares_cells(scene, arcs, squares):
     """The EE-cells of some squares ((arc, e1, e2) incidences, every square whole) and the
     number of their open chains that are demoted loops (listed first)."""
     el = boundary_elements(scene, arcs, squares)
-    key = np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1)
-    _, group = unique_rows(key)
-    order, loop_offsets, chain_offsets = form_loops(el, group, join_tolerance(scene, el.e1, el.e2))
+    loops = _loops(scene, el)
+    segments = open_segments(scene, el, loops[0], loops[2])
+    if len(segments.e1):
+        el, loops = _with_segments(scene, arcs, squares, segments, el, loops)
+    order, loop_offsets, chain_offsets = loops
+    group = _groups(el)
     turning = windings(el.take(order), loop_offsets)
     # a closed boundary winds by ±2π; anything else closed only within the join tolerance
     # (e.g. one spurious arc shorter than it, meeting itself) and is an open chain
@@ -960,6 +1459,59 @@ def _squares_cells(scene, arcs, squares):
     loop_group = group[order[loop_offsets[:-1]]]
     cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
     return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell), int(np.count_nonzero(bad))
+
+
+def _groups(el):
+    """(k,) int: the group (edge pair and blocker pair) of each element."""
+    return unique_rows(np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1))[1]
+
+
+def _loops(scene, el):
+    """:func:`vcells.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
+    return form_loops(el, _groups(el), join_tolerance(scene, el.e1, el.e2))
+
+
+def _with_segments(scene, arcs, squares, segments, el, loops):
+    """The squares left open built again with V2's segments (:func:`open_segments`).
+
+    Their elements (:func:`boundary_elements` with the segments, and the finer probe)
+    replace theirs; FormLoops runs on them alone, the other squares keep their loops
+    (groups never meet). Elements in the order of :func:`boundary_elements` and walks as
+    one FormLoops over all of them gives: loops by their smallest element, each from it,
+    then the chains.
+
+    Returns
+    -------
+    el : Elements
+    loops : tuple
+        (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`.
+    """
+    order, loop_offsets, _ = loops
+    redo = unique_sorted(segments.e1 * (1 << 32) + segments.e2)
+    square_key = squares[1] * (1 << 32) + squares[2]
+    again = boundary_elements(scene, arcs, tuple(q[np.isin(square_key, redo)] for q in squares), segments)
+    again_order, again_loops, again_chains = _loops(scene, again)
+    kept = np.flatnonzero(~np.isin(el.e1 * (1 << 32) + el.e2, redo))
+    merged = Elements.concatenate([el.take(kept), again])
+    sort = _element_order(merged)
+    at = np.empty(len(sort), np.int64)
+    at[sort] = np.arange(len(sort))  # position of each merged element in the sorted ones
+    new_of_old = np.full(len(el), -1)
+    new_of_old[kept] = at[: len(kept)]
+    # the kept squares' loops (a loop lies in one square) and the new ones, by smallest element
+    sizes = np.diff(loop_offsets)
+    mine = new_of_old[order[loop_offsets[:-1]]] >= 0
+    walks = [new_of_old[order[expand_ranges(loop_offsets[:-1][mine], sizes[mine])[1]]], at[len(kept) + again_order]]
+    sizes = np.concatenate([sizes[mine], np.diff(again_loops)])
+    n_loop = int(sizes.sum())
+    flat = np.concatenate([walks[0], walks[1][: again_loops[-1]]])
+    starts = np.cumsum(sizes) - sizes  # (empty when no loop is left)
+    by_first = np.argsort(flat[starts], kind="stable")
+    flat = flat[expand_ranges(starts[by_first], sizes[by_first])[1]]
+    new_order = np.concatenate([flat, walks[1][again_loops[-1]:]])
+    loop_offsets = np.r_[0, np.cumsum(sizes[by_first])].astype(np.int64)
+    chain_offsets = (n_loop + again_chains - again_chains[0]).astype(np.int64)
+    return merged.take(sort), (new_order, loop_offsets, chain_offsets)
 
 
 def _concatenate_cells(parts):
@@ -978,8 +1530,8 @@ def _concatenate_cells(parts):
     per_cell = ("edge1", "edge2", "back_kind", "back", "front_kind", "front", "area", "complete")
     out = {k: np.concatenate([getattr(c, k) for c in cells]) for k in per_cell}
     out["loop_offsets"], (out["turning"],) = ragged([c.loop_offsets for c in cells], [(c.turning,) for c in cells])
-    out["element_offsets"], (out["element"], out["element_interval"]) = ragged(
-        [c.element_offsets for c in cells], [(c.element, c.element_interval) for c in cells])
+    out["element_offsets"], (out["element"], out["element_kind"], out["element_interval"]) = ragged(
+        [c.element_offsets for c in cells], [(c.element, c.element_kind, c.element_interval) for c in cells])
     # open chains: every chunk's demoted loops, then every chunk's other chains
     per_chain = ("open_edge1", "open_edge2", "open_back_kind", "open_back", "open_front_kind", "open_front")
     chains = []
@@ -988,11 +1540,12 @@ def _concatenate_cells(parts):
             rows = np.arange(n) if demoted else np.arange(n, len(c.open_edge1))
             lo, hi = c.open_offsets[rows], c.open_offsets[rows + 1]
             idx = expand_ranges(lo, hi - lo)[1]
-            chains.append((np.r_[0, np.cumsum(hi - lo)], (c.open_element[idx], c.open_interval[idx])
+            chains.append((np.r_[0, np.cumsum(hi - lo)], (c.open_element[idx], c.open_element_kind[idx],
+                                                          c.open_interval[idx])
                            + tuple(getattr(c, k)[rows] for k in per_chain)))
     out["open_offsets"], joined = ragged([o for o, _ in chains], [v for _, v in chains])
-    out["open_element"], out["open_interval"] = joined[:2]
-    out.update(zip(per_chain, joined[2:]))
+    out["open_element"], out["open_element_kind"], out["open_interval"] = joined[:3]
+    out.update(zip(per_chain, joined[3:]))
     return EECells(**out)
 
 
@@ -1061,9 +1614,11 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
         turning=turning[loop_order],
         element_offsets=np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
         element=walk.signed[idx],
+        element_kind=walk.kind[idx],
         element_interval=walk.interval[idx],
         open_offsets=(chain_offsets - n_el).astype(np.int64),
         open_element=chain.signed,
+        open_element_kind=chain.kind,
         open_interval=chain.interval,
         open_edge1=chain.e1[chain_first],
         open_edge2=chain.e2[chain_first],
@@ -1102,7 +1657,7 @@ def cell_elements(scene, arcs, eecells, cells):
     el_cell = np.repeat(loop_cell, np.diff(ee.element_offsets[first_loop: end_loop + 1]))
     pair = np.stack([ee.back_kind, ee.back, ee.front_kind, ee.front], axis=1)[el_cell]
     el = element_geometry(scene, arcs, np.abs(signed) - 1, (signed < 0).astype(np.int64), ee.edge1[el_cell],
-                          ee.edge2[el_cell], pair, ee.element_interval[lo:hi])
+                          ee.edge2[el_cell], pair, ee.element_interval[lo:hi], ee.element_kind[lo:hi])
     return el, ee.element_offsets[first_loop: end_loop + 1] - lo, loop_cell
 
 

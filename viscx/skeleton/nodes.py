@@ -94,12 +94,18 @@ def validate_candidates(scene, kind, generators, origins, directions):
     -------
     Nodes
     """
+    return sort_nodes(nodes_among(scene, kind, generators, origins, directions))
+
+
+def nodes_among(scene, kind, generators, origins, directions):
+    """:func:`validate_candidates` in the candidates' order, not sorted (for callers
+    that judge candidates in chunks and sort once). Parameters as there."""
     kind = np.asarray(kind, dtype=np.int8)
     if len(kind) == 0:
         return _empty()
     seg = maximal_free_segments(scene, SLOT_IS_VERTEX[kind], SLOT_COUNT[kind], generators, origins, directions)
     nodes = np.flatnonzero(seg.valid)
-    result = Nodes(
+    return Nodes(
         kind=kind[nodes],
         generators=np.asarray(generators, dtype=np.int64)[nodes],
         direction=seg.direction[nodes],
@@ -108,7 +114,6 @@ def validate_candidates(scene, kind, generators, origins, directions):
         blocker=seg.blocker[nodes],
         generator_points=seg.generator_points[nodes],
     )
-    return sort_nodes(result)
 
 
 @dataclass

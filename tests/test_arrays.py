@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 5000])
@@ -26,6 +26,16 @@ def test_unique_rows_is_np_unique_along_rows(n, low, high, rng):
     assert np.array_equal(u, ref.reshape(-1, 4))
     assert np.array_equal(inverse, ref_inverse.reshape(-1))
     assert np.array_equal(u[inverse], rows)
+
+
+@pytest.mark.parametrize("n", [0, 1, 9, 5000])
+@pytest.mark.parametrize("low, high", [(-2, 3), (0, 5), (0, 2**40)])
+def test_first_of_rows_is_np_unique_return_index(n, low, high, rng):
+    rows = rng.integers(low, high, (n, 4))
+    if n > 100:
+        rows[n // 2:] = rows[: n - n // 2]
+    ref = np.sort(np.unique(rows, axis=0, return_index=True)[1]) if n else np.zeros(0, np.int64)
+    assert np.array_equal(first_of_rows(rows), ref)
 
 
 def test_expand_ranges_is_the_concatenated_ranges():

@@ -76,3 +76,23 @@ def unique_rows(rows):
     inverse = np.empty(n, dtype=np.int64)
     inverse[order] = np.cumsum(new) - 1
     return rows[order[new]], inverse
+
+
+def first_of_rows(rows):
+    """Where each distinct row of an integer array first occurs, ascending: the sorted
+    ``np.unique(rows, axis=0, return_index=True)[1]`` by :func:`unique_rows` (its packed
+    sort where the rows fit; ``np.unique`` on rows sorts them as a structured view, 10
+    times slower on millions).
+
+    Parameters
+    ----------
+    rows : (n, k) int
+
+    Returns
+    -------
+    (u,) int64
+    """
+    _, inverse = unique_rows(rows)
+    order = np.argsort(inverse, kind="stable")  # within a row's run, input order
+    start = np.r_[True, inverse[order][1:] != inverse[order][:-1]] if len(order) else np.zeros(0, bool)
+    return np.sort(order[start])

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
 from viscx.grid import bin_boxes
 from viscx.memory import release_free_memory
@@ -691,11 +691,10 @@ def planar_events(scene):
     distinct = np.all(np.diff(gens, axis=1) > 0, axis=1)
     gens, origin, direction = gens[distinct], origin[distinct], direction[distinct]
     # one line per quadruple (two adjacent pairs can propose it)
-    _, first = np.unique(gens, axis=0, return_index=True)
-    first = np.sort(first)
+    first = first_of_rows(gens)
     events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])
-    _, first = np.unique(events.generators, axis=0, return_index=True)
-    return Nodes(**{k: getattr(events, k)[np.sort(first)] for k in events.__dataclass_fields__})
+    first = first_of_rows(events.generators)
+    return Nodes(**{k: getattr(events, k)[first] for k in events.__dataclass_fields__})
 
 
 def _corner_cutting_pairs(x, y, group, slack=1e-9):
@@ -1485,7 +1484,9 @@ def _families(scene, nodes, planar, workers=None):
     fam_gens.append(pencils)
     keys = np.concatenate([np.concatenate(fam_kind).astype(np.int64)[:, None], np.concatenate(fam_gens)], axis=1)
     del fam_kind, fam_gens
-    families, fam_of = unique_rows(keys.reshape(-1, 4))
+    # (shifted by one, the -1 of VE rows included, the rows pack into one sortable int64)
+    families, fam_of = unique_rows(keys.reshape(-1, 4) + 1)
+    families -= 1
     del keys
     n_events = len(fam_of) - len(plane_ve) - len(pencils)
     plane_family, fam_of = fam_of[n_events: n_events + len(plane_ve)], fam_of[:n_events]

@@ -308,6 +308,10 @@ def test_pencil_segments_close_boxes_on_floor():
         axis, c = segment_lines(scene, kinds[pencil], ident, np.full(len(ident), e1), np.full(len(ident), e2))
         assert np.all(axis == kind - PENCIL1) and np.allclose(c, value, atol=1e-12), (e1, e2, c)
     signed, kinds, interval = elements_of_pair(ee, 1, 12)
+    assert not np.any(kinds == PENCIL1)  # V1's pencils: (12, 1, 17) below x2 = 1/2, (12, 1, 14) above
+    for gens, span in (((12, 1, 17), (0.0, 0.5)), ((12, 1, 14), (0.5, 1.0))):
+        rows = np.flatnonzero(np.all(arcs.generators == gens, axis=1) & (arcs.kind == 0))
+        assert len(rows) == 1 and np.allclose(arcs.interval[rows[0]], span), gens
     side = (kinds == 0) & (arcs.kind[np.abs(signed) - 1] == 1) & (arcs.generators[np.abs(signed) - 1, 0] == 9)
     assert np.allclose(np.unique(interval[side]), [0.0, 0.3, 1.0])
     pairs = [(1, 12), (2, 15), (15, 22), (22, 29)]

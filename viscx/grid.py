@@ -306,7 +306,7 @@ def _near_listed(points, group, offsets, items, tol, vertices, triangles, out_ro
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _point_triangle_dist2(p, a, b, c):
     """Squared distance from p to the closed triangle abc: the closest point lies in the
     Voronoi region of a vertex, of an edge or of the face (Ericson, Real-Time Collision

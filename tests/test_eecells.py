@@ -288,12 +288,17 @@ def test_square_side_closes_two_edges_of_one_box():
 
 
 def test_pencil_segments_close_boxes_on_floor():
-    """boxes_on_floor: pencils V1 lacks. Pairs (15, 22) and
-    (22, 29): vertical edges 15 (x = 3, z = 3) and 29 (x = 6, z = 5) are parallel, and their
-    plane crosses edge 22 ((3, 1.5, 3.5)-(4.5, 1.5, 3.5)) at x = 3.75, x = 1/2 on it: every
-    line through that point and edge 15 (or 29) meets the other one."""
+    """boxes_on_floor: pencils V1 lacks. Pair (2, 15): floor edge 2 ((0, 0, 10)-(10, 0, 10))
+    crosses the plane x = 3 of edge 15's faces at x1 = 3/10, where tangency at 15 flips.
+    Pairs (15, 22) and (22, 29): vertical edges 15 (x = 3, z = 3) and 29 (x = 6, z = 5) are
+    parallel, and their plane crosses edge 22 ((3, 1.5, 3.5)-(4.5, 1.5, 3.5)) at x = 3.75,
+    x = 1/2 on it: every line through that point and edge 15 (or 29) meets the other one.
+    Pair (1, 12): V1 has the pencil x1 = 3/10 of edge 12's face (as (12, 1, 17) and
+    (12, 1, 14)), but the side x2 = 1 (V1's VE arc (9, 1), whole) must be cut where it
+    ends: V2's candidate segment cuts it there."""
     scene, arcs, ee = built("boxes_on_floor.obj")
-    for (e1, e2), kind, third, value in (((15, 22), PENCIL2, 29, 0.5), ((22, 29), PENCIL1, 15, 0.5)):
+    for (e1, e2), kind, third, value in (((2, 15), PENCIL1, None, 0.3), ((15, 22), PENCIL2, 29, 0.5),
+                                         ((22, 29), PENCIL1, 15, 0.5)):
         signed, kinds, interval = elements_of_pair(ee, e1, e2)
         pencil = kinds == kind
         assert pencil.any(), (e1, e2)
@@ -302,15 +307,16 @@ def test_pencil_segments_close_boxes_on_floor():
             assert np.all(ident == third)
         axis, c = segment_lines(scene, kinds[pencil], ident, np.full(len(ident), e1), np.full(len(ident), e2))
         assert np.all(axis == kind - PENCIL1) and np.allclose(c, value, atol=1e-12), (e1, e2, c)
-    # pair (1, 12): floor edge 1 ((0, 0, 0)-(10, 0, 0)) crosses the plane x = 3 of edge 12's
-    # face (the boxes' contact) at x1 = 3/10, where tangency at 12 flips. V1 has that pencil
-    # whole: (12, 1, 17) for x2 <= 1/2 (through a node) and, seeded at the contact face's
-    # corner (arcs.contact_pencils), (12, 1, 14) above; V2 adds no segment there
     signed, kinds, interval = elements_of_pair(ee, 1, 12)
-    assert not np.any(kinds == PENCIL1)
+    assert not np.any(kinds == PENCIL1)  # V1's pencils: (12, 1, 17) below x2 = 1/2, (12, 1, 14) above
     for gens, span in (((12, 1, 17), (0.0, 0.5)), ((12, 1, 14), (0.5, 1.0))):
         rows = np.flatnonzero(np.all(arcs.generators == gens, axis=1) & (arcs.kind == 0))
         assert len(rows) == 1 and np.allclose(arcs.interval[rows[0]], span), gens
+    side = (kinds == 0) & (arcs.kind[np.abs(signed) - 1] == 1) & (arcs.generators[np.abs(signed) - 1, 0] == 9)
+    assert np.allclose(np.unique(interval[side]), [0.0, 0.3, 1.0])
+    pairs = [(1, 12), (2, 15), (15, 22), (22, 29)]
+    assert all(np.all(ee.complete[(ee.edge1 == a) & (ee.edge2 == b)]) for a, b in pairs)
+    assert_oracle(scene, arcs, ee, pairs)
 
 
 def test_finer_probe_closes_the_cornell_light_slivers():

@@ -58,17 +58,19 @@ strictly inside e1 (a T-junction) adds the segment x1 = s_w, the VE arc (w, e2):
 tangency at e1 changes across the lines through w (degenerate scenes;
 :func:`arc_squares`).
 
-Where the lines through w hold no segment but the lines next to them do, the side
-has no VE arc, yet the cell inside reaches it (boxes_on_floor, two edges of one
-box: the side's lines lie on a face of the box, grazing, while the lines through
-the box next to them are segments from edge to edge). Such a piece of a side is a
-boundary element of its own kind, a *square side* (:func:`square_sides`): the
-parts of the sides that no VE arc of the square covers, cut where the other
-elements of the square end on them, each bounding the cell its inner probe finds.
+Degenerate scenes have boundaries V1 has no arc for: a side whose own lines hold
+no segment while the lines next to them do (two edges of one box: the side's lines
+lie on a face, grazing, the lines through the box next to them are segments from
+edge to edge), and pencils V1 did not build (the lines through the point where e1
+crosses the plane of e2 and a coplanar edge). Where V1's arcs leave a square's loops
+open, V2 adds these *segments* of its own (:func:`open_segments`,
+:func:`segment_pieces`: exact cuts, the probes decide), boundary elements of their own
+kinds (SIDE, PENCIL1, PENCIL2), and probes that square again 5 epsilon off its pieces
+(FINE_PROBE; the Cornell light's slivers are thinner than PROBE).
 
 Which side gets which pair is found like the VE half-cells' (arcs.py): the
 arc's middle point of the square is moved off the arc, across it on each side,
-by 50 epsilon along the edges, and that line is judged. A side whose line is
+by PROBE (or FINE_PROBE) epsilon along the edges, and that line is judged. A side whose line is
 hidden bounds nothing (the hidden region is not a cell); an EEE arc whose two
 sides have one pair bounds nothing.
 
@@ -77,11 +79,11 @@ that its cell lies on its left in the (x1, x2) plane (x1 to the right, x2 up):
 ``+(a + 1)`` runs along arc a with s increasing (cell on its left), ``-(a + 1)``
 with s decreasing (cell on the left of that, i.e. on the right of s
 increasing); an element runs along an arc piece, ``element_interval`` in the
-stored cells. A square side's element (kind SIDE) is ``±(k + 1)`` for side k
-(SIDE_CODES: 0 is x1 = 0, 1 is x1 = 1, 2 is x2 = 0, 3 is x2 = 1), its parameter t
-the side's other coordinate, + with t increasing: the piece of the VE family
-(w, e) of the side (w the endpoint of the edge held constant, e the other edge,
-s = t) over which V1 has no arc. Along an element each coordinate is a linear-fractional function
+stored cells. A segment's element is ``±(id + 1)`` (id: the side's code k,
+SIDE_CODES: 0 is x1 = 0, 1 is x1 = 1, 2 is x2 = 0, 3 is x2 = 1; a pencil's third
+edge), its parameter t the coordinate that is not constant, + with t increasing (a
+side is the VE family (w, e) with s = t, w the endpoint of the edge held constant).
+Along an element each coordinate is a linear-fractional function
 of the arc's parameter, stored as a rational linear Bézier curve: coordinate
 c(u) = ((1 - u)(1 - w) c0 + u w c1) / ((1 - u)(1 - w) + u w) for u ∈ [0, 1]
 with c0, c1 the element's ends and w fixed by the middle sample
@@ -189,11 +191,11 @@ class EECells:
     element_offsets : (l + 1,) int
     element : (k,) int
         Signed arc id: +(a + 1) runs along V1 arc a with s increasing, the cell
-        on its left in the (x1, x2) plane; -(a + 1) with s decreasing. For a square
-        side (``element_kind`` SIDE) the signed side code ±(k + 1) (SIDE_CODES), +
-        with the side's free coordinate increasing.
+        on its left in the (x1, x2) plane; -(a + 1) with s decreasing. For V2's own
+        segments ±(id + 1) (id: side code, SIDE_CODES, or a pencil's third edge), +
+        with the free coordinate increasing.
     element_kind : (k,) int8
-        ARC or SIDE.
+        ARC, SIDE, PENCIL1 or PENCIL2.
     element_interval : (k, 2) float
         The piece [s0, s1] of the arc's interval the element runs along: the arc's
         own, but for a VE arc on the square's side cut where other arcs end on it;
@@ -489,9 +491,9 @@ class Elements:
     Attributes
     ----------
     kind : (k,) int8
-        ARC or SIDE (a piece of a side of the square, :func:`square_sides`).
+        ARC, or SIDE, PENCIL1, PENCIL2 (V2's own segments, :func:`segment_pieces`).
     arc : (k,) int
-        The V1 arc, or the side's code (SIDE_CODES).
+        The V1 arc, or the segment's id (side code or third edge, :func:`segment_lines`).
     side : (k,) int
         0: left of the arc run with s increasing (element +(a + 1)), 1: right (-(a + 1)).
     e1, e2 : (k,) int
@@ -644,7 +646,7 @@ def element_geometry(scene, arcs, arc, side, e1, e2, pair, interval, kind=None, 
     Parameters
     ----------
     arc, side, e1, e2 : (k,) int
-        The arc (a square side's code for kind SIDE), which side of it.
+        The arc (a segment's id for the segments' kinds), which side of it.
     pair : (k, 4) int
     interval : (k, 2) float
         The piece of each arc's parameter interval the element runs along.
@@ -1505,7 +1507,7 @@ def _with_segments(scene, arcs, squares, segments, el, loops):
     sizes = np.concatenate([sizes[mine], np.diff(again_loops)])
     n_loop = int(sizes.sum())
     flat = np.concatenate([walks[0], walks[1][: again_loops[-1]]])
-    starts = np.cumsum(sizes) - sizes  # (empty when no loop is left)
+    starts = np.cumsum(sizes) - sizes
     by_first = np.argsort(flat[starts], kind="stable")
     flat = flat[expand_ranges(starts[by_first], sizes[by_first])[1]]
     new_order = np.concatenate([flat, walks[1][again_loops[-1]:]])

@@ -1407,7 +1407,6 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         progress.update()
 
         progress.set_postfix_str("half-cells")
-        release_free_memory()
         half_cells = _half_cells(scene, arcs)
         del arcs["sides"]
         progress.update()

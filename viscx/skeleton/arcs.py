@@ -652,21 +652,8 @@ def planar_events(scene):
     keep = size > 1e-9 * np.linalg.norm(ua, axis=1) * np.linalg.norm(ub, axis=1)
     pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
 
-    # generator edges crossing each pair's plane strictly inside (chunked: pairs × edges)
-    ge = scene.generator_edges
-    ga, gb = _edge_geometry(scene, ge)
-    cross_pair, cross_edge, cross_point = [], [], []
-    chunk = max(1, (1 << 22) // max(1, len(ge)))
-    for lo in range(0, len(pa), chunk):
-        sl = slice(lo, lo + chunk)
-        h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], w[sl])[:, None]
-        h1 = normal[sl] @ gb.T - np.einsum("ij,ij->i", normal[sl], w[sl])[:, None]
-        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > eps) & (np.abs(h1) > eps))
-        f = h0[i, j] / (h0[i, j] - h1[i, j])
-        cross_pair.append(i + lo)
-        cross_edge.append(ge[j])
-        cross_point.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
-    cp, ce, cq = np.concatenate(cross_pair), np.concatenate(cross_edge), np.concatenate(cross_point)
+    # generator edges crossing each pair's plane strictly inside
+    cp, ce, cq = _edges_crossing_planes(scene, normal, w)
     # (the pair's own edges and the edges at w do not cross the plane strictly)
     # the crossings in the corner's affine frame: q - w = x ua + y ub
     ua, ub, rel = ua[keep][cp], ub[keep][cp], cq - w[cp]
@@ -695,6 +682,41 @@ def planar_events(scene):
     events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])
     first = first_of_rows(events.generators)
     return Nodes(**{k: getattr(events, k)[first] for k in events.__dataclass_fields__})
+
+
+def _edges_crossing_planes(scene, normal, point):
+    """The generator edges crossing each plane strictly (both ends farther than epsilon,
+    on opposite sides), in chunks of planes × edges.
+
+    Parameters
+    ----------
+    normal : (k, 3) float
+        Unit normals.
+    point : (k, 3) float
+        A point of each plane.
+
+    Returns
+    -------
+    plane : (m,) int
+    edge : (m,) int
+    crossing : (m, 3) float
+        Where the edge crosses the plane.
+    """
+    ge = scene.generator_edges
+    ga, gb = _edge_geometry(scene, ge)
+    eps = scene.epsilon
+    planes, edges, points = [np.empty(0, np.int64)], [np.empty(0, np.int64)], [np.empty((0, 3))]
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for lo in range(0, len(normal), chunk):
+        sl = slice(lo, lo + chunk)
+        h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], point[sl])[:, None]
+        h1 = normal[sl] @ gb.T - np.einsum("ij,ij->i", normal[sl], point[sl])[:, None]
+        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > eps) & (np.abs(h1) > eps))
+        f = h0[i, j] / (h0[i, j] - h1[i, j])
+        planes.append(i + lo)
+        edges.append(ge[j])
+        points.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
+    return np.concatenate(planes), np.concatenate(edges), np.concatenate(points)
 
 
 def _corner_cutting_pairs(x, y, group, slack=1e-9):
@@ -974,26 +996,14 @@ def contact_pencils(scene):
     size = np.linalg.norm(normal, axis=1)
     corner = size > 1e-9 * np.linalg.norm(u1, axis=1) * np.linalg.norm(u2, axis=1)  # not collinear edges
     c, u1, u2, e1, e2, normal = c[corner], u1[corner], u2[corner], e1[corner], e2[corner], normal[corner] / size[corner, None]
-    ge = scene.generator_edges
-    ga, gb = _edge_geometry(scene, ge)
-    eps = scene.epsilon
-    rows, lines = [], []
-    chunk = max(1, (1 << 22) // max(1, len(ge)))
-    for lo in range(0, len(c), chunk):
-        sl = slice(lo, lo + chunk)
-        h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], c[sl])[:, None]
-        h1_ = normal[sl] @ gb.T - np.einsum("ij,ij->i", normal[sl], c[sl])[:, None]
-        i, j = np.nonzero((h0 * h1_ < 0) & (np.abs(h0) > eps) & (np.abs(h1_) > eps))
-        f = h0[i, j] / (h0[i, j] - h1_[i, j])
-        rel = ga[j] + f[:, None] * (gb[j] - ga[j]) - c[i + lo]
-        n, a, b = normal[i + lo], u1[i + lo], u2[i + lo]
-        det = np.einsum("ij,ij->i", np.cross(a, b), n)
-        x = np.einsum("ij,ij->i", np.cross(rel, b), n) / det
-        y = np.einsum("ij,ij->i", np.cross(a, rel), n) / det
-        cuts = ((x > 0) | (y > 0)) & ~((x > 0) & (y > 0) & (x + y >= 1))
-        rows.append(i[cuts] + lo)
-        lines.append(ge[j[cuts]])
-    rows, lines = np.concatenate(rows), np.concatenate(lines)
+    i, line, point = _edges_crossing_planes(scene, normal, c)
+    rel = point - c[i]
+    n, a, b = normal[i], u1[i], u2[i]
+    det = np.einsum("ij,ij->i", np.cross(a, b), n)
+    x = np.einsum("ij,ij->i", np.cross(rel, b), n) / det
+    y = np.einsum("ij,ij->i", np.cross(a, rel), n) / det
+    cuts = ((x > 0) | (y > 0)) & ~((x > 0) & (y > 0) & (x + y >= 1))
+    rows, lines = i[cuts], line[cuts]
     gens = canonical_eee(scene, np.stack([lines, e1[rows], e2[rows]], axis=1))
     gens = gens[gens[:, 0] >= 0]
     return np.unique(gens, axis=0).reshape(-1, 3)

@@ -288,35 +288,55 @@ def test_square_side_closes_two_edges_of_one_box():
 
 
 def test_pencil_segments_close_boxes_on_floor():
-    """boxes_on_floor: pencils V1 lacks. Pair (2, 15): floor edge 2 ((0, 0, 10)-(10, 0, 10))
-    crosses the plane x = 3 of edge 15's faces at x1 = 3/10, where tangency at 15 flips.
+    """boxes_on_floor: pencils V1 lacks, and V1's own pencils of the touched plane x = 3.
     Pairs (15, 22) and (22, 29): vertical edges 15 (x = 3, z = 3) and 29 (x = 6, z = 5) are
     parallel, and their plane crosses edge 22 ((3, 1.5, 3.5)-(4.5, 1.5, 3.5)) at x = 3.75,
-    x = 1/2 on it: every line through that point and edge 15 (or 29) meets the other one.
-    Pair (1, 12): V1 has the pencil x1 = 3/10 of edge 12's face (as (12, 1, 17) and
-    (12, 1, 14)), but the side x2 = 1 (V1's VE arc (9, 1), whole) must be cut where it
-    ends: V2's candidate segment cuts it there."""
+    x = 1/2 on it: every line through that point and edge 15 (or 29) meets the other one;
+    V2 adds that pencil (no face lies in their plane). Pairs (2, 15) and (1, 12): floor edges
+    2 ((0, 0, 10)-(10, 0, 10)) and 1 ((0, 0, 0)-(10, 0, 0)) cross the plane x = 3 of boxes
+    0 and 1's contact at x1 = 3/10, where tangency at 15 (12) flips. That plane is touched,
+    so V1 builds its pencils, one arc per line named by the lowest pair of the plane's edges
+    it crosses (``arcs._first_pencil_pair``): (12, 1, 15) up to x2 = 1/3 on edge 12 (lines
+    across box 0's face from side to side), (12, 1, 14) above; V2 adds no pencil there. The
+    side x2 = 1 of (1, 12) (V1's VE arc (9, 1), whole) is cut where the pencil ends on it."""
     scene, arcs, ee = built("boxes_on_floor.obj")
-    for (e1, e2), kind, third, value in (((2, 15), PENCIL1, None, 0.3), ((15, 22), PENCIL2, 29, 0.5),
-                                         ((22, 29), PENCIL1, 15, 0.5)):
+    for (e1, e2), kind, third, value in (((15, 22), PENCIL2, 29, 0.5), ((22, 29), PENCIL1, 15, 0.5)):
         signed, kinds, interval = elements_of_pair(ee, e1, e2)
         pencil = kinds == kind
         assert pencil.any(), (e1, e2)
         ident = np.abs(signed[pencil]) - 1
-        if third is not None:
-            assert np.all(ident == third)
+        assert np.all(ident == third)
         axis, c = segment_lines(scene, kinds[pencil], ident, np.full(len(ident), e1), np.full(len(ident), e2))
         assert np.all(axis == kind - PENCIL1) and np.allclose(c, value, atol=1e-12), (e1, e2, c)
-    signed, kinds, interval = elements_of_pair(ee, 1, 12)
-    assert not np.any(kinds == PENCIL1)  # V1's pencils: (12, 1, 17) below x2 = 1/2, (12, 1, 14) above
-    for gens, span in (((12, 1, 17), (0.0, 0.5)), ((12, 1, 14), (0.5, 1.0))):
+    for e1, e2 in ((1, 12), (2, 15)):
+        signed, kinds, interval = elements_of_pair(ee, e1, e2)
+        assert not np.any(kinds == PENCIL1), (e1, e2)
+    for gens, span in (((12, 1, 15), (0.0, 1 / 3)), ((12, 1, 14), (1 / 3, 1.0))):
         rows = np.flatnonzero(np.all(arcs.generators == gens, axis=1) & (arcs.kind == 0))
-        assert len(rows) == 1 and np.allclose(arcs.interval[rows[0]], span), gens
+        assert len(rows) and np.isclose(arcs.interval[rows, 0].min(), span[0]) and np.isclose(
+            arcs.interval[rows, 1].max(), span[1]), gens
+        assert np.allclose(np.sort(arcs.interval[rows], axis=0)[1:, 0], np.sort(arcs.interval[rows], axis=0)[:-1, 1])
+    signed, kinds, interval = elements_of_pair(ee, 1, 12)
     side = (kinds == 0) & (arcs.kind[np.abs(signed) - 1] == 1) & (arcs.generators[np.abs(signed) - 1, 0] == 9)
     assert np.allclose(np.unique(interval[side]), [0.0, 0.3, 1.0])
     pairs = [(1, 12), (2, 15), (15, 22), (22, 29)]
     assert all(np.all(ee.complete[(ee.edge1 == a) & (ee.edge2 == b)]) for a, b in pairs)
     assert_oracle(scene, arcs, ee, pairs)
+
+
+def test_one_arc_per_pencil_line(monkeypatch):
+    """A line of a touched plane's pencil crossing several of the plane's edges has one arc:
+    without ``arcs._first_pencil_pair`` boxes_on_floor's pencils through floor edges 1 and 2
+    get several arcs over the same lines (e.g. (12, 1, 17), (12, 1, 21) and (12, 1, 15)),
+    and the EE-squares they run in do not close."""
+    from viscx.skeleton import arcs as arcs_module
+
+    scene, arcs, ee = built("boxes_on_floor.obj")
+    assert ee.complete.all()
+    monkeypatch.setattr(arcs_module, "_first_pencil_pair", lambda scene, plane, gens, ends, valid: np.ones(len(plane), bool))
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    _, ee = build_all(scene)
+    assert not ee.complete.all()
 
 
 def test_finer_probe_closes_the_cornell_light_slivers():

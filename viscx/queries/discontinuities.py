@@ -486,6 +486,24 @@ def _in_domain(scene, kind, generators, s):
     return ok
 
 
+def _domain_end(scene, arcs, arc, face, s_in, s_out, steps=60):
+    """The trace point where the arc's family leaves its domain (:func:`_in_domain`), by
+    bisection between a parameter inside it and one outside: (3,) float64.
+
+    A family continued past a transition (an EEE arc ending epsilons short of the line
+    through an endpoint of one of its edges, as epsilon-visibility judges) reaches the
+    other traces exactly there, between two trace samples that may lie far apart."""
+    kind = arcs.kind[[arc]].astype(np.int64)
+    gens = arcs.generators[[arc]]
+    for _ in range(steps):
+        mid = 0.5 * (s_in + s_out)
+        if _in_domain(scene, kind, gens, np.array([mid]))[0]:
+            s_in = mid
+        else:
+            s_out = mid
+    return _trace_points(scene, kind, gens, np.array([s_in]), np.array([face]))[0]
+
+
 def _first_hit(line, segs, snap):
     """Where a 2-D polyline first meets segments: crossing one, or passing within ``snap``
     of one's end, or ending within ``snap`` of one.
@@ -585,10 +603,16 @@ def continue_transitions(scene, arcs, events, offsets, points, lines, tolerance,
         valid = _in_domain(scene, arcs.kind[a_].astype(np.int64), arcs.generators[a_], ext_s)
         valid &= np.isfinite(ext_pts).all(axis=1)
         for i, h in enumerate(here):
-            e3, ok = ext_pts[ext_off[i]:ext_off[i + 1]], valid[ext_off[i]:ext_off[i + 1]]
+            sl = slice(ext_off[i], ext_off[i + 1])
+            e3, ok, es = ext_pts[sl], valid[sl], ext_s[sl]
             if side[h] == 0:
-                e3, ok = e3[::-1], ok[::-1]  # from the transition outwards
-            e3 = e3[:np.argmin(ok) if not ok.all() else len(ok)]  # up to where the family ends
+                e3, ok, es = e3[::-1], ok[::-1], es[::-1]  # from the transition outwards
+            if not ok.all():  # up to where the family ends, found between samples
+                stop = int(np.argmin(ok))
+                if stop == 0:
+                    continue
+                e3 = np.concatenate([e3[:stop], _domain_end(scene, arcs, events.arc[row[h]], events.face[row[h]],
+                                                            es[stop - 1], es[stop])[None]])
             if len(e3) < 2:
                 continue
             e2 = np.stack([e3 @ u, e3 @ v], axis=1)

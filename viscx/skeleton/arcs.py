@@ -61,6 +61,7 @@ from numba import njit
 
 from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
+from viscx.geometry.polygon import plane_basis
 from viscx.grid import bin_boxes
 from viscx.memory import release_free_memory
 from viscx.parallel import default_workers, map_chunks, row_chunks
@@ -599,8 +600,10 @@ def judge_samples(scene, kind, generators, s, sides=False):
     undefined = np.linalg.norm(d, axis=1) == 0
     d[undefined] = (1.0, 0.0, 0.0)
     gens = np.concatenate([generators, np.full((len(kind), 1), -1)], axis=1)
-    seg = maximal_free_segments(scene, _SLOT_IS_VERTEX[kind], _SLOT_COUNT[kind], gens, o, d)
+    plane = pencil_plane_of(scene, kind, generators)
+    seg = maximal_free_segments(scene, _SLOT_IS_VERTEX[kind], _SLOT_COUNT[kind], gens, o, d, plane_face=plane)
     valid = seg.valid & ~undefined
+    valid &= _first_pencil_pair(scene, plane, generators, seg.ends, valid)
     gp = seg.generator_points[:, :3]
     # the family's orientation: from the first generator's point towards the second's
     flip = valid & (np.einsum("ij,ij->i", seg.direction, gp[:, 1] - gp[:, 0]) < 0)
@@ -952,59 +955,203 @@ def _touched_faces(scene):
     return touched
 
 
+def pencil_planes(scene):
+    """The planes of touched faces (:func:`_touched_faces`) that a generator edge crosses,
+    and which generator edges lie in each or cross it (cached on the scene).
+
+    A line lying in such a plane P through the point H where an edge crosses it (a pencil
+    of lines in P through H, :func:`contact_pencils`) passes the faces beside P that it
+    touches on their outline (:func:`viscx.skeleton.nodes.first_triangles`): with two
+    blocks touching face to face, the pencil across their contact crosses the outlines of
+    both contact faces, four edges besides H's, and would be blocked by whichever two of
+    them are not its generators (docs/queries.md, limitation 6).
+
+    Returns
+    -------
+    face : (k,) int
+        A face of each plane.
+    role : (k, e) int8
+        Per plane and edge: 1 the generator edge lies in the plane (both ends within
+        the weld tolerance), 2 it crosses the plane strictly, 0 otherwise.
+    """
+    cached = getattr(scene, "_viscx_pencil_planes", None)
+    if cached is not None:
+        return cached
+    touched = np.flatnonzero(_touched_faces(scene))
+    plane = face_planes(scene)[touched]
+    _, first = np.unique(plane, return_index=True)
+    face = touched[np.sort(first)]
+    a, b = _edge_geometry(scene, np.arange(len(scene.half_edges.edge_vertices)))
+    n, off = scene.face_normal[face], scene.face_offset[face]
+    h0, h1 = n @ a.T - off[:, None], n @ b.T - off[:, None]
+    tol, eps = scene.weld_tolerance, scene.epsilon
+    role = np.zeros(h0.shape, dtype=np.int8)
+    role[(np.abs(h0) <= tol) & (np.abs(h1) <= tol)] = 1
+    role[(h0 * h1 < 0) & (np.abs(h0) > eps) & (np.abs(h1) > eps)] = 2
+    role[:, ~scene.half_edges.edge_is_generator] = 0
+    crossed = np.any(role == 2, axis=1)
+    scene._viscx_pencil_planes = face[crossed], role[crossed]
+    return scene._viscx_pencil_planes
+
+
+def pencil_plane_of(scene, kind, generators):
+    """(m,) int: for EEE families whose lines lie in a plane of :func:`pencil_planes` (two
+    generator edges in it, the third crossing it), a face of that plane; -1 elsewhere.
+
+    Parameters
+    ----------
+    kind : (m,) int
+    generators : (m, 3) int
+    """
+    out = np.full(len(kind), -1, dtype=np.int64)
+    face, role = pencil_planes(scene)
+    rows = np.flatnonzero(np.asarray(kind) == EEE)
+    for k in range(len(face)):  # few planes: a touched plane that an edge crosses
+        r = role[k][np.asarray(generators)[rows]]
+        hit = rows[(np.count_nonzero(r == 1, axis=1) == 2) & (np.count_nonzero(r == 2, axis=1) == 1)]
+        out[hit[out[hit] < 0]] = face[k]
+    return out
+
+
+def _first_pencil_pair(scene, plane_face, generators, ends, valid):
+    """(m,) bool: False for a pencil's line (``plane_face`` >= 0) whose two generator edges
+    in the plane are not the two lowest ids among the plane's generator edges that its
+    segment crosses (strictly inside, as node condition 5); True elsewhere.
+
+    Passing the faces beside the plane (:func:`pencil_planes`), one line of the pencil
+    across several faces of the plane crosses more than two of its edges, and every pair
+    of them that node condition (4) admits (two edges of one face, or of faces of that
+    plane) would give it an arc: one segment, several arcs over it. The lowest pair names
+    it; its arcs end where the crossed edges change (:func:`_pencil_events`)."""
+    ok = np.ones(len(plane_face), dtype=bool)
+    face, role = pencil_planes(scene)
+    eps = scene.epsilon
+    for k, pf in enumerate(face):
+        rows = np.flatnonzero(valid & (plane_face == pf))
+        if not len(rows):
+            continue
+        edges = np.flatnonzero(role[k] == 1)
+        r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(edges)), indexing="ij"))
+        p0, p1 = ends[rows[r], 0], ends[rows[r], 1]
+        a, b = _edge_geometry(scene, edges[j])
+        x, dist = segment_parameter(p0, p1 - p0, a, b)
+        length = np.linalg.norm(b - a, axis=1)
+        q = a + np.nan_to_num(x)[:, None] * (b - a)
+        t = np.einsum("ij,ij->i", q - p0, p1 - p0) / np.maximum(np.einsum("ij,ij->i", p1 - p0, p1 - p0), 1e-300)
+        with np.errstate(invalid="ignore"):
+            crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= 0) & (t <= 1)
+        crossed = crossed.reshape(len(rows), len(edges))
+        rank = np.cumsum(crossed, axis=1)
+        first = np.argmax(crossed & (rank == 1), axis=1)
+        second = np.argmax(crossed & (rank == 2), axis=1)
+        g = generators[rows]
+        own = np.sort(np.where(role[k][g] == 1, g, np.iinfo(np.int64).max), axis=1)[:, :2]
+        ok[rows] = (rank[:, -1] >= 2) & (edges[first] == own[:, 0]) & (edges[second] == own[:, 1])
+    return ok
+
+
+def _pencil_events(scene, fkind, fgens):
+    """The events of pencil families of touched planes (:func:`pencil_plane_of`): the
+    lines through H and each vertex or edge crossing lying in the plane P.
+
+    Such a line passes its faces beside P without a stop (:func:`pencil_planes`), so the
+    samples do not see where it starts or stops touching another face's outline in P
+    (the pencil entering the crack between two blocks touching face to face, where its
+    segments change nothing on a receiver: docs/queries.md, "Cracks"). The lines through
+    the corners of P's outlines and their crossings are where that can happen; arcs end
+    there (END_COPLANAR, the vertex or -1).
+
+    Returns
+    -------
+    family, s, end_type, index : (k,) arrays
+    """
+    plane = pencil_plane_of(scene, fkind, fgens)
+    fams, ss, idx = [np.empty(0, np.int64)], [np.empty(0)], [np.empty(0, np.int64)]
+    face, role = pencil_planes(scene)
+    tol = scene.weld_tolerance
+    cr = edge_crossings(scene)
+    for k, pf in enumerate(face):
+        rows = np.flatnonzero(plane == pf)
+        if not len(rows):
+            continue
+        n, off = scene.face_normal[pf], scene.face_offset[pf]
+        vert = np.flatnonzero(np.abs(scene.vertices @ n - off) <= tol)
+        crossing = np.abs(cr.point @ n - off) <= tol
+        w = np.concatenate([scene.vertices[vert], cr.point[crossing]])
+        which = np.r_[vert, np.full(np.count_nonzero(crossing), -1)]
+        g = fgens[rows]
+        line = g[role[k][g] == 2]  # the one generator crossing P, row by row
+        la, lb = _edge_geometry(scene, line)
+        h0, h1 = la @ n - off, lb @ n - off
+        hit = la + (h0 / (h0 - h1))[:, None] * (lb - la)  # H
+        r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(w)), indexing="ij"))
+        a, b = _edge_geometry(scene, g[r, 0])
+        sv, _ = segment_parameter(hit[r], w[j] - hit[r], a, b)
+        with np.errstate(invalid="ignore"):
+            inside = np.isfinite(sv) & (sv > 0) & (sv < 1)
+        fams.append(rows[r[inside]])
+        ss.append(sv[inside])
+        idx.append(which[j[inside]])
+    family = np.concatenate(fams)
+    return family, np.concatenate(ss), np.full(len(family), END_COPLANAR), np.concatenate(idx)
+
+
 def contact_pencils(scene):
-    """EEE families (l, e1, e2) of the pencils at the corners of touched faces: e1, e2
-    two edges of a face F meeting at its corner c, where another face or a foreign
-    vertex lies in F's plane (:func:`_touched_faces`: two blocks touching
-    face to face, a tetrahedron's corner on a box's side plane), and l a generator edge
-    crossing that plane P strictly, at H.
+    """EEE families (l, e1, e2) of the pencils of touched planes (:func:`pencil_planes`):
+    e1, e2 two generator edges lying in a plane P that holds a touched face (another face
+    or a foreign vertex in its plane: two blocks touching face to face, a tetrahedron's
+    corner on a box's side plane), l a generator edge crossing P strictly at H, where some
+    line of P through H crosses both open edges.
 
     Such a family is the pencil of lines in P through H that cross e1 and e2 (lines
-    meeting the coplanar e1 and e2 lie in P or pass through c; through a point of l they
-    lie in P only at H). Its lines graze F between e1 and e2, and where they leave F
-    (H seen across F's corner) the visible part of l from a receiver point turns from
-    one of F's edges to the other. A lone face's pencil ends at nodes (VEE: lines
-    through H and a vertex of F), but with a foreign face or vertex in P those lines
-    can pass the foreign vertex while grazing F, which node condition (N2) rejects: the
-    family may hold no node, like a same-plane VE family, and is seeded. (Two touching
-    boxes, a box side with a tetrahedron's vertex in its plane: without it receiver
-    regions in front of the face held both edges' labels, docs/queries.md.)
+    meeting two coplanar edges lie in their plane or pass through their lines' common
+    point; through a point of l they lie in P only at H). Its lines graze P's faces, and
+    where they leave one (H seen across its corner) the visible part of l from a receiver
+    point turns from one of its edges to the other. A lone face's pencil ends at nodes
+    (VEE: lines through H and a vertex of the face), but with a foreign face or vertex in
+    P those lines can pass the foreign vertex while grazing the face, which node
+    condition (N2) rejects: the family may hold no node, like a same-plane VE family, and
+    is seeded. Every pair is seeded, not just a face's corners: a line across several
+    faces of P crosses more than two of their edges, and its arcs are those of the lowest
+    pair (:func:`_first_pencil_pair`), which must be a family. (Two touching boxes, a box
+    side with a tetrahedron's vertex in its plane: without them receiver regions in front
+    of the face held both edges' labels, docs/queries.md.)
 
-    The pencil through H crosses both open edges iff, in the corner's frame
-    H - c = x u1 + y u2 (u1, u2 the edges' vectors from c), some s, t in (0, 1) have
-    x / s + y / t = 1: x > 0 or y > 0, and not (x > 0, y > 0, x + y >= 1).
+    Seen from H, edge e spans the directions of an interval of lines [a, a + w) modulo π
+    (w < π); two edges' lines through H meet both open edges where their intervals
+    overlap by more than an angle of 1e-9.
 
     Returns
     -------
     (m, 3) int
         Canonical EEE generators (:func:`canonical_eee`), unique, sorted.
     """
-    he = scene.half_edges
-    touching = _touched_faces(scene)
-    # the corners of those faces: a half-edge and the next one around its face
-    h = np.flatnonzero(touching[he.face])
-    h1, h2 = h, he.next[h]
-    e1, e2 = he.edge[h1], he.edge[h2]
-    ok = he.edge_is_generator[e1] & he.edge_is_generator[e2]
-    h1, h2, e1, e2 = h1[ok], h2[ok], e1[ok], e2[ok]
-    if len(e1) == 0:
-        return np.empty((0, 3), dtype=np.int64)
-    c = scene.vertices[he.end[h1]]
-    u1 = scene.vertices[he.start[h1]] - c
-    u2 = scene.vertices[he.end[h2]] - c
-    normal = np.cross(u1, u2)
-    size = np.linalg.norm(normal, axis=1)
-    corner = size > 1e-9 * np.linalg.norm(u1, axis=1) * np.linalg.norm(u2, axis=1)  # not collinear edges
-    c, u1, u2, e1, e2, normal = c[corner], u1[corner], u2[corner], e1[corner], e2[corner], normal[corner] / size[corner, None]
-    i, line, point = _edges_crossing_planes(scene, normal, c)
-    rel = point - c[i]
-    n, a, b = normal[i], u1[i], u2[i]
-    det = np.einsum("ij,ij->i", np.cross(a, b), n)
-    x = np.einsum("ij,ij->i", np.cross(rel, b), n) / det
-    y = np.einsum("ij,ij->i", np.cross(a, rel), n) / det
-    cuts = ((x > 0) | (y > 0)) & ~((x > 0) & (y > 0) & (x + y >= 1))
-    rows, lines = i[cuts], line[cuts]
-    gens = canonical_eee(scene, np.stack([lines, e1[rows], e2[rows]], axis=1))
+    face, role = pencil_planes(scene)
+    gens = [np.empty((0, 3), dtype=np.int64)]
+    for k, pf in enumerate(face):
+        n, off = scene.face_normal[pf], scene.face_offset[pf]
+        u, v = plane_basis(n)
+        inside = np.flatnonzero(role[k] == 1)
+        if len(inside) < 2:
+            continue
+        ia, ib = np.triu_indices(len(inside), 1)
+        a, b = _edge_geometry(scene, inside)
+        for line in np.flatnonzero(role[k] == 2):
+            la, lb = _edge_geometry(scene, np.array([line]))
+            h0, h1 = la[0] @ n - off, lb[0] @ n - off
+            hit = la[0] + h0 / (h0 - h1) * (lb[0] - la[0])
+            ta = np.arctan2((a - hit) @ v, (a - hit) @ u)
+            tb = np.arctan2((b - hit) @ v, (b - hit) @ u)
+            sweep = np.mod(tb - ta + np.pi, 2 * np.pi) - np.pi  # signed, |sweep| < π off the edge's line
+            start = np.mod(np.where(sweep >= 0, ta, tb), np.pi)
+            width = np.abs(sweep)
+            d = np.mod(start[ib] - start[ia], np.pi)
+            wa, wb = width[ia], width[ib]
+            overlap = (np.maximum(0.0, np.minimum(wa, d + wb) - d)
+                       + np.maximum(0.0, np.minimum(wa, d - np.pi + wb) - np.maximum(0.0, d - np.pi)))
+            ok = overlap > 1e-9
+            gens.append(np.stack([np.full(np.count_nonzero(ok), line), inside[ia[ok]], inside[ib[ok]]], axis=1))
+    gens = canonical_eee(scene, np.concatenate(gens))
     gens = gens[gens[:, 0] >= 0]
     return np.unique(gens, axis=0).reshape(-1, 3)
 
@@ -1541,6 +1688,11 @@ def _first_pass_of_families(scene, families, chunk):
     cop_f, cop_s, cop_kind, cop_index = _coplanar_join(scene, plane_ve, families.plane_of[p0:p1], families.plane_points)
     cop_hidden = _hidden_events(scene, plane_ve[cop_f], cop_s)
     cop_f = families.plane_family[p0:p1][cop_f] - lo
+    # the points of their plane pencils of touched planes pass
+    pen_f, pen_s, pen_kind, pen_index = _pencil_events(scene, fkind, fgens)
+    cop_f, cop_s = np.r_[cop_f, pen_f], np.r_[cop_s, pen_s]
+    cop_kind, cop_index = np.r_[cop_kind, pen_kind], np.r_[cop_index, pen_index]
+    cop_hidden = np.r_[cop_hidden, np.zeros(len(pen_f), dtype=bool)]
     fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
     ev_s = np.concatenate([families.event_s[ev], dom_s, cop_s, np.zeros(nf), np.ones(nf)])
     ev_kind = np.concatenate([families.event_kind[ev], dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])

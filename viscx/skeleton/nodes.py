@@ -150,7 +150,8 @@ class LineSegments:
 SEGMENT_CHUNK = 1 << 16
 
 
-def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions, workers=None):
+def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions, workers=None,
+                          plane_face=None):
     """The one definition of "a maximal free segment through these generators".
 
     Nodes use it with four conditions (k = 4, 3, 2 generator points), arcs
@@ -172,6 +173,9 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     workers : int, optional
         Threads (default: the CPU count); each line is judged on its own, so the
         result does not depend on them.
+    plane_face : (m,) int, optional
+        A face in whose plane the line lies (a pencil of a touched plane), -1 for
+        none: the line passes faces beside that plane (:func:`first_triangles`).
 
     Returns
     -------
@@ -180,14 +184,19 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
     slot_is_vertex, slot_count, generators, origins, directions = (
         np.asarray(a) for a in (slot_is_vertex, slot_count, generators, origins, directions))
     m = len(slot_count)
+    if plane_face is not None:
+        plane_face = np.asarray(plane_face, dtype=np.int64)
+        if not np.any(plane_face >= 0):
+            plane_face = None
     if m > SEGMENT_CHUNK:
-        parts = map_chunks(lambda r: _maximal_free_segments(scene, slot_is_vertex[r], slot_count[r], generators[r], origins[r],
-                                                            directions[r]), row_chunks(m, SEGMENT_CHUNK), workers)
+        parts = map_chunks(lambda r: _maximal_free_segments(
+            scene, slot_is_vertex[r], slot_count[r], generators[r], origins[r], directions[r],
+            None if plane_face is None else plane_face[r]), row_chunks(m, SEGMENT_CHUNK), workers)
         return LineSegments(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in LineSegments.__dataclass_fields__})
-    return _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions)
+    return _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions, plane_face)
 
 
-def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions):
+def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions, plane_face=None):
     """:func:`maximal_free_segments` on one chunk of lines."""
     eps = scene.epsilon
     slot_is_vertex = np.asarray(slot_is_vertex, dtype=bool)
@@ -250,7 +259,8 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
         piece_cand.append(c)
     piece_cand = np.concatenate(piece_cand)
     if len(piece_cand):
-        free = free_pieces(scene, np.concatenate(pieces_a), np.concatenate(pieces_b))
+        free = free_pieces(scene, np.concatenate(pieces_a), np.concatenate(pieces_b),
+                           None if plane_face is None else plane_face[piece_cand])
         keep &= _all_of(piece_cand, free, m)
 
     # ... then tangency, the costly test, on the lines still standing
@@ -285,7 +295,8 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
         if len(go_on):
             start = point[row[go_on]]
             direction = sign * d[nodes[go_on]]
-            face, dist_hit = first_faces(scene, start, direction, tmin=eps)
+            face, dist_hit = first_faces(scene, start, direction, tmin=eps,
+                                         plane_face=None if plane_face is None else plane_face[nodes[go_on]])
             sky = face < 0
             end = start + np.where(sky, 0.0, dist_hit)[:, None] * direction
             if sky.any():
@@ -361,7 +372,7 @@ GRAZE_COSINE = 1e-9
 MAX_GRAZED = 8
 
 
-def first_faces(scene, origins, directions, tmin, tmax=np.inf):
+def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
     """The first face hit along each ray on [tmin, tmax], deterministic where the hit point
     lies on several faces: then the lowest id of those faces.
 
@@ -399,7 +410,7 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf):
     o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
-    tri, t = first_triangles(scene, o, d, tmin, tmax)
+    tri, t = first_triangles(scene, o, d, tmin, tmax, plane_face)
     margin = np.full(len(o), np.inf)
     hit = np.flatnonzero(tri >= 0)
     _, margin[hit], _ = intersect_triangles(o[hit], d[hit], scene.ray_caster.vertices, scene.ray_caster.triangles, tri[hit])
@@ -439,16 +450,25 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf):
     return face, t
 
 
-def first_triangles(scene, origins, directions, tmin, tmax):
+def first_triangles(scene, origins, directions, tmin, tmax, plane_face=None):
     """The first triangle each ray hits on [tmin, tmax] that it does not graze (the rule
     of :func:`first_faces`, before its ties): the float64 caster's answer, going on
     past triangles in whose plane the ray lies (up to MAX_GRAZED of them).
+
+    A ray given a ``plane_face`` that lies in that face's plane P (as grazing is judged;
+    a pencil of a touched plane, :func:`viscx.skeleton.arcs.pencil_planes`) also goes on
+    past faces lying on one side of P. Such a face meets P only on its outline, so the ray touches it
+    there, tangent (a block's top face at the edge it shares with its face in P), and
+    passes, as it passes a generator it is tangent to. Where the ray enters a solid
+    there (a reflex edge), the solid's other faces still stop it.
 
     Parameters
     ----------
     origins, directions : (n, 3) float
         Unit directions.
     tmin, tmax : float or (n,) float
+    plane_face : (n,) int, optional
+        A face in whose plane the ray lies, -1 for none.
 
     Returns
     -------
@@ -469,6 +489,12 @@ def first_triangles(scene, origins, directions, tmin, tmax):
         n = scene.face_normal[f]
         grazing = (np.abs(np.einsum("ij,ij->i", n, d[todo])) <= GRAZE_COSINE) & (
             np.abs(np.einsum("ij,ij->i", n, o[todo]) - scene.face_offset[f]) <= scene.weld_tolerance)
+        if plane_face is not None:
+            r = np.flatnonzero(~grazing & (plane_face[todo] >= 0))
+            g = plane_face[todo[r]]
+            in_plane = (np.abs(np.einsum("ij,ij->i", scene.face_normal[g], d[todo[r]])) <= GRAZE_COSINE) & (
+                np.abs(np.einsum("ij,ij->i", scene.face_normal[g], o[todo[r]]) - scene.face_offset[g]) <= scene.weld_tolerance)
+            grazing[r] = in_plane & faces_beside_planes(scene, f[r], g)
         todo = todo[grazing]
         if len(todo) == 0:
             break
@@ -476,13 +502,47 @@ def first_triangles(scene, origins, directions, tmin, tmax):
     return tri, t
 
 
-def free_pieces(scene, starts, ends):
+def faces_beside_planes(scene, faces, plane_faces):
+    """Whether each face lies on one side of the plane of the paired face, touching it at
+    most (every vertex of the face within the weld tolerance of that side).
+
+    Parameters
+    ----------
+    faces, plane_faces : (n,) int
+
+    Returns
+    -------
+    (n,) bool
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    plane_faces = np.asarray(plane_faces, dtype=np.int64)
+    if len(faces) == 0:
+        return np.zeros(0, dtype=bool)
+    # a face's vertices, all its loops, are one run of loop_vertices
+    lo = scene.loop_offsets[scene.face_loop_offsets[faces]]
+    hi = scene.loop_offsets[scene.face_loop_offsets[faces + 1]]
+    count = hi - lo
+    row = np.repeat(np.arange(len(faces)), count)
+    vertex = scene.loop_vertices[np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    dist = np.einsum("ij,ij->i", scene.vertices[vertex], scene.face_normal[plane_faces[row]]) - scene.face_offset[plane_faces[row]]
+    starts = np.cumsum(count) - count
+    tol = scene.weld_tolerance
+    return (np.minimum.reduceat(dist, starts) >= -tol) | (np.maximum.reduceat(dist, starts) <= tol)
+
+
+def free_pieces(scene, starts, ends, plane_face=None):
     """Whether each segment, trimmed by epsilon at both ends, is free: no closed triangle
     met but those it grazes (:func:`first_triangles`, float64 alone: embree's float32
     filter may miss a segment touching an edge, so a family of lines all touching one
     edge, in a degenerate scene, would be free at random samples; which face is met,
     :func:`first_faces`' ties, does not matter here). The freeness rule of
     :func:`maximal_free_segments` (and of builders that prefilter candidates by it).
+
+    Parameters
+    ----------
+    starts, ends : (n, 3) float
+    plane_face : (n,) int, optional
+        As in :func:`first_triangles`.
 
     Returns
     -------
@@ -495,7 +555,8 @@ def free_pieces(scene, starts, ends):
     free = length <= 2 * eps
     rays = np.flatnonzero(~free)
     if len(rays):
-        tri, _ = first_triangles(scene, starts[rays], vec[rays] / length[rays, None], eps, length[rays] - eps)
+        tri, _ = first_triangles(scene, starts[rays], vec[rays] / length[rays, None], eps, length[rays] - eps,
+                                 None if plane_face is None else np.asarray(plane_face)[rays])
         free[rays] = tri < 0
     return free
 

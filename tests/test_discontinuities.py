@@ -736,6 +736,24 @@ def test_cli_outputs(small, tmp_path, capsys):
     assert r.returncode == 0 and [f["face"] for f in json.loads(r.stdout)["faces"]] == [0]
 
 
+def test_cli_warns_of_a_light_in_several_planes(small, tmp_path, capsys):
+    """A light group bent along an edge (two quads, 30 degrees apart) gets its mesh and a
+    one-line warning that it is exact for a planar light only; a planar light none."""
+    r = _cli(capsys, "query", "discontinuities", small, "--light-group", "light")
+    assert r.returncode == 0 and "warning" not in r.stderr
+    obj = tmp_path / "bent.obj"
+    t = float(np.tan(np.radians(30.0)))
+    obj.write_text("\n".join([
+        "o floor", "v -5 0 -5", "v 5 0 -5", "v 5 0 5", "v -5 0 5", "f 1 4 3 2",
+        "o light", "v -1 5 -1", "v 0 5 -1", "v 0 5 1", "v -1 5 1", f"v 1 {5 + t!r} -1", f"v 1 {5 + t!r} 1",
+        "f 5 6 7 8", "f 6 9 10 7",
+        "o block", "v -0.5 1 -0.5", "v 0.5 1 -0.5", "v 0.5 1 0.5", "v -0.5 1 0.5", "f 11 12 13 14"]) + "\n")
+    build_file(obj, tmp_path / "bent.h5", quiet=True)
+    r = _cli(capsys, "query", "discontinuities", tmp_path / "bent.h5", "--light-group", "light")
+    assert r.returncode == 0 and json.loads(r.stdout)["events"] > 0
+    assert r.stderr.count("\n") == 1 and "lie in 2 planes" in r.stderr and "exact for a planar light" in r.stderr
+
+
 @pytest.mark.parametrize("args", [["--light-face", "99"], ["--light-group", "nope"], [],
                                   ["--light-face", "1", "--light-group", "light"],
                                   ["--light-group", "light", "--face", "-1"]])

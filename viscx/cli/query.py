@@ -133,10 +133,14 @@ def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
     viscx query discontinuities cornell.h5 --light-face 15 -o mesh.ply
     """
     from viscx.formats.queries import output_format, write_regions_ply, write_result
-    from viscx.queries.discontinuities import mesh_result, open_discontinuities
+    from viscx.queries.discontinuities import light_plane_count, mesh_result, open_discontinuities
 
     fmt = output_format(output, fmt, geometry=True)
     scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group, faces=faces)
+    planes = light_plane_count(scene, mesh.light)
+    if planes > 1 and not quiet(ctx):
+        click.echo(f"viscx: warning: the light's faces lie in {planes} planes; the mesh is exact for a planar light "
+                   "only (docs/queries.md, \"What the mesh leaves out\" (3))", err=True)
     if fmt == "ply":
         counts = write_regions_ply(output, mesh)
         if not quiet(ctx):

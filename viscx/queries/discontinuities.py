@@ -79,7 +79,7 @@ from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
-from viscx.skeleton.nodes import BLOCK_FACE
+from viscx.skeleton.nodes import BLOCK_FACE, face_planes
 
 #: Chordal tolerance of the EEE traces (conic arcs as polylines), in epsilons.
 CHORD_TOLERANCE = 10.0
@@ -113,6 +113,12 @@ class Light:
     vertices: np.ndarray
     edges: np.ndarray
     name: str
+
+
+def light_plane_count(scene, light):
+    """The number of planes the light's faces lie in (:func:`viscx.skeleton.nodes.face_planes`):
+    the mesh is exact for one (docs/queries.md, "What the mesh leaves out" (3))."""
+    return len(np.unique(face_planes(scene)[np.asarray(light.faces)]))
 
 
 def light_of(scene, face=None, group=None):

@@ -969,10 +969,13 @@ def pencil_planes(scene):
     Returns
     -------
     face : (k,) int
-        A face of each plane.
+        A face of each plane, sorted by plane (:func:`viscx.skeleton.nodes.face_planes`).
     role : (k, e) int8
-        Per plane and edge: 1 the generator edge lies in the plane (both ends within
-        the weld tolerance), 2 it crosses the plane strictly, 0 otherwise.
+        Per plane and edge: 1 the generator edge bounds a touched face and lies in the
+        plane (both ends within the weld tolerance), 2 it crosses the plane strictly, 0
+        otherwise. (Edges of faces of the plane that touch nothing stay 0.)
+    incidence : (m, 3) int
+        (plane, touched face in it, its generator edge with role 1), sorted.
     """
     cached = getattr(scene, "_viscx_pencil_planes", None)
     if cached is not None:
@@ -980,17 +983,29 @@ def pencil_planes(scene):
     touched = np.flatnonzero(_touched_faces(scene))
     plane = face_planes(scene)[touched]
     _, first = np.unique(plane, return_index=True)
-    face = touched[np.sort(first)]
+    face = touched[first]  # one per plane, by plane id
     a, b = _edge_geometry(scene, np.arange(len(scene.half_edges.edge_vertices)))
     n, off = scene.face_normal[face], scene.face_offset[face]
     h0, h1 = n @ a.T - off[:, None], n @ b.T - off[:, None]
     tol, eps = scene.weld_tolerance, scene.epsilon
     role = np.zeros(h0.shape, dtype=np.int8)
-    role[(np.abs(h0) <= tol) & (np.abs(h1) <= tol)] = 1
+    he = scene.half_edges
+    of_touched = np.zeros(len(he.edge_vertices), dtype=bool)
+    of_touched[he.edge[np.isin(he.face, touched)]] = True
+    role[(np.abs(h0) <= tol) & (np.abs(h1) <= tol) & of_touched] = 1
     role[(h0 * h1 < 0) & (np.abs(h0) > eps) & (np.abs(h1) > eps)] = 2
     role[:, ~scene.half_edges.edge_is_generator] = 0
-    crossed = np.any(role == 2, axis=1)
-    scene._viscx_pencil_planes = face[crossed], role[crossed]
+    crossed = np.flatnonzero(np.any(role == 2, axis=1))
+    face, role = face[crossed], role[crossed]
+    # the touched faces of each plane and their edges lying in it
+    h = np.flatnonzero(np.isin(he.face, touched)) if len(face) else np.zeros(0, np.int64)
+    plane_of = face_planes(scene)
+    k = np.minimum(np.searchsorted(plane_of[face], plane_of[he.face[h]]), len(face) - 1)
+    ok = plane_of[face[k]] == plane_of[he.face[h]]
+    k, h = k[ok], h[ok]
+    ok = role[k, he.edge[h]] == 1
+    incidence = np.unique(np.stack([k[ok], he.face[h[ok]], he.edge[h[ok]]], axis=1), axis=0).reshape(-1, 3)
+    scene._viscx_pencil_planes = face, role, incidence
     return scene._viscx_pencil_planes
 
 
@@ -1004,7 +1019,7 @@ def pencil_plane_of(scene, kind, generators):
     generators : (m, 3) int
     """
     out = np.full(len(kind), -1, dtype=np.int64)
-    face, role = pencil_planes(scene)
+    face, role, _ = pencil_planes(scene)
     rows = np.flatnonzero(np.asarray(kind) == EEE)
     for k in range(len(face)):  # few planes: a touched plane that an edge crosses
         r = role[k][np.asarray(generators)[rows]]
@@ -1015,38 +1030,45 @@ def pencil_plane_of(scene, kind, generators):
 
 def _first_pencil_pair(scene, plane_face, generators, ends, valid):
     """(m,) bool: False for a pencil's line (``plane_face`` >= 0) whose two generator edges
-    in the plane are not the two lowest ids among the plane's generator edges that its
-    segment crosses (strictly inside, as node condition 5); True elsewhere.
+    in the plane are not the crossed edges of the first face it crosses; True elsewhere.
 
     Passing the faces beside the plane (:func:`pencil_planes`), one line of the pencil
-    across several faces of the plane crosses more than two of its edges, and every pair
-    of them that node condition (4) admits (two edges of one face, or of faces of that
-    plane) would give it an arc: one segment, several arcs over it. The lowest pair names
-    it; its arcs end where the crossed edges change (:func:`_pencil_events`)."""
+    across several touched faces of the plane crosses two edges of each (strictly inside,
+    as node condition 5, within its segment), and every pair of them that node condition
+    (4) admits (two edges of one face, or of faces of that plane) would give it an arc:
+    one segment, several arcs over it. The first touched face it crosses (lowest id) names
+    it, by its two lowest crossed edges (a family of :func:`contact_pencils`); its arcs end
+    where the crossed edges change (:func:`_pencil_events`)."""
     ok = np.ones(len(plane_face), dtype=bool)
-    face, role = pencil_planes(scene)
+    face, role, incidence = pencil_planes(scene)
     eps = scene.epsilon
+    big = np.iinfo(np.int64).max
     for k, pf in enumerate(face):
         rows = np.flatnonzero(valid & (plane_face == pf))
         if not len(rows):
             continue
-        edges = np.flatnonzero(role[k] == 1)
-        r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(edges)), indexing="ij"))
+        inc = incidence[incidence[:, 0] == k]  # sorted by (face, edge)
+        r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(inc)), indexing="ij"))
         p0, p1 = ends[rows[r], 0], ends[rows[r], 1]
-        a, b = _edge_geometry(scene, edges[j])
+        a, b = _edge_geometry(scene, inc[j, 2])
         x, dist = segment_parameter(p0, p1 - p0, a, b)
         length = np.linalg.norm(b - a, axis=1)
         q = a + np.nan_to_num(x)[:, None] * (b - a)
         t = np.einsum("ij,ij->i", q - p0, p1 - p0) / np.maximum(np.einsum("ij,ij->i", p1 - p0, p1 - p0), 1e-300)
         with np.errstate(invalid="ignore"):
             crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= 0) & (t <= 1)
-        crossed = crossed.reshape(len(rows), len(edges))
-        rank = np.cumsum(crossed, axis=1)
-        first = np.argmax(crossed & (rank == 1), axis=1)
-        second = np.argmax(crossed & (rank == 2), axis=1)
+        crossed = crossed.reshape(len(rows), len(inc))
+        # per row, the crossed edges of each face (faces in id order): the first face with two
+        faces, start = np.unique(inc[:, 1], return_index=True)
+        count = np.add.reduceat(crossed.astype(np.int64), start, axis=1)  # (rows, faces)
+        first = np.argmax(count >= 2, axis=1)
+        has = count[np.arange(len(rows)), first] >= 2
+        in_face = inc[None, :, 1] == faces[first][:, None]
+        picked = np.where(crossed & in_face, inc[None, :, 2], big)
+        pair = np.sort(picked, axis=1)[:, :2]
         g = generators[rows]
-        own = np.sort(np.where(role[k][g] == 1, g, np.iinfo(np.int64).max), axis=1)[:, :2]
-        ok[rows] = (rank[:, -1] >= 2) & (edges[first] == own[:, 0]) & (edges[second] == own[:, 1])
+        own = np.sort(np.where(role[k][g] == 1, g, big), axis=1)[:, :2]
+        ok[rows] = has & np.all(pair == own, axis=1)
     return ok
 
 
@@ -1067,7 +1089,7 @@ def _pencil_events(scene, fkind, fgens):
     """
     plane = pencil_plane_of(scene, fkind, fgens)
     fams, ss, idx = [np.empty(0, np.int64)], [np.empty(0)], [np.empty(0, np.int64)]
-    face, role = pencil_planes(scene)
+    face, role, _ = pencil_planes(scene)
     tol = scene.weld_tolerance
     cr = edge_crossings(scene)
     for k, pf in enumerate(face):
@@ -1098,10 +1120,10 @@ def _pencil_events(scene, fkind, fgens):
 
 def contact_pencils(scene):
     """EEE families (l, e1, e2) of the pencils of touched planes (:func:`pencil_planes`):
-    e1, e2 two generator edges lying in a plane P that holds a touched face (another face
-    or a foreign vertex in its plane: two blocks touching face to face, a tetrahedron's
-    corner on a box's side plane), l a generator edge crossing P strictly at H, where some
-    line of P through H crosses both open edges.
+    e1, e2 two generator edges of touched faces (another face or a foreign vertex in their
+    plane: two blocks touching face to face, a tetrahedron's corner on a box's side plane)
+    lying in their plane P, l a generator edge crossing P strictly at H, where some line of
+    P through H crosses both open edges.
 
     Such a family is the pencil of lines in P through H that cross e1 and e2 (lines
     meeting two coplanar edges lie in their plane or pass through their lines' common
@@ -1111,9 +1133,9 @@ def contact_pencils(scene):
     (VEE: lines through H and a vertex of the face), but with a foreign face or vertex in
     P those lines can pass the foreign vertex while grazing the face, which node
     condition (N2) rejects: the family may hold no node, like a same-plane VE family, and
-    is seeded. Every pair is seeded, not just a face's corners: a line across several
-    faces of P crosses more than two of their edges, and its arcs are those of the lowest
-    pair (:func:`_first_pencil_pair`), which must be a family. (Two touching boxes, a box
+    is seeded. Every pair of one face's edges is seeded, not just its corners: a line
+    across several faces of P crosses two edges of each, and its arcs are those of the
+    first face's pair (:func:`_first_pencil_pair`), which must be a family. (Two touching boxes, a box
     side with a tetrahedron's vertex in its plane: without them receiver regions in front
     of the face held both edges' labels, docs/queries.md.)
 
@@ -1126,15 +1148,16 @@ def contact_pencils(scene):
     (m, 3) int
         Canonical EEE generators (:func:`canonical_eee`), unique, sorted.
     """
-    face, role = pencil_planes(scene)
+    face, role, incidence = pencil_planes(scene)
     gens = [np.empty((0, 3), dtype=np.int64)]
     for k, pf in enumerate(face):
         n, off = scene.face_normal[pf], scene.face_offset[pf]
         u, v = plane_basis(n)
-        inside = np.flatnonzero(role[k] == 1)
-        if len(inside) < 2:
+        inc = incidence[incidence[:, 0] == k]
+        ia, ib = _pairs_within_groups(inc[:, 1])  # two edges of one face
+        if not len(ia):
             continue
-        ia, ib = np.triu_indices(len(inside), 1)
+        inside = inc[:, 2]
         a, b = _edge_geometry(scene, inside)
         for line in np.flatnonzero(role[k] == 2):
             la, lb = _edge_geometry(scene, np.array([line]))

@@ -637,7 +637,7 @@ def test_partly_overlapping_contacts(tmp_path, monkeypatch, seed):
     (``_pencil_events``: there they enter or leave the crack, whose traces change nothing),
     one arc per line (``_first_pencil_pair``), and the mesh drops their traces through the
     crack. Over 40 such scenes (oracle seed 1) every same-region pair and crossing agrees
-    (12,305 and 3,446); before, 11 of 3,531 pairs failed in the first 12 and 6 trace ends
+    (12,305 and 3,401); before, 11 of 3,531 pairs failed in the first 12 and 6 trace ends
     dangled."""
     import importlib
 
@@ -661,7 +661,7 @@ def terrace_scene_obj(path, seed):
 
 def test_terrace_of_touching_blocks(tmp_path, monkeypatch):
     """Blocks touching in rows (a terrace): the pencils of their contact planes. Terraces
-    0-5, oracle seed 1: 4,683 of 4,683 same-region pairs and 1,373 of 1,374 crossings (the
+    0-5, oracle seed 1: 4,683 of 4,683 same-region pairs and 1,358 of 1,359 crossings (the
     one a 3.4e-3 trace across a 0.0028-wide strip of a contact face, which the oracle
     crosses at a finer offset); before the pencils passed the faces beside their plane,
     4,574 of 4,611 and 1,323 of 1,328, with 16 dangling ends. Terrace 0 here, and again

@@ -339,6 +339,24 @@ def test_one_arc_per_pencil_line(monkeypatch):
     assert not ee.complete.all()
 
 
+def test_pencil_blocked_at_its_last_edge(tmp_path):
+    """Two blocks touching with partly overlapping faces (``contact_scene_obj`` 20 of the
+    discontinuity tests): the pencil of light edge 7 across the short block's face, from
+    its top edge 25 down to its bottom edge 20 on the floor, is blocked at edge 20, where
+    its segment ends. That crossing counts (``arcs.pencil_crossings``: within epsilon of the
+    segment's ends); when it did not, rounding made some lines' first face pair a single
+    edge, their samples flickered invalid and the square (7, 25) stayed open."""
+    from test_discontinuities import contact_scene_obj
+
+    scene = load_scene(contact_scene_obj(tmp_path / "c.obj", 20))
+    arcs, ee = build_all(scene)
+    rows = np.flatnonzero(np.all(arcs.generators == [20, 7, 25], axis=1))
+    assert np.all(arcs.end_type[rows[1:], 0] != 3)  # no transition inside
+    assert np.all(ee.complete[(ee.edge1 == 7) & (ee.edge2 == 25)])
+    judged, agreed, _ = assert_oracle(scene, arcs, ee, [(7, 25)])
+    assert agreed == judged
+
+
 def test_finer_probe_closes_the_cornell_light_slivers():
     """cornell_box: the lines from the room's vertical edges' top ends to the far ceiling edges
     pass the light (0.1 below the ceiling) within slivers about 1e-4 of the square wide,

@@ -1028,47 +1028,83 @@ def pencil_plane_of(scene, kind, generators):
     return out
 
 
-def _first_pencil_pair(scene, plane_face, generators, ends, valid):
-    """(m,) bool: False for a pencil's line (``plane_face`` >= 0) whose two generator edges
-    in the plane are not the crossed edges of the first face it crosses; True elsewhere.
+def pencil_crossings(scene, plane_face, ends):
+    """The edges of touched faces that the segments of pencils' lines cross.
 
-    Passing the faces beside the plane (:func:`pencil_planes`), one line of the pencil
-    across several touched faces of the plane crosses two edges of each (strictly inside,
-    as node condition 5, within its segment), and every pair of them that node condition
-    (4) admits (two edges of one face, or of faces of that plane) would give it an arc:
-    one segment, several arcs over it. The first touched face it crosses (lowest id) names
-    it, by its two lowest crossed edges (a family of :func:`contact_pencils`); its arcs end
-    where the crossed edges change (:func:`_pencil_events`)."""
-    ok = np.ones(len(plane_face), dtype=bool)
+    A line of a pencil of a touched plane (``plane_face`` >= 0, :func:`pencil_plane_of`)
+    passes the faces beside its plane (:func:`pencil_planes`) and crosses, strictly inside
+    (as node condition 5) and within its segment, two edges of each touched face of the
+    plane it runs across.
+
+    Parameters
+    ----------
+    plane_face : (m,) int
+    ends : (m, 2, 3) float
+        Each line's maximal free segment.
+
+    Returns
+    -------
+    row : (c,) int
+        Ascending.
+    face, edge : (c,) int
+        The crossed edge and its touched face; by (row, face, edge).
+    """
     face, role, incidence = pencil_planes(scene)
     eps = scene.epsilon
-    big = np.iinfo(np.int64).max
+    out = [np.empty((0, 3), dtype=np.int64)]
     for k, pf in enumerate(face):
-        rows = np.flatnonzero(valid & (plane_face == pf))
-        if not len(rows):
-            continue
+        rows = np.flatnonzero(plane_face == pf)
         inc = incidence[incidence[:, 0] == k]  # sorted by (face, edge)
+        if not len(rows) or not len(inc):
+            continue
         r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(inc)), indexing="ij"))
         p0, p1 = ends[rows[r], 0], ends[rows[r], 1]
         a, b = _edge_geometry(scene, inc[j, 2])
         x, dist = segment_parameter(p0, p1 - p0, a, b)
         length = np.linalg.norm(b - a, axis=1)
         q = a + np.nan_to_num(x)[:, None] * (b - a)
-        t = np.einsum("ij,ij->i", q - p0, p1 - p0) / np.maximum(np.einsum("ij,ij->i", p1 - p0, p1 - p0), 1e-300)
+        span = np.maximum(np.linalg.norm(p1 - p0, axis=1), 1e-300)
+        t = np.einsum("ij,ij->i", q - p0, p1 - p0) / span  # along the segment; its ends may be on the edges
         with np.errstate(invalid="ignore"):
-            crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= 0) & (t <= 1)
-        crossed = crossed.reshape(len(rows), len(inc))
-        # per row, the crossed edges of each face (faces in id order): the first face with two
-        faces, start = np.unique(inc[:, 1], return_index=True)
-        count = np.add.reduceat(crossed.astype(np.int64), start, axis=1)  # (rows, faces)
-        first = np.argmax(count >= 2, axis=1)
-        has = count[np.arange(len(rows)), first] >= 2
-        in_face = inc[None, :, 1] == faces[first][:, None]
-        picked = np.where(crossed & in_face, inc[None, :, 2], big)
-        pair = np.sort(picked, axis=1)[:, :2]
-        g = generators[rows]
-        own = np.sort(np.where(role[k][g] == 1, g, big), axis=1)[:, :2]
-        ok[rows] = has & np.all(pair == own, axis=1)
+            crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= -eps) & (t <= span + eps)
+        out.append(np.stack([rows[r[crossed]], inc[j[crossed], 1], inc[j[crossed], 2]], axis=1))
+    out = np.concatenate(out)
+    out = out[np.lexsort([out[:, 2], out[:, 1], out[:, 0]])]
+    return out[:, 0], out[:, 1], out[:, 2]
+
+
+def _first_pencil_pair(scene, plane_face, generators, ends, valid):
+    """(m,) bool: False for a pencil's line (``plane_face`` >= 0) whose two generator edges
+    in the plane are not the crossed edges of the first touched face it crosses; True
+    elsewhere.
+
+    Passing the faces beside the plane, one line of the pencil across several touched faces
+    of the plane crosses two edges of each (:func:`pencil_crossings`), and every pair of
+    them that node condition (4) admits (two edges of one face, or of faces of that plane)
+    would give it an arc: one segment, several arcs over it. The first touched face it
+    crosses (lowest id) names it, by its two lowest crossed edges (a family of
+    :func:`contact_pencils`); its arcs end where the crossed edges change
+    (:func:`_pencil_events`)."""
+    ok = np.ones(len(plane_face), dtype=bool)
+    pencil = valid & (plane_face >= 0)
+    if not pencil.any():
+        return ok
+    row, face, edge = pencil_crossings(scene, np.where(pencil, plane_face, -1), ends)
+    ok[pencil] = False
+    # each row's first (row, face) group of two crossed edges or more: its first two edges
+    key = np.stack([row, face], axis=1)
+    start = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
+    count = np.diff(np.r_[start, len(row)])
+    start, count = start[count >= 2], count[count >= 2]
+    first = start[np.r_[True, row[start[1:]] != row[start[:-1]]]] if len(start) else start
+    r = row[first]
+    big = np.iinfo(np.int64).max
+    g = generators[r]
+    face_of_plane, role, _ = pencil_planes(scene)
+    by_face = np.argsort(face_of_plane)
+    k = by_face[np.searchsorted(face_of_plane[by_face], plane_face[r])]
+    own = np.sort(np.where(role[k[:, None], g] == 1, g, big), axis=1)[:, :2]
+    ok[r] = (edge[first] == own[:, 0]) & (edge[first + 1] == own[:, 1])
     return ok
 
 

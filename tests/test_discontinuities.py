@@ -12,6 +12,7 @@ from discontinuity_oracle import _seg_dist, check_mesh, labels_at, oracle_setup
 
 from viscx.pipeline import build_file
 from viscx.queries.discontinuities import open_discontinuities
+from viscx.scene import load_scene
 
 #: Margin (of the diagonal) between judged points and mesh lines; the EEE traces' chordal
 #: tolerance is 10 epsilons = 1e-5 of the diagonal.
@@ -665,7 +666,7 @@ def test_terrace_of_touching_blocks(tmp_path, monkeypatch):
     one a 3.4e-3 trace across a 0.0028-wide strip of a contact face, which the oracle
     crosses at a finer offset); before the pencils passed the faces beside their plane,
     4,574 of 4,611 and 1,323 of 1,328, with 16 dangling ends. Terrace 0 here, and again
-    without the pencils."""
+    with the pencils' lines stopped by the faces beside their plane."""
     from viscx.skeleton import arcs as arcs_module
 
     def failures(name):
@@ -678,6 +679,57 @@ def test_terrace_of_touching_blocks(tmp_path, monkeypatch):
     assert failures("all") == (0, 0, 0)
     monkeypatch.setattr(arcs_module, "pencil_plane_of", lambda scene, kind, gens: np.full(len(kind), -1, np.int64))
     assert sum(failures("without")) >= 3
+
+
+def split_face_scene_obj(path):
+    """:func:`crossing_scene_obj` with the tall box's face on the contact plane x = 4.6 in
+    two quads of their own groups (split at y = 2: the edge between them is flat) and
+    the short box 1 high."""
+    floor_light_boxes_obj(path, 0.3, (5.0, 5.0), {"short": (4.6, 6.2, 1.0, 3.6, 5.4)})
+    v = {"a": (3, 0, 3), "b": (3, 0, 4.4), "c": (3, 4, 3), "d": (3, 4, 4.4), "e": (4.6, 0, 3), "f": (4.6, 0, 4.4),
+         "g": (4.6, 4, 3), "h": (4.6, 4, 4.4), "m": (4.6, 2, 3), "n": (4.6, 2, 4.4)}
+    at = {k: 17 + i for i, k in enumerate(v)}  # after the floor, the light and the short box
+
+    def face(*keys):
+        return "f " + " ".join(str(at[k]) for k in keys)
+
+    lines = ["o tall"] + [f"v {x} {y} {z}" for x, y, z in v.values()]
+    lines += [face("a", "b", "d", "c"), face("a", "e", "f", "b"), face("c", "d", "h", "g"),
+              face("a", "c", "g", "m", "e"), face("b", "f", "n", "h", "d")]
+    lines += ["o tall_lower", face("e", "m", "n", "f"), "o tall_upper", face("m", "g", "h", "n")]
+    with open(path, "a") as out:
+        out.write("\n".join(lines) + "\n")
+    return path
+
+
+def test_pencil_across_a_face_split_in_two_groups(tmp_path):
+    """A touched face split in two coplanar quads of different groups (the edge between them
+    flat, not a generator): the pencil lines crossing both quads cross one edge of each, so
+    the quads are one *region* (``pencil_planes``), whose pairs of edges are seeded and name
+    the line. The family (lower, 4, top) (the lower quad's edge at z = 3, the upper quad's top
+    edge, light edge 4) is valid at every sample; counted per face, no face held two crossed
+    edges and it had none. The floor's mesh agrees with the oracle."""
+    from viscx.skeleton import arcs as arcs_module
+
+    obj = split_face_scene_obj(tmp_path / "split.obj")
+    scene = load_scene(obj)
+    ends = [set(np.flatnonzero(np.all(np.abs(scene.vertices - p) < 1e-9, axis=1))) for p in
+            ((4.6, 0, 3), (4.6, 2, 3), (4.6, 4, 3), (4.6, 4, 4.4))]
+    ev = scene.half_edges.edge_vertices.tolist()
+    lower = next(e for e, (a, b) in enumerate(ev) if {a, b} <= ends[0] | ends[1] and len({a, b}) == 2)
+    top = next(e for e, (a, b) in enumerate(ev) if {a, b} <= ends[2] | ends[3] and len({a, b}) == 2)
+    _, _, incidence = arcs_module.pencil_planes(scene)
+    region = incidence[np.isin(incidence[:, 2], [lower, top]), 1]
+    assert len(region) == 2 and region[0] == region[1]  # one region across the flat edge
+    family = [lower, 4, top]
+    assert family in arcs_module.contact_pencils(scene).tolist()
+    s = np.linspace(0.02, 0.98, 49)
+    assert arcs_module.judge_samples(scene, np.zeros(49, np.int64), np.tile(family, (49, 1)), s).valid.all()
+    build_file(obj, tmp_path / "split.h5", quiet=True)
+    scene, mesh = open_discontinuities(tmp_path / "split.h5", light_group="light", faces=[0])
+    res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
+    assert res["same_pairs"] >= 600 and res["cross_pairs"] >= 80
+    assert not res["same_fail"] and not res["cross_fail"] and not res["cross_skipped"] and not res["dangling"]
 
 
 def test_cracks_by_hand():

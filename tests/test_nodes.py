@@ -215,3 +215,28 @@ def test_many_random_scenes():
         _check_random(seed, kind)
 
     run()
+
+
+def test_pencil_line_passes_a_row_of_touching_blocks(tmp_path):
+    """A line lying in the contact plane x = 4.2 of two columns of ten blocks touching side
+    by side (heights 1 and 1.5, staggered in z) passes every face beside the plane that it
+    touches and every face in it: free to the end (``first_triangles`` with
+    ``plane_face``), however many it passes (MAX_PASSED, not MAX_GRAZED = 8); without the
+    plane, the first face beside it stops it."""
+    from test_discontinuities import floor_light_boxes_obj
+
+    from viscx.skeleton.nodes import first_triangles
+
+    boxes = {}
+    for i in range(10):
+        boxes[f"a{i}"] = (3.0, 4.2, 1.0, 0.5 + i, 1.5 + i)
+        boxes[f"b{i}"] = (4.2, 5.4, 1.5, 0.75 + i, 1.75 + i)
+    scene = load_scene(floor_light_boxes_obj(tmp_path / "row.obj", 0.3, (5.0, 5.0), boxes))
+    in_plane = np.flatnonzero((np.abs(np.abs(scene.face_normal[:, 0]) - 1) < 1e-12)
+                              & (np.abs(np.abs(scene.face_offset) - 4.2) < 1e-9))
+    assert len(in_plane) == 20
+    o, d = np.array([[4.2, 0.5, 0.0]]), np.array([[0.0, 0.0, 1.0]])
+    tri, _ = first_triangles(scene, o, d, 1e-9, 11.0, plane_face=in_plane[:1])
+    assert tri[0] == -1
+    tri, _ = first_triangles(scene, o, d, 1e-9, 11.0)
+    assert tri[0] >= 0

@@ -606,19 +606,21 @@ def continue_transitions(scene, arcs, events, offsets, points, lines, tolerance,
         span = np.stack([np.minimum(s_t[here], s_e), np.maximum(s_t[here], s_e)], axis=1)
         ext_off, ext_pts, ext_s = trace_events(scene, arcs, events.take(row[here]), tolerance, span)
         a_ = events.arc[np.repeat(row[here], np.diff(ext_off))]
-        valid = _in_domain(scene, arcs.kind[a_].astype(np.int64), arcs.generators[a_], ext_s)
-        valid &= np.isfinite(ext_pts).all(axis=1)
+        domain = _in_domain(scene, arcs.kind[a_].astype(np.int64), arcs.generators[a_], ext_s)
+        valid = domain & np.isfinite(ext_pts).all(axis=1)
         for i, h in enumerate(here):
             sl = slice(ext_off[i], ext_off[i + 1])
-            e3, ok, es = ext_pts[sl], valid[sl], ext_s[sl]
+            e3, ok, es, dom = ext_pts[sl], valid[sl], ext_s[sl], domain[sl]
             if side[h] == 0:
-                e3, ok, es = e3[::-1], ok[::-1], es[::-1]  # from the transition outwards
+                e3, ok, es, dom = e3[::-1], ok[::-1], es[::-1], dom[::-1]  # from the transition outwards
             if not ok.all():  # up to where the family ends, found between samples
                 stop = int(np.argmin(ok))
                 if stop == 0:
                     continue
-                e3 = np.concatenate([e3[:stop], _domain_end(scene, arcs, events.arc[row[h]], events.face[row[h]],
-                                                            es[stop - 1], es[stop])[None]])
+                e3 = e3[:stop]
+                if not dom[stop]:  # (not where the line turns parallel to the receiver)
+                    e3 = np.concatenate([e3, _domain_end(scene, arcs, events.arc[row[h]], events.face[row[h]],
+                                                         es[stop - 1], es[stop])[None]])
             if len(e3) < 2:
                 continue
             e2 = np.stack([e3 @ u, e3 @ v], axis=1)

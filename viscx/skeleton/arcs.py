@@ -969,42 +969,49 @@ def pencil_planes(scene):
     Returns
     -------
     face : (k,) int
-        A face of each plane, sorted by plane (:func:`viscx.skeleton.nodes.face_planes`).
+        A face of each plane, by plane id (:func:`viscx.skeleton.nodes.face_planes`).
     role : (k, e) int8
-        Per plane and edge: 1 the generator edge bounds a touched face and lies in the
-        plane (both ends within the weld tolerance), 2 it crosses the plane strictly, 0
-        otherwise. (Edges of faces of the plane that touch nothing stay 0.)
+        Per plane and edge: 1 a generator edge of a touched face of the plane (listed in
+        ``incidence``), 2 a generator edge crossing the plane strictly, 0 otherwise.
     incidence : (m, 3) int
-        (plane, touched face in it, its generator edge with role 1), sorted.
+        (plane, region, edge), sorted: the generator edges of the plane's touched faces
+        lying in it, by *region*, the touched faces of the plane joined across the flat
+        edges they share (a face split in two of one plane), named by its lowest face id.
     """
     cached = getattr(scene, "_viscx_pencil_planes", None)
     if cached is not None:
         return cached
-    touched = np.flatnonzero(_touched_faces(scene))
-    plane = face_planes(scene)[touched]
-    _, first = np.unique(plane, return_index=True)
-    face = touched[first]  # one per plane, by plane id
-    a, b = _edge_geometry(scene, np.arange(len(scene.half_edges.edge_vertices)))
-    n, off = scene.face_normal[face], scene.face_offset[face]
-    h0, h1 = n @ a.T - off[:, None], n @ b.T - off[:, None]
-    tol, eps = scene.weld_tolerance, scene.epsilon
-    role = np.zeros(h0.shape, dtype=np.int8)
     he = scene.half_edges
-    of_touched = np.zeros(len(he.edge_vertices), dtype=bool)
-    of_touched[he.edge[np.isin(he.face, touched)]] = True
-    role[(np.abs(h0) <= tol) & (np.abs(h1) <= tol) & of_touched] = 1
-    role[(h0 * h1 < 0) & (np.abs(h0) > eps) & (np.abs(h1) > eps)] = 2
-    role[:, ~scene.half_edges.edge_is_generator] = 0
-    crossed = np.flatnonzero(np.any(role == 2, axis=1))
-    face, role = face[crossed], role[crossed]
-    # the touched faces of each plane and their edges lying in it
-    h = np.flatnonzero(np.isin(he.face, touched)) if len(face) else np.zeros(0, np.int64)
+    touched = np.flatnonzero(_touched_faces(scene))
     plane_of = face_planes(scene)
-    k = np.minimum(np.searchsorted(plane_of[face], plane_of[he.face[h]]), len(face) - 1)
-    ok = plane_of[face[k]] == plane_of[he.face[h]]
-    k, h = k[ok], h[ok]
-    ok = role[k, he.edge[h]] == 1
-    incidence = np.unique(np.stack([k[ok], he.face[h[ok]], he.edge[h[ok]]], axis=1), axis=0).reshape(-1, 3)
+    _, first = np.unique(plane_of[touched], return_index=True)
+    face = touched[first]  # one per plane, by plane id
+    # planes a generator edge crosses strictly (in chunks of planes × edges)
+    k, crossing, _ = _edges_crossing_planes(scene, scene.face_normal[face],
+                                            scene.face_normal[face] * scene.face_offset[face, None])
+    keep = np.unique(k)
+    face = face[keep]
+    role = np.zeros((len(face), len(he.edge_vertices)), dtype=np.int8)
+    role[np.searchsorted(keep, k), crossing] = 2
+    # the touched faces of each plane, joined into regions across flat edges
+    is_touched = np.zeros(scene.n_faces, dtype=bool)
+    is_touched[touched] = True
+    opp_face = np.where(he.opp >= 0, he.face[np.maximum(he.opp, 0)], -1)
+    flat = np.flatnonzero(is_touched[he.face] & (he.opp >= 0) & ~he.edge_is_generator[he.edge])
+    flat = flat[is_touched[opp_face[flat]] & (plane_of[opp_face[flat]] == plane_of[he.face[flat]])]
+    region = np.arange(scene.n_faces)
+    for _ in range(scene.n_faces):  # lowest face id over each region: few, small regions
+        low = region.copy()
+        np.minimum.at(low, he.face[flat], region[opp_face[flat]])
+        if np.array_equal(low, region):
+            break
+        region = low
+    h = np.flatnonzero(is_touched[he.face] & he.edge_is_generator[he.edge]) if len(face) else np.zeros(0, np.int64)
+    k = np.minimum(np.searchsorted(plane_of[face], plane_of[he.face[h]]), max(len(face) - 1, 0))
+    same = plane_of[face[k]] == plane_of[he.face[h]] if len(h) else np.zeros(0, bool)
+    h, k = h[same], k[same]
+    incidence = np.unique(np.stack([k, region[he.face[h]], he.edge[h]], axis=1), axis=0).reshape(-1, 3)
+    role[incidence[:, 0], incidence[:, 2]] = 1
     scene._viscx_pencil_planes = face, role, incidence
     return scene._viscx_pencil_planes
 
@@ -1046,51 +1053,58 @@ def pencil_crossings(scene, plane_face, ends):
     -------
     row : (c,) int
         Ascending.
-    face, edge : (c,) int
-        The crossed edge and its touched face; by (row, face, edge).
+    region, edge : (c,) int
+        The crossed edge and its region of touched faces (:func:`pencil_planes`); by
+        (row, region, edge).
     """
     face, role, incidence = pencil_planes(scene)
     eps = scene.epsilon
     out = [np.empty((0, 3), dtype=np.int64)]
     for k, pf in enumerate(face):
-        rows = np.flatnonzero(plane_face == pf)
-        inc = incidence[incidence[:, 0] == k]  # sorted by (face, edge)
-        if not len(rows) or not len(inc):
+        inc = incidence[incidence[:, 0] == k]  # sorted by (region, edge)
+        every = np.flatnonzero(plane_face == pf)
+        if not len(every) or not len(inc):
             continue
-        r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(inc)), indexing="ij"))
-        p0, p1 = ends[rows[r], 0], ends[rows[r], 1]
-        a, b = _edge_geometry(scene, inc[j, 2])
-        x, dist = segment_parameter(p0, p1 - p0, a, b)
-        length = np.linalg.norm(b - a, axis=1)
-        q = a + np.nan_to_num(x)[:, None] * (b - a)
-        span = np.maximum(np.linalg.norm(p1 - p0, axis=1), 1e-300)
-        t = np.einsum("ij,ij->i", q - p0, p1 - p0) / span  # along the segment; its ends may be on the edges
-        with np.errstate(invalid="ignore"):
-            crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= -eps) & (t <= span + eps)
-        out.append(np.stack([rows[r[crossed]], inc[j[crossed], 1], inc[j[crossed], 2]], axis=1))
+        step = max(1, (1 << 20) // len(inc))  # rows × edges at a time: bounded temporaries
+        for lo in range(0, len(every), step):
+            out.append(_crossed(scene, every[lo:lo + step], inc, ends, eps))
     out = np.concatenate(out)
     out = out[np.lexsort([out[:, 2], out[:, 1], out[:, 0]])]
     return out[:, 0], out[:, 1], out[:, 2]
 
 
+def _crossed(scene, rows, inc, ends, eps):
+    """(c, 3) int: (row, region, edge) of :func:`pencil_crossings` for some rows of one plane."""
+    r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(inc)), indexing="ij"))
+    p0, p1 = ends[rows[r], 0], ends[rows[r], 1]
+    a, b = _edge_geometry(scene, inc[j, 2])
+    x, dist = segment_parameter(p0, p1 - p0, a, b)
+    length = np.linalg.norm(b - a, axis=1)
+    q = a + np.nan_to_num(x)[:, None] * (b - a)
+    span = np.maximum(np.linalg.norm(p1 - p0, axis=1), 1e-300)
+    t = np.einsum("ij,ij->i", q - p0, p1 - p0) / span  # along the segment; its ends may be on the edges
+    with np.errstate(invalid="ignore"):
+        crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= -eps) & (t <= span + eps)
+    return np.stack([rows[r[crossed]], inc[j[crossed], 1], inc[j[crossed], 2]], axis=1)
+
+
 def _first_pencil_pair(scene, plane_face, generators, ends, valid):
     """(m,) bool: False for a pencil's line (``plane_face`` >= 0) whose two generator edges
-    in the plane are not the crossed edges of the first touched face it crosses; True
-    elsewhere.
+    in the plane are not the crossed edges of the first region of touched faces it crosses
+    (:func:`pencil_planes`); True elsewhere.
 
     Passing the faces beside the plane, one line of the pencil across several touched faces
     of the plane crosses two edges of each (:func:`pencil_crossings`), and every pair of
     them that node condition (4) admits (two edges of one face, or of faces of that plane)
-    would give it an arc: one segment, several arcs over it. The first touched face it
-    crosses (lowest id) names it, by its two lowest crossed edges (a family of
+    would give it an arc: one segment, several arcs over it. The first region it crosses
+    (lowest face id) names it, by its two lowest crossed edges (a family of
     :func:`contact_pencils`); its arcs end where the crossed edges change
-    (:func:`_pencil_events`)."""
+    (:func:`_pencil_events`). A line crossing no region twice keeps its arcs."""
     ok = np.ones(len(plane_face), dtype=bool)
     pencil = valid & (plane_face >= 0)
     if not pencil.any():
         return ok
     row, face, edge = pencil_crossings(scene, np.where(pencil, plane_face, -1), ends)
-    ok[pencil] = False
     # each row's first (row, face) group of two crossed edges or more: its first two edges
     key = np.stack([row, face], axis=1)
     start = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
@@ -1104,13 +1118,15 @@ def _first_pencil_pair(scene, plane_face, generators, ends, valid):
     by_face = np.argsort(face_of_plane)
     k = by_face[np.searchsorted(face_of_plane[by_face], plane_face[r])]
     own = np.sort(np.where(role[k[:, None], g] == 1, g, big), axis=1)[:, :2]
+    # (a line crossing no region's outline twice, within its segment, keeps its arcs)
     ok[r] = (edge[first] == own[:, 0]) & (edge[first + 1] == own[:, 1])
     return ok
 
 
 def _pencil_events(scene, fkind, fgens):
     """The events of pencil families of touched planes (:func:`pencil_plane_of`): the
-    lines through H and each vertex or edge crossing lying in the plane P.
+    lines through H and each vertex of the plane's touched faces or edge crossing lying
+    in the plane P.
 
     Such a line passes its faces beside P without a stop (:func:`pencil_planes`), so the
     samples do not see where it starts or stops touching another face's outline in P
@@ -1125,7 +1141,7 @@ def _pencil_events(scene, fkind, fgens):
     """
     plane = pencil_plane_of(scene, fkind, fgens)
     fams, ss, idx = [np.empty(0, np.int64)], [np.empty(0)], [np.empty(0, np.int64)]
-    face, role, _ = pencil_planes(scene)
+    face, role, incidence = pencil_planes(scene)
     tol = scene.weld_tolerance
     cr = edge_crossings(scene)
     for k, pf in enumerate(face):
@@ -1133,7 +1149,7 @@ def _pencil_events(scene, fkind, fgens):
         if not len(rows):
             continue
         n, off = scene.face_normal[pf], scene.face_offset[pf]
-        vert = np.flatnonzero(np.abs(scene.vertices @ n - off) <= tol)
+        vert = np.unique(scene.half_edges.edge_vertices[incidence[incidence[:, 0] == k, 2]])
         crossing = np.abs(cr.point @ n - off) <= tol
         w = np.concatenate([scene.vertices[vert], cr.point[crossing]])
         which = np.r_[vert, np.full(np.count_nonzero(crossing), -1)]
@@ -1169,9 +1185,10 @@ def contact_pencils(scene):
     (VEE: lines through H and a vertex of the face), but with a foreign face or vertex in
     P those lines can pass the foreign vertex while grazing the face, which node
     condition (N2) rejects: the family may hold no node, like a same-plane VE family, and
-    is seeded. Every pair of one face's edges is seeded, not just its corners: a line
-    across several faces of P crosses two edges of each, and its arcs are those of the
-    first face's pair (:func:`_first_pencil_pair`), which must be a family. (Two touching boxes, a box
+    is seeded. Every pair of edges of one region (touched faces of P joined across flat
+    edges) is seeded, not just a face's corners: a line across several regions crosses
+    two edges of each, and its arcs are those of the first region's pair
+    (:func:`_first_pencil_pair`), which must be a family. (Two touching boxes, a box
     side with a tetrahedron's vertex in its plane: without them receiver regions in front
     of the face held both edges' labels, docs/queries.md.)
 
@@ -2211,6 +2228,8 @@ def crossing_scene(scene):
         np.concatenate([v.offsets, v.offsets[-1] + w.offsets[1:]]), np.concatenate([v.face, w.face]),
         np.concatenate([v.first, w.first]), np.concatenate([v.normal, w.normal]), np.concatenate([v.span, w.span])))
     xs._viscx_junctions, xs._viscx_crossings = edge_junctions(scene), cr
+    # the scene's pencils: X points are not foreign vertices touching a face
+    xs._viscx_pencil_planes, xs._viscx_face_planes = pencil_planes(scene), face_planes(scene)
     scene._viscx_crossing_scene = xs, scene.n_vertices
     return scene._viscx_crossing_scene
 

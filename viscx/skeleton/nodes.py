@@ -370,6 +370,9 @@ TIE_MARGIN = 1e-11
 GRAZE_COSINE = 1e-9
 #: Bound on the faces a ray lying in their plane skips in one query of :func:`first_faces`.
 MAX_GRAZED = 8
+#: The same for a pencil's line of a touched plane (``plane_face``), which also passes the
+#: faces beside the plane it touches: several per block along a row of touching blocks.
+MAX_PASSED = 4096
 
 
 def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
@@ -482,7 +485,9 @@ def first_triangles(scene, origins, directions, tmin, tmax, plane_face=None):
     tri = np.full(len(o), -1, dtype=np.int64)
     t = np.full(len(o), np.inf)
     todo = np.arange(len(o))
-    for _ in range(MAX_GRAZED + 1):
+    for it in range((MAX_GRAZED if plane_face is None else MAX_PASSED) + 1):
+        if it > MAX_GRAZED:  # only pencils' lines go on
+            todo = todo[plane_face[todo] >= 0]
         tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
         todo = todo[tri[todo] >= 0]
         f = scene.triangle_face[tri[todo]]

@@ -69,9 +69,11 @@ by +2π and holes by -2π; on the sphere exactly one of its loops has T > 0 and
 it is that outer loop. The cell's solid angle is Σ (2π - T) - 4π (k - 1) over
 its k loops.
 
-Chains that do not close (a V1 end with no partner on the sphere) are kept as
-*open chains* and reported; they form no cell, and the cells of their vertex
-are not ``complete`` (docs/skeleton.md, "V-cells", for how often and why).
+Chains that do not close (a V1 end with no partner on the sphere) are joined across
+the few-epsilon gaps V1's merged events leave (:func:`join_open_chains`); those left
+are kept as *open chains* and reported; they form no cell, and the cells of their
+vertex are not ``complete`` unless the chain is a point at epsilon's resolution
+(:func:`point_chains`; docs/skeleton.md, "V-cells", for how often and why).
 """
 
 from dataclasses import dataclass
@@ -90,10 +92,25 @@ FOUR_PI = 4 * np.pi
 #: to ~1e-12 in s), far below this; events merged by V1 are 4 epsilon apart along an edge.
 JOIN_TOLERANCE = 1e-7
 #: Open chains whose ends lie this many epsilon apart along their edges are joined
-#: (:func:`join_open_chains`; V1 merges events 4 epsilon apart, as the EE-cells' joins).
-JOIN_EPSILONS = 5
-#: Largest chord such a join spans (an edge passing within 8000 epsilon of the vertex).
-JOIN_LIMIT = 1e-4
+#: (:func:`join_open_chains`). V1 merges runs of events each within 4 epsilon of the next
+#: (single linkage): two families may keep events two links apart (random_boxes(1000):
+#: 5.1 and 5.4 epsilon at vertices 623 and 151).
+JOIN_EPSILONS = 8
+#: Largest chord such a join spans (JOIN_EPSILONS epsilon seen from an edge 8000 epsilon
+#: from the vertex).
+JOIN_LIMIT = 1e-3
+#: Fewest elements of a loop closed across gaps: one element closed onto itself bounds nothing.
+JOIN_MIN_ELEMENTS = 2
+#: A gap of a loop whose two elements' great circles meet within this many times its chord
+#: of both its ends has its corner there (:func:`turning_sums`).
+CORNER_REACH = 2.0
+#: ... as has a gap whose direction lies within this angle (radians) of the reverse of the
+#: incoming element's tangent or of the outgoing one's (it runs back along that element).
+SPIKE_ANGLE = 1e-6
+#: A loop's corner turning within this angle of ±π is a cusp; where its ends lie farther
+#: apart than CUSP_GAP (a chord far above the ends' rounding) the gap's side decides the turn.
+CUSP_ANGLE = 1e-3
+CUSP_GAP = 1e-10
 #: Angle by which a loop's reference point lies left of its longest element's midpoint.
 REFERENCE_OFFSET = 1e-8
 #: A vertex's cells cover its sphere when their solid angles sum to 4π within this.
@@ -488,17 +505,19 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     """Open chains of one group joined end to start into loops across gaps of up to
     JOIN_EPSILONS epsilon along their edges, seen from the vertex.
 
-    V1 merges a family's events closer than 4 epsilon along its edge into one (the
-    best by rank): where the two families meeting at a corner of a cell keep different
+    V1 merges runs of a family's events each closer than 4 epsilon to the next along its
+    edge into one (the best by rank): where the two families meeting at a corner of a cell keep different
     events of such a group, the cell's boundary jumps there (random boxes cities: the
     chains' ends lie a median 1.2e-5 rad, up to 1.6e-4, from the next start of their cell,
     a few epsilon along the edge; a sixth of the 300-polygon city's vertices kept open
     chains). Features closer than epsilon are one (epsilon-visibility), so such ends
     are one corner. Only chains are joined (FormLoops' loops stay as they are), by the
     rules of :func:`form_loops` over whole chains, each chain's end tolerance
-    JOIN_EPSILONS epsilon over the distance to its end's edge point (between
-    JOIN_TOLERANCE and JOIN_LIMIT). A joined loop starts at its smallest element;
-    the loops keep their order, the new ones after them.
+    JOIN_EPSILONS epsilon over the distance from the vertex to the nearest edge its line
+    meets (:func:`line_reach`: the events may have merged on that edge's family, nearer
+    than the end's own edge), between JOIN_TOLERANCE and JOIN_LIMIT. A loop of fewer than
+    JOIN_MIN_ELEMENTS elements so joined stays open. A joined loop starts at its smallest
+    element; the loops keep their order, the new ones after them.
 
     Returns
     -------
@@ -511,12 +530,15 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     first, last = order[chain_offsets[:-1]], order[chain_offsets[1:] - 1]
     ends = el.take(first)  # a chain as one element: its first's start, its last's end
     ends.end, ends.end_tangent, ends.end_reach = el.end[last], el.end_tangent[last], el.end_reach[last]
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(ends.end_reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
+    # the merged events lie on the family of the edge nearest the vertex that the end's line
+    # meets (a VEE node (v, e, e') seen along e, merged on VE (v, e')), not always on e itself
+    reach = line_reach(scene, ends.vertex, ends.end, ends.end_reach)
+    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
     walk, joined, _ = form_loops(ends, group[first], tolerance)
     sizes = np.diff(chain_offsets)
-    # a loop of fewer than three elements closed across a gap is a sliver, no boundary
+    # one element closed onto itself across a gap bounds nothing
     few = np.bincount(np.repeat(np.arange(len(joined) - 1), np.diff(joined)), weights=sizes[walk[: joined[-1]]],
-                      minlength=len(joined) - 1) < 3
+                      minlength=len(joined) - 1) < JOIN_MIN_ELEMENTS
     if few.any():
         lens = np.diff(joined)
         keep = ~np.repeat(few, lens)
@@ -546,6 +568,64 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     new_loops = np.concatenate([loop_offsets, n_loop + np.cumsum(lengths)])
     new_chains = new_loops[-1] + np.r_[0, np.cumsum(sizes[rest])]
     return new_order, new_loops.astype(np.int64), new_chains.astype(np.int64)
+
+
+def line_reach(scene, vertex, direction, reach):
+    """Distance from each vertex to the nearest generator edge its line meets (within
+    epsilon, on either side of the vertex), at most ``reach``.
+
+    Edges at the vertex are left out (they meet every line through it there).
+
+    Parameters
+    ----------
+    scene : Scene
+    vertex : (m,) int
+    direction : (m, 3) float
+        Unit directions of the lines.
+    reach : (m,) float
+        Distance to the edge point of each line's own family (an upper bound).
+
+    Returns
+    -------
+    (m,) float
+    """
+    ge = scene.generator_edges
+    ev = scene.half_edges.edge_vertices[ge]
+    return _line_reach(np.ascontiguousarray(scene.vertices[vertex], dtype=np.float64),
+                       np.ascontiguousarray(direction, dtype=np.float64), np.asarray(vertex, np.int64),
+                       np.asarray(reach, np.float64), np.ascontiguousarray(scene.vertices[ev[:, 0]]),
+                       np.ascontiguousarray(scene.vertices[ev[:, 1]]), ev[:, 0].astype(np.int64),
+                       ev[:, 1].astype(np.int64), float(scene.epsilon))
+
+
+@njit(cache=True)
+def _line_reach(origin, direction, vertex, reach, a, b, va, vb, tol):
+    """:func:`line_reach` over every (line, edge) pair: lines only at the open chains' ends."""
+    out = reach.copy()
+    for i in range(len(origin)):
+        o, d = origin[i], direction[i]
+        for k in range(len(a)):
+            if va[k] == vertex[i] or vb[k] == vertex[i]:
+                continue
+            e0, e1, e2 = b[k, 0] - a[k, 0], b[k, 1] - a[k, 1], b[k, 2] - a[k, 2]
+            w0, w1, w2 = o[0] - a[k, 0], o[1] - a[k, 1], o[2] - a[k, 2]
+            dd = d[0] * e0 + d[1] * e1 + d[2] * e2
+            ee = e0 * e0 + e1 * e1 + e2 * e2
+            dw = d[0] * w0 + d[1] * w1 + d[2] * w2
+            ew = e0 * w0 + e1 * w1 + e2 * w2
+            den = ee - dd * dd
+            if den <= 1e-12 * ee:  # the edge runs along the line
+                continue
+            t = (dd * ew - ee * dw) / den  # closest point of the line to the edge's line
+            if abs(t) >= out[i] or t == 0.0:
+                continue
+            u = min(max((ew + t * dd) / ee, 0.0), 1.0)
+            p0 = w0 + t * d[0] - u * e0
+            p1 = w1 + t * d[1] - u * e1
+            p2 = w2 + t * d[2] - u * e2
+            if p0 * p0 + p1 * p1 + p2 * p2 <= tol * tol:
+                out[i] = abs(t)
+    return out
 
 
 def _closable_links(n, i, j):
@@ -621,9 +701,12 @@ def turning_sums(el, loop_offsets, bridge=False):
     """Sum of the signed turning angles (left turns positive) at the corners of each loop.
 
     ``bridge`` (elements on the unit sphere): where an element ends farther than
-    JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`), the loop runs
+    JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`), or farther than
+    CUSP_GAP at a cusp (a corner turning back within CUSP_ANGLE of ±π), the loop runs
     along the great circle between them, turning at both of its ends: turning once from
-    the incoming to the outgoing tangent would miss a full turn where the gap runs back.
+    the incoming to the outgoing tangent would miss a full turn where the gap runs back
+    (a turn beyond ±π). Where the two elements' great circles meet next to the gap (within
+    CORNER_REACH chords of both its ends) the corner is there and the loop turns once.
 
     Returns
     -------
@@ -637,12 +720,37 @@ def turning_sums(el, loop_offsets, bridge=False):
     turn = _signed_angle(el.end_tangent[:n], el.start_tangent[nxt], el.end[:n])
     if bridge:
         p, q = el.end[:n], el.start[nxt]
-        gap = np.flatnonzero(np.linalg.norm(q - p, axis=1) > JOIN_TOLERANCE)
+        chord = np.linalg.norm(q - p, axis=1)
+        # at a cusp (the loop turns back, e.g. the base of a sliver triangle whose base is
+        # below JOIN_TOLERANCE) the turn is π plus the apex angle: one turn between the
+        # tangents, in (-π, π], wraps it to -π plus that angle; the gap's side decides
+        cusp = (np.abs(turn) > np.pi - CUSP_ANGLE) & (chord > CUSP_GAP)
+        gap = np.flatnonzero((chord > JOIN_TOLERANCE) | cusp)
         p, q = p[gap], q[gap]
         cos = np.einsum("ij,ij->i", p, q)[:, None]
         leave, arrive = q - cos * p, cos * q - p  # the great circle's tangents at p and at q
-        turn[gap] = (_signed_angle(el.end_tangent[gap], leave, p)
-                     + _signed_angle(arrive, el.start_tangent[nxt[gap]], q))
+        at_p = _signed_angle(el.end_tangent[gap], leave, p)
+        at_q = _signed_angle(arrive, el.start_tangent[nxt[gap]], q)
+        # where the two elements' great circles meet by the gap (the incoming element
+        # overshoots the corner, or the outgoing one starts before it: their families kept
+        # different events of a merged group) the corner is that meeting point and the loop
+        # turns there once, from the incoming to the outgoing tangent; bridging would add a
+        # loop of no area around it (a full turn). So where the gap runs straight back along
+        # either element (a spike: one great circle, or a corner on that element, whose ±π
+        # rounding decides). Elsewhere the gap is a side V1 lost, and the loop runs along it.
+        spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
+        meet = np.cross(np.cross(el.start[gap], p), np.cross(q, el.end[nxt[gap]]))
+        size = np.linalg.norm(meet, axis=1)
+        ok = size > 1e-12  # circles crossing at more than ~1e-12 rad
+        meet[ok] /= size[ok, None]
+        meet *= np.where(np.einsum("ij,ij->i", meet, p) < 0, -1.0, 1.0)[:, None]
+        from_p, from_q = np.linalg.norm(meet - p, axis=1), np.linalg.norm(meet - q, axis=1)
+        # ... next to the gap, and not at the elements' other ends (a loop of two elements
+        # and a gap, all about as long: their circles meet at its third corner)
+        near = (ok & (np.maximum(from_p, from_q) <= CORNER_REACH * chord[gap])
+                & (2 * from_p < np.linalg.norm(el.start[gap] - p, axis=1))
+                & (2 * from_q < np.linalg.norm(el.end[nxt[gap]] - q, axis=1)))
+        turn[gap] = np.where(spike | near, turn[gap], at_p + at_q)
     return np.bincount(loop_of, weights=turn, minlength=len(loop_offsets) - 1)
 
 
@@ -744,8 +852,34 @@ def inside_loops(el, loop_offsets, ref, loop, targets):
     -------
     (m,) bool
     """
-    return _inside(ref, loop_offsets, np.ascontiguousarray(el.start), np.ascontiguousarray(el.end),
-                   np.asarray(loop, np.int64), np.ascontiguousarray(targets, dtype=np.float64))
+    starts, ends, offsets = loop_segments(el, loop_offsets)
+    return _inside(ref, offsets, starts, ends, np.asarray(loop, np.int64), np.ascontiguousarray(targets, dtype=np.float64))
+
+
+def loop_segments(el, loop_offsets):
+    """The great-circle arcs each loop consists of: its elements and, where an element
+    ends farther than JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`),
+    the minor arc across that gap (a path through the gap crosses the loop there).
+
+    Returns
+    -------
+    starts, ends : (k', 3) float
+        Loop j's arcs are ``offsets[j]:offsets[j + 1]``, its elements first.
+    offsets : (l + 1,) int
+    """
+    n = loop_offsets[-1]
+    nxt = np.arange(1, n + 1)
+    nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
+    gap = np.flatnonzero(np.linalg.norm(el.start[nxt] - el.end[:n], axis=1) > JOIN_TOLERANCE)
+    if len(gap) == 0:
+        return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
+    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    owner = np.concatenate([loop_of, loop_of[gap]])
+    order = np.argsort(owner, kind="stable")  # each loop's elements, then its gaps
+    starts = np.concatenate([el.start[:n], el.end[gap]])[order]
+    ends = np.concatenate([el.end[:n], el.start[nxt[gap]]])[order]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(loop_offsets) - 1))])
+    return np.ascontiguousarray(starts), np.ascontiguousarray(ends), offsets.astype(np.int64)
 
 
 def cells_of_loops(el, loop_offsets, loop_group, ref, inside=inside_loops):
@@ -823,7 +957,9 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         progress.set_postfix_str("cells")
         loop_group = group[order[loop_offsets[:-1]]]
         cell = cells_of_loops(walk, loop_offsets, loop_group, ref)
-        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el, vertices))
+        points = point_chains(scene, walk, chain_offsets)
+        result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el, vertices),
+                           points)
         progress.update()
     return result
 
@@ -859,9 +995,45 @@ def whole_sphere_cells(scene, el, vertices=None):
     return rows
 
 
-def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole):
+def point_chains(scene, walk, chain_offsets):
+    """Open chains that are points at epsilon's resolution: every end of their elements lies
+    within the join tolerance of :func:`join_open_chains` (JOIN_EPSILONS epsilon over the
+    distance to the nearest edge the last end's line meets) of the chain's start.
+
+    They are V1 arcs shorter than a few epsilon (between two events or an event and a
+    transition merged by epsilon-visibility) beside a sliver cell whose other sides V1
+    merged away: they bound nothing, and do not keep their vertex from being complete.
+
+    Parameters
+    ----------
+    scene : Scene
+    walk : Elements
+        Loops then chains, contiguous (chain j is ``chain_offsets[j]:chain_offsets[j + 1]``).
+    chain_offsets : (o + 1,) int
+
+    Returns
+    -------
+    (o,) bool
+    """
+    n = len(chain_offsets) - 1
+    if n == 0:
+        return np.zeros(0, bool)
+    first, last = chain_offsets[:-1], chain_offsets[1:] - 1
+    reach = line_reach(scene, walk.vertex[last], walk.end[last], walk.end_reach[last])
+    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
+    k = np.arange(chain_offsets[0], chain_offsets[-1])
+    chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
+    origin = walk.start[first][chain_of]
+    far = np.maximum(np.linalg.norm(walk.start[k] - origin, axis=1), np.linalg.norm(walk.end[k] - origin, axis=1))
+    extent = np.zeros(n)
+    np.maximum.at(extent, chain_of, far)
+    return extent <= tolerance
+
+
+def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole, points):
     """Cells in canonical order with their loops (outer first), twins and solid angles;
-    ``whole`` (vertex, pair) rows are cells without loops covering their sphere."""
+    ``whole`` (vertex, pair) rows are cells without loops covering their sphere; ``points``
+    ((o,) bool) the open chains that do not keep their vertex from being complete."""
     n_loops = len(loop_offsets) - 1
     n_bounded = int(cell.max()) + 1 if n_loops else 0
     n_cells = n_bounded + len(whole)
@@ -909,7 +1081,7 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole):
     _, vertex_of = np.unique(cp[:, 0], return_inverse=True)
     vertex_of = vertex_of.reshape(-1)
     total = np.bincount(vertex_of, weights=solid[cell_order])
-    complete = (np.abs(total - FOUR_PI)[vertex_of] <= COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex)
+    complete = (np.abs(total - FOUR_PI)[vertex_of] <= COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex[chain_first[~points]])
     return VCells(
         vertex=cp[:, 0],
         up_kind=cp[:, 1].astype(np.int8),

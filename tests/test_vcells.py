@@ -608,6 +608,26 @@ def vertices_with_gaps(scene, arcs, vc):
     return np.unique(vc.vertex[cell_of[loop_of[gap]]])
 
 
+def _unit(x):
+    x = np.asarray(x, dtype=np.float64)
+    return x / np.linalg.norm(x)
+
+
+def _tangent(p, q):
+    """At p, towards q along the great circle."""
+    t = q - np.dot(p, q) * p
+    return t / np.linalg.norm(t)
+
+
+def _arcs_on_sphere(starts, ends):
+    """Great-circle elements from ``starts`` to ``ends`` ((k, 3) unit vectors), as
+    :func:`viscx.skeleton.vcells.turning_sums` reads them."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(start=starts, end=ends, start_tangent=np.array([_tangent(p, q) for p, q in zip(starts, ends)]),
+                           end_tangent=np.array([-_tangent(q, p) for p, q in zip(starts, ends)]))
+
+
 def test_turning_across_a_gap_running_back(monkeypatch):
     """A small spherical triangle A, B, C (counter-clockwise seen from outside) whose side
     B -> C overshoots C by 1e-6 rad (its family kept the farther of two merged events) and
@@ -616,29 +636,17 @@ def test_turning_across_a_gap_running_back(monkeypatch):
     of the great circle, or none); turning at both of the gap's ends (the spike and corner
     rules knocked out: the gap runs back along B -> C, whose circle meets C -> A at C)
     counts ±π at the overshoot and misses by 2π on one side."""
-    from types import SimpleNamespace
-
     import viscx.skeleton.vcells as vcells
 
-    def unit(x):
-        x = np.asarray(x, dtype=np.float64)
-        return x / np.linalg.norm(x)
-
-    def tangent(p, q):  # at p, towards q along the great circle
-        t = q - np.dot(p, q) * p
-        return t / np.linalg.norm(t)
-
-    a, b, c = unit([0, 0, 1]), unit([0.01, 0, 1]), unit([0, 0.01, 1])
+    a, b, c = _unit([0, 0, 1]), _unit([0.01, 0, 1]), _unit([0, 0.01, 1])
     area = triangle_solid_angle(np.zeros(3), np.array([a, b, c]))
     offsets = np.array([0, 3])
     misses = []
     for tilt in (1e-8, -1e-8, 0.0):
-        away = -tangent(c, b)  # beyond C along B -> C
-        over = unit(c + 1e-6 * (away + tilt * np.cross(c, away)))
+        away = -_tangent(c, b)  # beyond C along B -> C
+        over = _unit(c + 1e-6 * (away + tilt * np.cross(c, away)))
         starts, ends = np.array([a, b, c]), np.array([b, over, a])
-        el = SimpleNamespace(start=starts, end=ends,
-                             start_tangent=np.array([tangent(p, q) for p, q in zip(starts, ends)]),
-                             end_tangent=np.array([-tangent(q, p) for p, q in zip(starts, ends)]))
+        el = _arcs_on_sphere(starts, ends)
         assert abs(vcells.turning_sums(el, offsets, bridge=True)[0] - (2 * np.pi - area)) < 1e-9
         with monkeypatch.context() as m:
             m.setattr(vcells, "CORNER_REACH", 0.0)
@@ -654,24 +662,12 @@ def test_turning_at_the_base_of_a_sliver(monkeypatch):
     At its base the loop turns by π plus the apex angle; one turn between the tangents
     wraps that to -π plus it, a cell of 2π sr instead of 3e-10 (the cusp rule knocked out);
     turning across the base's gap gives its area."""
-    from types import SimpleNamespace
-
     import viscx.skeleton.vcells as vcells
 
-    def unit(x):
-        x = np.asarray(x, dtype=np.float64)
-        return x / np.linalg.norm(x)
-
-    def tangent(p, q):
-        t = q - np.dot(p, q) * p
-        return t / np.linalg.norm(t)
-
-    p1, q1 = unit([0, 0, 1]), unit([0.0136, 0, 1])
-    q2, p2 = unit([0.0136, 3.6e-8, 1]), unit([0, 3.6e-9, 1])  # left of p1 -> q1
+    p1, q1 = _unit([0, 0, 1]), _unit([0.0136, 0, 1])
+    q2, p2 = _unit([0.0136, 3.6e-8, 1]), _unit([0, 3.6e-9, 1])  # left of p1 -> q1
     starts, ends = np.array([p1, q2]), np.array([q1, p2])
-    el = SimpleNamespace(start=starts, end=ends,
-                         start_tangent=np.array([tangent(p, q) for p, q in zip(starts, ends)]),
-                         end_tangent=np.array([-tangent(q, p) for p, q in zip(starts, ends)]))
+    el = _arcs_on_sphere(starts, ends)
     offsets = np.array([0, 2])
     area = (triangle_solid_angle(np.zeros(3), np.array([p1, q1, q2]))
             + triangle_solid_angle(np.zeros(3), np.array([p1, q2, p2])))
@@ -687,28 +683,16 @@ def test_turning_where_elements_cross_by_a_gap(monkeypatch):
     merged group; random_boxes(1000), vertex 418): the two elements cross by the gap, the
     corner is B and the loop turns there once. Turning at both ends of the gap (the corner
     rule knocked out) adds a full turn: a cell of 2π more than it is."""
-    from types import SimpleNamespace
-
     import viscx.skeleton.vcells as vcells
-
-    def unit(x):
-        x = np.asarray(x, dtype=np.float64)
-        return x / np.linalg.norm(x)
-
-    def tangent(p, q):
-        t = q - np.dot(p, q) * p
-        return t / np.linalg.norm(t)
 
     a, b, c = np.array([0.0, 0.0]), np.array([0.01, 0.0]), np.array([0.0, 0.01])
     toward_c = (c - b) / np.linalg.norm(c - b)
     over, before = b + [6e-7, 0.0], b - 1e-7 * toward_c
-    lift = [unit([*x, 1.0]) for x in (a, over, before, c)]
+    lift = [_unit([*x, 1.0]) for x in (a, over, before, c)]
     starts, ends = np.array([lift[0], lift[2], lift[3]]), np.array([lift[1], lift[3], lift[0]])
-    el = SimpleNamespace(start=starts, end=ends,
-                         start_tangent=np.array([tangent(p, q) for p, q in zip(starts, ends)]),
-                         end_tangent=np.array([-tangent(q, p) for p, q in zip(starts, ends)]))
+    el = _arcs_on_sphere(starts, ends)
     offsets = np.array([0, 3])
-    area = triangle_solid_angle(np.zeros(3), np.array([unit([*x, 1.0]) for x in (a, b, c)]))
+    area = triangle_solid_angle(np.zeros(3), np.array([_unit([*x, 1.0]) for x in (a, b, c)]))
     turning = vcells.turning_sums(el, offsets, bridge=True)[0]
     assert abs(turning - (2 * np.pi - area)) < 1e-8
     monkeypatch.setattr(vcells, "CORNER_REACH", 0.0)

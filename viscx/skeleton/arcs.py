@@ -58,6 +58,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker, segment_parameter
@@ -999,13 +1001,12 @@ def pencil_planes(scene):
     opp_face = np.where(he.opp >= 0, he.face[np.maximum(he.opp, 0)], -1)
     flat = np.flatnonzero(is_touched[he.face] & (he.opp >= 0) & ~he.edge_is_generator[he.edge])
     flat = flat[is_touched[opp_face[flat]] & (plane_of[opp_face[flat]] == plane_of[he.face[flat]])]
-    region = np.arange(scene.n_faces)
-    for _ in range(scene.n_faces):  # lowest face id over each region: few, small regions
-        low = region.copy()
-        np.minimum.at(low, he.face[flat], region[opp_face[flat]])
-        if np.array_equal(low, region):
-            break
-        region = low
+    n = scene.n_faces
+    _, label = connected_components(coo_matrix((np.ones(len(flat)), (he.face[flat], opp_face[flat])), shape=(n, n)),
+                                    directed=False)
+    lowest = np.full(n, n)
+    np.minimum.at(lowest, label, np.arange(n))
+    region = lowest[label]  # named by its lowest face id
     h = np.flatnonzero(is_touched[he.face] & he.edge_is_generator[he.edge]) if len(face) else np.zeros(0, np.int64)
     k = np.minimum(np.searchsorted(plane_of[face], plane_of[he.face[h]]), max(len(face) - 1, 0))
     same = plane_of[face[k]] == plane_of[he.face[h]] if len(h) else np.zeros(0, bool)

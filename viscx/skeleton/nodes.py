@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viscx.arrays import unique_sorted
+from viscx.arrays import expand_ranges, unique_sorted
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
@@ -491,20 +491,24 @@ def first_triangles(scene, origins, directions, tmin, tmax, plane_face=None):
         tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
         todo = todo[tri[todo] >= 0]
         f = scene.triangle_face[tri[todo]]
-        n = scene.face_normal[f]
-        grazing = (np.abs(np.einsum("ij,ij->i", n, d[todo])) <= GRAZE_COSINE) & (
-            np.abs(np.einsum("ij,ij->i", n, o[todo]) - scene.face_offset[f]) <= scene.weld_tolerance)
+        grazing = _in_face_plane(scene, f, o[todo], d[todo])
         if plane_face is not None:
             r = np.flatnonzero(~grazing & (plane_face[todo] >= 0))
             g = plane_face[todo[r]]
-            in_plane = (np.abs(np.einsum("ij,ij->i", scene.face_normal[g], d[todo[r]])) <= GRAZE_COSINE) & (
-                np.abs(np.einsum("ij,ij->i", scene.face_normal[g], o[todo[r]]) - scene.face_offset[g]) <= scene.weld_tolerance)
-            grazing[r] = in_plane & faces_beside_planes(scene, f[r], g)
+            grazing[r] = _in_face_plane(scene, g, o[todo[r]], d[todo[r]]) & faces_beside_planes(scene, f[r], g)
         todo = todo[grazing]
         if len(todo) == 0:
             break
         lo[todo] = t[todo] + scene.weld_tolerance
     return tri, t
+
+
+def _in_face_plane(scene, faces, origins, directions):
+    """(n,) bool: whether each ray lies in its face's plane, as grazing is judged
+    (GRAZE_COSINE, the weld tolerance)."""
+    n = scene.face_normal[faces]
+    return (np.abs(np.einsum("ij,ij->i", n, directions)) <= GRAZE_COSINE) & (
+        np.abs(np.einsum("ij,ij->i", n, origins) - scene.face_offset[faces]) <= scene.weld_tolerance)
 
 
 def faces_beside_planes(scene, faces, plane_faces):
@@ -525,10 +529,9 @@ def faces_beside_planes(scene, faces, plane_faces):
         return np.zeros(0, dtype=bool)
     # a face's vertices, all its loops, are one run of loop_vertices
     lo = scene.loop_offsets[scene.face_loop_offsets[faces]]
-    hi = scene.loop_offsets[scene.face_loop_offsets[faces + 1]]
-    count = hi - lo
-    row = np.repeat(np.arange(len(faces)), count)
-    vertex = scene.loop_vertices[np.repeat(lo, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    count = scene.loop_offsets[scene.face_loop_offsets[faces + 1]] - lo
+    row, at = expand_ranges(lo, count)
+    vertex = scene.loop_vertices[at]
     dist = np.einsum("ij,ij->i", scene.vertices[vertex], scene.face_normal[plane_faces[row]]) - scene.face_offset[plane_faces[row]]
     starts = np.cumsum(count) - count
     tol = scene.weld_tolerance

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.polygon import plane_basis
-from viscx.skeleton.nodes import GRAZE_COSINE, _coplanar_partners, face_planes
+from viscx.skeleton.nodes import GRAZE_COSINE, coplanar_partners, face_planes
 
 
 @dataclass
@@ -53,7 +53,7 @@ def contact_pieces(scene):
     cached = getattr(scene, "_viscx_contact_pieces", None)
     if cached is not None:
         return cached
-    off, partner, _, _ = _coplanar_partners(scene)
+    off, partner, _, _ = coplanar_partners(scene)
     f = np.repeat(np.arange(scene.n_faces), np.diff(off))
     facing = np.einsum("ij,ij->i", scene.face_normal[f], scene.face_normal[partner]) < 0
     f, g = f[facing], partner[facing]

@@ -31,7 +31,8 @@ import numpy as np
 
 from viscx.geometry.polygon import plane_basis, signed_area_2d
 from viscx.skeleton.nodes import BLOCK_FACE
-from viscx.skeleton.vcells import cells_of_loops, reference_points, sphere_loops, stored_elements, turning_sums
+from viscx.skeleton.loops import cells_of_loops
+from viscx.skeleton.vcells import inside_loops, reference_points, sphere_loops, sphere_turning_sums, stored_elements
 
 
 @dataclass
@@ -155,10 +156,10 @@ def point_view(scene, arcs, vcells, vertex, point):
     walk = el.take(walk_order)
     walk_down = down[walk_order]
     n_loops = len(loop_offsets) - 1
-    turning = turning_sums(walk, loop_offsets, bridge=True)
+    turning = sphere_turning_sums(walk, loop_offsets)
     ref = reference_points(walk, loop_offsets)
     loop_face = walk_down[loop_offsets[:-1]]
-    cell = cells_of_loops(walk, loop_offsets, loop_face, ref) if n_loops else np.zeros(0, np.int64)
+    cell = cells_of_loops(walk, loop_offsets, loop_face, ref, inside_loops) if n_loops else np.zeros(0, np.int64)
 
     # which edges bound which face (a boundary along f's own edge is f's outline, not a shadow)
     he = scene.half_edges

@@ -91,7 +91,7 @@ with c0, c1 the element's ends and w fixed by the middle sample
 
 Algorithm (seed 000 §6 with the V-cells' Fig. 4)
 -----------------------------------------------
-Per edge pair and blocker pair (one *group*), :func:`vcells.form_loops`
+Per edge pair and blocker pair (one *group*), :func:`loops.form_loops`
 chains elements end to start where they meet in the square (within
 ``JOIN_TOLERANCE`` times the square's epsilon, see below), choosing the first
 element clockwise at a corner where several start. The points of the square
@@ -110,7 +110,7 @@ element; a point p lies left of loop L iff the horizontal rays towards +x1 from
 p and from L's reference point cross L equally often modulo 2 (each element's
 x2 is monotone, so it crosses a ray at most once, found by inverting its
 Bézier coordinate). Loops of one group bound one cell iff every loop of the
-group sees their reference points on the same side (vcells.cells_of_loops).
+group sees their reference points on the same side (loops.cells_of_loops).
 
 *Area*: Green's formula, exactly: along an element x2 is a linear-fractional
 function of x1 (a composition of two), integrated in closed form.
@@ -133,7 +133,7 @@ from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.vcells import TURNING_DECIMALS, _signed_angle, cells_of_loops, form_loops, turning_sums
+from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
@@ -1027,7 +1027,7 @@ def open_segments(scene, el, order, chain_offsets):
     ----------
     el : Elements
     order, chain_offsets : (k,) int, (o + 1,) int
-        The open chains (:func:`vcells.form_loops`).
+        The open chains (:func:`loops.form_loops`).
 
     Returns
     -------
@@ -1234,7 +1234,7 @@ def windings(el, loop_offsets):
     """
     n = loop_offsets[-1]
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
-    along = _signed_angle(el.start_tangent[:n], el.end_tangent[:n], el.end[:n])
+    along = signed_angle(el.start_tangent[:n], el.end_tangent[:n], el.end[:n])
     return turning_sums(el, loop_offsets) + np.bincount(loop_of, weights=along, minlength=len(loop_offsets) - 1)
 
 
@@ -1470,7 +1470,7 @@ def _groups(el):
 
 
 def _loops(scene, el):
-    """:func:`vcells.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
+    """:func:`loops.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
     return form_loops(el, _groups(el), join_tolerance(scene, el.e1, el.e2))
 
 
@@ -1487,7 +1487,7 @@ def _with_segments(scene, arcs, squares, segments, el, loops):
     -------
     el : Elements
     loops : tuple
-        (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`.
+        (order, loop_offsets, chain_offsets) as :func:`loops.form_loops`.
     """
     order, loop_offsets, _ = loops
     redo = unique_sorted(segments.e1 * (1 << 32) + segments.e2)
@@ -1554,7 +1554,7 @@ def _concatenate_cells(parts):
 
 def _demote(order, loop_offsets, chain_offsets, bad):
     """Move the loops flagged ``bad`` ((l,) bool) to the open chains (before the others);
-    returns (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`."""
+    returns (order, loop_offsets, chain_offsets) as :func:`loops.form_loops`."""
     if not bad.any():
         return order, loop_offsets, chain_offsets
     lens = np.diff(loop_offsets)

@@ -423,7 +423,7 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
     hit = o[rows] + t[rows, None] * d[rows]
     examine = margin[rows] * _triangle_sizes(scene)[tri[rows]] <= TIE_MARGIN * scene.diagonal
     # on a face with coplanar partners: only where a partner's bounding box holds the hit
-    p_off, p_face, lo_box, hi_box = _coplanar_partners(scene)
+    p_off, p_face, lo_box, hi_box = coplanar_partners(scene)
     on = np.flatnonzero(~examine & (p_off[face[rows] + 1] > p_off[face[rows]]))
     count = (p_off[face[rows[on]] + 1] - p_off[face[rows[on]]])
     which = np.repeat(on, count)
@@ -607,7 +607,7 @@ def _triangle_sizes(scene):
     return cached
 
 
-def _coplanar_partners(scene):
+def coplanar_partners(scene):
     """Faces of lower id sharing each face's plane (:func:`face_planes`) whose bounding
     boxes meet its own (grown by the weld tolerance), as CSR, with every face's bounding
     box (cached on the scene).

@@ -10,7 +10,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.skeleton.arcs.kinds import EEE, END_COPLANAR
 from viscx.skeleton.generators import canonical_eee, edge_crossings, edge_geometry
-from viscx.skeleton.nodes import _coplanar_partners, face_planes
+from viscx.skeleton.nodes import coplanar_partners, face_planes
 
 
 def edges_crossing_planes(scene, normal, point):
@@ -67,9 +67,9 @@ def pairs_within_groups(group):
 
 def _touched_faces(scene):
     """(f,) bool: faces whose plane holds another face over the face's bounding box
-    (:func:`viscx.skeleton.nodes._coplanar_partners`) or, anywhere, a generator vertex not
+    (:func:`viscx.skeleton.nodes.coplanar_partners`) or, anywhere, a generator vertex not
     on the face's outline (within the weld tolerance, as tangency's contacts)."""
-    off, partner, _, _ = _coplanar_partners(scene)
+    off, partner, _, _ = coplanar_partners(scene)
     touched = np.zeros(scene.n_faces, dtype=bool)
     touched[np.diff(off) > 0] = True
     touched[partner] = True

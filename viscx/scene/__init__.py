@@ -69,6 +69,12 @@ class Scene:
         Where the scene came from (file path), for messages.
     sha256 : str
         SHA-256 of the source file's bytes ("" when built in memory).
+    cache : dict
+        Data derived from this scene alone, computed once on first use
+        (:meth:`cached`): keyed by the name of the function computing it
+        (``"face_planes"``, ``"edge_contacts"``, ``"pencil_planes"``, …). Not an
+        argument: :func:`dataclasses.replace` gives the new scene an empty cache, so
+        a scene with other vertices or another epsilon never sees stale data.
     """
 
     vertices: np.ndarray
@@ -93,6 +99,21 @@ class Scene:
     sha256: str = ""
     _caster: object = field(default=None, repr=False, compare=False)
     _contacts: object = field(default=None, repr=False, compare=False)
+    cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def cached(self, name, build):
+        """``build(self)``, computed on the first call for ``name`` and kept in :attr:`cache`.
+
+        Parameters
+        ----------
+        name : str
+            The key: the name of the public function returning the data.
+        build : callable
+            Scene -> the data; must depend on nothing but the scene.
+        """
+        if name not in self.cache:
+            self.cache[name] = build(self)
+        return self.cache[name]
 
     @property
     def n_vertices(self):

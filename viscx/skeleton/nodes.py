@@ -577,9 +577,10 @@ def face_planes(scene):
     tolerance are one plane (a chain, so a plane is never split at a rounding
     boundary of its offset).
     """
-    cached = getattr(scene, "_viscx_face_planes", None)
-    if cached is not None:
-        return cached
+    return scene.cached("face_planes", _face_planes)
+
+
+def _face_planes(scene):
     nf = scene.n_faces
     n = scene.face_normal.copy()
     off = scene.face_offset.copy()
@@ -593,18 +594,16 @@ def face_planes(scene):
     new[1:] = np.any(key_n[order][1:] != key_n[order][:-1], axis=1) | (np.diff(off[order]) > scene.weld_tolerance)
     plane = np.empty(nf, dtype=np.int64)
     plane[order] = np.cumsum(new) - 1
-    scene._viscx_face_planes = plane
     return plane
 
 
 def _triangle_sizes(scene):
     """(t,) float: the longest side of each triangle (cached on the scene)."""
-    cached = getattr(scene, "_viscx_triangle_sizes", None)
-    if cached is None:
+    def longest_sides(scene):
         c = scene.vertices[scene.triangles]
-        cached = np.linalg.norm(c - np.roll(c, 1, axis=1), axis=2).max(axis=1)
-        scene._viscx_triangle_sizes = cached
-    return cached
+        return np.linalg.norm(c - np.roll(c, 1, axis=1), axis=2).max(axis=1)
+
+    return scene.cached("triangle_sizes", longest_sides)
 
 
 def coplanar_partners(scene):
@@ -618,9 +617,10 @@ def coplanar_partners(scene):
     partners : (k,) int
     lo, hi : (f, 3) float
     """
-    cached = getattr(scene, "_viscx_coplanar_partners", None)
-    if cached is not None:
-        return cached
+    return scene.cached("coplanar_partners", _coplanar_partners)
+
+
+def _coplanar_partners(scene):
     nf = scene.n_faces
     tol = scene.weld_tolerance
     lo = np.full((nf, 3), np.inf)
@@ -637,8 +637,7 @@ def coplanar_partners(scene):
     # (only lower ids: a tie goes to the lowest face, so a higher partner never wins)
     ok = (j < i) & np.all((lo[i] <= hi[j] + tol) & (lo[j] <= hi[i] + tol), axis=1)
     i, j = i[ok], j[ok]  # sorted by i
-    scene._viscx_coplanar_partners = np.searchsorted(i, np.arange(nf + 1)), j, lo, hi
-    return scene._viscx_coplanar_partners
+    return np.searchsorted(i, np.arange(nf + 1)), j, lo, hi
 
 
 def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=1e-9):

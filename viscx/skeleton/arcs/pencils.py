@@ -111,9 +111,10 @@ def pencil_planes(scene):
         lying in it, by *region*, the touched faces of the plane joined across the flat
         edges they share (a face split in two of one plane), named by its lowest face id.
     """
-    cached = getattr(scene, "_viscx_pencil_planes", None)
-    if cached is not None:
-        return cached
+    return scene.cached("pencil_planes", _pencil_planes)
+
+
+def _pencil_planes(scene):
     he = scene.half_edges
     touched = np.flatnonzero(_touched_faces(scene))
     plane_of = face_planes(scene)
@@ -144,8 +145,7 @@ def pencil_planes(scene):
     h, k = h[same], k[same]
     incidence = np.unique(np.stack([k, region[he.face[h]], he.edge[h]], axis=1), axis=0).reshape(-1, 3)
     role[incidence[:, 0], incidence[:, 2]] = 1
-    scene._viscx_pencil_planes = face, role, incidence
-    return scene._viscx_pencil_planes
+    return face, role, incidence
 
 
 def pencil_plane_of(scene, kind, generators):

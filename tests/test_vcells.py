@@ -658,7 +658,7 @@ def test_turning_across_a_gap_running_back(monkeypatch):
 def test_turning_at_the_base_of_a_sliver(monkeypatch):
     """Two elements running out and back between two great circles 2.4e-6 rad apart (a
     vertex 0.3 epsilon above a box top sees two edges of it so: random_boxes(1000), vertex
-    367): a sliver trapezoid whose ends lie 3.6e-9 and 3.6e-8 apart, below JOIN_TOLERANCE.
+    367): a sliver trapezoid whose ends lie 3.6e-9 and 3.6e-8 apart, below JOIN_CHORD.
     At its base the loop turns by π plus the apex angle; one turn between the tangents
     wraps that to -π plus it, a cell of 2π sr instead of 3e-10 (the cusp rule knocked out);
     turning across the base's gap gives its area."""

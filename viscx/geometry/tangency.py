@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from viscx.scene.neighbourhood import surface_wedges, take_wedges
+from viscx.tolerances import ANGLE_TOLERANCE
 
 TWO_PI = 2 * np.pi
 
@@ -160,7 +161,7 @@ def _separation(offsets, first, normal, span, directions, angle_tol):
     return blocked, degenerate
 
 
-def tangent_in_wedges(wedges, directions, angle_tol=1e-9):
+def tangent_in_wedges(wedges, directions, angle_tol=ANGLE_TOLERANCE):
     """Whether the line along each direction passes the surface given by its wedges.
 
     Parameters
@@ -185,7 +186,7 @@ def tangent_in_wedges(wedges, directions, angle_tol=1e-9):
     return ~blocked, degenerate
 
 
-def tangent_at_points(scene, points, directions, angle_tol=1e-9):
+def tangent_at_points(scene, points, directions, angle_tol=ANGLE_TOLERANCE):
     """:func:`tangent_in_wedges` at any points of the surface (vertices, points of edges),
     their wedges searched geometrically.
 
@@ -198,7 +199,7 @@ def tangent_at_points(scene, points, directions, angle_tol=1e-9):
     return tangent_in_wedges(surface_wedges(scene, points), directions, angle_tol)
 
 
-def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
+def tangent_at_vertices(scene, vertices, directions, angle_tol=ANGLE_TOLERANCE):
     """:func:`tangent_in_wedges` at vertices (their wedges are cached per scene).
 
     Parameters
@@ -209,7 +210,7 @@ def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
     return tangent_in_wedges(take_wedges(scene.contacts.vertex, vertices), directions, angle_tol)
 
 
-def tangent_at_edges(scene, edges, directions, points=None, angle_tol=1e-9):
+def tangent_at_edges(scene, edges, directions, points=None, angle_tol=ANGLE_TOLERANCE):
     """:func:`tangent_at_points` at points of edges.
 
     Parameters

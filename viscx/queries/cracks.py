@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.polygon import plane_basis
-from viscx.skeleton.nodes import GRAZE_COSINE, coplanar_partners, face_planes
+from viscx.skeleton.nodes import coplanar_partners, face_planes
+from viscx.tolerances import GRAZE_COSINE
 
 
 @dataclass

@@ -27,13 +27,10 @@ from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate
 from viscx.scene.faces import drop_collinear_vertices, face_loops, merge_coplanar
 from viscx.scene.halfedge import HalfEdges, build_half_edges
 from viscx.scene.soup import PolygonSoup
+from viscx.tolerances import DEFAULT_EPSILON, DEFAULT_WELD
 
 __all__ = ["Scene", "PolygonSoup", "load_scene", "build_scene", "DEFAULT_WELD", "DEFAULT_EPSILON"]
 
-#: Default weld (and coplanarity) tolerance, relative to the bounding-box diagonal.
-DEFAULT_WELD = 1e-7
-#: Default robustness epsilon, relative to the bounding-box diagonal.
-DEFAULT_EPSILON = 1e-6
 
 
 @dataclass

@@ -93,7 +93,7 @@ Algorithm (seed 000 §6 with the V-cells' Fig. 4)
 -----------------------------------------------
 Per edge pair and blocker pair (one *group*), :func:`loops.form_loops`
 chains elements end to start where they meet in the square (within
-``JOIN_TOLERANCE`` times the square's epsilon, see below), choosing the first
+``SQUARE_JOIN_EPSILONS`` times the square's epsilon, see below), choosing the first
 element clockwise at a corner where several start. The points of the square
 are embedded as (x1, x2, 1) and tangents as (t1, t2, 0), so that the sphere
 helpers' signed angles about "the point" are the plane's angles about +z.
@@ -134,23 +134,21 @@ from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, fam
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
 from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums
+from viscx.tolerances import (
+    ANGLE_TOLERANCE,
+    PARALLEL_TOLERANCE,
+    SQUARE_COVER_TOLERANCE,
+    SQUARE_JOIN_EPSILONS,
+    SQUARE_REFERENCE_OFFSET,
+    WINDING_TOLERANCE,
+)
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
 #: ... and this many in the squares whose loops stayed open with PROBE (:func:`_squares_cells`).
 FINE_PROBE = 5
-#: Ends of two elements closer than this many epsilon (along the edges) are one point of
-#: the square: V1 merges events 4 epsilon apart along an edge.
-JOIN_TOLERANCE = 8
-#: A loop's reference point lies this far (square units, at most a thousandth of the
-#: element) left of its longest element.
-REFERENCE_OFFSET = 1e-9
 #: Where along its element (Bézier u) a loop's reference point lies: the golden section.
 REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
-#: A loop is closed when its winding is ±2π within this (else it is an open chain).
-WINDING_TOLERANCE = 1e-6
-#: A pair's cells cover the square when their areas sum to 1 within this.
-COVER_TOLERANCE = 1e-6
 #: Points judged per call of :func:`maximal_free_segments` by :func:`ee_blockers`: its
 #: whole segments are ~200 bytes a line, the state kept 40.
 BLOCKER_CHUNK = 1 << 20
@@ -246,7 +244,7 @@ class EECells:
         key = self.edge1 * (1 << 32) + self.edge2
         done = unique_sorted(key[self.complete])
         total = np.bincount(np.searchsorted(pairs, key), weights=self.area, minlength=len(pairs))
-        covered = np.abs(total[np.searchsorted(pairs, done)] - 1) <= COVER_TOLERANCE
+        covered = np.abs(total[np.searchsorted(pairs, done)] - 1) <= SQUARE_COVER_TOLERANCE
         return {
             "cells": len(self),
             "with_holes": int(np.count_nonzero(loops > 1)),
@@ -923,10 +921,10 @@ def pencil_value(scene, crossed, held, third):
     at, bt = _edge_ends(scene, third)
     dh, dt = bh - ah, bt - at
     n = np.cross(dh, dt)
-    parallel = np.linalg.norm(n, axis=1) <= 1e-9 * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
+    parallel = np.linalg.norm(n, axis=1) <= ANGLE_TOLERANCE * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
     n = np.where(parallel[:, None], np.cross(dh, at - ah), n)
     den = np.einsum("ij,ij->i", n, b - a)
-    ok = np.abs(den) > 1e-12 * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
+    ok = np.abs(den) > PARALLEL_TOLERANCE * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
     return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
 
 
@@ -1315,7 +1313,7 @@ def inside_square_loops(el, loop_offsets, ref, loop, targets):
 
 
 def reference_points(el, loop_offsets):
-    """A point just left of each loop: REFERENCE_OFFSET (at most a thousandth of the
+    """A point just left of each loop: SQUARE_REFERENCE_OFFSET (at most a thousandth of the
     element's chord) off its longest element, along the normal, at u = REFERENCE_AT (not
     the middle: in axis-aligned scenes the middle of a side is often level with a corner,
     and a ray through a corner joined within tolerance could count it twice).
@@ -1337,7 +1335,7 @@ def reference_points(el, loop_offsets):
     tangent = (e - s) * w * (1 - w) / den**2
     tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
     left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
-    ref = point + np.minimum(REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
+    ref = point + np.minimum(SQUARE_REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
     return _lift(ref)
 
 
@@ -1567,12 +1565,12 @@ def _demote(order, loop_offsets, chain_offsets, bad):
 
 
 def join_tolerance(scene, e1, e2):
-    """(k,) float: JOIN_TOLERANCE epsilon along the shorter edge of each element's pair, in
+    """(k,) float: SQUARE_JOIN_EPSILONS epsilon along the shorter edge of each element's pair, in
     square units (events merged 4 epsilon apart along an edge end arcs there)."""
     a1, b1 = _edge_ends(scene, e1)
     a2, b2 = _edge_ends(scene, e2)
     shorter = np.minimum(np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1))
-    return JOIN_TOLERANCE * scene.epsilon / shorter
+    return SQUARE_JOIN_EPSILONS * scene.epsilon / shorter
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from viscx.grid import bin_boxes
+from viscx.tolerances import ANGLE_TOLERANCE
 
 
 def vertex_edges(scene):
@@ -39,7 +40,7 @@ def skew_edges(scene, e1, e2):
     size = np.linalg.norm(c, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         gap = np.abs(np.einsum("ij,ij->i", a2 - a1, c)) / size
-    return ~share & (size > 1e-9) & (gap > scene.epsilon)
+    return ~share & (size > ANGLE_TOLERANCE) & (gap > scene.epsilon)
 
 
 @dataclass

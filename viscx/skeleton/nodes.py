@@ -17,6 +17,7 @@ from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
 from viscx.raycast import intersect_triangles
 from viscx.scene.neighbourhood import faces_near, generator_wedges
+from viscx.tolerances import ANGLE_TOLERANCE, GRAZE_COSINE, TIE_MARGIN, TIE_SLACK
 
 # Node kinds.
 E4, VEE, VV = 0, 1, 2
@@ -358,16 +359,6 @@ def vertex_ray_blockers(scene, vertices, directions):
     return up_kind, up, down_kind, front, degenerate
 
 
-#: Slack (relative to the scene's diagonal) within which a hit point lies on another face,
-#: for the ties of :func:`first_faces`: rounding of the hit point only.
-TIE_SLACK = 1e-12
-#: Hits closer than this (relative to the diagonal) to their triangle's boundary, by their
-#: smallest barycentric coordinate times the triangle's longest side, are checked for ties
-#: (they may lie on an edge shared with other faces): ten times TIE_SLACK.
-TIE_MARGIN = 1e-11
-#: A ray lies in a face's plane when |cos| to its normal is at most this (tangency's angle
-#: tolerance) and its origin is within the weld tolerance of the plane.
-GRAZE_COSINE = 1e-9
 #: Bound on the faces a ray lying in their plane skips in one query of :func:`first_faces`.
 MAX_GRAZED = 8
 #: The same for a pencil's line of a touched plane (``plane_face``), which also passes the
@@ -588,7 +579,7 @@ def _face_planes(scene):
     flip = n[np.arange(nf), k] < 0
     n[flip] *= -1
     off[flip] *= -1
-    key_n = np.round(n / 1e-9).astype(np.int64)
+    key_n = np.round(n / ANGLE_TOLERANCE).astype(np.int64)
     order = np.lexsort([off, key_n[:, 2], key_n[:, 1], key_n[:, 0]])
     new = np.ones(nf, dtype=bool)
     new[1:] = np.any(key_n[order][1:] != key_n[order][:-1], axis=1) | (np.diff(off[order]) > scene.weld_tolerance)
@@ -640,7 +631,7 @@ def _coplanar_partners(scene):
     return np.searchsorted(i, np.arange(nf + 1)), j, lo, hi
 
 
-def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=1e-9):
+def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=ANGLE_TOLERANCE):
     """For each generator row in ``rows``, whether its line lies in the plane of a face
     touching this generator's point, and a face of that plane (the same face or a
     coplanar one, :func:`face_planes`) touches another generator point of the same

@@ -46,7 +46,7 @@ Algorithm (seed 000 Fig. 4, §5.2-5.5)
 -------------------------------------
 Per vertex and blocker pair (one *group*), FormLoops chains the group's
 elements end to start. Ends meet where they coincide on the sphere (within
-``JOIN_TOLERANCE``, not by end ids: transition ends carry none). Where several
+``JOIN_CHORD``, not by end ids: transition ends carry none). Where several
 elements of a group start at one point (a degenerate 0-cell, §5.5, or a cell
 touching itself) the next element is the first one clockwise from the
 incoming element's reversed tangent, which makes the loops the boundaries of
@@ -94,36 +94,22 @@ from viscx.skeleton.loops import (
     signed_angle,
 )
 from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
+from viscx.tolerances import (
+    CORNER_REACH,
+    CUSP_ANGLE,
+    CUSP_GAP,
+    JOIN_CHORD,
+    JOIN_EPSILONS,
+    JOIN_LIMIT,
+    PARALLEL_TOLERANCE,
+    SPHERE_COVER_TOLERANCE,
+    SPHERE_REFERENCE_OFFSET,
+    SPIKE_ANGLE,
+)
 
 FOUR_PI = 4 * np.pi
-#: Chord on the unit sphere below which an element's end and another's start are one point:
-#: V1 puts arc ends at events computed per family (nodes: rounding; transitions: bisection
-#: to ~1e-12 in s), far below this; events merged by V1 are 4 epsilon apart along an edge.
-JOIN_TOLERANCE = 1e-7
-#: Open chains whose ends lie this many epsilon apart along their edges are joined
-#: (:func:`join_open_chains`). V1 merges runs of events each within 4 epsilon of the next
-#: (single linkage): two families may keep events two links apart (random_boxes(1000):
-#: 5.1 and 5.4 epsilon at vertices 623 and 151).
-JOIN_EPSILONS = 8
-#: Largest chord such a join spans (JOIN_EPSILONS epsilon seen from an edge 8000 epsilon
-#: from the vertex).
-JOIN_LIMIT = 1e-3
 #: Fewest elements of a loop closed across gaps: one element closed onto itself bounds nothing.
 JOIN_MIN_ELEMENTS = 2
-#: A gap of a loop whose two elements' great circles meet within this many times its chord
-#: of both its ends has its corner there (:func:`sphere_turning_sums`).
-CORNER_REACH = 2.0
-#: ... as has a gap whose direction lies within this angle (radians) of the reverse of the
-#: incoming element's tangent or of the outgoing one's (it runs back along that element).
-SPIKE_ANGLE = 1e-6
-#: A loop's corner turning within this angle of ±π is a cusp; where its ends lie farther
-#: apart than CUSP_GAP (a chord far above the ends' rounding) the gap's side decides the turn.
-CUSP_ANGLE = 1e-3
-CUSP_GAP = 1e-10
-#: Angle by which a loop's reference point lies left of its longest element's midpoint.
-REFERENCE_OFFSET = 1e-8
-#: A vertex's cells cover its sphere when their solid angles sum to 4π within this.
-COVER_TOLERANCE = 1e-6
 #: (loop, direction) pairs per call of the point-location kernel.
 LOCATE_CHUNK = 1 << 21
 
@@ -147,7 +133,7 @@ class VCells:
     complete : (c,) bool
         Every boundary element of its vertex lies on a closed loop and the
         vertex's cells cover its sphere (solid angles summing to 4π within
-        COVER_TOLERANCE). Elsewhere V1 left loops open (docs/skeleton.md,
+        SPHERE_COVER_TOLERANCE). Elsewhere V1 left loops open (docs/skeleton.md,
         "V-cells") and cells built from the closed loops may be wrong.
     loop_offsets : (c + 1,) int
         Loops of cell i: ``loop_offsets[i]:loop_offsets[i + 1]``, the outer loop first.
@@ -359,7 +345,7 @@ def _image_point(scene, vertex, edge, s):
 
 def unique_elements(el, group):
     """The elements to keep: of elements of one group running between the same two points
-    (within JOIN_TOLERANCE), the first (smallest half-cell).
+    (within JOIN_CHORD), the first (smallest half-cell).
 
     Two VE families whose lines coincide give the same boundary twice: collinear
     edges overlapping (two boxes' bottom edges along their contact), or a vertex and
@@ -373,10 +359,10 @@ def unique_elements(el, group):
     """
     if len(el) == 0:
         return np.zeros(0, np.int64)
-    i, j = near_pairs(el.start, el.start, group, JOIN_TOLERANCE)
+    i, j = near_pairs(el.start, el.start, group, JOIN_CHORD)
     later = j > i
     i, j = i[later], j[later]
-    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_TOLERANCE
+    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_CHORD
     drop = np.zeros(len(el), bool)
     drop[j[same]] = True
     return np.flatnonzero(~drop)
@@ -394,7 +380,7 @@ def sphere_loops(scene, el, group):
     order, loop_offsets, chain_offsets
         As :func:`form_loops`.
     """
-    return join_open_chains(scene, el, group, *form_loops(el, group, JOIN_TOLERANCE))
+    return join_open_chains(scene, el, group, *form_loops(el, group, JOIN_CHORD))
 
 
 def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
@@ -411,7 +397,7 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     rules of :func:`form_loops` over whole chains, each chain's end tolerance
     JOIN_EPSILONS epsilon over the distance from the vertex to the nearest edge its line
     meets (:func:`line_reach`: the events may have merged on that edge's family, nearer
-    than the end's own edge), between JOIN_TOLERANCE and JOIN_LIMIT. A loop of fewer than
+    than the end's own edge), between JOIN_CHORD and JOIN_LIMIT. A loop of fewer than
     JOIN_MIN_ELEMENTS elements so joined stays open. A joined loop starts at its smallest
     element; the loops keep their order, the new ones after them.
 
@@ -429,7 +415,7 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     # the merged events lie on the family of the edge nearest the vertex that the end's line
     # meets (a VEE node (v, e, e') seen along e, merged on VE (v, e')), not always on e itself
     reach = line_reach(scene, ends.vertex, ends.end, ends.end_reach)
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
+    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
     walk, joined, _ = form_loops(ends, group[first], tolerance)
     sizes = np.diff(chain_offsets)
     # one element closed onto itself across a gap bounds nothing
@@ -510,7 +496,7 @@ def _line_reach(origin, direction, vertex, reach, a, b, va, vb, tol):
             dw = d[0] * w0 + d[1] * w1 + d[2] * w2
             ew = e0 * w0 + e1 * w1 + e2 * w2
             den = ee - dd * dd
-            if den <= 1e-12 * ee:  # the edge runs along the line
+            if den <= PARALLEL_TOLERANCE * ee:  # the edge runs along the line
                 continue
             t = (dd * ew - ee * dw) / den  # closest point of the line to the edge's line
             if abs(t) >= out[i] or t == 0.0:
@@ -532,7 +518,7 @@ def sphere_turning_sums(el, loop_offsets):
     """:func:`viscx.skeleton.loops.turning_sums` of loops on a vertex's sphere, bridging gaps.
 
     Where an element ends farther than
-    JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`), or farther than
+    JOIN_CHORD from the next one's start (:func:`join_open_chains`), or farther than
     CUSP_GAP at a cusp (a corner turning back within CUSP_ANGLE of ±π), the loop runs
     along the great circle between them, turning at both of its ends: turning once from
     the incoming to the outgoing tangent would miss a full turn where the gap runs back
@@ -550,10 +536,10 @@ def sphere_turning_sums(el, loop_offsets):
     p, q = el.end[:n], el.start[nxt]
     chord = np.linalg.norm(q - p, axis=1)
     # at a cusp (the loop turns back, e.g. the base of a sliver triangle whose base is
-    # below JOIN_TOLERANCE) the turn is π plus the apex angle: one turn between the
+    # below JOIN_CHORD) the turn is π plus the apex angle: one turn between the
     # tangents, in (-π, π], wraps it to -π plus that angle; the gap's side decides
     cusp = (np.abs(turn) > np.pi - CUSP_ANGLE) & (chord > CUSP_GAP)
-    gap = np.flatnonzero((chord > JOIN_TOLERANCE) | cusp)
+    gap = np.flatnonzero((chord > JOIN_CHORD) | cusp)
     p, q = p[gap], q[gap]
     cos = np.einsum("ij,ij->i", p, q)[:, None]
     leave, arrive = q - cos * p, cos * q - p  # the great circle's tangents at p and at q
@@ -569,7 +555,7 @@ def sphere_turning_sums(el, loop_offsets):
     spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
     meet = np.cross(np.cross(el.start[gap], p), np.cross(q, el.end[nxt[gap]]))
     size = np.linalg.norm(meet, axis=1)
-    ok = size > 1e-12  # circles crossing at more than ~1e-12 rad
+    ok = size > PARALLEL_TOLERANCE  # circles crossing at more than ~1e-12 rad
     meet[ok] /= size[ok, None]
     meet *= np.where(np.einsum("ij,ij->i", meet, p) < 0, -1.0, 1.0)[:, None]
     from_p, from_q = np.linalg.norm(meet - p, axis=1), np.linalg.norm(meet - q, axis=1)
@@ -583,7 +569,7 @@ def sphere_turning_sums(el, loop_offsets):
 
 
 def reference_points(el, loop_offsets):
-    """A point just left of each loop: REFERENCE_OFFSET (at most a thousandth of the
+    """A point just left of each loop: SPHERE_REFERENCE_OFFSET (at most a thousandth of the
     element) off the middle of its longest element.
 
     Returns
@@ -599,7 +585,7 @@ def reference_points(el, loop_offsets):
     mid /= np.linalg.norm(mid, axis=1, keepdims=True)
     left = np.cross(mid, el.end[best] - el.start[best])
     left /= np.linalg.norm(left, axis=1, keepdims=True)
-    ref = mid + np.minimum(REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
+    ref = mid + np.minimum(SPHERE_REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
     return ref / np.linalg.norm(ref, axis=1, keepdims=True)
 
 
@@ -686,7 +672,7 @@ def inside_loops(el, loop_offsets, ref, loop, targets):
 
 def loop_segments(el, loop_offsets):
     """The great-circle arcs each loop consists of: its elements and, where an element
-    ends farther than JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`),
+    ends farther than JOIN_CHORD from the next one's start (:func:`join_open_chains`),
     the minor arc across that gap (a path through the gap crosses the loop there).
 
     Returns
@@ -698,7 +684,7 @@ def loop_segments(el, loop_offsets):
     n = loop_offsets[-1]
     nxt = np.arange(1, n + 1)
     nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
-    gap = np.flatnonzero(np.linalg.norm(el.start[nxt] - el.end[:n], axis=1) > JOIN_TOLERANCE)
+    gap = np.flatnonzero(np.linalg.norm(el.start[nxt] - el.end[:n], axis=1) > JOIN_CHORD)
     if len(gap) == 0:
         return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
@@ -811,7 +797,7 @@ def point_chains(scene, walk, chain_offsets):
         return np.zeros(0, bool)
     first, last = chain_offsets[:-1], chain_offsets[1:] - 1
     reach = line_reach(scene, walk.vertex[last], walk.end[last], walk.end_reach[last])
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
+    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
     k = np.arange(chain_offsets[0], chain_offsets[-1])
     chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
     origin = walk.start[first][chain_of]
@@ -872,7 +858,7 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole, po
     _, vertex_of = np.unique(cp[:, 0], return_inverse=True)
     vertex_of = vertex_of.reshape(-1)
     total = np.bincount(vertex_of, weights=solid[cell_order])
-    complete = (np.abs(total - FOUR_PI)[vertex_of] <= COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex[chain_first[~points]])
+    complete = (np.abs(total - FOUR_PI)[vertex_of] <= SPHERE_COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex[chain_first[~points]])
     return VCells(
         vertex=cp[:, 0],
         up_kind=cp[:, 1].astype(np.int8),

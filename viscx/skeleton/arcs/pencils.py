@@ -11,6 +11,7 @@ from viscx.geometry.polygon import plane_basis
 from viscx.skeleton.arcs.kinds import EEE, END_COPLANAR
 from viscx.skeleton.generators import canonical_eee, edge_crossings, edge_geometry
 from viscx.skeleton.nodes import coplanar_partners, face_planes
+from viscx.tolerances import ANGLE_TOLERANCE
 
 
 def edges_crossing_planes(scene, normal, point):
@@ -357,7 +358,7 @@ def contact_pencils(scene):
             wa, wb = width[ia], width[ib]
             overlap = (np.maximum(0.0, np.minimum(wa, d + wb) - d)
                        + np.maximum(0.0, np.minimum(wa, d - np.pi + wb) - np.maximum(0.0, d - np.pi)))
-            ok = overlap > 1e-9
+            ok = overlap > ANGLE_TOLERANCE
             gens.append(np.stack([np.full(np.count_nonzero(ok), line), inside[ia[ok]], inside[ib[ok]]], axis=1))
     gens = canonical_eee(scene, np.concatenate(gens))
     gens = gens[gens[:, 0] >= 0]

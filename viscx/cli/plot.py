@@ -33,7 +33,7 @@ def vcells(file, vertex, output, size):
     viscx plot vcells tetra.h5 --vertex 0 -o tetra_v0.png
     """
     from viscx.formats.hdf5 import ViscxFile, read_arcs, read_vcells
-    from viscx.render.vcells import plot_vcells
+    from viscx.plot.vcell_sphere import plot_vcells
 
     with ViscxFile(file) as f:
         if "V2" not in f.levels or "V2" not in f.h5:
@@ -67,7 +67,7 @@ def eecell(file, edges, output, size):
     viscx plot eecell tetra.h5 --edges 2 7 -o tetra_2_7.png
     """
     from viscx.formats.hdf5 import ViscxFile, read_arcs, read_eecells
-    from viscx.render.eecells import plot_eecells
+    from viscx.plot.eecell_square import plot_eecells
     from viscx.skeleton.eecells import skew_pairs
 
     with ViscxFile(file) as f:

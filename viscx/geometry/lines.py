@@ -27,8 +27,9 @@ All functions are vectorised over a leading axis and work in float64.
 """
 
 import numpy as np
-from viscx.tolerances import PARALLEL_TOLERANCE
 from numba import njit
+
+from viscx.tolerances import PARALLEL_TOLERANCE
 
 
 def plucker(points, directions):

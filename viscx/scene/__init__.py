@@ -303,7 +303,7 @@ def load_scene(path, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None):
     >>> scene = load_scene("sample_scenes/cornell_box.obj")     # doctest: +SKIP
     >>> scene.n_faces, len(scene.generator_edges)                # doctest: +SKIP
     """
-    from viscx.formats.mesh import read_soup
+    from viscx.formats.trimesh_io import read_soup
 
     path = Path(path)
     soup = read_soup(path)

@@ -13,10 +13,10 @@ import numpy as np
 
 from viscx.arrays import expand_ranges, unique_sorted
 from viscx.geometry.lines import segment_parameter
-from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
+from viscx.geometry.tangency import tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
 from viscx.raycast import intersect_triangles
-from viscx.scene.neighbourhood import faces_near, generator_wedges
+from viscx.scene.neighbourhood import faces_near, generator_wedges, tangent_at_vertices
 from viscx.tolerances import ANGLE_TOLERANCE, GRAZE_COSINE, TIE_MARGIN, TIE_SLACK
 
 # Node kinds.

@@ -42,7 +42,7 @@ BARY_SLACK = 1e-12
 #: Rays closer to parallel than this (|cos| to the normal) graze a triangle's
 #: plane and never hit it: rounding alone puts rays built in a plane ~1e-14 off it.
 PARALLEL_COSINE = 1e-12
-#: Enlargement of the bounding box where sky ends are placed (design notes §4).
+#: Enlargement of the bounding box where sky ends are placed (design decisions, Sky: docs/references.md).
 SKY_MARGIN = 0.01
 #: An embree hit is clear-cut when float64 puts it this far inside its triangle
 #: (smallest barycentric coordinate) ...
@@ -122,8 +122,8 @@ ANGLE_MARGIN = 1e-6
 JOIN_CHORD = 1e-7
 #: Open chains whose ends lie this many epsilon apart along their edges are joined
 #: (:func:`viscx.skeleton.vcells.join_open_chains`): two families meeting at a corner may
-#: keep events two links of a V1 merge apart (random_boxes(1000): 5.1 and 5.4 epsilon at
-#: vertices 623 and 151).
+#: keep events two links of a V1 merge apart (docs/skeleton.md, "V-cells", for the gaps
+#: measured on the random_boxes cities).
 JOIN_EPSILONS = 2 * MERGE_EPSILONS
 #: Largest chord such a join spans (JOIN_EPSILONS epsilon seen from an edge 8000 epsilon
 #: from the vertex).

@@ -57,7 +57,7 @@ def vcells(file, vertex, output, size):
 @click.option("--size", type=click.IntRange(16, 4000), default=300, show_default=True,
               help="Pixels per side of the square.")
 def eecell(file, edges, output, size):
-    """Draw the EE-cells of the edge pair A, B of FILE in its square [0, 1]² (seed 000
+    """Draw the EE-cells of the edge pair A, B of FILE in its square [0, 1]² (Hoberock et al.
     Fig. 7): point (x1, x2) is the line through the two edges' points x1 and x2, one
     colour per cell, the boundary arcs with their direction, each cell listed with its
     blocker pair (back → front) and area.

@@ -337,7 +337,7 @@ def eee_map(e1, e2, e3):
     coeffs : (n, 4) float
         (a, b, c, d), normalised.
     orientation : (n,) int
-        sign(dx2/dx1) = sign(ad - bc), constant along an arc (seed 000 §4.2).
+        sign(dx2/dx1) = sign(ad - bc), constant along an arc (Hoberock et al. §4.2).
     """
     n = len(e1)
     L2 = plucker(e2[:, 0], e2[:, 1] - e2[:, 0])

@@ -1,4 +1,4 @@
-"""Tangency of lines at generators (design notes §2, docs/skeleton.md).
+"""Tangency of lines at generators (design decisions, Vocabulary: docs/references.md, docs/skeleton.md).
 
 Faces are two-sided and all space off the faces is free. A line through a point
 p of the surface is *tangent* there (it may pass on) when the surface does not

@@ -1,4 +1,4 @@
-"""An edge pair's EE-cells in its square [0, 1]² (seed 000 Fig. 7): one colour per cell.
+"""An edge pair's EE-cells in its square [0, 1]² (Hoberock et al. Fig. 7): one colour per cell.
 
 Pixel (x1, x2) is the line through e1(x1) and e2(x2) (x1 to the right, x2 up). Every
 pixel is located among the pair's cells (:func:`viscx.skeleton.eecells.locate`); pixels

@@ -1,4 +1,4 @@
-"""The discontinuity mesh of an area light (seed 000 §7.5): on every receiver face, the
+"""The discontinuity mesh of an area light (Hoberock et al. §7.5): on every receiver face, the
 traces of the families of maximal free segments that involve a vertex or an edge of the
 light, and the regions they cut the receiver into.
 
@@ -9,7 +9,7 @@ vertices* and *light edges* are the vertices and edges of its outline (edges sha
 two light faces are inside the light and do not count). A point x of a receiver sees
 part of the light; that visible part changes combinatorially where x crosses the trace
 of one of these one-parameter families (the V-cells of the light's vertices and the
-EE-cells of its edges, seed 000 §7.5):
+EE-cells of its edges, Hoberock et al. §7.5):
 
 * **VE (light vertex v, occluder edge e)**: the lines through v grazing e (x stops
   seeing v behind e). Receiver end: the *front* end (the family is oriented from v
@@ -76,7 +76,7 @@ from viscx.arrays import expand_ranges
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.cracks import through_cracks
-from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
+from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE, face_planes
@@ -1011,7 +1011,7 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     frames = {f: _face_frame(scene, f) for f in wanted}
     outlines = {f: [np.stack([lp @ frames[f][0], lp @ frames[f][1]], axis=1) for lp in scene.face_loops(f)] for f in wanted}
     # receiver-plane events (straight traces in the receiver's plane)
-    tri_edge = _triangle_edge_ids(scene)
+    tri_edge = triangle_edge_ids(scene)
     rp_rows, rp_pts = [], []
     for f in wanted:
         u, v, o = frames[f]

@@ -1,4 +1,4 @@
-"""V2: the EE-cells (2-cells of an edge pair) of the visibility complex (seed 000 §6).
+"""V2: the EE-cells (2-cells of an edge pair) of the visibility complex (Hoberock et al. §6).
 
 The square of an edge pair
 --------------------------
@@ -28,7 +28,7 @@ What bounds the cells (which V1 arcs, and the pair on each side)
 ---------------------------------------------------------------
 Inside the square the pair changes only where the line meets a third
 generator: a third edge e3 (the EEE family (e1, e2, e3), a hyperbola arc
-x2(x1), linear-fractional, seed 000 §4.2), or a vertex (a VEE node: a point
+x2(x1), linear-fractional, Hoberock et al. §4.2), or a vertex (a VEE node: a point
 of the square, where such arcs meet). Along an EEE arc:
 
 * e3 beyond e2 (or before e1) on the line: one end of σ changes — e3 tangent:
@@ -89,7 +89,7 @@ c(u) = ((1 - u)(1 - w) c0 + u w c1) / ((1 - u)(1 - w) + u w) for u ∈ [0, 1]
 with c0, c1 the element's ends and w fixed by the middle sample
 (c(1/2) = (1 - w) c0 + w c1), exact for a projectivity and monotone in u.
 
-Algorithm (seed 000 §6 with the V-cells' Fig. 4)
+Algorithm (Hoberock et al. §6 with the V-cells' Fig. 4)
 -----------------------------------------------
 Per edge pair and blocker pair (one *group*), :func:`loops.form_loops`
 chains elements end to start where they meet in the square (within
@@ -1222,7 +1222,7 @@ def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe):
 
 
 def windings(el, loop_offsets):
-    """Winding of each loop (seed 000 Fig. 7): the turning angles at its corners plus the
+    """Winding of each loop (Hoberock et al. Fig. 7): the turning angles at its corners plus the
     angle each element's tangent turns along it (left turns positive).
 
     Returns

@@ -132,7 +132,7 @@ def near_pairs(a, b, group, tolerance):
 
 
 def form_loops(el, group, tolerance):
-    """Chain each group's elements end to start into loops (seed 000 §5.3 FormLoops).
+    """Chain each group's elements end to start into loops (Hoberock et al. §5.3 FormLoops).
 
     Candidates to follow an element are the elements of its group starting
     within ``tolerance`` of its end; the first clockwise from the reversed

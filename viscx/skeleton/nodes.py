@@ -269,7 +269,7 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     wedges = generator_wedges(scene, is_vertex[rows], gid[rows], point[rows])
     tangent[rows], degenerate[rows] = tangent_in_wedges(wedges, dc[rows])
     # grazing is the rule, not a degeneracy, at a face holding two of the node's
-    # generators (v and e on one face, two edges of one face): seed 000 §4.1
+    # generators (v and e on one face, two edges of one face): Hoberock et al. §4.1
     grazing = np.flatnonzero(degenerate[rows])
     if len(grazing):
         excused = _grazes_shared_face(scene, cand[rows], wedges, oc[rows], dc[rows], grazing)

@@ -1,4 +1,4 @@
-"""V2: the V-cells (2-cells of a vertex) of the visibility complex (seed 000 §5).
+"""V2: the V-cells (2-cells of a vertex) of the visibility complex (Hoberock et al. §5).
 
 The direction sphere of a vertex
 --------------------------------
@@ -42,7 +42,7 @@ with its cell on the left (seen from outside the sphere): the forward image of
 half-cell +(h+1) runs from s0 to s1 (the seed's "ve"), the forward image of
 -(h+1) from s1 to s0 ("ve.opp"); antipodal images run the other way.
 
-Algorithm (seed 000 Fig. 4, §5.2-5.5)
+Algorithm (Hoberock et al. Fig. 4, §5.2-5.5)
 -------------------------------------
 Per vertex and blocker pair (one *group*), FormLoops chains the group's
 elements end to start. Ends meet where they coincide on the sphere (within

@@ -78,7 +78,7 @@ class _Samples:
 
 
 def side_blockers(scene, vertex, edge, s):
-    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, seed 000 §4.1).
+    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, Hoberock et al. §4.1).
 
     The line from the vertex to the edge's point s is turned about the vertex by
     PROBE_ANGLE towards +n and -n (n = (b - a) × (v - a)) and judged by

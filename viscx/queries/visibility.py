@@ -27,6 +27,8 @@ segments; such a face's polygons miss the region the chain bounds.
 
 from dataclasses import dataclass, field
 
+from pathlib import Path
+
 import numpy as np
 
 from viscx.geometry.polygon import plane_basis, signed_area_2d
@@ -227,17 +229,37 @@ class QueryScene:
     points: np.ndarray
 
 
-def open_query(path):
-    """Read the scene of a viscx file for a point query; the file must hold V-cells (V2).
+def open_query(path, **scene_options):
+    """The scene of a point query: from a viscx file (which must hold V-cells, V2), or
+    loaded from a scene file (OBJ, PLY, …) for a *scoped* query that builds only the
+    point's V-cells (:func:`view_from`), with the same definitions as the full build.
 
-    Raises ViscxError (one line, exit status 2) for a file without V2.
+    Parameters
+    ----------
+    path : str or Path
+    **scene_options
+        ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file (see
+        :func:`viscx.scene.build_scene`); a viscx file keeps the ones it was built with.
+
+    Raises ViscxError (one line, exit status 2) for a viscx file without V2, or with
+    scene options.
     """
+    import h5py
+
     from viscx.errors import ViscxError
     from viscx.formats.hdf5 import ViscxFile
+    from viscx.scene import load_scene
 
+    given = {k: v for k, v in scene_options.items() if v is not None}
+    if not (Path(path).is_file() and h5py.is_hdf5(path)):
+        return QueryScene(str(path), load_scene(path, **given), np.zeros((0, 3)))
+    if given:
+        names = ", ".join("--" + k.replace("_", "-") for k in sorted(given))
+        raise ViscxError(f"{path} is a viscx file, built with its own scene options: {names} apply to scene files only")
     with ViscxFile(path) as f:
         if "V2" not in f.levels or "V2" not in f.h5:
-            raise ViscxError(f"{path} has no V-cells (V2); build it with `viscx build` (all levels)")
+            raise ViscxError(f"{path} has no V-cells (V2); build it with `viscx build` (all levels), "
+                             "or query the scene file itself")
         return QueryScene(str(path), f.read_scene(), f.read_points())
 
 

@@ -33,7 +33,7 @@ import json
 import numpy as np
 
 from viscx.errors import ViscxError
-from viscx.formats.atomic import atomic_path
+from viscx.formats.atomic import atomic_path, register_input
 
 FORMAT = "viscx-flatland"
 FORMAT_VERSION = 1
@@ -56,7 +56,7 @@ def write_hdf5(path, cx, mesh=None):
 
     from viscx import __version__
 
-    with atomic_path(path) as tmp:
+    with atomic_path(path, stream=False) as tmp:
         with h5py.File(tmp, "w", track_order=False) as f:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = FORMAT_VERSION
@@ -90,6 +90,7 @@ def read_hdf5(path, with_mesh=False):
     from viscx.flatland.complex import FlatComplex
     from viscx.flatland.scene import Scene
 
+    register_input(path)
     try:
         f = h5py.File(path, "r")
     except (OSError, ValueError) as exc:
@@ -147,6 +148,7 @@ def read_msgpack(path, with_mesh=False):
     from viscx.flatland.complex import FlatComplex
     from viscx.flatland.scene import Scene
 
+    register_input(path)
     try:
         with open(path, "rb") as fh:
             doc = msgpack.unpackb(fh.read(), raw=False)

@@ -24,7 +24,7 @@ import numpy as np
 from viscx import __version__
 from viscx.errors import ViscxError
 from viscx.formats import validate
-from viscx.formats.atomic import atomic_path
+from viscx.formats.atomic import atomic_path, register_input
 from viscx.scene import Scene
 from viscx.scene.halfedge import HalfEdges
 
@@ -261,6 +261,7 @@ class ViscxFile:
             raise ViscxError(f"no such file: {self.path}")
         if self.path.is_dir():
             raise ViscxError(f"{self.path} is a directory, not a viscx file")
+        register_input(self.path)
         try:
             self.h5 = h5py.File(self.path, "r")
         except OSError:

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from viscx.errors import ViscxError
+from viscx.formats.atomic import register_input
 from viscx.scene.soup import PolygonSoup
 
 
@@ -70,6 +71,7 @@ def read_soup(path):
         raise ViscxError(f"{path} is a directory, not a scene file")
     if path.stat().st_size == 0:
         raise ViscxError(f"{path} is empty")
+    register_input(path)
     if path.suffix.lower() == ".obj":
         from viscx.formats.obj import read_obj
 

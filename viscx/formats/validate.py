@@ -27,14 +27,13 @@ import os
 
 import h5py
 import numpy as np
+from h5py import h5d, h5z
 
 from viscx.errors import ViscxError
 from viscx.memory import memory_budget
 
 #: deflate's largest compression ratio is about 1032:1; LZF's is below it
 MAX_RATIO = 1100
-#: filters viscx writes or reads (anything else needs a plug-in and is refused)
-ALLOWED_COMPRESSION = (None, "gzip", "lzf")
 #: objects in one file (groups and datasets): a metadata bomb is refused before it is walked
 MAX_OBJECTS = 100_000
 #: nesting of any JSON text viscx reads from a file (options, counts, scenes)
@@ -102,51 +101,56 @@ def check_structure(h5, path, budget=None):
         Bytes any one dataset may take in memory (default :func:`viscx.memory.memory_budget`).
     """
     budget = memory_budget() if budget is None else budget
-    file_size = os.fstat(h5.id.get_vfd_handle()).st_size if h5.driver == "sec2" else os.path.getsize(path)
-    seen, stack, count = set(), [h5], 0
-    while stack:
-        group = stack.pop()
-        for name in group:
-            where = f"{group.name.rstrip('/')}/{name}"
-            link = group.get(name, getlink=True)
-            if isinstance(link, h5py.ExternalLink):
-                raise damaged(path, where, f"an external link to {link.filename!r}; viscx reads no other file")
-            if isinstance(link, h5py.SoftLink):
-                raise damaged(path, where, "a soft link; viscx files have none")
-            count += 1
-            if count > MAX_OBJECTS:
-                raise damaged(path, where, f"more than {MAX_OBJECTS} objects")
-            try:
-                obj = group[name]
-            except (KeyError, OSError, ValueError) as exc:
-                raise damaged(path, where, f"unreadable ({exc})") from None
-            address = h5py.h5o.get_info(obj.id).addr
-            if address in seen:  # a second hard link: a cycle or an alias
-                raise damaged(path, where, "a second link to one object")
-            seen.add(address)
-            if isinstance(obj, h5py.Group):
-                stack.append(obj)
-            elif isinstance(obj, h5py.Dataset):
-                _check_dataset(obj, where, path, file_size, budget)
-            else:
-                raise damaged(path, where, f"an unexpected {type(obj).__name__}")
+    file_size = os.path.getsize(h5.filename)
+    links = []
+
+    def link(name, target):  # every link, without following it; stops at the first bad one
+        links.append(name)
+        if not isinstance(target, h5py.HardLink) or len(links) > MAX_OBJECTS:
+            return name
+
+    bad = h5.visititems_links(link)
+    if bad is not None:
+        target = h5.get(bad, getlink=True)
+        if isinstance(target, h5py.ExternalLink):
+            raise damaged(path, f"/{bad}", f"an external link to {target.filename!r}; viscx reads no other file")
+        if isinstance(target, h5py.SoftLink):
+            raise damaged(path, f"/{bad}", "a soft link; viscx files have none")
+        raise damaged(path, f"/{bad}", f"more than {MAX_OBJECTS} objects")
+
+    def check(name, obj):  # each object once (HDF5 skips objects it has visited: no cycles)
+        if isinstance(obj, h5py.Dataset):
+            _check_dataset(obj, f"/{name}", path, file_size, budget)
+
+    try:
+        h5.visititems(check)
+    except (KeyError, OSError, RuntimeError) as exc:
+        raise ViscxError(f"{path} is a damaged viscx file (unreadable structure: {str(exc)[:120]})") from None
+
+
+_FILTERS = {h5z.FILTER_DEFLATE: "gzip", h5z.FILTER_SHUFFLE: "shuffle", h5z.FILTER_FLETCHER32: "fletcher32",
+            h5z.FILTER_LZF: "lzf"}
 
 
 def _check_dataset(d, where, path, file_size, budget):
-    if d.is_virtual:
+    dcpl = d.id.get_create_plist()
+    if dcpl.get_layout() == h5d.VIRTUAL:
         raise damaged(path, where, "a virtual dataset; viscx reads no other file")
-    if d.external:
+    if dcpl.get_external_count():
         raise damaged(path, where, "external raw storage; viscx reads no other file")
     dtype = d.dtype
     if not (dtype.kind in "biuf" or h5py.check_string_dtype(dtype) is not None):
         raise damaged(path, where, f"dtype {dtype} is neither a number nor a string")
-    if d.compression not in ALLOWED_COMPRESSION or d.scaleoffset is not None:
-        raise damaged(path, where, f"filter {d.compression or 'scale-offset'} is not one viscx reads")
+    filters = [dcpl.get_filter(i)[0] for i in range(dcpl.get_nfilters())]
+    unknown = [code for code in filters if code not in _FILTERS]
+    if unknown:
+        raise damaged(path, where, f"filter {unknown[0]} is not one viscx reads")
+    compressed = h5z.FILTER_DEFLATE in filters or h5z.FILTER_LZF in filters
     declared = int(np.prod(d.shape, dtype=object)) * dtype.itemsize if d.shape is not None else 0
     storage = d.id.get_storage_size()
     if storage > file_size:
         raise damaged(path, where, f"claims {storage} bytes of storage in a file of {file_size}")
-    if declared > storage * (MAX_RATIO if d.compression else 1):
+    if declared > storage * (MAX_RATIO if compressed else 1):
         raise damaged(path, where, f"shape {d.shape} declares {declared} bytes but the file holds {storage}")
     if declared > budget:
         raise damaged(path, where, f"shape {d.shape} needs {declared / 2**30:.1f} GiB, over the memory budget "

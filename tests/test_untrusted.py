@@ -162,3 +162,88 @@ def test_json_depth_bounded():
     for depth in (65, 900, 20000):
         with pytest.raises(ViscxError, match="nests deeper"):
             load_json(nested(depth), "x")
+
+
+def test_flatland_move_into_an_overlap(tmp_path, capsys):
+    cx = tmp_path / "three.h5"
+    assert run(["flatland", "build", GOLDEN.parent.parent / "sample_scenes/flatland/three_circles.json", "-o", cx],
+               capsys)[0] == 0
+    before = cx.read_bytes()
+    code, err = run(["flatland", "move", cx, "--object", "lamp", "--by", "-2,2.5"], capsys)
+    assert code == 2 and "overlap" in err and err.count("\n") == 1, err
+    assert cx.read_bytes() == before
+
+
+def test_flatland_msgpack_round_trip_and_damage(tmp_path, capsys):
+    import msgpack
+
+    good = tmp_path / "three.msgpack"
+    assert run(["flatland", "build", GOLDEN.parent.parent / "sample_scenes/flatland/three_circles.json", "-o", good],
+               capsys)[0] == 0
+    assert run(["flatland", "formfactor", good], capsys)[0] == 0
+    doc = msgpack.unpackb(good.read_bytes())
+    for name, change, keyword in [
+        ("nan", lambda d: d["scene"]["radius"].__setitem__("data", np.full(3, np.nan).tobytes()), "scene/radius"),
+        ("shape", lambda d: d["arrays"]["e_obj"].__setitem__("shape", [10**9]), "does not match"),
+        ("ids", lambda d: d["arrays"]["e_obj"].__setitem__("data", np.full(24, 99, np.int64).tobytes()), "/edges/obj"),
+        ("eps", lambda d: d.__setitem__("epsilon", float("nan")), "epsilon"),
+        ("deep", lambda d: d.__setitem__("names", [[[[]]]] * 3), "names"),
+    ]:
+        bad = msgpack.unpackb(good.read_bytes())
+        change(bad)
+        path = tmp_path / f"{name}.msgpack"
+        path.write_bytes(msgpack.packb(bad))
+        code, err = run(["flatland", "formfactor", path], capsys)
+        assert code == 2 and keyword in err and err.count("\n") == 1, (name, err)
+    assert doc["format"] == "viscx-flatland"
+
+
+def test_render_size_over_the_budget(tmp_path, capsys, monkeypatch):
+    code, err = run(["render", GOLDEN / "cornell_box.h5", "--camera", "278,273,-800", "--look-at", "278,273,0",
+                     "--light-group", "light", "--size", "100000", "100000", "-o", tmp_path / "r.png"], capsys)
+    assert code == 2 and "memory budget" in err, err
+    monkeypatch.setenv("VISCX_MEMORY_BUDGET", "1000")
+    code, err = run(["render", GOLDEN / "cornell_box.h5", "--camera", "278,273,-800", "--look-at", "278,273,0",
+                     "--light-group", "light", "--size", "8", "8", "-o", tmp_path / "r.png"], capsys)
+    assert code == 2 and "memory budget" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_mtllib_link_out_of_the_folder(tmp_path, capsys):
+    """A material library beside the scene that is a link to a device is refused (links resolved)."""
+    (tmp_path / "scene").mkdir()
+    obj = tmp_path / "scene" / "s.obj"
+    obj.write_text("mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n")
+    (tmp_path / "scene" / "lib.mtl").symlink_to("/dev/zero")
+    code, err = run(["build", obj, "-o", tmp_path / "out.h5", "--levels", "-1"], capsys)
+    assert code == 2 and "outside the scene's folder" in err, err
+    (tmp_path / "scene" / "lib.mtl").unlink()
+    (tmp_path / "scene" / "sub").mkdir()
+    (tmp_path / "scene" / "sub" / "lib.mtl").write_text("newmtl a\nKd 1 0 0\n")
+    obj.write_text("mtllib sub/lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n")
+    assert run(["build", obj, "-o", tmp_path / "out.h5", "--levels", "-1"], capsys)[0] == 0
+
+
+def test_glb_with_an_outside_buffer(tmp_path, capsys):
+    import struct
+
+    doc = json.dumps({"asset": {"version": "2.0"}, "buffers": [{"uri": "/etc/passwd", "byteLength": 36}]}).encode()
+    doc += b" " * (-len(doc) % 4)
+    glb = b"glTF" + struct.pack("<II", 2, 20 + len(doc)) + struct.pack("<I", len(doc)) + b"JSON" + doc
+    path = tmp_path / "s.glb"
+    path.write_bytes(glb)
+    code, err = run(["build", path, "-o", tmp_path / "out.h5"], capsys)
+    assert code == 2 and "outside the scene's folder" in err, err
+
+
+def test_declared_sizes_of_the_golden_files_are_their_storage():
+    """The storage bound refuses nothing viscx writes: gzip-compressed datasets stay under
+    the ratio bound, the others hold exactly their declared bytes."""
+    from viscx.formats.validate import MAX_RATIO
+
+    for path in GOLDEN.glob("*.h5"):
+        with h5py.File(path, "r") as f:
+            def check(name, d):
+                if isinstance(d, h5py.Dataset) and d.dtype.kind in "biuf":
+                    assert d.size * d.dtype.itemsize <= d.id.get_storage_size() * (MAX_RATIO if d.compression else 1)
+            f.visititems(check)

@@ -247,3 +247,12 @@ def test_declared_sizes_of_the_golden_files_are_their_storage():
                 if isinstance(d, h5py.Dataset) and d.dtype.kind in "biuf":
                     assert d.size * d.dtype.itemsize <= d.id.get_storage_size() * (MAX_RATIO if d.compression else 1)
             f.visititems(check)
+
+
+def test_gltf_with_buffers_beside_it_is_read(tmp_path, capsys):
+    import trimesh
+
+    for name, data in trimesh.Scene(trimesh.creation.box()).export(file_type="gltf").items():
+        (tmp_path / name).write_bytes(data)
+    code, err = run(["build", tmp_path / "model.gltf", "-o", tmp_path / "out.h5", "--levels", "-1"], capsys)
+    assert code == 0, err

@@ -82,8 +82,8 @@ def check_header(path):
         declared = _ply_bytes(head)
     elif suffix == ".off":
         declared = _off_bytes(head)
-    elif suffix in (".gltf", ".glb"):
-        _check_gltf_references(path, head if suffix == ".gltf" else None)
+    elif suffix in (".gltf", ".glb"):  # the whole JSON of a .gltf (trimesh reads it all too)
+        _check_gltf_references(path, path.read_bytes() if suffix == ".gltf" else None)
         return
     else:
         return

@@ -385,9 +385,11 @@ def check_scene(c, a, he, edges):
 def scene_sizes(h5):
     """The sizes level checks need from the scene, from shapes only: n vertices, p
     generator vertex ids (vertices and free points), f faces, e edges."""
-    g = h5["scene"]
+    g = h5.get("scene")
 
     def rows(name):
+        if not isinstance(g, h5py.Group):
+            return 0
         obj = g.get(name)
         return int(obj.shape[0]) if isinstance(obj, h5py.Dataset) and obj.shape else 0
 
@@ -417,8 +419,6 @@ def node_arrays(group, path, sizes):
          "blocker_kind": c.read(group, "blocker_kind", "i", ("m", 2)).astype(np.int8),
          "blocker": c.read(group, "blocker", "i", ("m", 2)),
          "generator_points": c.read(group, "generator_points", "f", ("m", 4, 3), finite=False)}
-    if c.sizes["m"] and not np.isfinite(a["generator_points"]).any(axis=2).any(axis=1).all():
-        c.fail(w + "generator_points", "a node with no point on any generator")
     kind, gen = a["kind"], a["generators"]
     c.within(w + "kind", kind, 0, 3)
     v, e = (0, sizes["p"]), (0, sizes["edges"])

@@ -45,6 +45,8 @@ def argv(name, command, out):
         "build": ["build", path, "-o", str(out)],
         "info": ["info", path],
         "diff": ["diff", path, str(REFERENCE)],
+        "flatland": ["flatland", "build", path, "-o", str(out)],
+        "flatread": ["flatland", "formfactor", path],
     }[command]
 
 
@@ -130,7 +132,7 @@ def test_real_command(name, command, subprocess_runs):
 
 def test_documented_successes_write_a_readable_file(tmp_path, capsys):
     for name, command, code, _ in CASES:
-        if code != 0:
+        if code != 0 or command != "build":
             continue
         out = tmp_path / re.sub(r"\W", "_", name)
         with pytest.raises(SystemExit) as exc:

@@ -31,3 +31,21 @@ def release_free_memory():
     libc = _libc()
     if libc and hasattr(libc, "malloc_trim"):
         libc.malloc_trim(0)
+
+
+def memory_budget():
+    """Bytes one input may make viscx allocate at once (a declared array, an image, a
+    header's counts): ``VISCX_MEMORY_BUDGET`` (bytes) when set, else half the machine's
+    memory. Inputs that need more are refused before anything is allocated."""
+    import os
+
+    value = os.environ.get("VISCX_MEMORY_BUDGET")
+    if value:
+        try:
+            return int(float(value))
+        except ValueError:
+            pass
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError):
+        return 4 << 30

@@ -54,5 +54,67 @@ def main():
             change(f)
 
 
+    untrusted()
+
+
+def _replace(f, name, data):
+    del f[name]
+    f.create_dataset(name, data=data)
+
+
+def _virtual(f):
+    layout = h5py.VirtualLayout(shape=(1,), dtype="f8")
+    layout[:] = h5py.VirtualSource("/nonexistent/other.h5", "data", shape=(1,))
+    del f["scene/face_area"]
+    f["scene"].create_virtual_dataset("face_area", layout)
+
+
+def _nested(depth):
+    return "[" * depth + "]" * depth
+
+
+def untrusted():
+    """Hostile and damaged files of the untrusted-files issue (docs/security.md)."""
+    obj = b"# bad input: a valid OBJ followed by a NUL-filled binary tail\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    (HERE / "obj_binary_tail.obj").write_bytes(obj + b"\x00" * 8192)
+    (HERE / "bom.obj").write_bytes("\ufeff# odd input: a UTF-8 byte-order mark first\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+                                   .encode("utf-8"))
+    (HERE / "flatland_deep.json").write_text('{"objects": ' + _nested(20000) + "}\n")
+    for name, change in [
+        ("nan_in_scene.h5", lambda f: f["scene/vertices"].__setitem__((1, 1), np.nan)),
+        ("broken_next.h5", lambda f: f["scene/half_edges/next"].__setitem__(Ellipsis, 0)),
+        ("external_link.h5", lambda f: (f.__delitem__("scene"), f.__setitem__("scene", h5py.ExternalLink("/etc/passwd", "/")))),
+        ("external_storage.h5", lambda f: (f.__delitem__("scene/face_area"), f["scene"].create_dataset(
+            "face_area", shape=(2,), dtype="f8", external=[("/etc/hostname", 0, 16)]))),
+        ("virtual_dataset.h5", _virtual),
+        ("declared_never_written.h5", lambda f: (f.__delitem__("scene/face_area"), f["scene"].create_dataset(
+            "face_area", shape=(2**31,), dtype="f8", chunks=(1024,)))),
+        ("levels_without_groups.h5", lambda f: [f.__delitem__(level) for level in ("V0", "V1", "V2")]),
+        ("triangles_float.h5", lambda f: _replace(f, "scene/triangles", f["scene/triangles"][()].astype(np.float64))),
+        ("vertices_strings.h5", lambda f: _replace(f, "scene/vertices", np.array(
+            [["a", "b", "c"]] * len(f["scene/vertices"]), dtype=h5py.string_dtype()))),
+        ("counts_not_integers.h5", lambda f: f["scene"].attrs.__setitem__("counts", '{"faces": 1.5}')),
+        ("options_deep.h5", lambda f: f.attrs.__setitem__("options", _nested(20000))),
+        ("epsilon_nan.h5", lambda f: f.attrs.__setitem__("epsilon", np.nan)),
+    ]:
+        shutil.copyfile(GOLDEN, HERE / name)
+        with h5py.File(HERE / name, "r+") as f:
+            f.attrs["comment"] = f"bad input: {name[:-3].replace('_', ' ')}"
+            change(f)
+    # flatland files without a scene, with an object dtype
+    import msgpack
+
+    with h5py.File(HERE / "flatland_no_scene.h5", "w") as f:
+        f.attrs.update(format="viscx-flatland", format_version=1, epsilon=1e-9, comment="bad input: no scene")
+        f.create_group("vertices")
+    doc = {"format": "viscx-flatland", "format_version": 1, "epsilon": 1e-9, "comment": "bad input: no scene"}
+    (HERE / "flatland_no_scene.msgpack").write_bytes(msgpack.packb(doc))
+    array = {"dtype": "|O", "shape": [1], "data": b"\x00" * 8}
+    doc = {**doc, "comment": "bad input: object dtype", "names": ["a"],
+           "scene": {k: array for k in ("kind", "vert_start", "verts", "radius", "emission", "reflectance")},
+           "arrays": {}}
+    (HERE / "flatland_object_dtype.msgpack").write_bytes(msgpack.packb(doc))
+
+
 if __name__ == "__main__":
     main()

@@ -18,7 +18,7 @@ import click
 
 from viscx import __version__
 from viscx.errors import ViscxError
-from viscx.formats.atomic import received_signals
+from viscx.formats.atomic import clear_inputs, received_signals
 
 # name -> "module:attribute", in the order `viscx --help` lists them.
 COMMANDS = {
@@ -45,8 +45,10 @@ class LazyGroup(click.Group):
 
     def get_command(self, ctx, name):
         if name in self.lazy_commands:
+            from viscx.cli.options import guard_outputs
+
             module, attr = self.lazy_commands[name].split(":")
-            return getattr(importlib.import_module(module), attr)
+            return guard_outputs(getattr(importlib.import_module(module), attr))
         return super().get_command(ctx, name)
 
 
@@ -89,6 +91,7 @@ def _fail(message, code):
 def main(argv=None):
     """Entry point of the ``viscx`` console script; returns via ``sys.exit``."""
     received_signals.clear()
+    clear_inputs()
     signal.signal(signal.SIGTERM, _on_signal)
     signal.signal(signal.SIGINT, _on_signal)
     sys.unraisablehook = _unraisable

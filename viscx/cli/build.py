@@ -46,9 +46,15 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, poin
     The output is written to a temporary file and renamed when complete, so a
     failed or interrupted build leaves nothing behind.
     """
+    from viscx.errors import ViscxError
+    from viscx.formats.atomic import check_output, is_stream
     from viscx.pipeline import MAX_LEVEL, NOUNS, build_file
 
     output = Path(output) if output else Path(Path(scene_file).stem + ".h5")
+    check_output(output, [scene_file])  # also the default name
+    if is_stream(output):
+        raise ViscxError(f"-o {output}: an HDF5 file needs a regular file (it is written with seeks), "
+                         "not a pipe, a device or standard output")
     scene, built, timings = build_file(
         scene_file, output, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
         levels=MAX_LEVEL if levels is None else levels, quiet=quiet(ctx), points=list(points) or None,

@@ -167,6 +167,7 @@ def move(ctx, file, obj, by, output):
     viscx flatland move three.h5 --object lamp --by 1,0 -o three_moved.h5
     """
     from viscx.flatland.dynamic import move as move_object
+    from viscx.formats.atomic import release_input
     from viscx.formats.flatland import read_any, write_any
 
     try:
@@ -176,6 +177,8 @@ def move(ctx, file, obj, by, output):
     if not Path(file).is_file():
         raise ViscxError(f"no such file: {file}")
     cx = read_any(file)
+    if output is None:  # the documented update in place
+        release_input(file)
     k = _object_index(cx.scene, obj)
     t0 = time.perf_counter()
     new, stats = move_object(cx, k, dx, dy)

@@ -1,8 +1,13 @@
 """Options shared by several commands, as decorators (one definition each)."""
 
+import functools
+
 import click
 
 from viscx.scene import DEFAULT_WELD
+
+#: the names commands give their input files' arguments
+INPUT_ARGUMENTS = ("file", "scene_file", "file_a", "file_b")
 
 
 def output_option(help_text, required=True):
@@ -10,6 +15,31 @@ def output_option(help_text, required=True):
     return click.option(
         "-o", "--output", "output", type=click.Path(dir_okay=False, writable=False), required=required, help=help_text
     )
+
+
+def guard_outputs(command):
+    """Make ``command`` (and a group's subcommands) refuse, before it runs, an ``output``
+    that is one of its input files, also through a link
+    (:func:`viscx.formats.atomic.check_output`; the writers check again when they write).
+    The CLI applies it to every command it loads."""
+    if isinstance(command, click.Group):
+        for sub in command.commands.values():
+            guard_outputs(sub)
+        return command
+    callback = command.callback
+    if callback is None or getattr(callback, "guarded", False):
+        return command
+
+    @functools.wraps(callback)
+    def checked(*args, **kwargs):
+        from viscx.formats.atomic import check_output
+
+        check_output(kwargs.get("output"), [kwargs[name] for name in INPUT_ARGUMENTS if kwargs.get(name)])
+        return callback(*args, **kwargs)
+
+    checked.guarded = True
+    command.callback = checked
+    return command
 
 
 epsilon_option = click.option(

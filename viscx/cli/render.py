@@ -6,6 +6,10 @@ import click
 
 from viscx.cli.options import POINT, light_options, output_option, quiet
 
+#: what one pixel costs while rendering: radiance and its tone-mapped copies, the primary
+#: rays and hits, the region ids (float64 and int64 arrays of a few columns each)
+BYTES_PER_PIXEL = 256
+
 
 @click.command(short_help="Render direct illumination: exact, from sparse samples, or Monte Carlo.")
 @click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
@@ -53,6 +57,7 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
 
     from viscx.errors import ViscxError
     from viscx.formats.images import write_npy, write_pfm, write_png
+    from viscx.memory import memory_budget
     from viscx.progress import bar
     from viscx.queries.discontinuities import open_discontinuities
     from viscx.render.camera import Camera
@@ -70,6 +75,10 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     if out.suffix.lower() != ".png":
         raise ViscxError(f"-o {output}: the image is written as PNG; name it *.png")
     camera = Camera(eye, look_at, up, fov, size[0], size[1])
+    need = camera.width * camera.height * BYTES_PER_PIXEL
+    if need > memory_budget():
+        raise ViscxError(f"--size {size[0]} {size[1]} needs about {need / 2**30:.0f} GiB, over the memory budget "
+                         f"({memory_budget() / 2**30:.1f} GiB; VISCX_MEMORY_BUDGET)")
     scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group)
     with bar(total=size[0] * size[1], desc="monte carlo", quiet=quiet(ctx) or reference is None, unit="px") as b:
         result = render_image(scene, mesh, camera, radiance=radiance, samples=samples, reference=reference, seed=seed,

@@ -240,6 +240,12 @@ def make_scene(objects) -> Scene:
     return scene
 
 
+def _off_line(p):
+    """How far (twice an area) the corners ``p`` (k, 2) stray from the line of the first two."""
+    d = p[1] - p[0]
+    return float(np.abs(d[0] * (p[:, 1] - p[0, 1]) - d[1] * (p[:, 0] - p[0, 0])).max())
+
+
 def _convex_ccw(p, name, eps=1e-12):
     """(m, 2) float64 counter-clockwise corners of a strictly convex polygon, or ViscxError.
 
@@ -254,6 +260,9 @@ def _convex_ccw(p, name, eps=1e-12):
     scale = max(np.ptp(p, axis=0).max() if len(p) else 0.0, 1e-300)
     area2 = np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]) if len(p) >= 3 else 0.0
     if len(p) < 3 or abs(area2) <= eps * scale * scale:
+        # zero signed area from corners off one line: the outline crosses itself (a bow tie)
+        if len(p) >= 4 and _off_line(p) > eps * scale * scale:
+            raise ViscxError(f"object {name!r} is not convex (self-intersecting outline)")
         raise ViscxError(f"object {name!r}: a polygon needs at least 3 non-collinear points")
     if area2 < 0:
         p = p[::-1]
@@ -324,21 +333,25 @@ def load_scene(path) -> Scene:
     if not path.is_file():
         raise ViscxError(f"no such scene file: {path}")
     suffix = path.suffix.lower()
-    if suffix == ".json":
-        return load_json(path)
-    if suffix == ".svg":
-        return load_svg(path)
-    if suffix == ".dxf":
-        return load_dxf(path)
+    loaders = {".json": load_json, ".svg": load_svg, ".dxf": load_dxf}
+    if suffix in loaders:
+        try:
+            return loaders[suffix](path)
+        except ViscxError as exc:  # the one line names the file
+            if str(path) in str(exc):
+                raise
+            raise ViscxError(f"{path}: {exc}") from None
     raise ViscxError(f"{path}: unknown flatland scene type {suffix!r} (expected .json, .svg or .dxf)")
 
 
 def load_json(path) -> Scene:
     """JSON: ``{"objects": [{"type": "circle", "center": [x, y], "radius": r, "emission": E,
     "reflectance": ρ, "name": ...}, {"type": "polygon", "points": [[x, y], ...], ...}]}``."""
+    from viscx.formats.validate import load_json as load_bounded
+
     try:
-        doc = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        doc = load_bounded(Path(path).read_text(), f"{path}: the JSON scene")  # nesting bounded
+    except (OSError, UnicodeDecodeError) as exc:
         raise ViscxError(f"{path}: not a readable JSON file ({exc})") from None
     if not isinstance(doc, dict) or "objects" not in doc:
         raise ViscxError(f"{path}: a flatland JSON scene needs an 'objects' list")
@@ -420,7 +433,7 @@ def load_svg(path) -> Scene:
     for el in root.iter():
         tag = el.tag.rsplit("}", 1)[-1]
         name = el.get("id") or f"{tag}{len(objs)}"
-        if tag in ("circle", "rect", "polygon", "path", "ellipse", "polyline", "line") and el.get("transform"):
+        if el.get("transform"):  # on a shape or on a group (<g>) holding shapes
             raise ViscxError(f"SVG element {name!r}: transforms are not supported; apply them first")
         if tag == "ellipse":
             raise ViscxError(f"SVG element {name!r}: ellipses are not supported (use a circle or a polygon)")

@@ -33,7 +33,8 @@ import json
 import numpy as np
 
 from viscx.errors import ViscxError
-from viscx.formats.atomic import atomic_path
+from viscx.formats import validate
+from viscx.formats.atomic import atomic_path, register_input
 
 FORMAT = "viscx-flatland"
 FORMAT_VERSION = 1
@@ -56,7 +57,7 @@ def write_hdf5(path, cx, mesh=None):
 
     from viscx import __version__
 
-    with atomic_path(path) as tmp:
+    with atomic_path(path, stream=False) as tmp:
         with h5py.File(tmp, "w", track_order=False) as f:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = FORMAT_VERSION
@@ -84,12 +85,13 @@ def write_hdf5(path, cx, mesh=None):
 
 
 def read_hdf5(path, with_mesh=False):
-    """Read a flatland HDF5 file back into a :class:`FlatComplex` (and the mesh dict)."""
+    """Read a flatland HDF5 file back into a :class:`FlatComplex` (and the mesh dict),
+    checked (:func:`check_complex`; HDF5 structure by :func:`viscx.formats.validate.check_structure`)."""
     import h5py
 
     from viscx.flatland.complex import FlatComplex
-    from viscx.flatland.scene import Scene
 
+    register_input(path)
     try:
         f = h5py.File(path, "r")
     except (OSError, ValueError) as exc:
@@ -97,21 +99,95 @@ def read_hdf5(path, with_mesh=False):
     with f:
         if f.attrs.get("format") != FORMAT:
             raise ViscxError(f"{path}: not a viscx flatland file (format attribute is {f.attrs.get('format')!r})")
-        if int(f.attrs.get("format_version", -1)) != FORMAT_VERSION:
-            raise ViscxError(f"{path}: unsupported flatland format version {f.attrs.get('format_version')}")
-        g = f["scene"]
-        names = [x.decode() if isinstance(x, bytes) else str(x) for x in g["names"][()]]
-        scene = Scene(g["kind"][()], g["vert_start"][()], g["verts"][()], g["radius"][()], g["emission"][()],
-                      g["reflectance"][()], names)
+        version = f.attrs.get("format_version", -1)
+        if not (np.ndim(version) == 0 and np.asarray(version).dtype.kind in "iu" and version == FORMAT_VERSION):
+            raise ViscxError(f"{path}: unsupported flatland format version {version!r}")
+        validate.check_structure(f, path)
+        c = validate.Checker(path)
+        g = f.get("scene")
+        if not isinstance(g, h5py.Group):
+            raise ViscxError(f"{path}: a flatland file without its scene (/scene)")
+        scene = {name: c.read(g, name, "i" if name in ("kind", "vert_start") else "f", dims)
+                 for name, dims in _SCENE_DIMS.items()}
+        names = c.read(g, "names", "s", ("n",))
         arrays = {}
-        for grp, prefix in _GROUPS.items():
-            for k in f[grp]:
-                arrays[prefix + k] = f[grp][k][()]
-        for k in f["formfactors"]:
-            arrays[k] = f["formfactors"][k][()]
-        mesh = {k: f["mesh"][k][()] for k in f["mesh"]} if "mesh" in f else None
-        cx = FlatComplex(scene=scene, eps=float(f.attrs["epsilon"]), arrays=arrays)
+        for grp, prefix in (*_GROUPS.items(), ("formfactors", "")):
+            group = f.get(grp)
+            if not isinstance(group, h5py.Group):
+                c.fail(f"/{grp}", "missing")
+            for k in group:
+                arrays[prefix + k] = _numbers(c, group, k)
+        mesh = None
+        if "mesh" in f:
+            mesh = {k: _numbers(c, f["mesh"], k) for k in f["mesh"]}
+        eps = f.attrs.get("epsilon")
+    cx = FlatComplex(scene=check_complex(c, scene, names, arrays, eps), eps=float(eps), arrays=arrays)
     return (cx, mesh) if with_mesh else cx
+
+
+_SCENE_DIMS = {"kind": ("n",), "vert_start": ("n+1",), "verts": ("V", 2), "radius": ("n",), "emission": ("n",),
+               "reflectance": ("n",)}
+# what the integer arrays of the complex name (-1 where nothing: the sky, no edge): its
+# objects, support points, vertices, edges, faces
+_IDS = {"obj": "n", "pair": "n", "tail": "n", "head": "n", "support": "V", "verts": "nv", "vert": "nv",
+        "edges": "ne", "edge": "ne", "faces": "nf"}
+# the float arrays that may hold inf (the unbounded face), never NaN
+_INFINITE = ("f_area", "f_area_twin", "f_strings", "f_strings_twin")
+
+
+def _numbers(c, group, name):
+    """A dataset of numbers (bool, integers or floats, any shape)."""
+    import h5py
+
+    obj = group[name]
+    where = f"{group.name}/{name}"
+    if not isinstance(obj, h5py.Dataset):
+        c.fail(where, "not a dataset")
+    if obj.dtype.kind not in "biuf":
+        c.fail(where, f"dtype {obj.dtype} is not numeric")
+    return obj[()]
+
+
+def check_complex(c, scene, names, arrays, eps):
+    """The scene (as :func:`viscx.flatland.scene.make_scene` checks a scene file: convex,
+    disjoint objects) and the complex's arrays (dtypes, shapes, ids in range, CSR lists,
+    finite numbers) of a flatland file. Returns the :class:`Scene`."""
+    from viscx.flatland.scene import CIRCLE, POLYGON, Scene, make_scene
+
+    where = str(c.path)
+    if not (np.ndim(eps) == 0 and np.asarray(eps).dtype.kind in "iuf" and np.isfinite(eps) and eps > 0):
+        raise ViscxError(f"{where}: the epsilon attribute {eps!r} is not a finite positive number")
+    s = c.sizes
+    c.offsets("/scene/vert_start", scene["vert_start"], s["V"], strict=True)
+    c.within("/scene/kind", scene["kind"], CIRCLE, POLYGON + 1)
+    flat = Scene(scene["kind"].astype(np.int8), scene["vert_start"], scene["verts"], scene["radius"], scene["emission"],
+                 scene["reflectance"], list(names))
+    make_scene(flat.to_json()["objects"])  # every rule of a scene file, one line naming the object
+    sizes = {"n": s["n"], "V": s["V"], "nv": len(arrays.get("v_key", ())), "ne": len(arrays.get("e_obj", ())),
+             "nf": len(arrays.get("f_area", ()))}
+    for name, a in arrays.items():
+        path = f"/{dict(v=('vertices'), e='edges', f='faces').get(name[0], 'formfactors')}/{name.partition('_')[2] or name}"
+        if name.startswith(("v_", "e_", "f_")) and not name.startswith(("f_edge", "f_vert")):
+            count = sizes[{"v": "nv", "e": "ne", "f": "nf"}[name[0]]]
+            if a.ndim == 0 or len(a) != count:
+                c.fail(path, f"{a.shape[:1]} rows, expected {count}")
+        ids = _IDS.get(name.partition("_")[2])
+        if ids and a.dtype.kind in "iu":
+            c.within(path, a, -1, sizes[ids])
+        if a.dtype.kind == "f" and a.size:
+            bad = np.isnan(a) if name in _INFINITE else ~np.isfinite(a)
+            if bad.any():
+                c.fail(path, "a NaN or infinite value")
+    for csr, flat_name in (("f_edge_start", "f_edge"), ("f_vert_start", "f_vert")):
+        if csr in arrays:
+            starts = arrays[csr]
+            if starts.ndim != 1 or len(starts) != sizes["nf"] + 1:
+                c.fail(f"/faces/{csr[2:]}", f"shape {starts.shape}, expected ({sizes['nf'] + 1},)")
+            c.offsets(f"/faces/{csr[2:]}", starts, len(arrays.get(flat_name, ())))
+    for name in ("F_area", "F_strings"):
+        if name not in arrays or arrays[name].shape != (s["n"], s["n"] + 1):
+            c.fail(f"/formfactors/{name}", f"missing or not of shape ({s['n']}, {s['n'] + 1})")
+    return flat
 
 
 def _pack_array(a):
@@ -119,8 +195,21 @@ def _pack_array(a):
     return {"dtype": a.dtype.str, "shape": list(a.shape), "data": a.tobytes()}
 
 
-def _unpack_array(d):
-    return np.frombuffer(d["data"], dtype=np.dtype(d["dtype"])).reshape(d["shape"]).copy()
+def _unpack_array(d, c, where):
+    """A packed array (``{"dtype", "shape", "data"}``), checked: numbers only (an object
+    dtype is refused), a shape the data's length holds exactly."""
+    if not (isinstance(d, dict) and isinstance(d.get("dtype"), str) and isinstance(d.get("shape"), list)
+            and isinstance(d.get("data"), bytes) and all(type(x) is int and x >= 0 for x in d["shape"])):
+        c.fail(where, "not a packed array (dtype, shape, data)")
+    try:
+        dtype = np.dtype(d["dtype"])
+    except (TypeError, ValueError):
+        c.fail(where, f"unknown dtype {d['dtype'][:40]!r}")
+    if dtype.kind not in "biuf" or dtype.hasobject:
+        c.fail(where, f"dtype {dtype} is not numeric")
+    if int(np.prod(d["shape"], dtype=object)) * dtype.itemsize != len(d["data"]):
+        c.fail(where, f"shape {tuple(d['shape'])} does not match its {len(d['data'])} bytes")
+    return np.frombuffer(d["data"], dtype=dtype).reshape(d["shape"]).copy()
 
 
 def write_msgpack(path, cx, mesh=None):
@@ -142,23 +231,48 @@ def write_msgpack(path, cx, mesh=None):
 
 
 def read_msgpack(path, with_mesh=False):
+    """Read a flatland msgpack file, checked as :func:`read_hdf5` checks its HDF5 twin."""
     import msgpack
 
     from viscx.flatland.complex import FlatComplex
-    from viscx.flatland.scene import Scene
 
+    register_input(path)
     try:
         with open(path, "rb") as fh:
-            doc = msgpack.unpackb(fh.read(), raw=False)
-    except (OSError, ValueError, msgpack.exceptions.ExtraData) as exc:
-        raise ViscxError(f"{path}: not a readable msgpack file ({exc})") from None
+            # msgpack bounds its own nesting (an exception, not a crash); sizes by the file's length
+            doc = msgpack.unpackb(fh.read(), raw=False, strict_map_key=False)
+    except Exception as exc:  # msgpack raises many kinds for damaged data
+        raise ViscxError(f"{path}: not a readable msgpack file ({type(exc).__name__}: {str(exc)[:80]})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ViscxError(f"{path}: not a viscx flatland msgpack file")
-    s = {k: _unpack_array(v) for k, v in doc["scene"].items()}
-    scene = Scene(s["kind"], s["vert_start"], s["verts"], s["radius"], s["emission"], s["reflectance"],
-                  list(doc["names"]))
-    cx = FlatComplex(scene=scene, eps=doc["epsilon"], arrays={k: _unpack_array(v) for k, v in doc["arrays"].items()})
-    mesh = None if doc.get("mesh") is None else {k: _unpack_array(v) for k, v in doc["mesh"].items()}
+    if doc.get("format_version") != FORMAT_VERSION:
+        raise ViscxError(f"{path}: unsupported flatland format version {doc.get('format_version')!r}")
+    c = validate.Checker(path)
+    packed, arrays = doc.get("scene"), doc.get("arrays")
+    if not isinstance(packed, dict) or not isinstance(arrays, dict):
+        raise ViscxError(f"{path}: a flatland msgpack file without its scene or arrays")
+    scene = {}
+    for name, dims in _SCENE_DIMS.items():
+        if name not in packed:
+            c.fail(f"scene/{name}", "missing")
+        a = _unpack_array(packed[name], c, f"scene/{name}")
+        if a.ndim != len(dims):
+            c.fail(f"scene/{name}", f"shape {a.shape}")
+        for size, dim in zip(a.shape, dims):
+            c._dim(f"scene/{name}", size, dim)
+        scene[name] = c.convert(f"scene/{name}", a, "i" if name in ("kind", "vert_start") else "f")
+    names = doc.get("names")
+    if not (isinstance(names, list) and len(names) == c.sizes["n"] and all(isinstance(x, str) for x in names)):
+        c.fail("names", f"not a list of {c.sizes['n']} strings")
+    arrays = {str(k): _unpack_array(v, c, f"arrays/{k}") for k, v in arrays.items()}
+    mesh = doc.get("mesh")
+    if mesh is not None:
+        if not isinstance(mesh, dict):
+            c.fail("mesh", "not a map of arrays")
+        mesh = {str(k): _unpack_array(v, c, f"mesh/{k}") for k, v in mesh.items()}
+    eps = doc.get("epsilon")
+    eps = eps if isinstance(eps, (int, float)) and not isinstance(eps, bool) else repr(eps)
+    cx = FlatComplex(scene=check_complex(c, scene, names, arrays, eps), eps=float(eps), arrays=arrays)
     return (cx, mesh) if with_mesh else cx
 
 

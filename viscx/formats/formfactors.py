@@ -34,7 +34,7 @@ _ARRAYS = ["indptr", "indices", "data", "error", "sky", "sky_error", "area"]
 def write_matrix(path, matrix, scene):
     """Write a :class:`viscx.queries.formfactor.Matrix` atomically; returns its summary."""
     summary = matrix.summary()
-    with atomic_path(path) as tmp:
+    with atomic_path(path, stream=False) as tmp:
         with h5py.File(tmp, "w", track_order=True) as f:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = FORMAT_VERSION

@@ -23,7 +23,8 @@ import numpy as np
 
 from viscx import __version__
 from viscx.errors import ViscxError
-from viscx.formats.atomic import atomic_path
+from viscx.formats import validate
+from viscx.formats.atomic import atomic_path, register_input
 from viscx.scene import Scene
 from viscx.scene.halfedge import HalfEdges
 
@@ -130,19 +131,11 @@ def write_nodes(group, nodes):
 
 
 def read_nodes(group):
-    """The :class:`viscx.skeleton.nodes.Nodes` stored in a ``V0`` group."""
+    """The :class:`viscx.skeleton.nodes.Nodes` stored in a ``V0`` group (checked:
+    :func:`viscx.formats.validate.node_arrays`)."""
     from viscx.skeleton.nodes import Nodes
 
-    try:
-        arrays = {name: group[name][()] for name in _NODE_ARRAYS}
-    except KeyError as exc:
-        raise ViscxError(f"damaged V0 level (missing {exc.args[0]})") from None
-    n = len(arrays["kind"])
-    shapes = {"generators": (n, 4), "direction": (n, 3), "ends": (n, 2, 3), "blocker_kind": (n, 2), "blocker": (n, 2), "generator_points": (n, 4, 3)}
-    for name, shape in shapes.items():
-        if arrays[name].shape != shape:
-            raise ViscxError(f"damaged V0 level (V0/{name} has shape {arrays[name].shape}, expected {shape})")
-    return Nodes(**arrays)
+    return Nodes(**validate.node_arrays(group, group.file.filename, validate.scene_sizes(group.file)))
 
 
 _ARC_ARRAYS = [
@@ -181,27 +174,13 @@ def write_arcs(group, arcs):
 
 
 def read_arcs(group):
-    """The :class:`viscx.skeleton.arcs.Arcs` stored in a ``V1`` group."""
+    """The :class:`viscx.skeleton.arcs.Arcs` stored in a ``V1`` group (checked:
+    :func:`viscx.formats.validate.arc_arrays`)."""
     from viscx.skeleton.arcs import Arcs, HalfCells
+    from viscx.skeleton.nodes import Nodes
 
-    try:
-        arrays = {name: group[name][()] for name in _ARC_ARRAYS}
-        half = {name: group["half_cells"][name][()] for name in _HALF_CELL_ARRAYS}
-        planar = group["planar"]
-    except KeyError as exc:
-        raise ViscxError(f"damaged V1 level (missing {exc.args[0]})") from None
-    n = len(arrays["kind"])
-    shapes = {"generators": (n, 3), "interval": (n, 2), "end_type": (n, 2), "end_node": (n, 2), "blocker_kind": (n, 2),
-              "blocker": (n, 2), "parameter": (n,), "direction": (n, 3), "ends": (n, 2, 3), "generator_points": (n, 3, 3)}
-    h = len(half["arc"])
-    shapes_h = {name: (h, 2) if name in ("up_kind", "up", "down_kind", "down") else (h,) for name in _HALF_CELL_ARRAYS}
-    for name, shape in shapes.items():
-        if arrays[name].shape != shape:
-            raise ViscxError(f"damaged V1 level (V1/{name} has shape {arrays[name].shape}, expected {shape})")
-    for name, shape in shapes_h.items():
-        if half[name].shape != shape:
-            raise ViscxError(f"damaged V1 level (V1/half_cells/{name} has shape {half[name].shape}, expected {shape})")
-    return Arcs(**arrays, planar=read_nodes(planar), half_cells=HalfCells(**half))
+    arrays, planar, half = validate.arc_arrays(group, group.file.filename, validate.scene_sizes(group.file))
+    return Arcs(**arrays, planar=Nodes(**planar), half_cells=HalfCells(**half))
 
 
 _VCELL_ARRAYS = ["vertex", "up_kind", "up", "down_kind", "down", "solid_angle", "twin", "complete", "loop_offsets", "turning",
@@ -230,28 +209,11 @@ def _write_cells(group, cells, arrays, open_arrays, blocker_kinds):
 
 
 def read_vcells(group):
-    """The :class:`viscx.skeleton.vcells.VCells` stored in a ``V2`` group."""
+    """The :class:`viscx.skeleton.vcells.VCells` stored in a ``V2`` group (checked:
+    :func:`viscx.formats.validate.vcell_arrays`)."""
     from viscx.skeleton.vcells import VCells
 
-    try:
-        arrays = {name: group[name][()] for name in _VCELL_ARRAYS}
-        arrays.update({f"open_{name}": group["open"][name][()] for name in _OPEN_ARRAYS})
-    except KeyError as exc:
-        raise ViscxError(f"damaged V2 level (missing {exc.args[0]})") from None
-    c, loops, k = len(arrays["vertex"]), len(arrays["turning"]), len(arrays["element"])
-    o, m = len(arrays["open_vertex"]), len(arrays["open_element"])
-    shapes = {"up_kind": (c,), "up": (c,), "down_kind": (c,), "down": (c,), "solid_angle": (c,), "twin": (c,), "complete": (c,),
-              "loop_offsets": (c + 1,), "element_offsets": (loops + 1,), "antipodal": (k,), "open_offsets": (o + 1,),
-              "open_antipodal": (m,), "open_up_kind": (o,), "open_up": (o,), "open_down_kind": (o,), "open_down": (o,)}
-    for name, shape in shapes.items():
-        if arrays[name].shape != shape:
-            where = f"open/{name[5:]}" if name.startswith("open_") else name
-            raise ViscxError(f"damaged V2 level (V2/{where} has shape {arrays[name].shape}, expected {shape})")
-    for name, total in (("loop_offsets", loops), ("element_offsets", k), ("open_offsets", m)):
-        offsets = arrays[name]
-        if offsets[0] != 0 or offsets[-1] != total or np.any(np.diff(offsets) < 0):
-            raise ViscxError(f"damaged V2 level (V2/{name} is not a CSR offset list)")
-    return VCells(**arrays)
+    return VCells(**validate.vcell_arrays(group, group.file.filename, validate.scene_sizes(group.file)))
 
 
 _EECELL_ARRAYS = ["edge1", "edge2", "back_kind", "back", "front_kind", "front", "area", "complete", "loop_offsets",
@@ -275,43 +237,14 @@ def write_eecells(group, eecells):
     group.attrs["counts"] = json.dumps(counts)
 
 
-def _ee_dataset(ee, name):
-    """A dataset of ``V2/ee`` (``open/...``: of its open chains). Files written before the
-    square sides have no ``element_kind``: every element there is an arc (kind 0)."""
-    if name.endswith("element_kind") and name not in ee:
-        return np.zeros(len(ee[name.replace("element_kind", "element")]), np.int8)
-    return ee[name][()]
-
-
 def read_eecells(group):
-    """The :class:`viscx.skeleton.eecells.EECells` stored in a ``V2`` group."""
+    """The :class:`viscx.skeleton.eecells.EECells` stored in a ``V2`` group (checked:
+    :func:`viscx.formats.validate.eecell_arrays`)."""
     from viscx.skeleton.eecells import EECells
 
     if "ee" not in group:
         raise ViscxError("this file has no EE-cells (V2/ee); rebuild it with `viscx build --levels 2`")
-    ee = group["ee"]
-    try:
-        arrays = {name: _ee_dataset(ee, name) for name in _EECELL_ARRAYS}
-        arrays.update({f"open_{name}": _ee_dataset(ee, f"open/{name}") for name in _EE_OPEN_ARRAYS})
-    except KeyError as exc:
-        raise ViscxError(f"damaged V2 level (missing ee/{exc.args[0]})") from None
-    c, loops, k = len(arrays["edge1"]), len(arrays["turning"]), len(arrays["element"])
-    o, m = len(arrays["open_edge1"]), len(arrays["open_element"])
-    shapes = {"edge2": (c,), "back_kind": (c,), "back": (c,), "front_kind": (c,), "front": (c,), "area": (c,),
-              "complete": (c,), "loop_offsets": (c + 1,), "element_offsets": (loops + 1,), "element_kind": (k,),
-              "element_interval": (k, 2), "open_offsets": (o + 1,), "open_element_kind": (m,), "open_interval": (m, 2),
-              "open_edge2": (o,), "open_back_kind": (o,), "open_back": (o,), "open_front_kind": (o,),
-              "open_front": (o,)}
-    for name, shape in shapes.items():
-        if arrays[name].shape != shape:
-            where = f"open/{name[5:]}" if name.startswith("open_") else name
-            raise ViscxError(f"damaged V2 level (V2/ee/{where} has shape {arrays[name].shape}, expected {shape})")
-    for name, total in (("loop_offsets", loops), ("element_offsets", k), ("open_offsets", m)):
-        offsets = arrays[name]
-        if offsets[0] != 0 or offsets[-1] != total or np.any(np.diff(offsets) < 0):
-            where = "open/offsets" if name == "open_offsets" else name
-            raise ViscxError(f"damaged V2 level (V2/ee/{where} is not a CSR offset list)")
-    return EECells(**arrays)
+    return EECells(**validate.eecell_arrays(group["ee"], group.file.filename, validate.scene_sizes(group.file)))
 
 
 class ViscxFile:
@@ -328,6 +261,7 @@ class ViscxFile:
             raise ViscxError(f"no such file: {self.path}")
         if self.path.is_dir():
             raise ViscxError(f"{self.path} is a directory, not a viscx file")
+        register_input(self.path)
         try:
             self.h5 = h5py.File(self.path, "r")
         except OSError:
@@ -354,12 +288,12 @@ class ViscxFile:
         if missing:
             self.h5.close()
             raise ViscxError(f"{self.path} is a damaged viscx file (missing attribute {missing[0]!r})")
-        try:
-            json.loads(attrs["levels"])
-            json.loads(attrs["options"])
-        except (TypeError, ValueError):
+        try:  # nothing is read before the file's structure is known to be safe
+            validate.check_structure(self.h5, self.path)
+            validate.check_attributes(self.h5, self.path)
+        except BaseException:
             self.h5.close()
-            raise ViscxError(f"{self.path} is a damaged viscx file (levels or options are not JSON)") from None
+            raise
 
     def __enter__(self):
         return self
@@ -377,28 +311,14 @@ class ViscxFile:
 
     @property
     def timings(self):
-        return json.loads(self.h5["provenance"].attrs["timings"]) if "provenance" in self.h5 else {}
-
-    def _array(self, group, name):
-        try:
-            return group[name][()]
-        except KeyError:
-            raise ViscxError(f"{self.path} is a damaged viscx file (missing {group.name}/{name})") from None
+        if "provenance" not in self.h5 or "timings" not in self.h5["provenance"].attrs:
+            return {}
+        return validate.load_json(self.h5["provenance"].attrs["timings"], f"{self.path}: attribute /provenance@timings")
 
     def read_scene(self):
         """The :class:`Scene` stored in the file."""
-        g = self.h5["scene"]
-        arrays = {name: self._array(g, name) for name in _SCENE_ARRAYS}
-        he = {name: self._array(g, f"half_edges/{name}") for name in _HALF_EDGE_ARRAYS}
-        half_edges = HalfEdges(
-            **he,
-            edge_vertices=self._array(g, "edges/vertices"),
-            edge_is_generator=self._array(g, "edges/is_generator"),
-            vertex_is_generator=self._array(g, "vertex_is_generator"),
-        )
-        names = [s.decode() if isinstance(s, bytes) else s for s in self._array(g, "group_names")]
-        materials = [s.decode() if isinstance(s, bytes) else s for s in self._array(g, "material_names")]
-        _check_scene_arrays(self.path, arrays, he, half_edges, names)
+        arrays, he, edges, names, materials = validate.scene_arrays(self.h5["scene"], self.path)
+        half_edges = HalfEdges(**he, **edges)
         attrs = self.h5.attrs
         return Scene(
             **arrays,
@@ -415,12 +335,7 @@ class ViscxFile:
 def _read_points(self):
     """(k, 3) float64: the free points stored by ``viscx build --point`` (generator
     vertices ``n_vertices + i``); empty when there are none."""
-    if "points" not in self.h5["scene"]:
-        return np.zeros((0, 3))
-    points = self.h5["scene"]["points"][()]
-    if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
-        raise ViscxError(f"{self.path} is a damaged viscx file (scene/points has shape {points.shape} or is not finite)")
-    return points.astype(np.float64)
+    return validate.points_array(self.h5["scene"], self.path)
 
 
 ViscxFile.read_points = _read_points
@@ -430,50 +345,3 @@ def read_scene(path):
     """The :class:`Scene` stored in a viscx file."""
     with ViscxFile(path) as f:
         return f.read_scene()
-
-
-def _check_scene_arrays(path, arrays, he, half_edges, names):
-    """Shapes and index ranges of a stored scene, so that a damaged file is refused
-    instead of read into wrong answers."""
-    n = len(arrays["vertices"])
-    f = len(arrays["face_area"])
-    t = len(arrays["triangles"])
-    h = len(he["start"])
-    e = len(half_edges.edge_vertices)
-    k = len(arrays["material_kd"])
-    expect = {
-        "vertices": (n, 3),
-        "triangles": (t, 3),
-        "triangle_face": (t,),
-        "face_loop_offsets": (f + 1,),
-        "face_normal": (f, 3),
-        "face_offset": (f,),
-        "face_area": (f,),
-        "face_group": (f,),
-        "face_material": (f,),
-        "loop_vertices": (h,),
-        "material_kd": (k, 3),
-        "material_ke": (k, 3),
-    }
-    problems = [name for name, shape in expect.items() if arrays[name].shape != shape]
-    problems += [f"half_edges/{name}" for name in _HALF_EDGE_ARRAYS if he[name].shape != (h,)]
-    if half_edges.edge_vertices.shape != (e, 2) or half_edges.edge_is_generator.shape != (e,):
-        problems.append("edges")
-    if half_edges.vertex_is_generator.shape != (n,):
-        problems.append("vertex_is_generator")
-    if not problems:
-        ranges = {
-            "triangles": (arrays["triangles"], n),
-            "triangle_face": (arrays["triangle_face"], f),
-            "loop_vertices": (arrays["loop_vertices"], n),
-            "face_group": (arrays["face_group"], len(names)),
-            "half_edges/next": (he["next"], h),
-            "half_edges/edge": (he["edge"], e),
-            "half_edges/face": (he["face"], f),
-        }
-        problems = [name for name, (a, top) in ranges.items() if a.size and (a.min() < 0 or a.max() >= top)]
-        offsets = arrays["face_loop_offsets"]
-        if offsets.size and (offsets[0] != 0 or np.any(np.diff(offsets) < 1) or offsets[-1] != len(arrays["loop_offsets"]) - 1):
-            problems.append("face_loop_offsets")
-    if problems:
-        raise ViscxError(f"{path} is a damaged viscx file (inconsistent scene/{problems[0]})")

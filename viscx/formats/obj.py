@@ -19,6 +19,8 @@ from viscx.errors import ViscxError
 from viscx.scene.soup import PolygonSoup
 
 DEFAULT_GROUP = "default"
+#: a material library is text of a few lines per material
+MAX_LIBRARY_BYTES = 64 << 20
 _INDEX = re.compile(r"-?[0-9]+")
 
 
@@ -30,6 +32,22 @@ def _float_tokens(tokens, path, lineno, count):
     if len(values) < count:
         raise ViscxError(f"{path}:{lineno}: expected {count} numbers, got {len(values)}")
     return values
+
+
+def inside_folder(scene, name, what):
+    """The file ``name`` that ``scene`` refers to (``mtllib``, a glTF buffer), or ViscxError
+    when it lies outside the scene's folder (after links are resolved: ``/dev/zero``,
+    ``../secret``) or is not a regular file. A missing file is returned as it is (the
+    reader treats it as absent)."""
+    folder = Path(scene).resolve().parent
+    target = (folder / name).resolve()
+    if folder not in target.parents:
+        raise ViscxError(f"{scene}: {what} {name!r} is outside the scene's folder; viscx reads only files beside it")
+    if target.exists() and not target.is_file():
+        raise ViscxError(f"{scene}: {what} {name!r} is not a regular file")
+    if target.exists() and target.stat().st_size > MAX_LIBRARY_BYTES:
+        raise ViscxError(f"{scene}: {what} {name!r} is larger than {MAX_LIBRARY_BYTES >> 20} MiB")
+    return target
 
 
 def read_mtl(path):
@@ -79,9 +97,9 @@ def read_obj(path):
         raw = path.read_bytes()
     except OSError as exc:
         raise ViscxError(f"cannot read {path}: {exc.strerror}") from None
-    if b"\x00" in raw[:4096]:
+    if b"\x00" in raw:  # anywhere: a text file with a binary tail is not an OBJ either
         raise ViscxError(f"{path}: not a text OBJ file (binary data)")
-    text = raw.decode("utf-8", errors="replace")
+    text = raw.decode("utf-8", errors="replace").removeprefix("\ufeff")  # the BOM some Windows tools write
 
     vertices = []
     poly_vertices, poly_sizes, poly_group, poly_material = [], [], [], []
@@ -139,7 +157,7 @@ def read_obj(path):
 
     library = {}
     for name in mtl_files:
-        library.update(read_mtl(path.parent / name))
+        library.update(read_mtl(inside_folder(path, name, "mtllib")))
     kd = np.array([library.get(m, [np.full(3, 0.5)])[0] for m in material_names]).reshape(-1, 3)
     ke = np.array([library.get(m, [None, np.zeros(3)])[1] for m in material_names]).reshape(-1, 3)
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from viscx.errors import ViscxError
-from viscx.formats.hdf5 import write_complex
+from viscx.formats.hdf5 import DEFAULT_COMPRESSION, write_complex
 from viscx.progress import Stages, peak_memory_gb
 from viscx.scene import DEFAULT_WELD, load_scene
 
@@ -81,7 +81,7 @@ MAX_LEVEL = len(LEVELS) - 1
 
 
 def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,
-               quiet=False, points=None):
+               quiet=False, points=None, compression=DEFAULT_COMPRESSION):
     """Build the visibility complex of a scene file and write it to ``output``.
 
     Parameters
@@ -97,6 +97,8 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
     points : (k, 3) float64, optional
         Free points (lights, viewpoints) added as generator vertices n, n + 1, …
         (:mod:`viscx.skeleton.points`); stored as ``/scene/points``.
+    compression : str
+        The HDF5 filter of the large datasets (:data:`viscx.formats.hdf5.COMPRESSIONS`).
 
     Returns
     -------
@@ -137,7 +139,7 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
                     options["points"] = len(points)
                 writers = {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
                 write_complex(output, scene, levels=writers, options=options, timings=stages.timings,
-                              points=points if has_points else None)
+                              points=points if has_points else None, compression=compression)
         except MemoryError:
             raise ViscxError(out_of_memory(stages.current)) from None
     return scene, built, stages.timings

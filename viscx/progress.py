@@ -14,6 +14,7 @@ was written for ``HEARTBEAT`` seconds, so a long stage is never silent for longe
 it returns). ``quiet`` silences all of it.
 """
 
+import atexit
 import resource
 import sys
 import threading
@@ -71,7 +72,8 @@ class LogBar:
         self.n += n
         if quiet_for() >= LOG_EVERY:
             of = f"/{self.total}" if self.total is not None else ""
-            log(f"{self.desc}: {self.n}{of} {self.unit}{'s' if self.unit.isalpha() else ''}"
+            plural = "s" if self.unit.isalpha() and (self.total if self.total is not None else self.n) != 1 else ""
+            log(f"{self.desc}: {self.n}{of} {self.unit}{plural}"
                 + (f" ({self.postfix})" if self.postfix else ""))
 
     def set_postfix_str(self, s="", refresh=True):
@@ -171,3 +173,35 @@ class _Stage:
         if s.logging:
             log(f"{s.desc}: {self.name} done in {seconds:.1f} s")
         return False
+
+
+_compile_bar = []
+
+
+def report_compilation(quiet=False):
+    """Say so on stderr when numba compiles a kernel instead of loading it from its cache
+    (``cache=True``): the first run after an install or a change of the source compiles
+    about a hundred kernels, a minute of CPU. One notice line, then a count of the kernels
+    compiled (a bar on a terminal, log lines otherwise). Nothing when every kernel comes
+    from the cache, or when ``quiet``. Installed once per process."""
+    if quiet or _compile_bar:
+        return
+    from numba.core import event
+
+    class Notice(event.Listener):
+        def on_start(self, ev):
+            if len(_compile_bar) == 1:
+                sys.stderr.write("viscx: compiling numba kernels for their first use (once after an install; "
+                                 "about a minute; `python -m viscx.warmup` does it ahead)\n")
+                sys.stderr.flush()
+                _compile_bar.append(bar(desc="compiling kernels", unit="kernel"))
+
+        def on_end(self, ev):  # viscx's kernels are counted, not numba's own helpers they compile
+            kernel = getattr(ev.data.get("dispatcher"), "py_func", None)
+            if getattr(kernel, "__module__", "").startswith("viscx"):
+                _compile_bar[-1].set_postfix_str(kernel.__qualname__)
+                _compile_bar[-1].update()
+
+    _compile_bar.append(None)  # installed; the bar follows the first compilation
+    event.register("numba:compile", Notice())
+    atexit.register(lambda: _compile_bar[-1] is not None and _compile_bar[-1].close())

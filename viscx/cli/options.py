@@ -2,6 +2,8 @@
 
 import click
 
+from viscx.scene import DEFAULT_WELD
+
 
 def output_option(help_text, required=True):
     """``-o/--output PATH``: where a command writes its result."""
@@ -27,6 +29,24 @@ relative_epsilon_option = click.option(
     metavar="R",
     help="The epsilon as a fraction of the bounding-box diagonal (instead of --epsilon).",
 )
+
+
+weld_option = click.option(
+    "--weld",
+    type=float,
+    default=None,
+    metavar="W",
+    help="Vertices closer than this fraction of the bounding-box diagonal are welded; "
+    f"faces within it of a common plane are merged. Default: {DEFAULT_WELD:g}.",
+)
+
+
+def scene_options(command):
+    """``--epsilon``, ``--relative-epsilon``, ``--weld``: how a scene file is cleaned, for the
+    queries that take a scene file as well as a viscx file (a scoped query)."""
+    for option in (weld_option, relative_epsilon_option, epsilon_option):
+        command = option(command)
+    return command
 
 
 def quiet(ctx):

@@ -2,17 +2,20 @@
 
 import click
 
-from viscx.cli.options import format_option, light_options, output_option, point_option, quiet
+from viscx.cli.options import format_option, light_options, output_option, point_option, quiet, scene_options
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows, discontinuities).")
 def query():
     """Questions to the complex stored in a viscx file. Each reads the file (the scene and,
     for a point stored by `viscx build --point`, its V-cells; any other point's V-cells
-    are computed on demand) and never rebuilds the whole complex.
+    are computed on demand) and never rebuilds the whole complex. `visible` and `shadows`
+    also take a scene file (OBJ, PLY, …): a scoped query that builds the point's V-cells
+    only, the same cells the full build would have.
 
     \b
     viscx query visible cornell.h5 --from 278,273,-800
+    viscx query shadows sample_scenes/cornell_box.obj --light 278,540,280 -o shadows.ply
     viscx query shadows cornell.h5 --light 278,540,280 -o shadows.ply
     viscx query discontinuities cornell.h5 --light-group light -o mesh.json
     """
@@ -56,21 +59,26 @@ def _warn(ctx, result):
 @output_option("Where to write (.json or .msgpack). Default: standard output.", required=False)
 @format_option
 @face_option
+@scene_options
 @click.pass_context
-def visible(ctx, file, viewpoint, output, fmt, faces):
-    """The visibility polyhedron of a point (seed 000 §7.1): for every face, the part
+def visible(ctx, file, viewpoint, output, fmt, faces, epsilon, relative_epsilon, weld):
+    """The visibility polyhedron of a point (Hoberock et al. §7.1): for every face, the part
     seen from X,Y,Z as polygons with holes (3-D loops), from the point's V-cells.
 
     \b
     viscx build sample_scenes/cornell_box.obj -o cornell.h5
     viscx query visible cornell.h5 --from 278,273,-800 -o view.json
     viscx query visible cornell.h5 --from 278,273,-800 --format msgpack -o view.msgpack
+    viscx query visible sample_scenes/cornell_box.obj --from 278,273,-800 -o view.json
+
+    FILE is a viscx file or a scene file (then only the point's V-cells are built, with
+    --epsilon/--relative-epsilon/--weld as `viscx build` would use them).
     """
     from viscx.formats.queries import output_format, write_result
     from viscx.queries.visibility import open_query, view_from, visible_result
 
     fmt = output_format(output, fmt)
-    q = open_query(file)
+    q = open_query(file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
     _check_faces(faces, q.scene.n_faces)
     view, stored = view_from(q, viewpoint)
     result = _only(visible_result(q.scene, view, stored), faces, q.scene.n_faces)
@@ -85,22 +93,27 @@ def visible(ctx, file, viewpoint, output, fmt, faces):
                "boundaries, a lit flag per face). Default: JSON on standard output.", required=False)
 @format_option
 @face_option
+@scene_options
 @click.pass_context
-def shadows(ctx, file, light, output, fmt, faces):
+def shadows(ctx, file, light, output, fmt, faces, epsilon, relative_epsilon, weld):
     """For every face, the polygons lit by a point light at X,Y,Z (outer loops
     counter-clockwise seen from the face's front, holes clockwise) and the
-    shadow-boundary segments (seed 000 §7.2).
+    shadow-boundary segments (Hoberock et al. §7.2).
 
     \b
     viscx build sample_scenes/cornell_box.obj --point 278,540,280 -o cornell.h5
     viscx query shadows cornell.h5 --light 278,540,280 -o shadows.json
     viscx query shadows cornell.h5 --light 278,540,280 -o shadows.ply
+    viscx query shadows sample_scenes/cornell_box.obj --light 278,540,280 -o shadows.ply
+
+    FILE is a viscx file or a scene file (then only the light's V-cells are built, with
+    --epsilon/--relative-epsilon/--weld as `viscx build` would use them).
     """
     from viscx.formats.queries import output_format, write_result, write_shadow_ply
     from viscx.queries.shadows import shadows as compute
 
     fmt = output_format(output, fmt, geometry=True)
-    scene, view, result = compute(file, light, faces=faces)
+    scene, view, result = compute(file, light, faces=faces, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
     result = _only(result, faces, scene.n_faces)
     if fmt == "ply":
         counts = write_shadow_ply(output, scene, view)
@@ -120,7 +133,7 @@ def shadows(ctx, file, light, output, fmt, faces):
 @face_option
 @click.pass_context
 def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
-    """The discontinuity mesh cast by an area light (seed 000 §7.5): on every receiver
+    """The discontinuity mesh cast by an area light (Hoberock et al. §7.5): on every receiver
     face, the traces of the VE and EEE events involving the light's vertices and edges
     (segments; EEE traces are conic arcs written as polylines), the receiver-plane events
     and the line where the light's plane crosses the face (the light emits from its

@@ -1,4 +1,4 @@
-"""Shadows of a point light (seed 000 §7.2, Fig. 8): lit polygons and shadow boundaries.
+"""Shadows of a point light (Hoberock et al. §7.2, Fig. 8): lit polygons and shadow boundaries.
 
 A point of a face is lit exactly when the light sees it, so the lit part of
 each face is its visible part from the light (:mod:`viscx.queries.visibility`,
@@ -47,15 +47,19 @@ def shadow_result(scene, view, stored=False):
     return {"light": p.tolist(), "faces": faces, **view_summary(view, stored)}
 
 
-def shadows(path, light, faces=()):
-    """Lit polygons and shadow boundaries of a point light, from a viscx file.
+def shadows(path, light, faces=(), **scene_options):
+    """Lit polygons and shadow boundaries of a point light, from a viscx file or, scoped,
+    from a scene file (only the light's V-cells are built).
 
     Parameters
     ----------
     path : str or Path
+        A viscx file, or a scene file (:func:`viscx.queries.visibility.open_query`).
     light : (3,) float64
     faces : sequence of int
         Face ids the caller will report; checked before any work (ViscxError when out of range).
+    **scene_options
+        ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file.
 
     Returns
     -------
@@ -66,7 +70,7 @@ def shadows(path, light, faces=()):
     """
     from viscx.errors import ViscxError
 
-    query = open_query(path)
+    query = open_query(path, **scene_options)
     bad = [f for f in faces if not 0 <= f < query.scene.n_faces]
     if bad:
         raise ViscxError(f"--face {bad[0]} is out of range (the scene has {query.scene.n_faces} faces: 0 to {query.scene.n_faces - 1})")

@@ -1,4 +1,4 @@
-"""The visibility polyhedron of a point (seed 000 §7.1) from the point's V-cells.
+"""The visibility polyhedron of a point (Hoberock et al. §7.1) from the point's V-cells.
 
 From a point p, the ray along a direction d first meets the face ``down(d)``:
 the V-cells of p whose down blocker is face f together are the directions in
@@ -7,7 +7,7 @@ part of f visible from p. Their union is bounded by the boundary elements
 (VE half-cells (p, e) on p's direction sphere) whose two sides have different
 down blockers; elements between two cells with the same down (only the up
 blocker behind p changes) are inside the union and cancel. The remaining
-elements are chained again (FormLoops grouped by down face, seed 000 §5.3),
+elements are chained again (FormLoops grouped by down face, Hoberock et al. §5.3),
 classified outer / hole by their turning sums and grouped by crossing parity,
 exactly as V2 does for one cell (:mod:`viscx.skeleton.vcells`).
 
@@ -18,7 +18,7 @@ where the segments of the VE family end on f (their VV/VEE nodes). Nothing
 is clipped: where p sees f, the boundary is made of the VE half-cells of f's
 own edges and of the edges that hide parts of f, so the loops lie in f. A
 boundary element whose edge is not an edge of f is where another object cuts
-f's visible part: a shadow boundary when p is a light (seed 000 §7.2, Fig. 8).
+f's visible part: a shadow boundary when p is a light (Hoberock et al. §7.2, Fig. 8).
 
 Open chains (cells V1 could not close, docs/skeleton.md "V-cells") are
 reported per face (``complete`` false) and their elements kept as boundary
@@ -27,11 +27,14 @@ segments; such a face's polygons miss the region the chain bounds.
 
 from dataclasses import dataclass, field
 
+from pathlib import Path
+
 import numpy as np
 
 from viscx.geometry.polygon import plane_basis, signed_area_2d
 from viscx.skeleton.nodes import BLOCK_FACE
-from viscx.skeleton.vcells import cells_of_loops, reference_points, sphere_loops, stored_elements, turning_sums
+from viscx.skeleton.loops import cells_of_loops
+from viscx.skeleton.vcells import inside_loops, reference_points, sphere_loops, sphere_turning_sums, stored_elements
 
 
 @dataclass
@@ -155,10 +158,10 @@ def point_view(scene, arcs, vcells, vertex, point):
     walk = el.take(walk_order)
     walk_down = down[walk_order]
     n_loops = len(loop_offsets) - 1
-    turning = turning_sums(walk, loop_offsets, bridge=True)
+    turning = sphere_turning_sums(walk, loop_offsets)
     ref = reference_points(walk, loop_offsets)
     loop_face = walk_down[loop_offsets[:-1]]
-    cell = cells_of_loops(walk, loop_offsets, loop_face, ref) if n_loops else np.zeros(0, np.int64)
+    cell = cells_of_loops(walk, loop_offsets, loop_face, ref, inside_loops) if n_loops else np.zeros(0, np.int64)
 
     # which edges bound which face (a boundary along f's own edge is f's outline, not a shadow)
     he = scene.half_edges
@@ -226,17 +229,37 @@ class QueryScene:
     points: np.ndarray
 
 
-def open_query(path):
-    """Read the scene of a viscx file for a point query; the file must hold V-cells (V2).
+def open_query(path, **scene_options):
+    """The scene of a point query: from a viscx file (which must hold V-cells, V2), or
+    loaded from a scene file (OBJ, PLY, …) for a *scoped* query that builds only the
+    point's V-cells (:func:`view_from`), with the same definitions as the full build.
 
-    Raises ViscxError (one line, exit status 2) for a file without V2.
+    Parameters
+    ----------
+    path : str or Path
+    **scene_options
+        ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file (see
+        :func:`viscx.scene.build_scene`); a viscx file keeps the ones it was built with.
+
+    Raises ViscxError (one line, exit status 2) for a viscx file without V2, or with
+    scene options.
     """
+    import h5py
+
     from viscx.errors import ViscxError
     from viscx.formats.hdf5 import ViscxFile
+    from viscx.scene import load_scene
 
+    given = {k: v for k, v in scene_options.items() if v is not None}
+    if not (Path(path).is_file() and h5py.is_hdf5(path)):
+        return QueryScene(str(path), load_scene(path, **given), np.zeros((0, 3)))
+    if given:
+        names = ", ".join("--" + k.replace("_", "-") for k in sorted(given))
+        raise ViscxError(f"{path} is a viscx file, built with its own scene options: {names} apply to scene files only")
     with ViscxFile(path) as f:
         if "V2" not in f.levels or "V2" not in f.h5:
-            raise ViscxError(f"{path} has no V-cells (V2); build it with `viscx build` (all levels)")
+            raise ViscxError(f"{path} has no V-cells (V2); build it with `viscx build` (all levels), "
+                             "or query the scene file itself")
         return QueryScene(str(path), f.read_scene(), f.read_points())
 
 

@@ -12,9 +12,11 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-# Re-install when the package metadata changes.
+# Re-install when the package metadata changes; then compile and cache the numba kernels
+# (about a minute of CPU, once) so that the first build is as fast as the next.
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test,plot]'
+	$(BIN)/python -m viscx.warmup
 	touch $@
 
 venv: $(VENV)/.installed

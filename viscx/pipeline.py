@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from viscx.errors import ViscxError
-from viscx.formats.hdf5 import write_complex
-from viscx.progress import bar
+from viscx.formats.hdf5 import DEFAULT_COMPRESSION, write_complex
+from viscx.progress import Stages, peak_memory_gb
 from viscx.scene import DEFAULT_WELD, load_scene
 
 
@@ -81,7 +81,7 @@ MAX_LEVEL = len(LEVELS) - 1
 
 
 def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,
-               quiet=False, points=None):
+               quiet=False, points=None, compression=DEFAULT_COMPRESSION):
     """Build the visibility complex of a scene file and write it to ``output``.
 
     Parameters
@@ -97,6 +97,8 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
     points : (k, 3) float64, optional
         Free points (lights, viewpoints) added as generator vertices n, n + 1, …
         (:mod:`viscx.skeleton.points`); stored as ``/scene/points``.
+    compression : str
+        The HDF5 filter of the large datasets (:data:`viscx.formats.hdf5.COMPRESSIONS`).
 
     Returns
     -------
@@ -109,43 +111,43 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
     if not -1 <= levels <= MAX_LEVEL:
         raise ViscxError(f"--levels must be between -1 (scene only) and {MAX_LEVEL}")
     check_output(scene_path, output)
-    timings, built = {}, {}
+    built = {}
     has_points = points is not None and len(points) > 0
-    stages = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []), "write"]
-    with bar(total=len(stages), desc="build", quiet=quiet, unit="stage") as progress:
-        t0 = time.perf_counter()
-        progress.set_postfix_str("scene")
-        scene = load_scene(scene_path, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
-        timings["scene"] = time.perf_counter() - t0
-        progress.update()
+    names = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []), "write"]
+    with Stages(names, "build", quiet=quiet) as stages:
+        try:
+            with stages.stage("scene"):
+                scene = load_scene(scene_path, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
 
-        for name, builder in LEVELS[: levels + 1]:
-            t0 = time.perf_counter()
-            progress.set_postfix_str(name)
-            built[name] = builder(scene, built, quiet)
-            timings[name] = time.perf_counter() - t0
-            timings.update(getattr(built[name], "timings", {}))
-            progress.update()
+            for name, builder in LEVELS[: levels + 1]:
+                with stages.stage(name):
+                    built[name] = builder(scene, built, quiet)
+                stages.timings.update(getattr(built[name], "timings", {}))
 
-        if has_points:
-            from viscx.skeleton.points import add_points, build_points, check_points
+            if has_points:
+                from viscx.skeleton.points import add_points, build_points, check_points
 
-            t0 = time.perf_counter()
-            progress.set_postfix_str("points")
-            check_points(scene, points)
-            if built:  # the points' nodes, arcs and cells, merged into the built levels
-                built.update(add_points(built, build_points(scene, points)))
-            timings["points"] = time.perf_counter() - t0
-            progress.update()
+                with stages.stage("points"):
+                    check_points(scene, points)
+                    if built:  # the points' nodes, arcs and cells, merged into the built levels
+                        built.update(add_points(built, build_points(scene, points)))
 
-        t0 = time.perf_counter()
-        progress.set_postfix_str("write")
-        options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon, "weld": weld, "levels": levels}
-        if has_points:
-            options["points"] = len(points)
-        writers = {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
-        write_complex(output, scene, levels=writers, options=options, timings=timings,
-                      points=points if has_points else None)
-        timings["write"] = time.perf_counter() - t0
-        progress.update()
-    return scene, built, timings
+            with stages.stage("write"):
+                options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon, "weld": weld,
+                           "levels": levels}
+                if has_points:
+                    options["points"] = len(points)
+                writers = {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
+                write_complex(output, scene, levels=writers, options=options, timings=stages.timings,
+                              points=points if has_points else None, compression=compression)
+        except MemoryError:
+            raise ViscxError(out_of_memory(stages.current)) from None
+    return scene, built, stages.timings
+
+
+def out_of_memory(stage):
+    """The one-line message for a build that ran out of memory in ``stage``."""
+    order = [name for name, _ in LEVELS]
+    fewer = f"build fewer levels (--levels {order.index(stage) - 1}), " if stage in order[1:] else ""
+    return (f"out of memory in the {stage} stage (peak {peak_memory_gb():.1f} GB); "
+            f"{fewer}build a smaller scene, or use a machine with more memory")

@@ -65,6 +65,10 @@ def cli(ctx, quiet):
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
+    if ctx.invoked_subcommand is not None:  # a command that may compile numba kernels: say so when it does
+        from viscx.progress import report_compilation
+
+        report_compilation(quiet)
 
 
 class Terminated(BaseException):

@@ -34,13 +34,17 @@ def vcells(file, vertex, output, size):
     """
     from viscx.formats.hdf5 import ViscxFile, read_arcs, read_vcells
     from viscx.plot.vcell_sphere import plot_vcells
+    from viscx.skeleton.points import with_points
 
     with ViscxFile(file) as f:
         if "V2" not in f.levels or "V2" not in f.h5:
             raise ViscxError(f"{file} has no V-cells (V2); build it with `viscx build --levels 2`")
         scene = f.read_scene()
+        points = f.read_points()
         arcs = read_arcs(f.h5["V1"])
         cells = read_vcells(f.h5["V2"])
+    if len(points):  # the free points of `viscx build --point` are generator vertices n, n + 1, …
+        scene = with_points(scene, points)
     if not 0 <= vertex < scene.n_vertices or not scene.half_edges.vertex_is_generator[vertex]:
         raise ViscxError(f"--vertex {vertex} is not a generator vertex of {file} "
                          f"(it has {scene.n_vertices} vertices, {len(scene.generator_vertices)} generators)")

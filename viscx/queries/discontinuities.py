@@ -17,6 +17,8 @@ EE-cells of its edges, Hoberock et al. §7.5):
 * **VE (occluder vertex w, light edge e)**: the lines through w meeting e (w's image
   crosses the light's edge e). Receiver end: the *back* end (oriented from w towards e,
   the receiver is behind w).
+  The families of a free point (``viscx build --point``, generator vertex
+  ``n_vertices + k``) are left out: a point blocks nothing.
 * **XE (crossing point X of occluder edges a and b, light edge e)**: the lines through X
   meeting e (degenerate scenes: touching objects whose edges cross; X's image, a corner
   of the occluders' outline, crosses e, and the occluder edge bounding e's hidden part
@@ -209,7 +211,9 @@ def select_events(scene, arcs, light):
     end = np.full(n, -1, np.int64)
     lkind = np.full(n, -1, np.int8)
     lfeat = np.full(n, -1, np.int64)
-    ve = kind == VE
+    # a free point of `viscx build --point` (generator vertex nv + k) blocks nothing and is
+    # no part of the light: its VE families are no visual events of the light
+    ve = (kind == VE) & (g[:, 0] < nv)
     gv, ge = np.where(ve, g[:, 0], 0), np.where(ve, g[:, 1], ne)
     a = ve & lv[gv] & ~le[ge]
     b = ve & ~lv[gv] & le[ge]

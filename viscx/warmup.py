@@ -1,0 +1,96 @@
+"""Compile viscx's numba kernels ahead of their first use: ``python -m viscx.warmup``.
+
+The kernels are compiled with ``cache=True``: the first run after an install (or after a
+change of their source) compiles them, about a minute of CPU, and later runs load them
+from the cache. ``make venv`` (and so ``make demo`` and ``make test``) runs this module,
+so that a user's first ``viscx build`` is as fast as the next.
+
+It builds a small scene with every level and a free point, and runs each query once
+(point views, the discontinuity mesh, the three renderers, the form factors), in a
+temporary folder: the same calls the commands make, so the same kernel signatures.
+"""
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+#: A floor, a box standing on it (contacts), a tilted panel above it (skew edges) and a
+#: square light under the ceiling, facing down: a few hundred nodes.
+SCENE = """\
+v 0 0 0
+v 0 0 4
+v 4 0 4
+v 4 0 0
+v 1 0 1
+v 1 0 2
+v 2 0 2
+v 2 0 1
+v 1 1 1
+v 1 1 2
+v 2 1 2
+v 2 1 1
+v 2.5 1.5 1.5
+v 3.5 1.8 1.7
+v 3.4 2.0 3.0
+v 2.4 1.7 2.8
+v 1.5 3 1.5
+v 2.5 3 1.5
+v 2.5 3 2.5
+v 1.5 3 2.5
+g floor
+f 1 2 3 4
+g box
+f 9 10 11 12
+f 5 9 12 8
+f 8 12 11 7
+f 7 11 10 6
+f 6 10 9 5
+g panel
+f 13 14 15 16
+g light
+f 17 18 19 20
+"""
+
+
+def warm_up():
+    """Run every kernel once; returns the seconds it took."""
+    from viscx.pipeline import build_file
+    from viscx.queries.discontinuities import open_discontinuities
+    from viscx.queries.formfactor import face_to_face, point_to_faces
+    from viscx.queries.shadows import shadows
+    from viscx.queries.visibility import open_query, view_from
+    from viscx.render.camera import Camera
+    from viscx.render.image import render
+
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="viscx-warmup-") as folder:
+        obj, h5 = Path(folder) / "scene.obj", Path(folder) / "scene.h5"
+        obj.write_text(SCENE)
+        light = np.array([2.0, 2.5, 2.0])
+        build_file(obj, h5, quiet=True, points=light[None])
+        query = open_query(h5)
+        view_from(query, light)  # from the file's point
+        view_from(query, np.array([0.5, 2.0, 3.5]))  # computed on demand
+        shadows(h5, light)
+        point_to_faces(query, [3.0, 0.001, 3.0], [0, 1, 0], range(query.scene.n_faces))
+        face_to_face(query.scene, 0, 7, tol=1e-5)
+        scene, mesh = open_discontinuities(h5, light_group="light")
+        camera = Camera([2.0, 1.5, -4.0], [2.0, 1.0, 2.0], [0, 1, 0], 45.0, 24, 24)
+        for options in ({}, {"samples": 40}, {"reference": 2}):
+            render(scene, mesh, camera, radiance=[1.0, 1.0, 1.0], **options)
+    return time.perf_counter() - start
+
+
+def main():
+    from viscx.progress import report_compilation
+
+    report_compilation()
+    seconds = warm_up()
+    print(f"viscx: kernels compiled and cached ({seconds:.0f} s)", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -211,7 +211,7 @@ def test_random_scenes_with_thin_cells_close(seed):
     judged tangent (a false gap between two faces of a closed fan, tangency.py), and
     rand:161, where a face seen 2e-4 off edge-on makes a sliver cell narrower than the
     probe angle near its corners (V1 now joins VE arcs across such unexplained half-cell
-    changes, arcs.py). Every vertex closes and agrees with the ray caster."""
+    changes, viscx.skeleton.arcs.stages). Every vertex closes and agrees with the ray caster."""
     scene, arcs, vc = built(f"rand:{seed}")
     assert len(vc.open_vertex) == 0 and np.all(vc.complete)
     assert set(vc.vertex.tolist()) == set(scene.generator_vertices.tolist())
@@ -516,6 +516,13 @@ def city():
     return _CACHE["city300"]
 
 
+def city_vcells():
+    """The V-cells of :func:`city`, built once (the tests only read them)."""
+    if "city300 vcells" not in _CACHE:
+        _CACHE["city300 vcells"] = build_vcells(*city())
+    return _CACHE["city300 vcells"]
+
+
 def test_open_chains_joined_across_merged_events(monkeypatch):
     """A city of boxes on a floor (300 polygons): where V1 merged a family's events closer
     than 4 epsilon, the two families at a cell's corner may keep different events, and the
@@ -527,7 +534,7 @@ def test_open_chains_joined_across_merged_events(monkeypatch):
     import viscx.skeleton.vcells as vcells
 
     scene, arcs = city()
-    joined = build_vcells(scene, arcs)
+    joined = city_vcells()
     with monkeypatch.context() as m:
         m.setattr(vcells, "join_open_chains", lambda scene, el, group, *loops: loops)
         strict = build_vcells(scene, arcs)
@@ -555,9 +562,7 @@ def test_each_join_rule_completes_city_vertices(knockout, monkeypatch):
     import viscx.skeleton.vcells as vcells
 
     scene, arcs = city()
-    if "city300 full" not in _CACHE:
-        _CACHE["city300 full"] = len(complete_vertices(build_vcells(scene, arcs)))
-    full = _CACHE["city300 full"]
+    full = len(complete_vertices(city_vcells()))
     if knockout == "own_reach":
         monkeypatch.setattr(vcells, "line_reach", lambda scene, vertex, direction, reach: reach)
     elif knockout == "three_elements":
@@ -581,7 +586,7 @@ def test_point_location_crosses_the_gaps_of_joined_loops(monkeypatch):
     import viscx.skeleton.vcells as vcells
 
     scene, arcs = city()
-    vc = build_vcells(scene, arcs)
+    vc = city_vcells()
     gapped = np.unique(vc.vertex[vc.complete & np.isin(vc.vertex, vertices_with_gaps(scene, arcs, vc))])
     assert len(gapped) >= 10
     judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=2000)

@@ -560,7 +560,7 @@ def test_touching_blocks(tmp_path, monkeypatch):
     assert _touching_failures(tmp_path, "no_pencils")[0] >= 5
 
 
-@pytest.mark.parametrize("seed", [0, 11])
+@pytest.mark.parametrize("seed", [0, pytest.param(11, marks=pytest.mark.slow)])
 def test_pencil_of_a_face_with_a_vertex_in_its_plane(tmp_path, monkeypatch, seed):
     """Box side scenes whose tetrahedron vertex lies in the side's plane, off the side: the
     pencil at the side's top corner (light edge 4; edges 11 and 13) holds no node (its end

@@ -83,10 +83,12 @@ def pair_name(kind, index):
     return {BLOCK_FACE: f"face {index}", BLOCK_SKY: "sky", BLOCK_VERTEX: f"vertex {index}"}[int(kind)]
 
 
-def ray_oracle(scene, arcs, vc, vertices, n=DIRECTIONS, seed=0):
+def ray_oracle(scene, arcs, vc, vertices, n=DIRECTIONS, seed=0, memo=None):
     """Locate random directions of each vertex among its cells and compare the cell's
     blocker pair with the ray caster's (:func:`vertex_ray_blockers`, the judging rule of
-    maximal_free_segments at one vertex).
+    maximal_free_segments at one vertex). ``memo`` (a dict) keeps each vertex's directions,
+    the caster's pairs and the band around the boundaries for a later call on the same
+    cells (only the location is redone).
 
     Returns
     -------
@@ -100,10 +102,15 @@ def ray_oracle(scene, arcs, vc, vertices, n=DIRECTIONS, seed=0):
     disagreements = []
     for v in vertices:
         d = uniform_directions(rng, n)
+        if memo is None or (v, n, seed) not in memo:
+            up_kind, up, down_kind, down, grazing = vertex_ray_blockers(scene, np.full(n, v), d)
+            starts, ends = vertex_boundaries(scene, arcs, vc, v)
+            away = np.concatenate([angular_distance_to_arcs(d[k:k + 2000], starts, ends) for k in range(0, n, 2000)]) > BAND
+            if memo is not None:
+                memo[v, n, seed] = up_kind, up, down_kind, down, grazing, away
+        else:
+            up_kind, up, down_kind, down, grazing, away = memo[v, n, seed]
         cell, holders = locate(scene, arcs, vc, v, d)
-        up_kind, up, down_kind, down, grazing = vertex_ray_blockers(scene, np.full(n, v), d)
-        starts, ends = vertex_boundaries(scene, arcs, vc, v)
-        away = np.concatenate([angular_distance_to_arcs(d[k:k + 2000], starts, ends) for k in range(0, n, 2000)]) > BAND
         c = np.maximum(cell, 0)
         agree = (cell >= 0) & (vc.up_kind[c] == up_kind) & (vc.up[c] == up) & (vc.down_kind[c] == down_kind) & (vc.down[c] == down)
         judge = away & ~grazing
@@ -211,7 +218,7 @@ def test_random_scenes_with_thin_cells_close(seed):
     judged tangent (a false gap between two faces of a closed fan, tangency.py), and
     rand:161, where a face seen 2e-4 off edge-on makes a sliver cell narrower than the
     probe angle near its corners (V1 now joins VE arcs across such unexplained half-cell
-    changes, arcs.py). Every vertex closes and agrees with the ray caster."""
+    changes, viscx.skeleton.arcs.stages). Every vertex closes and agrees with the ray caster."""
     scene, arcs, vc = built(f"rand:{seed}")
     assert len(vc.open_vertex) == 0 and np.all(vc.complete)
     assert set(vc.vertex.tolist()) == set(scene.generator_vertices.tolist())
@@ -516,6 +523,13 @@ def city():
     return _CACHE["city300"]
 
 
+def city_vcells():
+    """The V-cells of :func:`city`, built once (the tests only read them)."""
+    if "city300 vcells" not in _CACHE:
+        _CACHE["city300 vcells"] = build_vcells(*city())
+    return _CACHE["city300 vcells"]
+
+
 def test_open_chains_joined_across_merged_events(monkeypatch):
     """A city of boxes on a floor (300 polygons): where V1 merged a family's events closer
     than 4 epsilon, the two families at a cell's corner may keep different events, and the
@@ -527,7 +541,7 @@ def test_open_chains_joined_across_merged_events(monkeypatch):
     import viscx.skeleton.vcells as vcells
 
     scene, arcs = city()
-    joined = build_vcells(scene, arcs)
+    joined = city_vcells()
     with monkeypatch.context() as m:
         m.setattr(vcells, "join_open_chains", lambda scene, el, group, *loops: loops)
         strict = build_vcells(scene, arcs)
@@ -555,9 +569,7 @@ def test_each_join_rule_completes_city_vertices(knockout, monkeypatch):
     import viscx.skeleton.vcells as vcells
 
     scene, arcs = city()
-    if "city300 full" not in _CACHE:
-        _CACHE["city300 full"] = len(complete_vertices(build_vcells(scene, arcs)))
-    full = _CACHE["city300 full"]
+    full = len(complete_vertices(city_vcells()))
     if knockout == "own_reach":
         monkeypatch.setattr(vcells, "line_reach", lambda scene, vertex, direction, reach: reach)
     elif knockout == "three_elements":
@@ -581,10 +593,11 @@ def test_point_location_crosses_the_gaps_of_joined_loops(monkeypatch):
     import viscx.skeleton.vcells as vcells
 
     scene, arcs = city()
-    vc = build_vcells(scene, arcs)
+    vc = city_vcells()
     gapped = np.unique(vc.vertex[vc.complete & np.isin(vc.vertex, vertices_with_gaps(scene, arcs, vc))])
     assert len(gapped) >= 10
-    judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=2000)
+    memo = {}  # the same directions, pairs and boundaries below: only the location changes
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=2000, memo=memo)
     assert agreed == judged, wrong[:5]
 
     def without_gaps(el, loop_offsets):
@@ -592,7 +605,7 @@ def test_point_location_crosses_the_gaps_of_joined_loops(monkeypatch):
         return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
 
     monkeypatch.setattr(vcells, "loop_segments", without_gaps)
-    judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=2000)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=2000, memo=memo)
     assert agreed < judged and any("2 cells" in w for w in wrong)
 
 

@@ -68,7 +68,7 @@ open, V2 adds these *segments* of its own (:func:`open_segments`,
 kinds (SIDE, PENCIL1, PENCIL2), and probes that square again 5 epsilon off its pieces
 (FINE_PROBE; the Cornell light's slivers are thinner than PROBE).
 
-Which side gets which pair is found like the VE half-cells' (arcs.py): the
+Which side gets which pair is found like the VE half-cells' (arcs/halfcells.py): the
 arc's middle point of the square is moved off the arc, across it on each side,
 by PROBE (or FINE_PROBE) epsilon along the edges, and that line is judged. A side whose line is
 hidden bounds nothing (the hidden region is not a cell); an EEE arc whose two

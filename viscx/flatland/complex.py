@@ -54,6 +54,15 @@ from viscx.flatland.scene import SKY, Scene
 
 TWO_PI = 2.0 * math.pi
 L, R = 0, 1
+# two candidate lines closer than this in θ (and than TOL_U × the scene diagonal in u) are
+# one line (rounding of the closed forms is ~1e-13 at 1e4 objects)
+TOL_THETA = 1e-9
+TOL_U = 1e-9
+# the perturbation of resolve_degenerate: δ(x) = 1 + w (x − X0)², X0 = √2 − 1 so that no two
+# positions of a real layout are symmetric about it, w = π/2 on the left side (unrelated
+# constants: three perturbed contacts of a lattice line are then never collinear)
+_X0 = math.sqrt(2.0) - 1.0
+_W_LEFT = 0.5 * math.pi
 
 # slots of an edge (object k, tail t, head h): the three faces it bounds
 SLOT_TK, SLOT_KH, SLOT_TH = 0, 1, 2
@@ -152,8 +161,12 @@ def candidates(scene: Scene, pairs=None):
     root = np.tile(np.array([0, 1, 0, 1]), P)
     side_a = np.ones(4 * P, np.int8)
     side_b = np.where(combo == 0, 1, 0).astype(np.int8)
-    # canonical orientation θ ∈ [0, π): the reversed line swaps both sides
-    flip = theta >= math.pi
+    # canonical orientation θ ∈ [−TOL_THETA, π − TOL_THETA): the reversed line swaps both
+    # sides.  The window is shifted so that one line computed from different pairs (a
+    # horizontal row of panel tips: θ = 1e-17 from one pair, π − 1e-16 from another) gets
+    # one orientation and its copies can be grouped (:func:`resolve_degenerate`).
+    theta = np.where(theta >= TWO_PI - TOL_THETA, theta - TWO_PI, theta)
+    flip = theta >= math.pi - TOL_THETA
     theta = np.where(flip, theta - math.pi, theta)
     side_a = np.where(flip, 1 - side_a, side_a).astype(np.int8)
     side_b = np.where(flip, 1 - side_b, side_b).astype(np.int8)
@@ -203,6 +216,154 @@ def vertices_from(scene: Scene, cand: dict, cls) -> dict:
                 v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
 
 
+def resolve_degenerate(scene: Scene, V: dict) -> dict:
+    """Degenerate free lines resolved by a symbolic perturbation (adds ``v_tau``).
+
+    Under ε-visibility (a line blocks only where it cuts an object deeper than ε, see
+    :func:`kernels.depth`) a line touching several objects inside one maximal free segment
+    — the tips of a row of identical tilted panels, the tops of aligned columns, a lattice
+    diagonal through corners — is free, and every pair of the objects it touches gives a
+    free bitangent on it: the vertices are not simple (several tangency curves through one
+    point of the dual, polygon edges along the line).  They are grouped here by line
+    (θ within ``TOL_THETA``, u within ``TOL_U`` × the scene diagonal) and by the segment's
+    tail and head, and each group is replaced by the simple vertices of the perturbed
+    scene in which every touching object is pushed off the line by an infinitesimal
+    δ(x) = 1 + w (x̃ − X0)², x̃ its contact position along the line scaled to [−1, 1]
+    (strictly convex in x̃, so a row of tips on one side becomes a strictly convex chain
+    and only consecutive objects see each other; :func:`kernels.local_arrangement` gives
+    the vertices, tails, heads and tangent points).  The vertices keep θ*, and their order
+    along a tangency curve inside the group is the infinitesimal offset ``v_tau``
+    (0 elsewhere), which :func:`derive` uses as the second sort key: the edges between
+    them have length 0, so dual areas and form factors are the limit of the perturbed
+    scene's, i.e. the exact values of the unperturbed one.  The same rule resolves a
+    single pair whose common tangent runs along a polygon edge (the tangent point is the
+    edge's end that the perturbed line touches)."""
+    m = V["v_key"].shape[0]
+    V = dict(V)
+    V["v_tau"] = np.zeros(m)
+    if m == 0:
+        return V
+    th = V["v_theta"]
+    d = np.stack([np.cos(th), np.sin(th)], 1)
+    nrm = np.stack([-d[:, 1], d[:, 0]], 1)
+    u = np.einsum("ij,ij->i", nrm, V["v_p"])
+    tol = TOL_U * default_eps(scene) / 1e-9
+    # -- group by line: chains of θ gaps ≤ TOL_THETA, then of u gaps ≤ tol, then (tail, head)
+    o = np.argsort(th, kind="stable")
+    gth = np.empty(m, np.int64)
+    gth[o] = np.concatenate([[0], np.cumsum(np.diff(th[o]) > TOL_THETA)])
+    o = np.lexsort((u, gth))
+    brk = np.concatenate([[True], (np.diff(gth[o]) != 0) | (np.diff(u[o]) > tol)])
+    gline = np.empty(m, np.int64)
+    gline[o] = np.cumsum(brk)
+    _, group = np.unique(np.stack([gline, V["v_tail"], V["v_head"]], 1), axis=0, return_inverse=True)
+    group = group.ravel()
+    size = np.bincount(group)
+    need = size[group] >= 2
+    need |= _on_edge(scene, V["v_obj"][:, 0], V["v_support"][:, 0], nrm, tol)
+    need |= _on_edge(scene, V["v_obj"][:, 1], V["v_support"][:, 1], nrm, tol)
+    keep = np.ones(m, bool)
+    gids = np.unique(group[need])
+    members_of = np.split(np.argsort(group, kind="stable"), np.cumsum(size)[:-1])
+    for g in gids:
+        idx = members_of[g]
+        keep[idx] = False
+        for i, row in _resolve_line(scene, V, idx, tol):
+            keep[i] = True
+            for name, val in row.items():
+                V[name][i] = val
+    return {name: arr[keep] for name, arr in V.items()}
+
+
+def _on_edge(scene, obj, sup, nrm, tol):
+    """(m,) bool: the line (normal nrm) through support point sup of object obj also passes
+    through a neighbouring corner (it runs along a polygon edge)."""
+    s, e = scene.vert_start[obj], scene.vert_start[obj + 1]
+    cnt = e - s
+    out = np.zeros(obj.shape[0], bool)
+    poly = cnt >= 2
+    for step in (-1, 1):
+        nb_ = s + np.mod(sup - s + step, np.maximum(cnt, 1))
+        gap = np.einsum("ij,ij->i", nrm, scene.verts[nb_] - scene.verts[sup])
+        out |= poly & (np.abs(gap) <= tol)
+    return out
+
+
+def _contact(scene, k, side, d, n, tol):
+    """Contact of object k (on side R = 1 / L = 0) with a line of direction d, normal n:
+    (positions a ≤ b along d, support indices ja, jb, points pa, pb)."""
+    s, e = scene.vert_start[k], scene.vert_start[k + 1]
+    v = scene.verts[s:e]
+    sig = 2.0 * side - 1.0
+    pts = v + sig * scene.radius[k] * n
+    proj = pts @ n
+    on = np.nonzero(np.abs(proj - (proj.max() if side == R else proj.min())) <= tol)[0]
+    pos = pts[on] @ d
+    ia, ib = on[np.argmin(pos)], on[np.argmax(pos)]
+    return pos.min(), pos.max(), s + ia, s + ib, pts[ia], pts[ib]
+
+
+def _resolve_line(scene, V, idx, tol):
+    """Rows (vertex index, {field: value}) of the perturbed vertices of one degenerate
+    line (see :func:`resolve_degenerate`)."""
+    th = float(V["v_theta"][idx[0]])
+    d = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-d[1], d[0]])
+    ent = {}
+    for col in (0, 1):
+        for k, sd in zip(V["v_obj"][idx, col], V["v_side"][idx, col]):
+            ent[(int(k), int(sd))] = None
+    objs = [k for k, _ in ent]
+    if len(set(objs)) != len(objs):
+        k = next(k for k in objs if objs.count(k) > 1)
+        raise ViscxError(f"object {scene.names[k]!r} lies along a line that other objects touch "
+                         "(an object touching a line on both sides is not resolved)")
+    rows = []
+    for k, sd in ent:
+        a, b, ja, jb, pa, pb = _contact(scene, k, sd, d, n, tol)
+        rows.append((a, b, k, sd, ja, jb, pa, pb))
+    rows.sort(key=lambda r: r[0])
+    xa = np.array([r[0] for r in rows]); xb = np.array([r[1] for r in rows])
+    if np.any(xa[1:] <= xb[:-1]):
+        i = int(np.nonzero(xa[1:] <= xb[:-1])[0][0])
+        raise ViscxError(f"objects {scene.names[rows[i][2]]!r} and {scene.names[rows[i + 1][2]]!r} touch the same "
+                         "line at one point; flatland objects must be disjoint")
+    right = np.array([r[3] == R for r in rows])
+    lo, hi = xa.min(), xb.max()
+    half = max(0.5 * (hi - lo), 1e-300)
+    x = (0.5 * (xa + xb) - 0.5 * (lo + hi)) / half
+    delta = 1.0 + np.where(right, 1.0, _W_LEFT) * (x - _X0) ** 2
+    c = np.where(right, -delta, delta)
+    ci = 0.5 * (lo + hi)
+    pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c)
+    member = {(int(V["v_obj"][i, 0]), int(V["v_obj"][i, 1])): int(i) for i in idx}
+    T, H = int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]])
+    seg0, seg1 = V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:]
+    out = []
+    for i, j, t, a_, b_, bi, bj in zip(pi, pj, tau, tl, hd, ib, jb):
+        ri, rj = rows[i], rows[j]
+        key = (ri[2], rj[2])
+        if key not in member:
+            raise ViscxError(f"degenerate line through {scene.names[ri[2]]!r} and {scene.names[rj[2]]!r} could "
+                             "not be resolved (a common tangent was not found as a candidate)")
+        p = ri[7] if bi else ri[6]
+        q = rj[7] if bj else rj[6]
+        start = seg0 if a_ < 0 else rows[a_][7]
+        end = seg1 if b_ < 0 else rows[b_][6]
+        out.append((member[key], dict(
+            v_theta=th, v_tau=float(t), v_tail=T if a_ < 0 else rows[a_][2], v_head=H if b_ < 0 else rows[b_][2],
+            v_support=np.array([ri[5] if bi else ri[4], rj[5] if bj else rj[4]]), v_p=p, v_q=q,
+            v_length=float(d @ (q - p)), v_seg=np.concatenate([start, end]))))
+    # the offsets order the vertices along each curve: they must differ on one curve
+    ent_id = np.concatenate([pi, pj])
+    t2 = np.concatenate([tau, tau])
+    o = np.lexsort((t2, ent_id))
+    same = (np.diff(ent_id[o]) == 0) & (np.diff(t2[o]) <= 1e-12 * max(np.abs(tau).max(), 1e-300))
+    if np.any(same):
+        raise ViscxError("a degenerate line could not be resolved (two of its perturbed vertices coincide)")
+    return out
+
+
 def clip_sky_ends(scene, theta, p, q, tail, head, seg):
     """(m, 4) segments with every sky end (tail or head −1) replaced by the point where the
     line leaves the scene's bounding box enlarged by 1 % (finite, checkable)."""
@@ -246,6 +407,8 @@ def derive(scene: Scene, V: dict, previous: dict | None = None):
     OS1 = np.concatenate([s1, 1 - s2]); OS2 = np.concatenate([s2, 1 - s1])
     OT = np.concatenate([t, h]); OH = np.concatenate([h, t])
     OTH = np.concatenate([th, th + math.pi])
+    tau = V["v_tau"] if "v_tau" in V else np.zeros(m)
+    OTAU = np.concatenate([tau, tau])
     OJ1 = np.concatenate([V["v_support"][:, 0], V["v_support"][:, 1]])
     OJ2 = np.concatenate([V["v_support"][:, 1], V["v_support"][:, 0]])
     n_occ = 2 * m
@@ -255,7 +418,9 @@ def derive(scene: Scene, V: dict, previous: dict | None = None):
     inc_side = np.concatenate([OS1, OS2])
     inc_curve = 2 * inc_obj + inc_side
     inc_theta = np.concatenate([OTH, OTH])
-    order = np.lexsort((inc_occ, inc_theta, inc_curve))
+    # vertices of one resolved degenerate line share θ; their infinitesimal offsets order them
+    inc_tau = np.concatenate([OTAU, OTAU])
+    order = np.lexsort((inc_occ, inc_tau, inc_theta, inc_curve))
     cur = inc_curve[order]
     n_inc = order.shape[0]
     # next incidence on the same curve (cyclic)
@@ -546,7 +711,7 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
         cand = candidates(scene)
         pb.update()
         cls = classify(scene, cand, eps)
-        V = vertices_from(scene, cand, cls)
+        V = resolve_degenerate(scene, vertices_from(scene, cand, cls))
         pb.update()
         V.update(derive(scene, V)[0])
         pb.update()

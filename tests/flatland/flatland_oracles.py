@@ -324,43 +324,48 @@ def exact_F_polygons(objects, i, j, rel=1e-12):
     outer integral by 16-point Gauss–Legendre between the points of edge e where two
     relevant corners align with it (the visible parts are smooth in between), halved
     until two levels agree to ``rel``.  Independent of viscx.flatland."""
-    Pi, Pj = objects[i], objects[j]
-    Li = sum(np.hypot(*(b - a)) for a, b in _edges(Pi))
+    Li = sum(np.hypot(*(b - a)) for a, b in _edges(objects[i]))
+    return sum(exact_F_part(objects, i, j, e0, e1, rel) * np.hypot(*(e1 - e0)) for e0, e1 in _edges(objects[i])) / Li
+
+
+def exact_F_part(objects, i, j, e0, e1, rel=1e-12):
+    """F from the piece e0 → e1 of an edge of object i (outward normal on its right) to
+    object j (all its edges), occluded by every other object."""
     total = 0.0
-    for e0, e1 in _edges(Pi):
-        for f0, f1 in _edges(Pj):
-            hull = np.vstack([e0, e1, f0, f1])
-            blockers = [B for k, B in enumerate(objects) if k not in (i, j) and _meets(B, hull)]
-            corners = np.vstack([f0, f1] + blockers)
-            # breakpoints: where the lines through two corners (or f's line) cross e
-            le = np.hypot(*(e1 - e0)); t = (e1 - e0) / le
-            brk = [0.0, le]
-            pairs = [(corners[a], corners[b]) for a in range(len(corners)) for b in range(a + 1, len(corners))]
-            for c1, c2 in pairs + [(f0, f1)]:
-                w = c2 - c1
-                den = t[0] * w[1] - t[1] * w[0]
-                if abs(den) < 1e-300:
-                    continue
-                s = ((c1[0] - e0[0]) * w[1] - (c1[1] - e0[1]) * w[0]) / den
-                if 0 < s < le:
-                    brk.append(s)
-            brk = np.unique(brk)
+    le = np.hypot(*(e1 - e0))
+    for f0, f1 in _edges(objects[j]):
+        hull = np.vstack([e0, e1, f0, f1])
+        blockers = [B for k, B in enumerate(objects) if k not in (i, j) and _meets(B, hull)]
+        corners = np.vstack([f0, f1] + blockers)
+        # breakpoints: where the lines through two corners (or f's line) cross e
+        t = (e1 - e0) / le
+        brk = [0.0, le]
+        pairs = [(corners[a], corners[b]) for a in range(len(corners)) for b in range(a + 1, len(corners))]
+        for c1, c2 in pairs + [(f0, f1)]:
+            w = c2 - c1
+            den = t[0] * w[1] - t[1] * w[0]
+            if abs(den) < 1e-300:
+                continue
+            s = ((c1[0] - e0[0]) * w[1] - (c1[1] - e0[1]) * w[0]) / den
+            if 0 < s < le:
+                brk.append(s)
+        brk = np.unique(brk)
 
-            def integral(br):
-                a, b = br[:-1], br[1:]
-                s = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * _GL16[0][None, :]
-                w = (0.5 * (b - a))[:, None] * _GL16[1][None, :]
-                x = e0 + s.ravel()[:, None] * t
-                return float(np.sum(w.ravel() * _point_to_edge(x, e0, e1, f0, f1, blockers)))
+        def integral(br):
+            a, b = br[:-1], br[1:]
+            s = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * _GL16[0][None, :]
+            w = (0.5 * (b - a))[:, None] * _GL16[1][None, :]
+            x = e0 + s.ravel()[:, None] * t
+            return float(np.sum(w.ravel() * _point_to_edge(x, e0, e1, f0, f1, blockers)))
 
-            prev = integral(brk)
-            for _ in range(4):
-                brk = np.unique(np.concatenate([brk, 0.5 * (brk[1:] + brk[:-1])]))
-                cur = integral(brk)
-                if abs(cur - prev) <= rel * Li:
-                    break
-                prev = cur
-            else:
-                raise AssertionError(f"oracle did not converge ({abs(cur - prev):.2e})")
-            total += cur
-    return total / Li
+        prev = integral(brk)
+        for _ in range(4):
+            brk = np.unique(np.concatenate([brk, 0.5 * (brk[1:] + brk[:-1])]))
+            cur = integral(brk)
+            if abs(cur - prev) <= rel * le:
+                break
+            prev = cur
+        else:
+            raise AssertionError(f"oracle did not converge ({abs(cur - prev):.2e})")
+        total += cur
+    return total / le

@@ -128,29 +128,42 @@ def formfactor(ctx, file, method, output):
 @flatland.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @output_option("The flatland HDF5 (.h5) or msgpack file to write, with the mesh and radiosity.")
+@click.option("--sky-radiance", type=float, default=0.0, show_default=True, metavar="L",
+              help="Radiosity of a uniform sky (an emitter at infinity): gives each element its diffuse "
+                   "irradiance, per side for segments.")
 @click.pass_context
-def radiosity(ctx, file, output):
+def radiosity(ctx, file, output, sky_radiance):
     """Discontinuity mesh from the complex's vertices, element form factors, B = E + ρFB.
 
     \b
     viscx flatland radiosity three.h5 -o three_rad.h5
     viscx flatland radiosity sample_scenes/flatland/three_circles.json -o three_rad.h5
+    viscx flatland radiosity rows.json --sky-radiance 1 -o rows_rad.h5
     """
     import numpy as np
 
     from viscx.flatland.mesh import radiosity as solve
+    from viscx.flatland.scene import SEGMENT
     from viscx.formats.flatland import write_any
 
     q = quiet(ctx)
     cx = _load_complex(file, q)
-    mesh = solve(cx, quiet=q)
+    mesh = solve(cx, quiet=q, sky_radiance=sky_radiance)
     write_any(output, cx, mesh)
-    k, B, Le = mesh["elem_obj"], mesh["elem_B"], mesh["elem_length"]
+    k, B, H, Le = mesh["elem_obj"], mesh["elem_B"], mesh["elem_H"], mesh["elem_length"]
     click.echo(f"{len(B)} elements, {int(mesh['iterations'])} Gauss-Seidel sweeps -> {output}")
+
+    def mean(x, m):
+        return np.sum(x[m] * Le[m]) / np.sum(Le[m])
+
     for i in range(cx.scene.n):
         m = k == i
-        click.echo(f"  {cx.scene.names[i]}: mean B = {np.sum(B[m] * Le[m]) / np.sum(Le[m]):.6g} "
-                   f"(min {B[m].min():.6g}, max {B[m].max():.6g})")
+        line = (f"  {cx.scene.names[i]}: mean B = {mean(B, m):.6g} (min {B[m].min():.6g}, max {B[m].max():.6g}), "
+                f"mean irradiance {mean(H, m):.6g}")
+        if cx.scene.kind[i] == SEGMENT:
+            side = mesh["elem_edge"]
+            line += f" (right side {mean(H, m & (side == 0)):.6g}, left side {mean(H, m & (side == 1)):.6g})"
+        click.echo(line)
 
 
 @flatland.command()

@@ -570,3 +570,23 @@ def local_arrangement(xa, xb, right, c):
             obj_[cnt] = xj == xb[j]
             cnt += 1
     return oi[:cnt], oj[:cnt], ot[:cnt], otl[:cnt], ohd[:cnt], obi[:cnt], obj_[:cnt]
+
+
+@nb.njit(cache=True)
+def line_hits(ox, oy, dx, dy, eps, kind, vert_start, verts, radius):
+    """Every object the whole line o + t d cuts deeper than eps (:func:`depth`), with its
+    chord (t_in, t_out), in object order.  O(n): used once per degenerate line (a line
+    touching several objects), instead of one grid walk per pair of touched objects."""
+    n = kind.shape[0]
+    hk = np.empty(n, np.int64)
+    ti = np.empty(n)
+    to = np.empty(n)
+    cnt = 0
+    for k in range(n):
+        if depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius) > eps:
+            a, b = chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
+            hk[cnt] = k
+            ti[cnt] = a
+            to[cnt] = b
+            cnt += 1
+    return hk[:cnt], ti[:cnt], to[:cnt]

@@ -1,10 +1,12 @@
-"""Flatland benchmark: build time and complex size for random circle scenes, and the
-dynamic update (one object moved) against a rebuild from scratch.
+"""Flatland benchmark: build time and complex size for random circle scenes and for
+uniform PV arrays (degenerate: every panel tip on one line), and the dynamic update (one
+object moved) against a rebuild from scratch.
 
-    python benchmarks/flatland.py            # 10, 100, 300, 1000 circles
-    python benchmarks/flatland.py 10 100     # chosen sizes
+    python benchmarks/flatland.py            # 10, 100, 300, 1000 circles; 10, 100, 1000 rows
+    python benchmarks/flatland.py 10 100     # chosen sizes (circles and rows)
 
-Plain timings (best of a few runs for the small sizes), no assertions.  The first call
+CPU times (user + sys of this process, ``time.process_time``: the machine is shared), best
+of a few runs for the small sizes, medians of 5 moves; no assertions.  The first call
 compiles/loads the numba kernels and is excluded (a warm-up build runs first).
 """
 
@@ -32,22 +34,33 @@ def random_circles(n, seed=0, density=4.0):
     return make_scene([{"type": "circle", "center": c.tolist(), "radius": float(r)} for c, r in zip(centres, radii)])
 
 
+def panel_rows(n, pitch=3.0, width=2.0, tilt=25.0, height=1.0):
+    """n identical panels (segments) tilted by ``tilt`` degrees at a constant pitch above a
+    ground block: the layout of a PV plant, degenerate (all tips on one line)."""
+    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+    objs = [{"type": "segment", "points": [[i * pitch, height], [i * pitch + width * c, height + width * s]]}
+            for i in range(n)]
+    objs.append({"type": "polygon", "points": [[-5, -1], [n * pitch + 5, -1], [n * pitch + 5, 0], [-5, 0]]})
+    return make_scene(objs)
+
+
 def timed(f, repeat=1):
     best, out = np.inf, None
     for _ in range(repeat):
-        t = time.perf_counter()
+        t = time.process_time()
         out = f()
-        best = min(best, time.perf_counter() - t)
+        best = min(best, time.process_time() - t)
     return best, out
 
 
-def measure(sizes):
+def measure(sizes, make=None, step=0.5):
     """One row per size: (n, vertices, edges, faces, build s, candidates s, freeness s,
     median move s, median rebuild s, (mean form factors recomputed, mean total))."""
+    make = make or (lambda n: random_circles(n, seed=n))
     build(random_circles(5))  # warm-up: numba cache
     rows = []
     for n in sizes:
-        scene = random_circles(n, seed=n)
+        scene = make(n)
         rep = 3 if n <= 300 else 1
         t_build, cx = timed(lambda: build(scene), rep)
         # stage split of the build
@@ -59,7 +72,7 @@ def measure(sizes):
         for _ in range(5):
             while True:
                 k = int(rng.integers(n))
-                dx, dy = rng.uniform(-0.5, 0.5, 2)
+                dx, dy = rng.uniform(-step, step, 2)
                 try:
                     t_m, (moved, stats) = timed(lambda: move(cx, k, dx, dy))
                     break
@@ -76,7 +89,13 @@ def measure(sizes):
 
 
 def main(sizes):
-    rows = measure(sizes)
+    for title, make, ns in (("random circles", None, sizes or [10, 100, 300, 1000]),
+                            ("uniform rows (segments) above a ground block", panel_rows, sizes or [10, 100, 1000])):
+        print(title)
+        table(measure(ns, make, step=0.5 if make is None else 0.2))
+
+
+def table(rows):
     head = (f"{'n':>5} {'vertices':>9} {'edges':>8} {'faces':>7} {'build s':>8} {'(cand s':>8} {'free s)':>8} "
             f"{'move s':>8} {'rebuild s':>9} {'FF recomputed / total':>22}")
     print(head)
@@ -86,4 +105,4 @@ def main(sizes):
 
 
 if __name__ == "__main__":
-    main([int(x) for x in sys.argv[1:]] or [10, 100, 300, 1000])
+    main([int(x) for x in sys.argv[1:]])

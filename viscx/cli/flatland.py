@@ -58,8 +58,8 @@ def flatland():
 @click.option("--epsilon", type=float, default=None, metavar="EPS",
               help="Chord length below which a line only grazes an object. Default: 1e-9 of the scene diagonal.")
 @click.option("--perturb", type=float, default=None, metavar="REL",
-              help="Rotate and shift every object by ~REL x the scene diagonal first (breaks collinear "
-                   "edges of different objects, a degeneracy reported otherwise), e.g. 1e-7.")
+              help="Rotate and shift every object by ~REL x the scene diagonal first, e.g. 1e-7. Not needed "
+                   "for degenerate layouts (aligned rows, grids: built exactly); kept to test sensitivity.")
 @click.pass_context
 def build(ctx, scene_file, output, epsilon, perturb):
     """Build the visibility complex of a JSON, SVG or DXF flatland scene.
@@ -67,7 +67,7 @@ def build(ctx, scene_file, output, epsilon, perturb):
     \b
     viscx flatland build sample_scenes/flatland/three_circles.json -o three.h5
     viscx flatland build sample_scenes/flatland/room.svg -o room.msgpack
-    viscx flatland build plan.dxf --perturb 1e-7 -o plan.h5
+    viscx flatland build plan.dxf -o plan.h5
     """
     from viscx.flatland.complex import build as build_complex
     from viscx.flatland.scene import load_scene

@@ -82,6 +82,8 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     old_keys = cx.v_key
     redo_keys = cand["key"][todo]
     keep_old = ~np.isin(old_keys, redo_keys)
+    if "v_tau" not in cx.arrays:  # a file written before degenerate lines were resolved
+        cx.arrays["v_tau"] = np.zeros(cx.n_vertices)
     V = {}
     for name in ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q", "v_length", "v_seg"):
         V[name] = np.concatenate([cx.arrays[name][keep_old], fresh[name]])

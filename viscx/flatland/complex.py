@@ -389,19 +389,20 @@ def _resolve_line(scene, V, idx, tol):
     n = np.array([-d[1], d[0]])
     ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
     ent = [(int(x) // 2, int(x) % 2) for x in ent]
-    objs = [k for k, _ in ent]
-    if len(set(objs)) != len(objs):
-        k = next(k for k in objs if objs.count(k) > 1)
-        raise ViscxError(f"object {scene.names[k]!r} lies along a line that other objects touch "
-                         "(an object touching a line on both sides is not resolved)")
     rows = []
     for k, sd in ent:
         a, b, ja, jb, pa, pb = _contact(scene, k, sd, d, n, tol)
         rows.append((a, b, k, sd, ja, jb, pa, pb))
-    rows.sort(key=lambda r: r[0])
+    rows.sort(key=lambda r: (r[0], r[2], r[3]))
     xa = np.array([r[0] for r in rows]); xb = np.array([r[1] for r in rows])
-    if np.any(xa[1:] <= xb[:-1]):
-        i = int(np.nonzero(xa[1:] <= xb[:-1])[0][0])
+    obj = np.array([r[2] for r in rows])
+    # an object touching the line on both sides lies along it (a segment): two adjacent entries
+    mate = np.full(len(rows), -1, np.int64)
+    two = np.nonzero(obj[1:] == obj[:-1])[0]
+    mate[two], mate[two + 1] = two + 1, two
+    clash = (xa[1:] <= xb[:-1]) & (obj[1:] != obj[:-1])
+    if np.any(clash):
+        i = int(np.nonzero(clash)[0][0])
         raise ViscxError(f"objects {scene.names[rows[i][2]]!r} and {scene.names[rows[i + 1][2]]!r} touch the same "
                          "line at one point; flatland objects must be disjoint")
     right = np.array([r[3] == R for r in rows])
@@ -410,10 +411,14 @@ def _resolve_line(scene, V, idx, tol):
     x = (0.5 * (xa + xb) - 0.5 * (lo + hi)) / half
     delta = 1.0 + np.where(right, 1.0, _W_LEFT) * (x - _X0) ** 2
     c = np.where(right, -delta, delta)
+    # an object along the line is translated across it by a push of its own range
+    # (0.25, 0.5], distinct from every one-sided push (|c| ≥ 1)
+    c = np.where(mate >= 0, 0.5 / (1.0 + (x - _X0) ** 2), c)
     ci = 0.5 * (lo + hi)
-    pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c)
-    n = scene.n
-    mkey = V["v_obj"][idx, 0] * n + V["v_obj"][idx, 1]
+    pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
+    n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
+    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
+    mkey = ends[:, 0] * n2 + ends[:, 1]
     mo = np.argsort(mkey)
     mkey, midx = mkey[mo], idx[mo]
     T, H = int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]])
@@ -421,7 +426,7 @@ def _resolve_line(scene, V, idx, tol):
     out = []
     for i, j, t, a_, b_, bi, bj in zip(pi, pj, tau, tl, hd, ib, jb):
         ri, rj = rows[i], rows[j]
-        key = ri[2] * n + rj[2]
+        key = (ri[2] * 2 + ri[3]) * n2 + rj[2] * 2 + rj[3]
         at = int(np.searchsorted(mkey, key))
         if at == mkey.size or mkey[at] != key:
             raise ViscxError(f"degenerate line through {scene.names[ri[2]]!r} and {scene.names[rj[2]]!r} could "

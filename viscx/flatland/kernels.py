@@ -489,13 +489,21 @@ def _local_u(l, tau, xa, xb, right, c):
 
 
 @nb.njit(cache=True)
-def _crosses(l, tau, u, xa, xb, right, c):
+def _crosses(l, tau, u, xa, xb, right, c, mate):
+    """Whether the line (τ, u) crosses the object of entry l: below its right-side curve
+    or above its left-side one; between both for an object lying along the line (a
+    segment: two entries, ``mate`` the other one)."""
     f = _local_u(l, tau, xa, xb, right, c)
-    return u < f if right[l] else u > f
+    inside = u < f if right[l] else u > f
+    m = mate[l]
+    if m < 0 or not inside:
+        return inside
+    g = _local_u(m, tau, xa, xb, right, c)
+    return u < g if right[m] else u > g
 
 
 @nb.njit(cache=True)
-def local_arrangement(xa, xb, right, c):
+def local_arrangement(xa, xb, right, c, mate):
     """The simple vertices that a degenerate free line splits into under a symbolic
     perturbation (the objects touching one maximal free segment, pushed off it).
 
@@ -519,6 +527,9 @@ def local_arrangement(xa, xb, right, c):
     xa, xb : (m,) float64  contact intervals along ℓ*, sorted, disjoint (b_i < a_{i+1})
     right : (m,) bool  side R
     c : (m,) float64  the push (generic: no two equal for one side)
+    mate : (m,) int64  for an object lying along ℓ* (a segment), the index of its entry on
+        the other side (adjacent), else −1; it is translated across ℓ* by c (both
+        entries), and crossing it means lying between its two curves
 
     Returns (i, j, tau, tail, head, i_at_b, j_at_b): the free pairs, their local angle,
     tail / head entries (−1: the segment's own), and whether the tangent point is the
@@ -535,6 +546,8 @@ def local_arrangement(xa, xb, right, c):
     cnt = 0
     for i in range(m):
         for j in range(i + 1, m):
+            if mate[i] == j:
+                continue
             g0 = c[i] - c[j]
             if g0 < 0.0:  # root at τ > 0
                 xi = xa[i] if right[i] else xb[i]
@@ -546,19 +559,19 @@ def local_arrangement(xa, xb, right, c):
             u = c[i] - xi * tau
             free = True
             for l in range(i + 1, j):
-                if _crosses(l, tau, u, xa, xb, right, c):
+                if l != mate[i] and l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
                     free = False
                     break
             if not free:
                 continue
             tl = -1
             for l in range(i - 1, -1, -1):
-                if _crosses(l, tau, u, xa, xb, right, c):
+                if l != mate[i] and _crosses(l, tau, u, xa, xb, right, c, mate):
                     tl = l
                     break
             hd = -1
             for l in range(j + 1, m):
-                if _crosses(l, tau, u, xa, xb, right, c):
+                if l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
                     hd = l
                     break
             oi[cnt] = i

@@ -4,12 +4,20 @@ object moved) against a rebuild from scratch.
 
     python benchmarks/flatland.py            # 10, 100, 300, 1000 circles; 10, 100, 1000 rows
     python benchmarks/flatland.py 10 100     # chosen sizes (circles and rows)
+    python benchmarks/flatland.py --pvfactors /work/side-flatland/bin/python 3 10 30 100 300
+
+``--pvfactors PYTHON``: a side-by-side with pvfactors (solarfactors), installed in a SIDE
+environment (never a viscx dependency) whose interpreter is PYTHON, run there as a
+subprocess: its view-factor matrix of an ordered PV array against viscx's form factors of
+the same geometry (panels as segments, its ground as a segment from x = −100 to 100).
 
 CPU times (user + sys of this process, ``time.process_time``: the machine is shared), best
 of a few runs for the small sizes, medians of 5 moves; no assertions.  The first call
 compiles/loads the numba kernels and is excluded (a warm-up build runs first).
 """
 
+import json
+import subprocess
 import sys
 import time
 
@@ -104,5 +112,65 @@ def table(rows):
               f"{a:>10.1f} / {b:<10.1f}")
 
 
+# pvfactors side: geometry, view-factor matrix timed, and per-row aggregates (both sides of
+# each row together, weighted by length: the object form factors viscx computes)
+_PVF = r"""
+import json, sys, time
+import numpy as np
+from pvfactors.geometry import OrderedPVArray
+from pvfactors.viewfactors import VFCalculator
+n, width, height, tilt, gcr = json.loads(sys.argv[1])
+params = dict(n_pvrows=n, pvrow_height=height, pvrow_width=width, axis_azimuth=0.0, surface_tilt=tilt,
+              surface_azimuth=90.0, solar_zenith=30.0, solar_azimuth=90.0, gcr=gcr)
+pv = OrderedPVArray.fit_from_dict_of_scalars(params)
+t = time.process_time()
+vf = VFCalculator().build_ts_vf_matrix(pv)[:, :, 0]
+dt = time.process_time() - t
+length = np.array([float(s.length[0]) for s in pv.all_ts_surfaces] + [0.0])
+ground = [s.index for s in pv.ts_ground.all_ts_surfaces]
+rows = [[s.index for s in r.front.all_ts_surfaces + r.back.all_ts_surfaces] for r in pv.ts_pvrows]
+targets = rows + [ground, [vf.shape[0] - 1]]
+F = np.zeros((n, n + 2))
+for i, src in enumerate(rows):
+    w = length[src] / length[src].sum()
+    for j, dst in enumerate(targets):
+        F[i, j] = float(w @ vf[np.ix_(src, dst)].sum(axis=1))
+ends = [r.full_pvrow_coords.as_array[:, :, 0].tolist() for r in pv.ts_pvrows]
+print(json.dumps({"seconds": dt, "F": F.tolist(), "ends": ends}))
+"""
+
+
+def pvfactors_side_by_side(python, sizes, width=2.0, height=1.5, tilt=25.0, gcr=0.4):
+    """Rows: (n, pvfactors s, viscx s, max |ΔF| over rows → rows, ground, sky) or the
+    error pvfactors stopped with.  CPU seconds of the view-factor step on each side."""
+    out = []
+    for n in sizes:
+        r = subprocess.run(["prlimit", "--as=7000000000", python, "-c", _PVF, json.dumps([n, width, height, tilt, gcr])],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            out.append((n, r.stderr.strip().splitlines()[-1][:80] if r.stderr.strip() else f"exit {r.returncode}",
+                        None, None))
+            continue
+        doc = json.loads(r.stdout)
+        objs = [{"type": "segment", "points": e} for e in doc["ends"]]
+        objs.append({"type": "segment", "points": [[-100.0, 0.0], [100.0, 0.0]], "name": "ground"})
+        scene = make_scene(objs)
+        t, cx = timed(lambda: build(scene))
+        F = cx.F_area[:n]
+        # pvfactors sees only the ground's top: lines leaving a row never reach its underside
+        ours = np.concatenate([F[:, :n], F[:, n:n + 1], F[:, -1:]], axis=1)
+        out.append((n, doc["seconds"], t, float(np.max(np.abs(ours - np.array(doc["F"]))))))
+    return out
+
+
 if __name__ == "__main__":
+    if len(sys.argv) > 2 and sys.argv[1] == "--pvfactors":
+        build(random_circles(5))
+        print(f"{'rows':>5} {'pvfactors s':>12} {'viscx s':>8} {'max |dF|':>9}")
+        for n, a, b, d in pvfactors_side_by_side(sys.argv[2], [int(x) for x in sys.argv[3:]] or [3, 10, 30, 100]):
+            if b is None:
+                print(f"{n:>5} {a}")
+            else:
+                print(f"{n:>5} {a:>12.3f} {b:>8.3f} {d:>9.2e}")
+        sys.exit(0)
     main([int(x) for x in sys.argv[1:]])

@@ -12,6 +12,16 @@ from viscx.flatland.complex import build
 from viscx.flatland.scene import SEGMENT, load_scene, make_scene
 
 
+def assert_exact(scene, cx):
+    """Both methods agree, rows sum to 1, every F_ij equals the exact integration."""
+    assert np.max(np.abs(cx.F_area - cx.F_strings)) < 1e-9
+    assert np.max(np.abs(cx.F_area.sum(axis=1) - 1.0)) < 1e-9
+    objs = corners_of(scene)
+    worst = max(abs(exact_F_polygons(objs, i, j) - cx.F_area[i, j])
+                for i in range(scene.n) for j in range(scene.n) if i != j)
+    assert worst < 1e-9, worst
+
+
 @pytest.fixture(scope="module")
 def rows_of_segments():
     scene = panel_rows(5, thick=0)
@@ -25,12 +35,7 @@ def test_rows_of_segments_exact(rows_of_segments):
     assert np.all(scene.kind[:-1] == SEGMENT)
     # two-sided: the perimeter is twice the length
     assert np.allclose(scene.perimeters()[:-1], 4.0)
-    assert np.max(np.abs(cx.F_area - cx.F_strings)) < 1e-9
-    assert np.max(np.abs(cx.F_area.sum(axis=1) - 1.0)) < 1e-9
-    objs = corners_of(scene)
-    worst = max(abs(exact_F_polygons(objs, i, j) - cx.F_area[i, j])
-                for i in range(scene.n) for j in range(scene.n) if i != j)
-    assert worst < 1e-9, worst
+    assert_exact(scene, cx)
 
 
 def test_segments_monte_carlo():
@@ -128,9 +133,4 @@ def test_segments_along_a_shared_line_exact(scene):
     collinear fence pieces): both sides of each touch it; resolved by translating the
     segment across the line, exact to 1e-9."""
     cx = build(scene)
-    assert np.max(np.abs(cx.F_area - cx.F_strings)) < 1e-9
-    assert np.max(np.abs(cx.F_area.sum(axis=1) - 1.0)) < 1e-9
-    objs = corners_of(scene)
-    worst = max(abs(exact_F_polygons(objs, i, j) - cx.F_area[i, j])
-                for i in range(scene.n) for j in range(scene.n) if i != j)
-    assert worst < 1e-9, worst
+    assert_exact(scene, cx)

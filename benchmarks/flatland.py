@@ -1,13 +1,23 @@
-"""Flatland benchmark: build time and complex size for random circle scenes, and the
-dynamic update (one object moved) against a rebuild from scratch.
+"""Flatland benchmark: build time and complex size for random circle scenes and for
+uniform PV arrays (degenerate: every panel tip on one line), and the dynamic update (one
+object moved) against a rebuild from scratch.
 
-    python benchmarks/flatland.py            # 10, 100, 300, 1000 circles
-    python benchmarks/flatland.py 10 100     # chosen sizes
+    python benchmarks/flatland.py            # 10, 100, 300, 1000 circles; 10, 100, 1000 rows
+    python benchmarks/flatland.py 10 100     # chosen sizes (circles and rows)
+    python benchmarks/flatland.py --pvfactors /work/side-flatland/bin/python 3 10 30 100 300
 
-Plain timings (best of a few runs for the small sizes), no assertions.  The first call
+``--pvfactors PYTHON``: a side-by-side with pvfactors (solarfactors), installed in a SIDE
+environment (never a viscx dependency) whose interpreter is PYTHON, run there as a
+subprocess: its view-factor matrix of an ordered PV array against viscx's form factors of
+the same geometry (panels as segments, its ground as a segment from x = −100 to 100).
+
+CPU times (user + sys of this process, ``time.process_time``: the machine is shared), best
+of a few runs for the small sizes, medians of 5 moves; no assertions.  The first call
 compiles/loads the numba kernels and is excluded (a warm-up build runs first).
 """
 
+import json
+import subprocess
 import sys
 import time
 
@@ -32,22 +42,33 @@ def random_circles(n, seed=0, density=4.0):
     return make_scene([{"type": "circle", "center": c.tolist(), "radius": float(r)} for c, r in zip(centres, radii)])
 
 
+def panel_rows(n, pitch=3.0, width=2.0, tilt=25.0, height=1.0):
+    """n identical panels (segments) tilted by ``tilt`` degrees at a constant pitch above a
+    ground block: the layout of a PV plant, degenerate (all tips on one line)."""
+    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+    objs = [{"type": "segment", "points": [[i * pitch, height], [i * pitch + width * c, height + width * s]]}
+            for i in range(n)]
+    objs.append({"type": "polygon", "points": [[-5, -1], [n * pitch + 5, -1], [n * pitch + 5, 0], [-5, 0]]})
+    return make_scene(objs)
+
+
 def timed(f, repeat=1):
     best, out = np.inf, None
     for _ in range(repeat):
-        t = time.perf_counter()
+        t = time.process_time()
         out = f()
-        best = min(best, time.perf_counter() - t)
+        best = min(best, time.process_time() - t)
     return best, out
 
 
-def measure(sizes):
+def measure(sizes, make=None, step=0.5):
     """One row per size: (n, vertices, edges, faces, build s, candidates s, freeness s,
     median move s, median rebuild s, (mean form factors recomputed, mean total))."""
+    make = make or (lambda n: random_circles(n, seed=n))
     build(random_circles(5))  # warm-up: numba cache
     rows = []
     for n in sizes:
-        scene = random_circles(n, seed=n)
+        scene = make(n)
         rep = 3 if n <= 300 else 1
         t_build, cx = timed(lambda: build(scene), rep)
         # stage split of the build
@@ -59,7 +80,7 @@ def measure(sizes):
         for _ in range(5):
             while True:
                 k = int(rng.integers(n))
-                dx, dy = rng.uniform(-0.5, 0.5, 2)
+                dx, dy = rng.uniform(-step, step, 2)
                 try:
                     t_m, (moved, stats) = timed(lambda: move(cx, k, dx, dy))
                     break
@@ -76,7 +97,13 @@ def measure(sizes):
 
 
 def main(sizes):
-    rows = measure(sizes)
+    for title, make, ns in (("random circles", None, sizes or [10, 100, 300, 1000]),
+                            ("uniform rows (segments) above a ground block", panel_rows, sizes or [10, 100, 1000])):
+        print(title)
+        table(measure(ns, make, step=0.5 if make is None else 0.2))
+
+
+def table(rows):
     head = (f"{'n':>5} {'vertices':>9} {'edges':>8} {'faces':>7} {'build s':>8} {'(cand s':>8} {'free s)':>8} "
             f"{'move s':>8} {'rebuild s':>9} {'FF recomputed / total':>22}")
     print(head)
@@ -85,5 +112,65 @@ def main(sizes):
               f"{a:>10.1f} / {b:<10.1f}")
 
 
+# pvfactors side: geometry, view-factor matrix timed, and per-row aggregates (both sides of
+# each row together, weighted by length: the object form factors viscx computes)
+_PVF = r"""
+import json, sys, time
+import numpy as np
+from pvfactors.geometry import OrderedPVArray
+from pvfactors.viewfactors import VFCalculator
+n, width, height, tilt, gcr = json.loads(sys.argv[1])
+params = dict(n_pvrows=n, pvrow_height=height, pvrow_width=width, axis_azimuth=0.0, surface_tilt=tilt,
+              surface_azimuth=90.0, solar_zenith=30.0, solar_azimuth=90.0, gcr=gcr)
+pv = OrderedPVArray.fit_from_dict_of_scalars(params)
+t = time.process_time()
+vf = VFCalculator().build_ts_vf_matrix(pv)[:, :, 0]
+dt = time.process_time() - t
+length = np.array([float(s.length[0]) for s in pv.all_ts_surfaces] + [0.0])
+ground = [s.index for s in pv.ts_ground.all_ts_surfaces]
+rows = [[s.index for s in r.front.all_ts_surfaces + r.back.all_ts_surfaces] for r in pv.ts_pvrows]
+targets = rows + [ground, [vf.shape[0] - 1]]
+F = np.zeros((n, n + 2))
+for i, src in enumerate(rows):
+    w = length[src] / length[src].sum()
+    for j, dst in enumerate(targets):
+        F[i, j] = float(w @ vf[np.ix_(src, dst)].sum(axis=1))
+ends = [r.full_pvrow_coords.as_array[:, :, 0].tolist() for r in pv.ts_pvrows]
+print(json.dumps({"seconds": dt, "F": F.tolist(), "ends": ends}))
+"""
+
+
+def pvfactors_side_by_side(python, sizes, width=2.0, height=1.5, tilt=25.0, gcr=0.4):
+    """Rows: (n, pvfactors s, viscx s, max |ΔF| over rows → rows, ground, sky) or the
+    error pvfactors stopped with.  CPU seconds of the view-factor step on each side."""
+    out = []
+    for n in sizes:
+        r = subprocess.run(["prlimit", "--as=7000000000", python, "-c", _PVF, json.dumps([n, width, height, tilt, gcr])],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            out.append((n, r.stderr.strip().splitlines()[-1][:80] if r.stderr.strip() else f"exit {r.returncode}",
+                        None, None))
+            continue
+        doc = json.loads(r.stdout)
+        objs = [{"type": "segment", "points": e} for e in doc["ends"]]
+        objs.append({"type": "segment", "points": [[-100.0, 0.0], [100.0, 0.0]], "name": "ground"})
+        scene = make_scene(objs)
+        t, cx = timed(lambda: build(scene))
+        F = cx.F_area[:n]
+        # pvfactors sees only the ground's top: lines leaving a row never reach its underside
+        ours = np.concatenate([F[:, :n], F[:, n:n + 1], F[:, -1:]], axis=1)
+        out.append((n, doc["seconds"], t, float(np.max(np.abs(ours - np.array(doc["F"]))))))
+    return out
+
+
 if __name__ == "__main__":
-    main([int(x) for x in sys.argv[1:]] or [10, 100, 300, 1000])
+    if len(sys.argv) > 2 and sys.argv[1] == "--pvfactors":
+        build(random_circles(5))
+        print(f"{'rows':>5} {'pvfactors s':>12} {'viscx s':>8} {'max |dF|':>9}")
+        for n, a, b, d in pvfactors_side_by_side(sys.argv[2], [int(x) for x in sys.argv[3:]] or [3, 10, 30, 100]):
+            if b is None:
+                print(f"{n:>5} {a}")
+            else:
+                print(f"{n:>5} {a:>12.3f} {b:>8.3f} {d:>9.2e}")
+        sys.exit(0)
+    main([int(x) for x in sys.argv[1:]])

@@ -54,3 +54,37 @@ def occluded_scene():
         {"type": "circle", "center": [3, 3], "radius": 0.7, "reflectance": 0.6},
         {"type": "polygon", "points": [[1, -3], [4, -3.5], [3, -2]], "reflectance": 0.4},
     ])
+
+
+def panel_rows(n, pitch=3.0, width=2.0, tilt=25.0, height=1.0, thick=1e-3, ground=True):
+    """A uniform PV array: n identical panels tilted by ``tilt`` degrees at a constant pitch
+    above a ground block (every panel tip on one line, every panel foot on another).
+    ``thick`` = 0 makes each panel a segment, else a thin quad."""
+    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+    objs = []
+    for i in range(n):
+        p0 = np.array([i * pitch, height])
+        p1 = p0 + width * np.array([c, s])
+        if thick == 0:
+            objs.append({"type": "segment", "points": [p0.tolist(), p1.tolist()], "name": f"row{i}"})
+        else:
+            off = thick * np.array([-s, c])
+            objs.append({"type": "polygon", "points": [p0.tolist(), p1.tolist(), (p1 + off).tolist(), (p0 + off).tolist()],
+                         "name": f"row{i}"})
+    if ground:
+        objs.append({"type": "polygon", "points": [[-5, -1], [n * pitch + 5, -1], [n * pitch + 5, 0], [-5, 0]],
+                     "name": "ground"})
+    return make_scene(objs)
+
+
+def square_grid(n=20, pitch=3.0, side=1.0):
+    """n × n axis-aligned square columns on a lattice (rows, columns and lattice lines of
+    every rational slope touch many corners or edges at once)."""
+    return make_scene([{"type": "polygon", "points": [[i * pitch, j * pitch], [i * pitch + side, j * pitch],
+                                                      [i * pitch + side, j * pitch + side], [i * pitch, j * pitch + side]],
+                        "name": f"col{i}_{j}"} for i in range(n) for j in range(n)])
+
+
+def corners_of(scene):
+    """[(m, 2) corners] of every (polygon or segment) object."""
+    return [scene.verts[scene.vert_start[k]:scene.vert_start[k + 1]].copy() for k in range(scene.n)]

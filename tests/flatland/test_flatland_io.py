@@ -41,7 +41,8 @@ def test_svg_shapes_and_materials(tmp_path):
 @pytest.mark.parametrize("body,msg", [
     ('<ellipse id="e" cx="0" cy="0" rx="1" ry="2"/>', "ellipses are not supported"),
     ('<path id="q" d="M 0 0 C 1 1 2 2 3 0 Z"/>', "curved"),
-    ('<path id="o" d="M 0 0 L 1 0 L 1 1"/>', "closed"),
+    ('<path id="o" d="M 0 0 L 1 0 L 1 1"/>', "open polyline"),
+    ('<polyline id="pl" points="0,0 1,0 1,1"/>', "open polyline"),
     ('<polygon id="v" points="0,0 4,0 4,4 2,1 0,4"/>', "'v' is not convex"),
     ('<circle id="a" cx="0" cy="0" r="1"/><circle id="b" cx="1.5" cy="0" r="1"/>', "'a' and 'b' overlap"),
     ('<rect id="rr" x="0" y="0" width="1" height="1" rx="0.2"/>', "rounded"),
@@ -155,3 +156,28 @@ def test_cli_bad_input_is_one_line_error(tmp_path):
             main(argv)
         assert exc.value.code == 2
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_cli_rows_of_segments_with_sky(tmp_path):
+    """The layout a PV engineer draws: a uniform row of panels as segments, built without
+    --perturb, with a sky radiance: per-side irradiance printed; a negative radiance is a
+    one-line error (exit 2) and writes nothing."""
+    from flatland_scenes import panel_rows
+
+    from viscx.cli import cli, main
+    from viscx.cli.flatland import flatland
+
+    if "flatland" not in cli.commands and "flatland" not in getattr(cli, "lazy_commands", {}):
+        cli.add_command(flatland)
+    scene = write(tmp_path, "rows.json", json.dumps(panel_rows(3, thick=0).to_json()))
+    r = CliRunner().invoke(flatland, ["radiosity", str(scene), "--sky-radiance", "1", "-o", str(tmp_path / "r.h5")])
+    assert r.exit_code == 0, r.output
+    assert "right side" in r.output and "left side" in r.output
+    with h5py.File(tmp_path / "r.h5") as f:
+        F = f["mesh/elem_F"][()]
+        assert np.max(np.abs(F.sum(axis=1) - 1)) < 1e-9
+        assert float(f["mesh/sky_radiance"][()]) == 1.0
+    with pytest.raises(SystemExit) as exc:
+        main(["flatland", "radiosity", str(scene), "--sky-radiance", "-1", "-o", str(tmp_path / "bad.h5")])
+    assert exc.value.code == 2
+    assert not (tmp_path / "bad.h5").exists()

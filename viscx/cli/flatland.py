@@ -58,8 +58,8 @@ def flatland():
 @click.option("--epsilon", type=float, default=None, metavar="EPS",
               help="Chord length below which a line only grazes an object. Default: 1e-9 of the scene diagonal.")
 @click.option("--perturb", type=float, default=None, metavar="REL",
-              help="Rotate and shift every object by ~REL x the scene diagonal first (breaks collinear "
-                   "edges of different objects, a degeneracy reported otherwise), e.g. 1e-7.")
+              help="Rotate and shift every object by ~REL x the scene diagonal first, e.g. 1e-7. Not needed "
+                   "for degenerate layouts (aligned rows, grids: built exactly); kept to test sensitivity.")
 @click.pass_context
 def build(ctx, scene_file, output, epsilon, perturb):
     """Build the visibility complex of a JSON, SVG or DXF flatland scene.
@@ -67,7 +67,7 @@ def build(ctx, scene_file, output, epsilon, perturb):
     \b
     viscx flatland build sample_scenes/flatland/three_circles.json -o three.h5
     viscx flatland build sample_scenes/flatland/room.svg -o room.msgpack
-    viscx flatland build plan.dxf --perturb 1e-7 -o plan.h5
+    viscx flatland build plan.dxf -o plan.h5
     """
     from viscx.flatland.complex import build as build_complex
     from viscx.flatland.scene import load_scene
@@ -128,29 +128,42 @@ def formfactor(ctx, file, method, output):
 @flatland.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @output_option("The flatland HDF5 (.h5) or msgpack file to write, with the mesh and radiosity.")
+@click.option("--sky-radiance", type=float, default=0.0, show_default=True, metavar="L",
+              help="Radiosity of a uniform sky (an emitter at infinity): gives each element its diffuse "
+                   "irradiance, per side for segments.")
 @click.pass_context
-def radiosity(ctx, file, output):
+def radiosity(ctx, file, output, sky_radiance):
     """Discontinuity mesh from the complex's vertices, element form factors, B = E + ρFB.
 
     \b
     viscx flatland radiosity three.h5 -o three_rad.h5
     viscx flatland radiosity sample_scenes/flatland/three_circles.json -o three_rad.h5
+    viscx flatland radiosity rows.json --sky-radiance 1 -o rows_rad.h5
     """
     import numpy as np
 
     from viscx.flatland.mesh import radiosity as solve
+    from viscx.flatland.scene import SEGMENT
     from viscx.formats.flatland import write_any
 
     q = quiet(ctx)
     cx = _load_complex(file, q)
-    mesh = solve(cx, quiet=q)
+    mesh = solve(cx, quiet=q, sky_radiance=sky_radiance)
     write_any(output, cx, mesh)
-    k, B, Le = mesh["elem_obj"], mesh["elem_B"], mesh["elem_length"]
+    k, B, H, Le = mesh["elem_obj"], mesh["elem_B"], mesh["elem_H"], mesh["elem_length"]
     click.echo(f"{len(B)} elements, {int(mesh['iterations'])} Gauss-Seidel sweeps -> {output}")
+
+    def mean(x, m):
+        return np.sum(x[m] * Le[m]) / np.sum(Le[m])
+
     for i in range(cx.scene.n):
         m = k == i
-        click.echo(f"  {cx.scene.names[i]}: mean B = {np.sum(B[m] * Le[m]) / np.sum(Le[m]):.6g} "
-                   f"(min {B[m].min():.6g}, max {B[m].max():.6g})")
+        line = (f"  {cx.scene.names[i]}: mean B = {mean(B, m):.6g} (min {B[m].min():.6g}, max {B[m].max():.6g}), "
+                f"mean irradiance {mean(H, m):.6g}")
+        if cx.scene.kind[i] == SEGMENT:
+            side = mesh["elem_edge"]
+            line += f" (right side {mean(H, m & (side == 0)):.6g}, left side {mean(H, m & (side == 1)):.6g})"
+        click.echo(line)
 
 
 @flatland.command()

@@ -54,6 +54,15 @@ from viscx.flatland.scene import SKY, Scene
 
 TWO_PI = 2.0 * math.pi
 L, R = 0, 1
+# two candidate lines closer than this in θ (and than TOL_U × the scene diagonal in u) are
+# one line (rounding of the closed forms is ~1e-13 at 1e4 objects)
+TOL_THETA = 1e-9
+TOL_U = 1e-9
+# the perturbation of resolve_degenerate: δ(x) = 1 + w (x − X0)², X0 = √2 − 1 so that no two
+# positions of a real layout are symmetric about it, w = π/2 on the left side (unrelated
+# constants: three perturbed contacts of a lattice line are then never collinear)
+_X0 = math.sqrt(2.0) - 1.0
+_W_LEFT = 0.5 * math.pi
 
 # slots of an edge (object k, tail t, head h): the three faces it bounds
 SLOT_TK, SLOT_KH, SLOT_TH = 0, 1, 2
@@ -152,8 +161,12 @@ def candidates(scene: Scene, pairs=None):
     root = np.tile(np.array([0, 1, 0, 1]), P)
     side_a = np.ones(4 * P, np.int8)
     side_b = np.where(combo == 0, 1, 0).astype(np.int8)
-    # canonical orientation θ ∈ [0, π): the reversed line swaps both sides
-    flip = theta >= math.pi
+    # canonical orientation θ ∈ [−TOL_THETA, π − TOL_THETA): the reversed line swaps both
+    # sides.  The window is shifted so that one line computed from different pairs (a
+    # horizontal row of panel tips: θ = 1e-17 from one pair, π − 1e-16 from another) gets
+    # one orientation and its copies can be grouped (:func:`resolve_degenerate`).
+    theta = np.where(theta >= TWO_PI - TOL_THETA, theta - TWO_PI, theta)
+    flip = theta >= math.pi - TOL_THETA
     theta = np.where(flip, theta - math.pi, theta)
     side_a = np.where(flip, 1 - side_a, side_a).astype(np.int8)
     side_b = np.where(flip, 1 - side_b, side_b).astype(np.int8)
@@ -162,14 +175,97 @@ def candidates(scene: Scene, pairs=None):
 
 
 def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
-    """Freeness, order and tail/head of candidates (see :func:`kernels.classify_bitangents`)."""
+    """Freeness, order and tail/head of candidates (see :func:`kernels.classify_bitangents`).
+
+    Candidates on one line with at least two others (the m(m−1)/2 pairs of a line touching
+    m objects: a row of panel tips) are classified together from the line's blockers
+    (:func:`_classify_lines`, one O(n) scan per line) instead of one grid walk each."""
     if grid is None:
         grid = K.build_grid(scene.bounding_boxes())
     N = cand["theta"].shape[0]
     todo = np.ones(N, bool) if todo is None else todo
-    return K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
-                                 cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo, eps, *grid,
-                                 scene.kind, scene.vert_start, scene.verts, scene.radius)
+    p, q = _tangent_points(scene, cand)
+    nrm = np.stack([-np.sin(cand["theta"]), np.cos(cand["theta"])], 1)
+    idx = np.nonzero(todo)[0]
+    group = np.full(N, -1, np.int64)
+    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), _tol(scene))
+    size = np.bincount(group[idx]) if idx.size else np.zeros(0, np.int64)
+    on_line = np.zeros(N, bool)
+    on_line[idx] = size[group[idx]] >= 3
+    out = K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
+                                cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, *grid,
+                                scene.kind, scene.vert_start, scene.verts, scene.radius)
+    if np.any(on_line):
+        _classify_lines(scene, cand, p, q, group, np.nonzero(on_line)[0], eps, out)
+    return out
+
+
+def _tol(scene):
+    """Distance below which two lines (in u) or a corner and a line are one (TOL_U × diagonal)."""
+    return TOL_U * default_eps(scene) / 1e-9
+
+
+def _tangent_points(scene, cand):
+    """(N, 2), (N, 2): the tangent points of the candidate lines on objects a and b."""
+    th = cand["theta"]
+    nrm = np.stack([-np.sin(th), np.cos(th)], 1)
+    p = scene.verts[cand["va"]] + ((2.0 * cand["side_a"] - 1.0) * scene.radius[cand["a"]])[:, None] * nrm
+    q = scene.verts[cand["vb"]] + ((2.0 * cand["side_b"] - 1.0) * scene.radius[cand["b"]])[:, None] * nrm
+    return p, q
+
+
+def line_groups(theta, u, tol):
+    """(N,) int64 group ids of lines (θ, u): chains of θ gaps ≤ TOL_THETA, then of u gaps
+    ≤ tol, i.e. the copies of one line computed from different pairs."""
+    N = theta.shape[0]
+    if N == 0:
+        return np.zeros(0, np.int64)
+    o = np.argsort(theta, kind="stable")
+    gth = np.empty(N, np.int64)
+    gth[o] = np.concatenate([[0], np.cumsum(np.diff(theta[o]) > TOL_THETA)])
+    o = np.lexsort((u, gth))
+    brk = np.concatenate([[True], (np.diff(gth[o]) != 0) | (np.diff(u[o]) > tol)])
+    g = np.empty(N, np.int64)
+    g[o] = np.cumsum(brk) - 1
+    return g
+
+
+def _classify_lines(scene, cand, p, q, group, idx, eps, out, chunk=1 << 22):
+    """Classify the candidates ``idx`` line by line, into ``out`` (the arrays of
+    :func:`kernels.classify_bitangents`), with the same rules as the grid walk: blocked
+    by an object cut deeper than eps between the tangent points, tail / head the nearest
+    such objects behind / beyond them."""
+    free, a_first, tail, head, tail_t, head_t = out
+    order = idx[np.argsort(group[idx], kind="stable")]
+    bounds = np.nonzero(np.diff(group[order]))[0] + 1
+    for mem in np.split(order, bounds):
+        th = cand["theta"][mem[0]]
+        d = np.array([math.cos(th), math.sin(th)])
+        o = p[mem[0]]
+        hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
+        tp, tq = (p[mem] - o) @ d, (q[mem] - o) @ d
+        af = tq >= tp
+        s, e = np.minimum(tp, tq), np.maximum(tp, tq)
+        a_first[mem] = af
+        step = max(1, chunk // max(1, hk.size))
+        for c0 in range(0, mem.size, step):
+            c = slice(c0, c0 + step)
+            own = (hk[None, :] == cand["a"][mem[c], None]) | (hk[None, :] == cand["b"][mem[c], None])
+            ahead = ~own & (to[None, :] > s[c, None] + eps)
+            tin = np.where(ahead, ti[None, :], np.inf)
+            j = np.argmin(tin, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
+            first = tin[np.arange(tin.shape[0]), j] if hk.size else np.full(mem[c].size, np.inf)
+            blocked = first < e[c] - eps
+            behind = ~own & (ti[None, :] < s[c, None] - eps)
+            tout = np.where(behind, to[None, :], -np.inf)
+            jt = np.argmax(tout, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
+            last = tout[np.arange(tout.shape[0]), jt] if hk.size else np.full(mem[c].size, -np.inf)
+            m_ = mem[c]
+            free[m_] = ~blocked
+            head[m_] = np.where(blocked, -2, np.where(np.isfinite(first), hk[j] if hk.size else -1, -1))
+            head_t[m_] = np.where(np.isfinite(first), first - e[c], np.inf)
+            tail[m_] = np.where(blocked, -2, np.where(np.isfinite(last), hk[jt] if hk.size else -1, -1))
+            tail_t[m_] = np.where(np.isfinite(last), s[c] - last, np.inf)
 
 
 def vertices_from(scene: Scene, cand: dict, cls) -> dict:
@@ -201,6 +297,156 @@ def vertices_from(scene: Scene, cand: dict, cls) -> dict:
     return dict(v_key=cand["key"][idx], v_obj=np.stack([k1, k2], 1).astype(np.int64), v_support=sup,
                 v_side=np.stack([s1, s2], 1).astype(np.int8), v_tail=tail[idx].astype(np.int64),
                 v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
+
+
+def resolve_degenerate(scene: Scene, V: dict) -> dict:
+    """Degenerate free lines resolved by a symbolic perturbation (adds ``v_tau``).
+
+    Under ε-visibility (a line blocks only where it cuts an object deeper than ε, see
+    :func:`kernels.depth`) a line touching several objects inside one maximal free segment
+    — the tips of a row of identical tilted panels, the tops of aligned columns, a lattice
+    diagonal through corners — is free, and every pair of the objects it touches gives a
+    free bitangent on it: the vertices are not simple (several tangency curves through one
+    point of the dual, polygon edges along the line).  They are grouped here by line
+    (θ within ``TOL_THETA``, u within ``TOL_U`` × the scene diagonal) and by the segment's
+    tail and head, and each group is replaced by the simple vertices of the perturbed
+    scene in which every touching object is pushed off the line by an infinitesimal
+    δ(x) = 1 + w (x̃ − X0)², x̃ its contact position along the line scaled to [−1, 1]
+    (strictly convex in x̃, so a row of tips on one side becomes a strictly convex chain
+    and only consecutive objects see each other; :func:`kernels.local_arrangement` gives
+    the vertices, tails, heads and tangent points).  The vertices keep θ*, and their order
+    along a tangency curve inside the group is the infinitesimal offset ``v_tau``
+    (0 elsewhere), which :func:`derive` uses as the second sort key: the edges between
+    them have length 0, so dual areas and form factors are the limit of the perturbed
+    scene's, i.e. the exact values of the unperturbed one.  The same rule resolves a
+    single pair whose common tangent runs along a polygon edge (the tangent point is the
+    edge's end that the perturbed line touches)."""
+    m = V["v_key"].shape[0]
+    V = dict(V)
+    V["v_tau"] = np.zeros(m)
+    if m == 0:
+        return V
+    th = V["v_theta"]
+    d = np.stack([np.cos(th), np.sin(th)], 1)
+    nrm = np.stack([-d[:, 1], d[:, 0]], 1)
+    u = np.einsum("ij,ij->i", nrm, V["v_p"])
+    tol = _tol(scene)
+    # -- group by line, then by (tail, head): one maximal free segment each
+    gline = line_groups(th, u, tol)
+    n1 = scene.n + 1
+    _, group = np.unique((gline * n1 + V["v_tail"] + 1) * n1 + V["v_head"] + 1, return_inverse=True)
+    group = group.ravel()
+    size = np.bincount(group)
+    need = size[group] >= 2
+    need |= _on_edge(scene, V["v_obj"][:, 0], V["v_support"][:, 0], nrm, tol)
+    need |= _on_edge(scene, V["v_obj"][:, 1], V["v_support"][:, 1], nrm, tol)
+    keep = np.ones(m, bool)
+    gids = np.unique(group[need])
+    members_of = np.split(np.argsort(group, kind="stable"), np.cumsum(size)[:-1])
+    for g in gids:
+        idx = members_of[g]
+        keep[idx] = False
+        for i, row in _resolve_line(scene, V, idx, tol):
+            keep[i] = True
+            for name, val in row.items():
+                V[name][i] = val
+    return {name: arr[keep] for name, arr in V.items()}
+
+
+def _on_edge(scene, obj, sup, nrm, tol):
+    """(m,) bool: the line (normal nrm) through support point sup of object obj also passes
+    through a neighbouring corner (it runs along a polygon edge)."""
+    s, e = scene.vert_start[obj], scene.vert_start[obj + 1]
+    cnt = e - s
+    out = np.zeros(obj.shape[0], bool)
+    poly = cnt >= 2
+    for step in (-1, 1):
+        nb_ = s + np.mod(sup - s + step, np.maximum(cnt, 1))
+        gap = np.einsum("ij,ij->i", nrm, scene.verts[nb_] - scene.verts[sup])
+        out |= poly & (np.abs(gap) <= tol)
+    return out
+
+
+def _contact(scene, k, side, d, n, tol):
+    """Contact of object k (on side R = 1 / L = 0) with a line of direction d, normal n:
+    (positions a ≤ b along d, support indices ja, jb, points pa, pb)."""
+    s, e = scene.vert_start[k], scene.vert_start[k + 1]
+    v = scene.verts[s:e]
+    sig = 2.0 * side - 1.0
+    pts = v + sig * scene.radius[k] * n
+    proj = pts @ n
+    on = np.nonzero(np.abs(proj - (proj.max() if side == R else proj.min())) <= tol)[0]
+    pos = pts[on] @ d
+    ia, ib = on[np.argmin(pos)], on[np.argmax(pos)]
+    return pos.min(), pos.max(), s + ia, s + ib, pts[ia], pts[ib]
+
+
+def _resolve_line(scene, V, idx, tol):
+    """Rows (vertex index, {field: value}) of the perturbed vertices of one degenerate
+    line (see :func:`resolve_degenerate`)."""
+    th = float(V["v_theta"][idx[0]])
+    d = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-d[1], d[0]])
+    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
+    ent = [(int(x) // 2, int(x) % 2) for x in ent]
+    rows = []
+    for k, sd in ent:
+        a, b, ja, jb, pa, pb = _contact(scene, k, sd, d, n, tol)
+        rows.append((a, b, k, sd, ja, jb, pa, pb))
+    rows.sort(key=lambda r: (r[0], r[2], r[3]))
+    xa = np.array([r[0] for r in rows]); xb = np.array([r[1] for r in rows])
+    obj = np.array([r[2] for r in rows])
+    # an object touching the line on both sides lies along it (a segment): two adjacent entries
+    mate = np.full(len(rows), -1, np.int64)
+    two = np.nonzero(obj[1:] == obj[:-1])[0]
+    mate[two], mate[two + 1] = two + 1, two
+    clash = (xa[1:] <= xb[:-1]) & (obj[1:] != obj[:-1])
+    if np.any(clash):
+        i = int(np.nonzero(clash)[0][0])
+        raise ViscxError(f"objects {scene.names[rows[i][2]]!r} and {scene.names[rows[i + 1][2]]!r} touch the same "
+                         "line at one point; flatland objects must be disjoint")
+    right = np.array([r[3] == R for r in rows])
+    lo, hi = xa.min(), xb.max()
+    half = max(0.5 * (hi - lo), 1e-300)
+    x = (0.5 * (xa + xb) - 0.5 * (lo + hi)) / half
+    delta = 1.0 + np.where(right, 1.0, _W_LEFT) * (x - _X0) ** 2
+    c = np.where(right, -delta, delta)
+    # an object along the line is translated across it by a push of its own range
+    # (0.25, 0.5], distinct from every one-sided push (|c| ≥ 1)
+    c = np.where(mate >= 0, 0.5 / (1.0 + (x - _X0) ** 2), c)
+    ci = 0.5 * (lo + hi)
+    pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
+    n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
+    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
+    mkey = ends[:, 0] * n2 + ends[:, 1]
+    mo = np.argsort(mkey)
+    mkey, midx = mkey[mo], idx[mo]
+    T, H = int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]])
+    seg0, seg1 = V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:]
+    out = []
+    for i, j, t, a_, b_, bi, bj in zip(pi, pj, tau, tl, hd, ib, jb):
+        ri, rj = rows[i], rows[j]
+        key = (ri[2] * 2 + ri[3]) * n2 + rj[2] * 2 + rj[3]
+        at = int(np.searchsorted(mkey, key))
+        if at == mkey.size or mkey[at] != key:
+            raise ViscxError(f"degenerate line through {scene.names[ri[2]]!r} and {scene.names[rj[2]]!r} could "
+                             "not be resolved (a common tangent was not found as a candidate)")
+        p = ri[7] if bi else ri[6]
+        q = rj[7] if bj else rj[6]
+        start = seg0 if a_ < 0 else rows[a_][7]
+        end = seg1 if b_ < 0 else rows[b_][6]
+        out.append((int(midx[at]), dict(
+            v_theta=th, v_tau=float(t), v_tail=T if a_ < 0 else rows[a_][2], v_head=H if b_ < 0 else rows[b_][2],
+            v_support=np.array([ri[5] if bi else ri[4], rj[5] if bj else rj[4]]), v_p=p, v_q=q,
+            v_length=float(d @ (q - p)), v_seg=np.concatenate([start, end]))))
+    # the offsets order the vertices along each curve: they must differ on one curve
+    ent_id = np.concatenate([pi, pj])
+    t2 = np.concatenate([tau, tau])
+    o = np.lexsort((t2, ent_id))
+    same = (np.diff(ent_id[o]) == 0) & (np.diff(t2[o]) <= 1e-12 * max(np.abs(tau).max(), 1e-300))
+    if np.any(same):
+        raise ViscxError("a degenerate line could not be resolved (two of its perturbed vertices coincide)")
+    return out
 
 
 def clip_sky_ends(scene, theta, p, q, tail, head, seg):
@@ -246,6 +492,8 @@ def derive(scene: Scene, V: dict, previous: dict | None = None):
     OS1 = np.concatenate([s1, 1 - s2]); OS2 = np.concatenate([s2, 1 - s1])
     OT = np.concatenate([t, h]); OH = np.concatenate([h, t])
     OTH = np.concatenate([th, th + math.pi])
+    tau = V["v_tau"] if "v_tau" in V else np.zeros(m)
+    OTAU = np.concatenate([tau, tau])
     OJ1 = np.concatenate([V["v_support"][:, 0], V["v_support"][:, 1]])
     OJ2 = np.concatenate([V["v_support"][:, 1], V["v_support"][:, 0]])
     n_occ = 2 * m
@@ -255,7 +503,9 @@ def derive(scene: Scene, V: dict, previous: dict | None = None):
     inc_side = np.concatenate([OS1, OS2])
     inc_curve = 2 * inc_obj + inc_side
     inc_theta = np.concatenate([OTH, OTH])
-    order = np.lexsort((inc_occ, inc_theta, inc_curve))
+    # vertices of one resolved degenerate line share θ; their infinitesimal offsets order them
+    inc_tau = np.concatenate([OTAU, OTAU])
+    order = np.lexsort((inc_occ, inc_tau, inc_theta, inc_curve))
     cur = inc_curve[order]
     n_inc = order.shape[0]
     # next incidence on the same curve (cyclic)
@@ -546,7 +796,7 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
         cand = candidates(scene)
         pb.update()
         cls = classify(scene, cand, eps)
-        V = vertices_from(scene, cand, cls)
+        V = resolve_degenerate(scene, vertices_from(scene, cand, cls))
         pb.update()
         V.update(derive(scene, V)[0])
         pb.update()

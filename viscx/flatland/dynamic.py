@@ -77,13 +77,15 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
         c, r = _bounding_disk(sc, k)
         todo |= np.abs(nrm @ c - u) <= r + 10 * eps
     cls = C.classify(new_scene, cand, eps, todo=todo)
-    fresh = C.vertices_from(new_scene, cand, cls)
+    fresh = C.resolve_degenerate(new_scene, C.vertices_from(new_scene, cand, cls))
     # unaffected candidates keep their old status: the old vertices whose keys are not redone
     old_keys = cx.v_key
     redo_keys = cand["key"][todo]
     keep_old = ~np.isin(old_keys, redo_keys)
+    if "v_tau" not in cx.arrays:  # a file written before degenerate lines were resolved
+        cx.arrays["v_tau"] = np.zeros(cx.n_vertices)
     V = {}
-    for name in ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_p", "v_q", "v_length", "v_seg"):
+    for name in ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q", "v_length", "v_seg"):
         V[name] = np.concatenate([cx.arrays[name][keep_old], fresh[name]])
     order = np.argsort(V["v_key"], kind="stable")
     V = {name: arr[order] for name, arr in V.items()}

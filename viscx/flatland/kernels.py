@@ -119,6 +119,27 @@ def chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius):
     return tin, tout
 
 
+@nb.njit(cache=True)
+def depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius):
+    """How deep the line o + t d cuts into object k: min(u − λ, μ − u) with u = n·o and
+    [λ, μ] the object's extent along the line's normal n (support values); ≤ 0 when the
+    line misses or only touches k.  This is the ε-visibility test: a line blocks only
+    where it enters an object's interior by more than ε, so grazing contacts (a line
+    along an edge, through a corner, tangent to a circle, along a segment) never block,
+    whatever the rounding.  Unlike the chord length it is positive for a segment (a
+    two-sided object of zero area) that the line crosses."""
+    nx, ny = -dy, dx
+    u = nx * ox + ny * oy
+    s, e = vert_start[k], vert_start[k + 1]
+    lo, hi = np.inf, -np.inf
+    for i in range(s, e):
+        p = nx * verts[i, 0] + ny * verts[i, 1]
+        lo = min(lo, p)
+        hi = max(hi, p)
+    r = radius[k]
+    return min(u - (lo - r), (hi + r) - u)
+
+
 # ----------------------------------------------------------------------------- grid
 def build_grid(bboxes, target_per_cell=2.0):
     """A uniform grid over the objects' bounding boxes (CSR cell → objects).
@@ -166,8 +187,9 @@ def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
               origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius):
     """First object crossed by the ray o + t d, t > 0 (objects skip1, skip2 ignored).
 
-    Walks the grid cells along the ray (Amanatides–Woo).  An object counts when its chord
-    is longer than ``eps`` and ends beyond t = eps (grazing contacts are not hits).  Stops
+    Walks the grid cells along the ray (Amanatides–Woo).  An object counts when the line
+    cuts deeper than ``eps`` into it (:func:`depth`; grazing contacts are not hits) and it
+    ends beyond t = eps.  Stops
     early and returns as soon as a hit with t_in < ``limit`` is certain to be the first
     one below the current cell (used for 'is [0, limit] free').
 
@@ -218,8 +240,10 @@ def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
             if k == skip1 or k == skip2 or stamp[k] == stamp_id:
                 continue
             stamp[k] = stamp_id
+            if depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius) <= eps:
+                continue  # a line touching k (a corner, an edge, a tangent circle) passes it
             tin, tout = chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
-            if tout - tin > eps and tout > eps:
+            if tout > eps:
                 if tin < best_t:
                     best, best_t = k, tin
         t_exit = min(tx, ty)
@@ -362,7 +386,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
     end its maximal free segment?
 
     The oriented line at θ_i touches oa at p = v_a + σ_a r_a n and ob at q likewise.  The
-    segment between p and q must not cross any third object (chord longer than eps); the
+    segment between p and q must not cut any third object deeper than eps; the
     tail is the first object behind the first tangent point, the head the first one
     beyond the second (−1: the blue sky).
 
@@ -454,3 +478,128 @@ def edge_integrals(obj, side, th0, th1, vert_start, verts, radius, A, cumG, cumS
         s[i] = (contact_length_at(k, th1[i] + sh, j1[i], vert_start, verts, radius, A, cumS, perimeter)
                 - contact_length_at(k, th0[i] + sh, j0[i], vert_start, verts, radius, A, cumS, perimeter))
     return I, s
+
+
+# ----------------------------------------------------------------------------- degeneracies
+@nb.njit(cache=True)
+def _local_u(l, tau, xa, xb, right, c):
+    """u of entry l's tangency curve at the local angle τ (see :func:`local_arrangement`)."""
+    x = (xa[l] if tau > 0.0 else xb[l]) if right[l] else (xb[l] if tau > 0.0 else xa[l])
+    return c[l] - x * tau
+
+
+@nb.njit(cache=True)
+def _crosses(l, tau, u, xa, xb, right, c, mate):
+    """Whether the line (τ, u) crosses the object of entry l: below its right-side curve
+    or above its left-side one; between both for an object lying along the line (a
+    segment: two entries, ``mate`` the other one)."""
+    f = _local_u(l, tau, xa, xb, right, c)
+    inside = u < f if right[l] else u > f
+    m = mate[l]
+    if m < 0 or not inside:
+        return inside
+    g = _local_u(m, tau, xa, xb, right, c)
+    return u < g if right[m] else u > g
+
+
+@nb.njit(cache=True)
+def local_arrangement(xa, xb, right, c, mate):
+    """The simple vertices that a degenerate free line splits into under a symbolic
+    perturbation (the objects touching one maximal free segment, pushed off it).
+
+    Near the degenerate line ℓ* = (θ*, u*), in the local dual coordinates τ = θ − θ*
+    (infinitesimal) and u − u*, the tangency curve of an object touching ℓ* along the
+    interval [a, b] of positions on ℓ* (a = b for a point contact) is to first order
+
+        right side (R):  f(τ) = c − a τ  (τ > 0),  c − b τ  (τ < 0)   (a max of two lines)
+        left side  (L):  f(τ) = c − b τ  (τ > 0),  c − a τ  (τ < 0)   (a min)
+
+    (d/dθ n(θ)·x = −d·x, and the support point of the interval is its end that maximises
+    (R) or minimises (L) n·x), where c is the perturbation: each object is pushed off ℓ*
+    by c (c < 0 for R, > 0 for L).  A line (τ, u) crosses an R entry iff u < f(τ), an L
+    entry iff u > f(τ).  For two entries i < j (positions along ℓ*, intervals disjoint)
+    f_i − f_j increases with τ, so they have exactly one common tangent near ℓ*; it is a
+    vertex iff no entry between them is crossed, and its tail (head) is the nearest entry
+    before i (after j) that it crosses, or the segment's own tail (head) if none.
+
+    Parameters
+    ----------
+    xa, xb : (m,) float64  contact intervals along ℓ*, sorted, disjoint (b_i < a_{i+1})
+    right : (m,) bool  side R
+    c : (m,) float64  the push (generic: no two equal for one side)
+    mate : (m,) int64  for an object lying along ℓ* (a segment), the index of its entry on
+        the other side (adjacent), else −1; it is translated across ℓ* by c (both
+        entries), and crossing it means lying between its two curves
+
+    Returns (i, j, tau, tail, head, i_at_b, j_at_b): the free pairs, their local angle,
+    tail / head entries (−1: the segment's own), and whether the tangent point is the
+    interval's end b (else a)."""
+    m = xa.shape[0]
+    cap = m * (m - 1) // 2
+    oi = np.empty(cap, np.int64)
+    oj = np.empty(cap, np.int64)
+    ot = np.empty(cap)
+    otl = np.empty(cap, np.int64)
+    ohd = np.empty(cap, np.int64)
+    obi = np.empty(cap, np.bool_)
+    obj_ = np.empty(cap, np.bool_)
+    cnt = 0
+    for i in range(m):
+        for j in range(i + 1, m):
+            if mate[i] == j:
+                continue
+            g0 = c[i] - c[j]
+            if g0 < 0.0:  # root at τ > 0
+                xi = xa[i] if right[i] else xb[i]
+                xj = xa[j] if right[j] else xb[j]
+            else:
+                xi = xb[i] if right[i] else xa[i]
+                xj = xb[j] if right[j] else xa[j]
+            tau = -g0 / (xj - xi)
+            u = c[i] - xi * tau
+            free = True
+            for l in range(i + 1, j):
+                if l != mate[i] and l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                    free = False
+                    break
+            if not free:
+                continue
+            tl = -1
+            for l in range(i - 1, -1, -1):
+                if l != mate[i] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                    tl = l
+                    break
+            hd = -1
+            for l in range(j + 1, m):
+                if l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                    hd = l
+                    break
+            oi[cnt] = i
+            oj[cnt] = j
+            ot[cnt] = tau
+            otl[cnt] = tl
+            ohd[cnt] = hd
+            obi[cnt] = xi == xb[i]
+            obj_[cnt] = xj == xb[j]
+            cnt += 1
+    return oi[:cnt], oj[:cnt], ot[:cnt], otl[:cnt], ohd[:cnt], obi[:cnt], obj_[:cnt]
+
+
+@nb.njit(cache=True)
+def line_hits(ox, oy, dx, dy, eps, kind, vert_start, verts, radius):
+    """Every object the whole line o + t d cuts deeper than eps (:func:`depth`), with its
+    chord (t_in, t_out), in object order.  O(n): used once per degenerate line (a line
+    touching several objects), instead of one grid walk per pair of touched objects."""
+    n = kind.shape[0]
+    hk = np.empty(n, np.int64)
+    ti = np.empty(n)
+    to = np.empty(n)
+    cnt = 0
+    for k in range(n):
+        if depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius) > eps:
+            a, b = chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
+            hk[cnt] = k
+            ti[cnt] = a
+            to[cnt] = b
+            cnt += 1
+    return hk[:cnt], ti[:cnt], to[:cnt]

@@ -247,16 +247,7 @@ def _face_measures(cx, mesh, f, a, b, M, args):
     es = np.where(rev, 1 - cx.e_side[ed], cx.e_side[ed])
     t0 = cx.e_theta[ed, 0] + np.where(rev, math.pi, 0.0)
     t1 = cx.e_theta[ed, 1] + np.where(rev, math.pi, 0.0)
-    # θ-range of the face: the upper chain is a graph over it; start at its first θ
-    order = np.argsort(np.mod(t0[up], TWO_PI))
-    tu0, tu1 = t0[up][order], t1[up][order]
-    # the chain is contiguous: find the gap-free start (the θ where no upper edge ends)
-    ends = np.mod(tu1, TWO_PI)
-    starts = np.mod(tu0, TWO_PI)
-    lo_candidates = [s for s in starts if not np.any(np.abs(np.mod(ends - s + math.pi, TWO_PI) - math.pi) < 1e-12)]
-    th_lo = lo_candidates[0] if lo_candidates else 0.0
-    span = float(np.sum(tu1 - tu0))
-    th_hi = th_lo + span
+    th_lo, th_hi = _theta_range(t0[up], t1[up])
     # bound curves, all sinusoids u = n(θ)·P + c: the tangency curves of a and b (they
     # bound an element clipped at a tangent point), the chain edges (each only over its
     # own θ-range), and the pencils of lines through the element ends
@@ -315,32 +306,28 @@ def _face_measures(cx, mesh, f, a, b, M, args):
     mid, half = 0.5 * (br[1:] + br[:-1])[keep], 0.5 * h[keep]
     theta = (mid[:, None] + half[:, None] * _GL_X[None, :]).ravel()
     wts = (half[:, None] * _GL_W[None, :]).ravel()
-    # chains at the nodes
-    lo = np.full(theta.shape, np.nan)
-    hi = np.full(theta.shape, np.nan)
-    for i in range(len(ed)):
-        m = np.mod(theta - t0[i], TWO_PI) <= (t1[i] - t0[i])
-        if not np.any(m):
-            continue
-        u, _ = _tangent_u_and_s(int(eo[i]), int(es[i]), theta[m], *args)
-        if up[i]:
-            hi[m] = u
-        else:
-            lo[m] = u
-    ok = np.isfinite(lo) & np.isfinite(hi)
+    # the face at each node: the u-intervals between its chains (one per pair of a lower
+    # and an upper edge over θ, paired by rank: a face can be several intervals at one θ,
+    # e.g. the lines leaving a ground block to the sky on both sides of a panel's shadow)
+    lo, hi = _chain_intervals(theta, ed, up, eo, es, t0, t1, args)
+    ok = np.isfinite(lo[:, 0])
+    if not np.any(ok):
+        return
     theta, wts, lo, hi = theta[ok], wts[ok], lo[ok], hi[ok]
     nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
     # exit u-intervals of the elements of a, entry u-intervals of the elements of b
     Ua = _element_u(scene, mesh, a, ea, theta, nrm, exit_side=True, args=args) if a >= 0 else None
     Ub = _element_u(scene, mesh, b, eb, theta, nrm, exit_side=False, args=args) if b >= 0 else None
+    whole = (np.full((len(theta), 1), -np.inf), np.full((len(theta), 1), np.inf))
     if Ua is None:
-        Ua = (lo[:, None], hi[:, None])
+        Ua = whole
     if Ub is None:
-        Ub = (lo[:, None], hi[:, None])
+        Ub = whole
     # drop elements that never meet the face: every θ-range where one does is a union of
     # the smooth pieces above, so it has nodes; an element without any has measure 0
-    ka = np.any(np.minimum(Ua[1], hi[:, None]) > np.maximum(Ua[0], lo[:, None]), axis=0)
-    kb = np.any(np.minimum(Ub[1], hi[:, None]) > np.maximum(Ub[0], lo[:, None]), axis=0)
+    flo, fhi = lo[:, :1], np.nanmax(np.where(np.isfinite(hi), hi, np.nan), axis=1)[:, None]
+    ka = np.any(np.minimum(Ua[1], fhi) > np.maximum(Ua[0], flo), axis=0) | (a < 0)
+    kb = np.any(np.minimum(Ub[1], fhi) > np.maximum(Ub[0], flo), axis=0) | (b < 0)
     Ua = (Ua[0][:, ka], Ua[1][:, ka])
     Ub = (Ub[0][:, kb], Ub[1][:, kb])
     if a >= 0:
@@ -352,9 +339,12 @@ def _face_measures(cx, mesh, f, a, b, M, args):
     step = max(1, 2_000_000 // max(1, na * nb))  # bounded memory
     for c0 in range(0, len(theta), step):
         c = slice(c0, c0 + step)
-        low = np.maximum(np.maximum(lo[c, None, None], Ua[0][c, :, None]), Ub[0][c, None, :])
-        high = np.minimum(np.minimum(hi[c, None, None], Ua[1][c, :, None]), Ub[1][c, None, :])
-        meas += np.einsum("t,tij->ij", wts[c], np.maximum(high - low, 0.0))
+        low_ab = np.maximum(Ua[0][c, :, None], Ub[0][c, None, :])
+        high_ab = np.minimum(Ua[1][c, :, None], Ub[1][c, None, :])
+        for q in range(lo.shape[1]):
+            low = np.maximum(lo[c, q, None, None], low_ab)
+            high = np.minimum(hi[c, q, None, None], high_ab)
+            meas += np.einsum("t,tij->ij", wts[c], np.maximum(high - low, 0.0))
     ia = ea if a >= 0 else None
     ib = eb if b >= 0 else None
     if ia is not None and ib is not None:
@@ -364,6 +354,61 @@ def _face_measures(cx, mesh, f, a, b, M, args):
         M[ia, N] += meas[:, 0]
     else:
         M[ib, N] += meas[0, :]
+
+
+def _theta_range(tu0, tu1):
+    """[θ_lo, θ_hi]: the arc of directions covered by a face's upper edges (θ ranges
+    [tu0, tu1], overlapping where the face is several u-intervals at one θ); the whole
+    circle when they cover it."""
+    s0 = np.mod(tu0, TWO_PI)
+    ln = tu1 - tu0
+    o = np.argsort(s0)
+    S = np.concatenate([s0[o], s0[o] + TWO_PI])
+    E = np.concatenate([(s0 + ln)[o], (s0 + ln)[o] + TWO_PI])
+    cur = E[0]
+    for i in range(1, S.shape[0]):
+        if S[i] > cur + 1e-12:  # a gap: the face's arc starts here
+            lo = float(s0[o][i % s0.shape[0]])  # the start itself, not S[i] − 2π rounded
+            rel = np.mod(s0 - lo, TWO_PI)
+            rel = np.where(rel > TWO_PI - 1e-12, 0.0, rel)
+            return lo, lo + float(np.max(rel + ln))
+        cur = max(cur, E[i])
+    return 0.0, TWO_PI
+
+
+def _chain_intervals(theta, ed, up, eo, es, t0, t1, args):
+    """(T, Q) lower and upper bounds of the face's u-intervals at each θ node (padded
+    with +inf / −inf; lo[:, 0] is inf where the face has no interval)."""
+    rows, us, ups = [], [], []
+    for i in range(len(ed)):
+        m = np.nonzero(np.mod(theta - t0[i], TWO_PI) <= (t1[i] - t0[i]))[0]
+        if m.size:
+            rows.append(m)
+            us.append(_tangent_u_and_s(int(eo[i]), int(es[i]), theta[m], *args)[0])
+            ups.append(np.full(m.size, bool(up[i])))
+    T = theta.shape[0]
+    if not rows:
+        return np.full((T, 1), np.inf), np.full((T, 1), -np.inf)
+    r, u, isup = np.concatenate(rows), np.concatenate(us), np.concatenate(ups)
+    out = []
+    for flag, pad in ((False, np.inf), (True, -np.inf)):
+        rr, uu = r[isup == flag], u[isup == flag]
+        o = np.lexsort((uu, rr))
+        rr, uu = rr[o], uu[o]
+        rank = np.arange(rr.size) - np.searchsorted(rr, rr)
+        Q = int(rank.max()) + 1 if rr.size else 1
+        M = np.full((T, Q), pad)
+        M[rr, rank] = uu
+        out.append(M)
+    lo, hi = out
+    Q = max(lo.shape[1], hi.shape[1])
+    lo = np.pad(lo, ((0, 0), (0, Q - lo.shape[1])), constant_values=np.inf)
+    hi = np.pad(hi, ((0, 0), (0, Q - hi.shape[1])), constant_values=-np.inf)
+    # a node where the chains do not pair up (on an edge end, by rounding) has no interval
+    bad = np.isfinite(lo) != np.isfinite(hi)
+    lo[np.any(bad, axis=1)] = np.inf
+    hi[np.any(bad, axis=1)] = -np.inf
+    return lo, hi
 
 
 def _chord(scene, k, o, d):
@@ -491,15 +536,43 @@ def _gs_sweep(rF, E, B):
     return delta
 
 
-def radiosity(cx, quiet=True):
+def element_edges(scene, mesh):
+    """(N,) int64: the boundary edge of its object each element lies on (edge j runs from
+    corner j to corner j + 1; for a segment 0 is the side on the right of p0 → p1 and 1
+    the side on its left); −1 for circles."""
+    A, cumG, cumS, perim = scene.pieces()
+    out = np.full(mesh["elem_obj"].shape[0], -1, np.int64)
+    for k in range(scene.n):
+        s0, e0 = scene.vert_start[k], scene.vert_start[k + 1]
+        if e0 - s0 == 1:
+            continue
+        m = mesh["elem_obj"] == k
+        mid = np.mod(0.5 * (mesh["elem_s"][m, 0] + mesh["elem_s"][m, 1]), perim[k])
+        out[m] = np.searchsorted(cumS[s0:e0], mid, side="right") - 1
+    return out
+
+
+def radiosity(cx, quiet=True, sky_radiance=0.0):
     """Discontinuity mesh + element form factors + radiosity solution, as one dict of arrays
     (the ``mesh/`` group of the HDF5 file): the mesh arrays, ``elem_F`` (N, N + 1),
-    ``elem_emission``, ``elem_reflectance``, ``elem_B`` (N,), ``iterations``."""
+    ``elem_edge`` (N,) the boundary edge / segment side of each element (see
+    :func:`element_edges`), ``elem_emission``, ``elem_reflectance``, ``elem_B`` (N,)
+    radiosity, ``elem_H`` (N,) irradiance (incident flux per unit length: Σ_f F_ef B_f plus
+    the sky's share F_e,sky B_sky), ``sky_radiance`` and ``iterations``.
+
+    The blue sky can emit: with ``sky_radiance`` B_sky > 0 it is a uniform emitter at
+    infinity, so B = E + ρ (F B + F_sky B_sky), i.e. the emission E + ρ F_sky B_sky in the
+    same Gauss–Seidel solve (an outdoor layout's diffuse irradiance per element and side)."""
+    if not (np.isfinite(sky_radiance) and sky_radiance >= 0):
+        raise ViscxError("the sky radiance must be finite and >= 0")
     mesh = discontinuity_mesh(cx)
     F = element_form_factors(cx, mesh, quiet=quiet)
     k = mesh["elem_obj"]
     E = cx.scene.emission[k]
     rho = cx.scene.reflectance[k]
-    B, it = solve_radiosity(F[:, :-1], E, rho)
-    mesh.update(elem_F=F, elem_emission=E, elem_reflectance=rho, elem_B=B, iterations=np.int64(it))
+    sky = F[:, -1] * sky_radiance
+    B, it = solve_radiosity(F[:, :-1], E + rho * sky, rho)
+    H = F[:, :-1] @ B + sky
+    mesh.update(elem_F=F, elem_edge=element_edges(cx.scene, mesh), elem_emission=E, elem_reflectance=rho,
+                elem_B=B, elem_H=H, sky_radiance=np.float64(sky_radiance), iterations=np.int64(it))
     return mesh

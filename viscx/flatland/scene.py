@@ -1,8 +1,9 @@
-"""Flatland scenes: disjoint convex objects (circles, convex polygons) plus the blue sky.
+"""Flatland scenes: disjoint convex objects (circles, convex polygons, segments) plus the blue sky.
 
 Every object is stored the same way, as a *rounded convex polygon*: support points
 ``v_0 .. v_{m-1}`` (counter-clockwise) and a radius ``r``.  A circle is one support point
-(its centre) with ``r > 0``; a polygon is its corners with ``r = 0``.  The support function
+(its centre) with ``r > 0``; a polygon is its corners with ``r = 0``; a segment is a two-corner polygon (its two sides are the two
+"edges" p0 → p1 and p1 → p0, so its perimeter counts both sides: 2 × its length).  The support function
 of object k in the direction e(φ) = (cos φ, sin φ) is then
 
     h_k(φ) = max_x x·e(φ) = v_j·e(φ) + r,    j = the support point active at φ,
@@ -32,7 +33,7 @@ import numpy as np
 from viscx.errors import ViscxError
 
 SKY = -1
-CIRCLE, POLYGON = 0, 1
+CIRCLE, POLYGON, SEGMENT = 0, 1, 2
 TWO_PI = 2.0 * math.pi
 
 
@@ -43,7 +44,7 @@ class Scene:
     Attributes
     ----------
     kind : (n,) int8
-        ``CIRCLE`` (0) or ``POLYGON`` (1).
+        ``CIRCLE`` (0), ``POLYGON`` (1) or ``SEGMENT`` (2, two corners, two-sided).
     vert_start : (n + 1,) int64
         CSR offsets into ``verts``: object k owns ``verts[vert_start[k]:vert_start[k+1]]``.
     verts : (V, 2) float64
@@ -137,7 +138,7 @@ class Scene:
             if self.kind[k] == CIRCLE:
                 o.update(type="circle", center=[float(v[0, 0]), float(v[0, 1])], radius=float(self.radius[k]))
             else:
-                o.update(type="polygon", points=v.tolist())
+                o.update(type="segment" if self.kind[k] == SEGMENT else "polygon", points=v.tolist())
             objs.append(o)
         return {"objects": objs}
 
@@ -188,8 +189,8 @@ def support_pieces(vert_start, verts, radius):
 def make_scene(objects) -> Scene:
     """Build and validate a :class:`Scene` from a list of object dicts.
 
-    Each dict has ``type`` ("circle" with ``center``, ``radius``; or "polygon" with
-    ``points``), optional ``name``, ``emission`` (E ≥ 0, default 0) and ``reflectance``
+    Each dict has ``type`` ("circle" with ``center``, ``radius``; "polygon" with
+    ``points``; "segment" with two ``points``: a two-sided panel or wall), optional ``name``, ``emission`` (E ≥ 0, default 0) and ``reflectance``
     (0 ≤ ρ < 1, default 0.5).  Polygons are made counter-clockwise; a non-convex polygon,
     a degenerate object or two overlapping objects raise ViscxError naming them.
     """
@@ -217,8 +218,12 @@ def make_scene(objects) -> Scene:
                 kinds.append(POLYGON)
                 verts.append(_convex_ccw(p, name))
                 radius.append(0.0)
+            elif t in ("segment", "polyline"):
+                kinds.append(SEGMENT)
+                verts.append(_segment(o["points"], name))
+                radius.append(0.0)
             else:
-                raise ViscxError(f"object {name!r}: unknown type {t!r} (expected 'circle' or 'polygon')")
+                raise ViscxError(f"object {name!r}: unknown type {t!r} (expected 'circle', 'polygon' or 'segment')")
             e = float(o.get("emission", 0.0))
             r_ = float(o.get("reflectance", 0.5))
         except (KeyError, TypeError, ValueError) as exc:
@@ -244,6 +249,22 @@ def _off_line(p):
     """How far (twice an area) the corners ``p`` (k, 2) stray from the line of the first two."""
     d = p[1] - p[0]
     return float(np.abs(d[0] * (p[:, 1] - p[0, 1]) - d[1] * (p[:, 0] - p[0, 0])).max())
+
+
+def _segment(points, name):
+    """(2, 2) float64 ends of a segment object, or ViscxError.  An open polyline of more
+    than one segment is refused: its pieces would touch at their shared corners (touching
+    objects are not supported)."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or not np.all(np.isfinite(p)):
+        raise ViscxError(f"object {name!r}: 'points' must be a list of finite [x, y] pairs")
+    if len(p) != 2:
+        raise ViscxError(f"object {name!r}: a segment has exactly 2 points (an open polyline of {len(p) - 1} "
+                         "segments would be touching objects, which flatland does not support: give its pieces "
+                         "as separate segments with gaps)")
+    if np.all(p[0] == p[1]):
+        raise ViscxError(f"object {name!r}: the two ends of a segment coincide")
+    return p
 
 
 def _convex_ccw(p, name, eps=1e-12):
@@ -346,7 +367,8 @@ def load_scene(path) -> Scene:
 
 def load_json(path) -> Scene:
     """JSON: ``{"objects": [{"type": "circle", "center": [x, y], "radius": r, "emission": E,
-    "reflectance": ρ, "name": ...}, {"type": "polygon", "points": [[x, y], ...], ...}]}``."""
+    "reflectance": ρ, "name": ...}, {"type": "polygon", "points": [[x, y], ...], ...},
+    {"type": "segment", "points": [[x0, y0], [x1, y1]], ...}]}``."""
     from viscx.formats.validate import load_json as load_bounded
 
     try:
@@ -415,14 +437,12 @@ def _path_points(d, name):
             y = float(tokens[i]); i += 1
             cur = np.array([cur[0], cur[1] + y if rel else y])
         pts.append(cur.copy())
-    if not closed:
-        raise ViscxError(f"SVG path {name!r}: the outline must be closed with 'Z'")
-    return np.array(pts)
+    return np.array(pts), closed
 
 
 def load_svg(path) -> Scene:
     """SVG: ``circle``, ``rect``, ``polygon`` and ``path`` (straight segments, closed) become
-    objects; ``emission``/``reflectance`` (or ``data-emission``/``data-reflectance``)
+    objects, and ``line``, two-point ``polyline`` and open two-point ``path`` segments; ``emission``/``reflectance`` (or ``data-emission``/``data-reflectance``)
     attributes set the material; ``id`` names the object.  Ellipses, curved paths and
     transforms are rejected with a clear error."""
     try:
@@ -437,8 +457,6 @@ def load_svg(path) -> Scene:
             raise ViscxError(f"SVG element {name!r}: transforms are not supported; apply them first")
         if tag == "ellipse":
             raise ViscxError(f"SVG element {name!r}: ellipses are not supported (use a circle or a polygon)")
-        if tag in ("polyline", "line"):
-            raise ViscxError(f"SVG element {name!r}: open {tag}s are not objects (use a closed polygon)")
         try:
             if tag == "circle":
                 o = {"type": "circle", "center": [float(el.get("cx", 0)), float(el.get("cy", 0))],
@@ -455,7 +473,16 @@ def load_svg(path) -> Scene:
                     raise ViscxError(f"SVG polygon {name!r}: odd number of coordinates")
                 o = {"type": "polygon", "points": np.array(f).reshape(-1, 2).tolist()}
             elif tag == "path":
-                o = {"type": "polygon", "points": _path_points(el.get("d"), name).tolist()}
+                pts, closed = _path_points(el.get("d"), name)
+                o = {"type": "polygon" if closed else "segment", "points": pts.tolist()}
+            elif tag == "line":
+                o = {"type": "segment", "points": [[float(el.get("x1", 0)), float(el.get("y1", 0))],
+                                                   [float(el.get("x2", 0)), float(el.get("y2", 0))]]}
+            elif tag == "polyline":
+                f = _floats(el.get("points"))
+                if len(f) % 2:
+                    raise ViscxError(f"SVG polyline {name!r}: odd number of coordinates")
+                o = {"type": "segment", "points": np.array(f).reshape(-1, 2).tolist()}
             else:
                 continue
         except (TypeError, ValueError, IndexError):
@@ -464,14 +491,15 @@ def load_svg(path) -> Scene:
         o.update(_svg_material(el, name))
         objs.append(o)
     if not objs:
-        raise ViscxError(f"{path}: no circle, rect, polygon or path elements found")
+        raise ViscxError(f"{path}: no circle, rect, polygon, path or line elements found")
     return make_scene(objs)
 
 
 def load_dxf(path, emission=0.0, reflectance=0.5) -> Scene:
     """DXF 2-D plans via trimesh's path loader: every closed outline (trimesh traces
     connected lines and polylines into closed paths; curves come discretised) must be
-    convex and becomes a polygon object named ``outline<i>``.  Materials: E = 0, ρ = 0.5."""
+    convex and becomes a polygon object named ``outline<i>``; an entity in no closed
+    outline (a LINE, a two-point open polyline) becomes a segment.  Materials: E = 0, ρ = 0.5."""
     try:
         import trimesh
         p = trimesh.load_path(str(path))
@@ -479,15 +507,16 @@ def load_dxf(path, emission=0.0, reflectance=0.5) -> Scene:
         raise ViscxError(f"{path}: not a readable DXF file ({type(exc).__name__}: {exc})") from None
     objs = []
     try:
-        loops = p.discrete
+        loops = list(p.discrete)
+        # entities in no closed path (LINEs, open polylines): segments
+        loops += [p.entities[e].discrete(p.vertices) for e in p.dangling]
     except Exception as exc:  # trimesh's path graph code raises various kinds
         raise ViscxError(f"{path}: DXF outlines could not be traced ({type(exc).__name__}: {exc})") from None
     for i, pts in enumerate(loops):
         pts = np.asarray(pts, dtype=float)[:, :2]
-        if len(pts) < 4 or not np.allclose(pts[0], pts[-1]):
-            raise ViscxError(f"{path}: outline {i} is not a closed polyline; flatland objects are closed")
-        objs.append({"type": "polygon", "points": pts[:-1].tolist(), "name": f"outline{i}",
-                     "emission": emission, "reflectance": reflectance})
+        closed = len(pts) >= 4 and np.allclose(pts[0], pts[-1])
+        objs.append({"type": "polygon" if closed else "segment", "points": (pts[:-1] if closed else pts).tolist(),
+                     "name": f"outline{i}", "emission": emission, "reflectance": reflectance})
     if not objs:
-        raise ViscxError(f"{path}: no closed polylines found in the DXF")
+        raise ViscxError(f"{path}: no outlines found in the DXF")
     return make_scene(objs)

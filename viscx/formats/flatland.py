@@ -5,12 +5,14 @@ HDF5 (``format = "viscx-flatland"``, ``format_version = 1``)
 Root attributes: ``format``, ``format_version``, ``viscx_version``, ``epsilon``,
 ``scene_sha256`` (SHA-256 of the canonical scene JSON), ``n_objects``.
 
-- ``scene/``: ``kind`` (n,) int8 (0 circle, 1 polygon), ``vert_start`` (n+1,) int64,
+- ``scene/``: ``kind`` (n,) int8 (0 circle, 1 polygon, 2 segment), ``vert_start`` (n+1,) int64,
   ``verts`` (V, 2) float64, ``radius``, ``emission``, ``reflectance`` (n,) float64,
   ``names`` (n,) utf-8 strings.
 - ``vertices/``: every ``v_*`` array of :class:`viscx.flatland.complex.FlatComplex`
-  without the prefix (``key``, ``obj``, ``side``, ``tail``, ``head``, ``theta``, ``p``,
-  ``q``, ``length``, ``seg``, ``edges``, ``faces``), sorted by ``key``.
+  without the prefix (``key``, ``obj``, ``side``, ``tail``, ``head``, ``theta``, ``tau``
+  (the infinitesimal offset of a vertex of a resolved degenerate line, 0 elsewhere; files
+  written before it existed read as 0), ``p``, ``q``, ``length``, ``seg``, ``edges``,
+  ``faces``), sorted by ``key``.
 - ``edges/``: the ``e_*`` arrays (``obj``, ``side``, ``tail``, ``head``, ``verts``, ``theta``,
   ``integral``, ``arclength``, ``faces``).
 - ``faces/``: the ``f_*`` arrays (``pair``, ``area``, ``strings``, ``bounded``,
@@ -19,7 +21,8 @@ Root attributes: ``format``, ``format_version``, ``viscx_version``, ``epsilon``,
   object) has area ``inf``.
 - ``formfactors/``: ``F_area`` and ``F_strings`` (n, n+1), column n = the blue sky.
 - ``mesh/`` (optional, after ``viscx flatland radiosity``): the discontinuity mesh and the
-  radiosity solution (see :mod:`viscx.flatland.mesh`).
+  radiosity solution (see :mod:`viscx.flatland.mesh`), with ``elem_H`` the irradiance,
+  ``elem_edge`` each element's boundary edge (segment side) and ``sky_radiance``.
 
 Object id −1 is the blue sky everywhere.  Datasets are written without timestamps, so the
 same scene gives byte-identical content.

@@ -78,6 +78,8 @@ CASES = {
     # levels listed, groups absent
     "levels_without_groups": (lambda f: [f.__delitem__(x) for x in ("V0", "V1", "V2")], "/V0"),
     "levels_unknown": (set_attr("levels", json.dumps(["scene", "V9"])), "@levels"),
+    "levels_v2_without_v1": (lambda f: (f.__delitem__("V1"), f.attrs.__setitem__("levels", '["scene", "V0", "V2"]')),
+                             "/V1: missing"),
     # other files through HDF5
     "external_link": (lambda f: (f.__delitem__("scene"), f.__setitem__("scene", h5py.ExternalLink("/etc/passwd", "/"))),
                       "external link"),

@@ -335,7 +335,24 @@ def scene_arrays(group, path):
         "vertex_is_generator": c.read(group, "vertex_is_generator", "b", ("n",)),
     }
     check_scene(c, a, he, edges)
+    _check_generators(c, a, he, edges, float(group.file.attrs["weld_tolerance"]))
     return a, he, edges, names, materials
+
+
+def _check_generators(c, a, he, edges, tolerance):
+    """The edges and generator flags are a function of the checked loops, normals and the
+    weld tolerance: rebuilt as the scene's cleaning builds them, they must be the stored
+    ones (a generator flag flipped sends the kernels into families with nothing to hold)."""
+    from viscx.scene.halfedge import build_half_edges
+
+    rebuilt = build_half_edges(a["vertices"], a["face_normal"], a["face_loop_offsets"], a["loop_offsets"],
+                               a["loop_vertices"], tolerance)
+    for name, where in (("edge_vertices", "/scene/edges/vertices"), ("opp", "/scene/half_edges/opp"),
+                        ("edge", "/scene/half_edges/edge"), ("edge_is_generator", "/scene/edges/is_generator"),
+                        ("vertex_is_generator", "/scene/vertex_is_generator")):
+        stored = edges.get(name, he.get(name))
+        if not np.array_equal(stored, getattr(rebuilt, name)):
+            c.fail(where, "does not match the scene's loops (rebuilt from them)")
 
 
 def check_scene(c, a, he, edges):

@@ -78,6 +78,8 @@ CASES = {
     # levels listed, groups absent
     "levels_without_groups": (lambda f: [f.__delitem__(x) for x in ("V0", "V1", "V2")], "/V0"),
     "levels_unknown": (set_attr("levels", json.dumps(["scene", "V9"])), "@levels"),
+    "levels_v2_without_v1": (lambda f: (f.__delitem__("V1"), f.attrs.__setitem__("levels", '["scene", "V0", "V2"]')),
+                             "/V1: missing"),
     # other files through HDF5
     "external_link": (lambda f: (f.__delitem__("scene"), f.__setitem__("scene", h5py.ExternalLink("/etc/passwd", "/"))),
                       "external link"),
@@ -256,3 +258,11 @@ def test_gltf_with_buffers_beside_it_is_read(tmp_path, capsys):
         (tmp_path / name).write_bytes(data)
     code, err = run(["build", tmp_path / "model.gltf", "-o", tmp_path / "out.h5", "--levels", "-1"], capsys)
     assert code == 0, err
+
+
+def test_generator_flags_must_match_the_loops(tmp_path, capsys):
+    """Found by the fuzz test: every edge flag flipped sent the point query into families
+    with no generator (an IndexError, exit 1). The flags are rebuilt from the loops."""
+    path = damaged_copy(tmp_path, set_values("scene/edges/is_generator", np.logical_not), "two_triangles.h5")
+    code, err = run(["query", "visible", path, "--from", "0.2,0.3,0.9", "-o", tmp_path / "v.json"], capsys)
+    assert code == 2 and "/scene/edges/is_generator" in err, err

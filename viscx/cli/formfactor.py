@@ -18,7 +18,7 @@ from viscx.cli.options import POINT, format_option, quiet
 @click.option("--to-group", "to_group", default=None, metavar="NAME", help="Receiving group.")
 @click.option("--matrix", is_flag=True, help="Every pair of face sides, sparse, written to -o F.h5.")
 @click.option("--tol", type=float, default=None, metavar="T",
-              help="Target absolute error of each polygon-to-polygon form factor (default 1e-8; 1e-7 for --matrix).")
+              help="Target on the absolute error estimate of each polygon-to-polygon form factor (default 1e-6); the output reports the estimate reached.")
 @click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None,
               help="Where to write: the .h5 matrix (--matrix), else .json or .msgpack (default: standard output).")
 @format_option

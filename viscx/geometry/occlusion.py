@@ -112,10 +112,11 @@ def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
 
 
 @njit(cache=True)
-def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly,
+def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0,
                  act_v1, p0, p1):
-    """Form factor from (x, n_i) to the visible part of J (see the module docstring)."""
+    """Form factor from (x, n_i) to the visible part of J past the occluder polygons ``sel``
+    (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring)."""
     hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
     if hx <= 0:
         return 0.0
@@ -148,60 +149,61 @@ def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hu
             n_seg += 1
     # occluders: clipped to the pyramid, projected through x
     n_poly = poly_normal.shape[0]
-    for L in range(occ_loop.shape[0] - 1):
-        lo, hi = occ_loop[L], occ_loop[L + 1]
-        pid = occ_poly[L]
-        side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
-                + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
-        if abs(side) <= tiny:
-            continue  # x in the occluder's plane: it is seen edge-on and hides nothing
-        sgn = 1 if side > 0 else -1
-        # quick rejection: every vertex outside one plane
-        rejected = False
-        for i in range(n_hull):
-            out = True
-            for q in range(lo, hi):
-                if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
-                        + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
-                    out = False
+    for r in range(sel.shape[0]):
+        pid = sel[r]
+        for L in range(poly_loop[pid], poly_loop[pid + 1]):
+            lo, hi = occ_loop[L], occ_loop[L + 1]
+            side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
+                    + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
+            if abs(side) <= tiny:
+                continue  # x in the occluder's plane: it is seen edge-on and hides nothing
+            sgn = 1 if side > 0 else -1
+            # quick rejection: every vertex outside one plane
+            rejected = False
+            for i in range(n_hull):
+                out = True
+                for q in range(lo, hi):
+                    if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
+                            + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
+                        out = False
+                        break
+                if out:
+                    rejected = True
                     break
-            if out:
-                rejected = True
-                break
-        if rejected:
-            continue
-        n_in = hi - lo
-        for q in range(n_in):
-            for c in range(3):
-                buf_a[q, c] = occ[lo + q, c]
-        for i in range(n_hull):
-            n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+            if rejected:
+                continue
+            n_in = hi - lo
             for q in range(n_in):
                 for c in range(3):
-                    buf_a[q, c] = buf_b[q, c]
+                    buf_a[q, c] = occ[lo + q, c]
+            for i in range(n_hull):
+                n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+                for q in range(n_in):
+                    for c in range(3):
+                        buf_a[q, c] = buf_b[q, c]
+                if n_in < 3:
+                    break
             if n_in < 3:
-                break
-        if n_in < 3:
-            continue
-        # project
-        first = n_seg
-        for q in range(n_in):
-            h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
-            den = hx - h
-            if den <= 0:
-                den = tiny  # only x itself (the apex) projects to infinity
-            t = hx / den
-            zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
-            zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
-            zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
-            seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
-            seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
-        for q in range(n_in):
-            k = first + q + 1 if q + 1 < n_in else first
-            seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
-            seg_p[first + q] = pid + 1
-            seg_w[first + q] = sgn
-        n_seg += n_in
+                continue
+            # project
+            first = n_seg
+            for q in range(n_in):
+                h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
+                den = hx - h
+                if den <= 0:
+                    den = tiny  # only x itself (the apex) projects to infinity
+                t = hx / den
+                zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
+                zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
+                zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
+                seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
+                seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
+            for q in range(n_in):
+                k = first + q + 1 if q + 1 < n_in else first
+                seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
+                seg_p[first + q] = pid + 1
+                seg_w[first + q] = sgn
+            n_seg += n_in
     # winding weights: an edge running right to left adds its polygon's sign below it
     n_brk = 0
     for e in range(n_seg):
@@ -337,6 +339,32 @@ def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hu
 
 
 @njit(cache=True)
+def _loops_of_polygons(occ_poly, n_poly):
+    """(P + 1,) int64 offsets: the loops of polygon p are ``out[p]:out[p + 1]`` (loops sorted by polygon)."""
+    out = np.zeros(n_poly + 1, np.int64)
+    for L in range(occ_poly.shape[0]):
+        out[occ_poly[L] + 1] += 1
+    for p in range(n_poly):
+        out[p + 1] += out[p]
+    return out
+
+
+@njit(cache=True)
+def _buffers(j2, hull, occ_loop, n_poly):
+    """Work arrays of :func:`_visible_one`, sized for every occluder at once."""
+    n_hull = hull.shape[0]
+    n_loops = occ_loop.shape[0] - 1
+    kmax = 3
+    for L in range(n_loops):
+        kmax = max(kmax, occ_loop[L + 1] - occ_loop[L])
+    kmax += n_hull + 2
+    emax = j2.shape[0] + n_loops * kmax + 1
+    return (np.empty((emax, 2)), np.empty((emax, 2)), np.empty(emax, np.int64), np.empty(emax, np.int64),
+            np.empty((kmax, 3)), np.empty((kmax, 3)), np.empty(emax + emax * emax // 2 + 1), np.zeros(n_poly + 1, np.int64),
+            np.empty(emax, np.int64), np.empty(emax), np.empty(emax), np.empty(emax), np.empty(3), np.empty(3))
+
+
+@njit(cache=True)
 def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly, poly_normal,
                          poly_point, tiny):
     """Form factors from differential areas (points, common normal n_i) to the part of J
@@ -357,7 +385,8 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     hull : (h, 3) float64
         Convex hull of J (3-D, in order).
     occ : (no, 3) float64
-        Occluder loops (3-D), occ_loop (lo + 1,) int64 offsets, occ_poly (lo,) int64 their polygon.
+        Occluder loops (3-D), occ_loop (lo + 1,) int64 offsets, occ_poly (lo,) int64 their
+        polygon (non-decreasing: a polygon's loops are consecutive).
     poly_normal, poly_point : (P, 3) float64
         Plane of each occluder polygon (loops counter-clockwise about the normal, holes clockwise).
     tiny : float
@@ -367,33 +396,184 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     -------
     (m,) float64
     """
-    m = points.shape[0]
-    out = np.empty(m)
-    n_hull = hull.shape[0]
-    n_loops = occ_loop.shape[0] - 1
-    kmax = 3
-    for L in range(n_loops):
-        kmax = max(kmax, occ_loop[L + 1] - occ_loop[L])
-    kmax += n_hull + 2
-    emax = j2.shape[0] + n_loops * kmax + 1
-    seg_a = np.empty((emax, 2))
-    seg_b = np.empty((emax, 2))
-    seg_p = np.empty(emax, np.int64)
-    seg_w = np.empty(emax, np.int64)
-    buf_a = np.empty((kmax, 3))
-    buf_b = np.empty((kmax, 3))
-    brk = np.empty(emax + emax * emax // 2 + 1)
-    wind = np.zeros(poly_normal.shape[0] + 1, np.int64)
-    act = np.empty(emax, np.int64)
-    act_v = np.empty(emax)
-    act_v0 = np.empty(emax)
-    act_v1 = np.empty(emax)
-    p0 = np.empty(3)
-    p1 = np.empty(3)
-    for i in range(m):
-        out[i] = _visible_one(points[i], n_i, j2, j_loop, 0, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly,
+    n_poly = poly_normal.shape[0]
+    poly_loop = _loops_of_polygons(occ_poly, n_poly)
+    sel = np.arange(n_poly)
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+        j2, hull, occ_loop, n_poly)
+    out = np.empty(points.shape[0])
+    for i in range(points.shape[0]):
+        out[i] = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                               poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
                               act_v, act_v0, act_v1, p0, p1)
+    return out
+
+
+@njit(cache=True)
+def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ,
+                         occ_loop, occ_poly, poly_normal, poly_point, tiny):
+    """The part of F(x → J) that the occluders hide, ``F(x → J) − F(x → visible part of J)``,
+    each point seeing past its own group's occluders only.
+
+    Parameters
+    ----------
+    points : (m, 3) float64
+    point_group : (m,) int64
+        The group of each point (a cell of the emitter whose shaft to J meets few occluders).
+    group_ptr, group_occ : (g + 1,), (k,) int64
+        The occluder polygons of group g: ``group_occ[group_ptr[g]:group_ptr[g + 1]]``.
+    n_i, ... tiny :
+        As :func:`visible_form_factors`.
+
+    Returns
+    -------
+    (m,) float64
+        Zero for a point whose group has no occluder.
+    """
+    n_poly = poly_normal.shape[0]
+    poly_loop = _loops_of_polygons(occ_poly, n_poly)
+    none = np.zeros(0, np.int64)
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+        j2, hull, occ_loop, n_poly)
+    out = np.zeros(points.shape[0])
+    for i in range(points.shape[0]):
+        g = point_group[i]
+        sel = group_occ[group_ptr[g]:group_ptr[g + 1]]
+        if sel.shape[0] == 0:
+            continue
+        whole = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
+                             poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
+                             act_v, act_v0, act_v1, p0, p1)
+        seen = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
+                            poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
+                            act_v, act_v0, act_v1, p0, p1)
+        out[i] = whole - seen
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# shafts: which occluders meet the convex hull of two planar polygons
+
+
+@njit(cache=True)
+def _separated_on(ax, ay, az, pa, pb, poly_pts, lo, hi, tol):
+    """Whether the axis separates conv(pa ∪ pb) from conv(poly_pts[lo:hi]) by more than
+    ``tol`` (a length; a zero axis separates nothing)."""
+    size = np.sqrt(ax * ax + ay * ay + az * az)
+    if size == 0.0:
+        return False
+    a_lo, a_hi = np.inf, -np.inf
+    for k in range(pa.shape[0]):
+        d = pa[k, 0] * ax + pa[k, 1] * ay + pa[k, 2] * az
+        a_lo, a_hi = min(a_lo, d), max(a_hi, d)
+    for k in range(pb.shape[0]):
+        d = pb[k, 0] * ax + pb[k, 1] * ay + pb[k, 2] * az
+        a_lo, a_hi = min(a_lo, d), max(a_hi, d)
+    b_lo, b_hi = np.inf, -np.inf
+    for k in range(lo, hi):
+        d = poly_pts[k, 0] * ax + poly_pts[k, 1] * ay + poly_pts[k, 2] * az
+        b_lo, b_hi = min(b_lo, d), max(b_hi, d)
+    t = tol * size
+    return b_hi <= a_lo + t or a_hi <= b_lo + t
+
+
+@njit(cache=True)
+def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi,
+                poly_normal, tol):
+    """Which candidate polygons meet the interior of the *shaft* of a cell and the target:
+    the convex hull of two convex planar polygons (every segment from one to the other lies
+    in it). Exact separating-axis test of two convex sets: the hull's facet normals lie among
+    the normals of the two polygons and of the planes through an edge of one and a vertex of
+    the other; its edges among the polygons' edges and the segments between their vertices;
+    a candidate (its vertices' convex hull: conservative for a non-convex one) is separated
+    when one of these axes, its own normal, its in-plane edge normals or the cross products
+    of the two sets of edges separates them by more than ``tol`` (touching is not meeting).
+
+    Parameters
+    ----------
+    cells : (g, kc, 3) float64
+        Convex polygons (vertices in order), e.g. triangles of the emitter; cell_normal (g, 3).
+    target, target_normal : (kt, 3), (3,) float64
+        The convex hull of the receiver (in order) and its plane's normal.
+    cand_cell, cand_poly : (c,) int64
+        Candidate pairs (cell, polygon).
+    poly_pts : (n, 3) float64
+        Vertices of the polygons, polygon p at ``poly_lo[p]:poly_hi[p]``; poly_normal (P, 3).
+    tol : float
+
+    Returns
+    -------
+    (c,) bool
+    """
+    out = np.zeros(cand_cell.shape[0], np.bool_)
+    kt = target.shape[0]
+    for c in range(cand_cell.shape[0]):
+        pa = cells[cand_cell[c]]
+        kc = pa.shape[0]
+        p = cand_poly[c]
+        lo, hi = poly_lo[p], poly_hi[p]
+        # boxes first
+        sep = False
+        for d in range(3):
+            a_lo = min(pa[:, d].min(), target[:, d].min())
+            a_hi = max(pa[:, d].max(), target[:, d].max())
+            b_lo = poly_pts[lo:hi, d].min()
+            b_hi = poly_pts[lo:hi, d].max()
+            if b_hi <= a_lo + tol or a_hi <= b_lo + tol:
+                sep = True
+                break
+        if sep:
+            continue
+        n = cell_normal[cand_cell[c]]
+        if _separated_on(n[0], n[1], n[2], pa, target, poly_pts, lo, hi, tol):
+            continue
+        if _separated_on(target_normal[0], target_normal[1], target_normal[2], pa, target, poly_pts, lo, hi, tol):
+            continue
+        m = poly_normal[p]
+        if _separated_on(m[0], m[1], m[2], pa, target, poly_pts, lo, hi, tol):
+            continue
+        # planes through an edge of one polygon and a vertex of the other
+        for s in range(2):
+            src, dst = (pa, target) if s == 0 else (target, pa)
+            ks = src.shape[0]
+            for e in range(ks):
+                a, b = src[e], src[(e + 1) % ks]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                for v in range(dst.shape[0]):
+                    wx, wy, wz = dst[v, 0] - a[0], dst[v, 1] - a[1], dst[v, 2] - a[2]
+                    if _separated_on(ey * wz - ez * wy, ez * wx - ex * wz, ex * wy - ey * wx, pa, target, poly_pts,
+                                     lo, hi, tol):
+                        sep = True
+                        break
+                if sep:
+                    break
+            if sep:
+                break
+        if sep:
+            continue
+        # the candidate's in-plane edge normals, and cross products of edges
+        for q in range(lo, hi):
+            r = q + 1 if q + 1 < hi else lo
+            fx, fy, fz = poly_pts[r, 0] - poly_pts[q, 0], poly_pts[r, 1] - poly_pts[q, 1], poly_pts[r, 2] - poly_pts[q, 2]
+            if _separated_on(m[1] * fz - m[2] * fy, m[2] * fx - m[0] * fz, m[0] * fy - m[1] * fx, pa, target, poly_pts,
+                             lo, hi, tol):
+                sep = True
+                break
+            for e in range(kc + kt + kc * kt):
+                if e < kc:
+                    a, b = pa[e], pa[(e + 1) % kc]
+                elif e < kc + kt:
+                    a, b = target[e - kc], target[(e - kc + 1) % kt]
+                else:
+                    a, b = pa[(e - kc - kt) // kt], target[(e - kc - kt) % kt]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                if _separated_on(ey * fz - ez * fy, ez * fx - ex * fz, ex * fy - ey * fx, pa, target, poly_pts, lo, hi,
+                                 tol):
+                    sep = True
+                    break
+            if sep:
+                break
+        out[c] = not sep
     return out
 
 

@@ -373,6 +373,16 @@ def test_cli_matrix(tmp_path):
     assert summary["elements"] == 4 and len(m["data"]) == 2
     assert abs(m["data"][0] - parallel_rectangles(1.0, 1.0)) < 1e-9
     assert np.abs(m["row_sum"] - 1).max() < 1e-9 and summary["reciprocity_max_error"] < 1e-9
+    # plain exports: the arrays and the group table (front sides, area-weighted; sky last)
+    for suffix in ("npz", "csv"):
+        out = _viscx("-q", "formfactor", tmp_path / "two.h5", "--matrix", "-o", tmp_path / f"F.{suffix}")
+        assert out.returncode == 0, out.stderr
+    z = np.load(tmp_path / "F.npz")
+    assert list(z["groups"]) == ["a", "b"] and np.array_equal(z["data"], m["data"])
+    exact = parallel_rectangles(1.0, 1.0)
+    assert np.allclose(z["group_F"], [[0, exact, 1 - exact], [exact, 0, 1 - exact]], atol=1e-9)
+    lines = (tmp_path / "F.csv").read_text().splitlines()
+    assert lines[0] == "from_group,to_group,F" and len(lines) == 5 and lines[1].startswith("a,b,")
 
 
 @pytest.mark.parametrize("args, message", [

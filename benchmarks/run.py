@@ -164,6 +164,45 @@ def bench_formfactors(n_rays, rng, tolerance=1e-3):
     return rows
 
 
+def bench_formfactor_matrix(sizes, tol, workdir):
+    """``viscx formfactor --matrix`` on the Cornell box and on offices of ``sizes`` polygons
+    (benchmarks/buildings.py, built here with ``viscx build``): CPU seconds of the command
+    and its children, peak memory, and the summary's accuracy (reciprocity, rows, largest
+    error estimate). Peers (Radiance, pyviewfactor) run in a side environment:
+    benchmarks/peers.py."""
+    import resource
+    import subprocess
+
+    from buildings import office, write_obj
+
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    scenes = [("cornell_box", ROOT / "sample_scenes" / "cornell_box.obj")]
+    for n in sizes:
+        path = workdir / f"office{n}.obj"
+        write_obj(office(n, seed=0), path)
+        scenes.append((f"office {n}", path))
+    rows = []
+    for name, obj in scenes:
+        h5 = workdir / (Path(obj).stem + ".h5")
+        if not h5.exists():
+            subprocess.run([sys.executable, "-m", "viscx", "-q", "build", str(obj), "-o", str(h5)], check=True)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        out = subprocess.run([sys.executable, "-m", "viscx", "-q", "formfactor", str(h5), "--matrix", "--tol", str(tol),
+                              "-o", str(workdir / (Path(obj).stem + "_F.h5"))], check=True, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        summary = json.loads(out.stdout)
+        n_faces = summary["elements"] // 2
+        rows.append(_row("formfactor matrix", name, f"--matrix --tol {tol:g}", 0, n_faces, cpu, n_faces / cpu, "faces/CPU s",
+                         f"wall {wall:.1f} s; reciprocity {summary['reciprocity_max_error']:.1e}, rows ±"
+                         f"{summary['row_sum_max_deviation']:.1e}, max estimate {summary['max_error_estimate']:.1e}"))
+        rows[-1]["peak_mb"] = after.ru_maxrss / 1024
+    return rows
+
+
 def bench_render(size, mc_samples, runs=3, target=0.01):
     """The Cornell box's direct illumination at size × size: the exact render (the whole
     `viscx render` command, median of ``runs``), sparse reconstructions against it, and
@@ -325,6 +364,7 @@ def main():
     )
     rows += bench_raycast(big, "spheres_in_room", n_rays, rng)
     rows += bench_formfactors(n_rays, rng)
+    rows += bench_formfactor_matrix([] if args.quick else [300, 1000], 1e-4, Path(args.out) / "formfactor")
     rows += bench_render(256 if args.quick else 512, 16 if args.quick else 64)
     rows += bench_flatland([10, 100, 300] if args.quick else [10, 100, 300, 1000])
     rows += bench_fast_vs_reference(["tetrahedra.obj", "cornell_box.obj"] if args.quick else

@@ -73,7 +73,6 @@ def test_clipping_kernel_equals_vcells(cornell, pair, rng):
     """F(x → visible part of J) by polygon clipping equals Lambert over the V-cells' visible part."""
     i, j = pair
     setup = ff.PairSetup(cornell, i, 1, ff.face_target(cornell, j), 1)
-    setup.arrays()
     loop = setup.I[0]
     checked = 0
     for _ in range(12):
@@ -98,7 +97,6 @@ def test_clipping_kernel_unoccluded_is_lambert(rng):
     tri = np.array([[0.2, -0.3, 1.0], [1.5, 0.4, 1.8], [-0.4, 1.2, 1.3]])
     s = scene_of([[[-1, -1, 0], [2, -1, 0], [2, 2, 0], [-1, 2, 0]], tri.tolist()])
     setup = ff.PairSetup(s, 0, 1, ff.face_target(s, 1), -1 if s.face_normal[1][2] > 0 else 1)
-    setup.arrays()
     x = np.c_[rng.uniform(-1, 2, (500, 2)), np.zeros(500)]
     got = setup.f(x)
     ref = point_to_polygon(x, np.tile([0, 0, 1.0], (500, 1)), [tri])
@@ -109,9 +107,18 @@ def test_clipping_kernel_unoccluded_is_lambert(rng):
 # closed forms (unoccluded: contour integral and the quadrature path)
 
 
-def _forced_quadrature(scene, i, side_i, j, side_j, tol):
+def _forced_cubature(scene, i, side_i, j, side_j, tol):
+    """The cubature of the pair's whole (unoccluded) integrand F(x → J') over I': value and
+    error estimate, to check against closed forms."""
     setup = ff.PairSetup(scene, i, side_i, ff.face_target(scene, j), side_j)
-    return ff._quadrature(setup, tol)
+    tri = setup.triangles()
+
+    def one_each(t, ptr, ids):  # a non-empty list everywhere: nothing is known to be zero
+        return np.arange(len(t) + 1, dtype=np.int64), np.zeros(len(t), np.int64)
+
+    cub = ff.Cubature(lambda p, g, ptr, ids: setup.f(p), one_each)
+    value, err, _ = cub.integrate(tri, np.zeros(1, np.int64), tol * setup.area_i)
+    return value / setup.area_i, err / setup.area_i
 
 
 def test_parallel_unit_squares():
@@ -119,8 +126,9 @@ def test_parallel_unit_squares():
     exact = parallel_rectangles(1.0, 1.0)
     r = ff.pair_form_factor(s, 0, 1, ff.face_target(s, 1), 1)
     assert r.method == "contour" and abs(r.F - exact) < 1e-9
-    value, err, _, _ = _forced_quadrature(s, 0, 1, 1, 1, 1e-10)
-    assert abs(value - exact) < 1e-9 and err < 1e-9
+    for tol in (1e-4, 1e-7, 1e-10):  # the estimate is honest and meets the tolerance
+        value, err = _forced_cubature(s, 0, 1, 1, 1, tol)
+        assert abs(value - exact) <= err < tol
 
 
 def test_perpendicular_unit_squares():
@@ -129,8 +137,9 @@ def test_perpendicular_unit_squares():
     side_wall = 1 if s.face_normal[1][1] > 0 else -1
     r = ff.pair_form_factor(s, 0, 1, ff.face_target(s, 1), side_wall)
     assert r.method == "contour" and abs(r.F - exact) < 1e-9
-    value, err, _, _ = _forced_quadrature(s, 0, 1, 1, side_wall, 1e-10)
-    assert abs(value - exact) < 1e-9
+    for tol in (1e-4, 1e-7):  # a shared edge: the integrand's log singularity there
+        value, err = _forced_cubature(s, 0, 1, 1, side_wall, tol)
+        assert abs(value - exact) <= err < tol
     back = ff.pair_form_factor(s, 1, side_wall, ff.face_target(s, 0), 1)
     assert abs(back.F - exact) < 1e-9  # reciprocity, equal areas
 
@@ -140,43 +149,89 @@ def test_contour_with_a_partly_shared_edge(cornell):
     against the quadrature of the exact integrand."""
     r = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 9), 1)
     assert r.method == "contour"
-    value, err, _, _ = _forced_quadrature(cornell, 0, 1, 9, 1, 1e-8)
-    assert abs(value - r.F) < 1e-8 and err < 1e-8
+    value, err = _forced_cubature(cornell, 0, 1, 9, 1, 1e-7)
+    assert abs(value - r.F) <= err < 1e-7
 
 
 # --------------------------------------------------------------------------------------
-# events and outer cuts
+# emitter cells, shafts, and the cubature of what is hidden
 
 
-def test_line_events_leave_analytic_pieces(cornell):
-    """Cut at its events, every piece of a line is analytic: the first 7/15-point pair agrees
-    to rounding. Without the events the pieces hold the kinks of the discontinuity mesh."""
+def test_emitter_cells_are_cut_at_contacts(cornell):
+    """The floor's cells: no contact segment (the blocks' feet) crosses a cell's interior,
+    and the cells tile the floor."""
+    cells = ff.emitter_cells(cornell, 0, 1)
+    seg = ff.contact_segments(cornell, 0, 1)
+    assert len(seg) == 11  # the two blocks' feet (8) and the three walls' bottom edges
+    assert abs(sum(ff.loops_area([c], cornell.face_normal[0]) for c in cells) - cornell.face_area[0]) < 1e-6
+    for a, b in seg:
+        t = np.linspace(0.01, 0.99, 50)
+        pts = a + t[:, None] * (b - a)
+        for c in cells:
+            # strictly inside a convex cell: every edge sees the point on its left
+            e = np.roll(c, -1, axis=0) - c
+            left = np.einsum("pkj,j->pk", np.cross(e[None], pts[:, None] - c[None]), cornell.face_normal[0])
+            assert not np.any((left > 1e-6).all(axis=1))
+
+
+def test_shaft_culling_drops_nothing_that_hides(cornell, rng):
+    """Every triangle's culled list hides exactly what all the pair's occluders hide."""
     setup = ff.PairSetup(cornell, 0, 1, ff.face_target(cornell, 15), 1)
-    setup.arrays()
-    worst = 0.0
-    v = np.concatenate(setup.i2)[:, 1]
-    lines = 0
-    for y in np.linspace(v.min(), v.max(), 11)[1:-1]:
-        p = setup.pieces(y)
-        lines += len(p) > 0
-        half = 0.5 * (p[:, 1] - p[:, 0])
-        s = (p[:, 0] + half)[:, None] + half[:, None] * ff.GK_X
-        fv = setup.f((setup.io + y * setup.iv + s[:, :, None] * setup.iu).reshape(-1, 3)).reshape(-1, 15)
-        _, err = ff._gk(fv, half)
-        worst = max(worst, float((err / (2 * half)).max()))
-    assert lines == 9 and worst < 1e-7  # measured 2e-9; without the events 9e-4
+    tri = ff.split4(ff.split4(setup.triangles()).reshape(-1, 3, 3)).reshape(-1, 3, 3)
+    p = len(setup.occluders)
+    ptr, ids = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * p).astype(np.int64), np.tile(np.arange(p), len(tri)))
+    assert 0 < len(ids) < p * len(tri)
+    w = rng.dirichlet(np.ones(3), (len(tri), 4))
+    pts = np.einsum("gsk,gkd->gsd", w, tri).reshape(-1, 3)
+    group = np.repeat(np.arange(len(tri)), 4)
+    every = (np.arange(len(tri) + 1) * p).astype(np.int64), np.tile(np.arange(p), len(tri))
+    assert np.abs(setup.blocked(pts, group, ptr, ids) - setup.blocked(pts, group, *every)).max() < 1e-13
 
 
 def test_contact_corners_cut_the_outer_integral(cornell):
     """Floor → inside of the short block's top: the integrand is the unoccluded one on the
-    block's footprint and 0 elsewhere (a jump along the contact lines, ending at the block's
-    corners): equal to the contour integral over the footprint."""
+    block's footprint and 0 elsewhere (a jump along the contact lines, where the floor's
+    cells are cut): equal to the contour integral over the footprint, and the estimate is
+    honest at every tolerance."""
     top = cornell.face_loops(5)[0]
     foot = top * [1, 0, 1]
     exact = ff.polygon_to_polygon([foot], [0, 1, 0], [top], [0, -1, 0]) * cornell.face_area[5] / cornell.face_area[0]
-    r = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 5), -1, tol=1e-6)
-    assert r.method == "quadrature"
-    assert abs(r.F - exact) < 1e-9 and r.error < 1e-6
+    for tol in (1e-4, 1e-6, 1e-8):
+        r = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 5), -1, tol=tol)
+        assert r.method == "quadrature"
+        assert abs(r.F - exact) <= r.error < tol
+
+
+def test_no_cubic_memory(tmp_path):
+    """A floor, a light and 125 boxes between them (625 occluder faces, 2,500 edges): the
+    pair's form factor under a 3 GB address-space limit (all triples of edges would be
+    2.6e9)."""
+    script = tmp_path / "run.py"
+    script.write_text(f"""
+import resource, sys
+sys.path.insert(0, {str(ROOT / 'tests')!r})
+resource.setrlimit(resource.RLIMIT_AS, (3_000_000_000, 3_000_000_000))
+import numpy as np
+from test_formfactor_queries import scene_of
+from viscx.queries import formfactor as ff
+polys = [[[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]], [[4, 4, 5], [4, 6, 5], [6, 6, 5], [6, 4, 5]]]
+for i in range(5):
+    for j in range(5):
+        for k in range(5):
+            x, y, z = 0.5 + 2 * i, 0.5 + 2 * j, 0.5 + 0.8 * k
+            polys += [[[x, y, z], [x + 0.5, y, z], [x + 0.5, y + 0.5, z], [x, y + 0.5, z]],
+                      [[x, y, z], [x, y, z + 0.3], [x + 0.5, y, z + 0.3], [x + 0.5, y, z]],
+                      [[x, y + 0.5, z], [x + 0.5, y + 0.5, z], [x + 0.5, y + 0.5, z + 0.3], [x, y + 0.5, z + 0.3]],
+                      [[x, y, z], [x, y + 0.5, z], [x, y + 0.5, z + 0.3], [x, y, z + 0.3]],
+                      [[x + 0.5, y, z], [x + 0.5, y, z + 0.3], [x + 0.5, y + 0.5, z + 0.3], [x + 0.5, y + 0.5, z]]]
+s = scene_of(polys)
+r = ff.pair_form_factor(s, 0, 1, ff.face_target(s, 1), 1 if s.face_normal[1][2] < 0 else -1, tol=1e-4)
+print(r.occluders, r.F, r.error)
+""")
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    occluders, value, error = out.stdout.split()
+    assert int(occluders) >= 100 and float(error) < 1e-4 and 0 < float(value) < 0.1
 
 
 # --------------------------------------------------------------------------------------
@@ -196,7 +251,8 @@ def test_occluded_reciprocity_light_floor(cornell):
     a = cornell.face_area
     up = ff.pair_form_factor(cornell, 15, 1, ff.face_target(cornell, 0), 1, tol=1e-7)
     down = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 15), 1, tol=1e-7)
-    assert abs(a[15] * up.F - a[0] * down.F) / a[15] < 2e-8  # measured 1.9e-9
+    # within the two estimates (in F of the light), measured 1.4e-7 against 2.0e-6
+    assert abs(a[15] * up.F - a[0] * down.F) / a[15] <= up.error + down.error * a[0] / a[15] < 1e-5
 
 
 @pytest.mark.slow
@@ -272,7 +328,6 @@ def test_point_to_face_occluded_against_monte_carlo(cornell):
     p, n = np.array([300.0, 1.0, 200.0]), np.array([0.0, 1.0, 0.0])
     r = ff.point_to_faces(q, p, n, [15])
     setup = ff.PairSetup(cornell, 0, 1, ff.face_target(cornell, 15), 1)
-    setup.arrays()
     assert abs(r["F"] - setup.f(p[None])[0]) < 1e-12
     k = 1_000_000
     rng = np.random.default_rng(3)
@@ -318,6 +373,16 @@ def test_cli_matrix(tmp_path):
     assert summary["elements"] == 4 and len(m["data"]) == 2
     assert abs(m["data"][0] - parallel_rectangles(1.0, 1.0)) < 1e-9
     assert np.abs(m["row_sum"] - 1).max() < 1e-9 and summary["reciprocity_max_error"] < 1e-9
+    # plain exports: the arrays and the group table (front sides, area-weighted; sky last)
+    for suffix in ("npz", "csv"):
+        out = _viscx("-q", "formfactor", tmp_path / "two.h5", "--matrix", "-o", tmp_path / f"F.{suffix}")
+        assert out.returncode == 0, out.stderr
+    z = np.load(tmp_path / "F.npz")
+    assert list(z["groups"]) == ["a", "b"] and np.array_equal(z["data"], m["data"])
+    exact = parallel_rectangles(1.0, 1.0)
+    assert np.allclose(z["group_F"], [[0, exact, 1 - exact], [exact, 0, 1 - exact]], atol=1e-9)
+    lines = (tmp_path / "F.csv").read_text().splitlines()
+    assert lines[0] == "from_group,to_group,F" and len(lines) == 5 and lines[1].startswith("a,b,")
 
 
 @pytest.mark.parametrize("args, message", [

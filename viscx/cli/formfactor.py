@@ -18,9 +18,10 @@ from viscx.cli.options import POINT, format_option, quiet
 @click.option("--to-group", "to_group", default=None, metavar="NAME", help="Receiving group.")
 @click.option("--matrix", is_flag=True, help="Every pair of face sides, sparse, written to -o F.h5.")
 @click.option("--tol", type=float, default=None, metavar="T",
-              help="Target absolute error of each polygon-to-polygon form factor (default 1e-8; 1e-7 for --matrix).")
+              help="Target on the absolute error estimate of each polygon-to-polygon form factor (default 1e-6); the output reports the estimate reached.")
 @click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None,
-              help="Where to write: the .h5 matrix (--matrix), else .json or .msgpack (default: standard output).")
+              help="Where to write: the matrix (--matrix) as .h5, .npz (arrays and the group table) or .csv (the "
+                   "group table), else .json or .msgpack (default: standard output).")
 @format_option
 @click.pass_context
 def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_group, to_group, matrix, tol, output, fmt):
@@ -34,7 +35,8 @@ def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_gro
       viscx formfactor cornell.h5 --from-face 0 --to-face 15
     Groups (area-weighted over the emitting faces):
       viscx formfactor cornell.h5 --from-group floor --to-group light
-    The matrix of every pair of face sides (sparse CSR, reciprocity and row sums reported):
+    The matrix of every pair of face sides (sparse CSR, reciprocity and row sums reported;
+    -o F.npz or F.csv for plain exports with the group-to-group table):
       viscx formfactor cornell.h5 --matrix -o F.h5
 
     Output: JSON {"F": value, ...} on standard output (or -o), msgpack with --format msgpack.
@@ -88,10 +90,11 @@ def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_gro
         result = ff.point_to_faces(q, point, normal, faces)
         result = {"F": result.pop("F"), **({"to_face": to_face} if to_face is not None else {"to_group": to_group}), **result}
     elif matrix:
-        from viscx.formats.formfactors import write_matrix
+        from viscx.formats.formfactors import write_export, write_matrix
 
         m = ff.form_factor_matrix(scene, tol=tol or ff.MATRIX_TOL, quiet=quiet(ctx))
-        summary = write_matrix(output, m, scene)
+        plain = str(output).lower().endswith((".npz", ".csv"))
+        summary = (write_export if plain else write_matrix)(output, m, scene)
         write_result({"matrix": str(output), **summary}, None, fmt)
         return
     else:

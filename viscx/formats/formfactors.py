@@ -13,6 +13,11 @@ Layout (HDF5, written atomically)::
         sky_error (2n,) float64
         area    (n,) float64        face areas (A_i F_ij = A_j F_ji)
         row_sum (2n,) float64       Σ_j F + sky (1 up to the errors)
+
+Plain exports (by the output's suffix, :func:`write_export`): ``.npz`` holds the same
+arrays plus ``groups`` (names) and ``group_F`` (g, g + 1), the area-weighted form factor
+from the front sides of each group's faces to (both sides of) each group's faces, last
+column the sky; ``.csv`` is that group table, one line per pair of groups with F > 0.
 """
 
 import json
@@ -62,3 +67,41 @@ def read_matrix(path):
         out = {name: f["formfactors"][name][()] for name in [*_ARRAYS, "row_sum"]}
         out["summary"] = json.loads(f.attrs["summary"])
     return out
+
+
+def group_matrix(matrix, scene):
+    """(g, g + 1) float64: F from the front sides of group a's faces (area-weighted) to both
+    sides of group b's faces; the last column is the sky."""
+    n = scene.n_faces
+    g = len(scene.group_names)
+    rows = np.repeat(np.arange(2 * n), np.diff(matrix.indptr))
+    front = rows % 2 == 0
+    face_i, face_j = rows[front] // 2, matrix.indices[front] // 2
+    weight = matrix.area[face_i] * matrix.data[front]
+    out = np.zeros((g, g + 1))
+    np.add.at(out, (scene.face_group[face_i], scene.face_group[face_j]), weight)
+    np.add.at(out[:, g], scene.face_group, matrix.area * matrix.sky[0::2])
+    area = np.bincount(scene.face_group, weights=matrix.area, minlength=g)
+    return out / np.where(area > 0, area, 1.0)[:, None]
+
+
+def write_export(path, matrix, scene):
+    """Write the matrix as ``.npz`` or the group table as ``.csv`` (module docstring);
+    returns its summary."""
+    summary = matrix.summary()
+    names = list(scene.group_names)
+    table = group_matrix(matrix, scene)
+    suffix = Path(path).suffix.lower()
+    with atomic_path(path) as tmp:
+        if suffix == ".npz":
+            with open(tmp, "wb") as f:
+                np.savez_compressed(f, **{name: getattr(matrix, name) for name in _ARRAYS}, row_sum=matrix.row_sums(),
+                                    groups=np.asarray(names), group_F=table, summary=json.dumps(summary, sort_keys=True))
+        else:
+            with open(tmp, "w") as f:
+                f.write("from_group,to_group,F\n")
+                for a in range(len(names)):
+                    for b in range(len(names) + 1):
+                        if table[a, b] > 0:
+                            f.write(f"{names[a]},{names[b] if b < len(names) else 'sky'},{table[a, b]:.10g}\n")
+    return summary

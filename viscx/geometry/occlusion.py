@@ -20,14 +20,10 @@ Nothing is sampled: the visible part is the exact polygon (float64 crossings),
 the same set the point's V-cells give (tests/test_formfactor_queries.py checks
 both against each other and against shadow rays).
 
-Also here: the *events* of a line of receiver points — the parameters where the
-combinatorial structure of the visible part changes (the discontinuity mesh of
-the pair met by the line): x crossing the plane through a vertex and an edge
-(VE), crossing an occluder's plane, or lying on a line that meets three edges
-(EEE, a quadric: a cubic in the line's parameter here). Candidates are kept
-only when the event line really meets its features between x and J's plane and
-passes through J's hull (occlusion by other objects is not checked: the set is
-a superset, which costs quadrature nodes, never accuracy).
+Also here: :func:`blocked_form_factors`, the part of F(x → J) the occluders hide, each
+point past its own subset of them, and :func:`shaft_meets`, which occluders meet the
+convex hull of a cell of the emitter and J (the cubature of
+:mod:`viscx.queries.formfactor` keeps per cell only those).
 """
 
 import numpy as np
@@ -112,10 +108,11 @@ def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
 
 
 @njit(cache=True)
-def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly,
+def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0,
                  act_v1, p0, p1):
-    """Form factor from (x, n_i) to the visible part of J (see the module docstring)."""
+    """Form factor from (x, n_i) to the visible part of J past the occluder polygons ``sel``
+    (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring)."""
     hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
     if hx <= 0:
         return 0.0
@@ -148,60 +145,61 @@ def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hu
             n_seg += 1
     # occluders: clipped to the pyramid, projected through x
     n_poly = poly_normal.shape[0]
-    for L in range(occ_loop.shape[0] - 1):
-        lo, hi = occ_loop[L], occ_loop[L + 1]
-        pid = occ_poly[L]
-        side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
-                + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
-        if abs(side) <= tiny:
-            continue  # x in the occluder's plane: it is seen edge-on and hides nothing
-        sgn = 1 if side > 0 else -1
-        # quick rejection: every vertex outside one plane
-        rejected = False
-        for i in range(n_hull):
-            out = True
-            for q in range(lo, hi):
-                if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
-                        + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
-                    out = False
+    for r in range(sel.shape[0]):
+        pid = sel[r]
+        for L in range(poly_loop[pid], poly_loop[pid + 1]):
+            lo, hi = occ_loop[L], occ_loop[L + 1]
+            side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
+                    + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
+            if abs(side) <= tiny:
+                continue  # x in the occluder's plane: it is seen edge-on and hides nothing
+            sgn = 1 if side > 0 else -1
+            # quick rejection: every vertex outside one plane
+            rejected = False
+            for i in range(n_hull):
+                out = True
+                for q in range(lo, hi):
+                    if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
+                            + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
+                        out = False
+                        break
+                if out:
+                    rejected = True
                     break
-            if out:
-                rejected = True
-                break
-        if rejected:
-            continue
-        n_in = hi - lo
-        for q in range(n_in):
-            for c in range(3):
-                buf_a[q, c] = occ[lo + q, c]
-        for i in range(n_hull):
-            n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+            if rejected:
+                continue
+            n_in = hi - lo
             for q in range(n_in):
                 for c in range(3):
-                    buf_a[q, c] = buf_b[q, c]
+                    buf_a[q, c] = occ[lo + q, c]
+            for i in range(n_hull):
+                n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+                for q in range(n_in):
+                    for c in range(3):
+                        buf_a[q, c] = buf_b[q, c]
+                if n_in < 3:
+                    break
             if n_in < 3:
-                break
-        if n_in < 3:
-            continue
-        # project
-        first = n_seg
-        for q in range(n_in):
-            h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
-            den = hx - h
-            if den <= 0:
-                den = tiny  # only x itself (the apex) projects to infinity
-            t = hx / den
-            zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
-            zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
-            zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
-            seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
-            seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
-        for q in range(n_in):
-            k = first + q + 1 if q + 1 < n_in else first
-            seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
-            seg_p[first + q] = pid + 1
-            seg_w[first + q] = sgn
-        n_seg += n_in
+                continue
+            # project
+            first = n_seg
+            for q in range(n_in):
+                h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
+                den = hx - h
+                if den <= 0:
+                    den = tiny  # only x itself (the apex) projects to infinity
+                t = hx / den
+                zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
+                zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
+                zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
+                seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
+                seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
+            for q in range(n_in):
+                k = first + q + 1 if q + 1 < n_in else first
+                seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
+                seg_p[first + q] = pid + 1
+                seg_w[first + q] = sgn
+            n_seg += n_in
     # winding weights: an edge running right to left adds its polygon's sign below it
     n_brk = 0
     for e in range(n_seg):
@@ -337,6 +335,32 @@ def _visible_one(x, n_i, j2, j_loop, j_sign_unused, origin, eu, ev, n_j, c_j, hu
 
 
 @njit(cache=True)
+def _loops_of_polygons(occ_poly, n_poly):
+    """(P + 1,) int64 offsets: the loops of polygon p are ``out[p]:out[p + 1]`` (loops sorted by polygon)."""
+    out = np.zeros(n_poly + 1, np.int64)
+    for L in range(occ_poly.shape[0]):
+        out[occ_poly[L] + 1] += 1
+    for p in range(n_poly):
+        out[p + 1] += out[p]
+    return out
+
+
+@njit(cache=True)
+def _buffers(j2, hull, occ_loop, n_poly):
+    """Work arrays of :func:`_visible_one`, sized for every occluder at once."""
+    n_hull = hull.shape[0]
+    n_loops = occ_loop.shape[0] - 1
+    kmax = 3
+    for L in range(n_loops):
+        kmax = max(kmax, occ_loop[L + 1] - occ_loop[L])
+    kmax += n_hull + 2
+    emax = j2.shape[0] + n_loops * kmax + 1
+    return (np.empty((emax, 2)), np.empty((emax, 2)), np.empty(emax, np.int64), np.empty(emax, np.int64),
+            np.empty((kmax, 3)), np.empty((kmax, 3)), np.empty(emax + emax * emax // 2 + 1), np.zeros(n_poly + 1, np.int64),
+            np.empty(emax, np.int64), np.empty(emax), np.empty(emax), np.empty(emax), np.empty(3), np.empty(3))
+
+
+@njit(cache=True)
 def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly, poly_normal,
                          poly_point, tiny):
     """Form factors from differential areas (points, common normal n_i) to the part of J
@@ -357,7 +381,8 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     hull : (h, 3) float64
         Convex hull of J (3-D, in order).
     occ : (no, 3) float64
-        Occluder loops (3-D), occ_loop (lo + 1,) int64 offsets, occ_poly (lo,) int64 their polygon.
+        Occluder loops (3-D), occ_loop (lo + 1,) int64 offsets, occ_poly (lo,) int64 their
+        polygon (non-decreasing: a polygon's loops are consecutive).
     poly_normal, poly_point : (P, 3) float64
         Plane of each occluder polygon (loops counter-clockwise about the normal, holes clockwise).
     tiny : float
@@ -367,266 +392,182 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     -------
     (m,) float64
     """
-    m = points.shape[0]
-    out = np.empty(m)
-    n_hull = hull.shape[0]
-    n_loops = occ_loop.shape[0] - 1
-    kmax = 3
-    for L in range(n_loops):
-        kmax = max(kmax, occ_loop[L + 1] - occ_loop[L])
-    kmax += n_hull + 2
-    emax = j2.shape[0] + n_loops * kmax + 1
-    seg_a = np.empty((emax, 2))
-    seg_b = np.empty((emax, 2))
-    seg_p = np.empty(emax, np.int64)
-    seg_w = np.empty(emax, np.int64)
-    buf_a = np.empty((kmax, 3))
-    buf_b = np.empty((kmax, 3))
-    brk = np.empty(emax + emax * emax // 2 + 1)
-    wind = np.zeros(poly_normal.shape[0] + 1, np.int64)
-    act = np.empty(emax, np.int64)
-    act_v = np.empty(emax)
-    act_v0 = np.empty(emax)
-    act_v1 = np.empty(emax)
-    p0 = np.empty(3)
-    p1 = np.empty(3)
-    for i in range(m):
-        out[i] = _visible_one(points[i], n_i, j2, j_loop, 0, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly,
+    n_poly = poly_normal.shape[0]
+    poly_loop = _loops_of_polygons(occ_poly, n_poly)
+    sel = np.arange(n_poly)
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+        j2, hull, occ_loop, n_poly)
+    out = np.empty(points.shape[0])
+    for i in range(points.shape[0]):
+        out[i] = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                               poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
                               act_v, act_v0, act_v1, p0, p1)
     return out
 
 
-# --------------------------------------------------------------------------------------
-# events along a line of receiver points
-
-
 @njit(cache=True)
-def _through_hull(x, w, n_j, c_j, origin, eu, ev, hull2, slack):
-    """Ray parameter where x + t w meets J's plane inside J's 2-D hull (counter-clockwise),
-    or -1."""
-    hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
-    dn = n_j[0] * w[0] + n_j[1] * w[1] + n_j[2] * w[2]
-    if dn >= 0 or hx <= 0:
-        return -1.0
-    t = hx / -dn
-    zx = x[0] + t * w[0] - origin[0]
-    zy = x[1] + t * w[1] - origin[1]
-    zz = x[2] + t * w[2] - origin[2]
-    u = zx * eu[0] + zy * eu[1] + zz * eu[2]
-    v = zx * ev[0] + zy * ev[1] + zz * ev[2]
-    h = hull2.shape[0]
-    for i in range(h):
-        a0, a1 = hull2[i, 0], hull2[i, 1]
-        b0, b1 = hull2[(i + 1) % h, 0], hull2[(i + 1) % h, 1]
-        ex, ey = b0 - a0, b1 - a1
-        cross = ex * (v - a1) - ey * (u - a0)
-        if cross < -slack * np.sqrt(ex * ex + ey * ey):
-            return -1.0
-    return t
-
-
-@njit(cache=True)
-def _meets_segment(x, w, t_max, a, b, slack):
-    """Whether the line x + t w (coplanar with segment ab) meets it at 0 < t <= t_max (1 + slack)."""
-    ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    # w × e
-    cx, cy, cz = w[1] * ez - w[2] * ey, w[2] * ex - w[0] * ez, w[0] * ey - w[1] * ex
-    cc = cx * cx + cy * cy + cz * cz
-    if cc == 0.0:
-        return False
-    px, py, pz = a[0] - x[0], a[1] - x[1], a[2] - x[2]
-    # t = ((a - x) × e)·(w × e) / |w × e|^2
-    qx, qy, qz = py * ez - pz * ey, pz * ex - px * ez, px * ey - py * ex
-    t = (qx * cx + qy * cy + qz * cz) / cc
-    # r = ((x - a) × w)·(e × w) / |e × w|^2 = ((a - x) × w)·(w × e) / cc
-    rx, ry, rz = py * w[2] - pz * w[1], pz * w[0] - px * w[2], px * w[1] - py * w[0]
-    r = (rx * cx + ry * cy + rz * cz) / cc
-    return (-slack <= r <= 1 + slack) and t > 0 and t <= t_max * (1 + slack)
-
-
-@njit(cache=True)
-def _det3(a, b, c):
-    return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]))
-
-
-@njit(cache=True)
-def _cubic_roots01(c0, c1, c2, c3, out):
-    """Real roots in [0, 1] of c0 + c1 s + c2 s² + c3 s³ (bisection between the
-    critical points); returns how many were written."""
-    cuts = np.empty(4)
-    nc = 0
-    cuts[nc] = 0.0
-    nc += 1
-    # derivative c1 + 2 c2 s + 3 c3 s²
-    qa, qb, qc = 3 * c3, 2 * c2, c1
-    if qa != 0.0:
-        disc = qb * qb - 4 * qa * qc
-        if disc > 0:
-            r = np.sqrt(disc)
-            s1 = (-qb - r) / (2 * qa)
-            s2 = (-qb + r) / (2 * qa)
-            if s1 > s2:
-                s1, s2 = s2, s1
-            if 0 < s1 < 1:
-                cuts[nc] = s1
-                nc += 1
-            if 0 < s2 < 1:
-                cuts[nc] = s2
-                nc += 1
-    elif qb != 0.0:
-        s1 = -qc / qb
-        if 0 < s1 < 1:
-            cuts[nc] = s1
-            nc += 1
-    cuts[nc] = 1.0
-    nc += 1
-    k = 0
-    for i in range(nc - 1):
-        lo, hi = cuts[i], cuts[i + 1]
-        flo = c0 + lo * (c1 + lo * (c2 + lo * c3))
-        fhi = c0 + hi * (c1 + hi * (c2 + hi * c3))
-        if flo == 0.0:
-            out[k] = lo
-            k += 1
-            continue
-        if (flo > 0) == (fhi > 0):
-            continue
-        for _ in range(64):
-            mid = 0.5 * (lo + hi)
-            fm = c0 + mid * (c1 + mid * (c2 + mid * c3))
-            if (fm > 0) == (flo > 0):
-                lo, flo = mid, fm
-            else:
-                hi = mid
-            if hi - lo <= 1e-16:
-                break
-        out[k] = 0.5 * (lo + hi)
-        k += 1
-    return k
-
-
-@njit(cache=True)
-def line_events(x0, d, length, vert, vert_poly, edge_a, edge_b, edge_poly, triples, poly_normal, poly_point, n_j, c_j,
-                origin, eu, ev, hull2, slack):
-    """Parameters s in (0, length) where the visible part of J from x0 + s d changes
-    combinatorially (a superset; see the module docstring). Unsorted, may repeat.
+def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ,
+                         occ_loop, occ_poly, poly_normal, poly_point, tiny):
+    """The part of F(x → J) that the occluders hide, ``F(x → J) − F(x → visible part of J)``,
+    each point seeing past its own group's occluders only.
 
     Parameters
     ----------
-    x0, d : (3,) float64
-        The line (d unit); s in [0, length].
-    vert : (nv, 3) float64; vert_poly (nv,) int64
-        Feature vertices (J's and the occluders'), labelled by polygon (0: J).
-    edge_a, edge_b : (ne, 3) float64; edge_poly (ne,) int64
-        Feature edges.
-    triples : (nt, 3) int64
-        Edge triples that may carry an EEE event.
-    poly_normal, poly_point : (P, 3) float64
-        Occluder planes.
-    n_j, c_j, origin, eu, ev, hull2
-        J's plane, its 2-D basis and convex hull (counter-clockwise).
-    slack : float
-        Relative tolerance of the "meets the feature" tests.
+    points : (m, 3) float64
+    point_group : (m,) int64
+        The group of each point (a cell of the emitter whose shaft to J meets few occluders).
+    group_ptr, group_occ : (g + 1,), (k,) int64
+        The occluder polygons of group g: ``group_occ[group_ptr[g]:group_ptr[g + 1]]``.
+    n_i, ... tiny :
+        As :func:`visible_form_factors`.
+
+    Returns
+    -------
+    (m,) float64
+        Zero for a point whose group has no occluder.
     """
-    nv, ne, nt = vert.shape[0], edge_a.shape[0], triples.shape[0]
-    out = np.empty(poly_normal.shape[0] + nv * ne + 3 * nt + 2)
-    k = 0
-    x = np.empty(3)
-    w = np.empty(3)
-    # x crossing an occluder's plane
-    for p in range(poly_normal.shape[0]):
-        dn = d[0] * poly_normal[p, 0] + d[1] * poly_normal[p, 1] + d[2] * poly_normal[p, 2]
-        if dn != 0.0:
-            s = ((poly_point[p, 0] - x0[0]) * poly_normal[p, 0] + (poly_point[p, 1] - x0[1]) * poly_normal[p, 1]
-                 + (poly_point[p, 2] - x0[2]) * poly_normal[p, 2]) / dn
-            if 0 < s < length:
-                out[k] = s
-                k += 1
-    # VE: x in the plane of a vertex and an edge of another polygon
-    for i in range(nv):
-        P = vert[i]
-        for e in range(ne):
-            if edge_poly[e] == vert_poly[i]:
-                continue
-            A, B = edge_a[e], edge_b[e]
-            ax, ay, az = A[0] - P[0], A[1] - P[1], A[2] - P[2]
-            bx, by, bz = B[0] - P[0], B[1] - P[1], B[2] - P[2]
-            mx, my, mz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-            mm = np.sqrt(mx * mx + my * my + mz * mz)
-            if mm <= 1e-14 * (ax * ax + ay * ay + az * az + bx * bx + by * by + bz * bz):
-                continue  # the vertex is on the edge's line
-            dn = d[0] * mx + d[1] * my + d[2] * mz
-            if abs(dn) <= 1e-14 * mm:
-                continue
-            s = ((P[0] - x0[0]) * mx + (P[1] - x0[1]) * my + (P[2] - x0[2]) * mz) / dn
-            if not 0 < s < length:
-                continue
-            for c in range(3):
-                x[c] = x0[c] + s * d[c]
-                w[c] = P[c] - x[c]
-            tj = _through_hull(x, w, n_j, c_j, origin, eu, ev, hull2, slack * length)
-            if tj < 0 or tj * (1 + slack) < 1.0:
-                continue
-            if _meets_segment(x, w, tj, A, B, slack):
-                out[k] = s
-                k += 1
-    # EEE: x on a line meeting three edges: det[n1, n2, n3] = 0, n_i = (A_i - x) × u_i
-    a = np.empty((3, 3))
-    b = np.empty((3, 3))
-    roots = np.empty(3)
-    for t in range(nt):
-        for q in range(3):
-            e = triples[t, q]
-            ux, uy, uz = edge_b[e, 0] - edge_a[e, 0], edge_b[e, 1] - edge_a[e, 1], edge_b[e, 2] - edge_a[e, 2]
-            px, py, pz = edge_a[e, 0] - x0[0], edge_a[e, 1] - x0[1], edge_a[e, 2] - x0[2]
-            a[q, 0], a[q, 1], a[q, 2] = py * uz - pz * uy, pz * ux - px * uz, px * uy - py * ux
-            # -(length d) × u
-            dx, dy, dz = length * d[0], length * d[1], length * d[2]
-            b[q, 0], b[q, 1], b[q, 2] = -(dy * uz - dz * uy), -(dz * ux - dx * uz), -(dx * uy - dy * ux)
-        c0 = _det3(a[0], a[1], a[2])
-        c1 = _det3(b[0], a[1], a[2]) + _det3(a[0], b[1], a[2]) + _det3(a[0], a[1], b[2])
-        c2 = _det3(a[0], b[1], b[2]) + _det3(b[0], a[1], b[2]) + _det3(b[0], b[1], a[2])
-        c3 = _det3(b[0], b[1], b[2])
-        scale = abs(c0) + abs(c1) + abs(c2) + abs(c3)
-        if scale == 0.0:
+    n_poly = poly_normal.shape[0]
+    poly_loop = _loops_of_polygons(occ_poly, n_poly)
+    none = np.zeros(0, np.int64)
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+        j2, hull, occ_loop, n_poly)
+    out = np.zeros(points.shape[0])
+    for i in range(points.shape[0]):
+        g = point_group[i]
+        sel = group_occ[group_ptr[g]:group_ptr[g + 1]]
+        if sel.shape[0] == 0:
             continue
-        nr = _cubic_roots01(c0 / scale, c1 / scale, c2 / scale, c3 / scale, roots)
-        for r in range(nr):
-            s = roots[r] * length
-            if not 0 < s < length:
-                continue
-            for c in range(3):
-                x[c] = x0[c] + s * d[c]
-            e1, e2 = triples[t, 0], triples[t, 1]
-            n1 = np.empty(3)
-            n2 = np.empty(3)
-            for q, e in ((0, e1), (1, e2)):
-                ux, uy, uz = edge_b[e, 0] - edge_a[e, 0], edge_b[e, 1] - edge_a[e, 1], edge_b[e, 2] - edge_a[e, 2]
-                px, py, pz = edge_a[e, 0] - x[0], edge_a[e, 1] - x[1], edge_a[e, 2] - x[2]
-                if q == 0:
-                    n1[0], n1[1], n1[2] = py * uz - pz * uy, pz * ux - px * uz, px * uy - py * ux
-                else:
-                    n2[0], n2[1], n2[2] = py * uz - pz * uy, pz * ux - px * uz, px * uy - py * ux
-            w[0] = n1[1] * n2[2] - n1[2] * n2[1]
-            w[1] = n1[2] * n2[0] - n1[0] * n2[2]
-            w[2] = n1[0] * n2[1] - n1[1] * n2[0]
-            ww = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-            if ww == 0.0:
-                continue
-            if w[0] * n_j[0] + w[1] * n_j[1] + w[2] * n_j[2] > 0:
-                for c in range(3):
-                    w[c] = -w[c]
-            tj = _through_hull(x, w, n_j, c_j, origin, eu, ev, hull2, slack * length)
-            if tj < 0:
-                continue
-            ok = True
-            for q in range(3):
-                e = triples[t, q]
-                if not _meets_segment(x, w, tj, edge_a[e], edge_b[e], slack):
-                    ok = False
+        whole = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
+                             poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
+                             act_v, act_v0, act_v1, p0, p1)
+        seen = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
+                            poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
+                            act_v, act_v0, act_v1, p0, p1)
+        out[i] = whole - seen
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# shafts: which occluders meet the convex hull of two planar polygons
+
+
+@njit(cache=True)
+def _separated_on(ax, ay, az, pa, pb, poly_pts, lo, hi, tol):
+    """Whether the axis separates conv(pa ∪ pb) from conv(poly_pts[lo:hi]) by more than
+    ``tol`` (a length; a zero axis separates nothing)."""
+    size = np.sqrt(ax * ax + ay * ay + az * az)
+    if size == 0.0:
+        return False
+    a_lo, a_hi = np.inf, -np.inf
+    for k in range(pa.shape[0]):
+        d = pa[k, 0] * ax + pa[k, 1] * ay + pa[k, 2] * az
+        a_lo, a_hi = min(a_lo, d), max(a_hi, d)
+    for k in range(pb.shape[0]):
+        d = pb[k, 0] * ax + pb[k, 1] * ay + pb[k, 2] * az
+        a_lo, a_hi = min(a_lo, d), max(a_hi, d)
+    b_lo, b_hi = np.inf, -np.inf
+    for k in range(lo, hi):
+        d = poly_pts[k, 0] * ax + poly_pts[k, 1] * ay + poly_pts[k, 2] * az
+        b_lo, b_hi = min(b_lo, d), max(b_hi, d)
+    t = tol * size
+    return b_hi <= a_lo + t or a_hi <= b_lo + t
+
+
+@njit(cache=True)
+def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi,
+                poly_normal, tol):
+    """Which candidate polygons meet the interior of the *shaft* of a cell and the target:
+    the convex hull of two convex planar polygons (every segment from one to the other lies
+    in it). Exact separating-axis test of two convex sets: the hull's facet normals lie among
+    the normals of the two polygons and of the planes through an edge of one and a vertex of
+    the other; its edges among the polygons' edges and the segments between their vertices;
+    a candidate (its vertices' convex hull: conservative for a non-convex one) is separated
+    when one of these axes, its own normal, its in-plane edge normals or the cross products
+    of the two sets of edges separates them by more than ``tol`` (touching is not meeting).
+
+    Parameters
+    ----------
+    cells : (g, kc, 3) float64
+        Convex polygons (vertices in order), e.g. triangles of the emitter; cell_normal (g, 3).
+    target, target_normal : (kt, 3), (3,) float64
+        The convex hull of the receiver (in order) and its plane's normal.
+    cand_cell, cand_poly : (c,) int64
+        Candidate pairs (cell, polygon).
+    poly_pts : (n, 3) float64
+        Vertices of the polygons, polygon p at ``poly_lo[p]:poly_hi[p]``; poly_normal (P, 3).
+    tol : float
+
+    Returns
+    -------
+    (c,) bool
+    """
+    out = np.zeros(cand_cell.shape[0], np.bool_)
+    kt = target.shape[0]
+    for c in range(cand_cell.shape[0]):
+        pa = cells[cand_cell[c]]
+        kc = pa.shape[0]
+        p = cand_poly[c]
+        lo, hi = poly_lo[p], poly_hi[p]
+        # boxes first
+        sep = False
+        for d in range(3):
+            a_lo = min(pa[:, d].min(), target[:, d].min())
+            a_hi = max(pa[:, d].max(), target[:, d].max())
+            b_lo = poly_pts[lo:hi, d].min()
+            b_hi = poly_pts[lo:hi, d].max()
+            if b_hi <= a_lo + tol or a_hi <= b_lo + tol:
+                sep = True
+                break
+        if sep:
+            continue
+        n = cell_normal[cand_cell[c]]
+        if _separated_on(n[0], n[1], n[2], pa, target, poly_pts, lo, hi, tol):
+            continue
+        if _separated_on(target_normal[0], target_normal[1], target_normal[2], pa, target, poly_pts, lo, hi, tol):
+            continue
+        m = poly_normal[p]
+        if _separated_on(m[0], m[1], m[2], pa, target, poly_pts, lo, hi, tol):
+            continue
+        # planes through an edge of one polygon and a vertex of the other
+        for s in range(2):
+            src, dst = (pa, target) if s == 0 else (target, pa)
+            ks = src.shape[0]
+            for e in range(ks):
+                a, b = src[e], src[(e + 1) % ks]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                for v in range(dst.shape[0]):
+                    wx, wy, wz = dst[v, 0] - a[0], dst[v, 1] - a[1], dst[v, 2] - a[2]
+                    if _separated_on(ey * wz - ez * wy, ez * wx - ex * wz, ex * wy - ey * wx, pa, target, poly_pts,
+                                     lo, hi, tol):
+                        sep = True
+                        break
+                if sep:
                     break
-            if ok:
-                out[k] = s
-                k += 1
-    return out[:k]
+            if sep:
+                break
+        if sep:
+            continue
+        # the candidate's in-plane edge normals, and cross products of edges
+        for q in range(lo, hi):
+            r = q + 1 if q + 1 < hi else lo
+            fx, fy, fz = poly_pts[r, 0] - poly_pts[q, 0], poly_pts[r, 1] - poly_pts[q, 1], poly_pts[r, 2] - poly_pts[q, 2]
+            if _separated_on(m[1] * fz - m[2] * fy, m[2] * fx - m[0] * fz, m[0] * fy - m[1] * fx, pa, target, poly_pts,
+                             lo, hi, tol):
+                sep = True
+                break
+            for e in range(kc + kt + kc * kt):
+                if e < kc:
+                    a, b = pa[e], pa[(e + 1) % kc]
+                elif e < kc + kt:
+                    a, b = target[e - kc], target[(e - kc + 1) % kt]
+                else:
+                    a, b = pa[(e - kc - kt) // kt], target[(e - kc - kt) % kt]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                if _separated_on(ey * fz - ez * fy, ez * fx - ex * fz, ex * fy - ey * fx, pa, target, poly_pts, lo, hi,
+                                 tol):
+                    sep = True
+                    break
+            if sep:
+                break
+        out[c] = not sep
+    return out

@@ -1,4 +1,4 @@
-"""Dynamic update after a move equals a rebuild from scratch (seed 003 §4.3)."""
+"""Dynamic update after a move equals a rebuild from scratch (Orti et al. §4.3)."""
 
 import functools
 

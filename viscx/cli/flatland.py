@@ -1,4 +1,4 @@
-"""``viscx flatland``: the 2-D visibility complex of convex objects and radiosity (seed 003)."""
+"""``viscx flatland``: the 2-D visibility complex of convex objects and radiosity (Orti et al.)."""
 
 import json
 import time
@@ -208,7 +208,7 @@ def move(ctx, file, obj, by, output):
               help="The scene with per-element radiosity, the dual arrangement, the form-factor matrix, or all.")
 @click.pass_context
 def plot(ctx, file, output, what):
-    """Pictures like seed 003 Fig. 9 (needs matplotlib: pip install 'viscx[plot]').
+    """Pictures like Orti et al. Fig. 9 (needs matplotlib: pip install 'viscx[plot]').
 
     \b
     viscx flatland plot three_rad.h5 -o three.png

@@ -29,7 +29,7 @@ def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_gro
 
     \b
     Point to face (exact: Lambert's formula over the part of J the point sees, from
-    its V-cells, seed 000 §7.4):
+    its V-cells, Hoberock et al. §7.4):
       viscx formfactor cornell.h5 --point 278,1,280 --normal 0,1,0 --to-face 15
     Face to face (occlusion-exact integrand, adaptive quadrature, error estimate):
       viscx formfactor cornell.h5 --from-face 0 --to-face 15

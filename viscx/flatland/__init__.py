@@ -1,4 +1,4 @@
-"""Flatland: the 2-D visibility complex of disjoint convex objects and radiosity (seed 003).
+"""Flatland: the 2-D visibility complex of disjoint convex objects and radiosity (Orti et al.).
 
 - :mod:`viscx.flatland.scene`: objects (circles, convex polygons), JSON/SVG/DXF loading.
 - :mod:`viscx.flatland.kernels`: numba kernels (support functions, bitangents, grid walks).

@@ -1,6 +1,6 @@
-"""The 2-D visibility complex of disjoint convex objects (Pocchiola–Vegter; seed 003 §3).
+"""The 2-D visibility complex of disjoint convex objects (Pocchiola–Vegter; Orti et al. §3).
 
-Elements (seed 003 §3.2), all sets of maximal free segments:
+Elements (Orti et al. §3.2), all sets of maximal free segments:
 
 - **vertex**: a free bitangent — a segment tangent to two objects k1, k2 (k1's tangent
   point first along the line) whose maximal free extension ends on a *tail* t and a
@@ -36,7 +36,7 @@ oriented face a→b, whose dual area A_ab (θ ∈ [0, 2π)) equals the area of t
 face over θ ∈ [0, π).  The lines meeting O_a have measure 2 L_a when each is counted once per
 side it leaves O_a from (θ over [0, 2π)), so
 
-    F_ab = A_ab / (2 L_a)         (seed 003 §4.1 writes L_a, the [0, π) area, see docs)
+    F_ab = A_ab / (2 L_a)         (Orti et al. §4.1 writes L_a, the [0, π) area, see docs)
 """
 
 from __future__ import annotations
@@ -76,14 +76,14 @@ class FlatComplex:
     ``v_obj`` (m, 2) int64 (k1, k2), ``v_support`` (m, 2) int64 (global support-point index
     of each tangent point), ``v_side`` (m, 2) int8 (side of k1, k2: 1 = right of
     the line, 0 = left), ``v_tail``, ``v_head`` int64 (−1 = sky), ``v_theta`` float64 in
-    [0, π), ``v_p``, ``v_q`` (m, 2) tangent points, ``v_length`` |pq| (seed 003's d_e),
+    [0, π), ``v_p``, ``v_q`` (m, 2) tangent points, ``v_length`` |pq| (Orti et al.'s d_e),
     ``v_seg`` (m, 4) the maximal free segment (sky ends clipped at the scene box + 1 %),
     ``v_edges`` (m, 4) (k1 before, k1 after, k2 before, k2 after), ``v_faces`` (m, 6)
     ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h)).
 
     Edge arrays (E,): ``e_obj``, ``e_side``, ``e_tail``, ``e_head``, ``e_verts`` (E, 2)
     (start, end vertex; −1 for a full loop), ``e_theta`` (E, 2) θ0 < θ1 (θ0 in [0, π)),
-    ``e_integral`` ∫u dθ, ``e_arclength`` (seed 003's d_c), ``e_faces`` (E, 3) (slots
+    ``e_integral`` ∫u dθ, ``e_arclength`` (Orti et al.'s d_c), ``e_faces`` (E, 3) (slots
     (t,k), (k,h), (t,h)).
 
     Face arrays (F,): ``f_pair`` (F, 2) (a, b) oriented a→b, ``f_area`` (dual area, method
@@ -642,7 +642,7 @@ def derive(scene: Scene, V: dict, previous: dict | None = None):
     has_up = np.bincount(comp, weights=face_below.astype(float), minlength=ncomp) > 0
     has_lo = np.bincount(comp, weights=(~face_below).astype(float), minlength=ncomp) > 0
     bounded = has_up & has_lo
-    # -- method (b): seed 003 §4.1: + d_c for edges on the face's own objects, − d_c for the
+    # -- method (b): Orti et al. §4.1: + d_c for edges on the face's own objects, − d_c for the
     #    others; + d_e for extremal vertices (where the two chains meet), − d_e otherwise.
     strings = np.bincount(comp[live], weights=np.where(crossing, arc[slot_edge], -arc[slot_edge])[live],
                           minlength=ncomp)

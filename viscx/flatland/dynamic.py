@@ -1,4 +1,4 @@
-"""Dynamic update of the complex after an object moves (seed 003 §4.3).
+"""Dynamic update of the complex after an object moves (Orti et al. §4.3).
 
 A translation of object K can only change
 

@@ -3,11 +3,11 @@
 Conventions (used everywhere in :mod:`viscx.flatland`)
 ------------------------------------------------------
 An *oriented* line is (θ, u): direction d(θ) = (cos θ, sin θ), left normal
-n(θ) = (−sin θ, cos θ), points x with n·x = u (seed 003 §3.2's duality
+n(θ) = (−sin θ, cos θ), points x with n·x = u (Orti et al. §3.2's duality
 −x sin θ + y cos θ = u).  θ ∈ [0, 2π) for oriented lines; the unoriented line (θ, u) is
 the oriented line (θ + π, −u).  The measure dθ du is the motion-invariant measure of lines.
 
-Object k has two *tangency curves* (seed 003's λ and μ):
+Object k has two *tangency curves* (Orti et al.'s λ and μ):
 
     side R (object on the right of the line):  u = μ_k(θ) =  h_k(θ + π/2)
     side L (object on the left):               u = λ_k(θ) = −h_k(θ − π/2)
@@ -462,7 +462,7 @@ def edge_integrals(obj, side, th0, th1, vert_start, verts, radius, A, cumG, cumS
 
     I = ∫ u dθ  exactly:  side R: u = h(θ + π/2) ⇒ I = G(θ1 + π/2) − G(θ0 + π/2);
                           side L: u = −h(θ − π/2) ⇒ I = −(G(θ1 − π/2) − G(θ0 − π/2));
-    s = the boundary length swept by the tangent point (seed 003's d_c(e)), from support
+    s = the boundary length swept by the tangent point (Orti et al.'s d_c(e)), from support
         point j0 to j1 (the end vertices' tangent points; −1 for a loop).
 
     Returns I (E,), s (E,)."""

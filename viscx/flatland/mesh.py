@@ -1,4 +1,4 @@
-"""Discontinuity mesh and radiosity in flatland (seed 003 §4.2, eq. 1).
+"""Discontinuity mesh and radiosity in flatland (Orti et al. §4.2, eq. 1).
 
 Mesh
 ----

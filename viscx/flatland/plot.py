@@ -1,4 +1,4 @@
-"""Pictures of a flatland complex (seed 003 Fig. 9): the scene with per-element radiosity,
+"""Pictures of a flatland complex (Orti et al. Fig. 9): the scene with per-element radiosity,
 the dual arrangement of the tangency curves with the complex's vertices, and the
 form-factor matrix.  matplotlib is imported lazily (the ``plot`` extra)."""
 

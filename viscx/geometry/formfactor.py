@@ -3,7 +3,7 @@
 The form factor from a differential area at x (unit normal n) to a polygon P is
 the fraction of the energy x emits (cosine-weighted over the hemisphere) that
 reaches P. For a polygon seen entirely on the front side of x, Lambert's contour
-formula gives it exactly (Baum, Rushmeier & Winget 1989; seed 000 §7.4):
+formula gives it exactly (Baum, Rushmeier & Winget 1989; Hoberock et al. §7.4):
 
     F = (1 / 2π) Σ_i  Γ_i · n,     Γ_i = θ_i (r_i × r_{i+1}) / |r_i × r_{i+1}|
 

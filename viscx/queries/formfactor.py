@@ -1,4 +1,4 @@
-"""Form factors from a viscx file: point to face (exact, seed 000 §7.4), face to face with
+"""Form factors from a viscx file: point to face (exact, Hoberock et al. §7.4), face to face with
 occlusion (quadrature with an error estimate), groups, and the sparse matrix of a scene.
 
 Sides
@@ -214,13 +214,13 @@ def shaft_occluders(pts, occluders, tol):
 
 def face_boxes(scene):
     """Bounding boxes of the faces' outer loops, ``(lo, hi)`` (f, 3) float64 each (cached)."""
-    cached = getattr(scene, "_viscx_face_boxes", None)
-    if cached is None:
+
+    def build(scene):
         start = scene.loop_offsets[scene.face_loop_offsets[:-1]]
         pts = scene.vertices[scene.loop_vertices]
-        cached = (np.minimum.reduceat(pts, start, axis=0), np.maximum.reduceat(pts, start, axis=0))
-        scene._viscx_face_boxes = cached
-    return cached
+        return np.minimum.reduceat(pts, start, axis=0), np.maximum.reduceat(pts, start, axis=0)
+
+    return scene.cached("face_boxes", build)
 
 
 def face_outlines(scene):
@@ -1049,7 +1049,7 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
 
 
 # --------------------------------------------------------------------------------------
-# point to face (seed 000 §7.4)
+# point to face (Hoberock et al. §7.4)
 
 
 def point_to_faces(query, point, normal, faces):

@@ -12,6 +12,8 @@ from random_scenes import random_boxes, random_tetrahedra
 from test_nodes import check_ends, check_free, line_point_distance, point_segment_distance
 
 import viscx.skeleton.arcs as arcs_module
+import viscx.skeleton.arcs.builder as builder_module
+import viscx.skeleton.arcs.events as events_module
 from viscx.scene import build_scene, load_scene
 from viscx.skeleton.arcs import (
     END_EDGE,
@@ -19,10 +21,10 @@ from viscx.skeleton.arcs import (
     END_PLANAR,
     EEE,
     VE,
-    _event_parameters,
-    _incidences,
     build_arcs,
     canonical_eee,
+    event_parameters,
+    family_incidences,
     family_lines,
     judge_samples,
 )
@@ -176,11 +178,11 @@ def degrees(nodes, arcs):
 def probe_half_arcs(scene, nodes, epsilons=20):
     """Valid half-arcs at each node, found locally: every family through the node judged
     just before and just after the node's parameter (20 epsilon along its edge)."""
-    kind, gens, rows = _incidences(scene, nodes)
+    kind, gens, rows = family_incidences(scene, nodes)
     key = np.concatenate([kind[:, None], gens, rows[:, None]], axis=1)
     _, first = np.unique(key, axis=0, return_index=True)
     kind, gens, rows = kind[first], gens[first], rows[first]
-    s = _event_parameters(scene, kind, gens, nodes, rows)
+    s = event_parameters(scene, kind, gens, nodes, rows)
     ev = scene.half_edges.edge_vertices[np.where(kind == EEE, gens[:, 0], gens[:, 1])]
     delta = epsilons * scene.epsilon / np.linalg.norm(scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]], axis=1)
     count = np.zeros(len(nodes), np.int64)
@@ -348,9 +350,9 @@ def floor_scene(seed, boxes):
 
 def coplanar_events(scene):
     """(family (v, e), s, hidden) of every coplanar event, as build_arcs finds them."""
-    plane_ve, plane_of, vp, ep = arcs_module._same_plane_ve(scene)
-    f, s, _, _ = arcs_module._coplanar_events(scene, plane_ve, plane_of, vp, ep, arcs_module.edge_junctions(scene))
-    return plane_ve[f], s, arcs_module._hidden_events(scene, plane_ve[f], s)
+    plane_ve, plane_of, vp, ep = arcs_module.same_plane_ve(scene)
+    f, s, _, _ = arcs_module.coplanar_events(scene, plane_ve, plane_of, vp, ep, arcs_module.edge_junctions(scene))
+    return plane_ve[f], s, arcs_module.hidden_events(scene, plane_ve[f], s)
 
 
 @pytest.mark.parametrize("seed,boxes", [(1, 6), (2, 10)])
@@ -375,7 +377,7 @@ def test_dropping_hidden_events_changes_no_arc(seed, boxes, monkeypatch):
     scene = floor_scene(seed, boxes)
     nodes = build_nodes(scene)
     fast = build_arcs(scene, nodes)
-    monkeypatch.setattr(arcs_module, "_hidden_events", lambda scene, ve, s: np.zeros(len(s), dtype=bool))
+    monkeypatch.setattr(builder_module, "hidden_events", lambda scene, ve, s: np.zeros(len(s), dtype=bool))
     full = build_arcs(scene, nodes)
     for name in ("kind", "generators", "interval", "end_type", "end_node", "blocker_kind", "blocker", "parameter", "ends"):
         np.testing.assert_array_equal(getattr(fast, name), getattr(full, name), err_msg=name)
@@ -390,7 +392,7 @@ def test_dropping_hidden_events_changes_no_arc(seed, boxes, monkeypatch):
 def test_corner_cutting_pairs_match_brute_force():
     """The output-sensitive pairing (chords interleaving on the dual region's boundary)
     finds every pair of points whose line crosses both sides of the corner (brute force),
-    in the order of _pairs_within_groups, and few others; points on the sides, their
+    in the order of pairs_within_groups, and few others; points on the sides, their
     lines and the corner included."""
     rng = np.random.default_rng(3)
     group = np.sort(rng.integers(0, 12, 900))
@@ -399,7 +401,7 @@ def test_corner_cutting_pairs_match_brute_force():
     pts[8::17, 1] = 0.0
     pts[5::101] = (1.0, 0.0)  # and at their ends
     pts[7::101] = (0.0, 1.0)
-    i, j = arcs_module._pairs_within_groups(group)
+    i, j = arcs_module.pairs_within_groups(group)
     p, q = pts[i], pts[j]
     d = q - p
     # where line pq meets y = 0 (alpha) and x = 0 (beta)
@@ -408,7 +410,7 @@ def test_corner_cutting_pairs_match_brute_force():
         beta = p[:, 1] - p[:, 0] * d[:, 1] / d[:, 0]
     # lines within 1e-9 of a side's end are left to validation (it wants epsilon)
     cuts = (alpha > 1e-9) & (alpha < 1 - 1e-9) & (beta > 1e-9) & (beta < 1 - 1e-9)
-    fi, fj = arcs_module._corner_cutting_pairs(pts[:, 0], pts[:, 1], group)
+    fi, fj = events_module._corner_cutting_pairs(pts[:, 0], pts[:, 1], group)
     found = set(zip(fi.tolist(), fj.tolist()))
     brute = list(zip(i[cuts].tolist(), j[cuts].tolist()))
     assert len(brute) > 1000
@@ -497,12 +499,12 @@ def test_arcs_do_not_depend_on_the_chunks_of_families(seed, boxes, monkeypatch):
     merged crossings)."""
     scene = floor_scene(seed, boxes)
     nodes = build_nodes(scene)
-    monkeypatch.setattr(arcs_module, "FAMILY_CHUNK", 1 << 40)
+    monkeypatch.setattr(builder_module, "FAMILY_CHUNK", 1 << 40)
     whole = build_arcs(scene, nodes)
-    assert len(arcs_module._family_chunks(arcs_module._families(scene, nodes, whole.planar))) == 1
+    assert len(builder_module._family_chunks(builder_module._families(scene, nodes, whole.planar))) == 1
     assert (whole.end_type == arcs_module.END_TRANSITION).any()
-    monkeypatch.setattr(arcs_module, "FAMILY_CHUNK", 200)
-    assert len(arcs_module._family_chunks(arcs_module._families(scene, nodes, whole.planar))) > 20
+    monkeypatch.setattr(builder_module, "FAMILY_CHUNK", 200)
+    assert len(builder_module._family_chunks(builder_module._families(scene, nodes, whole.planar))) > 20
     for workers in (1, 2):
         arcs_equal(build_arcs(scene, nodes, workers=workers), whole)
 
@@ -513,4 +515,4 @@ def test_events_sort_by_family_then_s():
     rng = np.random.default_rng(7)
     family = rng.integers(0, 50, 20000)
     s = rng.choice(np.r_[np.linspace(0, 1, 7), -0.0, rng.random(30)], 20000)
-    assert np.array_equal(arcs_module._by_family_and_s(family, s), np.lexsort([s, family]))
+    assert np.array_equal(arcs_module.by_family_and_s(family, s), np.lexsort([s, family]))

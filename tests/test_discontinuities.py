@@ -552,11 +552,11 @@ def test_touching_blocks(tmp_path, monkeypatch):
     touched planes passed the faces beside them; since then no crossing of this scene
     fails without the rule, and :func:`test_partly_overlapping_contacts` is its check).
     Every same-region pair and every crossing agrees with the oracle."""
-    from viscx.skeleton import arcs as arcs_module
+    from viscx.skeleton.arcs import builder
 
     same, cross, cracks = _touching_failures(tmp_path, "all")
     assert same == 0 and cross == 0 and cracks >= 2
-    monkeypatch.setattr(arcs_module, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
+    monkeypatch.setattr(builder, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
     assert _touching_failures(tmp_path, "no_pencils")[0] >= 5
 
 
@@ -566,7 +566,7 @@ def test_pencil_of_a_face_with_a_vertex_in_its_plane(tmp_path, monkeypatch, seed
     pencil at the side's top corner (light edge 4; edges 11 and 13) holds no node (its end
     line through the vertex grazes the side), so V1 seeds it; without it 8 same-region
     pairs (3 oracle seeds) held both edges' labels."""
-    from viscx.skeleton import arcs as arcs_module
+    from viscx.skeleton.arcs import builder
 
     def failures(name):
         obj = box_side_scene_obj(tmp_path / f"{name}.obj", seed, vertex_in_plane=True)
@@ -580,7 +580,7 @@ def test_pencil_of_a_face_with_a_vertex_in_its_plane(tmp_path, monkeypatch, seed
         return fails
 
     assert failures("seeded") == 0
-    monkeypatch.setattr(arcs_module, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
+    monkeypatch.setattr(builder, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
     assert failures("unseeded") >= 3
 
 
@@ -615,14 +615,14 @@ def _contact_failures(tmp_path, seed, name):
 # Each scene needs one part; without it (the monkeypatch) the oracle fails there.
 _CONTACT_PARTS = {
     # the pencil across both contact faces passes the faces beside the plane it touches
-    5: ("viscx.skeleton.arcs", "pencil_plane_of", lambda scene, kind, gens: np.full(len(kind), -1, np.int64)),
+    5: (("viscx.skeleton.arcs.lines", "viscx.skeleton.arcs.pencils"), "pencil_plane_of", lambda scene, kind, gens: np.full(len(kind), -1, np.int64)),
     # ... and ends where its lines enter the crack (the corners and crossings of the plane)
-    20: ("viscx.skeleton.arcs", "_pencil_events",
+    20: (("viscx.skeleton.arcs.builder",), "pencil_events",
          lambda scene, k, g: (np.empty(0, np.int64), np.empty(0), np.empty(0, np.int64), np.empty(0, np.int64))),
     # traces of the pencil's lines through the crack change nothing: dropped (3 crossings)
-    11: ("viscx.queries.discontinuities", "through_cracks", lambda scene, a, b: np.zeros(len(a), bool)),
+    11: (("viscx.queries.discontinuities",), "through_cracks", lambda scene, a, b: np.zeros(len(a), bool)),
     # an EEE trace stopping at a transition goes on to where its family's domain ends
-    9: ("viscx.queries.discontinuities", "_domain_end", lambda scene, arcs, arc, face, s_in, s_out:
+    9: (("viscx.queries.discontinuities",), "_domain_end", lambda scene, arcs, arc, face, s_in, s_out:
         np.full(3, np.nan)),
 }
 
@@ -635,16 +635,17 @@ def test_partly_overlapping_contacts(tmp_path, monkeypatch, seed):
     besides H's, two of each block, every line tangent to the blocks at the two that are not
     its generators. V1 lets those lines pass the faces beside P they touch
     (``pencil_planes``), ends their arcs at the lines through P's corners and crossings
-    (``_pencil_events``: there they enter or leave the crack, whose traces change nothing),
-    one arc per line (``_first_pencil_pair``), and the mesh drops their traces through the
+    (``pencil_events``: there they enter or leave the crack, whose traces change nothing),
+    one arc per line (``first_pencil_pair``), and the mesh drops their traces through the
     crack. Over 40 such scenes (oracle seed 1) every same-region pair and crossing agrees
     (12,305 and 3,401); before, 11 of 3,531 pairs failed in the first 12 and 6 trace ends
     dangled."""
     import importlib
 
     assert _contact_failures(tmp_path, seed, "all") == (0, 0, 0)
-    module, name, stub = _CONTACT_PARTS[seed]
-    monkeypatch.setattr(importlib.import_module(module), name, stub)
+    modules, name, stub = _CONTACT_PARTS[seed]
+    for module in modules:  # every module that calls it
+        monkeypatch.setattr(importlib.import_module(module), name, stub)
     assert sum(_contact_failures(tmp_path, seed, "without")) >= 1
 
 
@@ -667,7 +668,7 @@ def test_terrace_of_touching_blocks(tmp_path, monkeypatch):
     crosses at a finer offset); before the pencils passed the faces beside their plane,
     4,574 of 4,611 and 1,323 of 1,328, with 16 dangling ends. Terrace 0 here, and again
     with the pencils' lines stopped by the faces beside their plane."""
-    from viscx.skeleton import arcs as arcs_module
+    from viscx.skeleton.arcs import lines, pencils
 
     def failures(name):
         build_file(terrace_scene_obj(tmp_path / f"{name}.obj", 0), tmp_path / f"{name}.h5", quiet=True)
@@ -677,7 +678,8 @@ def test_terrace_of_touching_blocks(tmp_path, monkeypatch):
         return len(res["same_fail"]), len(res["cross_fail"]) + len(res["cross_skipped"]), len(res["dangling"])
 
     assert failures("all") == (0, 0, 0)
-    monkeypatch.setattr(arcs_module, "pencil_plane_of", lambda scene, kind, gens: np.full(len(kind), -1, np.int64))
+    for module in (lines, pencils):  # both call it
+        monkeypatch.setattr(module, "pencil_plane_of", lambda scene, kind, gens: np.full(len(kind), -1, np.int64))
     assert sum(failures("without")) >= 3
 
 

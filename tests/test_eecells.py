@@ -296,7 +296,7 @@ def test_pencil_segments_close_boxes_on_floor():
     2 ((0, 0, 10)-(10, 0, 10)) and 1 ((0, 0, 0)-(10, 0, 0)) cross the plane x = 3 of boxes
     0 and 1's contact at x1 = 3/10, where tangency at 15 (12) flips. That plane is touched,
     so V1 builds its pencils, one arc per line named by the first touched face it crosses
-    (``arcs._first_pencil_pair``): (12, 1, 15) up to x2 = 1/3 on edge 12 (lines
+    (``arcs.first_pencil_pair``): (12, 1, 15) up to x2 = 1/3 on edge 12 (lines
     across box 0's face from side to side), (12, 1, 14) above; V2 adds no pencil there. The
     side x2 = 1 of (1, 12) (V1's VE arc (9, 1), whole) is cut where the pencil ends on it."""
     scene, arcs, ee = built("boxes_on_floor.obj")
@@ -326,14 +326,14 @@ def test_pencil_segments_close_boxes_on_floor():
 
 def test_one_arc_per_pencil_line(monkeypatch):
     """A line of a touched plane's pencil crossing several of the plane's edges has one arc:
-    without ``arcs._first_pencil_pair`` boxes_on_floor's pencils through floor edges 1 and 2
+    without ``arcs.first_pencil_pair`` boxes_on_floor's pencils through floor edges 1 and 2
     get several arcs over the same lines (one per pair of the faces' edges they cross that
     node condition (4) admits), and the EE-squares they run in do not close."""
-    from viscx.skeleton import arcs as arcs_module
+    from viscx.skeleton.arcs import lines as arcs_lines
 
     scene, arcs, ee = built("boxes_on_floor.obj")
     assert ee.complete.all()
-    monkeypatch.setattr(arcs_module, "_first_pencil_pair", lambda scene, plane, gens, ends, valid: np.ones(len(plane), bool))
+    monkeypatch.setattr(arcs_lines, "first_pencil_pair", lambda scene, plane, gens, ends, valid: np.ones(len(plane), bool))
     scene = load_scene(SAMPLES / "boxes_on_floor.obj")
     _, ee = build_all(scene)
     assert not ee.complete.all()

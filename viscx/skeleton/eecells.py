@@ -130,7 +130,8 @@ from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.parallel import row_chunks
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
-from viscx.skeleton.arcs import EEE, VE, XE, _skew, edge_crossings, edge_junctions, family_lines
+from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
+from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
 from viscx.skeleton.vcells import TURNING_DECIMALS, _signed_angle, cells_of_loops, form_loops, turning_sums
 
@@ -335,7 +336,7 @@ def skew_pairs(scene, e1, e2):
     e1, e2 = np.asarray(e1, np.int64), np.asarray(e2, np.int64)
     if len(e1) == 0:
         return np.zeros(0, bool)
-    return _skew(scene, e1, e2)
+    return skew_edges(scene, e1, e2)
 
 
 # --------------------------------------------------------------------------------------
@@ -973,7 +974,7 @@ def _pencils_through(scene, crossed, held, x, tol):
         rows.append(chunk.start + i)
         thirds.append(ge[j])
     rows, third = np.concatenate(rows), np.concatenate(thirds)
-    keep = (third != held[rows]) & (third != crossed[rows]) & ~_skew(scene, held[rows], third)
+    keep = (third != held[rows]) & (third != crossed[rows]) & ~skew_edges(scene, held[rows], third)
     rows, third = rows[keep], third[keep]
     value = pencil_value(scene, crossed[rows], held[rows], third)
     with np.errstate(invalid="ignore"):

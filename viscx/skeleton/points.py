@@ -29,15 +29,14 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from viscx.arrays import expand_ranges
 from viscx.errors import ViscxError
-from viscx.geometry.lines import line_through_point_and_two_lines
-from viscx.skeleton import arcs as arcs_mod
-from viscx.skeleton.arcs import END_ENDPOINT, END_NODE, END_TRANSITION, VE, Arcs, HalfCells
-from viscx.skeleton.nodes import VEE, VV, Nodes, sort_nodes, validate_candidates
-from viscx.skeleton.reference import edge_lines
+from viscx.skeleton.arcs.events import event_parameters
+from viscx.skeleton.arcs.halfcells import build_half_cells
+from viscx.skeleton.arcs.kinds import END_ENDPOINT, END_NODE, END_TRANSITION, VE, Arcs, HalfCells
+from viscx.skeleton.arcs.stages import arcs_on_intervals, family_intervals, sorted_arcs
+from viscx.skeleton.nodes import Nodes, validate_candidates
+from viscx.skeleton.point_nodes import edge_pairs_seen_together, point_node_incidences, point_nodes
 
 
 def with_points(scene, points):
@@ -122,168 +121,7 @@ def inside_solid(scene, points):
 
 
 # --------------------------------------------------------------------------------------
-# V0: the point's nodes
-
-
-@njit(cache=True)
-def _edge_pairs_seen_together(p, a, b, slack):
-    """Pairs (i, j), i < j, of segments a_i b_i, a_j b_j met by one line through p:
-    their great-circle arcs on p's direction sphere cross, or one crosses the other's
-    antipode (p between the edges), with an angular slack. Returns (m, 2) int64."""
-    n = a.shape[0]
-    ua = np.empty((n, 3))
-    ub = np.empty((n, 3))
-    nrm = np.empty((n, 3))
-    for i in range(n):
-        x = a[i] - p
-        y = b[i] - p
-        ua[i] = x / np.sqrt((x * x).sum())
-        ub[i] = y / np.sqrt((y * y).sum())
-        c = np.cross(ua[i], ub[i])
-        nrm[i] = c / max(np.sqrt((c * c).sum()), 1e-300)
-    out = np.empty((1024, 2), np.int64)
-    m = 0
-    for i in range(n):
-        for j in range(i + 1, n):
-            # both ends of j on one side of i's great circle (beyond the slack): no crossing
-            si = (nrm[i] * ua[j]).sum()
-            ti = (nrm[i] * ub[j]).sum()
-            if (si > slack[i] and ti > slack[i]) or (si < -slack[i] and ti < -slack[i]):
-                continue
-            sj = (nrm[j] * ua[i]).sum()
-            tj = (nrm[j] * ub[i]).sum()
-            if (sj > slack[j] and tj > slack[j]) or (sj < -slack[j] and tj < -slack[j]):
-                continue
-            # the great circles meet at ±x; x must lie on arc i (or its antipode) and on arc j
-            x = np.cross(nrm[i], nrm[j])
-            size = np.sqrt((x * x).sum())
-            hit = size <= 1e-12  # one great circle: leave it to validation
-            if not hit:
-                x /= size
-                for sign in (1.0, -1.0):
-                    y = sign * x
-                    on_i = (np.cross(ua[i], y) * nrm[i]).sum() >= -slack[i] and (np.cross(y, ub[i]) * nrm[i]).sum() >= -slack[i]
-                    on_j = (np.cross(ua[j], y) * nrm[j]).sum() >= -slack[j] and (np.cross(y, ub[j]) * nrm[j]).sum() >= -slack[j]
-                    on_jr = (np.cross(ua[j], -y) * nrm[j]).sum() >= -slack[j] and (np.cross(-y, ub[j]) * nrm[j]).sum() >= -slack[j]
-                    if on_i and (on_j or on_jr):
-                        hit = True
-            if hit:
-                if m == out.shape[0]:
-                    grown = np.empty((2 * m, 2), np.int64)
-                    grown[:m] = out
-                    out = grown
-                out[m, 0] = i
-                out[m, 1] = j
-                m += 1
-    return out[:m]
-
-
-def point_candidates(scene, point_ids):
-    """Candidate node lines of free points, in the reference's form (same generator
-    tuples, same line constructions: :mod:`viscx.skeleton.reference`).
-
-    Parameters
-    ----------
-    scene : Scene
-        With the points appended (:func:`with_points`).
-    point_ids : (k,) int
-
-    Returns
-    -------
-    kind : (m,) int8
-    generators : (m, 4) int64
-    origins, directions : (m, 3) float64
-    """
-    gv = np.setdiff1d(scene.generator_vertices, point_ids)
-    ge = scene.generator_edges
-    ev = scene.half_edges.edge_vertices[ge]
-    lines = edge_lines(scene, ge)
-    kinds, gens, origins, dirs = [], [], [], []
-    for p in np.asarray(point_ids, dtype=np.int64):
-        x = scene.vertices[p]
-        # VV (u, p): u < p always (points come after the mesh vertices)
-        kinds.append(np.full(len(gv), VV))
-        gens.append(np.stack([gv, np.full_like(gv, p), np.full_like(gv, -1), np.full_like(gv, -1)], axis=1))
-        origins.append(scene.vertices[gv])
-        dirs.append(x - scene.vertices[gv])
-        # VEE (p, e1, e2): edge pairs one line through p meets (edges sharing a vertex never
-        # are two generators of one node)
-        a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
-        dist = np.minimum(np.linalg.norm(a - x, axis=1), np.linalg.norm(b - x, axis=1))
-        slack = 4 * scene.epsilon / np.maximum(dist, 1e-300) + 1e-9
-        pairs = _edge_pairs_seen_together(x, a, b, slack)
-        i, j = pairs[:, 0], pairs[:, 1]
-        shared = (ev[i][:, :, None] == ev[j][:, None, :]).any(axis=(1, 2))
-        i, j = i[~shared], j[~shared]
-        d = line_through_point_and_two_lines(np.tile(x, (len(i), 1)), lines[i], lines[j])
-        fine = np.linalg.norm(d, axis=1) > 0
-        i, j, d = i[fine], j[fine], d[fine]
-        kinds.append(np.full(len(i), VEE))
-        gens.append(np.stack([np.full_like(i, p), ge[i], ge[j], np.full_like(i, -1)], axis=1))
-        origins.append(np.tile(x, (len(i), 1)))
-        dirs.append(d)
-    if not kinds:
-        return np.zeros(0, np.int8), np.zeros((0, 4), np.int64), np.zeros((0, 3)), np.zeros((0, 3))
-    return (np.concatenate(kinds).astype(np.int8), np.concatenate(gens).astype(np.int64).reshape(-1, 4),
-            np.concatenate(origins).reshape(-1, 3), np.concatenate(dirs).reshape(-1, 3))
-
-
-def point_nodes(scene, point_ids):
-    """The nodes (VV and VEE) of free points, validated like every node.
-
-    Parameters
-    ----------
-    scene : Scene
-        With the points appended (:func:`with_points`).
-    point_ids : (k,) int
-
-    Returns
-    -------
-    Nodes
-        In canonical order (:func:`viscx.skeleton.nodes.sort_nodes`).
-    """
-    return validate_candidates(scene, *point_candidates(scene, point_ids))
-
-
-# --------------------------------------------------------------------------------------
-# V1: the point's VE arcs and half-cells
-
-
-def point_node_incidences(scene, nodes):
-    """The families (p, e) of points p that each node of theirs lies on: VEE (p, e1, e2) on
-    (p, e1) and (p, e2); VV (u, p) on (p, e) for every generator edge e at u, and for every
-    generator edge passing through u (a T-junction: the half-edges do not join u to e, yet
-    the family's lines turn the corner there).
-
-    Parameters
-    ----------
-    scene : Scene
-        Holding the points as vertices.
-    nodes : Nodes
-        The points' nodes (:func:`point_nodes`: the point last in VV, first in VEE).
-
-    Returns
-    -------
-    families : (m, 2) int
-        (p, e) of each incidence.
-    rows : (m,) int
-        The node's row.
-    """
-    fam_rows, node_rows = [], []
-    vee = np.flatnonzero(nodes.kind == VEE)
-    for slot in (1, 2):
-        fam_rows.append(nodes.generators[vee][:, [0, slot]])
-        node_rows.append(vee)
-    vv = np.flatnonzero(nodes.kind == VV)
-    u, p = nodes.generators[vv, 0], nodes.generators[vv, 1]
-    vo, ve = arcs_mod._vertex_edges(scene)
-    r, k = expand_ranges(vo[u], np.diff(vo)[u])
-    fam_rows.append(np.stack([p[r], ve[k]], axis=1))
-    node_rows.append(vv[r])
-    r, through = _edges_through(scene, u)
-    fam_rows.append(np.stack([p[r], through], axis=1))
-    node_rows.append(vv[r])
-    return np.concatenate(fam_rows).reshape(-1, 2), np.concatenate(node_rows).astype(np.int64)
+# V1: the point's VE arcs and half-cells (its nodes: :mod:`viscx.skeleton.point_nodes`)
 
 
 def point_arcs(scene, point_ids, nodes):
@@ -313,7 +151,7 @@ def point_arcs(scene, point_ids, nodes):
     key = families[:, 0] * (len(ev) + 1) + families[:, 1]
     fam_of = np.searchsorted(key, inc[:, 0] * (len(ev) + 1) + inc[:, 1])
     fkind = np.full(len(families), VE)
-    ev_s = arcs_mod._event_parameters(scene, fkind[fam_of], families[fam_of], nodes, rows)
+    ev_s = event_parameters(scene, fkind[fam_of], families[fam_of], nodes, rows)
     nf = len(families)
     fam_of = np.concatenate([fam_of, np.arange(nf), np.arange(nf)])
     ev_s = np.concatenate([ev_s, np.zeros(nf), np.ones(nf)])
@@ -329,10 +167,10 @@ def point_arcs(scene, point_ids, nodes):
     ev_s = np.nan_to_num(ev_s, nan=-1.0)
     inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
     ev_s = np.clip(ev_s, 0.0, 1.0)
-    intervals = arcs_mod._intervals(scene, fkind, families, fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside])
-    built = arcs_mod._arcs_on_intervals(scene, fkind, families, *intervals)
-    built = arcs_mod._sorted(built)
-    half_cells = arcs_mod._half_cells(scene, built)  # from the samples' side pairs
+    intervals = family_intervals(scene, fkind, families, fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside])
+    built = arcs_on_intervals(scene, fkind, families, *intervals)
+    built = sorted_arcs(built)
+    half_cells = build_half_cells(scene, built)  # from the samples' side pairs
     del built["sides"]
     return Arcs(**built, planar=validate_candidates(scene, np.zeros(0, np.int8), np.zeros((0, 4), np.int64),
                                                      np.zeros((0, 3)), np.zeros((0, 3))), half_cells=half_cells)
@@ -356,7 +194,7 @@ def _crossing_events(scene, point_ids, ge):
     for k, p in enumerate(np.asarray(point_ids, dtype=np.int64)):
         x = scene.vertices[p]
         slack = np.full(len(ge), 1e-9)
-        pairs = _edge_pairs_seen_together(x, a, b, slack)
+        pairs = edge_pairs_seen_together(x, a, b, slack)
         i, j = pairs[:, 0], pairs[:, 1]
         shared = (ev[i][:, :, None] == ev[j][:, None, :]).any(axis=(1, 2))
         i, j = i[~shared], j[~shared]
@@ -376,50 +214,6 @@ def _crossing_events(scene, point_ids, ge):
     if not fams:
         return np.zeros(0, np.int64), np.zeros(0)
     return np.concatenate(fams), np.concatenate(ss)
-
-
-def _edges_through(scene, vertices):
-    """Generator edges whose interior passes within the weld tolerance of each vertex
-    (T-junctions), found among the edges of the faces touching it.
-
-    Parameters
-    ----------
-    vertices : (q,) int
-
-    Returns
-    -------
-    row : (k,) int
-        Index into ``vertices``.
-    edge : (k,) int
-    """
-    from viscx.scene.neighbourhood import faces_near
-
-    tol = scene.weld_tolerance
-    uniq, inv = np.unique(np.asarray(vertices, dtype=np.int64), return_inverse=True)
-    owner, face = faces_near(scene, scene.vertices[uniq], tol)
-    he = scene.half_edges
-    by_face = np.argsort(he.face, kind="stable")
-    first = np.searchsorted(he.face[by_face], face)
-    k, h = expand_ranges(first, np.searchsorted(he.face[by_face], face, "right") - first)
-    h = by_face[h]
-    e = he.edge[h]
-    a, b = scene.vertices[he.start[h]], scene.vertices[he.end[h]]
-    x = scene.vertices[uniq[owner[k]]]
-    ab = b - a
-    t = np.einsum("ij,ij->i", x - a, ab) / np.einsum("ij,ij->i", ab, ab)
-    dist = np.linalg.norm(x - a - np.clip(t, 0, 1)[:, None] * ab, axis=1)
-    length = np.linalg.norm(ab, axis=1)
-    ok = (dist <= tol) & (t * length > tol) & ((1 - t) * length > tol) & he.edge_is_generator[e]
-    pairs = np.unique(np.stack([owner[k][ok], e[ok]], axis=1), axis=0)
-    # back to the (repeated) query rows
-    rows, edges = [], []
-    for q, edge in pairs:
-        hit = np.flatnonzero(inv.reshape(-1) == q)
-        rows.append(hit)
-        edges.append(np.full(len(hit), edge))
-    if not rows:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(rows), np.concatenate(edges)
 
 
 # --------------------------------------------------------------------------------------

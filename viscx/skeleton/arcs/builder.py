@@ -1,0 +1,264 @@
+"""The V1 builder: every family of a scene, built in chunks of consecutive families.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viscx.arrays import unique_rows
+from viscx.memory import release_free_memory
+from viscx.parallel import map_chunks, row_chunks
+from viscx.progress import bar
+from viscx.skeleton.arcs.events import (
+    PlanePoints,
+    coplanar_candidates,
+    coplanar_join,
+    domain_ends,
+    event_parameters,
+    family_incidences,
+    hidden_events,
+    planar_events,
+    points_of_planes,
+    row_blocks,
+    same_plane_ve,
+)
+from viscx.skeleton.arcs.halfcells import build_half_cells
+from viscx.skeleton.arcs.kinds import Arcs, CHUNK, EEE, END_ENDPOINT, END_NODE, END_PLANAR, VE
+from viscx.skeleton.arcs.pencils import contact_pencils, pencil_events
+from viscx.skeleton.arcs.stages import (
+    Intervals,
+    arcs_of_pieces,
+    concatenate_parts,
+    edge_line_ends,
+    family_intervals,
+    first_pass,
+    refine_intervals,
+)
+from viscx.skeleton.arcs.xe import crossing_arcs
+from viscx.skeleton.generators import edge_junctions
+from viscx.skeleton.nodes import Nodes
+
+
+def build_arcs(scene, nodes, quiet=True, workers=None):
+    """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
+
+    The families are found once for the whole scene (:func:`_families`). Their events,
+    intervals and first samples are made in chunks of consecutive families
+    (:func:`_first_pass_of_families`, on threads); the few intervals whose samples
+    disagree are refined all together (:func:`refine_intervals`: its bisection is a sequence of
+    small batches); then each chunk's pieces are merged into its arcs
+    (:func:`_arcs_of_families`). Every stage of an arc is decided within its family, so
+    the arcs do not depend on the chunks; memory holds the result, the first pass's
+    pieces (about as large, freed chunk by chunk) and a chunk's events per thread; the
+    chunks' arcs, each sorted, concatenate in the canonical order.
+
+    Parameters
+    ----------
+    scene : Scene
+    nodes : Nodes
+        The V0 nodes (any builder's; ids refer to their order).
+    quiet : bool
+        No progress bar.
+    workers : int, optional
+        Threads building the chunks (default: the CPU count); the arcs do not depend on it.
+
+    Returns
+    -------
+    Arcs
+    """
+    with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
+        progress.set_postfix_str("planar events")
+        planar = planar_events(scene)
+        progress.update()
+
+        progress.set_postfix_str("families")
+        families = _families(scene, nodes, planar, workers)
+        progress.update()
+
+        chunks = _family_chunks(families)
+        done = []
+
+        def chunk_done(_):
+            done.append(1)
+            progress.set_postfix_str(f"samples: {len(done)}/{len(chunks)} chunks of families")
+
+        progress.set_postfix_str(f"samples: 0/{len(chunks)} chunks of families")
+        first = map_chunks(lambda c: _first_pass_of_families(scene, families, c), chunks, workers, progress=chunk_done)
+        # the intervals whose samples disagree, of all chunks at once (few: in batches)
+        progress.set_postfix_str("refining")
+        release_free_memory()
+        mixed = Intervals(*(np.concatenate(x) for x in zip(*(m for _, m in first))))
+        refined = refine_intervals(scene, families.kind, families.generators, *mixed, workers=workers)
+        refined = concatenate_parts(refined) if refined else None
+        progress.set_postfix_str("merging")
+        release_free_memory()
+        parts = map_chunks(lambda i: _arcs_of_families(scene, families, chunks, i, first, refined), range(len(chunks)), workers)
+        del families, first, refined
+        release_free_memory()
+        arcs = concatenate_parts(parts, release=True)
+        progress.update()
+
+        progress.set_postfix_str("half-cells")
+        half_cells = build_half_cells(scene, arcs)
+        del arcs["sides"]
+        progress.update()
+
+        progress.set_postfix_str("crossing junctions")
+        xe = crossing_arcs(scene, workers)
+        if xe is not None:  # after the VE arcs: the other arcs' ids do not change
+            arcs = {k: np.concatenate([v, xe[k]]) for k, v in arcs.items()}
+        progress.update()
+    return Arcs(**arcs, planar=planar, half_cells=half_cells)
+
+
+@dataclass
+class _Families:
+    """Every arc family of a scene, sorted by (kind, generators), with the events found
+    for all of them at once: the V0 nodes and planar events on each, as CSR.
+
+    Attributes
+    ----------
+    kind : (f,) int
+    generators : (f, 3) int
+        Canonical (:class:`Arcs`).
+    event_offsets : (f + 1,) int
+        Family i's node and planar events are rows ``event_offsets[i]:event_offsets[i + 1]``
+        of ``event_s`` (float), ``event_kind`` (END_NODE or END_PLANAR) and ``event_index``
+        (the node, or the row of the planar events).
+    plane_family : (m,) int
+        The same-plane VE families (:func:`same_plane_ve`), ascending, with their (v, e)
+        ``plane_ve`` (m, 2) and plane ``plane_of`` (m,).
+    plane_points : PlanePoints
+        The points of their planes (:func:`points_of_planes`).
+    weight : (f,) int
+        The events each family is known to hold (nodes, planar events, coplanar
+        candidates) plus a few for its domain's ends: what sizes the chunks.
+    """
+
+    kind: np.ndarray
+    generators: np.ndarray
+    event_offsets: np.ndarray
+    event_s: np.ndarray
+    event_kind: np.ndarray
+    event_index: np.ndarray
+    plane_family: np.ndarray
+    plane_ve: np.ndarray
+    plane_of: np.ndarray
+    plane_points: PlanePoints
+    weight: np.ndarray
+
+    def __len__(self):
+        return len(self.kind)
+
+
+def _families(scene, nodes, planar, workers=None):
+    """The families through the nodes and the planar events, every same-plane VE family
+    and every pencil at a corner of a touched face (which may hold no node), with their
+    node and planar events (:class:`_Families`)."""
+    def incidences(chunk):
+        code, events, rows = chunk
+        part = Nodes(**{k: getattr(events, k)[rows] for k in Nodes.__dataclass_fields__})
+        k, g, at = family_incidences(scene, part)
+        return k.astype(np.int8), g, np.full(len(at), code, np.int8), at + rows.start, event_parameters(scene, k, g, part, at)
+
+    # in chunks of events (each on its own, on threads): their temporaries stay bounded
+    chunks = [(code, events, rows) for code, events in ((END_NODE, nodes), (END_PLANAR, planar))
+              for rows in row_chunks(max(len(events), 1), CHUNK // 4)]
+    fam_kind, fam_gens, ev_kind, ev_index, ev_s = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
+    # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
+    plane_ve, plane_of, vp, ep = same_plane_ve(scene)
+    fam_kind.append(np.full(len(plane_ve), VE, np.int8))
+    fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))
+    # so may the pencils at the corners of faces in contact
+    pencils = contact_pencils(scene)
+    fam_kind.append(np.full(len(pencils), EEE, np.int8))
+    fam_gens.append(pencils)
+    keys = np.concatenate([np.concatenate(fam_kind).astype(np.int64)[:, None], np.concatenate(fam_gens)], axis=1)
+    del fam_kind, fam_gens
+    # (shifted by one, the -1 of VE rows included, the rows pack into one sortable int64)
+    families, fam_of = unique_rows(keys.reshape(-1, 4) + 1)
+    families -= 1
+    del keys
+    n_events = len(fam_of) - len(plane_ve) - len(pencils)
+    plane_family, fam_of = fam_of[n_events: n_events + len(plane_ve)], fam_of[:n_events]
+    # (plane_ve is sorted by (v, e) and families by (VE, v, e): plane_family ascends)
+    order = np.argsort(fam_of, kind="stable")
+    nf = len(families)
+    count = np.bincount(fam_of, minlength=nf)
+    points = points_of_planes(scene, np.unique(plane_of), vp, ep, junctions=edge_junctions(scene))
+    weight = count + np.where(families[:, 0] == EEE, 8, 2)
+    for rows in row_chunks(len(plane_ve), CHUNK):
+        fam, first, last = coplanar_candidates(scene, plane_ve[rows], plane_of[rows], points)
+        weight += np.bincount(plane_family[rows][fam], weights=last - first, minlength=nf).astype(np.int64)
+    return _Families(families[:, 0], families[:, 1:], np.r_[0, np.cumsum(count)], np.concatenate(ev_s)[order],
+                     np.concatenate(ev_kind)[order], np.concatenate(ev_index)[order], plane_family, plane_ve, plane_of,
+                     points, weight)
+
+
+#: Events (known, see :class:`_Families`) per chunk of families built at once by
+#: :func:`build_arcs`: a few hundred bytes each in flight.
+FAMILY_CHUNK = 1 << 18
+
+
+def _family_chunks(families):
+    """Consecutive ranges of families (slices) of about FAMILY_CHUNK events each."""
+    return row_blocks(families.weight, FAMILY_CHUNK)
+
+
+def _first_pass_of_families(scene, families, chunk):
+    """The events, intervals and first pass (:func:`first_pass`) of a chunk of
+    consecutive families (a slice): their nodes and planar events, domain ends and
+    junctions, coplanar events. Families are the chunk's (0 its first); the mixed
+    intervals' are the scene's."""
+    lo, hi = chunk.start, chunk.stop
+    fkind, fgens = families.kind[chunk], families.generators[chunk]
+    nf = hi - lo
+    ev = slice(families.event_offsets[lo], families.event_offsets[hi])
+    fam_of = np.repeat(np.arange(nf), np.diff(families.event_offsets[lo: hi + 1]))
+    # the ends of each family's domain, and its junctions
+    dom_f, dom_s, dom_kind, dom_vertex = domain_ends(scene, fkind, fgens, edge_junctions(scene))
+    # the points of their plane same-plane VE families pass
+    p0, p1 = np.searchsorted(families.plane_family, [lo, hi])
+    plane_ve = families.plane_ve[p0:p1]
+    cop_f, cop_s, cop_kind, cop_index = coplanar_join(scene, plane_ve, families.plane_of[p0:p1], families.plane_points)
+    cop_hidden = hidden_events(scene, plane_ve[cop_f], cop_s)
+    cop_f = families.plane_family[p0:p1][cop_f] - lo
+    # the points of their plane pencils of touched planes pass
+    pen_f, pen_s, pen_kind, pen_index = pencil_events(scene, fkind, fgens)
+    cop_f, cop_s = np.r_[cop_f, pen_f], np.r_[cop_s, pen_s]
+    cop_kind, cop_index = np.r_[cop_kind, pen_kind], np.r_[cop_index, pen_index]
+    cop_hidden = np.r_[cop_hidden, np.zeros(len(pen_f), dtype=bool)]
+    fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
+    ev_s = np.concatenate([families.event_s[ev], dom_s, cop_s, np.zeros(nf), np.ones(nf)])
+    ev_kind = np.concatenate([families.event_kind[ev], dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])
+    ev_index = np.concatenate([families.event_index[ev], dom_vertex, cop_index, np.full(2 * nf, -1)])
+    ev_hidden = np.zeros(len(ev_s), dtype=bool)
+    ev_hidden[len(ev_s) - 2 * nf - len(cop_s): len(ev_s) - 2 * nf] = cop_hidden
+    # events on the family's edge (within rounding of its ends)
+    ev_s = np.nan_to_num(ev_s, nan=-1.0)
+    inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+    ev_s = np.clip(ev_s, 0.0, 1.0)
+    intervals = family_intervals(scene, fkind, fgens, *(x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden)))
+    del fam_of, ev_s, ev_kind, ev_index, ev_hidden
+    parts, mixed = first_pass(scene, fkind, fgens, *intervals)
+    return parts, mixed._replace(family=mixed.family + lo)
+
+
+def _arcs_of_families(scene, families, chunks, i, first, refined):
+    """The arcs of the chunk of families ``chunks[i]``, sorted as :func:`sorted_arcs`, with
+    their samples' half-cell pairs (``sides``), from its first pass (``first[i]``, taken
+    out of the list: the first pass is freed as the arcs are made) and its families'
+    refined pieces (``refined``: of all chunks, by ascending family; or None)."""
+    chunk = chunks[i]
+    parts, _ = first[i]
+    first[i] = None
+    if refined is not None:
+        a, b = np.searchsorted(refined["family"], [chunk.start, chunk.stop])
+        mine = {k: v[a:b] for k, v in refined.items()}
+        mine["family"] = mine["family"] - chunk.start
+        parts = parts + [mine]
+    arcs = arcs_of_pieces(scene, families.kind[chunk], families.generators[chunk], parts)
+    edge_line_ends(scene, arcs)
+    # (already sorted: the merge orders the arcs by family, then s, and families are sorted
+    # by kind and generators, the order of sorted_arcs)
+    return arcs

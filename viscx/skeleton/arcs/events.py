@@ -1,0 +1,621 @@
+"""V1 events: planar E4 events, the families through each node, the ends of each
+family's domain, junctions, and the coplanar events of same-plane VE families.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
+from viscx.geometry.lines import segment_parameter
+from viscx.parallel import map_chunks, row_chunks
+from viscx.scene.neighbourhood import faces_near
+from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_COPLANAR, END_CROSSING, END_ENDPOINT, END_JUNCTION, VE
+from viscx.skeleton.arcs.lines import family_lines
+from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups
+from viscx.skeleton.generators import canonical_eee, edge_geometry, vertex_edges
+from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, validate_candidates
+
+
+#: Margin (radians) of the direction ranges that pair a same-plane VE family with the points
+#: of its plane its lines can pass (the exact parameter test decides): far above rounding.
+ANGLE_MARGIN = 1e-6
+
+
+def planar_events(scene):
+    """The planar E4 events: lines in the plane of two generator edges sharing a vertex
+    that meet two more generator edges, validated as nodes.
+
+    V0 leaves them out (two of the four edges share an endpoint); they end EEE
+    arcs where the line turns into a face's plane at one of its edges (Durand's
+    FEE events) or into the plane of two edges of one vertex.
+
+    Returns
+    -------
+    Nodes
+        Kind E4, generators the four edges increasing, one line per quadruple.
+    """
+    eps = scene.epsilon
+    vo, ve = vertex_edges(scene)
+    # pairs of generator edges at one vertex
+    owner = np.repeat(np.arange(scene.n_vertices), np.diff(vo))
+    i, j = pairs_within_groups(owner)
+    if len(i) == 0:
+        return _no_events(scene)
+    pa, pb, pw = ve[i], ve[j], owner[i]
+    w = scene.vertices[pw]
+    other = lambda e: np.where(scene.half_edges.edge_vertices[e, 0] == pw, scene.half_edges.edge_vertices[e, 1], scene.half_edges.edge_vertices[e, 0])  # noqa: E731
+    ua, ub = scene.vertices[other(pa)] - w, scene.vertices[other(pb)] - w
+    normal = np.cross(ua, ub)
+    size = np.linalg.norm(normal, axis=1)
+    keep = size > 1e-9 * np.linalg.norm(ua, axis=1) * np.linalg.norm(ub, axis=1)
+    pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
+
+    # generator edges crossing each pair's plane strictly inside
+    cp, ce, cq = edges_crossing_planes(scene, normal, w)
+    # (the pair's own edges and the edges at w do not cross the plane strictly)
+    # the crossings in the corner's affine frame: q - w = x ua + y ub
+    ua, ub, rel = ua[keep][cp], ub[keep][cp], cq - w[cp]
+    n = normal[cp]
+    det = np.einsum("ij,ij->i", np.cross(ua, ub), n)
+    x = np.einsum("ij,ij->i", np.cross(rel, ub), n) / det
+    y = np.einsum("ij,ij->i", np.cross(ua, rel), n) / det
+    ci, cj = _corner_cutting_pairs(x, y, cp)
+    if len(ci) == 0:
+        return _no_events(scene)
+    pair = cp[ci]
+    origin, direction = cq[ci], cq[cj] - cq[ci]
+    fine = np.linalg.norm(direction, axis=1) > eps
+    # the line must cross both edges of the pair (cut the corner at w) before it is worth judging
+    for e in (pa, pb):
+        a, b = edge_geometry(scene, e[pair])
+        x, _ = segment_parameter(origin, np.where(fine[:, None], direction, 1.0), a, b)
+        with np.errstate(invalid="ignore"):
+            fine &= (x > 0) & (x < 1)
+    ci, cj, pair, origin, direction = ci[fine], cj[fine], pair[fine], origin[fine], direction[fine]
+    gens = np.sort(np.stack([pa[pair], pb[pair], ce[ci], ce[cj]], axis=1), axis=1)
+    distinct = np.all(np.diff(gens, axis=1) > 0, axis=1)
+    gens, origin, direction = gens[distinct], origin[distinct], direction[distinct]
+    # one line per quadruple (two adjacent pairs can propose it)
+    first = first_of_rows(gens)
+    events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])
+    first = first_of_rows(events.generators)
+    return Nodes(**{k: getattr(events, k)[first] for k in events.__dataclass_fields__})
+
+
+def _corner_cutting_pairs(x, y, group, slack=1e-9):
+    """Index pairs i < j within one group of points whose line may cross both open sides
+    of the corner at the origin, (0, 0)-(1, 0) and (0, 0)-(0, 1): a superset of those
+    whose line crosses them farther than ``slack`` from their ends (nearer, the line is
+    degenerate and validation, which wants epsilon, rejects it), in the order of
+    :func:`pairs_within_groups`.
+
+    Output-sensitive, by duality: the line through (α, 0) and (0, β) holds P = (x, y)
+    iff x a + y b = 1 with (a, b) = (1/α, 1/β), so the lines crossing both sides are
+    the points of the region R = {a > 1, b > 1}, each point P is a line L_P, and two
+    points lie on a corner-cutting line iff L_P and L_Q meet inside R. R is convex:
+    two lines meet inside it iff their chords' ends interleave along its boundary,
+    walked from the corner (1, 1) along b = 1 (τ = 1 - α), over the line at infinity
+    (τ = 1 + |x| / (|x| + |y|), the chord's direction there) and back along a = 1
+    (τ = 2 + β). Sorting the chords by their first end, each chord's partners are
+    those starting within it and ending beyond it.
+
+    Parameters
+    ----------
+    x, y : (k,) float
+        The points in the corner's affine frame.
+    group : (k,) int
+        Sorted; pairs are formed within a group only.
+
+    Returns
+    -------
+    i, j : (p,) int
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = x / (1 - y)  # where L_P meets b = 1
+        beta = y / (1 - x)  # and a = 1
+        at_inf = 1 + np.abs(x) / (np.abs(x) + np.abs(y))
+    loose = lambda t: np.isfinite(t) & (t >= -slack) & (t <= 1 + slack)  # noqa: E731
+    margin = 10 * slack
+    ends = np.stack([np.where(loose(alpha), 1 - alpha, np.nan), np.where(loose(beta), 2 + beta, np.nan),
+                     np.where(x * y <= 0, at_inf, np.nan)], axis=1)
+    # a line through the corner (1, 1) meets both sides there: one end (τ = 0, also 3)
+    ends[(ends[:, 0] <= margin) & (ends[:, 1] >= 3 - margin), 1] = np.nan
+    has = np.sum(np.isfinite(ends), axis=1) >= 2  # the other lines miss R
+    idx = np.flatnonzero(has)
+    s0, s1 = np.nanmin(ends[idx], axis=1), np.nanmax(ends[idx], axis=1)
+    order = np.lexsort([s0, group[idx]])
+    idx, s0, s1 = idx[order], s0[order], s1[order]
+    key = group[idx] * 4.0 + s0  # τ < 3 < 4: one sorted key per group
+    lo = np.searchsorted(key, group[idx] * 4.0 + s0 - margin, "left")
+    hi = np.searchsorted(key, group[idx] * 4.0 + s1 + margin, "right")
+    count = _interleaving(idx, s1, lo, hi, margin, np.zeros((0, 2), np.int64))
+    pairs = np.empty((count, 2), np.int64)
+    _interleaving(idx, s1, lo, hi, margin, pairs)
+    pairs, _ = unique_rows(pairs)
+    i, j = pairs[:, 0], pairs[:, 1]
+    order = np.lexsort([i, j - i])
+    return i[order], j[order]
+
+
+@njit(cache=True, nogil=True)
+def _interleaving(idx, s1, lo, hi, margin, out):
+    """(min, max) of idx[a], idx[b] for every chord a and chord b starting within it
+    (lo[a] <= b < hi[a], b != a) that ends beyond it (s1[b] >= s1[a] - margin), into
+    ``out`` when it has room: how many there are."""
+    k = 0
+    for a in range(len(lo)):
+        for b in range(lo[a], hi[a]):
+            if b != a and s1[b] >= s1[a] - margin:
+                if k < len(out):
+                    out[k, 0], out[k, 1] = min(idx[a], idx[b]), max(idx[a], idx[b])
+                k += 1
+    return k
+
+
+def _no_events(scene):
+    return validate_candidates(scene, np.zeros(0, np.int8), np.zeros((0, 4), np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
+
+
+def family_incidences(scene, events):
+    """The families each event lies on.
+
+    Returns
+    -------
+    kind : (k,) int
+    generators : (k, 3) int
+        Canonical family generators.
+    event : (k,) int
+        Row of ``events``.
+    """
+    vo, ve = vertex_edges(scene)
+    is_gen_vertex = np.diff(vo) > 0
+    kinds, gens, rows = [], [], []
+
+    e4 = np.flatnonzero(events.kind == E4)
+    for drop in range(4):
+        keep = [j for j in range(4) if j != drop]
+        kinds.append(np.full(len(e4), EEE))
+        gens.append(canonical_eee(scene, events.generators[e4][:, keep]))
+        rows.append(e4)
+
+    vee = np.flatnonzero(events.kind == VEE)
+    g = events.generators[vee]
+    for slot in (1, 2):
+        kinds.append(np.full(len(vee), VE))
+        gens.append(np.stack([g[:, 0], g[:, slot], np.full(len(vee), -1)], axis=1))
+        rows.append(vee)
+    # EEE (e_v, e1, e2) for every generator edge e_v at v
+    r, k = expand_ranges(vo[g[:, 0]], np.diff(vo)[g[:, 0]])
+    e_v = ve[k]
+    kinds.append(np.full(len(r), EEE))
+    gens.append(canonical_eee(scene, np.stack([e_v, g[r, 1], g[r, 2]], axis=1)))
+    rows.append(vee[r])
+
+    # a VEE line lying in the plane of two edges at v (v and e1 on one face) also ends the
+    # pencil of lines in that plane through the other edge's point: EEE (e_v, e_v', e2)
+    owner = np.repeat(np.arange(scene.n_vertices), np.diff(vo))
+    pi, pj = pairs_within_groups(owner)
+    pair_offsets = np.searchsorted(owner[pi], np.arange(scene.n_vertices + 1))
+    r, pr = expand_ranges(pair_offsets[g[:, 0]], np.diff(pair_offsets)[g[:, 0]])
+    ea, eb = ve[pi[pr]], ve[pj[pr]]
+    x = scene.vertices[g[r, 0]]
+    a1, b1 = edge_geometry(scene, ea)
+    a2, b2 = edge_geometry(scene, eb)
+    normal = np.cross(b1 - a1, b2 - a2)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    in_plane = np.abs(np.einsum("ij,ij->i", normal, events.direction[vee[r]])) <= 1e-9
+    for held, free in ((1, 2), (2, 1)):
+        ah, bh = edge_geometry(scene, g[r, held])
+        holds = in_plane.copy()
+        for q in (ah, bh):
+            holds &= np.abs(np.einsum("ij,ij->i", normal, q - x)) <= scene.epsilon
+        kinds.append(np.full(np.count_nonzero(holds), EEE))
+        gens.append(canonical_eee(scene, np.stack([ea[holds], eb[holds], g[r[holds], free]], axis=1)))
+        rows.append(vee[r[holds]])
+
+    vv = np.flatnonzero(events.kind == VV)
+    g = events.generators[vv]
+    for own, other in ((0, 1), (1, 0)):
+        r, k = expand_ranges(vo[g[:, other]], np.diff(vo)[g[:, other]])
+        e = ve[k]
+        kinds.append(np.full(len(r), VE))
+        gens.append(np.stack([g[r, own], e, np.full(len(r), -1)], axis=1))
+        rows.append(vv[r])
+
+    kind = np.concatenate(kinds)
+    gens = np.concatenate(gens).reshape(-1, 3)
+    rows = np.concatenate(rows)
+    ok = gens[:, 0] >= 0
+    ok[kind == VE] &= is_gen_vertex[gens[kind == VE, 0]]
+    return kind[ok], gens[ok], rows[ok]
+
+
+def same_plane_ve(scene):
+    """(v, e, -1) for every generator vertex v and generator edge e lying in the plane of a
+    face touching v, e not at v and v not on e's line.
+
+    Such families hold no node in general position when the face is a triangle (they
+    run between the lines along the vertex's two edges), and in degenerate scenes
+    their arcs often end only at dropped events (a block's corner on the floor and
+    another block's bottom edge: every line of the family lies on the floor). Contacts
+    are geometric (within the weld tolerance, as tangency's): v touches the face (a
+    block's bottom corner touches the floor) and e bounds a face of the plane or lies
+    on one (a block's bottom edge on the floor: its ends and middle touch it).
+    """
+    he = scene.half_edges
+    tol = scene.weld_tolerance
+    plane = face_planes(scene)
+    gv, ge = scene.generator_vertices, scene.generator_edges
+    # (vertex, plane): the planes of the faces touching each generator vertex
+    pos, face = faces_near(scene, scene.vertices[gv], tol)
+    vp = np.unique(np.stack([gv[pos], plane[face]], axis=1), axis=0).reshape(-1, 2)
+    # (edge, plane): the planes of its own faces, and of faces it lies on
+    own = he.edge_is_generator[he.edge]
+    ep = [np.stack([he.edge[own], plane[he.face[own]]], axis=1)]
+    ev = he.edge_vertices[ge]
+    a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
+    for point in (a, 0.5 * (a + b), b):
+        pos, face = faces_near(scene, point, tol)
+        n, off = scene.face_normal[face], scene.face_offset[face]
+        inside = (np.abs(np.einsum("ij,ij->i", n, a[pos]) - off) <= tol) & (np.abs(np.einsum("ij,ij->i", n, b[pos]) - off) <= tol)
+        ep.append(np.stack([ge[pos[inside]], plane[face[inside]]], axis=1))
+    ep = np.unique(np.concatenate(ep), axis=0).reshape(-1, 2)
+    # join on the plane
+    order = np.argsort(ep[:, 1], kind="stable")
+    first = np.searchsorted(ep[order, 1], vp[:, 1], "left")
+    r, k = expand_ranges(first, np.searchsorted(ep[order, 1], vp[:, 1], "right") - first)
+    k = order[k]
+    v, e = vp[r, 0], ep[k, 0]
+    ends = he.edge_vertices[e]
+    x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
+    u = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+    off_line = np.linalg.norm(np.cross(x - a, u), axis=1) > tol
+    ok = (ends != v[:, None]).all(axis=1) & off_line
+    fam = np.unique(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1), axis=0).reshape(-1, 3)
+    return fam[:, :2], fam[:, 2], vp, ep
+
+
+@dataclass
+class PlanePoints:
+    """The points of each plane where lines lying in it can change (:func:`points_of_planes`),
+    sorted by direction around each (vertex, plane) row of ``vp``.
+
+    Attributes
+    ----------
+    vp : (k, 2) int
+        (vertex, plane) rows, sorted and unique.
+    point : (p, 3) float
+        The points; ``vertex`` (p,) names each: the vertex, -1 for a junction, -2 - edge
+        for an edge crossing the plane; ``rank`` (p,) is its position in plane order,
+        ``order`` (p,) the inverse permutation.
+    key : (j,) float
+        ``row * 4 + angle`` of every (vp row, point of its plane) pair, sorted (angle
+        mod π in [0, π) of the line from the row's vertex to the point), with ``point_of``
+        (j,) the point.
+    """
+
+    vp: np.ndarray
+    point: np.ndarray
+    vertex: np.ndarray
+    rank: np.ndarray
+    order: np.ndarray
+    key: np.ndarray
+    point_of: np.ndarray
+
+
+def points_of_planes(scene, planes, vp, ep, junctions):
+    """The points of the given planes (:func:`face_planes` ids) at which the lines of a
+    same-plane VE family can change: a generator vertex touching the plane, a junction of
+    an edge lying in it, a generator edge crossing it; sorted by direction around every
+    (vertex, plane) row of ``vp`` (:class:`PlanePoints`), for :func:`coplanar_join`."""
+    tol = scene.weld_tolerance
+    # the points of each plane: (plane, point, vertex)
+    pts_plane = [vp[:, 1]]
+    pts = [scene.vertices[vp[:, 0]]]
+    pts_vertex = [vp[:, 0]]  # the vertex, -1 for a junction, -2 - edge for a crossing
+    lo = np.searchsorted(ep[:, 0], junctions.edge, "left")  # ep is sorted by edge
+    r, k = expand_ranges(lo, np.searchsorted(ep[:, 0], junctions.edge, "right") - lo)
+    a, b = edge_geometry(scene, junctions.edge[r])
+    pts_plane.append(ep[k, 1])
+    pts.append(a + junctions.s[r, None] * (b - a))
+    pts_vertex.append(junctions.vertex[r])
+    # generator edges crossing each plane strictly (chunked: planes × edges)
+    plane_of_face = face_planes(scene)
+    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
+    face_of[plane_of_face] = np.arange(scene.n_faces)
+    normal, offset = scene.face_normal[face_of[planes]], scene.face_offset[face_of[planes]]
+    ge = scene.generator_edges
+    ga, gb = edge_geometry(scene, ge)
+    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    for c in range(0, len(planes), chunk):
+        sl = slice(c, c + chunk)
+        h0 = normal[sl] @ ga.T - offset[sl, None]
+        h1 = normal[sl] @ gb.T - offset[sl, None]
+        i, j = np.nonzero((h0 * h1 < 0) & (np.abs(h0) > tol) & (np.abs(h1) > tol))
+        f = h0[i, j] / (h0[i, j] - h1[i, j])
+        pts_plane.append(planes[sl][i])
+        pts.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
+        pts_vertex.append(-2 - ge[j])
+    pts_plane, pts, pts_vertex = np.concatenate(pts_plane), np.concatenate(pts), np.concatenate(pts_vertex)
+    order = np.argsort(pts_plane, kind="stable")
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    # around each (vertex, plane) the plane's points sorted by the direction of their line
+    # (in blocks of rows: the keys of a row lie in [4 row, 4 row + π), blocks never interleave)
+    first = np.searchsorted(pts_plane[order], vp[:, 1], "left")  # vp: sorted, unique rows
+    count = np.searchsorted(pts_plane[order], vp[:, 1], "right") - first
+    keys, point_of = [], []
+    for rows in row_blocks(count, CHUNK * 10):
+        r, k = expand_ranges(first[rows], count[rows])
+        r += rows.start
+        w = order[k]
+        x = scene.vertices[vp[r, 0]]
+        direction = pts[w] - x
+        far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
+        r, w, direction = r[far], w[far], direction[far]
+        eu, ev = _plane_bases(scene, vp[r, 1])
+        angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
+        key = r * 4.0 + angle  # angles < π < 4: one sorted key per (vertex, plane) block
+        by_key = np.argsort(key, kind="stable")
+        keys.append(key[by_key])
+        point_of.append(w[by_key])
+    return PlanePoints(vp, pts, pts_vertex, rank, order, np.concatenate(keys), np.concatenate(point_of))
+
+
+def row_blocks(count, size):
+    """Consecutive slices of rows whose counts sum to about ``size`` (at least one row
+    each; one empty slice for no rows)."""
+    end = np.cumsum(count)
+    cuts = np.searchsorted(end, np.arange(size, int(end[-1]) if len(end) else 0, size), "right")
+    bounds = unique_sorted(np.r_[0, cuts, len(count)])
+    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])] or [slice(0, 0)]
+
+
+def coplanar_candidates(scene, ve, ve_plane, points):
+    """The range of :class:`PlanePoints` ``key`` each same-plane VE family's edge spans
+    seen from its vertex (with ANGLE_MARGIN), as up to three pieces of its (vertex, plane)
+    block (a span crossing the angle 0 = π wraps).
+
+    Returns
+    -------
+    family, first, last : (q,) int
+        Row of ``ve`` and the key range [first, last) of each piece.
+    """
+    vp = points.vp
+    row = np.searchsorted(vp[:, 0] * (vp[:, 1].max() + 1) + vp[:, 1], ve[:, 0] * (vp[:, 1].max() + 1) + ve_plane)
+    x = scene.vertices[ve[:, 0]]
+    a, b = edge_geometry(scene, ve[:, 1])
+    eu, ev = _plane_bases(scene, ve_plane)
+    da = np.stack([np.einsum("ij,ij->i", a - x, eu), np.einsum("ij,ij->i", a - x, ev)], axis=1)
+    db = np.stack([np.einsum("ij,ij->i", b - x, eu), np.einsum("ij,ij->i", b - x, ev)], axis=1)
+    cross = da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]
+    span = np.arctan2(np.abs(cross), np.einsum("ij,ij->i", da, db))  # in [0, π)
+    start = np.mod(np.arctan2(np.where(cross >= 0, da[:, 1], db[:, 1]), np.where(cross >= 0, da[:, 0], db[:, 0])), np.pi)
+    # a margin far above rounding: the exact test of coplanar_events decides
+    lo, hi = start - ANGLE_MARGIN, start + span + ANGLE_MARGIN
+    pieces = [(lo, np.minimum(hi, np.pi)), (np.full_like(lo, 0.0), hi - np.pi), (lo + np.pi, np.full_like(lo, np.pi))]
+    fams, firsts, lasts = [], [], []
+    for p_lo, p_hi in pieces:
+        f = np.flatnonzero(p_hi > np.maximum(p_lo, 0.0))
+        i0 = np.searchsorted(points.key, row[f] * 4.0 + np.maximum(p_lo[f], 0.0), "left")
+        i1 = np.searchsorted(points.key, row[f] * 4.0 + np.minimum(p_hi[f], np.pi), "right")
+        fams.append(f)
+        firsts.append(i0)
+        lasts.append(np.maximum(i1, i0))
+    return np.concatenate(fams), np.concatenate(firsts), np.concatenate(lasts)
+
+
+def coplanar_events(scene, ve, ve_plane, vp, ep, junctions):
+    """Where each same-plane VE family's line passes a point of its plane at which the lines
+    of the plane can change: a generator vertex touching the plane, a junction of an edge
+    lying in it, a generator edge crossing it. Every line of such a family lies in the
+    plane (degenerate events V0 does not keep: a floor corner, a block's bottom corner
+    and a far edge of the floor in one line); so the family's state can change only
+    there, or at an event out of the plane (its nodes).
+
+    Parameters
+    ----------
+    ve : (m, 2) int
+        (v, e) of the families; ``ve_plane`` (m,) their plane (:func:`face_planes`).
+    vp, ep : (k, 2) int
+        (vertex, plane) and (edge, plane) incidences (:func:`same_plane_ve`).
+
+    Returns
+    -------
+    family : (q,) int
+        Row of ``ve``.
+    s : (q,) float
+    kind : (q,) int
+        END_COPLANAR (a vertex or a junction) or END_CROSSING (an edge crossing the plane).
+    index : (q,) int
+        The vertex (-1 for a junction) or the crossing edge.
+    """
+    return coplanar_join(scene, ve, ve_plane, points_of_planes(scene, np.unique(ve_plane), vp, ep, junctions))
+
+
+def coplanar_join(scene, ve, ve_plane, points):
+    """:func:`coplanar_events` with the points of the families' planes found
+    (:func:`points_of_planes`): each family and the points in the range of directions its
+    edge spans (output-sensitive: a family and a point of its plane pair up only when the
+    line through the family's vertex and the point meets the family's edge)."""
+    fam, first, last = coplanar_candidates(scene, ve, ve_plane, points)
+    r, k = expand_ranges(first, last - first)
+    fam, w = fam[r], points.point_of[k]
+    # the ranges overlap only within the margin; the order is (family, point in plane order)
+    n = len(points.point)
+    fam_w = unique_sorted(fam * n + points.rank[w])
+    fam, w = fam_w // n, points.order[fam_w % n]
+    x = scene.vertices[ve[fam, 0]]
+    a, b = edge_geometry(scene, ve[fam, 1])
+    s, _ = segment_parameter(x, points.point[w] - x, a, b)
+    with np.errstate(invalid="ignore"):
+        inside = np.isfinite(s) & (s > 0) & (s < 1)
+    which = points.vertex[w[inside]]
+    crossing = which <= -2
+    return (fam[inside], s[inside], np.where(crossing, END_CROSSING, END_COPLANAR),
+            np.where(crossing, -2 - which, which))
+
+
+def hidden_events(scene, ve, s):
+    """Whether each coplanar event of a same-plane VE family is hidden: the family's line
+    there is blocked between its vertex and its edge, and stays blocked nearby.
+
+    Such an event cannot change the family's state (its lines are invalid on both
+    sides), so dropping it only joins two intervals that hold no arc. Most coplanar
+    events are hidden (a block's corner on the floor seen from another block's corner
+    through a third block): the intervals they would make grow as the cube of the
+    blocks on the floor, the visible ones as the output.
+
+    Blocked nearby: the piece from v to the edge (trimmed by epsilon, as
+    :func:`viscx.skeleton.nodes.free_pieces` trims it) meets a face farther than
+    epsilon from its trimmed ends and from the face's corners, and where it passes
+    within epsilon of the face's boundary that edge is closed (a second face there:
+    a block's side face and its bottom, which a line lying on the floor meets at
+    their common edge). Lines near it then meet that face or the one beyond the edge.
+
+    Parameters
+    ----------
+    ve : (m, 2) int
+        (v, e) of each event's family.
+    s : (m,) float
+        The event's parameter on e.
+
+    Returns
+    -------
+    (m,) bool
+    """
+    # each event on its own: in chunks on threads
+    parts = map_chunks(lambda r: _hidden_events_chunk(scene, ve[r], s[r]), row_chunks(len(s), CHUNK))
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=bool)
+
+
+def _hidden_events_chunk(scene, ve, s):
+    """:func:`hidden_events` on one chunk of events."""
+    eps = scene.epsilon
+    x = scene.vertices[ve[:, 0]]
+    a, b = edge_geometry(scene, ve[:, 1])
+    vec = a + s[:, None] * (b - a) - x
+    length = np.linalg.norm(vec, axis=1)
+    long = np.flatnonzero(length > 4 * eps)
+    tri, t = first_triangles(scene, x[long], vec[long] / length[long, None], 2 * eps, length[long] - 2 * eps)
+    rows = long[tri >= 0]
+    face, t = scene.triangle_face[tri[tri >= 0]], t[tri >= 0]
+    hit = x[rows] + (t / length[rows])[:, None] * vec[rows]
+    he = scene.half_edges
+    hidden = np.zeros(len(s), dtype=bool)
+    hidden[rows] = ~_near_doubtful_boundary(hit, scene.loop_offsets[scene.face_loop_offsets[face]],
+                                            scene.loop_offsets[scene.face_loop_offsets[face + 1]], he.start, he.end, he.opp,
+                                            scene.vertices, eps)
+    return hidden
+
+
+@njit(cache=True, nogil=True)
+def _near_doubtful_boundary(hit, first, last, start, end, opp, vertices, eps):
+    """Whether each hit point lies within eps of a corner of its face, or of an open edge
+    of it (no second face there), over the face's boundary half-edges first..last - 1.
+
+    Returns
+    -------
+    (k,) bool
+    """
+    out = np.zeros(hit.shape[0], dtype=np.bool_)
+    for i in range(hit.shape[0]):
+        for h in range(first[i], last[i]):
+            a, b = vertices[start[h]], vertices[end[h]]
+            u0, u1, u2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+            d0, d1, d2 = hit[i, 0] - a[0], hit[i, 1] - a[1], hit[i, 2] - a[2]
+            # the closest point of the edge, at w along it; sums in numpy einsum's order
+            w = min(max(((d0 * u0 + d2 * u2) + d1 * u1) / ((u0 * u0 + u2 * u2) + u1 * u1), 0.0), 1.0)
+            e0, e1, e2 = d0 - w * u0, d1 - w * u1, d2 - w * u2
+            to_edge = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
+            to_corner = np.sqrt((d0 * d0 + d1 * d1) + d2 * d2)
+            if to_corner <= eps or (to_edge <= eps and opp[h] < 0):
+                out[i] = True
+    return out
+
+
+def _plane_bases(scene, planes):
+    """(u, v): two unit vectors spanning each plane (:func:`face_planes` ids), (n, 3) each."""
+    plane_of_face = face_planes(scene)
+    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
+    face_of[plane_of_face] = np.arange(scene.n_faces)
+    n = scene.face_normal[face_of[planes]]
+    helper = np.eye(3)[np.argmin(np.abs(n), axis=1)]
+    u = np.cross(helper, n)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return u, np.cross(n, u)
+
+
+def event_parameters(scene, kind, generators, events, rows):
+    """Parameter s of each event's line on the family's parameter edge."""
+    param_edge = np.where(kind == EEE, generators[:, 0], generators[:, 1])
+    a, b = edge_geometry(scene, param_edge)
+    s, _ = segment_parameter(events.ends[rows, 0], events.direction[rows], a, b)
+    return s
+
+
+def domain_ends(scene, fam_kind, fam_gens, junctions):
+    """Parameters where each family's line reaches an endpoint or a junction of one of its
+    edges, or (EEE) q's or r's line at infinity (the linear-fractional map's pole), within
+    (0, 1) (s = 0 and 1, the parameter edge's endpoints, are added by the caller).
+
+    VE (v, e): the junctions of e. EEE (p, q, r): those of p, and where the line
+    reaches an endpoint or a junction of q or r. The map s -> x (x the line's point
+    on q or r) is linear-fractional (a projectivity between two lines of a regulus, or
+    a central projection for a pencil of lines in a plane), fixed by three samples; a
+    pencil through a point of the edge gives a constant map and no end.
+
+    Returns
+    -------
+    family : (k,) int
+    s : (k,) float
+    kind : (k,) int
+        END_ENDPOINT or END_JUNCTION.
+    vertex : (k,) int
+        The junction's vertex (-1 for a crossing and for endpoints).
+    """
+    fams, ss, kinds, verts = [], [], [], []
+    # junctions on the parameter edge (VE: e, EEE: p): s directly
+    param_edge = np.where(fam_kind == EEE, fam_gens[:, 0], fam_gens[:, 1])
+    f, k = _junctions_of(junctions, param_edge)
+    fams.append(f)
+    ss.append(junctions.s[k])
+    kinds.append(np.full(len(f), END_JUNCTION))
+    verts.append(junctions.vertex[k])
+    e = np.flatnonzero(fam_kind == EEE)
+    probes = np.array([0.2, 0.5, 0.8])
+    o, d = family_lines(scene, np.full(3 * len(e), EEE), np.repeat(fam_gens[e], 3, axis=0), np.tile(probes, len(e)))
+    for slot in (1, 2):
+        a, b = edge_geometry(scene, np.repeat(fam_gens[e, slot], 3))
+        x, _ = segment_parameter(o, np.where(np.linalg.norm(d, axis=1)[:, None] > 0, d, 1.0), a, b)
+        x = x.reshape(-1, 3)
+        s = np.broadcast_to(probes, x.shape)
+        # x = (α s + β) / (γ s + δ): (α, β, γ, δ) is the null vector of [s, 1, -x s, -x]
+        system = np.stack([s, np.ones_like(s), -x * s, -x], axis=2)
+        # a constant map (a pencil through a point of this edge) has no ends to find
+        fine = np.all(np.isfinite(system), axis=(1, 2)) & (np.ptp(x, axis=1) > 1e-9)
+        coeff = np.full((len(e), 4), np.nan)
+        if fine.any():
+            coeff[fine] = np.linalg.svd(system[fine])[2][:, -1]
+        # the values of x to reach: the edge's endpoints, its junctions
+        rows, k = _junctions_of(junctions, fam_gens[e, slot])
+        fam = np.concatenate([np.arange(len(e)), np.arange(len(e)), rows])
+        value = np.concatenate([np.zeros(len(e)), np.ones(len(e)), junctions.s[k]])
+        al, be, ga, de = coeff[fam].T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fams += [e[fam], e]
+            ss += [(be - value * de) / (value * ga - al), -de[: len(e)] / ga[: len(e)]]
+        kinds += [np.where(np.arange(len(fam)) < 2 * len(e), END_ENDPOINT, END_JUNCTION), np.full(len(e), END_ENDPOINT)]
+        verts += [np.concatenate([np.full(2 * len(e), -1), junctions.vertex[k]]), np.full(len(e), -1)]
+    fam, s, kind, vertex = (np.concatenate(x) for x in (fams, ss, kinds, verts))
+    keep = np.isfinite(s) & (s > 0) & (s < 1)
+    return fam[keep].astype(np.int64), s[keep], kind[keep], vertex[keep].astype(np.int64)
+
+
+def _junctions_of(junctions, edges):
+    """(row of ``edges``, junction) for every junction of each edge."""
+    lo = np.searchsorted(junctions.edge, edges, "left")
+    rows, k = expand_ranges(lo, np.searchsorted(junctions.edge, edges, "right") - lo)
+    return rows, k

@@ -1,0 +1,169 @@
+"""The lines of an arc family at parameter s, and the judging of sample lines (blocker
+pairs, generator conditions and, for VE, the two half-cells' blockers).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viscx.geometry.lines import line_through_point_and_two_lines, plucker
+from viscx.skeleton.arcs.kinds import EEE, VE, XE
+from viscx.skeleton.arcs.pencils import first_pencil_pair, pencil_plane_of
+from viscx.skeleton.arcs.xpoints import blocked_at_crossings, crossing_scene
+from viscx.skeleton.generators import edge_crossings, edge_geometry
+from viscx.skeleton.nodes import maximal_free_segments, vertex_ray_blockers
+
+
+#: Angle (radians) by which a VE line is turned about its vertex, off the plane of the vertex
+#: and the edge, to find the V-cells on either side (half-cells): far above the rounding of
+#: directions (1e-16) and tangency's angle tolerance (1e-9), far below the thinnest cells of
+#: the samples (about 1e-4 rad between the Cornell light and the ceiling, seen from a wall).
+PROBE_ANGLE = 1e-8
+
+
+# slot layout of the family lines for maximal_free_segments (EEE: three edges; VE: vertex, edge)
+_SLOT_IS_VERTEX = np.array([[False] * 4, [True, False, False, False]])
+
+_SLOT_COUNT = np.array([3, 2])
+
+
+def family_lines(scene, kind, generators, s):
+    """A point and a direction of the line of each family at parameter s.
+
+    Parameters
+    ----------
+    kind : (m,) int
+        EEE or VE.
+    generators : (m, 3) int
+        Canonical (see :class:`Arcs`).
+    s : (m,) float
+
+    Returns
+    -------
+    origins, directions : (m, 3) float
+        Directions are zero where the line is undefined (EEE: the point lies on
+        the line of q or r).
+    """
+    kind = np.asarray(kind)
+    generators = np.asarray(generators, dtype=np.int64)
+    s = np.asarray(s, dtype=np.float64)
+    origins = np.zeros((len(kind), 3))
+    directions = np.zeros((len(kind), 3))
+    e = np.flatnonzero(kind == EEE)
+    if len(e):
+        a, b = edge_geometry(scene, generators[e, 0])
+        p = a + s[e, None] * (b - a)
+        aq, bq = edge_geometry(scene, generators[e, 1])
+        ar, br = edge_geometry(scene, generators[e, 2])
+        origins[e] = p
+        directions[e] = line_through_point_and_two_lines(p, plucker(aq, bq - aq), plucker(ar, br - ar))
+    v = np.flatnonzero(kind == VE)
+    if len(v):
+        a, b = edge_geometry(scene, generators[v, 1])
+        origins[v] = scene.vertices[generators[v, 0]]
+        directions[v] = a + s[v, None] * (b - a) - origins[v]
+    x = np.flatnonzero(kind == XE)
+    if len(x):
+        cr = edge_crossings(scene)
+        a, b = edge_geometry(scene, generators[x, 1])
+        origins[x] = cr.point[cr.find(generators[x, 0], generators[x, 2])]
+        directions[x] = a + s[x, None] * (b - a) - origins[x]
+    return origins, directions
+
+
+@dataclass
+class _Samples:
+    valid: np.ndarray
+    state: np.ndarray  # (m, 5) int: valid, blocker kinds and ids in the family's orientation
+    direction: np.ndarray
+    ends: np.ndarray
+    generator_points: np.ndarray
+    sides: np.ndarray = None  # (m, 8) int: the VE half-cells' pairs (sides=True), -1 elsewhere
+
+
+def side_blockers(scene, vertex, edge, s):
+    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, seed 000 §4.1).
+
+    The line from the vertex to the edge's point s is turned about the vertex by
+    PROBE_ANGLE towards +n and -n (n = (b - a) × (v - a)) and judged by
+    :func:`viscx.skeleton.nodes.vertex_ray_blockers`.
+
+    Returns
+    -------
+    up_kind, up, down_kind, down : (m, 2) int
+        Side +n, side -n.
+    """
+    x = scene.vertices[vertex]
+    a, b = edge_geometry(scene, edge)
+    d0 = a + np.asarray(s, dtype=np.float64)[:, None] * (b - a) - x
+    d0 /= np.linalg.norm(d0, axis=1, keepdims=True)
+    n = np.cross(b - a, x - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    m = len(vertex)
+    d = np.concatenate([d0 + PROBE_ANGLE * n, d0 - PROBE_ANGLE * n])
+    up_kind, up, down_kind, down, _ = vertex_ray_blockers(scene, np.concatenate([vertex, vertex]), d)
+    return tuple(np.stack([q[:m], q[m:]], axis=1).astype(np.int64) for q in (up_kind, up, down_kind, down))
+
+
+def judge_samples(scene, kind, generators, s, sides=False):
+    """The maximal free segment of each family's line at s, in the family's orientation.
+
+    Parameters
+    ----------
+    kind : (m,) int
+    generators : (m, 3) int
+    s : (m,) float
+    sides : bool
+        Also judge the half-cells of valid VE samples (:func:`side_blockers`).
+
+    Returns
+    -------
+    valid : (m,) bool
+    state : (m, 5) int
+        (valid, back blocker kind, back blocker, front blocker kind, front
+        blocker); -1 for the blockers of invalid lines. Two samples of a family
+        are on one arc only if their states (and sides) agree.
+    sides : (m, 8) int or None
+        (up kind, up, down kind, down) on side +n, then on side -n, as in
+        :class:`HalfCells` (valid VE samples; -1 elsewhere).
+    direction : (m, 3) float
+    ends : (m, 2, 3) float
+    generator_points : (m, 3, 3) float
+    """
+    kind = np.asarray(kind, dtype=np.int64)
+    generators = np.asarray(generators, dtype=np.int64)
+    if np.any(kind == XE):  # as VE families of the crossing points (crossing_scene)
+        xs, first = crossing_scene(scene)
+        x = kind == XE
+        cr = edge_crossings(scene)
+        generators = generators.copy()
+        generators[x] = np.stack([first + cr.find(generators[x, 0], generators[x, 2]), generators[x, 1],
+                                  np.full(np.count_nonzero(x), -1)], axis=1)
+        out = judge_samples(xs, np.where(x, VE, kind), generators, s, sides)
+        out.generator_points[x, 2] = out.generator_points[x, 0]
+        blocked_at_crossings(out.state[:, [1, 3]], out.state[:, [2, 4]], generators[:, 0] - first, x, cr, out.state)
+        return out
+    o, d = family_lines(scene, kind, generators, s)
+    undefined = np.linalg.norm(d, axis=1) == 0
+    d[undefined] = (1.0, 0.0, 0.0)
+    gens = np.concatenate([generators, np.full((len(kind), 1), -1)], axis=1)
+    plane = pencil_plane_of(scene, kind, generators)
+    seg = maximal_free_segments(scene, _SLOT_IS_VERTEX[kind], _SLOT_COUNT[kind], gens, o, d, plane_face=plane)
+    valid = seg.valid & ~undefined
+    valid &= first_pencil_pair(scene, plane, generators, seg.ends, valid)
+    gp = seg.generator_points[:, :3]
+    # the family's orientation: from the first generator's point towards the second's
+    flip = valid & (np.einsum("ij,ij->i", seg.direction, gp[:, 1] - gp[:, 0]) < 0)
+    direction = np.where(flip[:, None], -seg.direction, seg.direction)
+    ends = np.where(flip[:, None, None], seg.ends[:, ::-1], seg.ends)
+    bk = np.where(flip[:, None], seg.blocker_kind[:, ::-1], seg.blocker_kind).astype(np.int64)
+    b = np.where(flip[:, None], seg.blocker[:, ::-1], seg.blocker)
+    state = np.stack([valid.astype(np.int64), bk[:, 0], b[:, 0], bk[:, 1], b[:, 1]], axis=1)
+    state[~valid, 1:] = -1
+    side = None
+    if sides:  # the V-cells beside valid VE lines: an arc's half-cells must hold all along it
+        side = np.full((len(kind), 8), -1, dtype=np.int64)
+        rows = np.flatnonzero(valid & (kind == VE))
+        if len(rows):
+            side[rows] = np.concatenate(side_blockers(scene, generators[rows, 0], generators[rows, 1], s[rows]), axis=1)
+    return _Samples(valid, state, direction, ends, gp, side)

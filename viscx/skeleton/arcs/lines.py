@@ -158,12 +158,13 @@ def vertex_side_backs(scene, half_cells, s):
     """
     hc = half_cells
     m = len(hc.vertex)
-    d = _probe_directions(scene, hc.vertex, hc.edge, s)
-    both = np.concatenate([hc.vertex, hc.vertex])
     rows = _bounding_vertex_sides(np.concatenate([hc.up_kind[:, 0], hc.up_kind[:, 1]]))
     back_kind, back = np.full(2 * m, -1, np.int64), np.full(2 * m, -1, np.int64)
     if len(rows):
-        back_kind[rows], back[rows] = _backs(scene, both[rows], d[rows])
+        h = rows % m
+        d = _probe_directions(scene, hc.vertex[h], hc.edge[h], np.asarray(s)[h]).reshape(2, -1, 3)
+        d = np.where((rows < m)[:, None], d[0], d[1])  # side +n: the first half, side -n: the second
+        back_kind[rows], back[rows] = _backs(scene, hc.vertex[h], d)
     return np.stack([back_kind[:m], back_kind[m:]], axis=1), np.stack([back[:m], back[m:]], axis=1)
 
 

@@ -196,7 +196,7 @@ def bench_render(size, mc_samples, runs=3, target=0.01):
     sec, exact = timed(render, scene, mesh, cam)
     px = size * size
     command = float(np.median(times))
-    rows.append(_row("render", "cornell_box", f"exact {size}x{size}, whole command (seed 000: ~27 min at 512x512)",
+    rows.append(_row("render", "cornell_box", f"exact {size}x{size}, whole command (Hoberock et al.: ~27 min at 512x512)",
                      32, px, command, px / command, "pixels/s",
                      f"runs {', '.join(f'{t:.2f}' for t in times)} s; in-process {sec:.2f} s "
                      f"(primary {exact.stats['primary_s']:.2f} s, {exact.stats['regions']} regions)"))

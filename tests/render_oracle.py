@@ -30,7 +30,7 @@ def noise_check(exact, mean, stderr):
 
 def seam_pixels(image, label, face, noise, reference=None):
     """Pixels darker than both of their neighbours across a region boundary by more than
-    the noise (the "black seams" of seed 000 Fig. 9): along rows and columns, a pixel p
+    the noise (the "black seams" of Hoberock et al. Fig. 9): along rows and columns, a pixel p
     between neighbours a and b that see the same face as p, with a region boundary
     between a and b, and lum(p) < min(lum(a), lum(b)) − noise(p).
 

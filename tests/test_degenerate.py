@@ -19,7 +19,8 @@ from viscx.skeleton.arcs import (
 )
 from viscx.skeleton.candidates import build_nodes
 from viscx.skeleton.nodes import first_faces, vertex_ray_blockers
-from viscx.skeleton.vcells import JOIN_TOLERANCE, boundary_elements, build_vcells, stored_elements
+from viscx.skeleton.vcells import boundary_elements, build_vcells, stored_elements
+from viscx.tolerances import JOIN_CHORD
 
 DEGENERATE = ["boxes_on_floor.obj", "cornell_box.obj", "room_with_door.obj"]
 _CACHE = {}
@@ -237,13 +238,13 @@ def test_coinciding_boundaries_are_kept_once():
     elements there. The raw elements hold such duplicates; the loops hold each once."""
     scene, arcs, vc = built("boxes_on_floor.obj")
     el = boundary_elements(scene, arcs)
-    key = np.concatenate([el.vertex[:, None], el.pair, np.round(el.start / JOIN_TOLERANCE), np.round(el.end / JOIN_TOLERANCE)], axis=1)
+    key = np.concatenate([el.vertex[:, None], el.pair, np.round(el.start / JOIN_CHORD), np.round(el.end / JOIN_CHORD)], axis=1)
     _, counts = np.unique(key, axis=0, return_counts=True)
     assert counts.max() > 1
     kept = stored_elements(scene, arcs, vc.element, vc.antipodal)
     pairs = np.repeat(np.arange(len(vc)), np.diff(vc.element_offsets[vc.loop_offsets]))
-    key = np.concatenate([kept.vertex[:, None], pairs[:, None], np.round(kept.start / JOIN_TOLERANCE),
-                          np.round(kept.end / JOIN_TOLERANCE)], axis=1)
+    key = np.concatenate([kept.vertex[:, None], pairs[:, None], np.round(kept.start / JOIN_CHORD),
+                          np.round(kept.end / JOIN_CHORD)], axis=1)
     _, counts = np.unique(key, axis=0, return_counts=True)
     assert counts.max() == 1
     assert len(vc.open_vertex) == 0

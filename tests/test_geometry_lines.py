@@ -14,7 +14,7 @@ from viscx.geometry.lines import (
     segment_parameter,
     side,
 )
-from viscx.geometry.tangency import tangent_at_edges
+from viscx.scene.neighbourhood import tangent_at_edges
 from viscx.scene import build_scene
 
 
@@ -176,7 +176,7 @@ def winding_number(vertices, triangles, points):
 def test_vertex_blocking_matches_winding_numbers(rng):
     """At the vertices of closed solids, the surface separates a line's two rays exactly
     when the winding numbers at v + δd and v - δd differ (an independent oracle)."""
-    from viscx.geometry.tangency import tangent_at_vertices
+    from viscx.scene.neighbourhood import tangent_at_vertices
     from viscx.scene import load_scene
 
     from conftest import SAMPLES
@@ -206,7 +206,7 @@ def test_vertex_blocking_near_a_fan_edge_and_a_face_plane(rng):
     normals); only directions at least 2e-9 from every plane and edge are judged."""
     from random_scenes import random_tetrahedra
 
-    from viscx.geometry.tangency import tangent_at_vertices
+    from viscx.scene.neighbourhood import tangent_at_vertices
 
     scene = build_scene(random_tetrahedra(rng, 3))
     he = scene.half_edges
@@ -245,7 +245,7 @@ def test_vertex_blocking_near_a_fan_edge_and_a_face_plane(rng):
 
 
 def test_open_fans_separate_nothing(rng):
-    from viscx.geometry.tangency import tangent_at_vertices
+    from viscx.scene.neighbourhood import tangent_at_vertices
     from viscx.scene import load_scene
 
     from conftest import SAMPLES

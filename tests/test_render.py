@@ -18,7 +18,7 @@ from viscx.queries.discontinuities import open_discontinuities
 from viscx.render.camera import Camera, primary_hits
 from viscx.render.direct import DirectLighting, emitter, groups_of, shade
 from viscx.render.image import region_boundaries, render
-from viscx.render.reference import reference_radiance
+from viscx.render.montecarlo import reference_radiance
 from viscx.render.sparse import allocate, inner_corners, reconstruct
 
 CORNELL = ROOT / "tests" / "golden" / "cornell_box.h5"

@@ -482,9 +482,9 @@ def test_plot_vcells_needs_v2(tmp_path, capsys):
 
 
 def test_near_pairs_equal_the_brute_force_join():
-    """_near_pairs (binned) finds exactly the pairs of one group within each tolerance that
+    """near_pairs (binned) finds exactly the pairs of one group within each tolerance that
     the all-pairs join finds, points on a sphere and clustered within the tolerance."""
-    from viscx.skeleton.vcells import _near_pairs, _pairs_in_groups
+    from viscx.skeleton.loops import near_pairs, pairs_in_groups
 
     rng = np.random.default_rng(5)
     a = rng.normal(size=(3000, 3))
@@ -493,11 +493,11 @@ def test_near_pairs_equal_the_brute_force_join():
     b[::3] = a[::3] + 3e-8  # many pairs near the tolerance
     group = rng.integers(0, 40, len(a))
     tol = np.where(rng.random(len(a)) < 0.5, 1e-7, 2e-7)
-    i, j = _pairs_in_groups(group)
+    i, j = pairs_in_groups(group)
     near = np.linalg.norm(a[i] - b[j], axis=1) <= tol[i]
     brute = np.stack([i[near], j[near]], axis=1)
     brute = brute[np.lexsort([brute[:, 1], brute[:, 0]])]
-    fi, fj = _near_pairs(a, b, group, tol)
+    fi, fj = near_pairs(a, b, group, tol)
     assert len(brute) > 500
     np.testing.assert_array_equal(np.stack([fi, fj], axis=1), brute)
 
@@ -621,7 +621,7 @@ def _tangent(p, q):
 
 def _arcs_on_sphere(starts, ends):
     """Great-circle elements from ``starts`` to ``ends`` ((k, 3) unit vectors), as
-    :func:`viscx.skeleton.vcells.turning_sums` reads them."""
+    :func:`viscx.skeleton.vcells.sphere_turning_sums` reads them."""
     from types import SimpleNamespace
 
     return SimpleNamespace(start=starts, end=ends, start_tangent=np.array([_tangent(p, q) for p, q in zip(starts, ends)]),
@@ -647,18 +647,18 @@ def test_turning_across_a_gap_running_back(monkeypatch):
         over = _unit(c + 1e-6 * (away + tilt * np.cross(c, away)))
         starts, ends = np.array([a, b, c]), np.array([b, over, a])
         el = _arcs_on_sphere(starts, ends)
-        assert abs(vcells.turning_sums(el, offsets, bridge=True)[0] - (2 * np.pi - area)) < 1e-9
+        assert abs(vcells.sphere_turning_sums(el, offsets)[0] - (2 * np.pi - area)) < 1e-9
         with monkeypatch.context() as m:
             m.setattr(vcells, "CORNER_REACH", 0.0)
             m.setattr(vcells, "SPIKE_ANGLE", -1.0)
-            misses.append(vcells.turning_sums(el, offsets, bridge=True)[0] - (2 * np.pi - area))
+            misses.append(vcells.sphere_turning_sums(el, offsets)[0] - (2 * np.pi - area))
     assert np.any(np.abs(np.abs(misses) - 2 * np.pi) < 1e-9), misses
 
 
 def test_turning_at_the_base_of_a_sliver(monkeypatch):
     """Two elements running out and back between two great circles 2.4e-6 rad apart (a
     vertex 0.3 epsilon above a box top sees two edges of it so: random_boxes(1000), vertex
-    367): a sliver trapezoid whose ends lie 3.6e-9 and 3.6e-8 apart, below JOIN_TOLERANCE.
+    367): a sliver trapezoid whose ends lie 3.6e-9 and 3.6e-8 apart, below JOIN_CHORD.
     At its base the loop turns by π plus the apex angle; one turn between the tangents
     wraps that to -π plus it, a cell of 2π sr instead of 3e-10 (the cusp rule knocked out);
     turning across the base's gap gives its area."""
@@ -671,10 +671,10 @@ def test_turning_at_the_base_of_a_sliver(monkeypatch):
     offsets = np.array([0, 2])
     area = (triangle_solid_angle(np.zeros(3), np.array([p1, q1, q2]))
             + triangle_solid_angle(np.zeros(3), np.array([p1, q2, p2])))
-    turning = vcells.turning_sums(el, offsets, bridge=True)[0]
+    turning = vcells.sphere_turning_sums(el, offsets)[0]
     assert abs(turning - (2 * np.pi - area)) < 1e-10  # the area is 2.7e-10
     monkeypatch.setattr(vcells, "CUSP_ANGLE", -1.0)
-    assert abs(vcells.turning_sums(el, offsets, bridge=True)[0] - turning + 2 * np.pi) < 1e-9
+    assert abs(vcells.sphere_turning_sums(el, offsets)[0] - turning + 2 * np.pi) < 1e-9
 
 
 def test_turning_where_elements_cross_by_a_gap(monkeypatch):
@@ -693,10 +693,10 @@ def test_turning_where_elements_cross_by_a_gap(monkeypatch):
     el = _arcs_on_sphere(starts, ends)
     offsets = np.array([0, 3])
     area = triangle_solid_angle(np.zeros(3), np.array([_unit([*x, 1.0]) for x in (a, b, c)]))
-    turning = vcells.turning_sums(el, offsets, bridge=True)[0]
+    turning = vcells.sphere_turning_sums(el, offsets)[0]
     assert abs(turning - (2 * np.pi - area)) < 1e-8
     monkeypatch.setattr(vcells, "CORNER_REACH", 0.0)
-    assert abs(vcells.turning_sums(el, offsets, bridge=True)[0] - turning + 2 * np.pi) < 1e-8
+    assert abs(vcells.sphere_turning_sums(el, offsets)[0] - turning + 2 * np.pi) < 1e-8
 
 
 @pytest.mark.slow

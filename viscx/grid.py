@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 from viscx.parallel import in_pool
+from viscx.tolerances import BARY_SLACK, PARALLEL_COSINE
 
 # One parallel kernel at a time: callers on several threads would otherwise launch nested
 # parallel regions, which not every numba threading layer allows. The pooled threads of
@@ -32,11 +33,6 @@ from viscx.parallel import in_pool
 _KERNEL_LOCK = threading.Lock()
 SERIAL_RAYS = 1024
 
-#: Barycentric slack: points on a triangle's edge are on the (closed) triangle.
-BARY_SLACK = 1e-12
-#: Rays closer to parallel than this (|cos| to the normal) graze a triangle's
-#: plane and never hit it: rounding alone puts rays built in a plane ~1e-14 off it.
-PARALLEL_COSINE = 1e-12
 
 
 @njit(cache=True)

@@ -35,19 +35,13 @@ from embreex import rtcore_scene
 from numba import njit
 
 from viscx.grid import TriangleGrid, moller_trumbore
+from viscx.tolerances import CLEAR_COSINE, CLEAR_MARGIN, SKY_MARGIN
 from embreex.mesh_construction import TriangleMesh
 
 #: Margin of embree's search interval, in float32 ulps of the scene's half-extent.
 FLOAT32_ULPS = 8
 #: Rays per embree call (bounds temporary memory).
 CHUNK = 1 << 20
-#: Enlargement of the bounding box where sky ends are placed (design notes §4).
-SKY_MARGIN = 0.01
-#: An embree hit is clear-cut when float64 puts it this far inside its triangle
-#: (smallest barycentric coordinate) ...
-CLEAR_MARGIN = 1e-6
-#: ... and the ray meets the triangle's plane at least this steeply (|cos|).
-CLEAR_COSINE = 1e-4
 
 
 @njit(cache=True, nogil=True)

@@ -33,7 +33,7 @@ def vcells(file, vertex, output, size):
     viscx plot vcells tetra.h5 --vertex 0 -o tetra_v0.png
     """
     from viscx.formats.hdf5 import ViscxFile, read_arcs, read_vcells
-    from viscx.render.vcells import plot_vcells
+    from viscx.plot.vcell_sphere import plot_vcells
 
     with ViscxFile(file) as f:
         if "V2" not in f.levels or "V2" not in f.h5:
@@ -57,7 +57,7 @@ def vcells(file, vertex, output, size):
 @click.option("--size", type=click.IntRange(16, 4000), default=300, show_default=True,
               help="Pixels per side of the square.")
 def eecell(file, edges, output, size):
-    """Draw the EE-cells of the edge pair A, B of FILE in its square [0, 1]² (seed 000
+    """Draw the EE-cells of the edge pair A, B of FILE in its square [0, 1]² (Hoberock et al.
     Fig. 7): point (x1, x2) is the line through the two edges' points x1 and x2, one
     colour per cell, the boundary arcs with their direction, each cell listed with its
     blocker pair (back → front) and area.
@@ -67,7 +67,7 @@ def eecell(file, edges, output, size):
     viscx plot eecell tetra.h5 --edges 2 7 -o tetra_2_7.png
     """
     from viscx.formats.hdf5 import ViscxFile, read_arcs, read_eecells
-    from viscx.render.eecells import plot_eecells
+    from viscx.plot.eecell_square import plot_eecells
     from viscx.skeleton.eecells import skew_pairs
 
     with ViscxFile(file) as f:

@@ -58,7 +58,7 @@ def _warn(ctx, result):
 @face_option
 @click.pass_context
 def visible(ctx, file, viewpoint, output, fmt, faces):
-    """The visibility polyhedron of a point (seed 000 §7.1): for every face, the part
+    """The visibility polyhedron of a point (Hoberock et al. §7.1): for every face, the part
     seen from X,Y,Z as polygons with holes (3-D loops), from the point's V-cells.
 
     \b
@@ -89,7 +89,7 @@ def visible(ctx, file, viewpoint, output, fmt, faces):
 def shadows(ctx, file, light, output, fmt, faces):
     """For every face, the polygons lit by a point light at X,Y,Z (outer loops
     counter-clockwise seen from the face's front, holes clockwise) and the
-    shadow-boundary segments (seed 000 §7.2).
+    shadow-boundary segments (Hoberock et al. §7.2).
 
     \b
     viscx build sample_scenes/cornell_box.obj --point 278,540,280 -o cornell.h5
@@ -120,7 +120,7 @@ def shadows(ctx, file, light, output, fmt, faces):
 @face_option
 @click.pass_context
 def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
-    """The discontinuity mesh cast by an area light (seed 000 §7.5): on every receiver
+    """The discontinuity mesh cast by an area light (Hoberock et al. §7.5): on every receiver
     face, the traces of the VE and EEE events involving the light's vertices and edges
     (segments; EEE traces are conic arcs written as polylines), the receiver-plane events
     and the line where the light's plane crosses the face (the light emits from its

@@ -33,7 +33,7 @@ from viscx.cli.options import POINT, light_options, output_option, quiet
 def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radiance, samples, reference, show_regions,
            exposure, seed, output):
     """Render the direct illumination of the scene in FILE (built by `viscx build`) from an
-    area light (seed 000 §7.4–7.5). Primary visibility is ray cast; each pixel's radiance is
+    area light (Hoberock et al. §7.4–7.5). Primary visibility is ray cast; each pixel's radiance is
     exact: the part of the light its point sees (polygon clipping against the occluders
     that the light's discontinuity-mesh region of the point names) and Lambert's formula,
     evaluated region by region. Faces are Lambertian (OBJ Kd); the light emits its Ke from

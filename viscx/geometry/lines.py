@@ -29,6 +29,8 @@ All functions are vectorised over a leading axis and work in float64.
 import numpy as np
 from numba import njit
 
+from viscx.tolerances import PARALLEL_TOLERANCE
+
 
 def plucker(points, directions):
     """Plücker coordinates of lines through ``points`` along ``directions``.
@@ -223,7 +225,7 @@ def _four_lines_kernel(lines, rank_tol, quadric_tol, solutions, valid, degenerat
                 if j < 3:
                     dn += w[j] * w[j]
             dn, xn = np.sqrt(dn), np.sqrt(xn)
-            if dn > 1e-12 * xn:
+            if dn > PARALLEL_TOLERANCE * xn:
                 for j in range(6):
                     solutions[i, k, j] = w[j] / dn
                 valid[i, k] = True
@@ -262,7 +264,7 @@ def line_through_point_and_two_lines(points, lines1, lines2):
     d = np.cross(n1, n2)
     size = np.linalg.norm(d, axis=1)
     scale = np.linalg.norm(n1, axis=1) * np.linalg.norm(n2, axis=1)
-    ok = size > 1e-12 * scale
+    ok = size > PARALLEL_TOLERANCE * scale
     out = np.zeros_like(d)
     out[ok] = d[ok] / size[ok, None]
     return out
@@ -335,7 +337,7 @@ def eee_map(e1, e2, e3):
     coeffs : (n, 4) float
         (a, b, c, d), normalised.
     orientation : (n,) int
-        sign(dx2/dx1) = sign(ad - bc), constant along an arc (seed 000 §4.2).
+        sign(dx2/dx1) = sign(ad - bc), constant along an arc (Hoberock et al. §4.2).
     """
     n = len(e1)
     L2 = plucker(e2[:, 0], e2[:, 1] - e2[:, 0])

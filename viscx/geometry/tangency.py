@@ -1,4 +1,4 @@
-"""Tangency of lines at generators (design notes §2, docs/skeleton.md).
+"""Tangency of lines at generators (design decisions, Vocabulary: docs/references.md, docs/skeleton.md).
 
 Faces are two-sided and all space off the faces is free. A line through a point
 p of the surface is *tangent* there (it may pass on) when the surface does not
@@ -23,12 +23,16 @@ exactly when those intervals cover the whole circle.
 A line lying on a touching face near p (within ``angle_tol`` of its plane and
 inside its wedge), or along an edge at p, is *degenerate* (grazing); callers
 decide what grazing means (docs/skeleton.md).
+
+This module works on wedges alone (pure arrays); the wedges of a scene's vertices, edges
+and surface points, and the tests there, are :mod:`viscx.scene.neighbourhood`'s
+(:func:`~viscx.scene.neighbourhood.tangent_at_vertices` and its siblings).
 """
 
 import numpy as np
 from numba import njit
 
-from viscx.scene.neighbourhood import surface_wedges, take_wedges
+from viscx.tolerances import ANGLE_TOLERANCE
 
 TWO_PI = 2 * np.pi
 
@@ -163,7 +167,7 @@ def _separation(offsets, first, normal, span, directions, angle_tol):
     return blocked, degenerate
 
 
-def tangent_in_wedges(wedges, directions, angle_tol=1e-9):
+def tangent_in_wedges(wedges, directions, angle_tol=ANGLE_TOLERANCE):
     """Whether the line along each direction passes the surface given by its wedges.
 
     Parameters
@@ -186,45 +190,3 @@ def tangent_in_wedges(wedges, directions, angle_tol=1e-9):
         directions, angle_tol,
     )
     return ~blocked, degenerate
-
-
-def tangent_at_points(scene, points, directions, angle_tol=1e-9):
-    """:func:`tangent_in_wedges` at any points of the surface (vertices, points of edges),
-    their wedges searched geometrically.
-
-    Parameters
-    ----------
-    scene : Scene
-    points : (q, 3) float
-    directions : (q, 3) float
-    """
-    return tangent_in_wedges(surface_wedges(scene, points), directions, angle_tol)
-
-
-def tangent_at_vertices(scene, vertices, directions, angle_tol=1e-9):
-    """:func:`tangent_in_wedges` at vertices (their wedges are cached per scene).
-
-    Parameters
-    ----------
-    vertices : (q,) int
-    directions : (q, 3) float
-    """
-    return tangent_in_wedges(take_wedges(scene.contacts.vertex, vertices), directions, angle_tol)
-
-
-def tangent_at_edges(scene, edges, directions, points=None, angle_tol=1e-9):
-    """:func:`tangent_at_points` at points of edges.
-
-    Parameters
-    ----------
-    edges : (q,) int
-        Undirected edge ids.
-    directions : (q, 3) float
-    points : (q, 3) float, optional
-        Where each line meets its edge (default: the edge's midpoint). It
-        matters where the edge runs partly across another face.
-    """
-    if points is None:
-        ev = scene.half_edges.edge_vertices[np.asarray(edges, dtype=np.int64)]
-        points = 0.5 * (scene.vertices[ev[:, 0]] + scene.vertices[ev[:, 1]])
-    return tangent_at_points(scene, points, directions, angle_tol)

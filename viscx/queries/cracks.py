@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.geometry.polygon import plane_basis
-from viscx.skeleton.nodes import GRAZE_COSINE, _coplanar_partners, face_planes
+from viscx.skeleton.nodes import coplanar_partners, face_planes
+from viscx.tolerances import GRAZE_COSINE
 
 
 @dataclass
@@ -50,10 +51,11 @@ class ContactPieces:
 def contact_pieces(scene):
     """The :class:`ContactPieces` of a scene: every pair of triangles of two coplanar faces
     with opposite normals whose bounding boxes meet (cached on the scene)."""
-    cached = getattr(scene, "_viscx_contact_pieces", None)
-    if cached is not None:
-        return cached
-    off, partner, _, _ = _coplanar_partners(scene)
+    return scene.cached("contact_pieces", _contact_pieces)
+
+
+def _contact_pieces(scene):
+    off, partner, _, _ = coplanar_partners(scene)
     f = np.repeat(np.arange(scene.n_faces), np.diff(off))
     facing = np.einsum("ij,ij->i", scene.face_normal[f], scene.face_normal[partner]) < 0
     f, g = f[facing], partner[facing]
@@ -83,9 +85,7 @@ def contact_pieces(scene):
             out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
             half[:, first + i, :2] = out
             half[:, first + i, 2] = np.einsum("ki,ki->k", out, xy[:, i])
-    cached = ContactPieces(face_planes(scene)[lower], normal, offset, frame, half)
-    scene._viscx_contact_pieces = cached
-    return cached
+    return ContactPieces(face_planes(scene)[lower], normal, offset, frame, half)
 
 
 #: Segments × pieces judged at once by :func:`through_cracks`.

@@ -1,4 +1,4 @@
-"""The discontinuity mesh of an area light (seed 000 §7.5): on every receiver face, the
+"""The discontinuity mesh of an area light (Hoberock et al. §7.5): on every receiver face, the
 traces of the families of maximal free segments that involve a vertex or an edge of the
 light, and the regions they cut the receiver into.
 
@@ -9,7 +9,7 @@ vertices* and *light edges* are the vertices and edges of its outline (edges sha
 two light faces are inside the light and do not count). A point x of a receiver sees
 part of the light; that visible part changes combinatorially where x crosses the trace
 of one of these one-parameter families (the V-cells of the light's vertices and the
-EE-cells of its edges, seed 000 §7.5):
+EE-cells of its edges, Hoberock et al. §7.5):
 
 * **VE (light vertex v, occluder edge e)**: the lines through v grazing e (x stops
   seeing v behind e). Receiver end: the *front* end (the family is oriented from v
@@ -60,7 +60,7 @@ Regions
 -------
 Per receiver, in the face's 2-D coordinates (:func:`viscx.geometry.polygon.plane_basis`
 of its normal): the outline edges and the trace chords are split at their crossings
-(and where an end lies on another chord), split points closer than ``SNAP`` × epsilon
+(and where an end lies on another chord), split points closer than ``SPLIT_SNAP`` × epsilon
 are merged, dangling edges pruned, and the faces of the planar subdivision traced on
 half-edges (faces on the left). Counter-clockwise cycles are the regions' outer loops,
 clockwise cycles their holes (each inside the smallest outer loop of another component
@@ -76,15 +76,12 @@ from viscx.arrays import expand_ranges
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.cracks import through_cracks
-from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, _triangle_edge_ids, clip_to_front,
+from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE, face_planes
+from viscx.tolerances import CHORD_TOLERANCE, PARALLEL_TOLERANCE, SPLIT_SNAP
 
-#: Chordal tolerance of the EEE traces (conic arcs as polylines), in epsilons.
-CHORD_TOLERANCE = 10.0
-#: Split points of one receiver closer than this many epsilons are one vertex.
-SNAP = 10.0
 #: Chords per EEE trace before refinement, and refinement rounds at most.
 EEE_START, EEE_ROUNDS = 8, 16
 # which light feature an event involves
@@ -262,7 +259,7 @@ def select_events(scene, arcs, light):
     # degenerate families: every line through a generator vertex lying in f's plane meets
     # f there (the trace is a point); a generator edge lying in f's plane is f's outline or
     # a contact
-    snap = SNAP * scene.epsilon
+    snap = SPLIT_SNAP * scene.epsilon
     n_f, c_f = scene.face_normal[face], scene.face_offset[face]
     ev_ = he.edge_vertices
     for slot_ in range(3):
@@ -336,7 +333,7 @@ def pencil_points(scene, kind, generators):
             dt = b[:, t] - a[:, t]
             den = np.einsum("ij,ij->i", n, dt)
             xt = a[:, t] + (np.einsum("ij,ij->i", n, a[:, 0] - a[:, t]) / den)[:, None] * dt
-        ok = flat & (np.abs(den) > 1e-12 * np.linalg.norm(dt, axis=1)) & (partner[e] == 0)
+        ok = flat & (np.abs(den) > PARALLEL_TOLERANCE * np.linalg.norm(dt, axis=1)) & (partner[e] == 0)
         partner[e[ok]] = j
         x[e[ok]] = xt[ok]
         normal[e[ok]] = n[ok]
@@ -527,7 +524,7 @@ def _first_hit(line, segs, snap):
     with np.errstate(divide="ignore", invalid="ignore"):
         ti = (r[..., 0] * e[..., 1] - r[..., 1] * e[..., 0]) / den
         tj = (r[..., 0] * d[..., 1] - r[..., 1] * d[..., 0]) / den
-    cross = ((np.abs(den) > 1e-12 * li * lj) & (ti >= 0) & (ti <= 1 + snap / li)
+    cross = ((np.abs(den) > PARALLEL_TOLERANCE * li * lj) & (ti >= 0) & (ti <= 1 + snap / li)
              & (tj >= -snap / lj) & (tj <= 1 + snap / lj))
     t = np.where(cross, np.minimum(ti, 1.0), np.inf)
     for p in (segs[None, :, 0], segs[None, :, 1]):  # a segment's end on the line
@@ -674,7 +671,7 @@ def _split_params(segs, snap):
             ti = (r[..., 0] * dj[..., 1] - r[..., 1] * dj[..., 0]) / den
             tj = (r[..., 0] * di[..., 1] - r[..., 1] * di[..., 0]) / den
         ei, ej = snap / length[i], snap / length[j]
-        cross = (i != j) & (np.abs(den) > 1e-12 * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
+        cross = (i != j) & (np.abs(den) > PARALLEL_TOLERANCE * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
         ii, jj = np.nonzero(cross)
         out_s.append(i[ii, 0])
         out_t.append(np.clip(ti[ii, jj], 0, 1))
@@ -1001,7 +998,7 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     DiscontinuityMesh
     """
     tol = CHORD_TOLERANCE * scene.epsilon
-    snap = SNAP * scene.epsilon
+    snap = SPLIT_SNAP * scene.epsilon
     events = select_events(scene, arcs, light)
     offsets, points, _ = trace_events(scene, arcs, events, tol)
     finite = np.isfinite(points).all(axis=1)
@@ -1014,7 +1011,7 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     frames = {f: _face_frame(scene, f) for f in wanted}
     outlines = {f: [np.stack([lp @ frames[f][0], lp @ frames[f][1]], axis=1) for lp in scene.face_loops(f)] for f in wanted}
     # receiver-plane events (straight traces in the receiver's plane)
-    tri_edge = _triangle_edge_ids(scene)
+    tri_edge = triangle_edge_ids(scene)
     rp_rows, rp_pts = [], []
     for f in wanted:
         u, v, o = frames[f]

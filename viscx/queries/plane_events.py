@@ -146,7 +146,7 @@ def clip_to_front(offsets, points, planes, snap):
     return row[sel], off, pts[take]
 
 
-def _triangle_edge_ids(scene):
+def triangle_edge_ids(scene):
     """(t, 3) int64: scene edge of each triangle edge (i, i+1), -1 for inner diagonals."""
     ev = scene.half_edges.edge_vertices
     nv = scene.n_vertices
@@ -170,7 +170,7 @@ def plane_sections(scene, d, tri_ok, tri_edge, basis):
     tri_ok : (t,) bool
         Triangles that count.
     tri_edge : (t, 3) int64
-        :func:`_triangle_edge_ids`.
+        :func:`triangle_edge_ids`.
     basis : (u, v), (3,) float64 each
 
     Returns
@@ -358,7 +358,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     outline : list of (k, 2) float64
         f's loops in 2-D.
     tri_edge : (t, 3) int64, optional
-        :func:`_triangle_edge_ids` (computed when not given).
+        :func:`triangle_edge_ids` (computed when not given).
 
     Returns
     -------
@@ -384,7 +384,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     if not cut.any():
         return empty
     if tri_edge is None:
-        tri_edge = _triangle_edge_ids(scene)
+        tri_edge = triangle_edge_ids(scene)
     u3, v3 = basis
     Va, Vb = scene.vertices[la[cut]], scene.vertices[lb[cut]]
     w = d[la[cut]] / (d[la[cut]] - d[lb[cut]])

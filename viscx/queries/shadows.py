@@ -1,4 +1,4 @@
-"""Shadows of a point light (seed 000 §7.2, Fig. 8): lit polygons and shadow boundaries.
+"""Shadows of a point light (Hoberock et al. §7.2, Fig. 8): lit polygons and shadow boundaries.
 
 A point of a face is lit exactly when the light sees it, so the lit part of
 each face is its visible part from the light (:mod:`viscx.queries.visibility`,

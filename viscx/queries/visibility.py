@@ -1,4 +1,4 @@
-"""The visibility polyhedron of a point (seed 000 §7.1) from the point's V-cells.
+"""The visibility polyhedron of a point (Hoberock et al. §7.1) from the point's V-cells.
 
 From a point p, the ray along a direction d first meets the face ``down(d)``:
 the V-cells of p whose down blocker is face f together are the directions in
@@ -7,7 +7,7 @@ part of f visible from p. Their union is bounded by the boundary elements
 (VE half-cells (p, e) on p's direction sphere) whose two sides have different
 down blockers; elements between two cells with the same down (only the up
 blocker behind p changes) are inside the union and cancel. The remaining
-elements are chained again (FormLoops grouped by down face, seed 000 §5.3),
+elements are chained again (FormLoops grouped by down face, Hoberock et al. §5.3),
 classified outer / hole by their turning sums and grouped by crossing parity,
 exactly as V2 does for one cell (:mod:`viscx.skeleton.vcells`).
 
@@ -18,7 +18,7 @@ where the segments of the VE family end on f (their VV/VEE nodes). Nothing
 is clipped: where p sees f, the boundary is made of the VE half-cells of f's
 own edges and of the edges that hide parts of f, so the loops lie in f. A
 boundary element whose edge is not an edge of f is where another object cuts
-f's visible part: a shadow boundary when p is a light (seed 000 §7.2, Fig. 8).
+f's visible part: a shadow boundary when p is a light (Hoberock et al. §7.2, Fig. 8).
 
 Open chains (cells V1 could not close, docs/skeleton.md "V-cells") are
 reported per face (``complete`` false) and their elements kept as boundary
@@ -31,7 +31,8 @@ import numpy as np
 
 from viscx.geometry.polygon import plane_basis, signed_area_2d
 from viscx.skeleton.nodes import BLOCK_FACE
-from viscx.skeleton.vcells import cells_of_loops, reference_points, sphere_loops, stored_elements, turning_sums
+from viscx.skeleton.loops import cells_of_loops
+from viscx.skeleton.vcells import inside_loops, reference_points, sphere_loops, sphere_turning_sums, stored_elements
 
 
 @dataclass
@@ -155,10 +156,10 @@ def point_view(scene, arcs, vcells, vertex, point):
     walk = el.take(walk_order)
     walk_down = down[walk_order]
     n_loops = len(loop_offsets) - 1
-    turning = turning_sums(walk, loop_offsets, bridge=True)
+    turning = sphere_turning_sums(walk, loop_offsets)
     ref = reference_points(walk, loop_offsets)
     loop_face = walk_down[loop_offsets[:-1]]
-    cell = cells_of_loops(walk, loop_offsets, loop_face, ref) if n_loops else np.zeros(0, np.int64)
+    cell = cells_of_loops(walk, loop_offsets, loop_face, ref, inside_loops) if n_loops else np.zeros(0, np.int64)
 
     # which edges bound which face (a boundary along f's own edge is f's outline, not a shadow)
     he = scene.half_edges

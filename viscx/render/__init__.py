@@ -1,15 +1,7 @@
-"""Pictures of the 3-D complex (matplotlib, the optional ``plot`` extra, imported lazily)."""
+"""Images of a scene lit by an area light: the camera's primary hits (:mod:`.camera`), exact
+direct illumination region by region (:mod:`.direct`), its sparse reconstruction
+(:mod:`.sparse`), the Monte Carlo reference (:mod:`.montecarlo`) and the render job
+(:mod:`.image`)."""
 
-from viscx.errors import ViscxError
-
-
-def pyplot():
-    """matplotlib.pyplot on the Agg backend, or a one-line error naming the extra."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise ViscxError("plotting needs matplotlib: pip install 'viscx[plot]'") from None
-    return plt
+# (viscx.flatland.plot still imports pyplot from here: the lead moves it to viscx.plot)
+from viscx.plot import pyplot  # noqa: F401

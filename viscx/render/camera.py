@@ -5,6 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.errors import ViscxError
+from viscx.tolerances import ANGLE_TOLERANCE
 
 
 @dataclass
@@ -38,7 +39,7 @@ class Camera:
         forward = self.look_at - self.eye
         if np.linalg.norm(forward) == 0.0:
             raise ViscxError("--camera and --look-at are the same point")
-        if np.linalg.norm(np.cross(forward, self.up)) <= 1e-9 * np.linalg.norm(forward) * np.linalg.norm(self.up):
+        if np.linalg.norm(np.cross(forward, self.up)) <= ANGLE_TOLERANCE * np.linalg.norm(forward) * np.linalg.norm(self.up):
             raise ViscxError("--up must not be parallel to the viewing direction")
 
     def frame(self):

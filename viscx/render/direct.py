@@ -1,5 +1,5 @@
 """Exact direct illumination from an area light, evaluated region by region of the
-light's discontinuity mesh (seed 000 §7.4–7.5).
+light's discontinuity mesh (Hoberock et al. §7.4–7.5).
 
 Radiance
 --------

@@ -108,7 +108,7 @@ def render(scene, mesh, camera, radiance=None, samples=None, reference=None, see
     stats = {"pixels": int(len(hits.face)), "pixels_hit": int(np.sum(hits.face >= 0)), "primary_s": round(t1 - t0, 4)}
     stderr = None
     if reference is not None:
-        from viscx.render.reference import reference_radiance
+        from viscx.render.montecarlo import reference_radiance
 
         rad, err = reference_radiance(lighting, hits.face, hits.side, hits.point, int(reference), seed, progress)
         label = _labels(hits.face, hits.side, np.full(len(hits.face), -1, np.int64))

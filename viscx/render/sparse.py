@@ -1,11 +1,11 @@
 """Reconstruction of direct illumination from sparse samples, inside regions that never
-mix (seed 000 §7.5, Fig. 10).
+mix (Hoberock et al. §7.5, Fig. 10).
 
 Regions
 -------
 A pixel's *region* is the pair (what the camera sees there, where it is in the light's
 discontinuity mesh): the face and side the primary ray hits — the camera point's V-cells,
-seed 000 §7.1, found per pixel by the ray caster — and the mesh region of that face the
+Hoberock et al. §7.1, found per pixel by the ray caster — and the mesh region of that face the
 hit point falls in (:func:`viscx.render.direct.regions_of`). Inside one region the
 illumination is smooth (no visual event of the light crosses it); across a region's
 boundary it may have a kink or a jump (a shadow's edge, a contact line, an object's

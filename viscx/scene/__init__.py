@@ -27,13 +27,10 @@ from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate
 from viscx.scene.faces import drop_collinear_vertices, face_loops, merge_coplanar
 from viscx.scene.halfedge import HalfEdges, build_half_edges
 from viscx.scene.soup import PolygonSoup
+from viscx.tolerances import DEFAULT_EPSILON, DEFAULT_WELD
 
 __all__ = ["Scene", "PolygonSoup", "load_scene", "build_scene", "DEFAULT_WELD", "DEFAULT_EPSILON"]
 
-#: Default weld (and coplanarity) tolerance, relative to the bounding-box diagonal.
-DEFAULT_WELD = 1e-7
-#: Default robustness epsilon, relative to the bounding-box diagonal.
-DEFAULT_EPSILON = 1e-6
 
 
 @dataclass
@@ -69,6 +66,12 @@ class Scene:
         Where the scene came from (file path), for messages.
     sha256 : str
         SHA-256 of the source file's bytes ("" when built in memory).
+    cache : dict
+        Data derived from this scene alone, computed once on first use
+        (:meth:`cached`): keyed by the name of the function computing it
+        (``"face_planes"``, ``"edge_contacts"``, ``"pencil_planes"``, …). Not an
+        argument: :func:`dataclasses.replace` gives the new scene an empty cache, so
+        a scene with other vertices or another epsilon never sees stale data.
     """
 
     vertices: np.ndarray
@@ -93,6 +96,21 @@ class Scene:
     sha256: str = ""
     _caster: object = field(default=None, repr=False, compare=False)
     _contacts: object = field(default=None, repr=False, compare=False)
+    cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def cached(self, name, build):
+        """``build(self)``, computed on the first call for ``name`` and kept in :attr:`cache`.
+
+        Parameters
+        ----------
+        name : str
+            The key: the name of the public function returning the data.
+        build : callable
+            Scene -> the data; must depend on nothing but the scene.
+        """
+        if name not in self.cache:
+            self.cache[name] = build(self)
+        return self.cache[name]
 
     @property
     def n_vertices(self):
@@ -285,7 +303,7 @@ def load_scene(path, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None):
     >>> scene = load_scene("sample_scenes/cornell_box.obj")     # doctest: +SKIP
     >>> scene.n_faces, len(scene.generator_edges)                # doctest: +SKIP
     """
-    from viscx.formats.mesh import read_soup
+    from viscx.formats.trimesh_io import read_soup
 
     path = Path(path)
     soup = read_soup(path)

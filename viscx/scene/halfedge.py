@@ -6,7 +6,7 @@ its left (seen from the face normal). ``next[h]`` follows it around its loop.
 faces share that edge, else -1 (a boundary edge has one face, a non-manifold
 edge three or more; ``edge[h]`` groups them all). Faces are two-sided.
 
-Generators (design notes §2): an edge is a *generator edge* unless it is shared
+Generators (design decisions, Vocabulary: docs/references.md): an edge is a *generator edge* unless it is shared
 by exactly two faces that are coplanar and lie on opposite sides of it (a flat
 edge, never a visual event); boundary and non-manifold edges always are.
 Coplanar means what merging means (:func:`viscx.scene.faces.merge_coplanar`):

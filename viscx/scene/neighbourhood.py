@@ -24,6 +24,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
+from viscx.geometry.tangency import tangent_in_wedges
+from viscx.tolerances import ANGLE_TOLERANCE
+
 
 @dataclass
 class Wedges:
@@ -333,3 +336,49 @@ def generator_wedges(scene, is_vertex, generator, points):
     if len(ig):
         parts.append((ig, surface_wedges(scene, points[ig])))
     return merge_wedges(len(points), parts)
+
+
+# --------------------------------------------------------------------------------------
+# tangency at the scene's points (viscx.geometry.tangency on their wedges)
+
+
+def tangent_at_points(scene, points, directions, angle_tol=ANGLE_TOLERANCE):
+    """:func:`~viscx.geometry.tangency.tangent_in_wedges` at any points of the surface (vertices, points of edges),
+    their wedges searched geometrically.
+
+    Parameters
+    ----------
+    scene : Scene
+    points : (q, 3) float
+    directions : (q, 3) float
+    """
+    return tangent_in_wedges(surface_wedges(scene, points), directions, angle_tol)
+
+
+def tangent_at_vertices(scene, vertices, directions, angle_tol=ANGLE_TOLERANCE):
+    """:func:`~viscx.geometry.tangency.tangent_in_wedges` at vertices (their wedges are cached per scene).
+
+    Parameters
+    ----------
+    vertices : (q,) int
+    directions : (q, 3) float
+    """
+    return tangent_in_wedges(take_wedges(scene.contacts.vertex, vertices), directions, angle_tol)
+
+
+def tangent_at_edges(scene, edges, directions, points=None, angle_tol=ANGLE_TOLERANCE):
+    """:func:`tangent_at_points` at points of edges.
+
+    Parameters
+    ----------
+    edges : (q,) int
+        Undirected edge ids.
+    directions : (q, 3) float
+    points : (q, 3) float, optional
+        Where each line meets its edge (default: the edge's midpoint). It
+        matters where the edge runs partly across another face.
+    """
+    if points is None:
+        ev = scene.half_edges.edge_vertices[np.asarray(edges, dtype=np.int64)]
+        points = 0.5 * (scene.vertices[ev[:, 0]] + scene.vertices[ev[:, 1]])
+    return tangent_at_points(scene, points, directions, angle_tol)

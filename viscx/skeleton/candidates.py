@@ -178,13 +178,19 @@ from viscx.parallel import map_chunks
 from viscx.progress import bar
 from viscx.skeleton.nodes import E4, VEE, VV, Nodes, canonical_directions, free_pieces, nodes_among, sort_nodes, validate_candidates
 from viscx.skeleton.reference import edge_lines
+from viscx.tolerances import (
+    ANGLE_TOLERANCE,
+    COPLANAR,
+    END_MARGIN,
+    HULL_TOL,
+    IN_PLANE,
+    ISOLATION,
+    PARALLEL_TOLERANCE,
+    PARAM_SLACK,
+    POINT_SLACK,
+    SOLID_DEPTH,
+)
 
-#: Depth, in epsilons, a segment must reach inside a solid to be blocked by it.
-SOLID_DEPTH = 8.0
-#: Other components' generator edges must stay this many epsilons away from a blocking solid.
-ISOLATION = 3.0
-#: Inflation of the hull of two generators, in epsilons (the proof needs 2).
-HULL_TOL = 4.0
 #: Largest (faces × vertices) of a component tested for convexity.
 CONVEXITY_BUDGET = 4_000_000
 #: Rays per call when filling the blocked table.
@@ -829,33 +835,12 @@ def _push(buf, n, row):
     return buf
 
 
-#: Slack on the line parameters (s, t on the outer pair, u on an inner edge, λ along
-#: the segment) of the exact filters, on top of the ε margins: rounding of the
-#: closed forms below where they are well conditioned (where they are not, the
-#: filters accept).
-PARAM_SLACK = 1e-7
-#: Margin, in epsilons, kept from an edge's ends and between consecutive points by
-#: the exact filters (validation demands more than 1 ε; the rest covers the
-#: difference between these closed forms and the reference's constructions).
-END_MARGIN = 0.4
-#: Relative size of the triple product below which two lines count as coplanar
-#: when pruning tuples whose solutions form a family: far tighter than the
-#: exact solver's own test, so that the pruning never drops a solvable tuple.
-COPLANAR = 1e-14
-#: Relative size below which a side-product form counts as identically zero
-#: (the edge lies in the plane of the outer pair, to rounding).
-IN_PLANE = 1e-14
-#: How far, in epsilons, a generator point of the closed forms may lie from the
-#: reference's when a scan prunes a line that crosses a solid (the solids' planes
-#: move inwards by this, plus PARAM_SLACK of the edge's length): more than the
-#: END_MARGIN allowance the other filters already rely on.
-POINT_SLACK = 1.0
 
 
 @njit(cache=True, nogil=True)
 def _ratio(num, den, scale):
     """num / den, or nan when den is within rounding of zero (a pole: anything goes)."""
-    if abs(den) <= 1e-12 * scale:
+    if abs(den) <= PARALLEL_TOLERANCE * scale:
         return np.nan
     return num / den
 
@@ -893,7 +878,7 @@ def _param_on(o, d, b0, db):
     aa, bb, cc = _dot(d, d), _dot(d, db), _dot(db, db)
     dw, ew = _dot(d, w), _dot(db, w)
     den = aa * cc - bb * bb
-    if den <= 1e-12 * aa * cc:
+    if den <= PARALLEL_TOLERANCE * aa * cc:
         return np.nan, np.nan
     u = (bb * dw - aa * ew) / den
     lam = (dw + bb * u) / aa
@@ -958,7 +943,7 @@ def _crosses_plane_at_end(a0, da, d0, dd, b0, db, eps):
         n = n_far
     size = np.sqrt(_dot(n, n))
     length = np.sqrt(_dot(db, db))
-    if size <= 1e-9 * np.sqrt(_dot(da, da)) * np.sqrt(_dot(w, w) + _dot(dd, dd)) or length == 0:
+    if size <= ANGLE_TOLERANCE * np.sqrt(_dot(da, da)) * np.sqrt(_dot(w, w) + _dot(dd, dd)) or length == 0:
         return False
     n = _div(n, size)
     h0, h1 = _dot(_sub(b0, a0), n), _dot(_sub(_add(b0, db), a0), n)

@@ -1,4 +1,4 @@
-"""V2: the EE-cells (2-cells of an edge pair) of the visibility complex (seed 000 §6).
+"""V2: the EE-cells (2-cells of an edge pair) of the visibility complex (Hoberock et al. §6).
 
 The square of an edge pair
 --------------------------
@@ -28,7 +28,7 @@ What bounds the cells (which V1 arcs, and the pair on each side)
 ---------------------------------------------------------------
 Inside the square the pair changes only where the line meets a third
 generator: a third edge e3 (the EEE family (e1, e2, e3), a hyperbola arc
-x2(x1), linear-fractional, seed 000 §4.2), or a vertex (a VEE node: a point
+x2(x1), linear-fractional, Hoberock et al. §4.2), or a vertex (a VEE node: a point
 of the square, where such arcs meet). Along an EEE arc:
 
 * e3 beyond e2 (or before e1) on the line: one end of σ changes — e3 tangent:
@@ -89,11 +89,11 @@ c(u) = ((1 - u)(1 - w) c0 + u w c1) / ((1 - u)(1 - w) + u w) for u ∈ [0, 1]
 with c0, c1 the element's ends and w fixed by the middle sample
 (c(1/2) = (1 - w) c0 + w c1), exact for a projectivity and monotone in u.
 
-Algorithm (seed 000 §6 with the V-cells' Fig. 4)
+Algorithm (Hoberock et al. §6 with the V-cells' Fig. 4)
 -----------------------------------------------
-Per edge pair and blocker pair (one *group*), :func:`vcells.form_loops`
+Per edge pair and blocker pair (one *group*), :func:`loops.form_loops`
 chains elements end to start where they meet in the square (within
-``JOIN_TOLERANCE`` times the square's epsilon, see below), choosing the first
+``SQUARE_JOIN_EPSILONS`` times the square's epsilon, see below), choosing the first
 element clockwise at a corner where several start. The points of the square
 are embedded as (x1, x2, 1) and tangents as (t1, t2, 0), so that the sphere
 helpers' signed angles about "the point" are the plane's angles about +z.
@@ -110,7 +110,7 @@ element; a point p lies left of loop L iff the horizontal rays towards +x1 from
 p and from L's reference point cross L equally often modulo 2 (each element's
 x2 is monotone, so it crosses a ray at most once, found by inverting its
 Bézier coordinate). Loops of one group bound one cell iff every loop of the
-group sees their reference points on the same side (vcells.cells_of_loops).
+group sees their reference points on the same side (loops.cells_of_loops).
 
 *Area*: Green's formula, exactly: along an element x2 is a linear-fractional
 function of x1 (a composition of two), integrated in closed form.
@@ -133,24 +133,22 @@ from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.vcells import TURNING_DECIMALS, _signed_angle, cells_of_loops, form_loops, turning_sums
+from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums
+from viscx.tolerances import (
+    ANGLE_TOLERANCE,
+    PARALLEL_TOLERANCE,
+    SQUARE_COVER_TOLERANCE,
+    SQUARE_JOIN_EPSILONS,
+    SQUARE_REFERENCE_OFFSET,
+    WINDING_TOLERANCE,
+)
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
 #: ... and this many in the squares whose loops stayed open with PROBE (:func:`_squares_cells`).
 FINE_PROBE = 5
-#: Ends of two elements closer than this many epsilon (along the edges) are one point of
-#: the square: V1 merges events 4 epsilon apart along an edge.
-JOIN_TOLERANCE = 8
-#: A loop's reference point lies this far (square units, at most a thousandth of the
-#: element) left of its longest element.
-REFERENCE_OFFSET = 1e-9
 #: Where along its element (Bézier u) a loop's reference point lies: the golden section.
 REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
-#: A loop is closed when its winding is ±2π within this (else it is an open chain).
-WINDING_TOLERANCE = 1e-6
-#: A pair's cells cover the square when their areas sum to 1 within this.
-COVER_TOLERANCE = 1e-6
 #: Points judged per call of :func:`maximal_free_segments` by :func:`ee_blockers`: its
 #: whole segments are ~200 bytes a line, the state kept 40.
 BLOCKER_CHUNK = 1 << 20
@@ -246,7 +244,7 @@ class EECells:
         key = self.edge1 * (1 << 32) + self.edge2
         done = unique_sorted(key[self.complete])
         total = np.bincount(np.searchsorted(pairs, key), weights=self.area, minlength=len(pairs))
-        covered = np.abs(total[np.searchsorted(pairs, done)] - 1) <= COVER_TOLERANCE
+        covered = np.abs(total[np.searchsorted(pairs, done)] - 1) <= SQUARE_COVER_TOLERANCE
         return {
             "cells": len(self),
             "with_holes": int(np.count_nonzero(loops > 1)),
@@ -923,10 +921,10 @@ def pencil_value(scene, crossed, held, third):
     at, bt = _edge_ends(scene, third)
     dh, dt = bh - ah, bt - at
     n = np.cross(dh, dt)
-    parallel = np.linalg.norm(n, axis=1) <= 1e-9 * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
+    parallel = np.linalg.norm(n, axis=1) <= ANGLE_TOLERANCE * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
     n = np.where(parallel[:, None], np.cross(dh, at - ah), n)
     den = np.einsum("ij,ij->i", n, b - a)
-    ok = np.abs(den) > 1e-12 * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
+    ok = np.abs(den) > PARALLEL_TOLERANCE * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
     return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
 
 
@@ -1027,7 +1025,7 @@ def open_segments(scene, el, order, chain_offsets):
     ----------
     el : Elements
     order, chain_offsets : (k,) int, (o + 1,) int
-        The open chains (:func:`vcells.form_loops`).
+        The open chains (:func:`loops.form_loops`).
 
     Returns
     -------
@@ -1224,7 +1222,7 @@ def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe):
 
 
 def windings(el, loop_offsets):
-    """Winding of each loop (seed 000 Fig. 7): the turning angles at its corners plus the
+    """Winding of each loop (Hoberock et al. Fig. 7): the turning angles at its corners plus the
     angle each element's tangent turns along it (left turns positive).
 
     Returns
@@ -1234,7 +1232,7 @@ def windings(el, loop_offsets):
     """
     n = loop_offsets[-1]
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
-    along = _signed_angle(el.start_tangent[:n], el.end_tangent[:n], el.end[:n])
+    along = signed_angle(el.start_tangent[:n], el.end_tangent[:n], el.end[:n])
     return turning_sums(el, loop_offsets) + np.bincount(loop_of, weights=along, minlength=len(loop_offsets) - 1)
 
 
@@ -1315,7 +1313,7 @@ def inside_square_loops(el, loop_offsets, ref, loop, targets):
 
 
 def reference_points(el, loop_offsets):
-    """A point just left of each loop: REFERENCE_OFFSET (at most a thousandth of the
+    """A point just left of each loop: SQUARE_REFERENCE_OFFSET (at most a thousandth of the
     element's chord) off its longest element, along the normal, at u = REFERENCE_AT (not
     the middle: in axis-aligned scenes the middle of a side is often level with a corner,
     and a ray through a corner joined within tolerance could count it twice).
@@ -1337,7 +1335,7 @@ def reference_points(el, loop_offsets):
     tangent = (e - s) * w * (1 - w) / den**2
     tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
     left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
-    ref = point + np.minimum(REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
+    ref = point + np.minimum(SQUARE_REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
     return _lift(ref)
 
 
@@ -1470,7 +1468,7 @@ def _groups(el):
 
 
 def _loops(scene, el):
-    """:func:`vcells.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
+    """:func:`loops.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
     return form_loops(el, _groups(el), join_tolerance(scene, el.e1, el.e2))
 
 
@@ -1487,7 +1485,7 @@ def _with_segments(scene, arcs, squares, segments, el, loops):
     -------
     el : Elements
     loops : tuple
-        (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`.
+        (order, loop_offsets, chain_offsets) as :func:`loops.form_loops`.
     """
     order, loop_offsets, _ = loops
     redo = unique_sorted(segments.e1 * (1 << 32) + segments.e2)
@@ -1554,7 +1552,7 @@ def _concatenate_cells(parts):
 
 def _demote(order, loop_offsets, chain_offsets, bad):
     """Move the loops flagged ``bad`` ((l,) bool) to the open chains (before the others);
-    returns (order, loop_offsets, chain_offsets) as :func:`vcells.form_loops`."""
+    returns (order, loop_offsets, chain_offsets) as :func:`loops.form_loops`."""
     if not bad.any():
         return order, loop_offsets, chain_offsets
     lens = np.diff(loop_offsets)
@@ -1567,12 +1565,12 @@ def _demote(order, loop_offsets, chain_offsets, bad):
 
 
 def join_tolerance(scene, e1, e2):
-    """(k,) float: JOIN_TOLERANCE epsilon along the shorter edge of each element's pair, in
+    """(k,) float: SQUARE_JOIN_EPSILONS epsilon along the shorter edge of each element's pair, in
     square units (events merged 4 epsilon apart along an edge end arcs there)."""
     a1, b1 = _edge_ends(scene, e1)
     a2, b2 = _edge_ends(scene, e2)
     shorter = np.minimum(np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1))
-    return JOIN_TOLERANCE * scene.epsilon / shorter
+    return SQUARE_JOIN_EPSILONS * scene.epsilon / shorter
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from viscx.grid import bin_boxes
+from viscx.tolerances import ANGLE_TOLERANCE
 
 
 def vertex_edges(scene):
@@ -49,7 +50,7 @@ def skew_edges(scene, e1, e2):
     size = np.linalg.norm(c, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         gap = np.abs(np.einsum("ij,ij->i", a2 - a1, c)) / size
-    return ~share & (size > 1e-9) & (gap > scene.epsilon)
+    return ~share & (size > ANGLE_TOLERANCE) & (gap > scene.epsilon)
 
 
 @dataclass
@@ -140,11 +141,7 @@ def edge_junctions(scene):
     tolerance, binned in a uniform grid (about two cells per edge); each contact is
     found in every cell both edges share and kept once. Cached on the scene.
     """
-    cached = getattr(scene, "_viscx_junctions", None)
-    if cached is not None:
-        return cached
-    scene._viscx_junctions, scene._viscx_crossings = _edge_junctions(scene)
-    return scene._viscx_junctions
+    return scene.cached("edge_contacts", _edge_contacts)[0]
 
 
 @dataclass
@@ -178,8 +175,7 @@ class Crossings:
 def edge_crossings(scene):
     """The X-junctions of the generator edges (:class:`Crossings`), found with
     :func:`edge_junctions` and cached on the scene."""
-    edge_junctions(scene)
-    return scene._viscx_crossings
+    return scene.cached("edge_contacts", _edge_contacts)[1]
 
 
 def _crossings_of(scene, rows):
@@ -199,7 +195,7 @@ def _crossings_of(scene, rows):
     return Crossings(ab, s, 0.5 * (x + y))
 
 
-def _edge_junctions(scene):
+def _edge_contacts(scene):
     tol = scene.weld_tolerance
     ge = scene.generator_edges
     if len(ge) < 2:

@@ -13,10 +13,11 @@ import numpy as np
 
 from viscx.arrays import expand_ranges, unique_sorted
 from viscx.geometry.lines import segment_parameter
-from viscx.geometry.tangency import tangent_at_vertices, tangent_in_wedges
+from viscx.geometry.tangency import tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
 from viscx.raycast import intersect_triangles
-from viscx.scene.neighbourhood import faces_near, generator_wedges
+from viscx.scene.neighbourhood import faces_near, generator_wedges, tangent_at_vertices
+from viscx.tolerances import ANGLE_TOLERANCE, GRAZE_COSINE, TIE_MARGIN, TIE_SLACK
 
 # Node kinds.
 E4, VEE, VV = 0, 1, 2
@@ -268,7 +269,7 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     wedges = generator_wedges(scene, is_vertex[rows], gid[rows], point[rows])
     tangent[rows], degenerate[rows] = tangent_in_wedges(wedges, dc[rows])
     # grazing is the rule, not a degeneracy, at a face holding two of the node's
-    # generators (v and e on one face, two edges of one face): seed 000 §4.1
+    # generators (v and e on one face, two edges of one face): Hoberock et al. §4.1
     grazing = np.flatnonzero(degenerate[rows])
     if len(grazing):
         excused = _grazes_shared_face(scene, cand[rows], wedges, oc[rows], dc[rows], grazing)
@@ -358,16 +359,6 @@ def vertex_ray_blockers(scene, vertices, directions):
     return up_kind, up, down_kind, front, degenerate
 
 
-#: Slack (relative to the scene's diagonal) within which a hit point lies on another face,
-#: for the ties of :func:`first_faces`: rounding of the hit point only.
-TIE_SLACK = 1e-12
-#: Hits closer than this (relative to the diagonal) to their triangle's boundary, by their
-#: smallest barycentric coordinate times the triangle's longest side, are checked for ties
-#: (they may lie on an edge shared with other faces): ten times TIE_SLACK.
-TIE_MARGIN = 1e-11
-#: A ray lies in a face's plane when |cos| to its normal is at most this (tangency's angle
-#: tolerance) and its origin is within the weld tolerance of the plane.
-GRAZE_COSINE = 1e-9
 #: Bound on the faces a ray lying in their plane skips in one query of :func:`first_faces`.
 MAX_GRAZED = 8
 #: The same for a pencil's line of a touched plane (``plane_face``), which also passes the
@@ -423,7 +414,7 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
     hit = o[rows] + t[rows, None] * d[rows]
     examine = margin[rows] * _triangle_sizes(scene)[tri[rows]] <= TIE_MARGIN * scene.diagonal
     # on a face with coplanar partners: only where a partner's bounding box holds the hit
-    p_off, p_face, lo_box, hi_box = _coplanar_partners(scene)
+    p_off, p_face, lo_box, hi_box = coplanar_partners(scene)
     on = np.flatnonzero(~examine & (p_off[face[rows] + 1] > p_off[face[rows]]))
     count = (p_off[face[rows[on]] + 1] - p_off[face[rows[on]]])
     which = np.repeat(on, count)
@@ -577,9 +568,10 @@ def face_planes(scene):
     tolerance are one plane (a chain, so a plane is never split at a rounding
     boundary of its offset).
     """
-    cached = getattr(scene, "_viscx_face_planes", None)
-    if cached is not None:
-        return cached
+    return scene.cached("face_planes", _face_planes)
+
+
+def _face_planes(scene):
     nf = scene.n_faces
     n = scene.face_normal.copy()
     off = scene.face_offset.copy()
@@ -587,27 +579,25 @@ def face_planes(scene):
     flip = n[np.arange(nf), k] < 0
     n[flip] *= -1
     off[flip] *= -1
-    key_n = np.round(n / 1e-9).astype(np.int64)
+    key_n = np.round(n / ANGLE_TOLERANCE).astype(np.int64)
     order = np.lexsort([off, key_n[:, 2], key_n[:, 1], key_n[:, 0]])
     new = np.ones(nf, dtype=bool)
     new[1:] = np.any(key_n[order][1:] != key_n[order][:-1], axis=1) | (np.diff(off[order]) > scene.weld_tolerance)
     plane = np.empty(nf, dtype=np.int64)
     plane[order] = np.cumsum(new) - 1
-    scene._viscx_face_planes = plane
     return plane
 
 
 def _triangle_sizes(scene):
     """(t,) float: the longest side of each triangle (cached on the scene)."""
-    cached = getattr(scene, "_viscx_triangle_sizes", None)
-    if cached is None:
+    def longest_sides(scene):
         c = scene.vertices[scene.triangles]
-        cached = np.linalg.norm(c - np.roll(c, 1, axis=1), axis=2).max(axis=1)
-        scene._viscx_triangle_sizes = cached
-    return cached
+        return np.linalg.norm(c - np.roll(c, 1, axis=1), axis=2).max(axis=1)
+
+    return scene.cached("triangle_sizes", longest_sides)
 
 
-def _coplanar_partners(scene):
+def coplanar_partners(scene):
     """Faces of lower id sharing each face's plane (:func:`face_planes`) whose bounding
     boxes meet its own (grown by the weld tolerance), as CSR, with every face's bounding
     box (cached on the scene).
@@ -618,9 +608,10 @@ def _coplanar_partners(scene):
     partners : (k,) int
     lo, hi : (f, 3) float
     """
-    cached = getattr(scene, "_viscx_coplanar_partners", None)
-    if cached is not None:
-        return cached
+    return scene.cached("coplanar_partners", _coplanar_partners)
+
+
+def _coplanar_partners(scene):
     nf = scene.n_faces
     tol = scene.weld_tolerance
     lo = np.full((nf, 3), np.inf)
@@ -637,11 +628,10 @@ def _coplanar_partners(scene):
     # (only lower ids: a tie goes to the lowest face, so a higher partner never wins)
     ok = (j < i) & np.all((lo[i] <= hi[j] + tol) & (lo[j] <= hi[i] + tol), axis=1)
     i, j = i[ok], j[ok]  # sorted by i
-    scene._viscx_coplanar_partners = np.searchsorted(i, np.arange(nf + 1)), j, lo, hi
-    return scene._viscx_coplanar_partners
+    return np.searchsorted(i, np.arange(nf + 1)), j, lo, hi
 
 
-def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=1e-9):
+def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_tol=ANGLE_TOLERANCE):
     """For each generator row in ``rows``, whether its line lies in the plane of a face
     touching this generator's point, and a face of that plane (the same face or a
     coplanar one, :func:`face_planes`) touches another generator point of the same

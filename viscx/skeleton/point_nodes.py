@@ -15,6 +15,7 @@ from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.generators import vertex_edges
 from viscx.skeleton.nodes import VEE, VV, validate_candidates
 from viscx.skeleton.reference import edge_lines
+from viscx.tolerances import ANGLE_TOLERANCE, PARALLEL_TOLERANCE
 
 
 @njit(cache=True)
@@ -49,7 +50,7 @@ def edge_pairs_seen_together(p, a, b, slack):
             # the great circles meet at ±x; x must lie on arc i (or its antipode) and on arc j
             x = np.cross(nrm[i], nrm[j])
             size = np.sqrt((x * x).sum())
-            hit = size <= 1e-12  # one great circle: leave it to validation
+            hit = size <= PARALLEL_TOLERANCE  # one great circle: leave it to validation
             if not hit:
                 x /= size
                 for sign in (1.0, -1.0):
@@ -102,7 +103,7 @@ def point_candidates(scene, point_ids):
         # are two generators of one node)
         a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
         dist = np.minimum(np.linalg.norm(a - x, axis=1), np.linalg.norm(b - x, axis=1))
-        slack = 4 * scene.epsilon / np.maximum(dist, 1e-300) + 1e-9
+        slack = 4 * scene.epsilon / np.maximum(dist, 1e-300) + ANGLE_TOLERANCE
         pairs = edge_pairs_seen_together(x, a, b, slack)
         i, j = pairs[:, 0], pairs[:, 1]
         shared = (ev[i][:, :, None] == ev[j][:, None, :]).any(axis=(1, 2))

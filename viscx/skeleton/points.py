@@ -37,6 +37,7 @@ from viscx.skeleton.arcs.kinds import END_ENDPOINT, END_NODE, END_TRANSITION, VE
 from viscx.skeleton.arcs.stages import arcs_on_intervals, family_intervals, sorted_arcs
 from viscx.skeleton.nodes import Nodes, validate_candidates
 from viscx.skeleton.point_nodes import edge_pairs_seen_together, point_node_incidences, point_nodes
+from viscx.tolerances import ANGLE_TOLERANCE, PARALLEL_TOLERANCE, PARAMETER_SLACK
 
 
 def with_points(scene, points):
@@ -165,7 +166,7 @@ def point_arcs(scene, point_ids, nodes):
     ev_kind = np.concatenate([ev_kind, np.full(len(x_fam), END_TRANSITION)])
     ev_index = np.concatenate([ev_index, np.full(len(x_fam), -1)])
     ev_s = np.nan_to_num(ev_s, nan=-1.0)
-    inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+    inside = (ev_s >= -PARAMETER_SLACK) & (ev_s <= 1 + PARAMETER_SLACK)
     ev_s = np.clip(ev_s, 0.0, 1.0)
     intervals = family_intervals(scene, fkind, families, fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside])
     built = arcs_on_intervals(scene, fkind, families, *intervals)
@@ -193,7 +194,7 @@ def _crossing_events(scene, point_ids, ge):
     fams, ss = [], []
     for k, p in enumerate(np.asarray(point_ids, dtype=np.int64)):
         x = scene.vertices[p]
-        slack = np.full(len(ge), 1e-9)
+        slack = np.full(len(ge), ANGLE_TOLERANCE)
         pairs = edge_pairs_seen_together(x, a, b, slack)
         i, j = pairs[:, 0], pairs[:, 1]
         shared = (ev[i][:, :, None] == ev[j][:, None, :]).any(axis=(1, 2))
@@ -207,7 +208,7 @@ def _crossing_events(scene, point_ids, ge):
             s = (bb * ee - cc * dd) / den
             t = (aa * ee - bb * dd) / den
         gap = np.linalg.norm(a[i] + s[:, None] * d1 - a[j] - t[:, None] * d2, axis=1)
-        ok = (den > 1e-12 * aa * cc) & (gap <= tol) & (s * np.sqrt(aa) > tol) & ((1 - s) * np.sqrt(aa) > tol)
+        ok = (den > PARALLEL_TOLERANCE * aa * cc) & (gap <= tol) & (s * np.sqrt(aa) > tol) & ((1 - s) * np.sqrt(aa) > tol)
         ok &= (t * np.sqrt(cc) > tol) & ((1 - t) * np.sqrt(cc) > tol)
         fams += [k * len(ge) + i[ok], k * len(ge) + j[ok]]
         ss += [s[ok], t[ok]]

@@ -1,4 +1,4 @@
-"""V2: the V-cells (2-cells of a vertex) of the visibility complex (seed 000 §5).
+"""V2: the V-cells (2-cells of a vertex) of the visibility complex (Hoberock et al. §5).
 
 The direction sphere of a vertex
 --------------------------------
@@ -42,11 +42,11 @@ with its cell on the left (seen from outside the sphere): the forward image of
 half-cell +(h+1) runs from s0 to s1 (the seed's "ve"), the forward image of
 -(h+1) from s1 to s0 ("ve.opp"); antipodal images run the other way.
 
-Algorithm (seed 000 Fig. 4, §5.2-5.5)
+Algorithm (Hoberock et al. Fig. 4, §5.2-5.5)
 -------------------------------------
 Per vertex and blocker pair (one *group*), FormLoops chains the group's
 elements end to start. Ends meet where they coincide on the sphere (within
-``JOIN_TOLERANCE``, not by end ids: transition ends carry none). Where several
+``JOIN_CHORD``, not by end ids: transition ends carry none). Where several
 elements of a group start at one point (a degenerate 0-cell, §5.5, or a cell
 touching itself) the next element is the first one clockwise from the
 incoming element's reversed tangent, which makes the loops the boundaries of
@@ -84,37 +84,32 @@ from numba import njit
 from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.progress import bar
 from viscx.skeleton.arcs import VE, family_lines, vertex_side_backs
+from viscx.skeleton.loops import (
+    TURNING_DECIMALS,
+    cells_of_loops,
+    corner_turns,
+    form_loops,
+    loop_successors,
+    near_pairs,
+    signed_angle,
+)
 from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
+from viscx.tolerances import (
+    CORNER_REACH,
+    CUSP_ANGLE,
+    CUSP_GAP,
+    JOIN_CHORD,
+    JOIN_EPSILONS,
+    JOIN_LIMIT,
+    PARALLEL_TOLERANCE,
+    SPHERE_COVER_TOLERANCE,
+    SPHERE_REFERENCE_OFFSET,
+    SPIKE_ANGLE,
+)
 
 FOUR_PI = 4 * np.pi
-#: Chord on the unit sphere below which an element's end and another's start are one point:
-#: V1 puts arc ends at events computed per family (nodes: rounding; transitions: bisection
-#: to ~1e-12 in s), far below this; events merged by V1 are 4 epsilon apart along an edge.
-JOIN_TOLERANCE = 1e-7
-#: Open chains whose ends lie this many epsilon apart along their edges are joined
-#: (:func:`join_open_chains`). V1 merges runs of events each within 4 epsilon of the next
-#: (single linkage): two families may keep events two links apart (random_boxes(1000):
-#: 5.1 and 5.4 epsilon at vertices 623 and 151).
-JOIN_EPSILONS = 8
-#: Largest chord such a join spans (JOIN_EPSILONS epsilon seen from an edge 8000 epsilon
-#: from the vertex).
-JOIN_LIMIT = 1e-3
 #: Fewest elements of a loop closed across gaps: one element closed onto itself bounds nothing.
 JOIN_MIN_ELEMENTS = 2
-#: A gap of a loop whose two elements' great circles meet within this many times its chord
-#: of both its ends has its corner there (:func:`turning_sums`).
-CORNER_REACH = 2.0
-#: ... as has a gap whose direction lies within this angle (radians) of the reverse of the
-#: incoming element's tangent or of the outgoing one's (it runs back along that element).
-SPIKE_ANGLE = 1e-6
-#: A loop's corner turning within this angle of ±π is a cusp; where its ends lie farther
-#: apart than CUSP_GAP (a chord far above the ends' rounding) the gap's side decides the turn.
-CUSP_ANGLE = 1e-3
-CUSP_GAP = 1e-10
-#: Angle by which a loop's reference point lies left of its longest element's midpoint.
-REFERENCE_OFFSET = 1e-8
-#: A vertex's cells cover its sphere when their solid angles sum to 4π within this.
-COVER_TOLERANCE = 1e-6
 #: (loop, direction) pairs per call of the point-location kernel.
 LOCATE_CHUNK = 1 << 21
 
@@ -138,7 +133,7 @@ class VCells:
     complete : (c,) bool
         Every boundary element of its vertex lies on a closed loop and the
         vertex's cells cover its sphere (solid angles summing to 4π within
-        COVER_TOLERANCE). Elsewhere V1 left loops open (docs/skeleton.md,
+        SPHERE_COVER_TOLERANCE). Elsewhere V1 left loops open (docs/skeleton.md,
         "V-cells") and cells built from the closed loops may be wrong.
     loop_offsets : (c + 1,) int
         Loops of cell i: ``loop_offsets[i]:loop_offsets[i + 1]``, the outer loop first.
@@ -365,83 +360,9 @@ def _image_point(scene, vertex, edge, s):
     return d, t / np.linalg.norm(t, axis=1, keepdims=True), r
 
 
-def _signed_angle(a, b, normal):
-    """Angle from a to b about normal (counter-clockwise positive), in (-π, π]."""
-    return np.arctan2(np.einsum("ij,ij->i", np.cross(a, b), normal), np.einsum("ij,ij->i", a, b))
-
-
-def _pairs_in_groups(group):
-    """All ordered pairs (i, j), i and j in one group (i = j included).
-
-    Parameters
-    ----------
-    group : (n,) int
-
-    Returns
-    -------
-    i, j : (m,) int
-    """
-    order = np.argsort(group, kind="stable")
-    _, first, size = np.unique(group[order], return_index=True, return_counts=True)
-    rep = np.repeat(size, size)  # per element (sorted): its group's size
-    start = np.repeat(first, size)
-    i = np.repeat(np.arange(len(group)), rep)
-    j = np.repeat(start, rep) + np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
-    return order[i], order[j]
-
-
-def _near_pairs(a, b, group, tolerance):
-    """All pairs (i, j) with group[i] == group[j] and |a[i] - b[j]| <= tolerance[i]: the
-    pairs of :func:`_pairs_in_groups` that pass that test, found output-sensitively.
-
-    Points are binned by (group, x, y) in square cells at least twice the largest
-    tolerance wide (2^15 across at most, so the keys fit an int64); each a[i] takes
-    the b of the 3 × 3 cells around its own, and the exact test filters them.
-
-    Parameters
-    ----------
-    a, b : (n, 3) float
-    group : (n,) int
-    tolerance : float or (n,) float
-
-    Returns
-    -------
-    i, j : (m,) int
-        Sorted by (i, j).
-    """
-    n = len(a)
-    tolerance = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (n,))
-    if n == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    lo = np.minimum(a[:, :2].min(axis=0), b[:, :2].min(axis=0))
-    extent = float(np.max(np.maximum(a[:, :2].max(axis=0), b[:, :2].max(axis=0)) - lo))
-    width = max(2 * float(tolerance.max()), extent / 2**15, 1e-300)
-    cell_a = np.floor((a[:, :2] - lo) / width).astype(np.int64) + 1
-    cell_b = np.floor((b[:, :2] - lo) / width).astype(np.int64) + 1
-    m = int(max(cell_a.max(), cell_b.max())) + 2
-    _, g = np.unique(group, return_inverse=True)
-    g = g.reshape(-1).astype(np.int64)
-    key_b = (g * m + cell_b[:, 0]) * m + cell_b[:, 1]
-    order = np.argsort(key_b, kind="stable")
-    sorted_keys = key_b[order]
-    ii, kk = [], []
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            key = (g * m + cell_a[:, 0] + dx) * m + cell_a[:, 1] + dy
-            first = np.searchsorted(sorted_keys, key, "left")
-            i, k = expand_ranges(first, np.searchsorted(sorted_keys, key, "right") - first)
-            ii.append(i)
-            kk.append(k)
-    i, j = np.concatenate(ii), order[np.concatenate(kk)]
-    near = np.linalg.norm(a[i] - b[j], axis=1) <= tolerance[i]
-    i, j = i[near], j[near]
-    pick = np.lexsort([j, i])
-    return i[pick], j[pick]
-
-
 def unique_elements(el, group):
     """The elements to keep: of elements of one group running between the same two points
-    (within JOIN_TOLERANCE), the first (smallest half-cell).
+    (within JOIN_CHORD), the first (smallest half-cell).
 
     Two VE families whose lines coincide give the same boundary twice: collinear
     edges overlapping (two boxes' bottom edges along their contact), or a vertex and
@@ -455,10 +376,10 @@ def unique_elements(el, group):
     """
     if len(el) == 0:
         return np.zeros(0, np.int64)
-    i, j = _near_pairs(el.start, el.start, group, JOIN_TOLERANCE)
+    i, j = near_pairs(el.start, el.start, group, JOIN_CHORD)
     later = j > i
     i, j = i[later], j[later]
-    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_TOLERANCE
+    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_CHORD
     drop = np.zeros(len(el), bool)
     drop[j[same]] = True
     return np.flatnonzero(~drop)
@@ -466,45 +387,6 @@ def unique_elements(el, group):
 
 # --------------------------------------------------------------------------------------
 # FormLoops
-
-
-def form_loops(el, group, tolerance=JOIN_TOLERANCE):
-    """Chain each group's elements end to start into loops (seed 000 §5.3 FormLoops).
-
-    Candidates to follow an element are the elements of its group starting
-    within ``tolerance`` of its end; the first clockwise from the reversed
-    incoming tangent wins, exact ties to the smaller id, each element followed
-    at most once. Elements that cannot lie on a loop (no candidate before or
-    after them, repeatedly) choose last.
-
-    Parameters
-    ----------
-    el : Elements
-        Anything with ``start``, ``end``, ``start_tangent``, ``end_tangent`` ((k, 3)
-        float; signed angles are taken about ``end``: EE-cells embed their square as
-        the plane z = 1).
-    group : (k,) int
-    tolerance : float or (k,) float
-        Per element: how far its end may be from a start it is joined to.
-
-    Returns
-    -------
-    order : (k,) int
-        The elements walk by walk: the closed loops (each from its smallest
-        element), then the open chains.
-    loop_offsets : (l + 1,) int
-        Loop j is ``order[loop_offsets[j]:loop_offsets[j + 1]]``.
-    chain_offsets : (o + 1,) int
-        Open chain j is ``order[chain_offsets[j]:chain_offsets[j + 1]]``.
-    """
-    if len(el) == 0:
-        return np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64)
-    i, j = _near_pairs(el.end, el.start, group, tolerance)
-    cw = np.mod(-_signed_angle(-el.end_tangent[i], el.start_tangent[j], el.end[i]), 2 * np.pi)
-    cw = np.where(cw <= 1e-12, 2 * np.pi, cw)  # going straight back is the last choice
-    closable = _closable_links(len(el), i, j)
-    pick = np.lexsort([j, i, cw, ~closable])
-    return _trace(_greedy_match(len(el), i[pick], j[pick]))
 
 
 def sphere_loops(scene, el, group):
@@ -515,7 +397,7 @@ def sphere_loops(scene, el, group):
     order, loop_offsets, chain_offsets
         As :func:`form_loops`.
     """
-    return join_open_chains(scene, el, group, *form_loops(el, group))
+    return join_open_chains(scene, el, group, *form_loops(el, group, JOIN_CHORD))
 
 
 def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
@@ -532,7 +414,7 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     rules of :func:`form_loops` over whole chains, each chain's end tolerance
     JOIN_EPSILONS epsilon over the distance from the vertex to the nearest edge its line
     meets (:func:`line_reach`: the events may have merged on that edge's family, nearer
-    than the end's own edge), between JOIN_TOLERANCE and JOIN_LIMIT. A loop of fewer than
+    than the end's own edge), between JOIN_CHORD and JOIN_LIMIT. A loop of fewer than
     JOIN_MIN_ELEMENTS elements so joined stays open. A joined loop starts at its smallest
     element; the loops keep their order, the new ones after them.
 
@@ -550,7 +432,7 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     # the merged events lie on the family of the edge nearest the vertex that the end's line
     # meets (a VEE node (v, e, e') seen along e, merged on VE (v, e')), not always on e itself
     reach = line_reach(scene, ends.vertex, ends.end, ends.end_reach)
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
+    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
     walk, joined, _ = form_loops(ends, group[first], tolerance)
     sizes = np.diff(chain_offsets)
     # one element closed onto itself across a gap bounds nothing
@@ -631,7 +513,7 @@ def _line_reach(origin, direction, vertex, reach, a, b, va, vb, tol):
             dw = d[0] * w0 + d[1] * w1 + d[2] * w2
             ew = e0 * w0 + e1 * w1 + e2 * w2
             den = ee - dd * dd
-            if den <= 1e-12 * ee:  # the edge runs along the line
+            if den <= PARALLEL_TOLERANCE * ee:  # the edge runs along the line
                 continue
             t = (dd * ew - ee * dw) / den  # closest point of the line to the edge's line
             if abs(t) >= out[i] or t == 0.0:
@@ -645,80 +527,15 @@ def _line_reach(origin, direction, vertex, reach, a, b, va, vb, tol):
     return out
 
 
-def _closable_links(n, i, j):
-    """Links between elements that may lie on a loop: elements without a candidate before
-    or after them (dangling ends, e.g. a VE arc ending at a transition nothing else meets)
-    are set aside, repeatedly, so that they cannot take a closing element's successor."""
-    alive = np.ones(n, bool)
-    while True:
-        keep = alive[i] & alive[j]
-        has_out = np.bincount(i[keep], minlength=n) > 0
-        has_in = np.bincount(j[keep], minlength=n) > 0
-        still = alive & has_out & has_in
-        if np.array_equal(still, alive):
-            return keep
-        alive = still
-
-
-@njit(cache=True)
-def _greedy_match(n, i, j):
-    """Successor of each element: links (i, j) taken in the given order while both are free."""
-    nxt = np.full(n, -1, np.int64)
-    taken = np.zeros(n, np.bool_)
-    for k in range(len(i)):
-        if nxt[i[k]] < 0 and not taken[j[k]]:
-            nxt[i[k]] = j[k]
-            taken[j[k]] = True
-    return nxt
-
-
-@njit(cache=True)
-def _trace(nxt):
-    """Walks of an injective successor map: (order, loop offsets, chain offsets) as in form_loops."""
-    n = len(nxt)
-    has_prev = np.zeros(n, np.bool_)
-    for i in range(n):
-        if nxt[i] >= 0:
-            has_prev[nxt[i]] = True
-    seen = np.zeros(n, np.bool_)
-    chains = np.empty(n, np.int64)
-    chain_off = [0]
-    m = 0
-    for i in range(n):  # open chains begin where nothing leads in
-        if not has_prev[i]:
-            k = i
-            while k >= 0:
-                seen[k] = True
-                chains[m] = k
-                m += 1
-                k = nxt[k]
-            chain_off.append(m)
-    # the rest are cycles (nxt is injective); ascending i starts each at its smallest element
-    loops = np.empty(n, np.int64)
-    loop_off = [0]
-    q = 0
-    for i in range(n):
-        k = i
-        while not seen[k]:
-            seen[k] = True
-            loops[q] = k
-            q += 1
-            k = nxt[k]
-        if q > loop_off[-1]:
-            loop_off.append(q)
-    order = np.concatenate((loops[:q], chains[:m]))
-    return order, np.array(loop_off, np.int64), np.array(chain_off, np.int64) + q
-
-
 # --------------------------------------------------------------------------------------
 # loops on the sphere (elements of loop j contiguous: loop_offsets[j]:loop_offsets[j + 1])
 
 
-def turning_sums(el, loop_offsets, bridge=False):
-    """Sum of the signed turning angles (left turns positive) at the corners of each loop.
+def sphere_turning_sums(el, loop_offsets):
+    """:func:`viscx.skeleton.loops.turning_sums` of loops on a vertex's sphere, bridging gaps.
 
-    ``bridge`` (elements on the unit sphere): where an element ends farther than
-    JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`), or farther than
+    Where an element ends farther than
+    JOIN_CHORD from the next one's start (:func:`join_open_chains`), or farther than
     CUSP_GAP at a cusp (a corner turning back within CUSP_ANGLE of ±π), the loop runs
     along the great circle between them, turning at both of its ends: turning once from
     the incoming to the outgoing tangent would miss a full turn where the gap runs back
@@ -731,48 +548,45 @@ def turning_sums(el, loop_offsets, bridge=False):
         2π minus the solid angle of the loop's left region (Gauss-Bonnet).
     """
     n = loop_offsets[-1]
-    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
-    nxt = np.arange(1, n + 1)
-    nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
-    turn = _signed_angle(el.end_tangent[:n], el.start_tangent[nxt], el.end[:n])
-    if bridge:
-        p, q = el.end[:n], el.start[nxt]
-        chord = np.linalg.norm(q - p, axis=1)
-        # at a cusp (the loop turns back, e.g. the base of a sliver triangle whose base is
-        # below JOIN_TOLERANCE) the turn is π plus the apex angle: one turn between the
-        # tangents, in (-π, π], wraps it to -π plus that angle; the gap's side decides
-        cusp = (np.abs(turn) > np.pi - CUSP_ANGLE) & (chord > CUSP_GAP)
-        gap = np.flatnonzero((chord > JOIN_TOLERANCE) | cusp)
-        p, q = p[gap], q[gap]
-        cos = np.einsum("ij,ij->i", p, q)[:, None]
-        leave, arrive = q - cos * p, cos * q - p  # the great circle's tangents at p and at q
-        at_p = _signed_angle(el.end_tangent[gap], leave, p)
-        at_q = _signed_angle(arrive, el.start_tangent[nxt[gap]], q)
-        # where the two elements' great circles meet by the gap (the incoming element
-        # overshoots the corner, or the outgoing one starts before it: their families kept
-        # different events of a merged group) the corner is that meeting point and the loop
-        # turns there once, from the incoming to the outgoing tangent; bridging would add a
-        # loop of no area around it (a full turn). So where the gap runs straight back along
-        # either element (a spike: one great circle, or a corner on that element, whose ±π
-        # rounding decides). Elsewhere the gap is a side V1 lost, and the loop runs along it.
-        spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
-        meet = np.cross(np.cross(el.start[gap], p), np.cross(q, el.end[nxt[gap]]))
-        size = np.linalg.norm(meet, axis=1)
-        ok = size > 1e-12  # circles crossing at more than ~1e-12 rad
-        meet[ok] /= size[ok, None]
-        meet *= np.where(np.einsum("ij,ij->i", meet, p) < 0, -1.0, 1.0)[:, None]
-        from_p, from_q = np.linalg.norm(meet - p, axis=1), np.linalg.norm(meet - q, axis=1)
-        # ... next to the gap, and not at the elements' other ends (a loop of two elements
-        # and a gap, all about as long: their circles meet at its third corner)
-        near = (ok & (np.maximum(from_p, from_q) <= CORNER_REACH * chord[gap])
-                & (2 * from_p < np.linalg.norm(el.start[gap] - p, axis=1))
-                & (2 * from_q < np.linalg.norm(el.end[nxt[gap]] - q, axis=1)))
-        turn[gap] = np.where(spike | near, turn[gap], at_p + at_q)
+    nxt, loop_of = loop_successors(loop_offsets)
+    turn = corner_turns(el, loop_offsets)
+    p, q = el.end[:n], el.start[nxt]
+    chord = np.linalg.norm(q - p, axis=1)
+    # at a cusp (the loop turns back, e.g. the base of a sliver triangle whose base is
+    # below JOIN_CHORD) the turn is π plus the apex angle: one turn between the
+    # tangents, in (-π, π], wraps it to -π plus that angle; the gap's side decides
+    cusp = (np.abs(turn) > np.pi - CUSP_ANGLE) & (chord > CUSP_GAP)
+    gap = np.flatnonzero((chord > JOIN_CHORD) | cusp)
+    p, q = p[gap], q[gap]
+    cos = np.einsum("ij,ij->i", p, q)[:, None]
+    leave, arrive = q - cos * p, cos * q - p  # the great circle's tangents at p and at q
+    at_p = signed_angle(el.end_tangent[gap], leave, p)
+    at_q = signed_angle(arrive, el.start_tangent[nxt[gap]], q)
+    # where the two elements' great circles meet by the gap (the incoming element
+    # overshoots the corner, or the outgoing one starts before it: their families kept
+    # different events of a merged group) the corner is that meeting point and the loop
+    # turns there once, from the incoming to the outgoing tangent; bridging would add a
+    # loop of no area around it (a full turn). So where the gap runs straight back along
+    # either element (a spike: one great circle, or a corner on that element, whose ±π
+    # rounding decides). Elsewhere the gap is a side V1 lost, and the loop runs along it.
+    spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
+    meet = np.cross(np.cross(el.start[gap], p), np.cross(q, el.end[nxt[gap]]))
+    size = np.linalg.norm(meet, axis=1)
+    ok = size > PARALLEL_TOLERANCE  # circles crossing at more than ~1e-12 rad
+    meet[ok] /= size[ok, None]
+    meet *= np.where(np.einsum("ij,ij->i", meet, p) < 0, -1.0, 1.0)[:, None]
+    from_p, from_q = np.linalg.norm(meet - p, axis=1), np.linalg.norm(meet - q, axis=1)
+    # ... next to the gap, and not at the elements' other ends (a loop of two elements
+    # and a gap, all about as long: their circles meet at its third corner)
+    near = (ok & (np.maximum(from_p, from_q) <= CORNER_REACH * chord[gap])
+            & (2 * from_p < np.linalg.norm(el.start[gap] - p, axis=1))
+            & (2 * from_q < np.linalg.norm(el.end[nxt[gap]] - q, axis=1)))
+    turn[gap] = np.where(spike | near, turn[gap], at_p + at_q)
     return np.bincount(loop_of, weights=turn, minlength=len(loop_offsets) - 1)
 
 
 def reference_points(el, loop_offsets):
-    """A point just left of each loop: REFERENCE_OFFSET (at most a thousandth of the
+    """A point just left of each loop: SPHERE_REFERENCE_OFFSET (at most a thousandth of the
     element) off the middle of its longest element.
 
     Returns
@@ -788,7 +602,7 @@ def reference_points(el, loop_offsets):
     mid /= np.linalg.norm(mid, axis=1, keepdims=True)
     left = np.cross(mid, el.end[best] - el.start[best])
     left /= np.linalg.norm(left, axis=1, keepdims=True)
-    ref = mid + np.minimum(REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
+    ref = mid + np.minimum(SPHERE_REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
     return ref / np.linalg.norm(ref, axis=1, keepdims=True)
 
 
@@ -875,7 +689,7 @@ def inside_loops(el, loop_offsets, ref, loop, targets):
 
 def loop_segments(el, loop_offsets):
     """The great-circle arcs each loop consists of: its elements and, where an element
-    ends farther than JOIN_TOLERANCE from the next one's start (:func:`join_open_chains`),
+    ends farther than JOIN_CHORD from the next one's start (:func:`join_open_chains`),
     the minor arc across that gap (a path through the gap crosses the loop there).
 
     Returns
@@ -887,7 +701,7 @@ def loop_segments(el, loop_offsets):
     n = loop_offsets[-1]
     nxt = np.arange(1, n + 1)
     nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
-    gap = np.flatnonzero(np.linalg.norm(el.start[nxt] - el.end[:n], axis=1) > JOIN_TOLERANCE)
+    gap = np.flatnonzero(np.linalg.norm(el.start[nxt] - el.end[:n], axis=1) > JOIN_CHORD)
     if len(gap) == 0:
         return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
@@ -897,40 +711,6 @@ def loop_segments(el, loop_offsets):
     ends = np.concatenate([el.end[:n], el.start[nxt[gap]]])[order]
     offsets = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(loop_offsets) - 1))])
     return np.ascontiguousarray(starts), np.ascontiguousarray(ends), offsets.astype(np.int64)
-
-
-def cells_of_loops(el, loop_offsets, loop_group, ref, inside=inside_loops):
-    """Group the loops of each group into cells (§5.4 on the sphere).
-
-    Loops i and j bound one cell iff every loop k of their group has i's and
-    j's reference points on the same side (a loop's own reference point is on
-    its left): the columns i and j of the group's side matrix are equal.
-    ``inside`` is the point-in-left-region test (:func:`inside_loops` on the
-    sphere; the EE-cells pass their square's).
-
-    Returns
-    -------
-    (l,) int
-        Cell id of each loop, numbered by the cells' smallest loops.
-    """
-    nl = len(loop_group)
-    k, i = _pairs_in_groups(loop_group)
-    side = inside(el, loop_offsets, ref, k, ref[i]) | (k == i)
-    # sort the pairs by (group, i, k): loop i's column is then one contiguous run
-    order = np.lexsort([k, i])
-    size = np.bincount(loop_group, minlength=loop_group.max() + 1 if nl else 0)[loop_group]
-    column = side[order]
-    cell = np.arange(nl)
-    for m in np.unique(size[size > 1]):
-        loops = np.flatnonzero(size == m)  # sorted by loop id; each is a column of length m
-        cols = column[np.searchsorted(i[order], loops)[:, None] + np.arange(m)]
-        key = np.concatenate([loop_group[loops, None], cols], axis=1)
-        _, cls = unique_rows(key)
-        smallest = np.full(cls.max() + 1, nl)
-        np.minimum.at(smallest, cls, loops)
-        cell[loops] = smallest[cls]
-    _, cell = np.unique(cell, return_inverse=True)
-    return cell.reshape(-1)
 
 
 # --------------------------------------------------------------------------------------
@@ -967,22 +747,19 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         progress.set_postfix_str("loops")
         order, loop_offsets, chain_offsets = sphere_loops(scene, el, group)
         walk = el.take(order)  # loops and chains contiguous
-        turning = turning_sums(walk, loop_offsets, bridge=True)
+        turning = sphere_turning_sums(walk, loop_offsets)
         ref = reference_points(walk, loop_offsets)
         progress.update()
 
         progress.set_postfix_str("cells")
         loop_group = group[order[loop_offsets[:-1]]]
-        cell = cells_of_loops(walk, loop_offsets, loop_group, ref)
+        cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside_loops)
         points = point_chains(scene, walk, chain_offsets)
         result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el, vertices),
                            points)
         progress.update()
     return result
 
-
-#: Decimals to which turning sums are compared when choosing a cell's outer loop.
-TURNING_DECIMALS = 9
 
 #: Directions tried, in order, for the pair of a vertex whose sphere is one cell.
 _PROBES = np.array([[0.267, 0.534, 0.802], [-0.577, 0.211, 0.789], [0.432, -0.898, 0.083]])
@@ -1037,7 +814,7 @@ def point_chains(scene, walk, chain_offsets):
         return np.zeros(0, bool)
     first, last = chain_offsets[:-1], chain_offsets[1:] - 1
     reach = line_reach(scene, walk.vertex[last], walk.end[last], walk.end_reach[last])
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_TOLERANCE, JOIN_LIMIT)
+    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
     k = np.arange(chain_offsets[0], chain_offsets[-1])
     chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
     origin = walk.start[first][chain_of]
@@ -1098,7 +875,7 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole, po
     _, vertex_of = np.unique(cp[:, 0], return_inverse=True)
     vertex_of = vertex_of.reshape(-1)
     total = np.bincount(vertex_of, weights=solid[cell_order])
-    complete = (np.abs(total - FOUR_PI)[vertex_of] <= COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex[chain_first[~points]])
+    complete = (np.abs(total - FOUR_PI)[vertex_of] <= SPHERE_COVER_TOLERANCE) & ~np.isin(cp[:, 0], chain.vertex[chain_first[~points]])
     return VCells(
         vertex=cp[:, 0],
         up_kind=cp[:, 1].astype(np.int8),

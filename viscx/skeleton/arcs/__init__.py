@@ -21,7 +21,7 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    of a touched face* (:func:`contact_pencils`), which may hold no node.
 3. *Parameters.* EEE (p, q, r) by the point s ∈ [0, 1] of the line on its
    parameter edge p (the line through a point of p meeting the lines of q and
-   r is unique, seed 000 §4.2); VE (v, e) by the point s ∈ [0, 1] on e. Each
+   r is unique, Hoberock et al. §4.2); VE (v, e) by the point s ∈ [0, 1] on e. Each
    family's events are sorted along s, together with the ends of its domain
    (s = 0, 1 and, for EEE, where the line reaches an endpoint of q or r: a
    linear-fractional map, inverted exactly), the *junctions* of its edges
@@ -39,7 +39,7 @@ Construction (Durand et al.'s skeleton: arcs are found from the nodes on them)
    epsilon-visibility): the interval is resampled and each change located by
    bisection, then (VE) moved onto the vertex, junction or crossing that
    explains it; the arc ends there with end type ``END_TRANSITION``.
-5. *VE half-cells* (seed 000 §4.1): the blocker pairs of the two V-cells on
+5. *VE half-cells* (Hoberock et al. §4.1): the blocker pairs of the two V-cells on
    either side of each VE arc, found by turning the arc's sample line about
    its vertex off the plane of the vertex and the edge by PROBE_ANGLE.
 6. *XE arcs* (degenerate scenes): where two generator edges cross at a point X

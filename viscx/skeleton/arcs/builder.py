@@ -37,6 +37,7 @@ from viscx.skeleton.arcs.stages import (
 from viscx.skeleton.arcs.xe import crossing_arcs
 from viscx.skeleton.generators import edge_junctions
 from viscx.skeleton.nodes import Nodes
+from viscx.tolerances import PARAMETER_SLACK
 
 
 def build_arcs(scene, nodes, quiet=True, workers=None):
@@ -244,7 +245,7 @@ def _first_pass_of_families(scene, families, chunk):
     ev_hidden[len(ev_s) - 2 * nf - len(cop_s): len(ev_s) - 2 * nf] = cop_hidden
     # events on the family's edge (within rounding of its ends)
     ev_s = np.nan_to_num(ev_s, nan=-1.0)
-    inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+    inside = (ev_s >= -PARAMETER_SLACK) & (ev_s <= 1 + PARAMETER_SLACK)
     ev_s = np.clip(ev_s, 0.0, 1.0)
     intervals = family_intervals(scene, fkind, fgens, *(x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden)))
     del fam_of, ev_s, ev_kind, ev_index, ev_hidden

@@ -16,11 +16,9 @@ from viscx.skeleton.arcs.lines import family_lines
 from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups
 from viscx.skeleton.generators import canonical_eee, edge_geometry, edges_through_vertices, vertex_edges
 from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, validate_candidates
+from viscx.tolerances import ANGLE_MARGIN, ANGLE_TOLERANCE
 
 
-#: Margin (radians) of the direction ranges that pair a same-plane VE family with the points
-#: of its plane its lines can pass (the exact parameter test decides): far above rounding.
-ANGLE_MARGIN = 1e-6
 
 
 def planar_events(scene):
@@ -49,7 +47,7 @@ def planar_events(scene):
     ua, ub = scene.vertices[other(pa)] - w, scene.vertices[other(pb)] - w
     normal = np.cross(ua, ub)
     size = np.linalg.norm(normal, axis=1)
-    keep = size > 1e-9 * np.linalg.norm(ua, axis=1) * np.linalg.norm(ub, axis=1)
+    keep = size > ANGLE_TOLERANCE * np.linalg.norm(ua, axis=1) * np.linalg.norm(ub, axis=1)
     pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
 
     # generator edges crossing each pair's plane strictly inside
@@ -227,7 +225,7 @@ def _incidences(scene, events, vo, ve, is_gen_vertex, through=False):
     a2, b2 = edge_geometry(scene, eb)
     normal = np.cross(b1 - a1, b2 - a2)
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    in_plane = np.abs(np.einsum("ij,ij->i", normal, events.direction[vee[r]])) <= 1e-9
+    in_plane = np.abs(np.einsum("ij,ij->i", normal, events.direction[vee[r]])) <= ANGLE_TOLERANCE
     in_plane &= not through
     for held, free in ((1, 2), (2, 1)):
         ah, bh = edge_geometry(scene, g[r, held])

@@ -7,7 +7,7 @@ from viscx.skeleton.arcs.kinds import HalfCells, VE
 
 
 def build_half_cells(scene, arcs):
-    """Blocker pairs of the V-cells on both sides of each VE arc (seed 000 §4.1).
+    """Blocker pairs of the V-cells on both sides of each VE arc (Hoberock et al. §4.1).
 
     The arc's sample line turned about its vertex by PROBE_ANGLE, towards +n and
     -n (n = (b - a) × (v - a)): :func:`side_blockers`, judged with every sample,

@@ -39,7 +39,7 @@ CHUNK = 100_000
 
 @dataclass
 class HalfCells:
-    """VE half-cells (seed 000 eq. 1-3), one row per VE arc.
+    """VE half-cells (Hoberock et al. eq. 1-3), one row per VE arc.
 
     Row i is the half-cell ``(up[i, 0], vertex, edge, down[i, 0], start, end)``
     running along the edge from ``a`` to ``b`` (its vertices, smaller id first)

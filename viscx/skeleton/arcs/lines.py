@@ -12,13 +12,9 @@ from viscx.skeleton.arcs.pencils import first_pencil_pair, pencil_plane_of
 from viscx.skeleton.arcs.xpoints import blocked_at_crossings, crossing_scene
 from viscx.skeleton.generators import edge_crossings, edge_geometry
 from viscx.skeleton.nodes import BLOCK_FACE, BLOCK_SKY, BLOCK_VERTEX, first_faces, maximal_free_segments, vertex_ray_blockers
+from viscx.tolerances import PROBE_ANGLE
 
 
-#: Angle (radians) by which a VE line is turned about its vertex, off the plane of the vertex
-#: and the edge, to find the V-cells on either side (half-cells): far above the rounding of
-#: directions (1e-16) and tangency's angle tolerance (1e-9), far below the thinnest cells of
-#: the samples (about 1e-4 rad between the Cornell light and the ceiling, seen from a wall).
-PROBE_ANGLE = 1e-8
 
 
 # slot layout of the family lines for maximal_free_segments (EEE: three edges; VE: vertex, edge)
@@ -94,7 +90,7 @@ def _probe_directions(scene, vertex, edge, s):
 
 
 def side_blockers(scene, vertex, edge, s):
-    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, seed 000 §4.1),
+    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, Hoberock et al. §4.1),
     and what each side's probe meets behind the vertex.
 
     The line from the vertex to the edge's point s is turned about the vertex by

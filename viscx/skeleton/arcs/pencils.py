@@ -10,7 +10,8 @@ from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.skeleton.arcs.kinds import EEE, END_COPLANAR
 from viscx.skeleton.generators import canonical_eee, edge_crossings, edge_geometry
-from viscx.skeleton.nodes import _coplanar_partners, face_planes
+from viscx.skeleton.nodes import coplanar_partners, face_planes
+from viscx.tolerances import ANGLE_TOLERANCE
 
 
 def edges_crossing_planes(scene, normal, point):
@@ -67,9 +68,9 @@ def pairs_within_groups(group):
 
 def _touched_faces(scene):
     """(f,) bool: faces whose plane holds another face over the face's bounding box
-    (:func:`viscx.skeleton.nodes._coplanar_partners`) or, anywhere, a generator vertex not
+    (:func:`viscx.skeleton.nodes.coplanar_partners`) or, anywhere, a generator vertex not
     on the face's outline (within the weld tolerance, as tangency's contacts)."""
-    off, partner, _, _ = _coplanar_partners(scene)
+    off, partner, _, _ = coplanar_partners(scene)
     touched = np.zeros(scene.n_faces, dtype=bool)
     touched[np.diff(off) > 0] = True
     touched[partner] = True
@@ -111,9 +112,10 @@ def pencil_planes(scene):
         lying in it, by *region*, the touched faces of the plane joined across the flat
         edges they share (a face split in two of one plane), named by its lowest face id.
     """
-    cached = getattr(scene, "_viscx_pencil_planes", None)
-    if cached is not None:
-        return cached
+    return scene.cached("pencil_planes", _pencil_planes)
+
+
+def _pencil_planes(scene):
     he = scene.half_edges
     touched = np.flatnonzero(_touched_faces(scene))
     plane_of = face_planes(scene)
@@ -144,8 +146,7 @@ def pencil_planes(scene):
     h, k = h[same], k[same]
     incidence = np.unique(np.stack([k, region[he.face[h]], he.edge[h]], axis=1), axis=0).reshape(-1, 3)
     role[incidence[:, 0], incidence[:, 2]] = 1
-    scene._viscx_pencil_planes = face, role, incidence
-    return scene._viscx_pencil_planes
+    return face, role, incidence
 
 
 def pencil_plane_of(scene, kind, generators):
@@ -357,7 +358,7 @@ def contact_pencils(scene):
             wa, wb = width[ia], width[ib]
             overlap = (np.maximum(0.0, np.minimum(wa, d + wb) - d)
                        + np.maximum(0.0, np.minimum(wa, d - np.pi + wb) - np.maximum(0.0, d - np.pi)))
-            ok = overlap > 1e-9
+            ok = overlap > ANGLE_TOLERANCE
             gens.append(np.stack([np.full(np.count_nonzero(ok), line), inside[ia[ok]], inside[ib[ok]]], axis=1))
     gens = canonical_eee(scene, np.concatenate(gens))
     gens = gens[gens[:, 0] >= 0]

@@ -15,6 +15,7 @@ from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_CROSSING, END_EDGE, END_ENDPOINT, END_RANK, END_TRANSITION, VE
 from viscx.skeleton.arcs.lines import judge_samples
 from viscx.skeleton.generators import edge_geometry, edge_junctions
+from viscx.tolerances import END_SAMPLE_EPSILONS, MERGE_EPSILONS, SNAP
 
 
 #: Where each interval between consecutive events is sampled (fractions of it; the first is
@@ -31,10 +32,6 @@ REFINE = 48
 #: Bisection steps locating a change inside such an interval.
 BISECT = 40
 
-#: A transition of a VE family is moved onto the event that explains it (its line through a
-#: vertex, a junction or an edge's crossing with the family's plane) when that event lies
-#: within this many epsilon along the family's edge.
-SNAP = 20
 
 
 class Intervals(NamedTuple):
@@ -80,7 +77,7 @@ def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hi
     # by (family, s) only: events at one (family, s) fall in one group whatever their order
     order = by_family_and_s(fam_of, ev_s)
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
-    tol = 4 * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
+    tol = MERGE_EPSILONS * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
     new_group = np.ones(len(f), dtype=bool)
     new_group[1:] = (f[1:] != f[:-1]) | (s[1:] - s[:-1] > tol[1:])
     group = np.cumsum(new_group) - 1
@@ -112,7 +109,7 @@ def _end_fraction(scene, fkind, fgens, f, s0, s1):
     where the samples next to the interval's events are taken, so that a short piece next
     to an event is seen even when the event closing it is missing."""
     length = _param_scale(scene, fkind[f], fgens[f]) * (s1 - s0)  # (f: a few of the families)
-    return np.minimum(0.1, 20 * scene.epsilon / np.maximum(length, 1e-300))
+    return np.minimum(0.1, END_SAMPLE_EPSILONS * scene.epsilon / np.maximum(length, 1e-300))
 
 
 def arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):

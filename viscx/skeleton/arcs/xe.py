@@ -10,6 +10,7 @@ from viscx.skeleton.arcs.stages import arcs_on_intervals, family_intervals, sort
 from viscx.skeleton.arcs.xpoints import blocked_at_crossings, crossing_scene
 from viscx.skeleton.generators import edge_crossings, edge_junctions, skew_edges
 from viscx.skeleton.point_nodes import point_node_incidences, point_nodes
+from viscx.tolerances import PARAMETER_SLACK
 
 
 def crossing_arcs(scene, workers=None):
@@ -57,7 +58,7 @@ def crossing_arcs(scene, workers=None):
     ev_kind = np.concatenate([np.full(len(rows), END_TRANSITION), dom_kind, np.full(2 * nf, END_ENDPOINT)])
     ev_index = np.concatenate([np.full(len(rows), -1), dom_vertex, np.full(2 * nf, -1)])
     ev_s = np.nan_to_num(ev_s, nan=-1.0)
-    inside = (ev_s >= -1e-9) & (ev_s <= 1 + 1e-9)
+    inside = (ev_s >= -PARAMETER_SLACK) & (ev_s <= 1 + PARAMETER_SLACK)
     ev_s = np.clip(ev_s, 0.0, 1.0)
     intervals = family_intervals(xs, fkind, families, fam_of[inside], ev_s[inside], ev_kind[inside], ev_index[inside])
     built = arcs_on_intervals(xs, fkind, families, *intervals, workers=workers)

@@ -22,9 +22,10 @@ def crossing_scene(scene):
     first : int
         Id of the first crossing point (n).
     """
-    cached = getattr(scene, "_viscx_crossing_scene", None)
-    if cached is not None:
-        return cached
+    return scene.cached("crossing_scene", _crossing_scene)
+
+
+def _crossing_scene(scene):
     import dataclasses
 
     from viscx.scene.neighbourhood import Wedges, surface_wedges
@@ -39,11 +40,10 @@ def crossing_scene(scene):
     xs._contacts = dataclasses.replace(c, vertex=Wedges(
         np.concatenate([v.offsets, v.offsets[-1] + w.offsets[1:]]), np.concatenate([v.face, w.face]),
         np.concatenate([v.first, w.first]), np.concatenate([v.normal, w.normal]), np.concatenate([v.span, w.span])))
-    xs._viscx_junctions, xs._viscx_crossings = edge_junctions(scene), cr
+    xs.cache["edge_contacts"] = edge_junctions(scene), cr
     # the scene's pencils: X points are not foreign vertices touching a face
-    xs._viscx_pencil_planes, xs._viscx_face_planes = pencil_planes(scene), face_planes(scene)
-    scene._viscx_crossing_scene = xs, scene.n_vertices
-    return scene._viscx_crossing_scene
+    xs.cache["pencil_planes"], xs.cache["face_planes"] = pencil_planes(scene), face_planes(scene)
+    return xs, scene.n_vertices
 
 
 def blocked_at_crossings(kinds, ids, row, xe, cr, state=None):

@@ -1,4 +1,4 @@
-"""An edge pair's EE-cells in its square [0, 1]² (seed 000 Fig. 7): one colour per cell.
+"""An edge pair's EE-cells in its square [0, 1]² (Hoberock et al. Fig. 7): one colour per cell.
 
 Pixel (x1, x2) is the line through e1(x1) and e2(x2) (x1 to the right, x2 up). Every
 pixel is located among the pair's cells (:func:`viscx.skeleton.eecells.locate`); pixels
@@ -13,7 +13,7 @@ import numpy as np
 
 from viscx.errors import ViscxError
 from viscx.formats.atomic import atomic_path
-from viscx.render import pyplot
+from viscx.plot import pyplot
 from viscx.skeleton.eecells import cell_elements, locate
 from viscx.skeleton.nodes import BLOCK_EDGE, BLOCK_SKY
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from viscx.errors import ViscxError
 from viscx.formats.atomic import atomic_path
-from viscx.render import pyplot
+from viscx.plot import pyplot
 from viscx.skeleton.nodes import BLOCK_SKY, BLOCK_VERTEX
 from viscx.skeleton.vcells import locate
 

@@ -61,6 +61,12 @@ def run_skeleton(scene, name, stage=None):
     EE-cells). ``stage`` (a one-item list), if given, holds the name of the stage running."""
     stage = [None] if stage is None else stage
     stats = {}
+    cpu, peaks = [time.process_time()], []  # CPU seconds (all threads) and peak MB after each level
+
+    def level_done():
+        cpu.append(time.process_time())
+        peaks.append(peak_mb())
+
     t0 = time.perf_counter()
     stage[0] = "V0 candidates"
     kind, gens, origins, dirs = fast_candidates(scene, stats=stats)
@@ -68,15 +74,18 @@ def run_skeleton(scene, name, stage=None):
     stage[0] = "V0 validation"
     nodes = validate_in_chunks(scene, kind, gens, origins, dirs)
     t2 = time.perf_counter()
+    level_done()
     stage[0] = "V1 arcs"
     arcs = build_arcs(scene, nodes)
     t3 = time.perf_counter()
+    level_done()
     stage[0] = "V2 V-cells"
     vcells = build_vcells(scene, arcs)
     t4 = time.perf_counter()
     stage[0] = "V2 EE-cells"
     eecells = build_eecells(scene, arcs)
     t5 = time.perf_counter()
+    level_done()
     row = {
         "scene": name,
         "polygons": int(scene.n_faces),
@@ -97,6 +106,12 @@ def run_skeleton(scene, name, stage=None):
         "nodes": nodes.counts(),
         "stages": {k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()},
         "peak_mb": peak_mb(),
+        "cpu_v0": cpu[1] - cpu[0],
+        "cpu_v1": cpu[2] - cpu[1],
+        "cpu_v2": cpu[3] - cpu[2],
+        "peak_mb_v0": peaks[0],
+        "peak_mb_v1": peaks[1],
+        "peak_mb_v2": peaks[2],
     }
     row["candidates_total"] = int(len(kind))
     row["nodes_total"] = int(len(nodes))

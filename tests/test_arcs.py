@@ -178,7 +178,9 @@ def degrees(nodes, arcs):
 def probe_half_arcs(scene, nodes, epsilons=20):
     """Valid half-arcs at each node, found locally: every family through the node judged
     just before and just after the node's parameter (20 epsilon along its edge)."""
-    kind, gens, rows = family_incidences(scene, nodes)
+    kind, gens, rows, through = family_incidences(scene, nodes)
+    # (families through the node by an edge through its vertex end there at a junction)
+    kind, gens, rows = kind[~through], gens[~through], rows[~through]
     key = np.concatenate([kind[:, None], gens, rows[:, None]], axis=1)
     _, first = np.unique(key, axis=0, return_index=True)
     kind, gens, rows = kind[first], gens[first], rows[first]

@@ -114,3 +114,64 @@ def test_clean_edges_touch_only_their_own_faces(path):
         # box1 share the plane x = 3 are unclean
         assert np.array_equal(~scene.contacts.edge_clean, touched)
         assert np.count_nonzero(touched) == 3 * 4 + 3
+
+
+def _covered_by_sampling(first, normal, span, d, n=20_000):
+    """Brute force of tangency's cover test: shift the line along d sideways by u (n unit
+    vectors ⊥ d around the circle) and intersect it with each wedge's plane; u is covered
+    when that point lies in some wedge (angle about the normal from the first ray within
+    the span). Returns the fraction of the circle covered."""
+    e1 = np.cross(d, [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    phi = (np.arange(n) + 0.5) * (2 * np.pi / n)
+    u = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
+    covered = np.zeros(n, dtype=bool)
+    for a, nrm, sp in zip(first, normal, span):
+        t = -(u @ nrm) / (d @ nrm)
+        p = u + t[:, None] * d
+        ang = np.arctan2(p @ np.cross(nrm, a), p @ a) % (2 * np.pi)
+        covered |= ang <= sp
+    return covered.mean()
+
+
+def test_cover_closed_by_a_wrapping_wedge(rng):
+    """The surface separates a line's rays iff the wedges' projections cover the circle,
+    whichever wedge starts first. A T-vertex (a desk panel's inner top corner on the
+    top's bottom edge: two half-planes of the top and three quarters of the panel) had a
+    quarter starting inside the wrap of a half-plane, and the sweep from the smallest start
+    stopped at the quarter's end: lines entering the top were judged tangent there. Against
+    sampling, for random subsets of the twelve quarters of the coordinate planes (rotated)
+    and random directions."""
+    from viscx.geometry.tangency import tangent_in_wedges
+    from viscx.scene.neighbourhood import Wedges
+
+    axes = np.eye(3)
+    quarters = []  # (first, normal, span) of the four quarters of each coordinate plane
+    for k in range(3):
+        n, a = axes[k], axes[(k + 1) % 3]
+        for turn in range(4):
+            quarters.append((a, n, np.pi / 2))
+            a = np.cross(n, a)
+    # the desk's T-vertex, in its own frame: the top's bottom and front half-planes and the panel's
+    # inner, top and front quarters; lines into the top are blocked
+    desk = ([(1, 0, 0), (0, -1, 0), np.pi], [(-1, 0, 0), (0, 0, -1), np.pi], [(0, 0, 1), (1, 0, 0), np.pi / 2],
+            [(-1, 0, 0), (0, 1, 0), np.pi / 2], [(0, -1, 0), (0, 0, -1), np.pi / 2])
+    cases = [(desk, np.array([0.99845847, 0.02186405, 0.05101613]))]
+    for _ in range(300):
+        pick = rng.random(12) < rng.uniform(0.2, 0.7)
+        pick[rng.integers(12)] = True
+        rot, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        wedges = [(rot @ a, rot @ n, sp) for (a, n, sp), p in zip(quarters, pick) if p]
+        d = rng.normal(size=3)
+        cases.append((wedges, d / np.linalg.norm(d)))
+    wrong = 0
+    for wedges, d in cases:
+        first = np.array([np.asarray(w[0], float) for w in wedges])
+        normal = np.array([np.asarray(w[1], float) for w in wedges])
+        span = np.array([w[2] for w in wedges], dtype=float)
+        w = Wedges(np.array([0, len(wedges)]), np.zeros(len(wedges), np.int64), first, normal, span)
+        tangent, degenerate = tangent_in_wedges(w, d[None])
+        assert not degenerate[0]
+        wrong += bool(tangent[0]) != (_covered_by_sampling(first, normal, span, d) < 1.0)
+    assert wrong == 0

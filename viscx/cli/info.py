@@ -16,6 +16,11 @@ def file_summary(path):
         groups = {
             name: int(np.count_nonzero(scene.face_group == i)) for i, name in enumerate(scene.group_names)
         }
+        counts = {
+            "scene": scene_counts(scene),
+            **{level: level_counts(f.h5[level], float(attrs["epsilon"]))
+               for level in f.levels if level != "scene" and level in f.h5},
+        }
         return {
             "file": str(path),
             "format_version": int(attrs["format_version"]),
@@ -25,14 +30,26 @@ def file_summary(path):
             "epsilon": float(attrs["epsilon"]),
             "options": f.options,
             "levels": f.levels,
-            "counts": {
-                "scene": scene_counts(scene),
-                **{level: level_counts(f.h5[level], float(attrs["epsilon"]))
-                   for level in f.levels if level != "scene" and level in f.h5},
-            },
+            "counts": counts,
             "groups": groups,
             "timings": f.timings,
-        }
+        } | completeness(counts)
+
+
+def completeness(counts):
+    """The fraction of generator vertices whose V-cells are complete and of edge pairs whose
+    EE-cells are, from the V2 counts: ``{"complete": {"vertices": [k, n, k / n], "ee_pairs":
+    [...]}}``, or nothing without V2. Cells elsewhere may be wrong (docs/skeleton.md), so
+    this is the share of the scene the queries answer exactly."""
+    v2 = counts.get("V2")
+    if not v2:
+        return {}
+    out = {}
+    for name, done, total in (("vertices", "complete_vertices", "vertices"), ("ee_pairs", "ee_complete_pairs", "ee_pairs")):
+        if total in v2 and done in v2:
+            k, n = v2[done], v2[total]
+            out[name] = [k, n, k / n if n else 1.0]
+    return {"complete": out}
 
 
 def scene_counts(scene):
@@ -90,6 +107,8 @@ def info(path, as_json):
         click.echo(f"  [{level}]")
         for name, value in counts.items():
             click.echo(f"    {name:<20}{value:>10}")
+    for name, (k, n, fraction) in summary.get("complete", {}).items():
+        click.echo(f"  complete {name.replace('_', ' '):<12}{k:>10} of {n:<10}({100 * fraction:.2f} %)")
     click.echo("  groups  " + ", ".join(f"{name} ({n} faces)" for name, n in summary["groups"].items()))
     if summary["timings"]:
         click.echo("  timings " + ", ".join(f"{k} {v:.3f} s" for k, v in summary["timings"].items()))

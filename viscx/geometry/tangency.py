@@ -152,15 +152,18 @@ def _separation(offsets, first, normal, span, directions, angle_tol):
             continue
         if m == 0:
             continue
-        # do the intervals cover the circle? sweep from the smallest start, with copies shifted by 2π
+        # do the intervals (starts in [0, 2π)) cover the circle? Sweep [0, 2π) from 0, covered
+        # at first as far as the intervals wrapping past 2π reach: sweeping from the smallest
+        # start alone missed a circle closed by a wrapping interval that covers that start
+        # (a T-vertex: two half-planes and a quarter inside one of them)
+        reach = 0.0
         for j in range(m):
-            starts[m + j], lengths[m + j] = starts[j] + TWO_PI, lengths[j]
-        reach = starts[0] + lengths[0]
-        for j in range(1, 2 * m):
+            reach = max(reach, starts[j] + lengths[j] - TWO_PI)
+        for j in range(m):
             if starts[j] > reach + angle_tol:
                 break
             reach = max(reach, starts[j] + lengths[j])
-        blocked[i] = reach >= starts[0] + TWO_PI - angle_tol
+        blocked[i] = reach >= TWO_PI - angle_tol
     return blocked, degenerate
 
 

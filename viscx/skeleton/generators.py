@@ -23,6 +23,16 @@ def vertex_edges(scene):
     return np.searchsorted(owner, np.arange(scene.n_vertices + 1)), edges
 
 
+def edges_through_vertices(scene):
+    """Generator edges passing through each vertex, the vertex a T-junction strictly inside
+    them (:func:`edge_junctions`), as CSR: (offsets (n + 1,), edges (k,)). A line through
+    the vertex meets them as it meets the vertex's own edges."""
+    j = edge_junctions(scene)
+    at = np.flatnonzero(j.vertex >= 0)
+    order = at[np.lexsort([j.edge[at], j.vertex[at]])]
+    return np.searchsorted(j.vertex[order], np.arange(scene.n_vertices + 1)), j.edge[order]
+
+
 def edge_geometry(scene, edges):
     ev = scene.half_edges.edge_vertices[edges]
     return scene.vertices[ev[..., 0]], scene.vertices[ev[..., 1]]

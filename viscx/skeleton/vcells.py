@@ -83,7 +83,7 @@ from numba import njit
 
 from viscx.arrays import expand_ranges, unique_rows, unique_sorted
 from viscx.progress import bar
-from viscx.skeleton.arcs import VE, family_lines
+from viscx.skeleton.arcs import VE, family_lines, vertex_side_backs
 from viscx.skeleton.loops import (
     TURNING_DECIMALS,
     cells_of_loops,
@@ -246,12 +246,17 @@ class Elements:
         return np.where(self.side == 0, 1, -1) * (self.half_cell + 1)
 
 
-def side_pairs(half_cells):
+def side_pairs(half_cells, backs=None):
     """Blocker pairs of the cells beside both images of every VE arc.
 
     Parameters
     ----------
     half_cells : HalfCells
+    backs : ((h, 2) int, (h, 2) int), optional
+        What each side's probe meets behind the vertex where its up is the vertex
+        (:func:`vertex_backs`): the antipodal image's cell on that side is (v, back).
+        Without it, (v, the other side's up), which fails where the VE line lies in the
+        plane of a face at the vertex.
 
     Returns
     -------
@@ -266,15 +271,27 @@ def side_pairs(half_cells):
     fwd = np.stack([hc.up_kind, hc.up, hc.down_kind, hc.down], axis=2).astype(np.int64)  # (h, side, 4)
     vert = hc.up_kind == BLOCK_VERTEX  # (h, side)
     other = fwd[:, ::-1]
-    # the vertex's side of the antipodal image: (v, the other side's up)
+    # the vertex's side of the antipodal image: (v, what its probe meets behind v)
+    back_kind, back = (other[:, :, 0], other[:, :, 1]) if backs is None else backs
     vertex_side = np.stack([np.full(vert.shape, BLOCK_VERTEX), np.broadcast_to(hc.vertex[:, None], vert.shape),
-                            other[:, :, 0], other[:, :, 1]], axis=2)
+                            back_kind, back], axis=2)
     anti = np.where(vert[:, :, None], vertex_side, fwd[:, :, [2, 3, 0, 1]])
     pairs = np.stack([fwd, anti], axis=1)
     bounds = np.ones(pairs.shape[:3], dtype=bool)
     bounds[:, 1] &= ~(vert & vert[:, ::-1])  # both sides enter the surface at v: -d sees no event
     bounds &= np.any(pairs[:, :, 0] != pairs[:, :, 1], axis=2)[:, :, None]
     return pairs, bounds
+
+
+def vertex_backs(scene, arcs):
+    """:func:`viscx.skeleton.arcs.vertex_side_backs` of every half-cell at its arc's sample,
+    cached on the arcs (point location asks again and again)."""
+    cached = getattr(arcs, "_viscx_vertex_backs", None)
+    if cached is None:
+        hc = arcs.half_cells
+        cached = vertex_side_backs(scene, hc, arcs.parameter[hc.arc])
+        arcs._viscx_vertex_backs = cached
+    return cached
 
 
 def element_geometry(scene, arcs, half_cell, side, antipodal):
@@ -293,7 +310,7 @@ def element_geometry(scene, arcs, half_cell, side, antipodal):
     """
     hc = arcs.half_cells
     h, side, anti = np.asarray(half_cell, np.int64), np.asarray(side, np.int64), np.asarray(antipodal, bool)
-    pairs, _ = side_pairs(hc)
+    pairs, _ = side_pairs(hc, vertex_backs(scene, arcs))
     interval = arcs.interval[hc.arc[h]]
     # the forward image's -n side and the antipodal image's +n side run from s1 to s0
     rev = (side == 1) != anti
@@ -325,7 +342,7 @@ def boundary_elements(scene, arcs):
     -------
     Elements
     """
-    _, bounds = side_pairs(arcs.half_cells)
+    _, bounds = side_pairs(arcs.half_cells, vertex_backs(scene, arcs))
     h, image, side = np.nonzero(bounds)
     return element_geometry(scene, arcs, h, side, image == 1)
 

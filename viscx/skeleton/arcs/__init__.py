@@ -95,6 +95,7 @@ from viscx.skeleton.arcs.lines import (  # noqa: F401
     family_lines,
     judge_samples,
     side_blockers,
+    vertex_side_backs,
 )
 from viscx.skeleton.arcs.pencils import (  # noqa: F401
     contact_pencils,

@@ -159,13 +159,21 @@ def _families(scene, nodes, planar, workers=None):
     def incidences(chunk):
         code, events, rows = chunk
         part = Nodes(**{k: getattr(events, k)[rows] for k in Nodes.__dataclass_fields__})
-        k, g, at = family_incidences(scene, part)
-        return k.astype(np.int8), g, np.full(len(at), code, np.int8), at + rows.start, event_parameters(scene, k, g, part, at)
+        k, g, at, through = family_incidences(scene, part)
+        seeds = g[through]
+        k, g, at = k[~through], g[~through], at[~through]
+        return (k.astype(np.int8), g, np.full(len(at), code, np.int8), at + rows.start, event_parameters(scene, k, g, part, at),
+                seeds)
 
     # in chunks of events (each on its own, on threads): their temporaries stay bounded
     chunks = [(code, events, rows) for code, events in ((END_NODE, nodes), (END_PLANAR, planar))
               for rows in row_chunks(max(len(events), 1), CHUNK // 4)]
-    fam_kind, fam_gens, ev_kind, ev_index, ev_s = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
+    fam_kind, fam_gens, ev_kind, ev_index, ev_s, seeds = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
+    n_events = sum(len(k) for k in fam_kind)
+    # families through a node only by an edge passing through its vertex: seeds, no events
+    seeds = np.concatenate(seeds).reshape(-1, 3)
+    fam_kind.append(np.where(seeds[:, 2] < 0, VE, EEE).astype(np.int8))
+    fam_gens.append(seeds)
     # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
     plane_ve, plane_of, vp, ep = same_plane_ve(scene)
     fam_kind.append(np.full(len(plane_ve), VE, np.int8))
@@ -180,8 +188,8 @@ def _families(scene, nodes, planar, workers=None):
     families, fam_of = unique_rows(keys.reshape(-1, 4) + 1)
     families -= 1
     del keys
-    n_events = len(fam_of) - len(plane_ve) - len(pencils)
-    plane_family, fam_of = fam_of[n_events: n_events + len(plane_ve)], fam_of[:n_events]
+    plane_family = fam_of[n_events + len(seeds): n_events + len(seeds) + len(plane_ve)]
+    fam_of = fam_of[:n_events]
     # (plane_ve is sorted by (v, e) and families by (VE, v, e): plane_family ascends)
     order = np.argsort(fam_of, kind="stable")
     nf = len(families)

@@ -14,7 +14,7 @@ from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_COPLANAR, END_CROSSING, END_ENDPOINT, END_JUNCTION, VE
 from viscx.skeleton.arcs.lines import family_lines
 from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups
-from viscx.skeleton.generators import canonical_eee, edge_geometry, vertex_edges
+from viscx.skeleton.generators import canonical_eee, edge_geometry, edges_through_vertices, vertex_edges
 from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, validate_candidates
 from viscx.tolerances import ANGLE_MARGIN, ANGLE_TOLERANCE
 
@@ -159,6 +159,14 @@ def _no_events(scene):
 def family_incidences(scene, events):
     """The families each event lies on.
 
+    A node's line through a vertex w also meets the edges passing through w (w a
+    T-junction inside them: a lintel's corner on a jamb's edge, a desk panel's corner on
+    the top's edge): VE (u, E) for a VV node (u, w) and EEE (E, e1, e2) for a VEE node
+    (w, e1, e2) lie on the node too. Those families may hold no other event (the lines
+    from a window's corner through the far window's jamb between its sill and lintel,
+    floor_plan((1, 1))), so they are seeded here; the node is their junction event
+    (:func:`domain_ends`), so they are returned apart, without it.
+
     Returns
     -------
     kind : (k,) int
@@ -166,12 +174,26 @@ def family_incidences(scene, events):
         Canonical family generators.
     event : (k,) int
         Row of ``events``.
+    through : (k,) bool
+        Found through an edge passing through the node's vertex: a family to seed, not
+        an event to add.
     """
     vo, ve = vertex_edges(scene)
     is_gen_vertex = np.diff(vo) > 0
+    kind, gens_, rows_ = _incidences(scene, events, vo, ve, is_gen_vertex)
+    jo, je = edges_through_vertices(scene)
+    tkind, tgens, trows = _incidences(scene, events, jo, je, is_gen_vertex, through=True)
+    return (np.r_[kind, tkind], np.concatenate([gens_, tgens]), np.r_[rows_, trows],
+            np.r_[np.zeros(len(kind), bool), np.ones(len(tkind), bool)])
+
+
+def _incidences(scene, events, vo, ve, is_gen_vertex, through=False):
+    """:func:`family_incidences` with the edges at each vertex given (CSR ``vo``, ``ve``):
+    the vertex's own edges, or (``through``) those passing through it, for which only
+    the families of a vertex's edges are found (not those the node's own generators give)."""
     kinds, gens, rows = [], [], []
 
-    e4 = np.flatnonzero(events.kind == E4)
+    e4 = np.flatnonzero(events.kind == E4) if not through else np.zeros(0, np.int64)
     for drop in range(4):
         keep = [j for j in range(4) if j != drop]
         kinds.append(np.full(len(e4), EEE))
@@ -180,7 +202,7 @@ def family_incidences(scene, events):
 
     vee = np.flatnonzero(events.kind == VEE)
     g = events.generators[vee]
-    for slot in (1, 2):
+    for slot in (1, 2) if not through else ():
         kinds.append(np.full(len(vee), VE))
         gens.append(np.stack([g[:, 0], g[:, slot], np.full(len(vee), -1)], axis=1))
         rows.append(vee)
@@ -204,6 +226,7 @@ def family_incidences(scene, events):
     normal = np.cross(b1 - a1, b2 - a2)
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     in_plane = np.abs(np.einsum("ij,ij->i", normal, events.direction[vee[r]])) <= ANGLE_TOLERANCE
+    in_plane &= not through
     for held, free in ((1, 2), (2, 1)):
         ah, bh = edge_geometry(scene, g[r, held])
         holds = in_plane.copy()
@@ -218,6 +241,10 @@ def family_incidences(scene, events):
     for own, other in ((0, 1), (1, 0)):
         r, k = expand_ranges(vo[g[:, other]], np.diff(vo)[g[:, other]])
         e = ve[k]
+        if through:  # not along an edge through both vertices: its lines all lie on that edge
+            a, b = edge_geometry(scene, e)
+            off = np.linalg.norm(np.cross(b - a, scene.vertices[g[r, own]] - a), axis=1) / np.linalg.norm(b - a, axis=1)
+            r, e = r[off > scene.weld_tolerance], e[off > scene.weld_tolerance]
         kinds.append(np.full(len(r), VE))
         gens.append(np.stack([g[r, own], e, np.full(len(r), -1)], axis=1))
         rows.append(vv[r])

@@ -11,7 +11,7 @@ from viscx.skeleton.arcs.kinds import EEE, VE, XE
 from viscx.skeleton.arcs.pencils import first_pencil_pair, pencil_plane_of
 from viscx.skeleton.arcs.xpoints import blocked_at_crossings, crossing_scene
 from viscx.skeleton.generators import edge_crossings, edge_geometry
-from viscx.skeleton.nodes import maximal_free_segments, vertex_ray_blockers
+from viscx.skeleton.nodes import BLOCK_FACE, BLOCK_SKY, BLOCK_VERTEX, first_faces, maximal_free_segments, vertex_ray_blockers
 from viscx.tolerances import PROBE_ANGLE
 
 
@@ -74,31 +74,94 @@ class _Samples:
     direction: np.ndarray
     ends: np.ndarray
     generator_points: np.ndarray
-    sides: np.ndarray = None  # (m, 8) int: the VE half-cells' pairs (sides=True), -1 elsewhere
+    sides: np.ndarray = None  # (m, 12) int: the VE half-cells' pairs and backs (sides=True), -1 elsewhere
 
 
-def side_blockers(scene, vertex, edge, s):
-    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, Hoberock et al. §4.1).
-
-    The line from the vertex to the edge's point s is turned about the vertex by
-    PROBE_ANGLE towards +n and -n (n = (b - a) × (v - a)) and judged by
-    :func:`viscx.skeleton.nodes.vertex_ray_blockers`.
-
-    Returns
-    -------
-    up_kind, up, down_kind, down : (m, 2) int
-        Side +n, side -n.
-    """
+def _probe_directions(scene, vertex, edge, s):
+    """The VE lines from each vertex to its edge's point s turned about the vertex by
+    PROBE_ANGLE towards +n, then towards -n (n = (b - a) × (v - a)): (2m, 3) float."""
     x = scene.vertices[vertex]
     a, b = edge_geometry(scene, edge)
     d0 = a + np.asarray(s, dtype=np.float64)[:, None] * (b - a) - x
     d0 /= np.linalg.norm(d0, axis=1, keepdims=True)
     n = np.cross(b - a, x - a)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return np.concatenate([d0 + PROBE_ANGLE * n, d0 - PROBE_ANGLE * n])
+
+
+def side_blockers(scene, vertex, edge, s):
+    """Blocker pairs of the V-cells on both sides of VE lines (the half-cells, Hoberock et al. §4.1),
+    and what each side's probe meets behind the vertex.
+
+    The line from the vertex to the edge's point s is turned about the vertex by
+    PROBE_ANGLE towards +n and -n (n = (b - a) × (v - a)) and judged by
+    :func:`viscx.skeleton.nodes.vertex_ray_blockers`. *Behind*: the first hit along the
+    probe's -d: its up where the probe passes the vertex; where the surface separates its
+    rays there (up the vertex) and not on the other side, it is cast apart
+    (:func:`vertex_side_backs`); -1 where both sides' up is the vertex.
+
+    Returns
+    -------
+    up_kind, up, down_kind, down, back_kind, back : (m, 2) int
+        Side +n, side -n.
+    """
     m = len(vertex)
-    d = np.concatenate([d0 + PROBE_ANGLE * n, d0 - PROBE_ANGLE * n])
-    up_kind, up, down_kind, down, _ = vertex_ray_blockers(scene, np.concatenate([vertex, vertex]), d)
-    return tuple(np.stack([q[:m], q[m:]], axis=1).astype(np.int64) for q in (up_kind, up, down_kind, down))
+    both = np.concatenate([vertex, vertex])
+    d = _probe_directions(scene, vertex, edge, s)
+    up_kind, up, down_kind, down, _ = vertex_ray_blockers(scene, both, d)
+    back_kind, back = up_kind.astype(np.int64), up.astype(np.int64)
+    at_vertex = _bounding_vertex_sides(up_kind)
+    back_kind[up_kind == BLOCK_VERTEX] = back[up_kind == BLOCK_VERTEX] = -1
+    back_kind[at_vertex], back[at_vertex] = _backs(scene, both[at_vertex], d[at_vertex])
+    return tuple(np.stack([q[:m], q[m:]], axis=1).astype(np.int64) for q in (up_kind, up, down_kind, down, back_kind, back))
+
+
+def _bounding_vertex_sides(up_kind):
+    """Rows (of the 2m probes, side +n then side -n) whose up is the vertex while the other
+    side's is not: only there does the antipodal image bound a cell on the vertex's side
+    (where both sides enter the surface at the vertex, -d sees no event)."""
+    m = len(up_kind) // 2
+    vert = up_kind == BLOCK_VERTEX
+    return np.flatnonzero(vert & ~np.r_[vert[m:], vert[:m]])
+
+
+def _backs(scene, vertex, d):
+    """(kind, id) of the first face (or the sky) along -d from each vertex."""
+    face, _ = first_faces(scene, scene.vertices[vertex], -d, tmin=scene.epsilon)
+    return np.where(face < 0, BLOCK_SKY, BLOCK_FACE), face
+
+
+def vertex_side_backs(scene, half_cells, s):
+    """What the half-cells' probes meet behind their vertex, on the sides whose up is the
+    vertex (the antipodal image's cell there, docs/skeleton.md "V-cells").
+
+    Elsewhere in general position it is the other side's up (the same ray -d, no event
+    between), but where the VE line lies in the plane of a face at the vertex, the rays
+    -d on the two sides pass on either side of that plane (a desk panel's inner top
+    corner: one runs behind the other panel's front face, one in front of it). V1 keeps
+    it constant along each arc (:func:`side_blockers`); recast here at the arc's sample.
+
+    Parameters
+    ----------
+    half_cells : HalfCells
+    s : (h,) float
+        Each half-cell's arc's sample parameter.
+
+    Returns
+    -------
+    back_kind, back : (h, 2) int
+        -1 on sides whose up is not the vertex, or is on both sides.
+    """
+    hc = half_cells
+    m = len(hc.vertex)
+    rows = _bounding_vertex_sides(np.concatenate([hc.up_kind[:, 0], hc.up_kind[:, 1]]))
+    back_kind, back = np.full(2 * m, -1, np.int64), np.full(2 * m, -1, np.int64)
+    if len(rows):
+        h = rows % m
+        d = _probe_directions(scene, hc.vertex[h], hc.edge[h], np.asarray(s)[h]).reshape(2, -1, 3)
+        d = np.where((rows < m)[:, None], d[0], d[1])  # side +n: the first half, side -n: the second
+        back_kind[rows], back[rows] = _backs(scene, hc.vertex[h], d)
+    return np.stack([back_kind[:m], back_kind[m:]], axis=1), np.stack([back[:m], back[m:]], axis=1)
 
 
 def judge_samples(scene, kind, generators, s, sides=False):
@@ -119,9 +182,10 @@ def judge_samples(scene, kind, generators, s, sides=False):
         (valid, back blocker kind, back blocker, front blocker kind, front
         blocker); -1 for the blockers of invalid lines. Two samples of a family
         are on one arc only if their states (and sides) agree.
-    sides : (m, 8) int or None
-        (up kind, up, down kind, down) on side +n, then on side -n, as in
-        :class:`HalfCells` (valid VE samples; -1 elsewhere).
+    sides : (m, 12) int or None
+        (up kind, up, down kind, down, back kind, back) on side +n, then on side -n
+        interleaved as :func:`side_blockers` returns them (valid VE samples; -1
+        elsewhere): the half-cells of :class:`HalfCells`, and behind the vertex.
     direction : (m, 3) float
     ends : (m, 2, 3) float
     generator_points : (m, 3, 3) float
@@ -158,7 +222,7 @@ def judge_samples(scene, kind, generators, s, sides=False):
     state[~valid, 1:] = -1
     side = None
     if sides:  # the V-cells beside valid VE lines: an arc's half-cells must hold all along it
-        side = np.full((len(kind), 8), -1, dtype=np.int64)
+        side = np.full((len(kind), 12), -1, dtype=np.int64)
         rows = np.flatnonzero(valid & (kind == VE))
         if len(rows):
             side[rows] = np.concatenate(side_blockers(scene, generators[rows, 0], generators[rows, 1], s[rows]), axis=1)

@@ -1,0 +1,180 @@
+"""2-cells of furnished buildings (benchmarks/buildings.py): desks of a top resting on two
+panels, floor plans with windows, doors under lintels and pillars. Every rule of
+docs/skeleton.md "Furnished buildings" is checked here with the scene it was found on,
+and the ray oracles of the V-cell and EE-cell tests judge the cells (complete and not)."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_eecells import ray_oracle as ee_ray_oracle
+from test_vcells import complete_vertices, ray_oracle
+
+from viscx.scene import build_scene
+from viscx.skeleton.arcs import build_arcs
+from viscx.skeleton.candidates import build_nodes
+from viscx.skeleton.eecells import build_eecells
+from viscx.skeleton.vcells import FOUR_PI, build_vcells
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+from buildings import floor_plan, furnished_room, office, write_obj  # noqa: E402
+
+#: Directions per vertex for the ray oracle here (the samples' tests use 10 000).
+DIRECTIONS = 500
+
+_CACHE = {}
+
+
+def desk():
+    """The room's shell with one desk: 24 polygons, 28 vertices, four of them (the panels'
+    inner top corners) T-junctions inside the top's bottom edges."""
+    return furnished_room(n_desks=1, n_cabinets=0, n_dividers=0, n_lights=0, seed=0)
+
+
+def built(name, make):
+    if name not in _CACHE:
+        scene = build_scene(make())
+        arcs = build_arcs(scene, build_nodes(scene))
+        _CACHE[name] = scene, arcs, build_vcells(scene, arcs)
+    return _CACHE[name]
+
+
+def vertices_of(vc):
+    return np.unique(np.concatenate([vc.vertex, vc.open_vertex]))
+
+
+def assert_complete_and_agreeing(scene, arcs, vc, n_vertices):
+    """Every vertex complete, its cells covering 4π, and the ray caster agreeing on every
+    judged direction."""
+    done = complete_vertices(vc)
+    assert len(vertices_of(vc)) == n_vertices and len(done) == n_vertices, (len(done), vc.counts())
+    total = np.bincount(vc.vertex, weights=vc.solid_angle)
+    assert np.allclose(total[done], FOUR_PI, atol=1e-6)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, done, n=DIRECTIONS)
+    assert judged >= 0.99 * DIRECTIONS * len(done) and agreed == judged, wrong[:5]
+
+
+def test_tangency_at_a_desk_panels_corner():
+    """The panel's inner top corner lies inside the top's bottom edge: a line from it into
+    the top enters the solid there (the top's bottom and front half-planes cover the circle
+    projected along it), whatever the panel's three quarters add. Before tangency's sweep
+    started at 0 the quarter starting inside the front half-plane's wrap cut the cover
+    short: 86 open chains at those four corners."""
+    scene, arcs, vc = built("desk", desk)
+    assert_complete_and_agreeing(scene, arcs, vc, 28)
+    assert len(vc.open_vertex) == 0
+
+
+def test_antipodal_cells_behind_a_vertex_in_a_face_plane(monkeypatch):
+    """A VE line from the panel's corner lying in the desk's front plane (the corner and the
+    top's end edge in that plane): on the side where its probe enters the top, the
+    antipodal image's cell is what the probe meets behind the corner, passing in front of
+    the other panel's front face (the floor, the far wall), not the other side's up, which
+    passes behind it (the other panel's inner face). Knocked out (the other side's up), the
+    desk's four T-corners stay open."""
+    import viscx.skeleton.vcells as vcells
+
+    scene = build_scene(desk())
+    arcs = build_arcs(scene, build_nodes(scene))
+    monkeypatch.setattr(vcells, "vertex_backs", lambda scene, arcs: None)
+    vc = build_vcells(scene, arcs)
+    assert len(complete_vertices(vc)) == 24 and len(vc.open_vertex) > 0
+
+
+def test_families_through_a_t_junction_of_a_node():
+    """floor_plan((1, 1)): a window's lintel corner w lies inside the wall piece's outer
+    vertical edge E (a T-junction). The lines from the other window's corner u through E
+    between the sill and the lintel bound the cells that pass through the window from
+    those that meet its jamb; their family VE (u, E) holds no node of its own, only the
+    VV (u, w) through the junction, and is seeded from it. Without that, 16 of the 100
+    vertices (every window corner) stay open; with it all are complete and agree."""
+    scene, arcs, vc = built("plan11", lambda: floor_plan((1, 1)))
+    assert_complete_and_agreeing(scene, arcs, vc, 100)
+
+
+def test_families_through_a_t_junction_are_needed(monkeypatch):
+    """The knock-out of the rule above."""
+    import viscx.skeleton.arcs.events as events
+
+    real = events._incidences
+
+    def own_edges_only(scene, nodes, vo, ve, is_gen_vertex, through=False):
+        if through:
+            vo = np.zeros_like(vo)
+            ve = ve[:0]
+        return real(scene, nodes, vo, ve, is_gen_vertex, through)
+
+    monkeypatch.setattr(events, "_incidences", own_edges_only)
+    scene = build_scene(floor_plan((1, 1)))
+    vc = build_vcells(scene, build_arcs(scene, build_nodes(scene)))
+    assert len(complete_vertices(vc)) < 100
+
+
+def test_plan_with_a_door_a_lintel_and_a_pillar():
+    """Two rooms with a door under a lintel between them, windows and a pillar: every
+    vertex complete (the lintel's lower corners, the wall tops beside the door, the
+    pillar's top corners included), the ray caster agreeing everywhere."""
+    scene, arcs, vc = built("plan21", lambda: floor_plan((2, 1), seed=0))
+    n = len(vertices_of(vc))
+    assert_complete_and_agreeing(scene, arcs, vc, n)
+
+
+def test_info_prints_the_fraction_complete(tmp_path, capsys):
+    """`viscx info` prints the fraction of vertices and edge pairs whose cells are complete,
+    equal to what the file's V2 arrays say."""
+    from test_cli import run
+
+    from viscx.formats.hdf5 import ViscxFile, read_eecells, read_vcells
+
+    obj = write_obj(desk(), tmp_path / "desk.obj")
+    out = tmp_path / "desk.h5"
+    code, _, err = run(["--quiet", "build", str(obj), "-o", str(out)], capsys)
+    assert code == 0, err
+    code, stdout, _ = run(["info", str(out), "--json"], capsys)
+    summary = json.loads(stdout)
+    with ViscxFile(out) as f:
+        vc, ee = read_vcells(f.h5["V2"]), read_eecells(f.h5["V2"])
+    n = len(vertices_of(vc))
+    assert summary["complete"]["vertices"] == [len(complete_vertices(vc)), n, len(complete_vertices(vc)) / n]
+    pairs = np.unique(np.concatenate([ee.edge1 * 2**32 + ee.edge2, ee.open_edge1 * 2**32 + ee.open_edge2]))
+    done = np.unique((ee.edge1 * 2**32 + ee.edge2)[ee.complete])
+    assert summary["complete"]["ee_pairs"][:2] == [len(done), len(pairs)]
+    code, text, _ = run(["info", str(out)], capsys)
+    assert code == 0 and "complete vertices" in text and f"{len(done)} of {len(pairs)}" in text
+    # a file without V2 has nothing to say
+    code, stdout, _ = run(["--quiet", "build", str(obj), "--levels", "1", "-o", str(tmp_path / "v1.h5")], capsys)
+    code, stdout, _ = run(["info", str(tmp_path / "v1.h5"), "--json"], capsys)
+    assert "complete" not in json.loads(stdout)
+
+
+def test_ee_cells_of_a_desk():
+    """EE-cells of the desk scene, measured: 361 of 364 pairs complete; on the complete
+    pairs the ray caster agrees on 36 059 of 36 068 judged points (100 per pair): the
+    9 others lie 2e-4 from a square's side x2 = 0 or 1 of pairs (0, 13), (2, 16), in a
+    sliver the cells do not have (an open EE gap of these scenes, docs/skeleton.md)."""
+    scene, arcs, _ = built("desk", desk)
+    ee = build_eecells(scene, arcs)
+    counts = ee.counts()
+    assert counts["complete_pairs"] >= 361 and counts["pairs"] == 364, counts
+    pairs = np.unique(np.stack([ee.edge1, ee.edge2], axis=1)[ee.complete], axis=0)
+    judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, pairs, n=100)
+    assert judged >= 0.95 * 100 * len(pairs) and agreed >= 0.9995 * judged, wrong[:5]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+def test_furnished_rooms(seed):
+    """20 random offices of 50 to 300 polygons (touching furniture): the ray caster agrees on
+    every judged direction of every complete vertex. Not every vertex is complete yet
+    (measured on the first 10: 1 862 of 1 888; docs/skeleton.md "Furnished buildings" lists
+    the kinds left open, all at desk panels' T-corners), so completeness is held at 97 %."""
+    n = int(np.random.default_rng(2026 + seed).integers(50, 301))
+    scene = build_scene(office(n, seed=100 + seed))
+    arcs = build_arcs(scene, build_nodes(scene))
+    vc = build_vcells(scene, arcs)
+    done = complete_vertices(vc)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, done, n=500)
+    assert agreed == judged, wrong[:5]
+    assert len(done) >= 0.97 * len(vertices_of(vc)), vc.counts()

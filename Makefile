@@ -34,7 +34,9 @@ demo: venv
 images: demo
 	cp $(OUT)/cornell_exact.png $(OUT)/cornell_sparse500.png $(OUT)/cornell_mc16.png docs/images/
 
+# the warm-up first: after a change of source its kernels are compiled once, not inside a test
 test: venv
+	$(BIN)/python -m viscx.warmup
 	$(BIN)/python -m pytest -q
 
 # Rebuild the golden files that tests/test_golden.py diffs against; run it only

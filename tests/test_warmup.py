@@ -16,7 +16,7 @@ def twice(x):
 
 RUN = textwrap.dedent("""
     from viscx import progress
-    progress.LOG_EVERY = 0.0
+    progress.LOG_EVERY = progress.QUIET_START = 0.0
     progress.report_compilation()
     import viscx_fake_kernels
     assert viscx_fake_kernels.twice(21) == 42

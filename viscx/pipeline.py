@@ -75,6 +75,12 @@ def _writer(level):
     return {"V0": hdf5.write_nodes, "V1": hdf5.write_arcs, "V2": _write_two_cells}[level]
 
 
+def level_writers(built):
+    """``{level name: writer(h5py.Group)}`` of the built levels, for
+    :func:`viscx.formats.hdf5.write_complex`."""
+    return {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
+
+
 LEVELS = [("V0", _nodes), ("V1", _arcs), ("V2", _two_cells)]
 NOUNS = {"V0": "nodes", "V1": "arcs", "V2": "V- and EE-cells"}
 MAX_LEVEL = len(LEVELS) - 1
@@ -137,8 +143,7 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
                            "levels": levels}
                 if has_points:
                     options["points"] = len(points)
-                writers = {name: (lambda g, name=name: _writer(name)(g, built[name])) for name in built}
-                write_complex(output, scene, levels=writers, options=options, timings=stages.timings,
+                write_complex(output, scene, levels=level_writers(built), options=options, timings=stages.timings,
                               points=points if has_points else None, compression=compression)
         except MemoryError:
             raise ViscxError(out_of_memory(stages.current)) from None

@@ -3,15 +3,16 @@
 A run under CI, ``nohup`` or a pipe has no terminal to draw bars on, so there every
 line says when it was written and how much memory the process has used::
 
-    [  12.3 s, peak 1.02 GB] build: V1 started
-    [  42.3 s, peak 1.35 GB] build: V1 still running (30 s in the stage)
-    [  51.0 s, peak 1.38 GB] build: V1 done in 38.7 s
+    [   24.1 s, peak 1.02 GB] build: V1 started
+    [   44.1 s, peak 1.35 GB] build: V1 still running (20 s in the stage)
+    [   51.0 s, peak 1.38 GB] build: V1 done in 26.9 s
 
 A stage (:class:`Stages`) logs its start and end, a bar inside it logs its count at
 most every ``LOG_EVERY`` seconds, and a heartbeat thread writes a line when nothing
 was written for ``HEARTBEAT`` seconds, so a long stage is never silent for longer
 (unless one C call holds the interpreter's lock throughout: the line then comes when
-it returns). ``quiet`` silences all of it.
+it returns). A run's first ``QUIET_START`` seconds write nothing: a short command's
+stderr holds its result or its one-line error only. ``quiet`` silences all of it.
 """
 
 import atexit
@@ -26,10 +27,13 @@ from tqdm import tqdm
 LOG_EVERY = 10.0
 #: A running stage writes a line when nothing was written for this many seconds.
 HEARTBEAT = 20.0
+#: Lines start once the run (the outermost :class:`Stages`, else the bar) is this old.
+QUIET_START = 20.0
 
-_START = time.perf_counter()
 _LOCK = threading.RLock()
 _last_line = [0.0]
+# when the run started (the outermost Stages sets it), for the elapsed seconds and QUIET_START
+_run_start = [None]
 
 
 def peak_memory_gb():
@@ -47,11 +51,15 @@ def on_terminal():
         return False
 
 
-def log(message):
-    """Write one progress line on stderr, stamped with the run's seconds and peak memory."""
+def log(message, start=None):
+    """Write one progress line on stderr, stamped with the run's seconds and peak memory,
+    once the run (started at ``start``, default the outermost Stages') is QUIET_START old."""
     with _LOCK:
         now = time.perf_counter()
-        sys.stderr.write(f"[{now - _START:7.1f} s, peak {peak_memory_gb():.2f} GB] {message}\n")
+        start = _run_start[0] if _run_start[0] is not None else (now if start is None else start)
+        if now - start < QUIET_START:
+            return
+        sys.stderr.write(f"[{now - start:7.1f} s, peak {peak_memory_gb():.2f} GB] {message}\n")
         sys.stderr.flush()
         _last_line[0] = now
 
@@ -67,6 +75,7 @@ class LogBar:
 
     def __init__(self, total=None, desc=None, unit="it"):
         self.total, self.desc, self.unit, self.n, self.postfix = total, desc or "progress", unit, 0, ""
+        self.start = time.perf_counter()
 
     def update(self, n=1):
         self.n += n
@@ -74,7 +83,7 @@ class LogBar:
             of = f"/{self.total}" if self.total is not None else ""
             plural = "s" if self.unit.isalpha() and (self.total if self.total is not None else self.n) != 1 else ""
             log(f"{self.desc}: {self.n}{of} {self.unit}{plural}"
-                + (f" ({self.postfix})" if self.postfix else ""))
+                + (f" ({self.postfix})" if self.postfix else ""), self.start)
 
     def set_postfix_str(self, s="", refresh=True):
         self.postfix = s
@@ -123,11 +132,16 @@ class Stages:
         self._beat = threading.Thread(target=self._heartbeat, daemon=True, name="viscx-heartbeat")
 
     def __enter__(self):
+        self._outermost = _run_start[0] is None
+        if self._outermost:
+            _run_start[0] = time.perf_counter()
         if self.logging:
             self._beat.start()
         return self
 
     def __exit__(self, *exc):
+        if self._outermost:
+            _run_start[0] = None
         self._stop.set()
         if self._beat.is_alive():
             self._beat.join()
@@ -175,33 +189,35 @@ class _Stage:
         return False
 
 
-_compile_bar = []
+_compile = {"on": False, "installed": False, "bar": None}
 
 
-def report_compilation(quiet=False):
+def report_compilation(on=True):
     """Say so on stderr when numba compiles a kernel instead of loading it from its cache
     (``cache=True``): the first run after an install or a change of the source compiles
     about a hundred kernels, a minute of CPU. One notice line, then a count of the kernels
     compiled (a bar on a terminal, log lines otherwise). Nothing when every kernel comes
-    from the cache, or when ``quiet``. Installed once per process."""
-    if quiet or _compile_bar:
+    from the cache. ``on=False`` turns it off (a command calls it at its end, so that
+    other work in the process, such as tests, is not reported on)."""
+    _compile["on"] = on
+    if not on or _compile["installed"]:
         return
     from numba.core import event
 
     class Notice(event.Listener):
         def on_start(self, ev):
-            if len(_compile_bar) == 1:
+            if _compile["on"] and _compile["bar"] is None:
                 sys.stderr.write("viscx: compiling numba kernels for their first use (once after an install; "
                                  "about a minute; `python -m viscx.warmup` does it ahead)\n")
                 sys.stderr.flush()
-                _compile_bar.append(bar(desc="compiling kernels", unit="kernel"))
+                _compile["bar"] = bar(desc="compiling kernels", unit="kernel")
 
         def on_end(self, ev):  # viscx's kernels are counted, not numba's own helpers they compile
             kernel = getattr(ev.data.get("dispatcher"), "py_func", None)
-            if getattr(kernel, "__module__", "").startswith("viscx"):
-                _compile_bar[-1].set_postfix_str(kernel.__qualname__)
-                _compile_bar[-1].update()
+            if _compile["on"] and _compile["bar"] is not None and getattr(kernel, "__module__", "").startswith("viscx"):
+                _compile["bar"].set_postfix_str(kernel.__qualname__)
+                _compile["bar"].update()
 
-    _compile_bar.append(None)  # installed; the bar follows the first compilation
+    _compile["installed"] = True
     event.register("numba:compile", Notice())
-    atexit.register(lambda: _compile_bar[-1] is not None and _compile_bar[-1].close())
+    atexit.register(lambda: _compile["bar"] is not None and _compile["bar"].close())

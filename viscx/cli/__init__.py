@@ -68,7 +68,8 @@ def cli(ctx, quiet):
     if ctx.invoked_subcommand is not None:  # a command that may compile numba kernels: say so when it does
         from viscx.progress import report_compilation
 
-        report_compilation(quiet)
+        report_compilation(not quiet)
+        ctx.call_on_close(lambda: report_compilation(False))
 
 
 class Terminated(BaseException):

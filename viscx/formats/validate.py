@@ -161,6 +161,11 @@ def _check_dataset(d, where, path, file_size, budget):
 # Attributes
 
 LEVELS = ("scene", "V0", "V1", "V2")
+#: the root attributes every viscx file has (docs/format.md); readers use each of them
+ROOT_ATTRIBUTES = ("format", "format_version", "viscx_version", "epsilon", "weld_tolerance", "scene_sha256",
+                   "scene_name", "options", "levels")
+#: those of them that are text
+TEXT_ATTRIBUTES = ("viscx_version", "scene_sha256", "scene_name", "options", "levels")
 #: attributes of level groups that map names to integer codes or counts
 _CODE_ATTRIBUTES = ("kinds", "blocker_kinds", "end_types", "element_kinds", "counts")
 
@@ -169,6 +174,12 @@ def check_attributes(h5, path):
     """The root attributes a reader uses and the levels they name (after the format and
     version checks of :class:`viscx.formats.hdf5.ViscxFile`). Returns ``(levels, options)``."""
     attrs = h5.attrs
+    for name in ROOT_ATTRIBUTES:
+        if name not in attrs:
+            raise damaged(path, f"@{name}", "missing")
+    for name in TEXT_ATTRIBUTES:
+        if not isinstance(attrs[name], str):
+            raise damaged(path, f"@{name}", f"{attrs[name]!r:.40} is not text")
     for name in ("epsilon", "weld_tolerance"):
         value = attrs[name]
         if not (np.ndim(value) == 0 and np.asarray(value).dtype.kind in "iuf" and np.isfinite(value) and value >= 0):

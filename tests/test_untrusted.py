@@ -75,6 +75,8 @@ CASES = {
     "options_not_json": (set_attr("options", "{"), "not JSON"),
     "epsilon_nan": (set_attr("epsilon", np.nan), "@epsilon"),
     "epsilon_text": (set_attr("epsilon", "small"), "@epsilon"),
+    "scene_name_missing": (lambda f: f.attrs.__delitem__("scene_name"), "missing @scene_name"),
+    "scene_name_not_text": (set_attr("scene_name", -1), "@scene_name"),
     # levels listed, groups absent
     "levels_without_groups": (lambda f: [f.__delitem__(x) for x in ("V0", "V1", "V2")], "/V0"),
     "levels_unknown": (set_attr("levels", json.dumps(["scene", "V9"])), "@levels"),
@@ -134,6 +136,15 @@ def test_damaged_file_is_refused(name, tmp_path, capsys):
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert keyword.lower() in err.lower(), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.h5"]
+
+
+@pytest.mark.parametrize("name", ["scene_name_missing", "scene_name_not_text", "epsilon_nan"])
+def test_info_refuses_damaged_attributes(name, tmp_path, capsys):
+    """``viscx info`` prints the root attributes: a missing or non-text one is exit 2 (the
+    slow fuzz found ``info`` ending with KeyError, exit 1, when scene_name was dropped)."""
+    change, keyword = CASES[name]
+    code, err = run(["info", damaged_copy(tmp_path, change)], capsys)
+    assert code == 2 and err.count("\n") == 1 and keyword in err, err
 
 
 @pytest.mark.parametrize("name", ["external_link", "external_storage", "virtual_dataset", "declared_never_written"])

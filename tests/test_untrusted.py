@@ -77,6 +77,8 @@ CASES = {
     "epsilon_text": (set_attr("epsilon", "small"), "@epsilon"),
     "scene_name_missing": (lambda f: f.attrs.__delitem__("scene_name"), "missing @scene_name"),
     "scene_name_not_text": (set_attr("scene_name", -1), "@scene_name"),
+    "timings_not_seconds": (lambda f: f["provenance"].attrs.__setitem__("timings", '{"cells": "x"}'),
+                            "/provenance@timings"),
     # levels listed, groups absent
     "levels_without_groups": (lambda f: [f.__delitem__(x) for x in ("V0", "V1", "V2")], "/V0"),
     "levels_unknown": (set_attr("levels", json.dumps(["scene", "V9"])), "@levels"),
@@ -138,7 +140,7 @@ def test_damaged_file_is_refused(name, tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.h5"]
 
 
-@pytest.mark.parametrize("name", ["scene_name_missing", "scene_name_not_text", "epsilon_nan"])
+@pytest.mark.parametrize("name", ["scene_name_missing", "scene_name_not_text", "epsilon_nan", "timings_not_seconds"])
 def test_info_refuses_damaged_attributes(name, tmp_path, capsys):
     """``viscx info`` prints the root attributes: a missing or non-text one is exit 2 (the
     slow fuzz found ``info`` ending with KeyError, exit 1, when scene_name was dropped)."""

@@ -198,6 +198,12 @@ def check_attributes(h5, path):
             raise damaged(path, f"/{level}", "listed in the attribute levels but missing")
     if "V2" in levels and not isinstance(h5.get("V1"), h5py.Group):  # V2's readers read V1's arcs
         raise damaged(path, "/V1", "missing, but V2 is listed (its cells are bounded by V1's arcs)")
+    provenance = h5.get("provenance")
+    if isinstance(provenance, h5py.Group) and "timings" in provenance.attrs:
+        timings = load_json(provenance.attrs["timings"], f"{path}: attribute /provenance@timings")
+        if not (isinstance(timings, dict)
+                and all(type(v) in (int, float) and np.isfinite(v) for v in timings.values())):
+            raise damaged(path, "/provenance@timings", "not a JSON object of seconds")
     for level in (*levels, "V2/ee"):
         group = h5.get(level)
         if not isinstance(group, h5py.Group):

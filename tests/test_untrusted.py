@@ -140,11 +140,16 @@ def test_damaged_file_is_refused(name, tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.h5"]
 
 
-@pytest.mark.parametrize("name", ["scene_name_missing", "scene_name_not_text", "epsilon_nan", "timings_not_seconds"])
+#: damage that ``viscx info`` reads (it counts V0's sites from the nodes' ends)
+INFO_CASES = {"v0_end_far_away": (lambda f: f["V0/ends"].__setitem__((0, 0, 0), 1e300), "/V0/ends")}
+
+
+@pytest.mark.parametrize("name", ["scene_name_missing", "scene_name_not_text", "epsilon_nan", "timings_not_seconds",
+                                  "v0_end_far_away"])
 def test_info_refuses_damaged_attributes(name, tmp_path, capsys):
     """``viscx info`` prints the root attributes: a missing or non-text one is exit 2 (the
     slow fuzz found ``info`` ending with KeyError, exit 1, when scene_name was dropped)."""
-    change, keyword = CASES[name]
+    change, keyword = {**CASES, **INFO_CASES}[name]
     code, err = run(["info", damaged_copy(tmp_path, change)], capsys)
     assert code == 2 and err.count("\n") == 1 and keyword in err, err
 

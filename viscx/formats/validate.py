@@ -296,6 +296,15 @@ class Checker:
 
     # value rules ----------------------------------------------------------------------
 
+    def inside_box(self, where, points, box):
+        """Every point (..., 3) inside ``box`` = (lo, hi) (skipped when box is None)."""
+        if box is None or not points.size:
+            return
+        pts = points.reshape(-1, 3)
+        out = np.any((pts < box[0]) | (pts > box[1]), axis=1)
+        if out.any():
+            self.fail(where, f"point {pts[np.argmax(out)].tolist()} far outside the scene")
+
     def within(self, where, values, low, high):
         """Every value in [low, high)."""
         if values.size and (values.min() < low or values.max() >= high):
@@ -430,7 +439,24 @@ def scene_sizes(h5):
     n = _rows(h5, "scene/vertices")
     points = _rows(h5, "scene/points") if "scene/points" in h5 else 0
     return {"n_vertices": n, "p": min(n + points, UNBOUNDED), "faces": _rows(h5, "scene/face_area"),
-            "edges": _rows(h5, "scene/edges/vertices")}
+            "edges": _rows(h5, "scene/edges/vertices"), "box": _segment_box(h5)}
+
+
+def _segment_box(h5):
+    """(lo, hi) (3,) float64 that every stored segment end lies in: the scene's box (with its
+    free points) grown by its diagonal (sky ends sit 1 % outside it; docs/format.md), or
+    None when the scene's vertices cannot give one (the scene's own checks say why)."""
+    try:
+        v = np.asarray(h5["scene/vertices"][()], dtype=np.float64).reshape(-1, 3)
+        if "scene/points" in h5:
+            v = np.concatenate([v, np.asarray(h5["scene/points"][()], dtype=np.float64).reshape(-1, 3)])
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not len(v) or not np.all(np.isfinite(v)):
+        return None
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    grow = float(np.linalg.norm(hi - lo)) + 1.0
+    return lo - grow, hi + grow
 
 
 # --------------------------------------------------------------------------------------
@@ -457,6 +483,7 @@ def node_arrays(group, path, sizes):
          "generator_points": c.read(group, "generator_points", "f", ("m", 4, 3), finite=False)}
     kind, gen = a["kind"], a["generators"]
     c.within(w + "kind", kind, 0, 3)
+    c.inside_box(w + "ends", a["ends"], sizes.get("box"))
     v, e = (0, sizes["p"]), (0, sizes["edges"])
     columns = {0: (e, e, e, e), 1: (v, e, e, (-1, 0)), 2: (v, v, (-1, 0), (-1, 0))}  # E4, VEE, VV
     for k, cols in columns.items():
@@ -490,6 +517,7 @@ def arc_arrays(group, path, sizes):
     n_nodes = _rows(group.file, "V0/kind")
     kind, gen = a["kind"], a["generators"]
     c.within(w + "kind", kind, 0, 3)
+    c.inside_box(w + "ends", a["ends"], sizes.get("box"))
     v, e = (0, sizes["p"]), (0, sizes["edges"])
     for k, cols in {0: (e, e, e), 1: (v, e, (-1, 0)), 2: (e, e, e)}.items():  # EEE, VE, XE
         rows = gen[kind == k]

@@ -41,11 +41,8 @@ def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_gro
 
     Output: JSON {"F": value, ...} on standard output (or -o), msgpack with --format msgpack.
     """
-    import time
-
-    from viscx.errors import ViscxError
+    from viscx.api import form_factor, form_factor_matrix
     from viscx.formats.queries import output_format, write_result
-    from viscx.queries import formfactor as ff
     from viscx.queries.visibility import open_query
 
     point_mode = point is not None or normal is not None
@@ -53,69 +50,24 @@ def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_gro
     target_given = to_face is not None or to_group is not None
     if sum([point_mode, source_given, bool(matrix)]) != 1:
         raise click.UsageError("give exactly one of --point/--normal, --from-face/--from-group, --matrix")
-    if point_mode and (point is None or normal is None):
-        raise click.UsageError("--point needs --normal (and --normal needs --point)")
-    if from_face is not None and from_group is not None:
-        raise click.UsageError("give --from-face or --from-group, not both")
-    if to_face is not None and to_group is not None:
-        raise click.UsageError("give --to-face or --to-group, not both")
-    if not matrix and not target_given:
-        raise click.UsageError("say what receives: --to-face J or --to-group NAME")
     if matrix and (target_given or output is None):
         raise click.UsageError("--matrix takes no --to-face/--to-group and needs -o F.h5")
-    if tol is not None and not (tol > 0):
-        raise click.UsageError("--tol must be positive")
     if matrix:
         fmt = fmt or "json"
     else:
         fmt = output_format(output, fmt)
 
     q = open_query(file)
-    scene = q.scene
-    n = scene.n_faces
-
-    def check(face, option):
-        if not 0 <= face < n:
-            raise ViscxError(f"{option} {face} is out of range (the scene has {n} faces: 0 to {n - 1})")
-        return face
-
-    def targets():
-        if to_face is not None:
-            return [check(to_face, "--to-face")]
-        return [int(f) for f in scene.group_faces(to_group)]
-
-    t0 = time.perf_counter()
-    if point_mode:
-        faces = targets()
-        result = ff.point_to_faces(q, point, normal, faces)
-        result = {"F": result.pop("F"), **({"to_face": to_face} if to_face is not None else {"to_group": to_group}), **result}
-    elif matrix:
+    if matrix:
         from viscx.formats.formfactors import write_export, write_matrix
 
-        m = ff.form_factor_matrix(scene, tol=tol or ff.MATRIX_TOL, quiet=quiet(ctx))
+        m = form_factor_matrix(q, tol=tol, quiet=quiet(ctx))
         plain = str(output).lower().endswith((".npz", ".csv"))
-        summary = (write_export if plain else write_matrix)(output, m, scene)
+        summary = (write_export if plain else write_matrix)(output, m, q.scene)
         write_result({"matrix": str(output), **summary}, None, fmt)
         return
-    else:
-        side = 1 if from_side == "front" else -1
-        sources = [check(from_face, "--from-face")] if from_face is not None else [int(f) for f in scene.group_faces(from_group)]
-        faces = targets()
-        tol = tol or ff.DEFAULT_TOL
-        if from_face is not None and to_face is not None:
-            if from_face == to_face:
-                raise ViscxError("--from-face and --to-face are the same face (a planar face does not see itself)")
-            r = ff.face_to_face(scene, from_face, to_face, side_i=side, tol=tol)
-            result = {"F": r["F"], "error": r["error"], "from_face": from_face, "from_side": from_side, "to_face": to_face,
-                      "sides": r["sides"]}
-        else:
-            r = ff.group_to_group(scene, sources, faces, side_i=side, tol=tol)
-            result = {"F": r["F"], "error": r["error"],
-                      **({"from_face": from_face} if from_face is not None else {"from_group": from_group}),
-                      "from_side": from_side,
-                      **({"to_face": to_face} if to_face is not None else {"to_group": to_group}), "pairs": r["pairs"]}
-        result["tol"] = tol
-        result["seconds"] = round(time.perf_counter() - t0, 4)
+    result = form_factor(q, to_face=to_face, to_group=to_group, point=point, normal=normal, from_face=from_face,
+                         from_group=from_group, from_side=from_side, tol=tol).record
     write_result(result, output, fmt)
     if point_mode and not result["complete"] and not quiet(ctx):
         click.echo("viscx: warning: some of the point's V-cells are incomplete; see docs/queries.md", err=True)

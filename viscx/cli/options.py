@@ -17,11 +17,18 @@ def output_option(help_text, required=True):
     )
 
 
+def option_names(command):
+    """``{parameter name: its longest option}`` of a click command (``light_face`` ->
+    ``--light-face``): how the command spells the library's parameters."""
+    return {p.name: max(p.opts, key=len) for p in command.params if isinstance(p, click.Option)}
+
+
 def guard_outputs(command):
     """Make ``command`` (and a group's subcommands) refuse, before it runs, an ``output``
     that is one of its input files, also through a link
-    (:func:`viscx.formats.atomic.check_output`; the writers check again when they write).
-    The CLI applies it to every command it loads."""
+    (:func:`viscx.formats.atomic.check_output`; the writers check again when they write),
+    and name in the library's messages about a parameter its option
+    (:class:`viscx.errors.ParameterError`). The CLI applies it to every command it loads."""
     if isinstance(command, click.Group):
         for sub in command.commands.values():
             guard_outputs(sub)
@@ -34,8 +41,13 @@ def guard_outputs(command):
     def checked(*args, **kwargs):
         from viscx.formats.atomic import check_output
 
+        from viscx.errors import ParameterError
+
         check_output(kwargs.get("output"), [kwargs[name] for name in INPUT_ARGUMENTS if kwargs.get(name)])
-        return callback(*args, **kwargs)
+        try:
+            return callback(*args, **kwargs)
+        except ParameterError as exc:
+            raise exc.renamed(option_names(command)) from None
 
     checked.guarded = True
     command.callback = checked

@@ -25,18 +25,8 @@ face_option = click.option("--face", "faces", type=int, multiple=True, metavar="
                            help="Report only face N (repeatable). Default: every face.")
 
 
-def _check_faces(faces, n_faces):
-    """ViscxError for a face id out of range (before any work)."""
-    from viscx.errors import ViscxError
-
-    for f in faces:
-        if not 0 <= f < n_faces:
-            raise ViscxError(f"--face {f} is out of range (the scene has {n_faces} faces: 0 to {n_faces - 1})")
-
-
-def _only(result, faces, n_faces):
-    """Keep the faces asked for."""
-    _check_faces(faces, n_faces)
+def _only(result, faces):
+    """Keep the faces asked for (checked by the query)."""
     if faces:
         result["faces"] = [result["faces"][f] for f in sorted(set(faces))]
     return result
@@ -79,9 +69,9 @@ def visible(ctx, file, viewpoint, output, fmt, faces, epsilon, relative_epsilon,
 
     fmt = output_format(output, fmt)
     q = open_query(file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
-    _check_faces(faces, q.scene.n_faces)
+    q.scene.face_ids(faces)
     view, stored = view_from(q, viewpoint)
-    result = _only(visible_result(q.scene, view, stored), faces, q.scene.n_faces)
+    result = _only(visible_result(q.scene, view, stored), faces)
     write_result(result, output, fmt)
     _warn(ctx, result)
 
@@ -114,7 +104,7 @@ def shadows(ctx, file, light, output, fmt, faces, epsilon, relative_epsilon, wel
 
     fmt = output_format(output, fmt, geometry=True)
     scene, view, result = compute(file, light, faces=faces, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
-    result = _only(result, faces, scene.n_faces)
+    result = _only(result, faces)
     if fmt == "ply":
         counts = write_shadow_ply(output, scene, view)
         if not quiet(ctx):

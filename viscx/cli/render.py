@@ -55,35 +55,28 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
 
     import numpy as np
 
+    from viscx.api import render_light
     from viscx.errors import ViscxError
     from viscx.formats.images import write_npy, write_pfm, write_png
     from viscx.memory import memory_budget
+    from viscx.pipeline import open_complex
     from viscx.progress import bar
-    from viscx.queries.discontinuities import open_discontinuities
-    from viscx.render.camera import Camera
-    from viscx.render.image import picture, render as render_image
+    from viscx.render.image import picture
 
-    if samples is not None and reference is not None:
-        raise click.UsageError("give --samples or --reference, not both")
-    if samples is not None and samples < 0:
-        raise ViscxError(f"--samples {samples} must be at least 0")
-    if reference is not None and reference < 1:
-        raise ViscxError(f"--reference {reference} must be at least 1")
     if exposure is not None and not (exposure > 0 and np.isfinite(exposure)):
         raise ViscxError(f"--exposure {exposure} must be a positive number")
     out = Path(output)
     if out.suffix.lower() != ".png":
         raise ViscxError(f"-o {output}: the image is written as PNG; name it *.png")
-    camera = Camera(eye, look_at, up, fov, size[0], size[1])
-    need = camera.width * camera.height * BYTES_PER_PIXEL
+    need = max(size[0], 1) * max(size[1], 1) * BYTES_PER_PIXEL
     if need > memory_budget():
         raise ViscxError(f"--size {size[0]} {size[1]} needs about {need / 2**30:.0f} GiB, over the memory budget "
                          f"({memory_budget() / 2**30:.1f} GiB; VISCX_MEMORY_BUDGET)")
-    scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group)
+    cx = open_complex(file, need="V2")
     with bar(total=size[0] * size[1], desc="monte carlo", quiet=quiet(ctx) or reference is None, unit="px") as b:
-        result = render_image(scene, mesh, camera, radiance=radiance, samples=samples, reference=reference, seed=seed,
-                              progress=b.update)
-    rgb, used = picture(result, mesh.light.faces, exposure, show_regions)
+        result = render_light(cx, eye, look_at, up, fov, size, light_face=light_face, light_group=light_group,
+                              radiance=radiance, samples=samples, reference=reference, seed=seed, progress=b.update)
+    rgb, used = picture(result, result.light_faces, exposure, show_regions)
     stem = out.with_suffix("")
     write_npy(stem.with_suffix(".npy"), result.radiance.astype(np.float32))
     write_pfm(stem.with_suffix(".pfm"), result.radiance)

@@ -10,6 +10,28 @@ from viscx.scene import DEFAULT_WELD
 INPUT_ARGUMENTS = ("file", "scene_file", "file_a", "file_b")
 
 
+#: ``FILE``: the viscx file (or, for the scoped point queries, the scene file) a command reads.
+file_argument = click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+
+
+def positive(ctx, param, value):
+    """Click callback: ``value`` (None, or a number) must be finite and positive."""
+    if value is not None and not (0 < value < float("inf")):
+        raise click.BadParameter(f"{value} must be a positive number", ctx, param)
+    return value
+
+
+def at_least(low):
+    """Click callback: an integer ``value`` (or None) of at least ``low``."""
+
+    def check(ctx, param, value):
+        if value is not None and value < low:
+            raise click.BadParameter(f"{value} must be at least {low}", ctx, param)
+        return value
+
+    return check
+
+
 def output_option(help_text, required=True):
     """``-o/--output PATH``: where a command writes its result."""
     return click.option(

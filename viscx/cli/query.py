@@ -2,7 +2,7 @@
 
 import click
 
-from viscx.cli.options import format_option, light_options, output_option, point_option, quiet, scene_options
+from viscx.cli.options import file_argument, format_option, light_options, output_option, point_option, quiet, scene_options
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows, discontinuities).")
@@ -44,7 +44,7 @@ def _warn(ctx, result):
 
 
 @query.command(short_help="The visible part of every face from a point.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @point_option("--from", "viewpoint", help_text="The viewpoint, in scene units.")
 @output_option("Where to write (.json or .msgpack). Default: standard output.", required=False)
 @format_option
@@ -77,7 +77,7 @@ def visible(ctx, file, viewpoint, output, fmt, faces, epsilon, relative_epsilon,
 
 
 @query.command(short_help="Lit polygons and shadow boundaries of a point light.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @point_option("--light", "light", help_text="The point light, in scene units.")
 @output_option("Where to write: .json, .msgpack, or .ply (the scene split along the shadow "
                "boundaries, a lit flag per face). Default: JSON on standard output.", required=False)
@@ -115,7 +115,7 @@ def shadows(ctx, file, light, output, fmt, faces, epsilon, relative_epsilon, wel
 
 
 @query.command(short_help="The discontinuity mesh of an area light on every receiver.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @light_options
 @output_option("Where to write: .json, .msgpack, or .ply (the receivers split into the "
                "regions, a region id and colour per triangle). Default: JSON on standard output.", required=False)

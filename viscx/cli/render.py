@@ -4,7 +4,7 @@ from pathlib import Path
 
 import click
 
-from viscx.cli.options import POINT, light_options, output_option, quiet
+from viscx.cli.options import POINT, at_least, file_argument, light_options, output_option, positive, quiet
 
 #: what one pixel costs while rendering: radiance and its tone-mapped copies, the primary
 #: rays and hits, the region ids (float64 and int64 arrays of a few columns each)
@@ -12,7 +12,7 @@ BYTES_PER_PIXEL = 256
 
 
 @click.command(short_help="Render direct illumination: exact, from sparse samples, or Monte Carlo.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @click.option("--camera", "eye", type=POINT, required=True, metavar="X,Y,Z", help="The eye.")
 @click.option("--look-at", "look_at", type=POINT, required=True, metavar="X,Y,Z", help="The point looked at.")
 @click.option("--up", "up", type=POINT, default="0,1,0", show_default=True, metavar="X,Y,Z", help="Up direction.")
@@ -21,13 +21,13 @@ BYTES_PER_PIXEL = 256
 @light_options
 @click.option("--radiance", type=POINT, default=None, metavar="R,G,B",
               help="The light's emitted radiance. Default: its material's Ke.")
-@click.option("--samples", type=int, default=None, metavar="N",
+@click.option("--samples", type=int, default=None, metavar="N", callback=at_least(0),
               help="Sparse reconstruction: evaluate the illumination at N samples (plus the regions' corners) "
               "and interpolate inside each region.")
-@click.option("--reference", type=int, default=None, metavar="K",
+@click.option("--reference", type=int, default=None, metavar="K", callback=at_least(1),
               help="Monte Carlo reference with K light samples per pixel (embree shadow rays) instead.")
 @click.option("--show-regions", is_flag=True, help="Draw the regions' boundaries on the PNG.")
-@click.option("--exposure", type=float, default=None, metavar="E",
+@click.option("--exposure", type=float, default=None, metavar="E", callback=positive,
               help="Scale radiance by E before the sRGB curve. Default: the 99th percentile of the lit "
               "pixels' luminance maps to white.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed of --reference.")
@@ -63,8 +63,6 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     from viscx.progress import bar
     from viscx.render.image import picture
 
-    if exposure is not None and not (exposure > 0 and np.isfinite(exposure)):
-        raise ViscxError(f"--exposure {exposure} must be a positive number")
     out = Path(output)
     if out.suffix.lower() != ".png":
         raise ViscxError(f"-o {output}: the image is written as PNG; name it *.png")

@@ -151,12 +151,12 @@ def test_discontinuities_equal_the_cli(golden, built, capsys):
 
 
 @pytest.mark.parametrize("args, kwargs", [
-    (["--point", "278,1,280", "--normal", "0,1,0", "--to-group", "light"],
+    (["point", "--point", "278,1,280", "--normal", "0,1,0", "--to-group", "light"],
      dict(point=[278, 1, 280], normal=[0, 1, 0], to_group="light")),
-    (["--from-face", "15", "--to-face", "5", "--tol", "1e-4"], dict(from_face=15, to_face=5, tol=1e-4)),
+    (["faces", "--from-face", "15", "--to-face", "5", "--tol", "1e-4"], dict(from_face=15, to_face=5, tol=1e-4)),
 ])
 def test_formfactor_equals_the_cli(golden, args, kwargs, capsys):
-    code, out, err = run(["formfactor", CORNELL, *args], capsys)
+    code, out, err = run(["formfactor", args[0], CORNELL, *args[1:]], capsys)
     assert code == 0, err
     cli = json.loads(out)
     ff = golden.formfactor(**kwargs)
@@ -183,7 +183,7 @@ def test_render_equals_the_cli(golden, tmp_path, capsys):
      ["query", "discontinuities", CORNELL, "--light-group", "light", "--face", "16"],
      "faces 16 is out of range", "--face 16 is out of range"),
     (lambda cx: cx.formfactor(point=[278, 1, 280], normal=[0, 0, 0], to_face=15),
-     ["formfactor", CORNELL, "--point", "278,1,280", "--normal", "0,0,0", "--to-face", "15"],
+     ["formfactor", "point", CORNELL, "--point", "278,1,280", "--normal", "0,0,0", "--to-face", "15"],
      "normal must be a non-zero vector", "--normal must be a non-zero vector"),
     (lambda cx: cx.render([0, 0, 0], [0, 0, 0], light_group="light"),
      ["render", CORNELL, "--camera", "0,0,0", "--look-at", "0,0,0", "--light-group", "light", "-o", "x.png"],

@@ -12,17 +12,20 @@ from pathlib import Path
 import numpy as np
 
 from viscx.errors import ParameterError, ViscxError
-from viscx.formats.hdf5 import DEFAULT_COMPRESSION, write_complex
+from viscx.formats.hdf5 import (DEFAULT_COMPRESSION, ViscxFile, read_arcs, read_eecells, read_nodes, read_vcells,
+                                 write_complex)
 from viscx.progress import Stages, peak_memory_gb
 from viscx.scene import DEFAULT_WELD, Scene, load_scene
 
 
 def check_output(scene_path, output):
-    """Refuse outputs that cannot be written or would replace the input."""
-    output, scene_path = Path(output), Path(scene_path)
+    """Refuse outputs that cannot be written or would replace the input scene file
+    (``scene_path``; None or "" when there is none)."""
+    output = Path(output)
     if not output.parent.resolve().is_dir():
         raise ViscxError(f"output folder does not exist: {output.parent}")
-    if output.exists() and scene_path.exists() and output.resolve() == scene_path.resolve():
+    scene_path = Path(scene_path) if scene_path else None
+    if scene_path and output.exists() and scene_path.exists() and output.resolve() == scene_path.resolve():
         raise ViscxError(f"the output {output} is the input scene; write it to another file")
     if output.is_dir():
         raise ViscxError(f"the output {output} is a folder")
@@ -134,7 +137,10 @@ class BuiltComplex:
         """The built level ``name`` (``"V0"``, ``"V1"`` or ``"V2"``), read from the file on
         first use; ViscxError when the complex does not hold it."""
         if name not in self.built:
-            self.built[name] = self._read(name, _reader(name))
+            if name == "V2":  # its two parts, each read on its own first use
+                self.built[name] = TwoCells(self.vcells, self.eecells)
+            else:
+                self.built[name] = self._read(name, {"V0": read_nodes, "V1": read_arcs}[name])
         return self.built[name]
 
     @property
@@ -152,19 +158,17 @@ class BuiltComplex:
         """:class:`viscx.skeleton.vcells.VCells`: the V-cells of V2."""
         if "V2" in self.built:
             return self.built["V2"].vcells
-        return self._read("V2", _vcells_reader, part="vcells")
+        return self._read("V2", read_vcells, part="vcells")
 
     @property
     def eecells(self):
         """:class:`viscx.skeleton.eecells.EECells`: the EE-cells of V2."""
         if "V2" in self.built:
             return self.built["V2"].eecells
-        return self._read("V2", _eecells_reader, part="eecells")
+        return self._read("V2", read_eecells, part="eecells")
 
     def _read(self, name, reader, part=None):
         """``reader(group)`` of level ``name``'s group in the file, kept under ``part``."""
-        from viscx.formats.hdf5 import ViscxFile
-
         if part in self.parts:
             return self.parts[part]
         if name not in self.stored:
@@ -189,34 +193,11 @@ class BuiltComplex:
         """
         from viscx.formats.atomic import release_input
 
-        if self.scene.source:
-            check_output(self.scene.source, path)
+        check_output(self.scene.source, path)
         built = {name: self.level(name) for name in self.levels}  # all read before the file is replaced
         release_input(path)  # asked for: may be a file read before (this complex's own, too)
         write_complex(path, self.scene, levels=level_writers(built), options=self.options, timings=self.timings,
                       points=self.points if len(self.points) else None, compression=compression)
-
-
-def _reader(level):
-    from viscx.formats import hdf5
-
-    return {"V0": hdf5.read_nodes, "V1": hdf5.read_arcs, "V2": _read_two_cells}[level]
-
-
-def _read_two_cells(group):
-    return TwoCells(_vcells_reader(group), _eecells_reader(group))
-
-
-def _vcells_reader(group):
-    from viscx.formats.hdf5 import read_vcells
-
-    return read_vcells(group)
-
-
-def _eecells_reader(group):
-    from viscx.formats.hdf5 import read_eecells
-
-    return read_eecells(group)
 
 
 def open_complex(path, need=None, hint=""):
@@ -233,8 +214,6 @@ def open_complex(path, need=None, hint=""):
 
     Raises ViscxError for a file that is not a valid viscx file.
     """
-    from viscx.formats.hdf5 import ViscxFile
-
     with ViscxFile(path) as f:
         stored = [name for name in f.levels if name in f.h5 and name in dict(LEVELS)]
         cx = BuiltComplex(f.read_scene(), points=f.read_points(), options=f.options, timings=f.timings,

@@ -31,8 +31,8 @@ class FormfactorGroup(click.Group):
         if args and args[0] not in self.commands and not args[0].startswith("-"):
             found = old_form(args[1:])
             if found is None:
-                raise click.UsageError(f"say which form factor: viscx formfactor {{{','.join(self.commands)}}} FILE ...",
-                                       ctx)
+                forms = ",".join(self.commands)
+                raise click.UsageError(f"say which form factor: viscx formfactor {{{forms}}} FILE ...", ctx)
             name, flag, rest = found
             click.echo(f"viscx: note: 'viscx formfactor FILE {flag} ...' is deprecated; use "
                        f"'viscx formfactor {name} FILE ...'", err=True)
@@ -107,7 +107,8 @@ def point(ctx, file, point, normal, to_face, to_group, output, fmt):
 @file_argument
 @click.option("--from-face", "from_face", type=int, required=True, metavar="I", help="Emitting face I.")
 @from_side_option
-@click.option("--to-face", "to_face", type=int, required=True, metavar="J", help="Receiving face J (both of its sides).")
+@click.option("--to-face", "to_face", type=int, required=True, metavar="J",
+              help="Receiving face J (both of its sides).")
 @tol_option(1e-6)
 @result_output_option
 @format_option

@@ -2,7 +2,8 @@
 
 import click
 
-from viscx.cli.options import file_argument, format_option, light_options, output_option, point_option, quiet, scene_options
+from viscx.cli.options import (file_argument, format_option, light_options, output_option, point_option, quiet,
+                               scene_options)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows, discontinuities).")

@@ -71,7 +71,7 @@ def viscx_F(tmp):
     h5 = Path(tmp) / "pair.h5"
     subprocess.run([viscx, "-q", "build", str(obj), "-o", str(h5)], check=True)
     t0 = time.perf_counter()
-    out = subprocess.run([viscx, "-q", "formfactor", str(h5), "--from-group", "emitter", "--to-group", "receiver"],
+    out = subprocess.run([viscx, "-q", "formfactor", "groups", str(h5), "--from-group", "emitter", "--to-group", "receiver"],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out), time.perf_counter() - t0
 

@@ -165,7 +165,7 @@ def bench_formfactors(n_rays, rng, tolerance=1e-3):
 
 
 def bench_formfactor_matrix(sizes, tol, workdir):
-    """``viscx formfactor --matrix`` on the Cornell box and on offices of ``sizes`` polygons
+    """``viscx formfactor matrix`` on the Cornell box and on offices of ``sizes`` polygons
     (benchmarks/buildings.py, built here with ``viscx build``): CPU seconds of the command
     and its children, peak memory, and the summary's accuracy (reciprocity, rows, largest
     error estimate). Peers (Radiance, pyviewfactor) run in a side environment:
@@ -189,7 +189,7 @@ def bench_formfactor_matrix(sizes, tol, workdir):
             subprocess.run([sys.executable, "-m", "viscx", "-q", "build", str(obj), "-o", str(h5)], check=True)
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        out = subprocess.run([sys.executable, "-m", "viscx", "-q", "formfactor", str(h5), "--matrix", "--tol", str(tol),
+        out = subprocess.run([sys.executable, "-m", "viscx", "-q", "formfactor", "matrix", str(h5), "--tol", str(tol),
                               "-o", str(workdir / (Path(obj).stem + "_F.h5"))], check=True, capture_output=True, text=True)
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)

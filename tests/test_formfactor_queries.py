@@ -348,11 +348,11 @@ def _viscx(*args):
 
 
 def test_cli_json_and_msgpack(tmp_path):
-    out = _viscx("formfactor", GOLDEN_CORNELL, "--from-face", 15, "--to-face", 0, "--tol", "1e-5")
+    out = _viscx("formfactor", "faces", GOLDEN_CORNELL, "--from-face", 15, "--to-face", 0, "--tol", "1e-5")
     assert out.returncode == 0, out.stderr
     r = json.loads(out.stdout)
     assert set(r) >= {"F", "error", "from_face", "to_face", "sides"} and 0.1 < r["F"] < 0.15
-    out = _viscx("formfactor", GOLDEN_CORNELL, "--point", "278,1,280", "--normal", "0,1,0", "--to-group", "light",
+    out = _viscx("formfactor", "point", GOLDEN_CORNELL, "--point", "278,1,280", "--normal", "0,1,0", "--to-group", "light",
                  "--format", "msgpack", "-o", tmp_path / "p.msgpack")
     assert out.returncode == 0, out.stderr
     r = msgpack.unpackb((tmp_path / "p.msgpack").read_bytes())
@@ -366,7 +366,7 @@ def test_cli_matrix(tmp_path):
     from viscx.pipeline import build_file
 
     build_file(obj, tmp_path / "two.h5", quiet=True)
-    out = _viscx("-q", "formfactor", tmp_path / "two.h5", "--matrix", "-o", tmp_path / "F.h5")
+    out = _viscx("-q", "formfactor", "matrix", tmp_path / "two.h5", "-o", tmp_path / "F.h5")
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
     m = read_matrix(tmp_path / "F.h5")
@@ -375,7 +375,7 @@ def test_cli_matrix(tmp_path):
     assert np.abs(m["row_sum"] - 1).max() < 1e-9 and summary["reciprocity_max_error"] < 1e-9
     # plain exports: the arrays and the group table (front sides, area-weighted; sky last)
     for suffix in ("npz", "csv"):
-        out = _viscx("-q", "formfactor", tmp_path / "two.h5", "--matrix", "-o", tmp_path / f"F.{suffix}")
+        out = _viscx("-q", "formfactor", "matrix", tmp_path / "two.h5", "-o", tmp_path / f"F.{suffix}")
         assert out.returncode == 0, out.stderr
     z = np.load(tmp_path / "F.npz")
     assert list(z["groups"]) == ["a", "b"] and np.array_equal(z["data"], m["data"])
@@ -386,16 +386,16 @@ def test_cli_matrix(tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--from-face", "99", "--to-face", "0"], "out of range"),
-    (["--from-face", "0", "--to-face", "-1"], "out of range"),
-    (["--point", "200,50,150", "--normal", "0,1,0", "--to-face", "15"], "inside a solid"),
-    (["--point", "200,300,150", "--to-face", "15"], "--normal"),
-    (["--from-face", "0"], "--to-face"),
-    (["--matrix"], "-o"),
-    (["--from-group", "nope", "--to-face", "1"], "no group"),
+    (["faces", "--from-face", "99", "--to-face", "0"], "out of range"),
+    (["faces", "--from-face", "0", "--to-face", "-1"], "out of range"),
+    (["point", "--point", "200,50,150", "--normal", "0,1,0", "--to-face", "15"], "inside a solid"),
+    (["point", "--point", "200,300,150", "--to-face", "15"], "--normal"),
+    (["faces", "--from-face", "0"], "--to-face"),
+    (["matrix"], "-o"),
+    (["groups", "--from-group", "nope", "--to-group", "light"], "no group"),
 ])
 def test_bad_queries(args, message):
-    out = _viscx("formfactor", GOLDEN_CORNELL, *args)
+    out = _viscx("formfactor", args[0], GOLDEN_CORNELL, *args[1:])
     assert out.returncode == 2
     assert len(out.stderr.strip().splitlines()) == 1 and message in out.stderr
 
@@ -404,5 +404,5 @@ def test_file_without_v2(tmp_path):
     from viscx.pipeline import build_file
 
     build_file(SAMPLES / "two_triangles.obj", tmp_path / "v1.h5", quiet=True, levels=1)
-    out = _viscx("formfactor", tmp_path / "v1.h5", "--from-face", "0", "--to-face", "1")
+    out = _viscx("formfactor", "faces", tmp_path / "v1.h5", "--from-face", "0", "--to-face", "1")
     assert out.returncode == 2 and "no V-cells" in out.stderr and len(out.stderr.strip().splitlines()) == 1

@@ -38,8 +38,8 @@ def commands(room, out):
     return {
         "query shadows": ["query", "shadows", room, "--light", LIGHT, "-o", out],
         "query visible": ["query", "visible", room, "--from", LIGHT, "-o", out],
-        "formfactor matrix": ["formfactor", room, "--matrix", "-o", out],
-        "formfactor point": ["formfactor", room, "--point", "278,1,280", "--normal", "0,1,0", "--to-face", "15",
+        "formfactor matrix": ["formfactor", "matrix", room, "-o", out],
+        "formfactor point": ["formfactor", "point", room, "--point", "278,1,280", "--normal", "0,1,0", "--to-face", "15",
                              "-o", out],
         "render": ["render", room, "--camera", "278,273,-800", "--look-at", "278,273,0", "--light-group", "light",
                    "--size", "8", "8", "-o", out],

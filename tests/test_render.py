@@ -64,7 +64,7 @@ def test_camera_rays_span_the_field_of_view():
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    (dict(fov=0.0), "--fov"), (dict(fov=180.0), "--fov"), (dict(width=0), "--size"),
+    (dict(fov=0.0), "^fov"), (dict(fov=180.0), "^fov"), (dict(width=0), "^size"),
     (dict(look_at=[0, 0, 0]), "same point"), (dict(up=[0, 0, 1]), "parallel"),
 ])
 def test_camera_rejects_bad_input(kwargs, message):

@@ -1,26 +1,32 @@
 """The staged build: scene → nodes (V0) → arcs (V1) → V-cells and EE-cells (V2) → HDF5 file.
 
 Builders are functions of in-memory data and never touch files; this module
-chains them, times each stage and hands everything to the writer.
+chains them, times each stage and keeps the result as a :class:`BuiltComplex`,
+which writes itself to a viscx file and reads one back (its levels on first use).
 """
 
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from viscx.errors import ViscxError
-from viscx.formats.hdf5 import DEFAULT_COMPRESSION, write_complex
+import numpy as np
+
+from viscx.errors import ParameterError, ViscxError
+from viscx.formats.hdf5 import (DEFAULT_COMPRESSION, ViscxFile, read_arcs, read_eecells, read_nodes, read_vcells,
+                                 write_complex)
 from viscx.progress import Stages, peak_memory_gb
-from viscx.scene import DEFAULT_WELD, load_scene
+from viscx.scene import DEFAULT_WELD, Scene, load_scene
 
 
 def check_output(scene_path, output):
-    """Refuse outputs that cannot be written or would replace the input."""
-    output, scene_path = Path(output), Path(scene_path)
+    """Refuse outputs that cannot be written or would replace the input scene file
+    (``scene_path``; None or "" when there is none)."""
+    output = Path(output)
     if not output.parent.resolve().is_dir():
         raise ViscxError(f"output folder does not exist: {output.parent}")
-    if output.exists() and scene_path.exists() and output.resolve() == scene_path.resolve():
-        raise ViscxError(f"the output {output} is the input scene; choose another -o")
+    scene_path = Path(scene_path) if scene_path else None
+    if scene_path and output.exists() and scene_path.exists() and output.resolve() == scene_path.resolve():
+        raise ViscxError(f"the output {output} is the input scene; write it to another file")
     if output.is_dir():
         raise ViscxError(f"the output {output} is a folder")
 
@@ -83,18 +89,181 @@ def level_writers(built):
 
 LEVELS = [("V0", _nodes), ("V1", _arcs), ("V2", _two_cells)]
 NOUNS = {"V0": "nodes", "V1": "arcs", "V2": "V- and EE-cells"}
+LONG_NOUNS = {**NOUNS, "V2": "V-cells and EE-cells"}
 MAX_LEVEL = len(LEVELS) - 1
 
 
-def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,
-               quiet=False, points=None, compression=DEFAULT_COMPRESSION):
-    """Build the visibility complex of a scene file and write it to ``output``.
+@dataclass
+class BuiltComplex:
+    """The visibility complex of a scene in memory: the scene, its built levels, the free
+    points added as generators and the options it was built with. A complex opened from
+    a viscx file (:func:`open_complex`) reads each level on first use. Data only: the
+    queries are methods of :class:`viscx.api.Complex`.
+
+    Attributes
+    ----------
+    scene : Scene
+    built : dict
+        ``{level name: built level}`` of the levels in memory: ``"V0"``
+        (:class:`viscx.skeleton.nodes.Nodes`), ``"V1"`` (:class:`viscx.skeleton.arcs.Arcs`),
+        ``"V2"`` (:class:`TwoCells`).
+    points : (k, 3) float64
+        Free points added as generator vertices ``n_vertices + i`` (empty when none).
+    options : dict
+        The build options, as ``viscx build`` stores them (the ``options`` attribute).
+    timings : dict
+        Seconds per build stage.
+    path : Path or None
+        The viscx file the levels not yet read come from.
+    stored : list of str
+        The levels of that file.
+    """
+
+    scene: object
+    built: dict = field(default_factory=dict)
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    options: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+    path: Path = None
+    stored: list = field(default_factory=list)
+    parts: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    @property
+    def levels(self):
+        """The names of the levels it holds, in build order: list of str."""
+        return [name for name, _ in LEVELS if name in self.built or name in self.stored]
+
+    def level(self, name):
+        """The built level ``name`` (``"V0"``, ``"V1"`` or ``"V2"``), read from the file on
+        first use; ViscxError when the complex does not hold it."""
+        if name not in self.built:
+            if name == "V2":  # its two parts, each read on its own first use
+                self.built[name] = TwoCells(self.vcells, self.eecells)
+            else:
+                self.built[name] = self._read(name, {"V0": read_nodes, "V1": read_arcs}[name])
+        return self.built[name]
+
+    @property
+    def nodes(self):
+        """:class:`viscx.skeleton.nodes.Nodes`: V0."""
+        return self.level("V0")
+
+    @property
+    def arcs(self):
+        """:class:`viscx.skeleton.arcs.Arcs`: V1."""
+        return self.level("V1")
+
+    @property
+    def vcells(self):
+        """:class:`viscx.skeleton.vcells.VCells`: the V-cells of V2."""
+        if "V2" in self.built:
+            return self.built["V2"].vcells
+        return self._read("V2", read_vcells, part="vcells")
+
+    @property
+    def eecells(self):
+        """:class:`viscx.skeleton.eecells.EECells`: the EE-cells of V2."""
+        if "V2" in self.built:
+            return self.built["V2"].eecells
+        return self._read("V2", read_eecells, part="eecells")
+
+    def _read(self, name, reader, part=None):
+        """``reader(group)`` of level ``name``'s group in the file, kept under ``part``."""
+        if part in self.parts:
+            return self.parts[part]
+        if name not in self.stored:
+            order = [level for level, _ in LEVELS]
+            raise ParameterError(f"the complex has no {LONG_NOUNS[name]} ({name}); build it with "
+                                 f"{{levels}} {order.index(name)} or more")
+        with ViscxFile(self.path) as f:
+            value = reader(f.h5[name])
+        if part is not None:
+            self.parts[part] = value
+        return value
+
+    def save(self, path, compression=DEFAULT_COMPRESSION):
+        """Write the complex to a viscx file, atomically (a temporary file renamed when
+        complete): the content ``viscx build`` writes for the same scene and options.
+
+        Parameters
+        ----------
+        path : str or Path
+        compression : str
+            The HDF5 filter of the large datasets (:data:`viscx.formats.hdf5.COMPRESSIONS`).
+        """
+        from viscx.formats.atomic import release_input
+
+        check_output(self.scene.source, path)
+        built = {name: self.level(name) for name in self.levels}  # all read before the file is replaced
+        release_input(path)  # asked for: may be a file read before (this complex's own, too)
+        write_complex(path, self.scene, levels=level_writers(built), options=self.options, timings=self.timings,
+                      points=self.points if len(self.points) else None, compression=compression)
+
+
+def open_complex(path, need=None, hint=""):
+    """The complex stored in a viscx file: the scene, points and options now, the levels
+    on first use (:meth:`BuiltComplex.level`).
 
     Parameters
     ----------
-    scene_path, output : str or Path
+    path : str or Path
+    need : str, optional
+        A level the caller needs (``"V2"``): ViscxError now when the file lacks it.
+    hint : str
+        Appended to that message (another way to get an answer).
+
+    Raises ViscxError for a file that is not a valid viscx file.
+    """
+    with ViscxFile(path) as f:
+        stored = [name for name in f.levels if name in f.h5 and name in dict(LEVELS)]
+        cx = BuiltComplex(f.read_scene(), points=f.read_points(), options=f.options, timings=f.timings,
+                          path=Path(path), stored=stored)
+    if need is not None and need not in stored:
+        raise ViscxError(f"{path} has no {LONG_NOUNS[need]} ({need}); build it with `viscx build` (all levels){hint}")
+    return cx
+
+
+def scene_of(source, epsilon=None, relative_epsilon=None, weld=None):
+    """The :class:`Scene` of a scene file, a trimesh mesh or scene, or a Scene.
+
+    Parameters
+    ----------
+    source : str, Path, trimesh.Trimesh, trimesh.Scene or Scene
     epsilon, relative_epsilon, weld
-        See :func:`viscx.scene.build_scene`.
+        See :func:`viscx.scene.build_scene` (``weld`` None: its default). A Scene keeps
+        the ones it was built with: giving them is an error.
+    """
+    from viscx.scene import Scene, build_scene
+
+    if isinstance(source, Scene):
+        given = [name for name, v in (("epsilon", epsilon), ("relative_epsilon", relative_epsilon), ("weld", weld))
+                 if v is not None]
+        if given:
+            raise ParameterError(f"a Scene keeps the epsilon and weld it was built with: {{{given[0]}}} "
+                                 "applies to a scene file or a trimesh only")
+        return source
+    weld = DEFAULT_WELD if weld is None else weld
+    if isinstance(source, (str, Path)):
+        return load_scene(source, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
+    from viscx.formats.trimesh_io import soup_of_trimesh
+
+    # a mesh read by trimesh.load keeps its file's name: its group is named as `viscx build` names it
+    name = Path(str(getattr(getattr(source, "source", None), "file_name", None) or "mesh")).stem
+    soup = soup_of_trimesh(source, name)
+    return build_scene(soup, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
+
+
+def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels=MAX_LEVEL, quiet=False,
+                  points=None, output=None, compression=DEFAULT_COMPRESSION):
+    """Build the visibility complex of a scene and, given ``output``, write it there.
+
+    Parameters
+    ----------
+    source : str, Path, trimesh.Trimesh, trimesh.Scene or Scene
+        A scene file (OBJ, PLY, or anything trimesh reads), a trimesh mesh or scene, or
+        a cleaned scene (:func:`scene_of`).
+    epsilon, relative_epsilon, weld
+        See :func:`viscx.scene.build_scene` (``weld`` None: ``DEFAULT_WELD``).
     levels : int
         The last skeleton level to build: -1 the scene only, 0 the nodes (V0),
         1 also the arcs (V1), 2 also the V-cells and EE-cells (V2).
@@ -103,27 +272,28 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
     points : (k, 3) float64, optional
         Free points (lights, viewpoints) added as generator vertices n, n + 1, …
         (:mod:`viscx.skeleton.points`); stored as ``/scene/points``.
+    output : str or Path, optional
+        The viscx file to write (:meth:`BuiltComplex.save`).
     compression : str
         The HDF5 filter of the large datasets (:data:`viscx.formats.hdf5.COMPRESSIONS`).
 
     Returns
     -------
-    scene : Scene
-    built : dict
-        ``{level name: built level}``.
-    timings : dict
-        Seconds per stage.
+    BuiltComplex
     """
     if not -1 <= levels <= MAX_LEVEL:
-        raise ViscxError(f"--levels must be between -1 (scene only) and {MAX_LEVEL}")
-    check_output(scene_path, output)
+        raise ParameterError(f"{{levels}} must be between -1 (scene only) and {MAX_LEVEL}")
+    if output is not None and isinstance(source, (str, Path)):
+        check_output(source, output)
     built = {}
+    points = None if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
     has_points = points is not None and len(points) > 0
-    names = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []), "write"]
+    names = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []),
+             *(["write"] if output is not None else [])]
     with Stages(names, "build", quiet=quiet) as stages:
         try:
             with stages.stage("scene"):
-                scene = load_scene(scene_path, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
+                scene = scene_of(source, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
 
             for name, builder in LEVELS[: levels + 1]:
                 with stages.stage(name):
@@ -138,16 +308,36 @@ def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEF
                     if built:  # the points' nodes, arcs and cells, merged into the built levels
                         built.update(add_points(built, build_points(scene, points)))
 
-            with stages.stage("write"):
-                options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon, "weld": weld,
-                           "levels": levels}
-                if has_points:
-                    options["points"] = len(points)
-                write_complex(output, scene, levels=level_writers(built), options=options, timings=stages.timings,
-                              points=points if has_points else None, compression=compression)
+            options = {"epsilon": scene.epsilon, "relative_epsilon": relative_epsilon,
+                       "weld": DEFAULT_WELD if weld is None and not isinstance(source, Scene) else weld,
+                       "levels": levels}
+            if has_points:
+                options["points"] = len(points)
+            cx = BuiltComplex(scene, built, points if has_points else np.zeros((0, 3)), options, stages.timings)
+            if output is not None:
+                with stages.stage("write"):
+                    cx.save(output, compression=compression)
         except MemoryError:
             raise ViscxError(out_of_memory(stages.current)) from None
-    return scene, built, stages.timings
+    return cx
+
+
+def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,
+               quiet=False, points=None, compression=DEFAULT_COMPRESSION):
+    """Build the visibility complex of a scene file and write it to ``output``
+    (:func:`build_complex`).
+
+    Returns
+    -------
+    scene : Scene
+    built : dict
+        ``{level name: built level}``.
+    timings : dict
+        Seconds per stage.
+    """
+    cx = build_complex(scene_path, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld, levels=levels,
+                       quiet=quiet, points=points, output=output, compression=compression)
+    return cx.scene, cx.built, cx.timings
 
 
 def out_of_memory(stage):

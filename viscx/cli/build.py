@@ -58,7 +58,7 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, comp
     """
     from viscx.errors import ViscxError
     from viscx.formats.atomic import check_output, is_stream
-    from viscx.pipeline import MAX_LEVEL, NOUNS, build_file
+    from viscx.pipeline import MAX_LEVEL, NOUNS, build_complex
 
     output = Path(output) if output else Path(Path(scene_file).stem + ".h5")
     check_output(output, [scene_file])  # also the default name
@@ -66,14 +66,15 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, comp
         raise ViscxError(f"-o {output}: an HDF5 file needs a regular file (it is written with seeks), "
                          "not a pipe, a device or standard output")
     start = time.perf_counter()
-    scene, built, timings = build_file(
-        scene_file, output, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
+    cx = build_complex(
+        scene_file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
         levels=MAX_LEVEL if levels is None else levels, quiet=quiet(ctx), points=list(points) or None,
-        compression=compression,
+        output=output, compression=compression,
     )
+    scene = cx.scene
     if not quiet(ctx):
         total = time.perf_counter() - start  # the stages' timings nest (V2 holds its V- and EE-cells)
-        counts = "".join(f", {len(level)} {NOUNS[name]}" for name, level in built.items())
+        counts = "".join(f", {len(level)} {NOUNS[name]}" for name, level in cx.built.items())
         click.echo(
             f"{output}: {scene.n_faces} faces, {len(scene.generator_edges)} generator edges, "
             f"{len(scene.generator_vertices)} generator vertices{counts}"

@@ -1,121 +1,179 @@
-"""``viscx formfactor``: exact and occlusion-exact form factors from a viscx file
-(schemas in docs/queries.md)."""
+"""``viscx formfactor``: exact and occlusion-exact form factors from a viscx file, one
+subcommand per form (``point``, ``faces``, ``groups``, ``matrix``; schemas in
+docs/queries.md). The old one-command style (``viscx formfactor FILE --matrix``) still
+works: :class:`FormfactorGroup` rewrites it to its subcommand with a deprecation note."""
 
 import click
 
-from viscx.cli.options import POINT, format_option, quiet
+from viscx.cli.options import POINT, file_argument, format_option, positive, quiet
+
+#: The options of the old one-command style that name its form, in the order they decide it.
+OLD_FORMS = [("matrix", ("--matrix",)), ("point", ("--point", "--normal")),
+             ("groups", ("--from-group", "--to-group")), ("faces", ("--from-face", "--to-face"))]
 
 
-@click.command(short_help="Form factors: point to face, face to face, groups, the matrix.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
-@click.option("--point", "point", type=POINT, default=None, metavar="X,Y,Z", help="A differential area at X,Y,Z (needs --normal).")
-@click.option("--normal", "normal", type=POINT, default=None, metavar="NX,NY,NZ", help="Its normal (any length).")
-@click.option("--from-face", "from_face", type=int, default=None, metavar="I", help="Emitting face I.")
-@click.option("--from-side", "from_side", type=click.Choice(["front", "back"]), default="front", show_default=True,
-              help="Side of the emitting face(s): front is the side of the face normal.")
-@click.option("--to-face", "to_face", type=int, default=None, metavar="J", help="Receiving face J (both of its sides).")
-@click.option("--from-group", "from_group", default=None, metavar="NAME", help="Emitting group (area-weighted).")
-@click.option("--to-group", "to_group", default=None, metavar="NAME", help="Receiving group.")
-@click.option("--matrix", is_flag=True, help="Every pair of face sides, sparse, written to -o F.h5.")
-@click.option("--tol", type=float, default=None, metavar="T",
-              help="Target on the absolute error estimate of each polygon-to-polygon form factor (default 1e-6); the output reports the estimate reached.")
-@click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None,
-              help="Where to write: the matrix (--matrix) as .h5, .npz (arrays and the group table) or .csv (the "
-                   "group table), else .json or .msgpack (default: standard output).")
-@format_option
-@click.pass_context
-def formfactor(ctx, file, point, normal, from_face, from_side, to_face, from_group, to_group, matrix, tol, output, fmt):
+def old_form(args):
+    """``(subcommand, the option that names it, its arguments)`` of an old-style call's
+    options, or None when no option names a form."""
+    words = [a.split("=", 1)[0] for a in args if a.startswith("--")]
+    for name, flags in OLD_FORMS:
+        found = [w for w in words if w in flags]
+        if found:
+            return name, found[0], [a for a in args if a != "--matrix"]
+    return None
+
+
+class FormfactorGroup(click.Group):
+    """The subcommands, and the old style ``viscx formfactor FILE --OPTION ...`` (the file
+    first) rewritten to ``viscx formfactor FORM FILE ...`` with a one-line note on stderr."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and not args[0].startswith("-"):
+            found = old_form(args[1:])
+            if found is None:
+                forms = ",".join(self.commands)
+                raise click.UsageError(f"say which form factor: viscx formfactor {{{forms}}} FILE ...", ctx)
+            name, flag, rest = found
+            click.echo(f"viscx: note: 'viscx formfactor FILE {flag} ...' is deprecated; use "
+                       f"'viscx formfactor {name} FILE ...'", err=True)
+            args = [name, args[0], *rest]
+        return super().parse_args(ctx, args)
+
+
+@click.group(cls=FormfactorGroup, context_settings={"help_option_names": ["-h", "--help"]},
+             short_help="Form factors: point to face, face to face, groups, the matrix.")
+def formfactor():
     """Form factors between parts of the scene in FILE (built by `viscx build`, with V2).
+    Faces are two-sided: a form factor leaves one side of a face (--from-side) and
+    arrives on both sides of the receivers.
 
     \b
-    Point to face (exact: Lambert's formula over the part of J the point sees, from
-    its V-cells, Hoberock et al. §7.4):
-      viscx formfactor cornell.h5 --point 278,1,280 --normal 0,1,0 --to-face 15
-    Face to face (occlusion-exact integrand, adaptive quadrature, error estimate):
-      viscx formfactor cornell.h5 --from-face 0 --to-face 15
-    Groups (area-weighted over the emitting faces):
-      viscx formfactor cornell.h5 --from-group floor --to-group light
-    The matrix of every pair of face sides (sparse CSR, reciprocity and row sums reported;
-    -o F.npz or F.csv for plain exports with the group-to-group table):
-      viscx formfactor cornell.h5 --matrix -o F.h5
-
-    Output: JSON {"F": value, ...} on standard output (or -o), msgpack with --format msgpack.
+    viscx formfactor point cornell.h5 --point 278,1,280 --normal 0,1,0 --to-face 15
+    viscx formfactor faces cornell.h5 --from-face 0 --to-face 15
+    viscx formfactor groups cornell.h5 --from-group floor --to-group light
+    viscx formfactor matrix two.h5 -o F.h5
     """
-    import time
 
-    from viscx.errors import ViscxError
+
+def tol_option(default):
+    return click.option("--tol", type=float, default=None, metavar="T", callback=positive,
+                        help=f"Target on the absolute error estimate of each polygon-to-polygon form factor (default "
+                             f"{default:g}); the output reports the estimate reached.")
+
+
+from_side_option = click.option(
+    "--from-side", "from_side", type=click.Choice(["front", "back"]), default="front", show_default=True,
+    help="Side of the emitting face(s): front is the side of the face normal.")
+result_output_option = click.option("-o", "--output", "output", type=click.Path(dir_okay=False), default=None,
+                                    help="Where to write: .json or .msgpack (default: standard output).")
+
+
+def _write(ctx, file, fmt, output, **form):
+    """Compute one form factor (:func:`viscx.api.form_factor`) and write its record."""
+    from viscx.api import form_factor
     from viscx.formats.queries import output_format, write_result
-    from viscx.queries import formfactor as ff
     from viscx.queries.visibility import open_query
 
-    point_mode = point is not None or normal is not None
-    source_given = from_face is not None or from_group is not None
-    target_given = to_face is not None or to_group is not None
-    if sum([point_mode, source_given, bool(matrix)]) != 1:
-        raise click.UsageError("give exactly one of --point/--normal, --from-face/--from-group, --matrix")
-    if point_mode and (point is None or normal is None):
-        raise click.UsageError("--point needs --normal (and --normal needs --point)")
-    if from_face is not None and from_group is not None:
-        raise click.UsageError("give --from-face or --from-group, not both")
-    if to_face is not None and to_group is not None:
-        raise click.UsageError("give --to-face or --to-group, not both")
-    if not matrix and not target_given:
-        raise click.UsageError("say what receives: --to-face J or --to-group NAME")
-    if matrix and (target_given or output is None):
-        raise click.UsageError("--matrix takes no --to-face/--to-group and needs -o F.h5")
-    if tol is not None and not (tol > 0):
-        raise click.UsageError("--tol must be positive")
-    if matrix:
-        fmt = fmt or "json"
-    else:
-        fmt = output_format(output, fmt)
+    fmt = output_format(output, fmt)
+    record = form_factor(open_query(file), **form).record
+    write_result(record, output, fmt)
+    if not record.get("complete", True) and not quiet(ctx):
+        click.echo("viscx: warning: some of the point's V-cells are incomplete; see docs/queries.md", err=True)
+
+
+@formfactor.command(short_help="Exact F from a differential area to a face or a group.")
+@file_argument
+@click.option("--point", "point", type=POINT, required=True, metavar="X,Y,Z", help="The differential area's position.")
+@click.option("--normal", "normal", type=POINT, required=True, metavar="NX,NY,NZ", help="Its normal (any length).")
+@click.option("--to-face", "to_face", type=int, default=None, metavar="J", help="Receiving face J.")
+@click.option("--to-group", "to_group", default=None, metavar="NAME", help="Receiving group (its faces summed).")
+@result_output_option
+@format_option
+@click.pass_context
+def point(ctx, file, point, normal, to_face, to_group, output, fmt):
+    """F from a differential area at X,Y,Z with normal N to face J or to the faces of a
+    group, exact: Lambert's formula over the part of each face the point sees, from its
+    V-cells (the file's for a point built with `viscx build --point`, else computed),
+    Hoberock et al. §7.4.
+
+    \b
+    viscx formfactor point cornell.h5 --point 278,1,280 --normal 0,1,0 --to-face 15
+    viscx formfactor point cornell.h5 --point 278,1,280 --normal 0,1,0 --to-group light -o F.json
+    """
+    _write(ctx, file, fmt, output, point=point, normal=normal, to_face=to_face, to_group=to_group)
+
+
+@formfactor.command(short_help="F from one side of a face to a face, with an error estimate.")
+@file_argument
+@click.option("--from-face", "from_face", type=int, required=True, metavar="I", help="Emitting face I.")
+@from_side_option
+@click.option("--to-face", "to_face", type=int, required=True, metavar="J",
+              help="Receiving face J (both of its sides).")
+@tol_option(1e-6)
+@result_output_option
+@format_option
+@click.pass_context
+def faces(ctx, file, from_face, from_side, to_face, tol, output, fmt):
+    """F from one side of face I to face J: the unoccluded double contour integral less
+    what the occluders hide, by adaptive cubature of an exact integrand (the visible part
+    of J from each point); the output reports the error estimate reached.
+
+    \b
+    viscx formfactor faces cornell.h5 --from-face 0 --to-face 15
+    viscx formfactor faces cornell.h5 --from-face 15 --from-side front --to-face 0 --tol 1e-5
+    """
+    _write(ctx, file, fmt, output, from_face=from_face, from_side=from_side, to_face=to_face, tol=tol)
+
+
+@formfactor.command(short_help="F between groups (area-weighted over the emitting faces).")
+@file_argument
+@click.option("--from-group", "from_group", default=None, metavar="NAME", help="Emitting group.")
+@from_side_option
+@click.option("--to-group", "to_group", default=None, metavar="NAME", help="Receiving group.")
+# a face on one side, as the old style allowed (`--from-face 0 --to-group light`)
+@click.option("--from-face", "from_face", type=int, default=None, hidden=True)
+@click.option("--to-face", "to_face", type=int, default=None, hidden=True)
+@tol_option(1e-6)
+@result_output_option
+@format_option
+@click.pass_context
+def groups(ctx, file, from_group, from_side, to_group, from_face, to_face, tol, output, fmt):
+    """F from one side of the faces of group A to the faces of group B,
+    Σ_i A_i Σ_j F_ij / Σ_i A_i (a face in both does not see itself).
+
+    \b
+    viscx formfactor groups cornell.h5 --from-group floor --to-group light
+    viscx formfactor groups cornell.h5 --from-group light --to-group tall_block -o F.msgpack
+    """
+    _write(ctx, file, fmt, output, from_group=from_group, from_face=from_face, from_side=from_side, to_group=to_group,
+           to_face=to_face, tol=tol)
+
+
+@formfactor.command(short_help="Every pair of face sides, sparse, with the sky term.")
+@file_argument
+@tol_option(1e-6)
+@click.option("-o", "--output", "output", type=click.Path(dir_okay=False), required=True,
+              help="Where to write the matrix: .h5 (sparse CSR, docs/format.md), .npz (arrays and the group table) "
+                   "or .csv (the group-to-group table).")
+@click.option("--format", "fmt", type=click.Choice(["json", "msgpack"]), default="json", show_default=True,
+              help="Format of the summary on standard output.")
+@click.pass_context
+def matrix(ctx, file, tol, output, fmt):
+    """The form factors between every pair of face sides (sparse CSR) and every side's
+    sky term; reciprocity and row sums are reported on standard output (JSON).
+
+    \b
+    viscx build sample_scenes/two_triangles.obj -o two.h5
+    viscx formfactor matrix two.h5 -o F.h5
+    viscx formfactor matrix two.h5 --tol 1e-7 -o F.csv
+    """
+    from viscx.api import form_factor_matrix
+    from viscx.formats.formfactors import write_export, write_matrix
+    from viscx.formats.queries import write_result
+    from viscx.queries.visibility import open_query
 
     q = open_query(file)
-    scene = q.scene
-    n = scene.n_faces
-
-    def check(face, option):
-        if not 0 <= face < n:
-            raise ViscxError(f"{option} {face} is out of range (the scene has {n} faces: 0 to {n - 1})")
-        return face
-
-    def targets():
-        if to_face is not None:
-            return [check(to_face, "--to-face")]
-        return [int(f) for f in scene.group_faces(to_group)]
-
-    t0 = time.perf_counter()
-    if point_mode:
-        faces = targets()
-        result = ff.point_to_faces(q, point, normal, faces)
-        result = {"F": result.pop("F"), **({"to_face": to_face} if to_face is not None else {"to_group": to_group}), **result}
-    elif matrix:
-        from viscx.formats.formfactors import write_export, write_matrix
-
-        m = ff.form_factor_matrix(scene, tol=tol or ff.MATRIX_TOL, quiet=quiet(ctx))
-        plain = str(output).lower().endswith((".npz", ".csv"))
-        summary = (write_export if plain else write_matrix)(output, m, scene)
-        write_result({"matrix": str(output), **summary}, None, fmt)
-        return
-    else:
-        side = 1 if from_side == "front" else -1
-        sources = [check(from_face, "--from-face")] if from_face is not None else [int(f) for f in scene.group_faces(from_group)]
-        faces = targets()
-        tol = tol or ff.DEFAULT_TOL
-        if from_face is not None and to_face is not None:
-            if from_face == to_face:
-                raise ViscxError("--from-face and --to-face are the same face (a planar face does not see itself)")
-            r = ff.face_to_face(scene, from_face, to_face, side_i=side, tol=tol)
-            result = {"F": r["F"], "error": r["error"], "from_face": from_face, "from_side": from_side, "to_face": to_face,
-                      "sides": r["sides"]}
-        else:
-            r = ff.group_to_group(scene, sources, faces, side_i=side, tol=tol)
-            result = {"F": r["F"], "error": r["error"],
-                      **({"from_face": from_face} if from_face is not None else {"from_group": from_group}),
-                      "from_side": from_side,
-                      **({"to_face": to_face} if to_face is not None else {"to_group": to_group}), "pairs": r["pairs"]}
-        result["tol"] = tol
-        result["seconds"] = round(time.perf_counter() - t0, 4)
-    write_result(result, output, fmt)
-    if point_mode and not result["complete"] and not quiet(ctx):
-        click.echo("viscx: warning: some of the point's V-cells are incomplete; see docs/queries.md", err=True)
+    m = form_factor_matrix(q, tol=tol, quiet=quiet(ctx))
+    plain = str(output).lower().endswith((".npz", ".csv"))
+    summary = (write_export if plain else write_matrix)(output, m, q.scene)
+    write_result({"matrix": str(output), **summary}, None, fmt)

@@ -10,6 +10,28 @@ from viscx.scene import DEFAULT_WELD
 INPUT_ARGUMENTS = ("file", "scene_file", "file_a", "file_b")
 
 
+#: ``FILE``: the viscx file (or, for the scoped point queries, the scene file) a command reads.
+file_argument = click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+
+
+def positive(ctx, param, value):
+    """Click callback: ``value`` (None, or a number) must be finite and positive."""
+    if value is not None and not (0 < value < float("inf")):
+        raise click.BadParameter(f"{value} must be a positive number", ctx, param)
+    return value
+
+
+def at_least(low):
+    """Click callback: an integer ``value`` (or None) of at least ``low``."""
+
+    def check(ctx, param, value):
+        if value is not None and value < low:
+            raise click.BadParameter(f"{value} must be at least {low}", ctx, param)
+        return value
+
+    return check
+
+
 def output_option(help_text, required=True):
     """``-o/--output PATH``: where a command writes its result."""
     return click.option(
@@ -17,11 +39,18 @@ def output_option(help_text, required=True):
     )
 
 
+def option_names(command):
+    """``{parameter name: its longest option}`` of a click command (``light_face`` ->
+    ``--light-face``): how the command spells the library's parameters."""
+    return {p.name: max(p.opts, key=len) for p in command.params if isinstance(p, click.Option)}
+
+
 def guard_outputs(command):
     """Make ``command`` (and a group's subcommands) refuse, before it runs, an ``output``
     that is one of its input files, also through a link
-    (:func:`viscx.formats.atomic.check_output`; the writers check again when they write).
-    The CLI applies it to every command it loads."""
+    (:func:`viscx.formats.atomic.check_output`; the writers check again when they write),
+    and name in the library's messages about a parameter its option
+    (:class:`viscx.errors.ParameterError`). The CLI applies it to every command it loads."""
     if isinstance(command, click.Group):
         for sub in command.commands.values():
             guard_outputs(sub)
@@ -34,8 +63,13 @@ def guard_outputs(command):
     def checked(*args, **kwargs):
         from viscx.formats.atomic import check_output
 
+        from viscx.errors import ParameterError
+
         check_output(kwargs.get("output"), [kwargs[name] for name in INPUT_ARGUMENTS if kwargs.get(name)])
-        return callback(*args, **kwargs)
+        try:
+            return callback(*args, **kwargs)
+        except ParameterError as exc:
+            raise exc.renamed(option_names(command)) from None
 
     checked.guarded = True
     command.callback = checked

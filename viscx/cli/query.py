@@ -2,7 +2,8 @@
 
 import click
 
-from viscx.cli.options import format_option, light_options, output_option, point_option, quiet, scene_options
+from viscx.cli.options import (file_argument, format_option, light_options, output_option, point_option, quiet,
+                               scene_options)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]}, short_help="Query a viscx file (visibility, shadows, discontinuities).")
@@ -25,18 +26,8 @@ face_option = click.option("--face", "faces", type=int, multiple=True, metavar="
                            help="Report only face N (repeatable). Default: every face.")
 
 
-def _check_faces(faces, n_faces):
-    """ViscxError for a face id out of range (before any work)."""
-    from viscx.errors import ViscxError
-
-    for f in faces:
-        if not 0 <= f < n_faces:
-            raise ViscxError(f"--face {f} is out of range (the scene has {n_faces} faces: 0 to {n_faces - 1})")
-
-
-def _only(result, faces, n_faces):
-    """Keep the faces asked for."""
-    _check_faces(faces, n_faces)
+def _only(result, faces):
+    """Keep the faces asked for (checked by the query)."""
     if faces:
         result["faces"] = [result["faces"][f] for f in sorted(set(faces))]
     return result
@@ -54,7 +45,7 @@ def _warn(ctx, result):
 
 
 @query.command(short_help="The visible part of every face from a point.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @point_option("--from", "viewpoint", help_text="The viewpoint, in scene units.")
 @output_option("Where to write (.json or .msgpack). Default: standard output.", required=False)
 @format_option
@@ -79,15 +70,15 @@ def visible(ctx, file, viewpoint, output, fmt, faces, epsilon, relative_epsilon,
 
     fmt = output_format(output, fmt)
     q = open_query(file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
-    _check_faces(faces, q.scene.n_faces)
+    q.scene.face_ids(faces)
     view, stored = view_from(q, viewpoint)
-    result = _only(visible_result(q.scene, view, stored), faces, q.scene.n_faces)
+    result = _only(visible_result(q.scene, view, stored), faces)
     write_result(result, output, fmt)
     _warn(ctx, result)
 
 
 @query.command(short_help="Lit polygons and shadow boundaries of a point light.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @point_option("--light", "light", help_text="The point light, in scene units.")
 @output_option("Where to write: .json, .msgpack, or .ply (the scene split along the shadow "
                "boundaries, a lit flag per face). Default: JSON on standard output.", required=False)
@@ -114,7 +105,7 @@ def shadows(ctx, file, light, output, fmt, faces, epsilon, relative_epsilon, wel
 
     fmt = output_format(output, fmt, geometry=True)
     scene, view, result = compute(file, light, faces=faces, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
-    result = _only(result, faces, scene.n_faces)
+    result = _only(result, faces)
     if fmt == "ply":
         counts = write_shadow_ply(output, scene, view)
         if not quiet(ctx):
@@ -125,7 +116,7 @@ def shadows(ctx, file, light, output, fmt, faces, epsilon, relative_epsilon, wel
 
 
 @query.command(short_help="The discontinuity mesh of an area light on every receiver.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @light_options
 @output_option("Where to write: .json, .msgpack, or .ply (the receivers split into the "
                "regions, a region id and colour per triangle). Default: JSON on standard output.", required=False)

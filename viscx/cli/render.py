@@ -4,7 +4,7 @@ from pathlib import Path
 
 import click
 
-from viscx.cli.options import POINT, light_options, output_option, quiet
+from viscx.cli.options import POINT, at_least, file_argument, light_options, output_option, positive, quiet
 
 #: what one pixel costs while rendering: radiance and its tone-mapped copies, the primary
 #: rays and hits, the region ids (float64 and int64 arrays of a few columns each)
@@ -12,7 +12,7 @@ BYTES_PER_PIXEL = 256
 
 
 @click.command(short_help="Render direct illumination: exact, from sparse samples, or Monte Carlo.")
-@click.argument("file", metavar="FILE", type=click.Path(dir_okay=True))
+@file_argument
 @click.option("--camera", "eye", type=POINT, required=True, metavar="X,Y,Z", help="The eye.")
 @click.option("--look-at", "look_at", type=POINT, required=True, metavar="X,Y,Z", help="The point looked at.")
 @click.option("--up", "up", type=POINT, default="0,1,0", show_default=True, metavar="X,Y,Z", help="Up direction.")
@@ -21,13 +21,13 @@ BYTES_PER_PIXEL = 256
 @light_options
 @click.option("--radiance", type=POINT, default=None, metavar="R,G,B",
               help="The light's emitted radiance. Default: its material's Ke.")
-@click.option("--samples", type=int, default=None, metavar="N",
+@click.option("--samples", type=int, default=None, metavar="N", callback=at_least(0),
               help="Sparse reconstruction: evaluate the illumination at N samples (plus the regions' corners) "
               "and interpolate inside each region.")
-@click.option("--reference", type=int, default=None, metavar="K",
+@click.option("--reference", type=int, default=None, metavar="K", callback=at_least(1),
               help="Monte Carlo reference with K light samples per pixel (embree shadow rays) instead.")
 @click.option("--show-regions", is_flag=True, help="Draw the regions' boundaries on the PNG.")
-@click.option("--exposure", type=float, default=None, metavar="E",
+@click.option("--exposure", type=float, default=None, metavar="E", callback=positive,
               help="Scale radiance by E before the sRGB curve. Default: the 99th percentile of the lit "
               "pixels' luminance maps to white.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed of --reference.")
@@ -55,35 +55,26 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
 
     import numpy as np
 
+    from viscx.api import render_light
     from viscx.errors import ViscxError
     from viscx.formats.images import write_npy, write_pfm, write_png
     from viscx.memory import memory_budget
+    from viscx.pipeline import open_complex
     from viscx.progress import bar
-    from viscx.queries.discontinuities import open_discontinuities
-    from viscx.render.camera import Camera
-    from viscx.render.image import picture, render as render_image
+    from viscx.render.image import picture
 
-    if samples is not None and reference is not None:
-        raise click.UsageError("give --samples or --reference, not both")
-    if samples is not None and samples < 0:
-        raise ViscxError(f"--samples {samples} must be at least 0")
-    if reference is not None and reference < 1:
-        raise ViscxError(f"--reference {reference} must be at least 1")
-    if exposure is not None and not (exposure > 0 and np.isfinite(exposure)):
-        raise ViscxError(f"--exposure {exposure} must be a positive number")
     out = Path(output)
     if out.suffix.lower() != ".png":
         raise ViscxError(f"-o {output}: the image is written as PNG; name it *.png")
-    camera = Camera(eye, look_at, up, fov, size[0], size[1])
-    need = camera.width * camera.height * BYTES_PER_PIXEL
+    need = max(size[0], 1) * max(size[1], 1) * BYTES_PER_PIXEL
     if need > memory_budget():
         raise ViscxError(f"--size {size[0]} {size[1]} needs about {need / 2**30:.0f} GiB, over the memory budget "
                          f"({memory_budget() / 2**30:.1f} GiB; VISCX_MEMORY_BUDGET)")
-    scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group)
+    cx = open_complex(file, need="V2")
     with bar(total=size[0] * size[1], desc="monte carlo", quiet=quiet(ctx) or reference is None, unit="px") as b:
-        result = render_image(scene, mesh, camera, radiance=radiance, samples=samples, reference=reference, seed=seed,
-                              progress=b.update)
-    rgb, used = picture(result, mesh.light.faces, exposure, show_regions)
+        result = render_light(cx, eye, look_at, up, fov, size, light_face=light_face, light_group=light_group,
+                              radiance=radiance, samples=samples, reference=reference, seed=seed, progress=b.update)
+    rgb, used = picture(result, result.light_faces, exposure, show_regions)
     stem = out.with_suffix("")
     write_npy(stem.with_suffix(".npy"), result.radiance.astype(np.float32))
     write_pfm(stem.with_suffix(".pfm"), result.radiance)

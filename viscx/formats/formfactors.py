@@ -1,4 +1,4 @@
-"""The form-factor matrix file (``viscx formfactor --matrix -o F.h5``).
+"""The form-factor matrix file (``viscx formfactor matrix FILE -o F.h5``).
 
 Layout (HDF5, written atomically)::
 

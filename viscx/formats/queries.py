@@ -9,7 +9,7 @@ from pathlib import Path
 import msgpack
 import numpy as np
 
-from viscx.errors import ViscxError
+from viscx.errors import ParameterError, ViscxError, literal
 from viscx.formats.atomic import atomic_path
 from viscx.geometry.polygon import ear_clip, plane_basis, signed_area_2d
 
@@ -24,7 +24,7 @@ def output_format(output, fmt, geometry=False):
     guess = {".msgpack": "msgpack", ".mpk": "msgpack", ".ply": "ply"}.get(ext, "json")
     chosen = fmt or guess
     if guess == "ply" and fmt and fmt != "ply":
-        raise ViscxError(f"--format {fmt} does not write {output}; use a .json or .msgpack name")
+        raise ParameterError(f"{{fmt}} {literal(fmt)} does not write {literal(output)}; use a .json or .msgpack name")
     if chosen == "ply" and not geometry:
         raise ViscxError("this query writes JSON or msgpack, not PLY")
     return chosen

@@ -11,12 +11,8 @@ from viscx.scene.soup import PolygonSoup
 
 
 def read_mesh(path):
-    """Read a mesh file with trimesh into a :class:`PolygonSoup` of triangles.
-
-    Each geometry of a trimesh scene becomes a group named after it (sorted by
-    name, so the result does not depend on hashing); a single mesh becomes one
-    group named after the file.
-    """
+    """Read a mesh file with trimesh into a :class:`PolygonSoup` of triangles
+    (:func:`soup_of_trimesh`; a single mesh's group is named after the file)."""
     import trimesh
 
     path = Path(path)
@@ -28,32 +24,62 @@ def read_mesh(path):
         if isinstance(exc, ImportError):  # trimesh's fallback for a file it could not parse needs an optional module
             reason = f"corrupt or unsupported file (trimesh's fallback needs the missing module {exc.name!r})"
         raise ViscxError(f"cannot read {path} as a mesh: {reason}") from None
-    geometries = []
-    for name in sorted(loaded.geometry):
-        geom = loaded.geometry[name]
+    return soup_of_trimesh(loaded, path.stem, str(path), (path.name,))
+
+
+def soup_of_trimesh(mesh, name, where=None, names=()):
+    """A trimesh mesh or scene as a :class:`PolygonSoup` of triangles.
+
+    Each geometry of a trimesh scene becomes a group named after it (sorted by
+    name, so the result does not depend on hashing), its instances placed by the
+    scene graph; a single mesh becomes one group named ``name``.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh or trimesh.Scene
+    name : str
+        The group of a single mesh (a Trimesh, or a scene of one geometry named
+        ``geometry_0`` or one of ``names``).
+    where : str, optional
+        Its origin in messages (default ``name``).
+    names : tuple of str
+        Geometry names that also mean a single unnamed mesh (a file's name).
+    """
+    import trimesh
+
+    where = where or name
+    single = isinstance(mesh, trimesh.Trimesh)
+    if single:
+        mesh = trimesh.Scene(mesh)
+    if not isinstance(mesh, trimesh.Scene):
+        raise ViscxError(f"{where}: not a scene file, a trimesh mesh or scene, or a viscx Scene "
+                         f"(got {type(mesh).__name__})")
+    loaded, geometries = mesh, []
+    for key in sorted(loaded.geometry):
+        geom = loaded.geometry[key]
         if not hasattr(geom, "faces") or len(geom.faces) == 0:
             continue
         # apply the scene graph's transforms of every instance of this geometry
-        for node in sorted(loaded.graph.geometry_nodes.get(name, [name])):
+        for node in sorted(loaded.graph.geometry_nodes.get(key, [key])):
             transform, _ = loaded.graph[node]
             vertices = trimesh.transform_points(np.asarray(geom.vertices, dtype=np.float64), transform)
-            geometries.append((name if node == name else node, vertices, np.asarray(geom.faces, dtype=np.int64)))
+            geometries.append((key if node == key else node, vertices, np.asarray(geom.faces, dtype=np.int64)))
     if not geometries:
-        raise ViscxError(f"{path}: no faces")
-    if len(geometries) == 1 and geometries[0][0] in ("geometry_0", path.name):
-        geometries = [(path.stem, geometries[0][1], geometries[0][2])]
+        raise ViscxError(f"{where}: no faces")
+    if len(geometries) == 1 and (single or geometries[0][0] in ("geometry_0", *names)):
+        geometries = [(name, geometries[0][1], geometries[0][2])]
     vertices, faces, groups = [], [], []
     base = 0
     for gid, (_, v, f) in enumerate(geometries):
         if f.size and (f.min() < 0 or f.max() >= len(v)):
-            raise ViscxError(f"{path}: face index out of range")
+            raise ViscxError(f"{where}: face index out of range")
         vertices.append(v)
         faces.append(f + base)
         groups.append(np.full(len(f), gid, dtype=np.int64))
         base += len(v)
     verts = np.concatenate(vertices)
     if not np.all(np.isfinite(verts)):
-        raise ViscxError(f"{path}: a vertex has a NaN or infinite coordinate")
+        raise ViscxError(f"{where}: a vertex has a NaN or infinite coordinate")
     tris = np.concatenate(faces)
     return PolygonSoup(
         vertices=verts,

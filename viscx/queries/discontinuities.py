@@ -122,14 +122,12 @@ def light_plane_count(scene, light):
 
 def light_of(scene, face=None, group=None):
     """The :class:`Light` of one face or of the faces of a group (ViscxError when unknown)."""
-    from viscx.errors import ViscxError
+    from viscx.errors import ParameterError
 
     if (face is None) == (group is None):
-        raise ViscxError("give exactly one of --light-face and --light-group")
+        raise ParameterError("give exactly one of {light_face} and {light_group}")
     if face is not None:
-        if not 0 <= face < scene.n_faces:
-            raise ViscxError(f"--light-face {face} is out of range (the scene has {scene.n_faces} faces: 0 to {scene.n_faces - 1})")
-        faces, name = np.array([face], np.int64), f"face {face}"
+        faces, name = scene.face_ids(face, "light_face"), f"face {face}"
     else:
         faces, name = scene.group_faces(group).astype(np.int64), f"group {group}"
     he = scene.half_edges
@@ -1074,29 +1072,42 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     return DiscontinuityMesh(light, events, offsets, points, receivers, tol, snap)
 
 
-def open_discontinuities(path, light_face=None, light_group=None, faces=()):
-    """Read a viscx file (scene and V1; the file must hold V2) and compute the mesh.
+def light_mesh(query, light_face=None, light_group=None, faces=()):
+    """The discontinuity mesh of a light (one face, or the faces of a group) from a
+    complex's arcs (V1; read from its file when it was opened from one).
 
-    ``faces``: receivers to report (default every face); ViscxError when out of range.
+    Parameters
+    ----------
+    query : viscx.pipeline.BuiltComplex
+    light_face : int, optional
+    light_group : str, optional
+        Exactly one of the two.
+    faces : sequence of int
+        Receivers to report (default every face); ViscxError when out of range.
+
+    Returns
+    -------
+    DiscontinuityMesh
+    """
+    scene = query.scene
+    scene.face_ids(faces)
+    light = light_of(scene, light_face, light_group)
+    return discontinuity_mesh(scene, query.arcs, light, faces)
+
+
+def open_discontinuities(path, light_face=None, light_group=None, faces=()):
+    """Read a viscx file (scene and V1; the file must hold V2) and compute the mesh
+    (:func:`light_mesh`).
 
     Returns
     -------
     scene : Scene
     mesh : DiscontinuityMesh
     """
-    from viscx.errors import ViscxError
-    from viscx.formats.hdf5 import ViscxFile, read_arcs
+    from viscx.pipeline import open_complex
 
-    with ViscxFile(path) as f:
-        if "V2" not in f.levels or "V2" not in f.h5:
-            raise ViscxError(f"{path} has no V-cells and EE-cells (V2); build it with `viscx build` (all levels)")
-        scene = f.read_scene()
-        for face in faces:
-            if not 0 <= face < scene.n_faces:
-                raise ViscxError(f"--face {face} is out of range (the scene has {scene.n_faces} faces: 0 to {scene.n_faces - 1})")
-        light = light_of(scene, light_face, light_group)
-        arcs = read_arcs(f.h5["V1"])
-    return scene, discontinuity_mesh(scene, arcs, light, faces)
+    cx = open_complex(path, need="V2")
+    return cx.scene, light_mesh(cx, light_face, light_group, faces)
 
 
 def mesh_result(scene, mesh):

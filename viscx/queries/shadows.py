@@ -11,7 +11,7 @@ lit on its back (``front`` says which side the light is on).
 
 import numpy as np
 
-from viscx.queries.visibility import open_query, view_from, view_summary
+from viscx.queries.visibility import as_query, view_from, view_summary
 
 
 def shadow_result(scene, view, stored=False):
@@ -47,14 +47,14 @@ def shadow_result(scene, view, stored=False):
     return {"light": p.tolist(), "faces": faces, **view_summary(view, stored)}
 
 
-def shadows(path, light, faces=(), **scene_options):
-    """Lit polygons and shadow boundaries of a point light, from a viscx file or, scoped,
-    from a scene file (only the light's V-cells are built).
+def shadows(source, light, faces=(), **scene_options):
+    """Lit polygons and shadow boundaries of a point light, from a complex (in memory or a
+    viscx file) or, scoped, from a scene file (only the light's V-cells are built).
 
     Parameters
     ----------
-    path : str or Path
-        A viscx file, or a scene file (:func:`viscx.queries.visibility.open_query`).
+    source : viscx.pipeline.BuiltComplex, str or Path
+        A complex, a viscx file, or a scene file (:func:`viscx.queries.visibility.as_query`).
     light : (3,) float64
     faces : sequence of int
         Face ids the caller will report; checked before any work (ViscxError when out of range).
@@ -68,11 +68,7 @@ def shadows(path, light, faces=(), **scene_options):
     result : dict
         :func:`shadow_result`.
     """
-    from viscx.errors import ViscxError
-
-    query = open_query(path, **scene_options)
-    bad = [f for f in faces if not 0 <= f < query.scene.n_faces]
-    if bad:
-        raise ViscxError(f"--face {bad[0]} is out of range (the scene has {query.scene.n_faces} faces: 0 to {query.scene.n_faces - 1})")
+    query = as_query(source, **scene_options)
+    query.scene.face_ids(faces)
     view, stored = view_from(query, light)
     return query.scene, view, shadow_result(query.scene, view, stored)

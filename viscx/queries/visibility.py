@@ -208,31 +208,13 @@ def point_view(scene, arcs, vcells, vertex, point):
 
 
 # --------------------------------------------------------------------------------------
-# from a file
-
-
-@dataclass
-class QueryScene:
-    """What the point queries read from a viscx file: the scene, its stored points and
-    (lazily) the levels holding the stored points' V-cells.
-
-    Attributes
-    ----------
-    path : str
-    scene : Scene
-    points : (k, 3) float64
-        Points stored by ``viscx build --point``.
-    """
-
-    path: str
-    scene: object
-    points: np.ndarray
+# from a complex (in memory or a file)
 
 
 def open_query(path, **scene_options):
-    """The scene of a point query: from a viscx file (which must hold V-cells, V2), or
-    loaded from a scene file (OBJ, PLY, …) for a *scoped* query that builds only the
-    point's V-cells (:func:`view_from`), with the same definitions as the full build.
+    """The complex a point query reads: a viscx file's (which must hold V-cells, V2), or
+    the scene of a scene file (OBJ, PLY, …) alone for a *scoped* query that builds only
+    the point's V-cells (:func:`view_from`), with the same definitions as the full build.
 
     Parameters
     ----------
@@ -241,58 +223,71 @@ def open_query(path, **scene_options):
         ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file (see
         :func:`viscx.scene.build_scene`); a viscx file keeps the ones it was built with.
 
+    Returns
+    -------
+    viscx.pipeline.BuiltComplex
+
     Raises ViscxError (one line, exit status 2) for a viscx file without V2, or with
     scene options.
     """
     import h5py
 
-    from viscx.errors import ViscxError
-    from viscx.formats.hdf5 import ViscxFile
-    from viscx.scene import load_scene
+    from viscx.errors import ParameterError, literal
+    from viscx.pipeline import BuiltComplex, open_complex, scene_of
 
     given = {k: v for k, v in scene_options.items() if v is not None}
     if not (Path(path).is_file() and h5py.is_hdf5(path)):
-        return QueryScene(str(path), load_scene(path, **given), np.zeros((0, 3)))
+        return BuiltComplex(scene_of(path, **given))
     if given:
-        names = ", ".join("--" + k.replace("_", "-") for k in sorted(given))
-        raise ViscxError(f"{path} is a viscx file, built with its own scene options: {names} apply to scene files only")
-    with ViscxFile(path) as f:
-        if "V2" not in f.levels or "V2" not in f.h5:
-            raise ViscxError(f"{path} has no V-cells (V2); build it with `viscx build` (all levels), "
-                             "or query the scene file itself")
-        return QueryScene(str(path), f.read_scene(), f.read_points())
+        names = ", ".join("{" + k + "}" for k in sorted(given))
+        raise ParameterError(f"{literal(path)} is a viscx file, built with its own scene options: {names} apply to "
+                             "scene files only")
+    return open_complex(path, need="V2", hint=", or query the scene file itself")
+
+
+def as_query(source, **scene_options):
+    """``source`` when it is a complex (:class:`viscx.pipeline.BuiltComplex`), else the
+    complex of the file it names (:func:`open_query`)."""
+    from viscx.pipeline import BuiltComplex
+
+    return source if isinstance(source, BuiltComplex) else open_query(source, **scene_options)
+
+
+def QueryScene(path, scene, points):  # noqa: N802 -- the name older callers construct
+    """The complex of viscx file ``path`` whose scene and points were read already."""
+    from viscx.pipeline import BuiltComplex
+
+    return BuiltComplex(scene, points=np.asarray(points, dtype=np.float64).reshape(-1, 3), path=Path(path),
+                        stored=["V0", "V1", "V2"])
 
 
 def view_from(query, point):
-    """The visibility polyhedron of a point: from the file's V-cells when the point is one
-    stored by ``viscx build --point`` (within the epsilon), else computed on demand
-    (:func:`viscx.skeleton.points.point_vcells`, nothing written).
+    """The visibility polyhedron of a point: from the complex's V-cells when the point is
+    one of its free points (``viscx build --point``, within the epsilon) and it holds V2,
+    else computed on demand (:func:`viscx.skeleton.points.point_vcells`, nothing stored).
 
     Parameters
     ----------
-    query : QueryScene
+    query : viscx.pipeline.BuiltComplex
     point : (3,) float64
 
     Returns
     -------
     view : PointView
     stored : bool
-        Whether the file's V-cells were used.
+        Whether the complex's V-cells were used.
     """
-    from viscx.formats.hdf5 import ViscxFile, read_arcs, read_vcells
     from viscx.skeleton.points import check_points, point_vcells, with_points
 
     scene = query.scene
     p = np.asarray(point, dtype=np.float64).reshape(3)
     check_points(scene, p[None])
-    if len(query.points):
+    if len(query.points) and "V2" in query.levels:
         dist = np.linalg.norm(query.points - p, axis=1)
         k = int(np.argmin(dist))
         if dist[k] <= scene.epsilon:
-            with ViscxFile(query.path) as f:
-                arcs, vcells = read_arcs(f.h5["V1"]), read_vcells(f.h5["V2"])
             ext = with_points(scene, query.points)
-            return point_view(ext, arcs, vcells, scene.n_vertices + k, query.points[k]), True
+            return point_view(ext, query.arcs, query.vcells, scene.n_vertices + k, query.points[k]), True
     pc = point_vcells(scene, p)
     return point_view(pc.scene, pc.arcs, pc.vcells, int(pc.point_ids[0]), p), False
 

@@ -4,7 +4,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viscx.errors import ViscxError
+from viscx.errors import ParameterError, literal
 from viscx.tolerances import ANGLE_TOLERANCE
 
 
@@ -33,14 +33,14 @@ class Camera:
         self.look_at = np.asarray(self.look_at, dtype=np.float64).reshape(3)
         self.up = np.asarray(self.up, dtype=np.float64).reshape(3)
         if not 0.0 < self.fov < 180.0:
-            raise ViscxError(f"--fov {self.fov} must be between 0 and 180 degrees")
+            raise ParameterError(f"{{fov}} {literal(self.fov)} must be between 0 and 180 degrees")
         if self.width < 1 or self.height < 1:
-            raise ViscxError(f"--size {self.width} {self.height} must be at least 1 pixel each way")
+            raise ParameterError(f"{{size}} {self.width} {self.height} must be at least 1 pixel each way")
         forward = self.look_at - self.eye
         if np.linalg.norm(forward) == 0.0:
-            raise ViscxError("--camera and --look-at are the same point")
+            raise ParameterError("{eye} and {look_at} are the same point")
         if np.linalg.norm(np.cross(forward, self.up)) <= ANGLE_TOLERANCE * np.linalg.norm(forward) * np.linalg.norm(self.up):
-            raise ViscxError("--up must not be parallel to the viewing direction")
+            raise ParameterError("{up} must not be parallel to the viewing direction")
 
     def frame(self):
         """``(right, true_up, forward)``: a right-handed orthonormal frame with the camera

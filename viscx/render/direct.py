@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.errors import ViscxError
+from viscx.errors import ParameterError, ViscxError, literal
 from viscx.queries.formfactor import PairSetup, face_target, shaft_occluders
 
 #: Reflectance of faces without a material (Kd).
@@ -73,7 +73,7 @@ def emitter(scene, light, radiance=None):
     if not np.all(np.isfinite(le)) or np.any(le < 0):
         raise ViscxError("the light's radiance must be finite and non-negative")
     if not np.any(le > 0):
-        raise ViscxError(f"light {light.name} emits nothing (no Ke in its material); give --radiance R,G,B")
+        raise ParameterError(f"light {literal(light.name)} emits nothing (no Ke in its material); give {{radiance}} R,G,B")
     return Emitter(light, le)
 
 

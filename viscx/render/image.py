@@ -60,6 +60,8 @@ class Render:
     stats : dict
     stderr : (h, w, 3) float64 or None
         Standard error of a Monte Carlo image.
+    light_faces : (k,) int64
+        The light's faces (left out of the automatic exposure).
     """
 
     radiance: np.ndarray
@@ -67,6 +69,7 @@ class Render:
     hits: object
     stats: dict = field(default_factory=dict)
     stderr: np.ndarray = None
+    light_faces: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
 
 def _labels(face, side, region):
@@ -129,7 +132,8 @@ def render(scene, mesh, camera, radiance=None, samples=None, reference=None, see
                      unlocated=int(lighting.stats["unlocated"]))
     stats["shading_s"] = round(time.perf_counter() - t1, 4)
     stats["seconds"] = round(time.perf_counter() - t0, 4)
-    return Render(rad.reshape(*hits.shape, 3), label.reshape(hits.shape), hits, stats, stderr)
+    return Render(rad.reshape(*hits.shape, 3), label.reshape(hits.shape), hits, stats, stderr,
+                  np.asarray(mesh.light.faces, np.int64))
 
 
 def picture(result, light_faces, exposure=None, show_regions=False):

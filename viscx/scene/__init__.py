@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viscx.errors import ViscxError
+from viscx.errors import ParameterError, ViscxError, literal
 from viscx.geometry.polygon import triangulate_polygons
 from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate_triangles, weld_vertices
 from viscx.scene.faces import drop_collinear_vertices, face_loops, merge_coplanar
@@ -151,6 +151,16 @@ class Scene:
         if name not in self.group_names:
             raise ViscxError(f"no group named {name!r} (groups: {', '.join(self.group_names)})")
         return np.flatnonzero(self.face_group == self.group_names.index(name))
+
+    def face_ids(self, faces, param="faces"):
+        """(k,) int64: the face ids ``faces`` (one int or a sequence); ParameterError
+        naming ``param`` for one out of range."""
+        ids = np.atleast_1d(np.asarray(faces, dtype=np.int64)).reshape(-1)
+        bad = ids[(ids < 0) | (ids >= self.n_faces)]
+        if len(bad):
+            raise ParameterError(f"{{{param}}} {literal(bad[0])} is out of range (the scene has {self.n_faces} faces: "
+                                 f"0 to {self.n_faces - 1})")
+        return ids
 
     @property
     def ray_caster(self):

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 HERE = Path(__file__).resolve().parent
@@ -71,7 +71,8 @@ def _failures(mutations, returncode, out, err):
     return failures
 
 
-SETTINGS = dict(deadline=None, derandomize=True, database=None,
+# no shrinking: a seed has no structure to shrink, and the failure names its mutation
+SETTINGS = dict(deadline=None, derandomize=True, database=None, phases=[Phase.explicit, Phase.generate],
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 

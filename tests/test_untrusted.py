@@ -59,6 +59,10 @@ CASES = {
                    "/scene/vertices"),
     "next_all_zero": (set_values("scene/half_edges/next", np.zeros_like), "/scene/half_edges/next"),
     "next_shuffled": (set_values("scene/half_edges/next", lambda a: np.roll(a, 1)), "/scene/half_edges/next"),
+    # finite but absurd: the bounding box overflows, as the scene's builder refuses (slow fuzz,
+    # seed 1934744149: the discontinuity mesh's KD-tree overflowed, exit 1)
+    "vertex_far_away": (set_values("scene/vertices", lambda a: np.where(np.arange(a.size).reshape(a.shape) == 0, 1e300, a)),
+                        "/scene/vertices: coordinates too large"),
     "triangle_out_of_range": (set_values("scene/triangles", lambda a: a + 1000), "/scene/triangles"),
     "loop_offsets_backwards": (set_values("scene/loop_offsets", lambda a: a[::-1]), "/scene/loop_offsets"),
     "opp_unpaired": (set_values("scene/half_edges/opp", lambda a: np.where(a >= 0, 0, a)), "/scene/half_edges/opp"),

@@ -31,6 +31,7 @@ from h5py import h5d, h5z
 
 from viscx.errors import ViscxError
 from viscx.memory import memory_budget
+from viscx.scene import bounding_diagonal
 
 #: deflate's largest compression ratio is about 1032:1; LZF's is below it
 MAX_RATIO = 1100
@@ -399,6 +400,8 @@ def check_scene(c, a, he, edges):
         c.fail(w + "loop_offsets", "a loop of fewer than 3 vertices")
     if a["face_area"].min(initial=0) < 0:
         c.fail(w + "face_area", "a negative area")
+    if not np.isfinite(bounding_diagonal(a["vertices"])):  # as the scene's builder refuses them
+        c.fail(w + "vertices", "coordinates too large (the bounding box overflows float64)")
     if np.abs(np.linalg.norm(a["face_normal"], axis=1) - 1).max(initial=0) > 1e-6:
         c.fail(w + "face_normal", "a normal that is not a unit vector")
     # the half-edges are determined by the loops: h leaves loop_vertices[h], next is the

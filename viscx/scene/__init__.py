@@ -189,6 +189,20 @@ def _relative(value, diagonal, name):
     return float(value) * diagonal
 
 
+def bounding_diagonal(vertices):
+    """Length of the diagonal of the points' bounding box; inf where it overflows float64
+    (coordinates so large that distances between them cannot be computed).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    """
+    if len(vertices) == 0:
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+
+
 def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, source="", sha256=""):
     """Clean a :class:`PolygonSoup` into a :class:`Scene` (see module docstring).
 
@@ -215,9 +229,7 @@ def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, so
         raise ViscxError(f"{name}: no faces")
     if not np.all(np.isfinite(vertices)):
         raise ViscxError(f"{name}: a vertex has a NaN or infinite coordinate")
-    used = np.unique(soup.polygon_vertices)
-    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported just below
-        diagonal = float(np.linalg.norm(vertices[used].max(axis=0) - vertices[used].min(axis=0)))
+    diagonal = bounding_diagonal(vertices[np.unique(soup.polygon_vertices)])
     if not np.isfinite(diagonal):
         raise ViscxError(f"{name}: coordinates too large (the bounding box overflows float64)")
     if diagonal == 0:

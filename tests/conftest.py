@@ -1,3 +1,6 @@
+import contextlib
+import io
+import subprocess
 import sys
 from pathlib import Path
 
@@ -47,3 +50,22 @@ def soup(vertices, polygons, groups=None, names=None):
         polygon_group=groups.astype(np.int64),
         group_names=names,
     )
+
+
+def viscx_in_process(*args, text=True):
+    """``viscx args`` in this process through the console script's entry point
+    (:func:`viscx.cli.main`), without a new interpreter's second of start-up and imports; for
+    tests of a command's behaviour, not of the process (the real command:
+    tests/test_bad_inputs.py). Returns a CompletedProcess (returncode, stdout, stderr: text,
+    or bytes with ``text=False``)."""
+    from viscx.cli import main
+
+    out, err = (io.TextIOWrapper(io.BytesIO(), encoding="utf-8", write_through=True) for _ in range(2))
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            main([*map(str, args)])
+            code = 0
+        except SystemExit as exc:
+            code = exc.code
+    out, err = out.buffer.getvalue(), err.buffer.getvalue()
+    return subprocess.CompletedProcess(args, code, out.decode() if text else out, err.decode() if text else err)

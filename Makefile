@@ -35,9 +35,11 @@ images: demo
 	cp $(OUT)/cornell_exact.png $(OUT)/cornell_sparse500.png $(OUT)/cornell_mc16.png docs/images/
 
 # the warm-up first: after a change of source its kernels are compiled once, not inside a test
+# (the workers then only read numba's cache); JOBS pytest-xdist workers, each given whole files
+JOBS ?= 2
 test: venv
 	$(BIN)/python -m viscx.warmup
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope
 
 # Rebuild the golden files that tests/test_golden.py diffs against; run it only
 # when a change of output is intended, and commit the result.

@@ -1,3 +1,6 @@
+import contextlib
+import io
+import subprocess
 import sys
 from pathlib import Path
 
@@ -7,6 +10,20 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "sample_scenes"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+#: The longest test files (CPU seconds, measured), run first: ``make test`` hands whole files to
+#: its two pytest-xdist workers (``--dist loadscope``: a file's module fixtures built once), so
+#: a long file started last would leave one worker idle at the end.
+LONGEST_FIRST = ["test_vcells.py", "test_discontinuities.py", "test_formfactor_queries.py", "test_render.py",
+                 "test_fuzz.py", "test_buildings.py", "test_eecells.py", "test_readme.py", "test_queries.py"]
+
+
+def pytest_collection_modifyitems(items):
+    """Run the files of :data:`LONGEST_FIRST` first, in that order (a stable sort: the tests of
+    a file keep their order)."""
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 def sample_scene_paths():
@@ -33,3 +50,22 @@ def soup(vertices, polygons, groups=None, names=None):
         polygon_group=groups.astype(np.int64),
         group_names=names,
     )
+
+
+def viscx_in_process(*args, text=True):
+    """``viscx args`` in this process through the console script's entry point
+    (:func:`viscx.cli.main`), without a new interpreter's second of start-up and imports; for
+    tests of a command's behaviour, not of the process (the real command:
+    tests/test_bad_inputs.py). Returns a CompletedProcess (returncode, stdout, stderr: text,
+    or bytes with ``text=False``)."""
+    from viscx.cli import main
+
+    out, err = (io.TextIOWrapper(io.BytesIO(), encoding="utf-8", write_through=True) for _ in range(2))
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            main([*map(str, args)])
+            code = 0
+        except SystemExit as exc:
+            code = exc.code
+    out, err = out.buffer.getvalue(), err.buffer.getvalue()
+    return subprocess.CompletedProcess(args, code, out.decode() if text else out, err.decode() if text else err)

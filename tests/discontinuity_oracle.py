@@ -146,13 +146,33 @@ def _seg_dist(q, a, b):
     return np.linalg.norm(q[:, None] - a[None] - t[..., None] * ab[None], axis=-1)
 
 
-def _parity(q, loops):
-    a = np.concatenate(loops)
-    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+def _crossings(q, a, b):
+    """(m, k) bool: the ray from each point q (m, 2) towards +x crosses edge a -> b (k, 2)."""
     cond = (a[None, :, 1] > q[:, None, 1]) != (b[None, :, 1] > q[:, None, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = a[None, :, 0] + (q[:, None, 1] - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (b[None, :, 1] - a[None, :, 1])
-    return np.count_nonzero(cond & (q[:, None, 0] < xc), axis=1) % 2 == 1
+    return cond & (q[:, None, 0] < xc)
+
+
+def _edges(loops):
+    """The edges (a, b) of closed 2-D loops."""
+    return np.concatenate(loops), np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+
+
+def _parity(q, loops):
+    return np.count_nonzero(_crossings(q, *_edges(loops)), axis=1) % 2 == 1
+
+
+def _first_far(q, a, b, margin, count, chunk=64):
+    """The first ``count`` points of q farther than ``margin`` from every segment a -> b,
+    in order (``q[_seg_dist(q, a, b).min(axis=1) > margin][:count]``, by chunks)."""
+    kept = []
+    for k in range(0, len(q), chunk):
+        part = q[k:k + chunk]
+        kept.append(part[_seg_dist(part, a, b).min(axis=1) > margin])
+        if sum(map(len, kept)) >= count:
+            break
+    return np.concatenate(kept)[:count] if kept else q[:0]
 
 
 #: Where along a trace (fractions of its length) the crossing check is tried, in order.
@@ -217,20 +237,26 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
             owner.append(np.full(len(q) - 1, k))
         a, b, owner = np.concatenate(a), np.concatenate(b), np.concatenate(owner)
 
+        # every region's edges at once, for the region holding a point: the first of
+        # odd parity (the region's edges it crosses)
+        region_edges = [_edges([g.outer, *g.holes]) for g in r.regions]
+        ra = np.concatenate([e[0] for e in region_edges]) if region_edges else np.zeros((0, 2))
+        rb = np.concatenate([e[1] for e in region_edges]) if region_edges else np.zeros((0, 2))
+        rid = np.repeat(np.arange(len(region_edges)), [len(e[0]) for e in region_edges])
+
         def region_of(q):
-            res = np.full(len(q), -1)
-            for j, g in enumerate(r.regions):
-                res[_parity(q, [g.outer, *g.holes]) & (res < 0)] = j
-            return res
+            if not r.regions:
+                return np.full(len(q), -1)
+            hits = _crossings(q, ra, rb)
+            odd = np.stack([np.bincount(rid[h], minlength=len(r.regions)) % 2 == 1 for h in hits]).reshape(len(q), -1)
+            return np.where(odd.any(axis=1), np.argmax(odd, axis=1), -1)
 
         out["regions"] += len(r.regions)
         for j, g in enumerate(r.regions):
             lo, hi = g.outer.min(axis=0), g.outer.max(axis=0)
             q = lo + (hi - lo) * rng.uniform(size=(400, 2))
             q = q[_parity(q, [g.outer, *g.holes])]
-            if len(q):
-                q = q[_seg_dist(q, a, b).min(axis=1) > margin]
-            q = q[:samples]
+            q = _first_far(q, a, b, margin, samples)
             if len(q) < 2:
                 continue
             out["regions_sampled"] += 1

@@ -8,7 +8,7 @@ import sys
 import msgpack
 import numpy as np
 import pytest
-from conftest import ROOT, SAMPLES, soup
+from conftest import ROOT, SAMPLES, soup, viscx_in_process
 from test_formfactor import corner_rectangle, parallel_rectangles, perpendicular_rectangles
 
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon
@@ -344,7 +344,7 @@ def test_point_to_face_occluded_against_monte_carlo(cornell):
 
 
 def _viscx(*args):
-    return subprocess.run([sys.executable, "-m", "viscx", *map(str, args)], capture_output=True, text=True)
+    return viscx_in_process(*args)
 
 
 def test_cli_json_and_msgpack(tmp_path):

@@ -7,7 +7,9 @@ console script's entry point (a new interpreter per command would cost a second 
 any other line runs in bash with the environment's ``bin/`` first on the PATH. A
 ``make`` block is dry-run (``make -n``: its targets exist; ``make test`` would run this
 very suite); ``.venv`` is the environment running the tests. The Python block (Library)
-is executed. Outputs are checked to exist.
+is executed. Outputs are checked to exist. ``viscx render`` lines without ``--size`` render
+at a thumbnail size (:data:`THUMBNAIL`): the same code paths at a 30th of the pixels (the
+README's images at full size: tests/test_render.py).
 """
 
 import os
@@ -62,6 +64,7 @@ def outputs(argv):
 
 
 SH = blocks("sh")
+THUMBNAIL = ["--size", "96", "96"]
 
 
 def test_the_readme_has_its_blocks():
@@ -86,6 +89,8 @@ def test_command_block(line, text, folder, monkeypatch, capsys):
         expected = 0
         if "||" in argv:  # `viscx diff ... || exit 1`: the command itself must succeed
             argv = argv[:argv.index("||")]
+        if argv[1] == "render" and "--size" not in argv:
+            argv = [*argv, *THUMBNAIL]
         code, out, err = run_viscx(argv[1:], capsys)
         assert code == expected, f"README line {line}: {' '.join(argv)} exited {code}: {err}"
         assert "internal error" not in err

@@ -3,13 +3,11 @@ shadow rays), region culling against the whole occluder list, seams at region bo
 the sparse reconstruction's error and its not bleeding across regions, the files written."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, viscx_in_process
 from render_oracle import noise_check, seam_pixels
 
 from viscx.formats.images import read_pfm, read_png
@@ -297,7 +295,7 @@ def test_readme_images_are_the_demo_output(cornell, name, extra):
 
 
 def _viscx(*args):
-    return subprocess.run([sys.executable, "-m", "viscx", *map(str, args)], capture_output=True, text=True)
+    return viscx_in_process(*args)
 
 
 def test_render_command_writes_png_npy_pfm(tmp_path):

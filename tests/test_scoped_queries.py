@@ -7,12 +7,10 @@ enumerator and embree in tests/test_queries.py.
 """
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from conftest import SAMPLES
+from conftest import SAMPLES, viscx_in_process
 from test_queries import LIGHTS
 
 from viscx.queries.shadows import shadows
@@ -47,7 +45,7 @@ def test_scoped_scene_options_apply():
 
 
 def _viscx(*args):
-    return subprocess.run([sys.executable, "-m", "viscx", *map(str, args)], capture_output=True, text=True)
+    return viscx_in_process(*args)
 
 
 def test_cli_scoped_shadows(tmp_path):

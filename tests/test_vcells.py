@@ -57,10 +57,12 @@ def angular_distance_to_arcs(d, starts, ends):
     # the foot of d on the great circle lies between the ends iff d is on the inner side of
     # the planes through (normal, start) and (end, normal)
     inside = (d @ np.cross(normal, starts).T >= 0) & (d @ np.cross(ends, normal).T >= 0)
-    dist = np.where(inside, np.arcsin(np.minimum(np.abs(h), 1.0)), np.inf)
+    # the nearest point is the one of largest cosine: cos(arcsin |h|) = sqrt(1 - h^2) to
+    # the foot, d . p to an end; one arccos per direction, not one per (direction, arc)
+    near = np.where(inside, np.sqrt(np.maximum(1.0 - h * h, 0.0)), -1.0).max(axis=1)
     for p in (starts, ends):
-        dist = np.minimum(dist, np.arccos(np.clip(d @ p.T, -1.0, 1.0)))
-    return dist.min(axis=1)
+        near = np.maximum(near, (d @ p.T).max(axis=1))
+    return np.arccos(np.clip(near, -1.0, 1.0))
 
 
 def vertex_boundaries(scene, arcs, vc, v):

@@ -1,6 +1,7 @@
 """Small array idioms shared across the package."""
 
 import numpy as np
+from numba import njit
 
 
 def expand_ranges(first, count):
@@ -96,3 +97,32 @@ def first_of_rows(rows):
     order = np.argsort(inverse, kind="stable")  # within a row's run, input order
     start = np.r_[True, inverse[order][1:] != inverse[order][:-1]] if len(order) else np.zeros(0, bool)
     return np.sort(order[start])
+
+
+@njit(cache=True)
+def walk_cycle(successor, start, seen, order, k):
+    """Follow ``successor`` from ``start`` until an element already ``seen``, appending each
+    element met to ``order`` from position ``k`` and marking it seen (in place).
+
+    Parameters
+    ----------
+    successor : (n,) int64
+        The next element of each element.
+    start : int
+    seen : (n,) bool
+    order : (n,) int64
+    k : int
+        Elements already written to ``order``.
+
+    Returns
+    -------
+    int
+        ``k`` plus the number of elements walked.
+    """
+    h = start
+    while not seen[h]:
+        seen[h] = True
+        order[k] = h
+        k += 1
+        h = successor[h]
+    return k

@@ -74,7 +74,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges
+from viscx.arrays import expand_ranges, walk_cycle
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.queries.cracks import through_cracks
@@ -694,19 +694,17 @@ def _cycles(nxt):
     """Cycles of a permutation: (cycle id per element, elements in walk order, offsets)."""
     h = len(nxt)
     cid = np.full(h, -1, np.int64)
+    seen = np.zeros(h, np.bool_)
     walk = np.empty(h, np.int64)
     offsets = [0]
     k = 0
     c = 0
     for s in range(h):
-        if cid[s] >= 0:
+        if seen[s]:
             continue
-        x = s
-        while cid[x] < 0:
-            cid[x] = c
-            walk[k] = x
-            k += 1
-            x = nxt[x]
+        k = walk_cycle(nxt, s, seen, walk, k)
+        for t in range(offsets[-1], k):
+            cid[walk[t]] = c
         offsets.append(k)
         c += 1
     return cid, walk, np.array(offsets, dtype=np.int64)

@@ -13,6 +13,7 @@ from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from viscx.arrays import walk_cycle
 from viscx.errors import ViscxError
 from viscx.geometry.polygon import plane_basis
 from viscx.scene.clean import triangle_normals
@@ -134,12 +135,7 @@ def _cycles(successor):
     for s in range(n):
         if seen[s]:
             continue
-        h = s
-        while not seen[h]:
-            seen[h] = True
-            order[k] = h
-            k += 1
-            h = successor[h]
+        k = walk_cycle(successor, s, seen, order, k)
         c += 1
         offsets[c] = k
     return order, offsets[: c + 1]

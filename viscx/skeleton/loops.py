@@ -12,7 +12,7 @@ EE-cells embed their square as the plane z = 1).
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows
+from viscx.arrays import expand_ranges, unique_rows, walk_cycle
 
 #: Decimals to which turning sums are compared when choosing a cell's outer loop.
 TURNING_DECIMALS = 9
@@ -223,12 +223,7 @@ def _trace(nxt):
     loop_off = [0]
     q = 0
     for i in range(n):
-        k = i
-        while not seen[k]:
-            seen[k] = True
-            loops[q] = k
-            q += 1
-            k = nxt[k]
+        q = walk_cycle(nxt, i, seen, loops, q)
         if q > loop_off[-1]:
             loop_off.append(q)
     order = np.concatenate((loops[:q], chains[:m]))

@@ -126,3 +126,17 @@ def walk_cycle(successor, start, seen, order, k):
         k += 1
         h = successor[h]
     return k
+
+
+def bounding_diagonal(vertices):
+    """Length of the diagonal of the points' bounding box; inf where it overflows float64
+    (coordinates so large that distances between them cannot be computed).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    """
+    if len(vertices) == 0:
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))

@@ -31,7 +31,7 @@ from h5py import h5d, h5z
 
 from viscx.errors import ViscxError
 from viscx.memory import memory_budget
-from viscx.scene import bounding_diagonal
+from viscx.arrays import bounding_diagonal
 
 #: deflate's largest compression ratio is about 1032:1; LZF's is below it
 MAX_RATIO = 1100

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from viscx.arrays import bounding_diagonal
 from viscx.errors import ParameterError, ViscxError, literal
 from viscx.geometry.polygon import triangulate_polygons
 from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate_triangles, weld_vertices
@@ -187,20 +188,6 @@ def _relative(value, diagonal, name):
     if not np.isfinite(value) or value < 0:
         raise ViscxError(f"{name} must be a finite non-negative number, got {value}")
     return float(value) * diagonal
-
-
-def bounding_diagonal(vertices):
-    """Length of the diagonal of the points' bounding box; inf where it overflows float64
-    (coordinates so large that distances between them cannot be computed).
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-    """
-    if len(vertices) == 0:
-        return 0.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        return float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
 
 
 def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, source="", sha256=""):

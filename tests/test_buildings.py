@@ -83,6 +83,19 @@ def test_antipodal_cells_behind_a_vertex_in_a_face_plane(monkeypatch):
     assert len(complete_vertices(vc)) == 24 and len(vc.open_vertex) > 0
 
 
+def test_vertex_backs_live_in_the_arcs_declared_cache():
+    """The backs V2 asks for again and again are kept in ``Arcs.cache`` (declared, empty in
+    every new record), not in an attribute set from outside."""
+    import dataclasses
+
+    from viscx.skeleton.vcells import vertex_backs
+
+    scene, arcs, vc = built("desk", desk)
+    assert set(vars(arcs)) == {f.name for f in dataclasses.fields(arcs)}
+    assert vertex_backs(scene, arcs) is arcs.cache["vertex_backs"]
+    assert dataclasses.replace(arcs).cache == {}
+
+
 def test_families_through_a_t_junction_of_a_node():
     """floor_plan((1, 1)): a window's lintel corner w lies inside the wall piece's outer
     vertical edge E (a T-junction). The lines from the other window's corner u through E

@@ -285,13 +285,8 @@ def side_pairs(half_cells, backs=None):
 
 def vertex_backs(scene, arcs):
     """:func:`viscx.skeleton.arcs.vertex_side_backs` of every half-cell at its arc's sample,
-    cached on the arcs (point location asks again and again)."""
-    cached = getattr(arcs, "_viscx_vertex_backs", None)
-    if cached is None:
-        hc = arcs.half_cells
-        cached = vertex_side_backs(scene, hc, arcs.parameter[hc.arc])
-        arcs._viscx_vertex_backs = cached
-    return cached
+    kept in the arcs' cache (point location asks again and again)."""
+    return arcs.cached("vertex_backs", lambda a: vertex_side_backs(scene, a.half_cells, a.parameter[a.half_cells.arc]))
 
 
 def element_geometry(scene, arcs, half_cell, side, antipodal):

@@ -6,6 +6,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from viscx.arrays import unique_rows
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.skeleton.arcs.kinds import EEE, END_COPLANAR
@@ -159,12 +160,29 @@ def pencil_plane_of(scene, kind, generators):
     generators : (m, 3) int
     """
     out = np.full(len(kind), -1, dtype=np.int64)
-    face, role, _ = pencil_planes(scene)
+    face, role, incidence = pencil_planes(scene)
     rows = np.flatnonzero(np.asarray(kind) == EEE)
-    for k in range(len(face)):  # few planes: a touched plane that an edge crosses
-        r = role[k][np.asarray(generators)[rows]]
-        hit = rows[(np.count_nonzero(r == 1, axis=1) == 2) & (np.count_nonzero(r == 2, axis=1) == 1)]
-        out[hit[out[hit] < 0]] = face[k]
+    if not len(face) or not len(rows):
+        return out
+    g = np.asarray(generators)[rows]
+    # A plane holding two of the three edges holds the first or the second: the candidate
+    # planes of a family are those its first two edges lie in (role 1, few per edge), so
+    # each family is judged against a handful of planes, not against every plane.
+    lying, _ = unique_rows(incidence[:, [2, 0]])  # (edge, plane), by edge
+    start = np.searchsorted(lying[:, 0], np.arange(role.shape[1] + 1))
+    fam, plane = [], []
+    for col in (0, 1):
+        lo, n = start[g[:, col]], np.diff(start)[g[:, col]]
+        fam.append(np.repeat(np.arange(len(g)), n))
+        plane.append(lying[np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum()), 1])
+    fam, plane = np.concatenate(fam), np.concatenate(plane)
+    r = role[plane[:, None], g[fam]]  # (pairs, 3)
+    ok = (np.count_nonzero(r == 1, axis=1) == 2) & (np.count_nonzero(r == 2, axis=1) == 1)
+    # the lowest such plane of each family (as a loop over planes in order would keep)
+    best = np.full(len(g), len(face), dtype=np.int64)
+    np.minimum.at(best, fam[ok], plane[ok])
+    hit = best < len(face)
+    out[rows[hit]] = face[best[hit]]
     return out
 
 

@@ -191,3 +191,53 @@ def test_furnished_rooms(seed):
     judged, agreed, wrong = ray_oracle(scene, arcs, vc, done, n=500)
     assert agreed == judged, wrong[:5]
     assert len(done) >= 0.97 * len(vertices_of(vc)), vc.counts()
+
+
+def test_pencil_kernels_equal_their_plain_numpy_definitions():
+    """The pencils of touched planes (docs/skeleton.md, "Furnished buildings" timings):
+    ``pencil_plane_of`` judged per family against the planes of its first two edges, and
+    the crossing kernel of ``pencil_crossings``, equal the plain definitions (every plane
+    in turn; ``segment_parameter`` on every segment × edge pair) on the touched planes of a
+    floor plan, for random families and for families built to lie in a plane, and for
+    segments between the planes' edge ends and inner points (ends on edges, tangent cases)."""
+    from viscx.geometry.lines import segment_parameter
+    from viscx.skeleton.arcs import pencils
+    from viscx.skeleton.arcs.kinds import EEE, VE
+    from viscx.skeleton.generators import edge_geometry
+
+    scene = build_scene(floor_plan((1, 1)))
+    face, role, inc = pencils.pencil_planes(scene)
+    rng = np.random.default_rng(5)
+    lying = [np.flatnonzero(role[k] == 1) for k in range(len(face))]
+    crossing = [np.flatnonzero(role[k] == 2) for k in range(len(face))]
+    planes = [k for k in range(len(face)) if len(lying[k]) >= 2 and len(crossing[k])]
+    assert len(planes) >= 5
+    built = np.array([[*rng.choice(lying[k], 2, replace=False), rng.choice(crossing[k])] for k in rng.choice(planes, 3000)])
+    g = np.concatenate([rng.integers(0, role.shape[1], (3000, 3)), np.take_along_axis(
+        built, np.argsort(rng.random(built.shape), axis=1), axis=1)])
+    kind = np.where(rng.random(len(g)) < 0.9, EEE, VE)
+    plain = np.full(len(g), -1)
+    for k in range(len(face)):
+        r = role[k][g]
+        hit = (kind == EEE) & (np.count_nonzero(r == 1, axis=1) == 2) & (np.count_nonzero(r == 2, axis=1) == 1)
+        plain[hit & (plain < 0)] = face[k]
+    got = pencils.pencil_plane_of(scene, kind, g)
+    assert np.array_equal(got, plain) and np.count_nonzero(got >= 0) > 2000
+
+    eps, total = scene.epsilon, 0
+    for k in planes:
+        a, b = edge_geometry(scene, inc[inc[:, 0] == k, 2])
+        points = np.concatenate([a, b, a + rng.random((len(a), 1)) * (b - a)])
+        ends = points[rng.integers(0, len(points), (400, 2))]
+        ends[:100, 1] = ends[:100, 0] + 3 * (ends[:100, 1] - ends[:100, 0])  # beyond an edge
+        p0, p1 = np.repeat(ends[:, 0], len(a), axis=0), np.repeat(ends[:, 1], len(a), axis=0)
+        ea, eb = np.tile(a, (len(ends), 1)), np.tile(b, (len(ends), 1))
+        x, dist = segment_parameter(p0, p1 - p0, ea, eb)
+        length, span = np.linalg.norm(eb - ea, axis=1), np.maximum(np.linalg.norm(p1 - p0, axis=1), 1e-300)
+        t = np.einsum("ij,ij->i", ea + np.nan_to_num(x)[:, None] * (eb - ea) - p0, p1 - p0) / span
+        with np.errstate(invalid="ignore"):
+            want = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= -eps) & (t <= span + eps)
+        got = pencils._crossed_mask(ends[:, 0], ends[:, 1], a, b, eps)
+        assert np.array_equal(got.reshape(-1), want)
+        total += np.count_nonzero(want)
+    assert total > 1000

@@ -96,6 +96,28 @@ def test_vertex_backs_live_in_the_arcs_declared_cache():
     assert dataclasses.replace(arcs).cache == {}
 
 
+@pytest.mark.slow
+def test_a_joined_loop_that_is_a_point_bounds_nothing(monkeypatch):
+    """office(120, 103), vertex 87 (a desk top's upper corner): two pieces of one VE arc
+    4.5e-5 rad long in the top's plane, split at a transition, were joined across their
+    gap into a loop running out and straight back; its turning sum 0 made it a 2π hole in
+    four cells of 3e-3 sr, and the vertex's cells summed to -4π. As a point
+    (``vcells.point_loops``) it stays an open chain that bounds nothing: the vertex is
+    complete and the ray caster agrees on its directions. Knocked out, it is not."""
+    import viscx.skeleton.vcells as vcells
+
+    scene, arcs, vc = built("office120", lambda: office(120, seed=103))
+    assert 87 in complete_vertices(vc)
+    assert np.isclose(vc.solid_angle[vc.vertex == 87].sum(), FOUR_PI)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([87]), n=2000)
+    assert judged >= 1900 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(vcells, "point_loops", lambda scene, el, order, offsets, chains, joined:
+                        np.zeros(len(joined) - 1, bool))
+    knocked = build_vcells(scene, arcs)
+    assert 87 not in complete_vertices(knocked)
+    assert np.isclose(knocked.solid_angle[knocked.vertex == 87].sum(), -FOUR_PI)
+
+
 def test_families_through_a_t_junction_of_a_node():
     """floor_plan((1, 1)): a window's lintel corner w lies inside the wall piece's outer
     vertical edge E (a T-junction). The lines from the other window's corner u through E

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from viscx.arrays import bounding_diagonal
+from viscx.cache import Cached
 from viscx.errors import ParameterError, ViscxError, literal
 from viscx.geometry.polygon import triangulate_polygons
 from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate_triangles, weld_vertices
@@ -35,7 +36,7 @@ __all__ = ["Scene", "PolygonSoup", "load_scene", "build_scene", "DEFAULT_WELD", 
 
 
 @dataclass
-class Scene:
+class Scene(Cached):
     """A clean polygonal scene. All arrays are numpy; ids are positions.
 
     Attributes
@@ -98,20 +99,6 @@ class Scene:
     _caster: object = field(default=None, repr=False, compare=False)
     _contacts: object = field(default=None, repr=False, compare=False)
     cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    def cached(self, name, build):
-        """``build(self)``, computed on the first call for ``name`` and kept in :attr:`cache`.
-
-        Parameters
-        ----------
-        name : str
-            The key: the name of the public function returning the data.
-        build : callable
-            Scene -> the data; must depend on nothing but the scene.
-        """
-        if name not in self.cache:
-            self.cache[name] = build(self)
-        return self.cache[name]
 
     @property
     def n_vertices(self):

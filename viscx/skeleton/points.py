@@ -302,8 +302,9 @@ def _node_order(nodes):
 
 
 def _concat(cls, a, b, **override):
-    return cls(**{name: override[name] if name in override else np.concatenate([getattr(a, name), getattr(b, name)])
-                  for name in cls.__dataclass_fields__})
+    # the record's arguments only (not a declared cache)
+    return cls(**{f.name: override[f.name] if f.name in override else np.concatenate([getattr(a, f.name), getattr(b, f.name)])
+                  for f in dataclasses.fields(cls) if f.init})
 
 
 def add_points(built, pc):

@@ -1,10 +1,11 @@
 """Arc kinds, end codes and the V1 records (:class:`Arcs`, :class:`HalfCells`).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from viscx.cache import Cached
 from viscx.skeleton.nodes import Nodes
 
 
@@ -82,7 +83,7 @@ class HalfCells:
 
 
 @dataclass
-class Arcs:
+class Arcs(Cached):
     """Arcs as flat arrays, sorted by (kind, generators, interval).
 
     Attributes
@@ -120,6 +121,11 @@ class Arcs:
         The planar E4 events (kind E4, four edges) arcs end at.
     half_cells : HalfCells
         One per VE arc.
+    cache : dict
+        Data derived from these arcs and the scene they were built on, computed once on
+        first use (:meth:`cached`), keyed by the name of the function computing it
+        (``"vertex_backs"``). Not an argument: :func:`dataclasses.replace` and every
+        reader give new arcs an empty cache.
     """
 
     kind: np.ndarray
@@ -135,6 +141,7 @@ class Arcs:
     generator_points: np.ndarray
     planar: Nodes
     half_cells: HalfCells
+    cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __len__(self):
         return len(self.kind)

@@ -3,9 +3,11 @@ the families whose lines lie in them, and where those lines cross the plane's ed
 """
 
 import numpy as np
+from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from viscx.arrays import unique_rows
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
 from viscx.skeleton.arcs.kinds import EEE, END_COPLANAR
@@ -159,12 +161,29 @@ def pencil_plane_of(scene, kind, generators):
     generators : (m, 3) int
     """
     out = np.full(len(kind), -1, dtype=np.int64)
-    face, role, _ = pencil_planes(scene)
+    face, role, incidence = pencil_planes(scene)
     rows = np.flatnonzero(np.asarray(kind) == EEE)
-    for k in range(len(face)):  # few planes: a touched plane that an edge crosses
-        r = role[k][np.asarray(generators)[rows]]
-        hit = rows[(np.count_nonzero(r == 1, axis=1) == 2) & (np.count_nonzero(r == 2, axis=1) == 1)]
-        out[hit[out[hit] < 0]] = face[k]
+    if not len(face) or not len(rows):
+        return out
+    g = np.asarray(generators)[rows]
+    # A plane holding two of the three edges holds the first or the second: the candidate
+    # planes of a family are those its first two edges lie in (role 1, few per edge), so
+    # each family is judged against a handful of planes, not against every plane.
+    lying, _ = unique_rows(incidence[:, [2, 0]])  # (edge, plane), by edge
+    start = np.searchsorted(lying[:, 0], np.arange(role.shape[1] + 1))
+    fam, plane = [], []
+    for col in (0, 1):
+        lo, n = start[g[:, col]], np.diff(start)[g[:, col]]
+        fam.append(np.repeat(np.arange(len(g)), n))
+        plane.append(lying[np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum()), 1])
+    fam, plane = np.concatenate(fam), np.concatenate(plane)
+    r = role[plane[:, None], g[fam]]  # (pairs, 3)
+    ok = (np.count_nonzero(r == 1, axis=1) == 2) & (np.count_nonzero(r == 2, axis=1) == 1)
+    # the lowest such plane of each family (as a loop over planes in order would keep)
+    best = np.full(len(g), len(face), dtype=np.int64)
+    np.minimum.at(best, fam[ok], plane[ok])
+    hit = best < len(face)
+    out[rows[hit]] = face[best[hit]]
     return out
 
 
@@ -208,17 +227,44 @@ def pencil_crossings(scene, plane_face, ends):
 
 def _crossed(scene, rows, inc, ends, eps):
     """(c, 3) int: (row, region, edge) of :func:`pencil_crossings` for some rows of one plane."""
-    r, j = (x.reshape(-1) for x in np.meshgrid(np.arange(len(rows)), np.arange(len(inc)), indexing="ij"))
-    p0, p1 = ends[rows[r], 0], ends[rows[r], 1]
-    a, b = edge_geometry(scene, inc[j, 2])
-    x, dist = segment_parameter(p0, p1 - p0, a, b)
-    length = np.linalg.norm(b - a, axis=1)
-    q = a + np.nan_to_num(x)[:, None] * (b - a)
-    span = np.maximum(np.linalg.norm(p1 - p0, axis=1), 1e-300)
-    t = np.einsum("ij,ij->i", q - p0, p1 - p0) / span  # along the segment; its ends may be on the edges
-    with np.errstate(invalid="ignore"):
-        crossed = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= -eps) & (t <= span + eps)
-    return np.stack([rows[r[crossed]], inc[j[crossed], 1], inc[j[crossed], 2]], axis=1)
+    a, b = edge_geometry(scene, inc[:, 2])
+    r, j = np.nonzero(_crossed_mask(ends[rows, 0], ends[rows, 1], a, b, eps))
+    return np.stack([rows[r], inc[j, 1], inc[j, 2]], axis=1)
+
+
+@njit(cache=True, nogil=True)
+def _crossed_mask(p0, p1, a, b, eps):
+    """(r, k) bool: segment i (p0 → p1) crosses edge j (a → b) strictly inside the edge (as
+    node condition 5: the lines' gap within eps, farther than eps from its ends) and within
+    the segment (its ends may lie on the edge). The arithmetic of
+    :func:`viscx.geometry.lines.segment_parameter`, pair by pair without temporaries."""
+    out = np.zeros((len(p0), len(a)), dtype=np.bool_)
+    for i in range(len(p0)):
+        dx, dy, dz = p1[i, 0] - p0[i, 0], p1[i, 1] - p0[i, 1], p1[i, 2] - p0[i, 2]
+        aa = dx * dx + dy * dy + dz * dz
+        span = max(np.sqrt(aa), 1e-300)
+        for j in range(len(a)):
+            ex, ey, ez = b[j, 0] - a[j, 0], b[j, 1] - a[j, 1], b[j, 2] - a[j, 2]
+            wx, wy, wz = a[j, 0] - p0[i, 0], a[j, 1] - p0[i, 1], a[j, 2] - p0[i, 2]
+            bb = dx * ex + dy * ey + dz * ez
+            cc = ex * ex + ey * ey + ez * ez
+            dd = dx * wx + dy * wy + dz * wz
+            ff = ex * wx + ey * wy + ez * wz
+            den = aa * cc - bb * bb
+            if not den > 1e-14 * aa * cc:  # parallel: no crossing point
+                continue
+            x = (bb * dd - aa * ff) / den
+            length = np.sqrt(cc)
+            if not (x * length > eps and (1 - x) * length > eps):
+                continue
+            s = (dd + bb * x) / aa
+            gx, gy, gz = wx + x * ex - s * dx, wy + x * ey - s * dy, wz + x * ez - s * dz
+            if not np.sqrt(gx * gx + gy * gy + gz * gz) <= eps:
+                continue
+            # along the segment, where it passes the edge's point
+            t = ((wx + x * ex) * dx + (wy + x * ey) * dy + (wz + x * ez) * dz) / span
+            out[i, j] = t >= -eps and t <= span + eps
+    return out
 
 
 def first_pencil_pair(scene, plane_face, generators, ends, valid):

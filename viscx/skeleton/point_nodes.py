@@ -90,18 +90,21 @@ def seen_together(p, a, b, slack, pairs):
                                np.ascontiguousarray(slack, dtype=np.float64))
 
 
-def _arc_boxes(ua, ub, nrm):
-    """Axis-aligned boxes of great-circle arcs ua -> ub (the shorter way, normal nrm): the
-    ends, and the circle's extreme points x_k = ±|(u_k, w_k)| where they fall on the arc
-    (x(t) = cos t ua + sin t w, w = nrm × ua, t in [0, T])."""
+def _arc_boxes(ua, nrm, t0, t1):
+    """Axis-aligned boxes of the great-circle arcs x(t) = cos t ua + sin t w, t in [t0, t1]
+    (w = nrm × ua, t1 - t0 < π): the ends, and the circle's extreme points
+    x_k = ±|(ua_k, w_k)| where they fall on the arc."""
     w = np.cross(nrm, ua)
-    T = np.arctan2(np.linalg.norm(np.cross(ua, ub), axis=1), np.einsum("ij,ij->i", ua, ub))
-    lo, hi = np.minimum(ua, ub), np.maximum(ua, ub)
+    x0 = np.cos(t0)[:, None] * ua + np.sin(t0)[:, None] * w
+    x1 = np.cos(t1)[:, None] * ua + np.sin(t1)[:, None] * w
+    lo, hi = np.minimum(x0, x1), np.maximum(x0, x1)
     r = np.hypot(ua, w)
-    t_max = np.mod(np.arctan2(w, ua), 2 * np.pi)  # where x_k = +r
-    t_min = np.mod(t_max + np.pi, 2 * np.pi)  # where x_k = -r
-    hi = np.where(t_max <= T[:, None], r, hi)
-    lo = np.where(t_min <= T[:, None], -r, lo)
+    t_max = np.arctan2(w, ua)  # where x_k = +r, then every 2π
+    for t_ext, value in ((t_max, r), (t_max + np.pi, -r)):
+        t_ext = t0[:, None] + np.mod(t_ext - t0[:, None], 2 * np.pi)
+        on = t_ext <= t1[:, None]
+        hi = np.where(on & (value > 0), value, hi)
+        lo = np.where(on & (value < 0), value, lo)
     return lo, hi
 
 
@@ -127,27 +130,33 @@ def edge_pairs_seen_together(p, a, b, slack):
         return np.zeros((0, 2), np.int64)
     slack = np.ascontiguousarray(slack, dtype=np.float64)
     ua, ub, nrm = _arc_frames(p, a, b)
-    lo, hi = _arc_boxes(ua, ub, nrm)
-    grow = (2 * slack + 1e-12)[:, None]  # a chord is at most its angle
-    lo, hi = lo - grow, hi + grow
-    # p on a segment's line, or an arc over a large part of the sphere: tested with all
+    # p on a segment's line: its arc is a whole great circle, tested with every segment
     degenerate = np.linalg.norm(nrm, axis=1) < 0.5
-    extent = (hi - lo).max(axis=1)
-    cell = max(float(np.median(extent)), 2.0 / 256)
-    wide = degenerate | (extent > 8 * cell)
-    arcs = np.flatnonzero(~wide)
+    length = np.arctan2(np.linalg.norm(np.cross(ua, ub), axis=1), np.einsum("ij,ij->i", ua, ub))
+    # arcs longer than a grid cell are cut into pieces about a cell long (one box each), so
+    # that a long arc lists the cells along it, not those of its whole box
+    cell = min(max(float(np.median(length + 4 * slack)), 2.0 / 256), 0.5)
+    arcs = np.flatnonzero(~degenerate)
+    pieces = np.ceil(length[arcs] / cell).astype(np.int64).clip(1)
+    owner = np.repeat(np.arange(len(arcs)), pieces)
+    k = np.arange(len(owner)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    step = length[arcs][owner] / pieces[owner]
+    lo, hi = _arc_boxes(ua[arcs][owner], nrm[arcs][owner], k * step, (k + 1) * step)
+    grow = (2 * slack[arcs][owner] + 1e-12)[:, None]  # a chord is at most its angle
+    lo, hi = lo - grow, hi + grow
     parts = []
     if len(arcs) > 1:
-        m = len(arcs)
-        # arcs (side 0) and their antipodes (side 1)
-        parts.append(arcs[overlapping_box_pairs(np.concatenate([lo[arcs], -hi[arcs]]), np.concatenate([hi[arcs], -lo[arcs]]),
-                                                np.tile(np.arange(m), 2), np.repeat([0, 1], m), cell)])
+        m = len(owner)
+        # arc pieces (side 0) and their antipodes (side 1)
+        parts.append(arcs[overlapping_box_pairs(np.concatenate([lo, -hi]), np.concatenate([hi, -lo]),
+                                                np.tile(owner, 2), np.repeat([0, 1], m), cell)])
         # one great circle: normals (and their negatives) within the parallel tolerance
         t = 2 * PARALLEL_TOLERANCE
+        n_arcs = len(arcs)
         parts.append(arcs[overlapping_box_pairs(np.concatenate([nrm[arcs] - t, -nrm[arcs] - t]),
                                                 np.concatenate([nrm[arcs] + t, -nrm[arcs] + t]),
-                                                np.tile(np.arange(m), 2), np.repeat([0, 1], m), 2.0 / 64)])
-    for i in np.flatnonzero(wide):
+                                                np.tile(np.arange(n_arcs), 2), np.repeat([0, 1], n_arcs), 2.0 / 64)])
+    for i in np.flatnonzero(degenerate):
         j = np.delete(np.arange(n), i)
         parts.append(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1))
     pairs = np.unique(np.concatenate(parts).reshape(-1, 2), axis=0) if parts else np.zeros((0, 2), np.int64)

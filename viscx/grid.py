@@ -518,3 +518,71 @@ class TriangleGrid:
             row, tri = np.empty(k, dtype=np.int64), np.empty(k, dtype=np.int64)
             _near_counts(*args, row, tri)
         return row[:k], tri[:k]
+
+
+@njit(cache=True)
+def _pairs_in_cells(lo, cell, dims, offsets, items, boxes_lo, boxes_hi, owner, side, out, fill):
+    """Count (fill=False) or write the owner pairs of overlapping boxes, each box pair once:
+    in the cell holding the low corner of the two boxes' overlap."""
+    m = 0
+    for c in range(offsets.shape[0] - 1):
+        z = c % dims[2]
+        y = (c // dims[2]) % dims[1]
+        x = c // (dims[1] * dims[2])
+        for s in range(offsets[c], offsets[c + 1]):
+            i = items[s]
+            for t in range(s + 1, offsets[c + 1]):
+                j = items[t]
+                if owner[i] == owner[j] or (side[i] != 0 and side[j] != 0):
+                    continue
+                meet = True
+                for k in range(3):
+                    if boxes_lo[i, k] > boxes_hi[j, k] or boxes_lo[j, k] > boxes_hi[i, k]:
+                        meet = False
+                if not meet:
+                    continue
+                if (cell_of(max(boxes_lo[i, 0], boxes_lo[j, 0]), lo[0], cell[0], dims[0]) != x
+                        or cell_of(max(boxes_lo[i, 1], boxes_lo[j, 1]), lo[1], cell[1], dims[1]) != y
+                        or cell_of(max(boxes_lo[i, 2], boxes_lo[j, 2]), lo[2], cell[2], dims[2]) != z):
+                    continue
+                if fill:
+                    out[m, 0] = min(owner[i], owner[j])
+                    out[m, 1] = max(owner[i], owner[j])
+                m += 1
+    return m
+
+
+def overlapping_box_pairs(boxes_lo, boxes_hi, owner, side, cell_size):
+    """Pairs of owners whose boxes overlap, found on a uniform grid.
+
+    Several boxes may share an owner (an object and its mirror image, say); boxes of one
+    owner are never paired, nor two boxes whose ``side`` are both nonzero.
+
+    Parameters
+    ----------
+    boxes_lo, boxes_hi : (n, 3) float
+    owner : (n,) int
+    side : (n,) int
+    cell_size : float
+        Grid cell edge (about the typical box's size).
+
+    Returns
+    -------
+    (m, 2) int64
+        Unique pairs (a, b), a < b, sorted.
+    """
+    boxes_lo = np.ascontiguousarray(boxes_lo, dtype=np.float64)
+    boxes_hi = np.ascontiguousarray(boxes_hi, dtype=np.float64)
+    if len(boxes_lo) < 2:
+        return np.zeros((0, 2), np.int64)
+    lo = boxes_lo.min(axis=0)
+    size = np.maximum(boxes_hi.max(axis=0) - lo, 1e-300)
+    dims = np.clip(np.ceil(size / cell_size), 1, 256).astype(np.int64)
+    cell = size / dims
+    offsets, items = bin_boxes(lo, cell, dims, boxes_lo, boxes_hi)
+    owner = np.ascontiguousarray(owner, dtype=np.int64)
+    side = np.ascontiguousarray(side, dtype=np.int64)
+    m = _pairs_in_cells(lo, cell, dims, offsets, items, boxes_lo, boxes_hi, owner, side, np.zeros((0, 2), np.int64), False)
+    out = np.empty((m, 2), np.int64)
+    _pairs_in_cells(lo, cell, dims, offsets, items, boxes_lo, boxes_hi, owner, side, out, True)
+    return np.unique(out, axis=0)

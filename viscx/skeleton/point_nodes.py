@@ -11,6 +11,7 @@ from numba import njit
 
 from viscx.arrays import expand_ranges
 from viscx.geometry.lines import line_through_point_and_two_lines
+from viscx.grid import overlapping_box_pairs
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.generators import vertex_edges
 from viscx.skeleton.nodes import VEE, VV, validate_candidates
@@ -18,57 +19,148 @@ from viscx.skeleton.reference import edge_lines
 from viscx.tolerances import ANGLE_TOLERANCE, PARALLEL_TOLERANCE
 
 
+def _arc_frames(p, a, b):
+    """Unit directions from p to the segments' ends and the unit normals of their great
+    circles on p's direction sphere (zero where p lies on a segment's line)."""
+    ua = a - p
+    ub = b - p
+    ua = ua / np.linalg.norm(ua, axis=1)[:, None]
+    ub = ub / np.linalg.norm(ub, axis=1)[:, None]
+    c = np.cross(ua, ub)
+    nrm = c / np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
+    return ua, ub, nrm
+
+
 @njit(cache=True)
-def edge_pairs_seen_together(p, a, b, slack):
-    """Pairs (i, j), i < j, of segments a_i b_i, a_j b_j met by one line through p:
+def _seen_together(i, j, ua, ub, nrm, slack):
+    """Whether one line through p meets segments i and j (their great-circle arcs cross,
+    or one crosses the other's antipode), with an angular slack."""
+    # both ends of j on one side of i's great circle (beyond the slack): no crossing
+    si = (nrm[i] * ua[j]).sum()
+    ti = (nrm[i] * ub[j]).sum()
+    if (si > slack[i] and ti > slack[i]) or (si < -slack[i] and ti < -slack[i]):
+        return False
+    sj = (nrm[j] * ua[i]).sum()
+    tj = (nrm[j] * ub[i]).sum()
+    if (sj > slack[j] and tj > slack[j]) or (sj < -slack[j] and tj < -slack[j]):
+        return False
+    # the great circles meet at ±x; x must lie on arc i (or its antipode) and on arc j
+    x = np.cross(nrm[i], nrm[j])
+    size = np.sqrt((x * x).sum())
+    if size <= PARALLEL_TOLERANCE:  # one great circle: leave it to validation
+        return True
+    x /= size
+    for sign in (1.0, -1.0):
+        y = sign * x
+        on_i = (np.cross(ua[i], y) * nrm[i]).sum() >= -slack[i] and (np.cross(y, ub[i]) * nrm[i]).sum() >= -slack[i]
+        on_j = (np.cross(ua[j], y) * nrm[j]).sum() >= -slack[j] and (np.cross(y, ub[j]) * nrm[j]).sum() >= -slack[j]
+        on_jr = (np.cross(ua[j], -y) * nrm[j]).sum() >= -slack[j] and (np.cross(-y, ub[j]) * nrm[j]).sum() >= -slack[j]
+        if on_i and (on_j or on_jr):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _seen_together_mask(pairs, ua, ub, nrm, slack):
+    keep = np.zeros(pairs.shape[0], np.bool_)
+    for k in range(pairs.shape[0]):
+        keep[k] = _seen_together(pairs[k, 0], pairs[k, 1], ua, ub, nrm, slack)
+    return keep
+
+
+def seen_together(p, a, b, slack, pairs):
+    """Which candidate pairs (i, j) of segments a_i b_i, a_j b_j one line through p meets:
     their great-circle arcs on p's direction sphere cross, or one crosses the other's
-    antipode (p between the edges), with an angular slack. Returns (m, 2) int64."""
-    n = a.shape[0]
-    ua = np.empty((n, 3))
-    ub = np.empty((n, 3))
-    nrm = np.empty((n, 3))
-    for i in range(n):
-        x = a[i] - p
-        y = b[i] - p
-        ua[i] = x / np.sqrt((x * x).sum())
-        ub[i] = y / np.sqrt((y * y).sum())
-        c = np.cross(ua[i], ub[i])
-        nrm[i] = c / max(np.sqrt((c * c).sum()), 1e-300)
-    out = np.empty((1024, 2), np.int64)
-    m = 0
-    for i in range(n):
-        for j in range(i + 1, n):
-            # both ends of j on one side of i's great circle (beyond the slack): no crossing
-            si = (nrm[i] * ua[j]).sum()
-            ti = (nrm[i] * ub[j]).sum()
-            if (si > slack[i] and ti > slack[i]) or (si < -slack[i] and ti < -slack[i]):
-                continue
-            sj = (nrm[j] * ua[i]).sum()
-            tj = (nrm[j] * ub[i]).sum()
-            if (sj > slack[j] and tj > slack[j]) or (sj < -slack[j] and tj < -slack[j]):
-                continue
-            # the great circles meet at ±x; x must lie on arc i (or its antipode) and on arc j
-            x = np.cross(nrm[i], nrm[j])
-            size = np.sqrt((x * x).sum())
-            hit = size <= PARALLEL_TOLERANCE  # one great circle: leave it to validation
-            if not hit:
-                x /= size
-                for sign in (1.0, -1.0):
-                    y = sign * x
-                    on_i = (np.cross(ua[i], y) * nrm[i]).sum() >= -slack[i] and (np.cross(y, ub[i]) * nrm[i]).sum() >= -slack[i]
-                    on_j = (np.cross(ua[j], y) * nrm[j]).sum() >= -slack[j] and (np.cross(y, ub[j]) * nrm[j]).sum() >= -slack[j]
-                    on_jr = (np.cross(ua[j], -y) * nrm[j]).sum() >= -slack[j] and (np.cross(-y, ub[j]) * nrm[j]).sum() >= -slack[j]
-                    if on_i and (on_j or on_jr):
-                        hit = True
-            if hit:
-                if m == out.shape[0]:
-                    grown = np.empty((2 * m, 2), np.int64)
-                    grown[:m] = out
-                    out = grown
-                out[m, 0] = i
-                out[m, 1] = j
-                m += 1
-    return out[:m]
+    antipode (p between the edges), with an angular slack.
+
+    Parameters
+    ----------
+    p : (3,) float
+    a, b : (n, 3) float
+    slack : (n,) float
+        Angular slack of each segment (radians).
+    pairs : (m, 2) int
+
+    Returns
+    -------
+    (m,) bool
+    """
+    ua, ub, nrm = _arc_frames(p, a, b)
+    return _seen_together_mask(np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2), ua, ub, nrm,
+                               np.ascontiguousarray(slack, dtype=np.float64))
+
+
+def _arc_boxes(ua, nrm, t0, t1):
+    """Axis-aligned boxes of the great-circle arcs x(t) = cos t ua + sin t w, t in [t0, t1]
+    (w = nrm × ua, t1 - t0 < π): the ends, and the circle's extreme points
+    x_k = ±|(ua_k, w_k)| where they fall on the arc."""
+    w = np.cross(nrm, ua)
+    x0 = np.cos(t0)[:, None] * ua + np.sin(t0)[:, None] * w
+    x1 = np.cos(t1)[:, None] * ua + np.sin(t1)[:, None] * w
+    lo, hi = np.minimum(x0, x1), np.maximum(x0, x1)
+    r = np.hypot(ua, w)
+    t_max = np.arctan2(w, ua)  # where x_k = +r, then every 2π
+    for t_ext, value in ((t_max, r), (t_max + np.pi, -r)):
+        t_ext = t0[:, None] + np.mod(t_ext - t0[:, None], 2 * np.pi)
+        on = t_ext <= t1[:, None]
+        hi = np.where(on & (value > 0), value, hi)
+        lo = np.where(on & (value < 0), value, lo)
+    return lo, hi
+
+
+def edge_pairs_seen_together(p, a, b, slack):
+    """Pairs (i, j), i < j, of segments a_i b_i, a_j b_j met by one line through p
+    (:func:`seen_together`), without testing every pair: only pairs whose arcs' boxes
+    on p's direction sphere overlap (arc with arc, or arc with the other's antipode), or
+    whose great circles are one (their normals' boxes overlap) are tested.
+
+    Parameters
+    ----------
+    p : (3,) float
+    a, b : (n, 3) float
+    slack : (n,) float
+
+    Returns
+    -------
+    (m, 2) int64
+        Sorted by (i, j).
+    """
+    n = len(a)
+    if n < 2:
+        return np.zeros((0, 2), np.int64)
+    slack = np.ascontiguousarray(slack, dtype=np.float64)
+    ua, ub, nrm = _arc_frames(p, a, b)
+    # p on a segment's line: its arc is a whole great circle, tested with every segment
+    degenerate = np.linalg.norm(nrm, axis=1) < 0.5
+    length = np.arctan2(np.linalg.norm(np.cross(ua, ub), axis=1), np.einsum("ij,ij->i", ua, ub))
+    # arcs longer than a grid cell are cut into pieces about a cell long (one box each), so
+    # that a long arc lists the cells along it, not those of its whole box
+    cell = min(max(float(np.median(length + 4 * slack)), 2.0 / 256), 0.5)
+    arcs = np.flatnonzero(~degenerate)
+    pieces = np.ceil(length[arcs] / cell).astype(np.int64).clip(1)
+    owner = np.repeat(np.arange(len(arcs)), pieces)
+    k = np.arange(len(owner)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    step = length[arcs][owner] / pieces[owner]
+    lo, hi = _arc_boxes(ua[arcs][owner], nrm[arcs][owner], k * step, (k + 1) * step)
+    grow = (2 * slack[arcs][owner] + 1e-12)[:, None]  # a chord is at most its angle
+    lo, hi = lo - grow, hi + grow
+    parts = []
+    if len(arcs) > 1:
+        m = len(owner)
+        # arc pieces (side 0) and their antipodes (side 1)
+        parts.append(arcs[overlapping_box_pairs(np.concatenate([lo, -hi]), np.concatenate([hi, -lo]),
+                                                np.tile(owner, 2), np.repeat([0, 1], m), cell)])
+        # one great circle: normals (and their negatives) within the parallel tolerance
+        t = 2 * PARALLEL_TOLERANCE
+        n_arcs = len(arcs)
+        parts.append(arcs[overlapping_box_pairs(np.concatenate([nrm[arcs] - t, -nrm[arcs] - t]),
+                                                np.concatenate([nrm[arcs] + t, -nrm[arcs] + t]),
+                                                np.tile(np.arange(n_arcs), 2), np.repeat([0, 1], n_arcs), 2.0 / 64)])
+    for i in np.flatnonzero(degenerate):
+        j = np.delete(np.arange(n), i)
+        parts.append(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1))
+    pairs = np.unique(np.concatenate(parts).reshape(-1, 2), axis=0) if parts else np.zeros((0, 2), np.int64)
+    return pairs[_seen_together_mask(pairs, ua, ub, nrm, slack)]
 
 
 def point_candidates(scene, point_ids):

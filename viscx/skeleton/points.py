@@ -36,8 +36,9 @@ from viscx.skeleton.arcs.halfcells import build_half_cells
 from viscx.skeleton.arcs.kinds import END_ENDPOINT, END_NODE, END_TRANSITION, VE, Arcs, HalfCells
 from viscx.skeleton.arcs.stages import arcs_on_intervals, family_intervals, sorted_arcs
 from viscx.skeleton.nodes import Nodes, validate_candidates
-from viscx.skeleton.point_nodes import edge_pairs_seen_together, point_node_incidences, point_nodes
-from viscx.tolerances import ANGLE_TOLERANCE, PARALLEL_TOLERANCE, PARAMETER_SLACK
+from viscx.skeleton.generators import edge_crossings
+from viscx.skeleton.point_nodes import point_node_incidences, point_nodes
+from viscx.tolerances import PARAMETER_SLACK
 
 
 def with_points(scene, points):
@@ -179,7 +180,8 @@ def point_arcs(scene, point_ids, nodes):
 
 def _crossing_events(scene, point_ids, ge):
     """Where the families (p, e) of each point pass the crossing of e with another generator
-    edge (both crossing strictly inside, within the weld tolerance).
+    edge (the scene's X-junctions, :func:`viscx.skeleton.generators.edge_crossings`: every
+    line through p and X meets both edges).
 
     Returns
     -------
@@ -188,33 +190,10 @@ def _crossing_events(scene, point_ids, ge):
     s : (k,) float
         Parameter of the crossing on e.
     """
-    tol = scene.weld_tolerance
-    ev = scene.half_edges.edge_vertices[ge]
-    a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
-    fams, ss = [], []
-    for k, p in enumerate(np.asarray(point_ids, dtype=np.int64)):
-        x = scene.vertices[p]
-        slack = np.full(len(ge), ANGLE_TOLERANCE)
-        pairs = edge_pairs_seen_together(x, a, b, slack)
-        i, j = pairs[:, 0], pairs[:, 1]
-        shared = (ev[i][:, :, None] == ev[j][:, None, :]).any(axis=(1, 2))
-        i, j = i[~shared], j[~shared]
-        # closest points of the two segments' lines
-        d1, d2, r = b[i] - a[i], b[j] - a[j], a[i] - a[j]
-        aa, bb, cc = np.einsum("ij,ij->i", d1, d1), np.einsum("ij,ij->i", d1, d2), np.einsum("ij,ij->i", d2, d2)
-        dd, ee = np.einsum("ij,ij->i", d1, r), np.einsum("ij,ij->i", d2, r)
-        den = aa * cc - bb * bb
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = (bb * ee - cc * dd) / den
-            t = (aa * ee - bb * dd) / den
-        gap = np.linalg.norm(a[i] + s[:, None] * d1 - a[j] - t[:, None] * d2, axis=1)
-        ok = (den > PARALLEL_TOLERANCE * aa * cc) & (gap <= tol) & (s * np.sqrt(aa) > tol) & ((1 - s) * np.sqrt(aa) > tol)
-        ok &= (t * np.sqrt(cc) > tol) & ((1 - t) * np.sqrt(cc) > tol)
-        fams += [k * len(ge) + i[ok], k * len(ge) + j[ok]]
-        ss += [s[ok], t[ok]]
-    if not fams:
-        return np.zeros(0, np.int64), np.zeros(0)
-    return np.concatenate(fams), np.concatenate(ss)
+    cr = edge_crossings(scene)
+    rows = np.searchsorted(ge, cr.edges)  # (k, 2) rows of both edges' families
+    base = np.repeat(np.arange(len(point_ids)) * len(ge), 2 * len(cr.edges))
+    return base + np.tile(rows.ravel(), len(point_ids)), np.tile(cr.s.ravel(), len(point_ids))
 
 
 # --------------------------------------------------------------------------------------

@@ -406,3 +406,45 @@ def test_file_without_v2(tmp_path):
     build_file(SAMPLES / "two_triangles.obj", tmp_path / "v1.h5", quiet=True, levels=1)
     out = _viscx("formfactor", "faces", tmp_path / "v1.h5", "--from-face", "0", "--to-face", "1")
     assert out.returncode == 2 and "no V-cells" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+# --------------------------------------------------------------------------------------
+# hovering occluders: the Cornell light 0.1 mm under the ceiling
+
+
+def test_hover_cells_follow_the_light_outline(cornell):
+    """The ceiling's cells are cut along the light's outline projected on the ceiling and
+    graded towards it (offsets h·4^k, h = 0.1 mm): no projected edge crosses a cell's
+    interior, the cells tile the ceiling, and the narrowest cells are no wider than h. Without the cuts the ceiling is its two triangles."""
+    seg = ff.hover_segments(cornell, 1, 1)
+    light = cornell.face_loops(15)[0]
+    assert len(seg) == 4 * 11  # 4 edges: the edge and 5 offsets on each side (0.1 … 25.6 mm)
+    cells = ff.emitter_cells(cornell, 1, 1)
+    n = cornell.face_normal[1]
+    assert len(cells) > 100
+    assert abs(sum(ff.loops_area([c], n) for c in cells) - cornell.face_area[1]) < 1e-6
+    proj = light * [1, 0, 1] + [0, 548.8, 0]
+    t = np.linspace(0.01, 0.99, 50)
+    widths = []
+    for k in range(4):
+        a, b = proj[k], proj[(k + 1) % 4]
+        pts = a + t[:, None] * (b - a)
+        for c in cells:
+            e = np.roll(c, -1, axis=0) - c
+            left = np.einsum("pkj,j->pk", np.cross(e[None], pts[:, None] - c[None]), n)
+            assert not np.any((left > 1e-6).all(axis=1))
+    for c in cells:
+        e = np.roll(c, -1, axis=0) - c
+        widths.append(2 * ff.loops_area([c], n) / np.linalg.norm(e, axis=1).max())
+    assert 0.01 < min(widths) <= 0.1 + 1e-9
+
+
+def test_hovering_light_reciprocity_ceiling_floor(cornell):
+    """Ceiling → floor (the light hides the ceiling's points above it, a jump over 0.1 mm
+    along its outline) against floor → ceiling (the light seen from the floor: smooth), two
+    independent integrands of equal areas: equal within the two estimates, at 1e-6."""
+    down = ff.pair_form_factor(cornell, 1, 1, ff.face_target(cornell, 0), 1, tol=1e-6)
+    up = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 1), 1, tol=1e-6)
+    assert down.method == up.method == "quadrature"
+    assert down.error < 1e-6 and up.error < 1e-6
+    assert abs(down.F - up.F) <= down.error + up.error

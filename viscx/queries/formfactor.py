@@ -342,6 +342,62 @@ def contact_segments(scene, face, side):
     return np.concatenate(out) if out else np.zeros((0, 2, 3))
 
 
+#: Ratio of the offsets of :func:`hover_segments` (grading of the cells along a hovering outline).
+HOVER_GRADING = 4.0
+
+
+def hover_segments(scene, face, side):
+    """Segments of face ``face``'s plane along which the form factor of its side ``side``
+    changes over a width much smaller than the face: the outlines of faces that *hover* in
+    front of the side (the Cornell light 0.1 mm under the ceiling), projected on the plane.
+
+    An edge of another face's part in front of the side whose ends are at heights
+    0 < h ≤ (its length) / 4 hides, from the points of the plane within ~h of its
+    projection, everything on one side of it and almost nothing on the other: the integrand
+    of the hidden part goes from ~0 to ~F(x → J) across a band of width ~h, and its
+    variation at distance d from the projection is on the scale of d (the occluder is seen
+    under an angle ~h/d). So the emitter is cut along the projection and along parallels at
+    distances ±h·g^k (g = :data:`HOVER_GRADING`) up to a quarter of the edge: cells graded
+    towards the near-discontinuity, each as wide as the scale of the integrand's variation
+    in it, as contact lines (:func:`contact_segments`) are for true discontinuities. The
+    offsets run past the edge's ends by their distance, so that the cells near a corner are
+    graded in both directions.
+
+    Returns
+    -------
+    (s, 2, 3) float64
+    """
+    n = side * scene.face_normal[face]
+    c = float(n @ scene.face_loops(face)[0][0])
+    tiny = 1e-9 * scene.diagonal
+    box_lo, box_hi = face_boxes(scene)
+    # only faces within a quarter of the face's extent can hover over it
+    reach = 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face]))
+    lo, hi = box_lo[face] - reach, box_hi[face] + reach
+    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
+    out = []
+    for k in near:
+        if k == face:
+            continue
+        for loop in clip_loops(scene.face_loops(k), n, c):
+            b = np.roll(loop, -1, axis=0)
+            ha, hb = loop @ n - c, b @ n - c
+            length = np.linalg.norm(b - loop, axis=1)
+            low = np.minimum(ha, hb)
+            keep = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
+            for p, q, h, ell in zip(loop[keep], b[keep], low[keep], length[keep]):
+                p, q = p - (p @ n - c) * n, q - (q @ n - c) * n
+                d = (q - p) / np.linalg.norm(q - p)
+                across = np.cross(n, d)
+                out.append((p, q))
+                off = h
+                while off <= 0.25 * ell:
+                    for sgn in (1.0, -1.0):
+                        out.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
+                    off *= HOVER_GRADING
+    return np.asarray(out, np.float64).reshape(-1, 2, 3)
+
+
 def emitter_cells(scene, face, side):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`): the face's triangles, each cut by the line of every segment
@@ -364,7 +420,7 @@ def emitter_cells(scene, face, side):
         return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
 
     pieces = [t if _area2(t) > 0 else t[::-1] for t in to2(tri)]
-    seg = to2(contact_segments(scene, face, side))
+    seg = to2(np.concatenate([contact_segments(scene, face, side), hover_segments(scene, face, side)]))
     for a, b in seg:
         length = np.linalg.norm(b - a)
         d = (b - a) / length
@@ -447,6 +503,7 @@ class Cubature:
         self.cull = cull
         self.unresolved = unresolved
         self.evaluations = 0
+        self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, err) of the final triangles
 
     def estimates(self, tri, ptr, ids, q, kq):
         """(g,) float64: each triangle's error estimate, at least what the ``unresolved``
@@ -551,6 +608,7 @@ class Cubature:
             kptr, kids_ids = _join_lists(okptr, okids, g_ptr, g_ids)
             kq = np.concatenate([kq[keep], g_q])
         err = self.estimates(tri, ptr, ids, q, kq)
+        self.leaves = (tri, ptr, ids, q, kq, err)
         return float(kq.sum()), float(err.sum()), cells
 
 
@@ -727,12 +785,15 @@ class PairSetup:
         return above, flat[idx], flat[nxt]
 
     def unresolved(self, tri, ptr, ids):
-        """(g,) float64: what a rule may miss on each triangle near the outline of an
-        occluder that hovers above I by less than half the triangle's size. Its shadow there
+        """(g,) float64: what a rule may miss on each triangle crossed by the outline of an
+        occluder that hovers above I by less than half the triangle's width. Its shadow there
         has an edge as narrow as its height h (the Cornell light 0.1 mm under the ceiling),
         where the hidden part goes from about 0 to about F(x → J') ≤ 1 across a band of
         width ~h: the rule may miss up to 2 h times the outline's length in the triangle
-        (at most its size)."""
+        (at most its size). The emitter's cells are cut along such outlines and graded
+        towards them (:func:`hover_segments`), so on those cells no outline crosses a
+        triangle and nothing is added; what is left is for outlines the cuts do not know
+        (occluders hovering higher than a quarter of their edges)."""
         size = _longest_side(tri)
         above, a, b = self._heights
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
@@ -741,11 +802,18 @@ class PairSetup:
         if not np.any(near):
             return out
         cell, occ = cell[near], ids[near]
-        c = tri[cell].mean(axis=1)[:, None, :]
-        d = b[occ] - a[occ]
-        t = np.clip(np.einsum("ckj,ckj->ck", c - a[occ], d) / np.maximum(np.einsum("ckj,ckj->ck", d, d), 1e-300), 0, 1)
-        dist = np.linalg.norm(a[occ] + t[..., None] * d - c, axis=2).min(axis=1)
-        hit = dist < size[cell]
+        d = b[occ] - a[occ]  # (c, k, 3) the outline's edges on I's plane
+        length = np.linalg.norm(d, axis=2)
+        unit = d / np.maximum(length, 1e-300)[..., None]
+        across = np.cross(self.n_i, unit)
+        rel = tri[cell][:, None, :, :] - a[occ][:, :, None, :]  # (c, k, 3 vertices, 3)
+        s = np.einsum("ckvj,ckj->ckv", rel, across)
+        t = np.einsum("ckvj,ckj->ckv", rel, unit)
+        h = above[occ][:, None]
+        # the edge's line crosses the triangle with more than h on both sides, within the edge
+        crosses = (s.max(axis=2) > h) & (s.min(axis=2) < -h) & (t.max(axis=2) > 0) & (t.min(axis=2) < length)
+        crosses &= length > 0
+        hit = crosses.any(axis=1)
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out
 

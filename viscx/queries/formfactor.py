@@ -72,7 +72,7 @@ MATRIX_TOL = 1e-6
 #: Rotation of J's 2-D basis (radians), away from any axis a modeller would use.
 GENERIC_ANGLE = 0.5873926
 #: The cubature's first triangles are no longer than this fraction of the pair's extent.
-MIN_SPLIT = 8
+MIN_SPLIT = 4
 
 
 def _unit(v):
@@ -477,13 +477,17 @@ class Cubature:
     occluders that may matter on it (CSR ``ptr``, ``ids``; an empty list means the integrand
     is zero there, exactly).
 
-    The error estimate of a triangle T is |Q(T) − Σ Q(children)|: Radon's degree-5 rule on
-    T against the same rule on its four midpoint children, whose sum is the value used
-    (it is the more accurate of the two, so the estimate is conservative where the integrand
-    is smooth: the children's error is ~1/64 of it). Refinement is global: while the sum of
-    the estimates exceeds the budget, the triangles with the largest estimates are split
-    (their children become triangles with children of their own), so the effort goes where
-    the integrand is rough (its kinks along the discontinuity mesh).
+    Each triangle T (a leaf) is evaluated on three levels: Radon's degree-5 rule on T, on
+    its four midpoint children and on their sixteen children, whose sum is the value used.
+    Its error estimate is the change from the children to the grandchildren (conservative
+    where the integrand is smooth: the grandchildren's error is ~1/64 of it), at least 1/64
+    of the change from T to its children. Two levels are not enough: a kink of the integrand
+    (a line of the emitter's discontinuity mesh) that only clips a corner of T lies between
+    the nodes of T and of its children alike, and the two can agree to 1e-12 while both are
+    off (the Cornell light → floor: 5e-8 off for an estimate of 9e-9; the grandchildren
+    see it). Refinement is global: while the sum of the estimates exceeds the budget, the
+    triangles with the largest estimates are split (their children become leaves, each
+    with its own three levels), so the effort goes where the integrand is rough.
 
     Parameters
     ----------
@@ -503,13 +507,18 @@ class Cubature:
         self.cull = cull
         self.unresolved = unresolved
         self.evaluations = 0
-        self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, err) of the final triangles
+        self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, gq, err) of the final triangles
 
-    def estimates(self, tri, ptr, ids, q, kq):
-        """(g,) float64: each triangle's error estimate, at least what the ``unresolved``
-        callback says a feature smaller than the rule can see may hide in it (at most the
-        triangle's area: the integrand's values lie in [0, 1])."""
-        err = np.abs(q - kq.sum(axis=1))
+    def estimates(self, tri, ptr, ids, q, kq, gq):
+        """(g,) float64: each triangle's error estimate for the sum of its 16 grandchildren
+        (``gq`` (g, 16)): the change from its 4 children (``kq`` (g, 4)) to them, at least
+        1/64 of the change from its own rule ``q`` to its children (what a smooth integrand
+        gives: when the two finer levels agree by accident, a feature the coarser level saw
+        is not forgotten), and at least what the ``unresolved`` callback says a feature
+        smaller than the rule can see may hide in it (at most the triangle's area: the
+        integrand's values lie in [0, 1])."""
+        k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
+        err = np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64)
         if self.unresolved is not None and len(tri):
             err = np.maximum(err, np.minimum(self.unresolved(tri, ptr, ids), triangle_areas(tri)))
         return err
@@ -573,11 +582,17 @@ class Cubature:
             ptr, ids = _join_lists(sptr, sids, kptr, kids_ids)
         live = np.flatnonzero(np.diff(ptr) > 0)
         tri, (ptr, ids) = tri[live], _sub_lists(ptr, ids, live)
+        # every leaf carries its rule value q, its 4 children (rows 4 L + c of K) and their
+        # 16 children (rows 16 L + 4 c + d of G), each with its list and rule value
         q = self.rule(tri, ptr, ids)
-        kids, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
-        cells = 5 * len(tri)
+        K, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
+        K, kq = K.reshape(-1, 3, 3), kq.reshape(-1)
+        G, gptr, gids, gq = self.expand(K, kptr, kids_ids)
+        G, gq = G.reshape(-1, 3, 3), gq.reshape(-1)
+        cells = 21 * len(tri)
+        four, sixteen = np.arange(4), np.arange(16)
         for _ in range(200):
-            err = self.estimates(tri, ptr, ids, q, kq)
+            err = self.estimates(tri, ptr, ids, q, kq.reshape(-1, 4), gq.reshape(-1, 16))
             total = float(err.sum())
             if total <= budget or cells >= MAX_CELLS or not len(tri):
                 break
@@ -587,29 +602,36 @@ class Cubature:
             n_split = int(np.searchsorted(-rest, -0.5 * budget)) + 1
             split = np.zeros(len(tri), bool)
             split[order[:n_split]] = True
-            keep = np.flatnonzero(~split)
-            # the split leaves' children become leaves; their own children are evaluated
-            rows = np.flatnonzero(split)
-            child_rows = (4 * rows[:, None] + np.arange(4)).reshape(-1)
-            new_tri = kids.reshape(-1, 3, 3)[child_rows]
-            nptr, nids = _sub_lists(kptr, kids_ids, child_rows)
-            new_q = kq.reshape(-1)[child_rows]
-            live = np.flatnonzero(np.diff(nptr) > 0)  # children with nothing to hide are exactly zero
-            new_tri, new_q = new_tri[live], new_q[live]
-            nptr, nids = _sub_lists(nptr, nids, live)
-            g_kids, g_ptr, g_ids, g_q = self.expand(new_tri, nptr, nids)
-            cells += 4 * len(new_tri)
-            optr, oids = _sub_lists(ptr, ids, keep)
-            okptr, okids = _sub_lists(kptr, kids_ids, (4 * keep[:, None] + np.arange(4)).reshape(-1))
+            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
+            # the split leaves' children become leaves (children with nothing to hide are
+            # exactly zero and dropped); their children and grandchildren move up a level,
+            # and the grandchildren's children are evaluated
+            child = (4 * rows[:, None] + four).reshape(-1)
+            nptr, nids = _sub_lists(kptr, kids_ids, child)
+            live = np.flatnonzero(np.diff(nptr) > 0)
+            child = child[live]
+            new_tri, new_q = K[child], kq[child]
+            nptr, nids = _sub_lists(kptr, kids_ids, child)
+            grand = (4 * child[:, None] + four).reshape(-1)
+            new_K, new_kq = G[grand], gq[grand]
+            nkptr, nkids = _sub_lists(gptr, gids, grand)
+            new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids)
+            cells += 16 * len(new_tri)
+            k_keep = (4 * keep[:, None] + four).reshape(-1)
+            g_keep = (16 * keep[:, None] + sixteen).reshape(-1)
             tri = np.concatenate([tri[keep], new_tri])
-            ptr, ids = _join_lists(optr, oids, nptr, nids)
+            ptr, ids = _join_lists(*_sub_lists(ptr, ids, keep), nptr, nids)
             q = np.concatenate([q[keep], new_q])
-            kids = np.concatenate([kids[keep], g_kids])
-            kptr, kids_ids = _join_lists(okptr, okids, g_ptr, g_ids)
-            kq = np.concatenate([kq[keep], g_q])
-        err = self.estimates(tri, ptr, ids, q, kq)
-        self.leaves = (tri, ptr, ids, q, kq, err)
-        return float(kq.sum()), float(err.sum()), cells
+            K = np.concatenate([K[k_keep], new_K])
+            kptr, kids_ids = _join_lists(*_sub_lists(kptr, kids_ids, k_keep), nkptr, nkids)
+            kq = np.concatenate([kq[k_keep], new_kq])
+            G = np.concatenate([G[g_keep], new_G.reshape(-1, 3, 3)])
+            gptr, gids = _join_lists(*_sub_lists(gptr, gids, g_keep), ngptr, ngids)
+            gq = np.concatenate([gq[g_keep], new_gq.reshape(-1)])
+        kq, gq = kq.reshape(-1, 4), gq.reshape(-1, 16)
+        err = self.estimates(tri, ptr, ids, q, kq, gq)
+        self.leaves = (tri, ptr, ids, q, kq, gq, err)
+        return float(gq.sum()), float(err.sum()), cells
 
 
 def _longest_side(tri):

@@ -414,11 +414,11 @@ def test_file_without_v2(tmp_path):
 
 def test_hover_cells_follow_the_light_outline(cornell):
     """The ceiling's cells are cut along the light's outline projected on the ceiling and
-    graded towards it (offsets h·4^k, h = 0.1 mm): no projected edge crosses a cell's
+    graded towards it (offsets h·8^k, h = 0.1 mm): no projected edge crosses a cell's
     interior, the cells tile the ceiling, and the narrowest cells are no wider than h. Without the cuts the ceiling is its two triangles."""
     seg = ff.hover_segments(cornell, 1, 1)
     light = cornell.face_loops(15)[0]
-    assert len(seg) == 4 * 11  # 4 edges: the edge and 5 offsets on each side (0.1 … 25.6 mm)
+    assert len(seg) == 4 * 7  # 4 edges: the edge and 3 offsets on each side (0.1, 0.8, 6.4 mm)
     cells = ff.emitter_cells(cornell, 1, 1)
     n = cornell.face_normal[1]
     assert len(cells) > 100

@@ -343,7 +343,7 @@ def contact_segments(scene, face, side):
 
 
 #: Ratio of the offsets of :func:`hover_segments` (grading of the cells along a hovering outline).
-HOVER_GRADING = 4.0
+HOVER_GRADING = 8.0
 
 
 def hover_segments(scene, face, side):
@@ -557,8 +557,11 @@ class Cubature:
         budget : float
             Target on the sum of the error estimates.
         min_size : float
-            Triangles longer than this (their longest side) are split before anything is
-            trusted: a rule on a large triangle may miss a small shadow entirely.
+            Triangles larger than this (the side of a square of twice their area) are split
+            before anything is trusted: a rule on a large triangle may miss a small shadow
+            entirely. (Area, not length: the thin cells graded along a hovering outline,
+            :func:`hover_segments`, are as thin as the integrand's scale across them and
+            smooth along them; halving them in both directions would only multiply them.)
 
         Returns
         -------
@@ -570,7 +573,7 @@ class Cubature:
         ptr = (np.arange(len(tri) + 1) * len(candidates)).astype(np.int64)
         ptr, ids = self.cull(tri, ptr, np.tile(candidates, len(tri)))
         while len(tri) and min_size > 0:
-            long = _longest_side(tri) > min_size
+            long = np.sqrt(2 * triangle_areas(tri)) > min_size
             if not np.any(long):
                 break
             kids = split4(tri[long]).reshape(-1, 3, 3)

@@ -314,6 +314,20 @@ def _area2(p):
     return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
 
 
+def _front_edges(scene, face, side, margin):
+    """The edges of the other faces' parts in front of side ``side`` of a face (clipped to
+    its closed front half-space), for the faces whose boxes meet the face's box grown by
+    ``margin``: ``(n, c, tiny, edges)``, n · y = c the side's plane (n its normal), edges a
+    list of ``(a, b)`` (k, 3) arrays, a loop's edges a → b."""
+    n = side * scene.face_normal[face]
+    c = float(n @ scene.face_loops(face)[0][0])
+    box_lo, box_hi = face_boxes(scene)
+    lo, hi = box_lo[face] - margin, box_hi[face] + margin
+    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
+    edges = [(loop, np.roll(loop, -1, axis=0)) for k in near if k != face for loop in clip_loops(scene.face_loops(k), n, c)]
+    return n, c, 1e-9 * scene.diagonal, edges
+
+
 def contact_segments(scene, face, side):
     """Segments of face ``face``'s plane where another face touches or crosses its side
     ``side``: the boundary of that face's part in front of the side, where it lies in the
@@ -324,21 +338,12 @@ def contact_segments(scene, face, side):
     -------
     (s, 2, 3) float64
     """
-    n = side * scene.face_normal[face]
-    c = float(n @ scene.face_loops(face)[0][0])
-    tiny = 1e-9 * scene.diagonal
-    box_lo, box_hi = face_boxes(scene)
-    lo, hi = box_lo[face] - 10 * tiny, box_hi[face] + 10 * tiny
-    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
+    n, c, tiny, edges = _front_edges(scene, face, side, 10 * 1e-9 * scene.diagonal)
     out = []
-    for k in near:
-        if k == face:
-            continue
-        for loop in clip_loops(scene.face_loops(k), n, c):
-            b = np.roll(loop, -1, axis=0)
-            flat = (np.abs(loop @ n - c) <= 10 * tiny) & (np.abs(b @ n - c) <= 10 * tiny)
-            flat &= np.linalg.norm(b - loop, axis=1) > 10 * tiny
-            out.append(np.stack([loop[flat], b[flat]], axis=1))
+    for loop, b in edges:
+        flat = (np.abs(loop @ n - c) <= 10 * tiny) & (np.abs(b @ n - c) <= 10 * tiny)
+        flat &= np.linalg.norm(b - loop, axis=1) > 10 * tiny
+        out.append(np.stack([loop[flat], b[flat]], axis=1))
     return np.concatenate(out) if out else np.zeros((0, 2, 3))
 
 
@@ -367,34 +372,25 @@ def hover_segments(scene, face, side):
     -------
     (s, 2, 3) float64
     """
-    n = side * scene.face_normal[face]
-    c = float(n @ scene.face_loops(face)[0][0])
-    tiny = 1e-9 * scene.diagonal
     box_lo, box_hi = face_boxes(scene)
     # only faces within a quarter of the face's extent can hover over it
-    reach = 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face]))
-    lo, hi = box_lo[face] - reach, box_hi[face] + reach
-    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
+    n, c, tiny, edges = _front_edges(scene, face, side, 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face])))
     out = []
-    for k in near:
-        if k == face:
-            continue
-        for loop in clip_loops(scene.face_loops(k), n, c):
-            b = np.roll(loop, -1, axis=0)
-            ha, hb = loop @ n - c, b @ n - c
-            length = np.linalg.norm(b - loop, axis=1)
-            low = np.minimum(ha, hb)
-            keep = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
-            for p, q, h, ell in zip(loop[keep], b[keep], low[keep], length[keep]):
-                p, q = p - (p @ n - c) * n, q - (q @ n - c) * n
-                d = (q - p) / np.linalg.norm(q - p)
-                across = np.cross(n, d)
-                out.append((p, q))
-                off = h
-                while off <= 0.25 * ell:
-                    for sgn in (1.0, -1.0):
-                        out.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
-                    off *= HOVER_GRADING
+    for loop, b in edges:
+        ha, hb = loop @ n - c, b @ n - c
+        length = np.linalg.norm(b - loop, axis=1)
+        low = np.minimum(ha, hb)
+        keep = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
+        for p, q, h, ell in zip(loop[keep], b[keep], low[keep], length[keep]):
+            p, q = p - (p @ n - c) * n, q - (q @ n - c) * n
+            d = (q - p) / np.linalg.norm(q - p)
+            across = np.cross(n, d)
+            out.append((p, q))
+            off = h
+            while off <= 0.25 * ell:
+                for sgn in (1.0, -1.0):
+                    out.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
+                off *= HOVER_GRADING
     return np.asarray(out, np.float64).reshape(-1, 2, 3)
 
 

@@ -72,7 +72,7 @@ MATRIX_TOL = 1e-6
 #: Rotation of J's 2-D basis (radians), away from any axis a modeller would use.
 GENERIC_ANGLE = 0.5873926
 #: The cubature's first triangles are no longer than this fraction of the pair's extent.
-MIN_SPLIT = 8
+MIN_SPLIT = 4
 
 
 def _unit(v):
@@ -314,6 +314,20 @@ def _area2(p):
     return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
 
 
+def _front_edges(scene, face, side, margin):
+    """The edges of the other faces' parts in front of side ``side`` of a face (clipped to
+    its closed front half-space), for the faces whose boxes meet the face's box grown by
+    ``margin``: ``(n, c, tiny, edges)``, n · y = c the side's plane (n its normal), edges a
+    list of ``(a, b)`` (k, 3) arrays, a loop's edges a → b."""
+    n = side * scene.face_normal[face]
+    c = float(n @ scene.face_loops(face)[0][0])
+    box_lo, box_hi = face_boxes(scene)
+    lo, hi = box_lo[face] - margin, box_hi[face] + margin
+    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
+    edges = [(loop, np.roll(loop, -1, axis=0)) for k in near if k != face for loop in clip_loops(scene.face_loops(k), n, c)]
+    return n, c, 1e-9 * scene.diagonal, edges
+
+
 def contact_segments(scene, face, side):
     """Segments of face ``face``'s plane where another face touches or crosses its side
     ``side``: the boundary of that face's part in front of the side, where it lies in the
@@ -324,22 +338,60 @@ def contact_segments(scene, face, side):
     -------
     (s, 2, 3) float64
     """
-    n = side * scene.face_normal[face]
-    c = float(n @ scene.face_loops(face)[0][0])
-    tiny = 1e-9 * scene.diagonal
-    box_lo, box_hi = face_boxes(scene)
-    lo, hi = box_lo[face] - 10 * tiny, box_hi[face] + 10 * tiny
-    near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
+    n, c, tiny, edges = _front_edges(scene, face, side, 10 * 1e-9 * scene.diagonal)
     out = []
-    for k in near:
-        if k == face:
-            continue
-        for loop in clip_loops(scene.face_loops(k), n, c):
-            b = np.roll(loop, -1, axis=0)
-            flat = (np.abs(loop @ n - c) <= 10 * tiny) & (np.abs(b @ n - c) <= 10 * tiny)
-            flat &= np.linalg.norm(b - loop, axis=1) > 10 * tiny
-            out.append(np.stack([loop[flat], b[flat]], axis=1))
+    for loop, b in edges:
+        flat = (np.abs(loop @ n - c) <= 10 * tiny) & (np.abs(b @ n - c) <= 10 * tiny)
+        flat &= np.linalg.norm(b - loop, axis=1) > 10 * tiny
+        out.append(np.stack([loop[flat], b[flat]], axis=1))
     return np.concatenate(out) if out else np.zeros((0, 2, 3))
+
+
+#: Ratio of the offsets of :func:`hover_segments` (grading of the cells along a hovering outline).
+HOVER_GRADING = 8.0
+
+
+def hover_segments(scene, face, side):
+    """Segments of face ``face``'s plane along which the form factor of its side ``side``
+    changes over a width much smaller than the face: the outlines of faces that *hover* in
+    front of the side (the Cornell light 0.1 mm under the ceiling), projected on the plane.
+
+    An edge of another face's part in front of the side whose ends are at heights
+    0 < h ≤ (its length) / 4 hides, from the points of the plane within ~h of its
+    projection, everything on one side of it and almost nothing on the other: the integrand
+    of the hidden part goes from ~0 to ~F(x → J) across a band of width ~h, and its
+    variation at distance d from the projection is on the scale of d (the occluder is seen
+    under an angle ~h/d). So the emitter is cut along the projection and along parallels at
+    distances ±h·g^k (g = :data:`HOVER_GRADING`) up to a quarter of the edge: cells graded
+    towards the near-discontinuity, each as wide as the scale of the integrand's variation
+    in it, as contact lines (:func:`contact_segments`) are for true discontinuities. The
+    offsets run past the edge's ends by their distance, so that the cells near a corner are
+    graded in both directions.
+
+    Returns
+    -------
+    (s, 2, 3) float64
+    """
+    box_lo, box_hi = face_boxes(scene)
+    # only faces within a quarter of the face's extent can hover over it
+    n, c, tiny, edges = _front_edges(scene, face, side, 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face])))
+    out = []
+    for loop, b in edges:
+        ha, hb = loop @ n - c, b @ n - c
+        length = np.linalg.norm(b - loop, axis=1)
+        low = np.minimum(ha, hb)
+        keep = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
+        for p, q, h, ell in zip(loop[keep], b[keep], low[keep], length[keep]):
+            p, q = p - (p @ n - c) * n, q - (q @ n - c) * n
+            d = (q - p) / np.linalg.norm(q - p)
+            across = np.cross(n, d)
+            out.append((p, q))
+            off = h
+            while off <= 0.25 * ell:
+                for sgn in (1.0, -1.0):
+                    out.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
+                off *= HOVER_GRADING
+    return np.asarray(out, np.float64).reshape(-1, 2, 3)
 
 
 def emitter_cells(scene, face, side):
@@ -364,7 +416,7 @@ def emitter_cells(scene, face, side):
         return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
 
     pieces = [t if _area2(t) > 0 else t[::-1] for t in to2(tri)]
-    seg = to2(contact_segments(scene, face, side))
+    seg = to2(np.concatenate([contact_segments(scene, face, side), hover_segments(scene, face, side)]))
     for a, b in seg:
         length = np.linalg.norm(b - a)
         d = (b - a) / length
@@ -421,13 +473,17 @@ class Cubature:
     occluders that may matter on it (CSR ``ptr``, ``ids``; an empty list means the integrand
     is zero there, exactly).
 
-    The error estimate of a triangle T is |Q(T) − Σ Q(children)|: Radon's degree-5 rule on
-    T against the same rule on its four midpoint children, whose sum is the value used
-    (it is the more accurate of the two, so the estimate is conservative where the integrand
-    is smooth: the children's error is ~1/64 of it). Refinement is global: while the sum of
-    the estimates exceeds the budget, the triangles with the largest estimates are split
-    (their children become triangles with children of their own), so the effort goes where
-    the integrand is rough (its kinks along the discontinuity mesh).
+    Each triangle T (a leaf) is evaluated on three levels: Radon's degree-5 rule on T, on
+    its four midpoint children and on their sixteen children, whose sum is the value used.
+    Its error estimate is the change from the children to the grandchildren (conservative
+    where the integrand is smooth: the grandchildren's error is ~1/64 of it), at least 1/64
+    of the change from T to its children. Two levels are not enough: a kink of the integrand
+    (a line of the emitter's discontinuity mesh) that only clips a corner of T lies between
+    the nodes of T and of its children alike, and the two can agree to 1e-12 while both are
+    off (the Cornell light → floor: 5e-8 off for an estimate of 9e-9; the grandchildren
+    see it). Refinement is global: while the sum of the estimates exceeds the budget, the
+    triangles with the largest estimates are split (their children become leaves, each
+    with its own three levels), so the effort goes where the integrand is rough.
 
     Parameters
     ----------
@@ -447,12 +503,18 @@ class Cubature:
         self.cull = cull
         self.unresolved = unresolved
         self.evaluations = 0
+        self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, gq, err) of the final triangles
 
-    def estimates(self, tri, ptr, ids, q, kq):
-        """(g,) float64: each triangle's error estimate, at least what the ``unresolved``
-        callback says a feature smaller than the rule can see may hide in it (at most the
-        triangle's area: the integrand's values lie in [0, 1])."""
-        err = np.abs(q - kq.sum(axis=1))
+    def estimates(self, tri, ptr, ids, q, kq, gq):
+        """(g,) float64: each triangle's error estimate for the sum of its 16 grandchildren
+        (``gq`` (g, 16)): the change from its 4 children (``kq`` (g, 4)) to them, at least
+        1/64 of the change from its own rule ``q`` to its children (what a smooth integrand
+        gives: when the two finer levels agree by accident, a feature the coarser level saw
+        is not forgotten), and at least what the ``unresolved`` callback says a feature
+        smaller than the rule can see may hide in it (at most the triangle's area: the
+        integrand's values lie in [0, 1])."""
+        k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
+        err = np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64)
         if self.unresolved is not None and len(tri):
             err = np.maximum(err, np.minimum(self.unresolved(tri, ptr, ids), triangle_areas(tri)))
         return err
@@ -491,8 +553,11 @@ class Cubature:
         budget : float
             Target on the sum of the error estimates.
         min_size : float
-            Triangles longer than this (their longest side) are split before anything is
-            trusted: a rule on a large triangle may miss a small shadow entirely.
+            Triangles larger than this (the side of a square of twice their area) are split
+            before anything is trusted: a rule on a large triangle may miss a small shadow
+            entirely. (Area, not length: the thin cells graded along a hovering outline,
+            :func:`hover_segments`, are as thin as the integrand's scale across them and
+            smooth along them; halving them in both directions would only multiply them.)
 
         Returns
         -------
@@ -504,7 +569,7 @@ class Cubature:
         ptr = (np.arange(len(tri) + 1) * len(candidates)).astype(np.int64)
         ptr, ids = self.cull(tri, ptr, np.tile(candidates, len(tri)))
         while len(tri) and min_size > 0:
-            long = _longest_side(tri) > min_size
+            long = np.sqrt(2 * triangle_areas(tri)) > min_size
             if not np.any(long):
                 break
             kids = split4(tri[long]).reshape(-1, 3, 3)
@@ -516,11 +581,17 @@ class Cubature:
             ptr, ids = _join_lists(sptr, sids, kptr, kids_ids)
         live = np.flatnonzero(np.diff(ptr) > 0)
         tri, (ptr, ids) = tri[live], _sub_lists(ptr, ids, live)
+        # every leaf carries its rule value q, its 4 children (rows 4 L + c of K) and their
+        # 16 children (rows 16 L + 4 c + d of G), each with its list and rule value
         q = self.rule(tri, ptr, ids)
-        kids, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
-        cells = 5 * len(tri)
+        K, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
+        K, kq = K.reshape(-1, 3, 3), kq.reshape(-1)
+        G, gptr, gids, gq = self.expand(K, kptr, kids_ids)
+        G, gq = G.reshape(-1, 3, 3), gq.reshape(-1)
+        cells = 21 * len(tri)
+        four, sixteen = np.arange(4), np.arange(16)
         for _ in range(200):
-            err = self.estimates(tri, ptr, ids, q, kq)
+            err = self.estimates(tri, ptr, ids, q, kq.reshape(-1, 4), gq.reshape(-1, 16))
             total = float(err.sum())
             if total <= budget or cells >= MAX_CELLS or not len(tri):
                 break
@@ -530,28 +601,36 @@ class Cubature:
             n_split = int(np.searchsorted(-rest, -0.5 * budget)) + 1
             split = np.zeros(len(tri), bool)
             split[order[:n_split]] = True
-            keep = np.flatnonzero(~split)
-            # the split leaves' children become leaves; their own children are evaluated
-            rows = np.flatnonzero(split)
-            child_rows = (4 * rows[:, None] + np.arange(4)).reshape(-1)
-            new_tri = kids.reshape(-1, 3, 3)[child_rows]
-            nptr, nids = _sub_lists(kptr, kids_ids, child_rows)
-            new_q = kq.reshape(-1)[child_rows]
-            live = np.flatnonzero(np.diff(nptr) > 0)  # children with nothing to hide are exactly zero
-            new_tri, new_q = new_tri[live], new_q[live]
-            nptr, nids = _sub_lists(nptr, nids, live)
-            g_kids, g_ptr, g_ids, g_q = self.expand(new_tri, nptr, nids)
-            cells += 4 * len(new_tri)
-            optr, oids = _sub_lists(ptr, ids, keep)
-            okptr, okids = _sub_lists(kptr, kids_ids, (4 * keep[:, None] + np.arange(4)).reshape(-1))
+            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
+            # the split leaves' children become leaves (children with nothing to hide are
+            # exactly zero and dropped); their children and grandchildren move up a level,
+            # and the grandchildren's children are evaluated
+            child = (4 * rows[:, None] + four).reshape(-1)
+            nptr, nids = _sub_lists(kptr, kids_ids, child)
+            live = np.flatnonzero(np.diff(nptr) > 0)
+            child = child[live]
+            new_tri, new_q = K[child], kq[child]
+            nptr, nids = _sub_lists(kptr, kids_ids, child)
+            grand = (4 * child[:, None] + four).reshape(-1)
+            new_K, new_kq = G[grand], gq[grand]
+            nkptr, nkids = _sub_lists(gptr, gids, grand)
+            new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids)
+            cells += 16 * len(new_tri)
+            k_keep = (4 * keep[:, None] + four).reshape(-1)
+            g_keep = (16 * keep[:, None] + sixteen).reshape(-1)
             tri = np.concatenate([tri[keep], new_tri])
-            ptr, ids = _join_lists(optr, oids, nptr, nids)
+            ptr, ids = _join_lists(*_sub_lists(ptr, ids, keep), nptr, nids)
             q = np.concatenate([q[keep], new_q])
-            kids = np.concatenate([kids[keep], g_kids])
-            kptr, kids_ids = _join_lists(okptr, okids, g_ptr, g_ids)
-            kq = np.concatenate([kq[keep], g_q])
-        err = self.estimates(tri, ptr, ids, q, kq)
-        return float(kq.sum()), float(err.sum()), cells
+            K = np.concatenate([K[k_keep], new_K])
+            kptr, kids_ids = _join_lists(*_sub_lists(kptr, kids_ids, k_keep), nkptr, nkids)
+            kq = np.concatenate([kq[k_keep], new_kq])
+            G = np.concatenate([G[g_keep], new_G.reshape(-1, 3, 3)])
+            gptr, gids = _join_lists(*_sub_lists(gptr, gids, g_keep), ngptr, ngids)
+            gq = np.concatenate([gq[g_keep], new_gq.reshape(-1)])
+        kq, gq = kq.reshape(-1, 4), gq.reshape(-1, 16)
+        err = self.estimates(tri, ptr, ids, q, kq, gq)
+        self.leaves = (tri, ptr, ids, q, kq, gq, err)
+        return float(gq.sum()), float(err.sum()), cells
 
 
 def _longest_side(tri):
@@ -727,12 +806,15 @@ class PairSetup:
         return above, flat[idx], flat[nxt]
 
     def unresolved(self, tri, ptr, ids):
-        """(g,) float64: what a rule may miss on each triangle near the outline of an
-        occluder that hovers above I by less than half the triangle's size. Its shadow there
+        """(g,) float64: what a rule may miss on each triangle crossed by the outline of an
+        occluder that hovers above I by less than half the triangle's width. Its shadow there
         has an edge as narrow as its height h (the Cornell light 0.1 mm under the ceiling),
         where the hidden part goes from about 0 to about F(x → J') ≤ 1 across a band of
         width ~h: the rule may miss up to 2 h times the outline's length in the triangle
-        (at most its size)."""
+        (at most its size). The emitter's cells are cut along such outlines and graded
+        towards them (:func:`hover_segments`), so on those cells no outline crosses a
+        triangle and nothing is added; what is left is for outlines the cuts do not know
+        (occluders hovering higher than a quarter of their edges)."""
         size = _longest_side(tri)
         above, a, b = self._heights
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
@@ -741,11 +823,18 @@ class PairSetup:
         if not np.any(near):
             return out
         cell, occ = cell[near], ids[near]
-        c = tri[cell].mean(axis=1)[:, None, :]
-        d = b[occ] - a[occ]
-        t = np.clip(np.einsum("ckj,ckj->ck", c - a[occ], d) / np.maximum(np.einsum("ckj,ckj->ck", d, d), 1e-300), 0, 1)
-        dist = np.linalg.norm(a[occ] + t[..., None] * d - c, axis=2).min(axis=1)
-        hit = dist < size[cell]
+        d = b[occ] - a[occ]  # (c, k, 3) the outline's edges on I's plane
+        length = np.linalg.norm(d, axis=2)
+        unit = d / np.maximum(length, 1e-300)[..., None]
+        across = np.cross(self.n_i, unit)
+        rel = tri[cell][:, None, :, :] - a[occ][:, :, None, :]  # (c, k, 3 vertices, 3)
+        s = np.einsum("ckvj,ckj->ckv", rel, across)
+        t = np.einsum("ckvj,ckj->ckv", rel, unit)
+        h = above[occ][:, None]
+        # the edge's line crosses the triangle with more than h on both sides, within the edge
+        crosses = (s.max(axis=2) > h) & (s.min(axis=2) < -h) & (t.max(axis=2) > 0) & (t.min(axis=2) < length)
+        crosses &= length > 0
+        hit = crosses.any(axis=1)
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out
 

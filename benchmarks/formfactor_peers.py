@@ -345,7 +345,8 @@ def markdown(rows, machine):
     return "\n".join(lines)
 
 
-def main():
+def main(argv=None):
+    """Run, print and write the table; returns its rows."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--side", default=str(DEFAULT_SIDE) if DEFAULT_SIDE.exists() else None,
                         help="Python of the side environment with pyradiance and pyviewfactor")
@@ -357,8 +358,8 @@ def main():
     parser.add_argument("--skip", nargs="*", default=[], choices=["cornell", "office"])
     parser.add_argument("--work", default=None, help="folder for the scenes and files (default: a temporary one)")
     parser.add_argument("--out", default=str(HERE), help="folder for formfactor_results.json and .md")
-    args = parser.parse_args()
-    peers = side_peers(args.side)
+    args = parser.parse_args(argv)
+    peers = side_peers(args.side or None)
     machine = (f"{platform.machine()}, {platform.python_implementation()} {platform.python_version()}, "
                f"{len(os.sched_getaffinity(0))} cores, shared with other jobs")
     with tempfile.TemporaryDirectory() as tmp:
@@ -374,6 +375,7 @@ def main():
     out = Path(args.out)
     (out / "formfactor_results.json").write_text(json.dumps({"machine": machine, "peers": peers, "rows": rows}, indent=2))
     (out / "formfactor_results.md").write_text(table + "\n")
+    return rows
 
 
 if __name__ == "__main__":

@@ -242,15 +242,20 @@ def cornell(args, side_python, peers, work):
     if not h5.exists():
         viscx_cli("build", obj, "-o", h5)
     rows = []
-    t0 = time.process_time()
-    ref = np.array([form_factor_monte_carlo(scene, [e // 2], 1 - 2 * (e % 2), args.mc_matrix, seed=e)[0]
-                    for e in range(2 * n)])[:, :2 * n]  # (2n, 2n) side to side (the sky left out)
-    mc_cpu = time.process_time() - t0
+    cache = work / f"cornell_reference_{args.mc_matrix}.npz"  # reused by a rerun in the same --work
+    if cache.exists():
+        ref, mc_cpu = np.load(cache)["ref"], float(np.load(cache)["cpu"])
+    else:
+        t0 = time.process_time()
+        ref = np.array([form_factor_monte_carlo(scene, [e // 2], 1 - 2 * (e % 2), args.mc_matrix, seed=e)[0]
+                        for e in range(2 * n)])[:, :2 * n]  # (2n, 2n) side to side (the sky left out)
+        mc_cpu = time.process_time() - t0
+        np.savez(cache, ref=ref, cpu=mc_cpu)
     sigma = sigma_of(ref, args.mc_matrix)
     rows.append({"scene": "Cornell box", "query": f"matrix, {2 * n} x {2 * n} sides", "method": "Monte Carlo reference",
                  "settings": f"{args.mc_matrix:.0e} rays per side", "cpu": mc_cpu,
                  "note": f"σ up to {sigma.max():.1e} (mean {sigma[ref > 0].mean():.1e} over the {int((ref > 0).sum())} entries hit)"})
-    for tol in args.tol:
+    for tol in args.matrix_tol:
         out, cpu = viscx_cli("formfactor", h5, "--matrix", "--tol", tol, "-o", work / "cornell_F.npz")
         summary = json.loads(out)
         m = np.load(work / "cornell_F.npz")
@@ -307,9 +312,9 @@ def office_rows(args, side_python, peers, work):
         q = f"{a} → {b}"
         rows.append({"scene": name, "query": q, "method": "Monte Carlo reference", "settings": f"{args.mc_pairs:.0e} rays",
                      "cpu": time.process_time() - t0, "F": ref, "note": f"σ = {sigma:.1e}"})
-        out, cpu = viscx_cli("formfactor", h5, "--from-group", a, "--to-group", b, "--tol", args.tol[0])
+        out, cpu = viscx_cli("formfactor", h5, "--from-group", a, "--to-group", b, "--tol", args.tol)
         r = json.loads(out)
-        rows.append({"scene": name, "query": q, "method": "viscx", "settings": f"--tol {args.tol[0]:g}", "cpu": cpu,
+        rows.append({"scene": name, "query": q, "method": "viscx", "settings": f"--tol {args.tol:g}", "cpu": cpu,
                      "F": r["F"], **errors(r["F"], ref, sigma), "note": f"estimate {r['error']:.1e}"})
         queries.append({"id": k, "emit": emit, "side": 1, "recv": recv})
     if peers:
@@ -353,7 +358,9 @@ def main(argv=None):
     parser.add_argument("--mc-matrix", type=int, default=4_000_000, help="reference rays per side (Cornell matrix)")
     parser.add_argument("--mc-pairs", type=int, default=10_000_000, help="reference rays per group query (office)")
     parser.add_argument("--rays", type=int, nargs="+", default=[100_000, 1_000_000], help="Radiance rays (-c)")
-    parser.add_argument("--tol", type=float, nargs="+", default=[1e-6, 1e-4], help="viscx --tol (the office: the first)")
+    parser.add_argument("--matrix-tol", type=float, nargs="*", default=[1e-6, 1e-4],
+                        help="viscx --tol of the Cornell --matrix runs (none: the matrix is not run)")
+    parser.add_argument("--tol", type=float, default=1e-4, help="viscx --tol of the office queries")
     parser.add_argument("--office", type=int, default=300, help="office size, polygons")
     parser.add_argument("--skip", nargs="*", default=[], choices=["cornell", "office"])
     parser.add_argument("--work", default=None, help="folder for the scenes and files (default: a temporary one)")

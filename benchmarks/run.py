@@ -213,7 +213,7 @@ def bench_formfactor_peers(side, quick, workdir):
 
     argv = ["--work", str(workdir), "--out", str(workdir), "--side", side or ""]
     if quick:
-        argv += ["--mc-matrix", "1000000", "--mc-pairs", "1000000", "--rays", "100000", "--tol", "1e-4", "--skip", "office"]
+        argv += ["--mc-matrix", "1000000", "--mc-pairs", "1000000", "--rays", "100000", "--matrix-tol", "1e-4", "--skip", "office"]
     rows = []
     for r in peers_main(argv):
         n = r.get("entries", 1)

@@ -203,6 +203,28 @@ def bench_formfactor_matrix(sizes, tol, workdir):
     return rows
 
 
+def bench_formfactor_peers(side, quick, workdir):
+    """Form factors side by side with Radiance and pyviewfactor against a Monte Carlo
+    reference (benchmarks/formfactor_peers.py; also writes formfactor_results.md): the
+    Cornell matrix and the office's group queries. The peers run in the side Python
+    ``side``; without it they are skipped with a message and viscx and the reference
+    still run (``quick``: the Cornell box only, 10⁶-ray reference, 10⁵ Radiance rays)."""
+    from formfactor_peers import main as peers_main
+
+    # the viscx matrix itself is timed by bench_formfactor_matrix: not run twice
+    argv = ["--work", str(workdir), "--out", str(workdir), "--side", side or "", "--matrix-tol"]
+    if quick:
+        argv += ["--mc-matrix", "1000000", "--mc-pairs", "1000000", "--rays", "100000", "--skip", "office"]
+    rows = []
+    for r in peers_main(argv):
+        n = r.get("entries", 1)
+        rows.append(_row("formfactor peers", r["scene"], f"{r['query']}: {r['method']} {r['settings']}", 0, n, r["cpu"],
+                         n / max(r["cpu"], 1e-9), "entries/CPU s",
+                         (f"mean |Δ| {r['mean_abs']:.1e} ({r['mean_sigma']:.2f} σ), max {r['max_abs']:.1e} "
+                          f"({r['max_sigma']:.2f} σ); " if "mean_abs" in r else "") + r.get("note", "")))
+    return rows
+
+
 def bench_render(size, mc_samples, runs=3, target=0.01):
     """The Cornell box's direct illumination at size × size: the exact render (the whole
     `viscx render` command, median of ``runs``), sparse reconstructions against it, and
@@ -338,6 +360,8 @@ def main():
     parser.add_argument("--out", default=str(HERE), help="folder for results.json and results.md")
     parser.add_argument("--budget", type=float, default=1800.0,
                         help="skip skeleton ladder sizes predicted to take longer than this (s)")
+    parser.add_argument("--side", default=None,
+                        help="Python of a side environment with pyradiance and pyviewfactor (form-factor peers)")
     args = parser.parse_args()
     rng = np.random.default_rng(2026)
     n_rays = 200_000 if args.quick else 1_000_000
@@ -365,6 +389,7 @@ def main():
     rows += bench_raycast(big, "spheres_in_room", n_rays, rng)
     rows += bench_formfactors(n_rays, rng)
     rows += bench_formfactor_matrix([] if args.quick else [300, 1000], 1e-4, Path(args.out) / "formfactor")
+    rows += bench_formfactor_peers(args.side, args.quick, Path(args.out) / "formfactor")
     rows += bench_render(256 if args.quick else 512, 16 if args.quick else 64)
     rows += bench_flatland([10, 100, 300] if args.quick else [10, 100, 300, 1000])
     rows += bench_fast_vs_reference(["tetrahedra.obj", "cornell_box.obj"] if args.quick else

@@ -9,6 +9,7 @@ import msgpack
 import numpy as np
 import pytest
 from conftest import ROOT, SAMPLES, soup, viscx_in_process
+from oracles import form_factor_monte_carlo
 from test_formfactor import corner_rectangle, parallel_rectangles, perpendicular_rectangles
 
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon
@@ -40,27 +41,9 @@ def scene_of(polygons):
 
 def monte_carlo(scene, i, side_i, j, side_j=None, k=1_000_000, seed=0):
     """F from a side of face i to face j (a side of it, or both) by k cosine-weighted rays
-    from area-uniform points of i (embree first hits): estimate and its σ."""
-    rng = np.random.default_rng(seed)
-    tri = scene.vertices[scene.triangles[scene.triangle_face == i]]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    t = rng.choice(len(tri), k, p=area / area.sum())
-    u, v = rng.random(k), rng.random(k)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    p = tri[t, 0] + u[:, None] * (tri[t, 1] - tri[t, 0]) + v[:, None] * (tri[t, 2] - tri[t, 0])
-    n = side_i * scene.face_normal[i]
-    a = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
-    a /= np.linalg.norm(a)
-    b = np.cross(n, a)
-    u1, u2 = rng.random(k), rng.random(k)
-    r, phi = np.sqrt(u1), 2 * np.pi * u2
-    d = (r * np.cos(phi))[:, None] * a + (r * np.sin(phi))[:, None] * b + np.sqrt(1 - u1)[:, None] * n
-    face, _ = scene.ray_caster.first_hit(p, d, tmin=scene.epsilon)
-    hit = face == j
-    if side_j is not None:
-        hit &= np.where(d @ scene.face_normal[j] < 0, 1, -1) == side_j
-    est = hit.mean()
+    from area-uniform points of i (embree first hits, tests/oracles.py): estimate and its σ."""
+    F, _ = form_factor_monte_carlo(scene, [i], side_i, k, seed=seed)
+    est = F[2 * j] + F[2 * j + 1] if side_j is None else F[2 * j + (side_j < 0)]
     return est, np.sqrt(est * (1 - est) / k)
 
 

@@ -1,0 +1,227 @@
+"""Form factors in furnished rooms (benchmarks/buildings.py): occluded pairs, touching
+furniture included, against an independent Monte Carlo (tests/oracles.py: cosine-weighted
+embree rays from area-uniform points, first hits counted per face side), and the matrix
+of a closed furnished room: reciprocity and row sums.
+
+The pairs are the ones a building model makes hard: a desk top's underside resting on its
+two side panels (the panels touch it along their top faces and block the floor under it),
+the floor to a light seen past the desks, and a wall to the opposite wall that a cabinet
+stands against (the cabinet's back face lies in that wall's plane)."""
+
+import sys
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from oracles import form_factor_monte_carlo
+
+from viscx.queries import formfactor as ff
+from viscx.scene import build_scene
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from buildings import furnished_room, office  # noqa: E402
+
+UP = np.array([0.0, 1.0, 0.0])
+
+
+def desk_underside(scene, desk):
+    """The face of group ``desk`` that is the top's underside: facing down, the largest."""
+    faces = np.asarray(scene.group_faces(desk))
+    down = faces[scene.face_normal[faces] @ UP < -0.99]
+    return int(down[np.argmax(scene.face_area[down])])
+
+
+def wall_behind(scene, cabinet):
+    """(the wall a cabinet stands against, the wall facing it): the wall whose plane holds
+    one of the cabinet's faces, and the wall with the opposite normal."""
+    walls = [f for name in ("wall_west", "wall_east", "wall_south", "wall_north") for f in scene.group_faces(name)]
+    for f in scene.group_faces(cabinet):
+        for w in walls:
+            n = scene.face_normal[w]
+            same_plane = abs(n @ (scene.face_loops(f)[0] - scene.face_loops(w)[0][0]).T).max() < 1e-9
+            if same_plane and scene.face_normal[f] @ n < -0.99:
+                opposite = next(v for v in walls if scene.face_normal[v] @ n < -0.99)
+                return int(w), int(opposite)
+    raise AssertionError(f"{cabinet} stands against no wall")
+
+
+def room_pairs(scene, desk, light, cabinet):
+    """The occluded pairs checked: (name, emitting face, receiving face), emitters' front
+    sides facing into the room."""
+    floor = int(scene.group_faces("floor")[0])
+    wall, opposite = wall_behind(scene, cabinet)
+    return [
+        ("desk top underside -> floor", desk_underside(scene, desk), floor),
+        ("floor -> light", floor, int(scene.group_faces(light)[0])),
+        ("wall -> wall behind a cabinet", opposite, wall),
+    ]
+
+
+def z_scores(scene, pairs, samples, tol, seed):
+    """(name, F exact, its error estimate, Monte Carlo F, σ, z) per pair: F to both sides
+    of the receiving face."""
+    rows = []
+    for k, (name, i, j) in enumerate(pairs):
+        r = ff.face_to_face(scene, i, j, side_i=1, tol=tol)
+        est, _ = form_factor_monte_carlo(scene, [i], 1, samples, seed=seed + k)
+        mc = est[2 * j] + est[2 * j + 1]
+        sigma = np.sqrt(mc * (1 - mc) / samples)
+        rows.append((name, r["F"], r["error"], mc, sigma, (r["F"] - mc) / sigma))
+    return rows
+
+
+@pytest.fixture(scope="module")
+def small_room():
+    """31 polygons: a 4 x 3 x 3 m room, a light, a cabinet against the west wall, one desk."""
+    return build_scene(furnished_room(n_desks=1, n_cabinets=1, n_dividers=0, n_lights=1, size=(4, 3, 3), seed=0))
+
+
+def test_room_pairs_are_occluded_and_touching(small_room):
+    """The pairs are the hard cases they claim to be: the panels touch the desk top, the
+    cabinet's back lies on the wall, and every pair has occluders in its shaft."""
+    s = small_room
+    pairs = room_pairs(s, "desk0", "light1", "cabinet0")
+    top = pairs[0][1]
+    y_top = s.face_loops(top)[0][:, 1]
+    panel_tops = [f for f in s.group_faces("desk0") if s.face_normal[f] @ UP > 0.99 and f != top
+                  and abs(s.face_loops(f)[0][:, 1].max() - y_top.max()) < 1e-9]
+    assert len(panel_tops) == 2  # two panel tops in the underside's plane: contact
+    for _, i, j in pairs:
+        r = ff.face_to_face(s, i, j, side_i=1, tol=1e-3)
+        assert r["sides"]["front"]["occluders"] > 0
+
+
+def test_room_occluded_pairs_against_monte_carlo(small_room):
+    """Each pair within 4 σ of 10⁶ cosine-weighted rays (measured: z = +1.36, +1.11, +0.96
+    at tol 1e-6 with seed 1)."""
+    for name, F, error, mc, sigma, z in z_scores(small_room, room_pairs(small_room, "desk0", "light1", "cabinet0"),
+                                                 1_000_000, tol=1e-5, seed=1):
+        assert error < 1e-5, name
+        assert abs(z) < 4, f"{name}: F = {F:.6f}, Monte Carlo {mc:.6f} ± {sigma:.1e} (z = {z:+.2f})"
+
+
+@pytest.mark.slow
+def test_office_occluded_pairs_against_monte_carlo_slow():
+    """The 298-polygon office (12 desks, 9 cabinets, 3 dividers, 4 lights): each pair
+    within 4 σ of 10⁷ rays. Measured (shared machine, 120 CPU s, 0.56 GB): desk top
+    underside → floor F = 0.5963272 against 0.5960062 ± 1.6e-4 (z = +2.07), floor → light1
+    0.0033749 against 0.0033468 ± 1.8e-5 (+1.54), wall_east → wall_west (cabinet0 against
+    it) 0.0289015 against 0.0288531 ± 5.3e-5 (+0.91); error estimates below 1e-5."""
+    s = build_scene(office(300, seed=0))
+    for name, F, error, mc, sigma, z in z_scores(s, room_pairs(s, "desk0", "light1", "cabinet0"), 10_000_000,
+                                                 tol=1e-5, seed=11):
+        assert error < 1e-5, name
+        assert abs(z) < 4, f"{name}: F = {F:.7f}, Monte Carlo {mc:.7f} ± {sigma:.1e} (z = {z:+.2f})"
+
+
+def hidden_faces(soup):
+    """Polygons lying inside another polygon of the same plane with the opposite normal
+    (a cabinet's back on its wall, a box's bottom on the floor, a panel's top under the
+    desk top): what a modeller may leave out. The scenes are axis-aligned quads, so "inside"
+    is a box test. Returns their indices."""
+    quads = [soup.vertices[soup.polygon_vertices[soup.polygon_offsets[p]:soup.polygon_offsets[p + 1]]]
+             for p in range(soup.n_polygons)]
+    normal = [np.cross(q[1] - q[0], q[2] - q[0]) for q in quads]
+    normal = [n / np.linalg.norm(n) for n in normal]
+    out = []
+    for p, q in enumerate(quads):
+        for r, other in enumerate(quads):
+            if r == p or normal[p] @ normal[r] > -0.99 or abs(normal[r] @ (q - other[0]).T).max() > 1e-9:
+                continue
+            if (q.min(axis=0) >= other.min(axis=0) - 1e-9).all() and (q.max(axis=0) <= other.max(axis=0) + 1e-9).all():
+                out.append(p)
+                break
+    return out
+
+
+def closed_room(n_desks, keep_hidden=True):
+    """A closed room with a cabinet against the west wall (and ``n_desks`` desks): no light
+    (a light hangs in the air, both its sides see the room), nothing escapes. Without
+    ``keep_hidden``, the faces in :func:`hidden_faces` are left out: the furniture still
+    touches the floor and the walls along lines, but no two faces overlap."""
+    soup = furnished_room(n_desks=n_desks, n_cabinets=1, n_dividers=0, n_lights=0, size=(4, 3, 3), seed=0)
+    if not keep_hidden:
+        drop = set(hidden_faces(soup))
+        keep = [p for p in range(soup.n_polygons) if p not in drop]
+        polys = [soup.polygon_vertices[soup.polygon_offsets[p]:soup.polygon_offsets[p + 1]] for p in keep]
+        soup = type(soup)(vertices=soup.vertices,
+                          polygon_offsets=np.concatenate([[0], np.cumsum([len(q) for q in polys])]).astype(np.int64),
+                          polygon_vertices=np.concatenate(polys).astype(np.int64),
+                          polygon_group=soup.polygon_group[keep], group_names=soup.group_names)
+    return build_scene(soup)
+
+
+def check_reciprocity(scene, m):
+    """A_a F_ab = A_b F_ba within 1e-6, in F units of the smaller side of each pair (the
+    error of F_ab weighs A_a)."""
+    F = m.dense()  # (2n, 2n): element 2 f is the front of face f, 2 f + 1 its back
+    area = np.repeat(scene.face_area, 2)
+    flux = area[:, None] * F  # what leaves side a and arrives on side b
+    assert (np.abs(flux - flux.T) / np.minimum(area[:, None], area[None, :])).max() < 1e-6
+
+
+def check_rows(m):
+    """Every row + sky sums to 1 within 1e-6; the inner sides' rows sum to 1 without the
+    sky (the room is closed), the walls' outer sides see only the sky."""
+    F = m.dense()
+    rows = F.sum(axis=1) + m.sky
+    assert np.abs(rows - 1).max() < 1e-6, f"row {np.argmax(np.abs(rows - 1))}: {rows.max() - 1:+.2e}"
+    inner = 2 * np.arange(6)  # floor, ceiling, walls: their front sides face in
+    assert m.sky[inner].max() < 1e-6
+    assert np.abs(F[inner].sum(axis=1) - 1).max() < 1e-6
+    assert np.abs(m.sky[inner + 1] - 1).max() < 1e-6
+
+
+#: Why the row sums of rooms with touching furniture miss 1e-6 (measured on main).
+CONTACT_ROWS = ("rows of faces a cabinet touches along a line exceed 1 by ~1e-6 whatever the tol (wall_west's "
+                "inner side +1.05e-6 at tol 1e-7, +1.02e-6 at 3e-8; floor +6e-7): an error the estimates do not see")
+
+
+@pytest.fixture(scope="module")
+def cabinet_room_matrix():
+    """Shell and a cabinet standing on the floor against a wall, touching both along lines
+    (10 faces, 20 sides), at tol 3e-8 (57 s on a shared machine)."""
+    scene = closed_room(0, keep_hidden=False)
+    return scene, ff.form_factor_matrix(scene, tol=3e-8)
+
+
+def test_hidden_faces_of_a_cabinet_against_a_wall():
+    """The cabinet's back (on the west wall) and bottom (on the floor) are its hidden faces."""
+    soup = furnished_room(n_desks=0, n_cabinets=1, n_dividers=0, n_lights=0, size=(4, 3, 3), seed=0)
+    hidden = hidden_faces(soup)
+    assert len(hidden) == 2 and all(soup.group_names[soup.polygon_group[p]] == "cabinet0" for p in hidden)
+    assert closed_room(0, keep_hidden=False).n_faces == 10
+
+
+@pytest.mark.slow
+def test_closed_room_reciprocity_slow(cabinet_room_matrix):
+    check_reciprocity(*cabinet_room_matrix)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=CONTACT_ROWS)
+def test_closed_room_rows_slow(cabinet_room_matrix):
+    check_rows(cabinet_room_matrix[1])
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=CONTACT_ROWS + " (the same cabinet; not run to completion here)")
+def test_closed_furnished_room_reciprocity_and_rows_slow():
+    """Shell, a cabinet and a desk whose top rests on its panels, no overlapping faces."""
+    scene = closed_room(1, keep_hidden=False)
+    m = ff.form_factor_matrix(scene, tol=3e-8)
+    check_reciprocity(scene, m)
+    check_rows(m)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="faces lying on other faces (a cabinet's back on its wall) do not hide "
+                   "what is behind them: both receive the full form factor (measured: the cabinet's inner "
+                   "back-face row sums to 1.59; Monte Carlo splits the same 0.424 between the two faces)")
+def test_closed_room_with_overlapping_faces_rows_slow():
+    """As modelled by benchmarks/buildings.py: the cabinet's back and bottom faces lie on the
+    wall and the floor (12 faces, 24 sides)."""
+    scene = closed_room(0)
+    m = ff.form_factor_matrix(scene, tol=1e-7)
+    check_reciprocity(scene, m)
+    check_rows(m)

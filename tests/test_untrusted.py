@@ -15,6 +15,7 @@ import pytest
 from viscx.cli import main
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
+ROOT_SAMPLES = Path(__file__).resolve().parent.parent / "sample_scenes"
 
 
 def run(args, capsys):
@@ -78,6 +79,10 @@ CASES = {
     "options_deep": (set_attr("options", nested(20000)), "nests deeper"),
     "options_not_json": (set_attr("options", "{"), "not JSON"),
     "epsilon_nan": (set_attr("epsilon", np.nan), "@epsilon"),
+    # finite but absurd tolerances (slow fuzz, seed 1834672060: a weld tolerance of 1e308
+    # corrupted the heap in the free point's kernels, SIGABRT)
+    "weld_tolerance_huge": (set_attr("weld_tolerance", 1e308), "@weld_tolerance"),
+    "epsilon_huge": (set_attr("epsilon", 1e300), "@epsilon"),
     "epsilon_text": (set_attr("epsilon", "small"), "@epsilon"),
     "scene_name_missing": (lambda f: f.attrs.__delitem__("scene_name"), "missing @scene_name"),
     "scene_name_not_text": (set_attr("scene_name", -1), "@scene_name"),
@@ -288,3 +293,12 @@ def test_generator_flags_must_match_the_loops(tmp_path, capsys):
     path = damaged_copy(tmp_path, set_values("scene/edges/is_generator", np.logical_not), "two_triangles.h5")
     code, err = run(["query", "visible", path, "--from", "0.2,0.3,0.9", "-o", tmp_path / "v.json"], capsys)
     assert code == 2 and "/scene/edges/is_generator" in err, err
+
+
+@pytest.mark.parametrize("option", [["--epsilon", "1e300"], ["--relative-epsilon", "0.5"]])
+def test_build_refuses_an_epsilon_near_the_scene_size(option, tmp_path, capsys):
+    """An epsilon near the scene's size made the kernels fail (exit 1); the builder and the
+    validator share the bound MAX_RELATIVE_EPSILON."""
+    code, err = run(["build", ROOT_SAMPLES / "tetrahedra.obj", *option, "-o", tmp_path / "t.h5"], capsys)
+    assert code == 2 and "too large" in err and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == []

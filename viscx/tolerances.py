@@ -20,6 +20,9 @@ name; a test may still monkeypatch the module's copy.
 DEFAULT_WELD = 1e-7
 #: Default robustness epsilon.
 DEFAULT_EPSILON = 1e-6
+#: Largest robustness epsilon, relative to the scene's bounding-box diagonal: an epsilon
+#: near the scene's size makes every line "graze" everything (kernels sized by it overflow).
+MAX_RELATIVE_EPSILON = 1e-2
 
 # --------------------------------------------------------------------------------------
 # rounding

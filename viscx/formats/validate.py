@@ -29,9 +29,10 @@ import h5py
 import numpy as np
 from h5py import h5d, h5z
 
+from viscx.arrays import bounding_diagonal
 from viscx.errors import ViscxError
 from viscx.memory import memory_budget
-from viscx.arrays import bounding_diagonal
+from viscx.tolerances import MAX_RELATIVE_EPSILON
 
 #: deflate's largest compression ratio is about 1032:1; LZF's is below it
 MAX_RATIO = 1100
@@ -362,6 +363,12 @@ def scene_arrays(group, path):
         "vertex_is_generator": c.read(group, "vertex_is_generator", "b", ("n",)),
     }
     check_scene(c, a, he, edges)
+    # as the scene's builder writes them: welding at the scene's size leaves no face, and
+    # epsilon is at most MAX_RELATIVE_EPSILON of it
+    diagonal = bounding_diagonal(a["vertices"])
+    for name, most in (("weld_tolerance", 1.0), ("epsilon", MAX_RELATIVE_EPSILON)):
+        if float(group.file.attrs[name]) > most * diagonal:
+            c.fail(f"/@{name}", f"{float(group.file.attrs[name]):g} is larger than {most:g} of the scene's size")
     _check_generators(c, a, he, edges, float(group.file.attrs["weld_tolerance"]))
     return a, he, edges, names, materials
 

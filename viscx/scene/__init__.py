@@ -29,7 +29,7 @@ from viscx.scene.clean import crossing_polygons, degenerate_triangles, duplicate
 from viscx.scene.faces import drop_collinear_vertices, face_loops, merge_coplanar
 from viscx.scene.halfedge import HalfEdges, build_half_edges
 from viscx.scene.soup import PolygonSoup
-from viscx.tolerances import DEFAULT_EPSILON, DEFAULT_WELD
+from viscx.tolerances import DEFAULT_EPSILON, DEFAULT_WELD, MAX_RELATIVE_EPSILON
 
 __all__ = ["Scene", "PolygonSoup", "load_scene", "build_scene", "DEFAULT_WELD", "DEFAULT_EPSILON"]
 
@@ -219,6 +219,9 @@ def build_scene(soup, weld=DEFAULT_WELD, epsilon=None, relative_epsilon=None, so
         eps = _relative(DEFAULT_EPSILON if relative_epsilon is None else relative_epsilon, diagonal, "relative epsilon")
         if eps <= 0:
             raise ViscxError("relative epsilon must be positive")
+    if eps > MAX_RELATIVE_EPSILON * diagonal:
+        raise ViscxError(f"epsilon {eps:g} is too large: at most {MAX_RELATIVE_EPSILON:g} of the scene's size "
+                         f"(bounding-box diagonal {diagonal:g})")
 
     triangles, tri_polygon = triangulate_polygons(vertices, soup.polygon_offsets, soup.polygon_vertices)
     crossing = crossing_polygons(vertices, soup.polygon_offsets, soup.polygon_vertices, triangles, tri_polygon, tolerance)

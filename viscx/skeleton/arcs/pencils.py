@@ -3,7 +3,7 @@ the families whose lines lie in them, and where those lines cross the plane's ed
 """
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -68,6 +68,29 @@ def pairs_within_groups(group):
     return np.concatenate(ii), np.concatenate(jj)
 
 
+@njit(cache=True, parallel=True)
+def _holds_foreign_vertex(normal, offset, face_loop_offsets, loop_offsets, loop_vertices, x, ids, tol):
+    """(f,) bool: faces whose plane holds, within tol, a point x[k] that is not one of the
+    face's vertices (``ids[k]`` not on its loops). Every face against every point, without
+    (points × faces) temporaries: 30,732 triangles, 104 -> 1 s."""
+    out = np.zeros(normal.shape[0], np.bool_)
+    for f in prange(normal.shape[0]):
+        n0, n1, n2, d = normal[f, 0], normal[f, 1], normal[f, 2], offset[f]
+        h0, h1 = loop_offsets[face_loop_offsets[f]], loop_offsets[face_loop_offsets[f + 1]]
+        for k in range(x.shape[0]):
+            if abs(x[k, 0] * n0 + x[k, 1] * n1 + x[k, 2] * n2 - d) > tol:
+                continue
+            own = False
+            for h in range(h0, h1):
+                if loop_vertices[h] == ids[k]:
+                    own = True
+                    break
+            if not own:
+                out[f] = True
+                break
+    return out
+
+
 def _touched_faces(scene):
     """(f,) bool: faces whose plane holds another face over the face's bounding box
     (:func:`viscx.skeleton.nodes.coplanar_partners`) or, anywhere, a generator vertex not
@@ -76,18 +99,10 @@ def _touched_faces(scene):
     touched = np.zeros(scene.n_faces, dtype=bool)
     touched[np.diff(off) > 0] = True
     touched[partner] = True
-    he = scene.half_edges
     gv = scene.generator_vertices
-    x = scene.vertices[gv]
-    tol = scene.weld_tolerance
-    own = np.unique(he.face.astype(np.int64) * scene.n_vertices + he.start)
-    chunk = max(1, (1 << 22) // max(1, len(gv)))
-    for first in range(0, scene.n_faces, chunk):
-        f = np.arange(first, min(first + chunk, scene.n_faces))
-        near = np.abs(x @ scene.face_normal[f].T - scene.face_offset[f]) <= tol  # (v, f)
-        v, k = np.nonzero(near)
-        foreign = ~np.isin(f[k] * scene.n_vertices + gv[v], own)
-        touched[f[k[foreign]]] = True
+    touched |= _holds_foreign_vertex(scene.face_normal, scene.face_offset, scene.face_loop_offsets, scene.loop_offsets,
+                                     scene.loop_vertices, np.ascontiguousarray(scene.vertices[gv]), gv,
+                                     scene.weld_tolerance)
     return touched
 
 

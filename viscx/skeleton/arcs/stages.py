@@ -14,6 +14,7 @@ from viscx.memory import release_free_memory
 from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_CROSSING, END_EDGE, END_ENDPOINT, END_RANK, END_TRANSITION, VE
 from viscx.skeleton.arcs.lines import judge_samples
+from viscx.skeleton.arcs.pencils import pencil_planes
 from viscx.skeleton.generators import edge_geometry, edge_junctions
 from viscx.tolerances import END_SAMPLE_EPSILONS, MERGE_EPSILONS, SNAP
 
@@ -124,6 +125,7 @@ def arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=No
         The fields of :class:`Arcs` (not sorted) and ``sides`` (m, 8), the half-cells'
         pairs of each arc's sample.
     """
+    pencil_planes(scene)  # the samples' threads read it: built here once, not in each of them
     parts, mixed = first_pass(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers)
     return arcs_of_pieces(scene, fkind, fgens, parts + refine_intervals(scene, fkind, fgens, *mixed, workers=workers))
 

@@ -1,36 +1,67 @@
-"""Dynamic update of the complex after an object moves (Orti et al. §4.3).
+"""Dynamic update of the complex after an object moves (Orti et al. §4.3): linear in the zone.
 
-A translation of object K can only change
+Moving object K can only change
 
-- the bitangents of K itself (all pairs (K, j)), and
-- the freeness, tail or head of a bitangent of another pair whose *line* meets K before
-  or after the move (K may start or stop blocking its segment, or become / stop being the
-  first object at one of its ends).
+- the bitangents of K itself (all pairs (K, j)),
+- the bitangents that K blocked before the move (a blocked candidate stays blocked unless
+  its blocker moves: :func:`viscx.flatland.complex.blocker_table` keeps one blocker per
+  candidate), and
+- the vertices whose line meets K before or after the move (K may start blocking them, or
+  become / stop being the first object at one of their ends).
 
-So we recompute the candidates' closed-form lines (cheap, deterministic: bit-identical for
-pairs that did not move), re-run the free-segment test only for the affected candidates
-(lines meeting the bounding disk of K at either position, plus K's own pairs), keep every
-other vertex as it was, and re-derive edges and faces.  A face whose boundary signature
-(objects, sides, tails, heads and exact θ ranges of its edges) is unchanged keeps its area
-and string sum; only the changed faces are re-summed, and only the form factors of object
-pairs having a changed face are recomputed.  The result equals a rebuild from scratch
-(tested on random moves).
+Only these candidates are re-tested (closed-form lines of their pairs, bit-identical to a
+rebuild's; grid walks).  A re-tested vertex that comes back with the same line, objects,
+sides, tail and head is the same vertex.  The others leave or enter the complex, and the
+topology is spliced where they are — the *zone*:
+
+1. incidences: the kept ones (already sorted along the tangency curves) and the new ones
+   are merged by binary search (:func:`kernels.merge_ranks`);
+2. edges: an edge whose two end incidences are kept and still consecutive keeps its
+   tail, head, θ range and integrals; the others are derived from their end vertices;
+3. faces: the face components holding a slot of a vanished edge, with the new edges'
+   slots, are re-glued by a union–find over their slots alone (a slot glued to a kept
+   face's slot would have been in that face before the move: the zone is closed), and
+   re-summed in the same slot order as a rebuild (bit-identical sums);
+4. the stored arrays are renumbered by gathers (vertices by key, edges and faces in the
+   order of a rebuild), the kept faces' boundary lists spliced with the new ones.
+
+Python work is per changed element; what is O(scene) is numpy gathers and copies over the
+complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
+scratch, array by array (tests/flatland/test_flatland_dynamic.py).
+
+A degenerate line among the re-tested vertices (resolved by a symbolic perturbation with
+``v_tau``, see :func:`viscx.flatland.complex.resolve_degenerate`: its free candidates are
+not all vertices, so they are not all found from the vertices) and a complex without its
+in-memory state (read from a file) are rebuilt from scratch instead; the statistics say so.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from viscx.errors import ViscxError
 from viscx.flatland import complex as C
-from viscx.flatland.scene import check_disjoint
+from viscx.flatland import kernels as K
+from viscx.flatland.scene import check_object_disjoint
+
+VERTEX_FIELDS = ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q",
+                 "v_length", "v_seg")
+# the fields that place a vertex in the topology (v_seg may change without changing it)
+TOPOLOGY_FIELDS = ("v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau")
 
 
 @dataclass
 class MoveStats:
-    """What a move recomputed, out of how many."""
+    """What a move recomputed, out of how many, and where the time went.
+
+    ``local`` is False when the move rebuilt the complex (a degenerate line in the zone, or
+    no in-memory state); ``zone_*`` count the vertices that left / entered the complex, the
+    edges derived anew and the face slots re-glued; ``seconds`` the CPU time per stage."""
 
     candidates_tested: int
     candidates_total: int
@@ -38,11 +69,20 @@ class MoveStats:
     faces_total: int
     formfactors_recomputed: int
     formfactors_total: int
+    local: bool = True
+    zone_vertices_removed: int = 0
+    zone_vertices_added: int = 0
+    zone_edges: int = 0
+    zone_slots: int = 0
+    seconds: dict = field(default_factory=dict)
 
     def summary(self) -> str:
+        how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
+            self.zone_vertices_removed, self.zone_vertices_added, self.zone_edges, self.zone_slots)
+            if self.local else "rebuilt from scratch (a degenerate line in the zone, or a complex read from a file)")
         return (f"form factors recomputed: {self.formfactors_recomputed} of {self.formfactors_total} "
                 f"(object pairs incl. the sky); faces re-summed: {self.faces_recomputed} of {self.faces_total}; "
-                f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}")
+                f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}; {how}")
 
 
 def _bounding_disk(scene, k):
@@ -62,42 +102,226 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     if not (np.isfinite(dx) and np.isfinite(dy)):
         raise ViscxError("the displacement must be finite")
     new_scene = scene.moved(k, dx, dy)
-    check_disjoint(new_scene)
-    eps = cx.eps
-    cand = C.candidates(new_scene)
-    # affected: K's own pairs, and lines meeting K's bounding disk before or after
-    theta = cand["theta"]
-    nrm = np.stack([-np.sin(theta), np.cos(theta)], axis=1)
-    # a point of each candidate line: its tangent point on object a
-    sig = 2.0 * cand["side_a"] - 1.0
-    pa = new_scene.verts[cand["va"]] + (sig * new_scene.radius[cand["a"]])[:, None] * nrm
-    u = np.einsum("ij,ij->i", nrm, pa)
-    todo = (cand["a"] == k) | (cand["b"] == k)
+    check_object_disjoint(new_scene, k)
+    n = scene.n
+    total = 2 * n * (n - 1)
+    if cx.state is None or cx.blockers is None:
+        return _rebuilt(cx, new_scene, total)
+    clock = _Clock()
+    V_old = cx.arrays
+    # -- 1. the candidates to re-test
+    pair_of = V_old["v_key"] // 4
+    own_v = (V_old["v_obj"][:, 0] == k) | (V_old["v_obj"][:, 1] == k)
+    th = V_old["v_theta"]
+    nrm = np.stack([-np.sin(th), np.cos(th)], axis=1)
+    u = np.einsum("ij,ij->i", nrm, V_old["v_p"])
+    near = np.zeros(th.shape[0], bool)
     for sc in (scene, new_scene):
         c, r = _bounding_disk(sc, k)
-        todo |= np.abs(nrm @ c - u) <= r + 10 * eps
-    cls = C.classify(new_scene, cand, eps, todo=todo)
+        near |= np.abs(nrm @ c - u) <= r + 10 * cx.eps
+    retest_v = near & ~own_v
+    if np.any(V_old["v_tau"][retest_v | own_v] != 0.0):
+        return _rebuilt(cx, new_scene, total)
+    blocked = np.nonzero(cx.blockers == k)[0]
+    b_pair = blocked // 4
+    blocked = blocked[(b_pair // n != k) & (b_pair % n != k)]
+    others = np.delete(np.arange(n), k)
+    own_pairs = np.stack([np.minimum(others, k), np.maximum(others, k)], 1)
+    pid = np.unique(np.concatenate([own_pairs[:, 0] * n + own_pairs[:, 1], blocked // 4, pair_of[retest_v]]))
+    cand = C.candidates(new_scene, np.stack([pid // n, pid % n], 1).astype(np.int64))
+    redo = np.concatenate([blocked, V_old["v_key"][retest_v]])
+    todo = (cand["a"] == k) | (cand["b"] == k) | np.isin(cand["key"], redo)
+    cls = C.classify(new_scene, cand, cx.eps, todo=todo, grid=K.build_grid(new_scene.bounding_boxes()))
     fresh = C.resolve_degenerate(new_scene, C.vertices_from(new_scene, cand, cls))
-    # unaffected candidates keep their old status: the old vertices whose keys are not redone
-    old_keys = cx.v_key
-    redo_keys = cand["key"][todo]
-    keep_old = ~np.isin(old_keys, redo_keys)
-    if "v_tau" not in cx.arrays:  # a file written before degenerate lines were resolved
-        cx.arrays["v_tau"] = np.zeros(cx.n_vertices)
-    V = {}
-    for name in ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q", "v_length", "v_seg"):
-        V[name] = np.concatenate([cx.arrays[name][keep_old], fresh[name]])
-    order = np.argsort(V["v_key"], kind="stable")
-    V = {name: arr[order] for name, arr in V.items()}
-    # sky ends are clipped to the scene box, which the move may have changed
-    V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
-    previous = {name: cx.arrays[name] for name in ("f_hash", "f_hash_twin", "f_area", "f_area_twin",
-                                                    "f_strings", "f_strings_twin")}
-    out, recomputed = C.derive(new_scene, V, previous=previous)
+    blockers = cx.blockers.copy()
+    blockers[cand["key"][todo]] = cls[6][todo]
+    clock.lap("candidates")
+    # -- 2. the new vertex set, merged by key; re-tested vertices that did not change stay
+    V, vmap, added = _merge_vertices(V_old, fresh, retest_v | own_v)
+    old_bb, new_bb = scene.bounding_boxes(), new_scene.bounding_boxes()
+    if not (np.array_equal(old_bb[:, :2].min(0), new_bb[:, :2].min(0))
+            and np.array_equal(old_bb[:, 2:].max(0), new_bb[:, 2:].max(0))):
+        # sky ends are clipped to the scene box, which the move changed
+        V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
+    clock.lap("vertices")
+    out, st, zone = _splice(new_scene, cx.state, V, vmap, added)
     V.update(out)
-    new = C.FlatComplex(scene=new_scene, eps=eps, arrays=V)
-    stats = _stats(new, recomputed, int(todo.sum()), int(todo.size))
+    clock.lap("topology")
+    new = C.FlatComplex(scene=new_scene, eps=cx.eps, arrays=V, state=st, blockers=blockers)
+    stats = _stats(new, zone["faces"], int(todo.sum()), total)
+    stats.zone_vertices_removed = int(np.sum(vmap < 0))
+    stats.zone_vertices_added = int(added.size)
+    stats.zone_edges, stats.zone_slots = zone["edges"], zone["slots"]
+    stats.seconds = clock.laps
     return new, stats
+
+
+class _Clock:
+    """CPU seconds per named stage."""
+
+    def __init__(self):
+        self.laps, self.t = {}, time.process_time()
+
+    def lap(self, name):
+        t = time.process_time()
+        self.laps[name] = t - self.t
+        self.t = t
+
+
+def _rebuilt(cx, new_scene, total):
+    new = C.build(new_scene, eps=cx.eps)
+    stats = _stats(new, np.ones(new.n_faces, bool), total, total)
+    stats.local = False
+    return new, stats
+
+
+def _merge_vertices(V_old, fresh, redone):
+    """The vertices after the move: the old ones not re-done and the fresh ones, by key.
+
+    Returns (V, vmap, added): vmap (m_old,) the new index of each old vertex that stays in
+    the topology (a re-done vertex whose fresh copy has the same topology fields stays),
+    −1 for one that left; added the new indices of the vertices that entered."""
+    keep = ~redone
+    fk = fresh["v_key"]
+    V = {}
+    at = np.searchsorted(V_old["v_key"][keep], fk)
+    m = int(keep.sum()) + fk.size
+    is_fresh = np.zeros(m, bool)
+    is_fresh[at + np.arange(fk.size)] = True
+    for name in VERTEX_FIELDS:
+        old = V_old[name]
+        arr = np.empty((m,) + old.shape[1:], old.dtype)
+        arr[~is_fresh] = old[keep]
+        arr[is_fresh] = fresh[name]
+        V[name] = arr
+    vmap = np.full(V_old["v_key"].shape[0], -1, np.int64)
+    vmap[keep] = np.nonzero(~is_fresh)[0]
+    # a re-done vertex found again, unchanged
+    fidx = np.nonzero(is_fresh)[0]
+    rd = np.nonzero(redone)[0]
+    j = np.searchsorted(fk, V_old["v_key"][rd])
+    j = np.minimum(j, max(fk.size - 1, 0))
+    same = (fk.size > 0) & (fk[j] == V_old["v_key"][rd]) if fk.size else np.zeros(rd.size, bool)
+    for name in TOPOLOGY_FIELDS:
+        a, b = V_old[name][rd], fresh[name][j] if fk.size else V_old[name][rd]
+        same &= np.all((a == b).reshape(rd.size, -1), axis=1)
+    vmap[rd[same]] = fidx[j[same]]
+    entered = np.ones(fk.size, bool)
+    entered[j[same]] = False
+    return V, vmap, fidx[entered]
+
+
+def _splice(scene, old, V, vmap, added):
+    """The topology state and stored arrays after the vertices changed (see the module
+    docstring).  Returns (arrays, state, zone sizes)."""
+    m_old, m = vmap.shape[0], V["v_key"].shape[0]
+    O = C.occurrences(V)
+    N_old = old["s_occ"].shape[0]
+    # -- incidences: the kept ones in order, renumbered; the new ones merged in
+    v_old, o_old = old["s_occ"] % m_old, old["s_occ"] >= m_old
+    kpos = np.nonzero(vmap[v_old] >= 0)[0]
+    k_occ = vmap[v_old[kpos]] + o_old[kpos] * m
+    cur, th, tau, occ, role = C.incidences(O, np.concatenate([added, added + m]))
+    o = np.lexsort((occ, tau, th, cur))
+    cur, th, tau, occ, role = cur[o], th[o], tau[o], occ[o], role[o]
+    ins = K.merge_ranks(old["s_cur"][kpos], old["s_th"][kpos], old["s_tau"][kpos], k_occ, cur, th, tau, occ)
+    N = kpos.size + cur.size
+    at_new = ins + np.arange(cur.size)
+    at_kept = np.arange(kpos.size) + np.searchsorted(ins, np.arange(kpos.size), side="right")
+    st = {}
+    for name, kept_vals, new_vals in (("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role),
+                                      ("s_cur", old["s_cur"][kpos], cur), ("s_th", old["s_th"][kpos], th),
+                                      ("s_tau", old["s_tau"][kpos], tau)):
+        arr = np.empty(N, kept_vals.dtype)
+        arr[at_kept] = kept_vals
+        arr[at_new] = new_vals
+        st[name] = arr
+    C.link(st, 2 * m)
+    newpos = np.full(N_old, -1, np.int64)
+    newpos[kpos] = at_kept
+    # -- edges: kept when both ends are kept and still consecutive
+    nxt_old = newpos[old["nxt"][kpos]]
+    surv_old = kpos[(nxt_old >= 0) & (nxt_old == st["nxt"][at_kept])]
+    surv = newpos[surv_old]
+    fresh_e = np.ones(N, bool)
+    fresh_e[surv] = False
+    pe = np.nonzero(fresh_e)[0]
+    tmp = {}
+    C.edge_attributes(scene, O, st, pe, tmp)
+    for name in ("tail", "head", "th0", "th1", "I", "arc"):
+        arr = np.empty(N, old[name].dtype)
+        arr[surv] = old[name][surv_old]
+        arr[pe] = tmp[name]
+        st[name] = arr
+    # -- faces: the old components holding a slot of a vanished edge form the zone
+    dead = np.ones(N_old, bool)
+    dead[surv_old] = False
+    L_old = old["c_tail"].shape[0]
+    in_zone = np.zeros(L_old + 1, bool)
+    in_zone[old["comp"][(3 * np.nonzero(dead)[0][:, None] + np.arange(3)).ravel()]] = True
+    comp = np.full(3 * N, L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
+    in_zone[L_old] = True
+    comp[(3 * surv[:, None] + np.arange(3)).ravel()] = old["comp"][(3 * surv_old[:, None] + np.arange(3)).ravel()]
+    zslots = np.nonzero(in_zone[comp])[0]
+    zedges = np.unique(zslots // 3)
+    zocc = np.unique(np.concatenate([st["s_occ"][zedges], st["s_occ"][st["nxt"][zedges]]]))
+    X, Y, Z, W, _ = C.vertex_edges(O, st, zocc)
+    ua, ub = C.glue_pairs(X, Y, Z, W)
+    ia = np.minimum(np.searchsorted(zslots, ua), zslots.size - 1)
+    ib = np.minimum(np.searchsorted(zslots, ub), zslots.size - 1)
+    ina, inb = zslots[ia] == ua, zslots[ib] == ub
+    if np.any(ina != inb):  # cannot happen (see the module docstring): a bug, not an input error
+        raise RuntimeError("flatland move: the zone of the update is not closed under the vertex gluing")
+    g = coo_matrix((np.ones(int(ina.sum())), (ia[ina], ib[ina])), shape=(zslots.size, zslots.size))
+    nlab, lab = connected_components(g, directed=False)
+    comp[zslots] = L_old + lab
+    st["comp"] = comp
+    six, sgn = C.six_faces(O, comp, zocc, X, Y, Z)
+    six = np.where(six >= L_old, six - L_old, -1)
+    new_attr = {}
+    C.comp_attributes(scene, O, st, zslots, lab, nlab, six, sgn, zocc, new_attr)
+    keep_lab = ~in_zone[:L_old]
+    remap_slot = lambda s: 3 * newpos[s // 3] + s % 3  # noqa: E731
+    for name, vals in new_attr.items():
+        base = old[name].copy()
+        if name == "c_minslot":
+            base[keep_lab] = remap_slot(base[keep_lab])
+        st[name] = np.concatenate([base, vals])
+    # -- the kept faces' boundary lists, renumbered
+    kf = keep_lab[old["face_label"]]
+    st["face_label"] = old["face_label"][kf]
+    st["fe_start"], fe = _csr_keep(old["fe_start"], old["fe_slot"], kf)
+    st["fe_slot"] = remap_slot(fe)
+    st["fv_start"], fv = _csr_keep(old["fv_start"], old["fv_packed"], kf)
+    occ_old = fv // 4
+    st["fv_packed"] = (vmap[occ_old % m_old] + (occ_old >= m_old) * m) * 4 + fv % 4
+    out = C.canonical(scene, V, O, st, L_old + np.arange(nlab), zslots, zocc)
+    faces = st["face_label"] >= L_old
+    _compact(st)
+    return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size))
+
+
+def _csr_keep(start, vals, keep):
+    """CSR lists restricted to the rows ``keep`` (bool): (start, values)."""
+    length = np.diff(start)[keep]
+    new_start = np.zeros(length.size + 1, np.int64)
+    np.cumsum(length, out=new_start[1:])
+    src = start[:-1][keep]
+    return new_start, vals[np.repeat(src - new_start[:-1], length) + np.arange(new_start[-1])]
+
+
+def _compact(st):
+    """Drop dead component labels (those of the zone before the move), renumbering comp,
+    c_* and face_label."""
+    comp = st["comp"]
+    alive = np.zeros(st["c_tail"].shape[0], bool)
+    alive[comp] = True
+    new_id = np.cumsum(alive) - 1
+    st["comp"] = new_id[comp]
+    for name in [k for k in st if k.startswith("c_")]:
+        st[name] = st[name][alive]
+    st["c_twin"] = new_id[st["c_twin"]]
+    st["face_label"] = new_id[st["face_label"]]
 
 
 def _pair_ids(f_pair, n):

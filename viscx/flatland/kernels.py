@@ -168,14 +168,13 @@ def build_grid(bboxes, target_per_cell=2.0):
     i1 = np.clip(((bboxes[:, 2] - lo[0]) / cell).astype(np.int64), 0, nx - 1)
     j0 = np.clip(((bboxes[:, 1] - lo[1]) / cell).astype(np.int64), 0, ny - 1)
     j1 = np.clip(((bboxes[:, 3] - lo[1]) / cell).astype(np.int64), 0, ny - 1)
-    cells, objs = [], []
-    for k in range(n):
-        ii, jj = np.meshgrid(np.arange(i0[k], i1[k] + 1), np.arange(j0[k], j1[k] + 1), indexing="ij")
-        c = (jj * nx + ii).ravel()
-        cells.append(c)
-        objs.append(np.full(c.shape, k, dtype=np.int64))
-    cells = np.concatenate(cells)
-    objs = np.concatenate(objs)
+    # every object's block of cells [i0, i1] × [j0, j1], enumerated without a Python loop
+    wi, wj = i1 - i0 + 1, j1 - j0 + 1
+    objs = np.repeat(np.arange(n, dtype=np.int64), wi * wj)
+    local = np.arange(objs.size) - np.repeat(np.cumsum(wi * wj) - wi * wj, wi * wj)
+    ii = i0[objs] + local // wj[objs]
+    jj = j0[objs] + local % wj[objs]
+    cells = jj * nx + ii
     order = np.lexsort((objs, cells))
     cells, objs = cells[order], objs[order]
     cell_start = np.searchsorted(cells, np.arange(nx * ny + 1)).astype(np.int64)
@@ -391,7 +390,9 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
     beyond the second (−1: the blue sky).
 
     Returns free (bool), first (which of a/b is first along d: 0 → a), tail, head,
-    tail_t, head_t (distance from the first/second tangent point to the blocker)."""
+    tail_t, head_t (distance from the first/second tangent point to the blocker), blocker
+    (an object cutting the segment of a blocked candidate, −1 if free: the dynamic update
+    re-tests a blocked candidate only when its blocker moves)."""
     N = theta.shape[0]
     free = np.zeros(N, np.bool_)
     a_first = np.zeros(N, np.bool_)
@@ -399,6 +400,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
     head = np.full(N, -2, np.int64)
     tail_t = np.zeros(N)
     head_t = np.zeros(N)
+    blocker = np.full(N, -1, np.int64)
     stamp = np.zeros(kind.shape[0], np.int64)
     sid = 0
     for i in range(N):
@@ -424,6 +426,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
         k, t = first_hit(px, py, dx, dy, oa[i], ob[i], L - eps, eps, stamp, sid,
                          origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
         if k >= 0 and t < L - eps:
+            blocker[i] = k
             continue
         free[i] = True
         head[i] = k
@@ -433,7 +436,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
                            origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
         tail[i] = k2
         tail_t[i] = t2 if k2 >= 0 else np.inf
-    return free, a_first, tail, head, tail_t, head_t
+    return free, a_first, tail, head, tail_t, head_t, blocker
 
 
 @nb.njit(cache=True)
@@ -603,3 +606,31 @@ def line_hits(ox, oy, dx, dy, eps, kind, vert_start, verts, radius):
             to[cnt] = b
             cnt += 1
     return hk[:cnt], ti[:cnt], to[:cnt]
+
+
+@nb.njit(cache=True)
+def merge_ranks(cur, th, tau, occ, ncur, nth, ntau, nocc):
+    """For each new incidence key (ncur, nth, ntau, nocc)[i], the number of keys of the
+    lexicographically sorted (cur, th, tau, occ) smaller than it: where it goes when the
+    two sorted lists are merged (binary search; O(new · log N))."""
+    N = cur.shape[0]
+    M = ncur.shape[0]
+    out = np.empty(M, np.int64)
+    for i in range(M):
+        lo, hi = 0, N
+        while lo < hi:
+            j = (lo + hi) // 2
+            if cur[j] != ncur[i]:
+                less = cur[j] < ncur[i]
+            elif th[j] != nth[i]:
+                less = th[j] < nth[i]
+            elif tau[j] != ntau[i]:
+                less = tau[j] < ntau[i]
+            else:
+                less = occ[j] < nocc[i]
+            if less:
+                lo = j + 1
+            else:
+                hi = j
+        out[i] = lo
+    return out

@@ -594,8 +594,8 @@ def six_faces(O, comp, occ, X, Y, Z):
 
     Returns six (k, 6) int64 ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h)), sgn (k, 6) int8."""
     same = O["S1"][occ] == O["S2"][occ]
-    six = np.stack([comp[3 * X], comp[3 * X + 1], comp[3 * X + 2], comp[3 * Y + 1], comp[3 * Y + 2],
-                    comp[3 * Z + 1]], 1).reshape(-1, 6)
+    c3 = comp.reshape(-1, 3)
+    six = np.concatenate([c3[X], c3[Y][:, 1:], c3[Z][:, 1:2]], 1).reshape(-1, 6)
     zero = np.zeros_like(same)
     a, b = np.where(same, -1, 1), np.where(same, 1, -1)
     sgn = np.stack([zero, a, b, b, a, zero], 1).astype(np.int8).reshape(-1, 6)
@@ -775,11 +775,12 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     out["e_side"] = (st["s_cur"][ce] % 2).astype(np.int8)
     out["e_tail"] = st["tail"][ce]
     out["e_head"] = st["head"][ce]
-    out["e_verts"] = np.stack([st["s_occ"][ce] % m, st["s_occ"][st["nxt"][ce]] % m], 1).astype(np.int64)
+    end = st["s_occ"][st["nxt"][ce]]
+    out["e_verts"] = np.stack([st["s_occ"][ce], np.where(end >= m, end - m, end)], 1).astype(np.int64)
     out["e_theta"] = np.stack([st["th0"][ce], st["th1"][ce]], 1)
     out["e_integral"] = st["I"][ce]
     out["e_arclength"] = st["arc"][ce]
-    out["e_faces"] = f_new[comp[3 * ce[:, None] + np.arange(3)[None, :]]]
+    out["e_faces"] = f_new[comp.reshape(-1, 3)[ce]]
     # -- vertex incidences (occurrence o = 0)
     o0 = np.arange(m)
     X, Y, Z, W, (e1b, e1a, e2b, e2a) = vertex_edges(O, st, o0)
@@ -795,25 +796,28 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     is_fresh[fresh] = True
     sl = new_slots[is_fresh[comp[new_slots]]]
     _, _, below = slot_faces(st, sl)
-    sl = sl[np.lexsort((st["th0"][sl // 3] % TWO_PI, ~below, f_new[comp[sl]]))]
-    st["fe_start"], st["fe_slot"] = _splice(is_new, st.get("fe_start"), st.get("fe_slot"), f_new[comp[sl]], sl)
-    fe = st["fe_slot"]
+    o = np.lexsort((st["th0"][sl // 3] % TWO_PI, ~below, f_new[comp[sl]]))
+    # packed as edge << 2 | upper << 1 | reversed (both stay with the edge while it exists)
+    packed = (sl[o] // 3) << 2 | below[o].astype(np.int64) << 1 | ~e_canon[sl[o] // 3]
+    st["fe_start"], fe = _splice(is_new, st.get("fe_start"), st.get("fe_packed"), f_new[comp[sl[o]]], packed)
+    st["fe_packed"] = fe
     out["f_edge_start"] = st["fe_start"]
-    out["f_edge"] = e_new[fe // 3]
-    out["f_edge_upper"] = slot_faces(st, fe)[2]
-    out["f_edge_reversed"] = ~e_canon[fe // 3]
+    out["f_edge"] = e_new[fe >> 2]
+    out["f_edge_upper"] = (fe & 2) > 0
+    out["f_edge_reversed"] = (fe & 1) > 0
     # boundary vertices of the representatives, with their role (extremal / chain / smooth)
     six, sgn = six_faces(O, comp, new_occ, *vertex_edges(O, st, new_occ)[:3])
     hit = is_fresh[six.ravel()]
     fv_occ = np.repeat(new_occ, 6)[hit]
     ff = f_new[six.ravel()[hit]]
-    packed = fv_occ * 4 + sgn.ravel()[hit] + 1
+    # packed as vertex << 3 | o << 2 | sign + 1
+    packed = (fv_occ % m) << 3 | (fv_occ >= m).astype(np.int64) << 2 | sgn.ravel()[hit] + 1
     o = np.lexsort((fv_occ % m, ff))
     st["fv_start"], fv = _splice(is_new, st.get("fv_start"), st.get("fv_packed"), ff[o], packed[o])
     st["fv_packed"] = fv
     out["f_vert_start"] = st["fv_start"]
-    out["f_vert"] = (fv // 4) % m
-    out["f_vert_sign"] = (fv % 4 - 1).astype(np.int8)
+    out["f_vert"] = fv >> 3
+    out["f_vert_sign"] = ((fv & 3) - 1).astype(np.int8)
     # oriented areas of both twins (for the reciprocity check)
     out["f_area_twin"] = st["c_area"][twin[rep]]
     out["f_strings_twin"] = st["c_strings"][twin[rep]]

@@ -181,23 +181,21 @@ def _merge_vertices(V_old, fresh, redone):
     Returns (V, vmap, added): vmap (m_old,) the new index of each old vertex that stays in
     the topology (a re-done vertex whose fresh copy has the same topology fields stays),
     −1 for one that left; added the new indices of the vertices that entered."""
-    keep = ~redone
+    keep = np.nonzero(~redone)[0]
     fk = fresh["v_key"]
     V = {}
-    at = np.searchsorted(V_old["v_key"][keep], fk)
-    m = int(keep.sum()) + fk.size
-    is_fresh = np.zeros(m, bool)
-    is_fresh[at + np.arange(fk.size)] = True
+    fidx = np.searchsorted(V_old["v_key"][keep], fk) + np.arange(fk.size)
+    m = keep.size + fk.size
+    kidx = np.arange(keep.size) + np.searchsorted(fidx - np.arange(fk.size), np.arange(keep.size), side="right")
     for name in VERTEX_FIELDS:
         old = V_old[name]
         arr = np.empty((m,) + old.shape[1:], old.dtype)
-        arr[~is_fresh] = old[keep]
-        arr[is_fresh] = fresh[name]
+        arr[kidx] = old[keep]
+        arr[fidx] = fresh[name]
         V[name] = arr
     vmap = np.full(V_old["v_key"].shape[0], -1, np.int64)
-    vmap[keep] = np.nonzero(~is_fresh)[0]
+    vmap[keep] = kidx
     # a re-done vertex found again, unchanged
-    fidx = np.nonzero(is_fresh)[0]
     rd = np.nonzero(redone)[0]
     j = np.searchsorted(fk, V_old["v_key"][rd])
     j = np.minimum(j, max(fk.size - 1, 0))
@@ -258,12 +256,14 @@ def _splice(scene, old, V, vmap, added):
     dead[surv_old] = False
     L_old = old["c_tail"].shape[0]
     in_zone = np.zeros(L_old + 1, bool)
-    in_zone[old["comp"][(3 * np.nonzero(dead)[0][:, None] + np.arange(3)).ravel()]] = True
-    comp = np.full(3 * N, L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
+    in_zone[old["comp"].reshape(-1, 3)[dead]] = True
+    comp = np.full((N, 3), L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
     in_zone[L_old] = True
-    comp[(3 * surv[:, None] + np.arange(3)).ravel()] = old["comp"][(3 * surv_old[:, None] + np.arange(3)).ravel()]
+    comp[surv] = old["comp"].reshape(-1, 3)[surv_old]
+    comp = comp.ravel()
     zslots = np.nonzero(in_zone[comp])[0]
-    zedges = np.unique(zslots // 3)
+    zedges = zslots // 3
+    zedges = zedges[np.append(True, zedges[1:] != zedges[:-1])]
     zocc = np.unique(np.concatenate([st["s_occ"][zedges], st["s_occ"][st["nxt"][zedges]]]))
     X, Y, Z, W, _ = C.vertex_edges(O, st, zocc)
     ua, ub = C.glue_pairs(X, Y, Z, W)
@@ -290,14 +290,14 @@ def _splice(scene, old, V, vmap, added):
     # -- the kept faces' boundary lists, renumbered
     kf = keep_lab[old["face_label"]]
     st["face_label"] = old["face_label"][kf]
-    st["fe_start"], fe = _csr_keep(old["fe_start"], old["fe_slot"], kf)
-    st["fe_slot"] = remap_slot(fe)
+    st["fe_start"], fe = _csr_keep(old["fe_start"], old["fe_packed"], kf)
+    st["fe_packed"] = newpos[fe >> 2] << 2 | fe & 3
     st["fv_start"], fv = _csr_keep(old["fv_start"], old["fv_packed"], kf)
-    occ_old = fv // 4
-    st["fv_packed"] = (vmap[occ_old % m_old] + (occ_old >= m_old) * m) * 4 + fv % 4
+    st["fv_packed"] = vmap[fv >> 3] << 3 | fv & 7
     out = C.canonical(scene, V, O, st, L_old + np.arange(nlab), zslots, zocc)
     faces = st["face_label"] >= L_old
-    _compact(st)
+    if st["c_tail"].shape[0] > 2 * st["face_label"].shape[0] + 2 * nlab:
+        _compact(st)  # amortised: when dead labels outnumber the live ones
     return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size))
 
 
@@ -335,8 +335,10 @@ def _stats(new, recomputed, tested, total):
     n = new.scene.n
     ok = new.f_bounded & ~((new.f_pair[:, 0] < 0) & (new.f_pair[:, 1] < 0))
     pid = _pair_ids(new.f_pair, n)[ok]
-    pairs_all = np.unique(pid)
-    pairs_re = np.unique(pid[recomputed[ok]])
+    seen = np.zeros((n + 1) ** 2, bool)
+    seen[pid] = True
+    again = np.zeros((n + 1) ** 2, bool)
+    again[pid[recomputed[ok]]] = True
     return MoveStats(candidates_tested=tested, candidates_total=total,
                      faces_recomputed=int(recomputed[ok].sum()), faces_total=int(ok.sum()),
-                     formfactors_recomputed=int(pairs_re.size), formfactors_total=int(pairs_all.size))
+                     formfactors_recomputed=int(again.sum()), formfactors_total=int(seen.sum()))

@@ -583,7 +583,7 @@ def glue_pairs(X, Y, Z, W):
     return ua, ub
 
 
-def six_faces(O, comp, occ, X, Y, Z):
+def six_faces(O, comp, occ, X, Y, Z, signs=True):
     """The six faces (components) of occurrences occ and the vertex's role on each.  Near the
     bitangent, (T,K1) is every line crossing K1 and (K2,H) every line crossing K2: the vertex
     is a smooth point of their boundary (sign 0).  The other four faces fill the four sectors
@@ -592,10 +592,14 @@ def six_faces(O, comp, occ, X, Y, Z):
     'neither' are the up/down sectors (a chain vertex, −d_e) and the two others the
     left/right ones (an extremal vertex, +d_e); inner bitangents swap them.
 
-    Returns six (k, 6) int64 ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h)), sgn (k, 6) int8."""
-    same = O["S1"][occ] == O["S2"][occ]
+    Returns six (k, 6) int64 ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h)), sgn (k, 6) int8
+    (None without ``signs``)."""
     c3 = comp.reshape(-1, 3)
-    six = np.concatenate([c3[X], c3[Y][:, 1:], c3[Z][:, 1:2]], 1).reshape(-1, 6)
+    six = np.concatenate([np.take(c3, X, axis=0), np.take(c3, Y, axis=0)[:, 1:], np.take(c3, Z, axis=0)[:, 1:2]],
+                         1).reshape(-1, 6)
+    if not signs:
+        return six, None
+    same = O["S1"][occ] == O["S2"][occ]
     zero = np.zeros_like(same)
     a, b = np.where(same, -1, 1), np.where(same, 1, -1)
     sgn = np.stack([zero, a, b, b, a, zero], 1).astype(np.int8).reshape(-1, 6)
@@ -780,12 +784,12 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     out["e_theta"] = np.stack([st["th0"][ce], st["th1"][ce]], 1)
     out["e_integral"] = st["I"][ce]
     out["e_arclength"] = st["arc"][ce]
-    out["e_faces"] = f_new[comp.reshape(-1, 3)[ce]]
+    out["e_faces"] = f_new[np.take(comp.reshape(-1, 3), ce, axis=0)]
     # -- vertex incidences (occurrence o = 0)
     o0 = np.arange(m)
     X, Y, Z, W, (e1b, e1a, e2b, e2a) = vertex_edges(O, st, o0)
     out["v_edges"] = np.stack([e_new[e1b], e_new[e1a], e_new[e2b], e_new[e2a]], 1)
-    out["v_faces"] = f_new[six_faces(O, comp, o0, X, Y, Z)[0]]
+    out["v_faces"] = f_new[six_faces(O, comp, o0, X, Y, Z, signs=False)[0]]
     # -- faces
     out["f_pair"] = np.stack([ct[rep], ch[rep]], 1)
     out["f_area"] = st["c_area"][rep]

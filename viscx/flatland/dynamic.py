@@ -264,7 +264,7 @@ def _splice(scene, old, V, vmap, added):
     comp = comp.ravel()
     zslots = np.nonzero(in_zone[comp])[0]
     zedges = zslots // 3
-    zedges = zedges[np.append(True, zedges[1:] != zedges[:-1])]
+    zedges = zedges[np.append(zedges[:1] >= 0, zedges[1:] != zedges[:-1])]
     zocc = np.unique(np.concatenate([st["s_occ"][zedges], st["s_occ"][st["nxt"][zedges]]]))
     X, Y, Z, W, _ = C.vertex_edges(O, st, zocc)
     ua, ub = C.glue_pairs(X, Y, Z, W)

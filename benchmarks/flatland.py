@@ -65,8 +65,8 @@ def measure(sizes, make=None, step=0.5, moves=7):
     """One row per size: (n, vertices, edges, faces, build s, candidates s, freeness s,
     median move s, median rebuild s, (mean form factors recomputed, mean total), zone, split).
 
-    ``moves`` random moves of one object from the built complex (each timed, and checked against
-    against nothing: the tests check equality); zone: medians of vertices out / in, edges
+    ``moves`` random moves of one object from the built complex (timed only: the tests
+    check equality with a rebuild); zone: medians of vertices out / in, edges
     and face slots re-derived, and how many moves were local (not rebuilt); split: the
     median CPU seconds of the move's stages (candidates, vertices, topology)."""
     make = make or (lambda n: random_circles(n, seed=n))

@@ -518,21 +518,6 @@ def incidences(O: dict, occ=None):
             np.repeat(np.array([0, 1], np.int64), occ.shape[0]))
 
 
-def curve_links(cur):
-    """(N,) next and previous position on the same curve (cyclic) of incidences sorted by curve."""
-    N = cur.shape[0]
-    brk = np.ones(N, bool)
-    brk[1:] = cur[1:] != cur[:-1]
-    start = np.nonzero(brk)[0]
-    end = np.append(start[1:], N) - 1
-    grp = np.cumsum(brk) - 1
-    pos = np.arange(N)
-    nxt = np.where(pos == end[grp], start[grp], pos + 1)
-    prv = np.empty(N, np.int64)
-    prv[nxt] = pos
-    return nxt, prv
-
-
 def edge_labels(scene, O, st, p):
     """Tail, head, θ range and end support points of the edges starting at sorted positions p
     (the arc of the curve from incidence p to the next one).  The tail and head follow from
@@ -663,7 +648,8 @@ def twin_slots(O, st, slots):
     (t,k), (k,h), (t,h) to (k,h), (t,k), (t,h)."""
     n_occ = O["K1"].shape[0]
     e = slots // 3
-    occ = (st["s_occ"][e] + n_occ // 2) % max(n_occ, 1)
+    occ = st["s_occ"][e]
+    occ = np.where(occ >= n_occ // 2, occ - n_occ // 2, occ + n_occ // 2)
     et = st["posof"][occ + (1 - st["s_role"][e]) * n_occ]
     return 3 * et + np.array([1, 0, 2])[slots % 3]
 
@@ -707,9 +693,7 @@ def derive(scene: Scene, V: dict):
 
 def link(st, n_occ):
     """Next / previous incidence on each curve and the sorted position of every incidence."""
-    st["nxt"], st["prv"] = curve_links(st["s_cur"])
-    st["posof"] = np.empty(st["s_cur"].shape[0], np.int64)
-    st["posof"][st["s_occ"] + st["s_role"] * n_occ] = np.arange(st["s_cur"].shape[0])
+    st["nxt"], st["prv"], st["posof"] = K.curve_links(st["s_cur"], st["s_occ"] + st["s_role"] * n_occ)
 
 
 def edge_attributes(scene, O, st, p, out):

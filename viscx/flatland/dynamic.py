@@ -225,7 +225,7 @@ def _splice(scene, old, V, vmap, added):
     ins = K.merge_ranks(old["s_cur"][kpos], old["s_th"][kpos], old["s_tau"][kpos], k_occ, cur, th, tau, occ)
     N = kpos.size + cur.size
     at_new = ins + np.arange(cur.size)
-    at_kept = np.arange(kpos.size) + np.searchsorted(ins, np.arange(kpos.size), side="right")
+    at_kept = np.arange(kpos.size) + np.cumsum(np.bincount(ins, minlength=kpos.size + 1))[:kpos.size]
     st = {}
     for name, kept_vals, new_vals in (("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role),
                                       ("s_cur", old["s_cur"][kpos], cur), ("s_th", old["s_th"][kpos], th),

@@ -634,3 +634,24 @@ def merge_ranks(cur, th, tau, occ, ncur, nth, ntau, nocc):
                 hi = j
         out[i] = lo
     return out
+
+
+@nb.njit(cache=True)
+def curve_links(cur, inc):
+    """Incidences sorted by curve (``cur``) with ids ``inc``: the next and previous position
+    on the same curve (cyclic) and the sorted position of every incidence id (one pass)."""
+    N = cur.shape[0]
+    nxt = np.empty(N, np.int64)
+    prv = np.empty(N, np.int64)
+    posof = np.empty(N, np.int64)
+    s = 0
+    for p in range(N):
+        posof[inc[p]] = p
+        if p + 1 == N or cur[p + 1] != cur[p]:  # p ends the curve that starts at s
+            for q in range(s, p):
+                nxt[q] = q + 1
+                prv[q + 1] = q
+            nxt[p] = s
+            prv[s] = p
+            s = p + 1
+    return nxt, prv, posof

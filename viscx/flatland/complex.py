@@ -388,11 +388,33 @@ def _contact(scene, k, side, d, n, tol):
 
 def _resolve_line(scene, V, idx, tol):
     """Rows (vertex index, {field: value}) of the perturbed vertices of one degenerate
-    line (see :func:`resolve_degenerate`)."""
+    line (see :func:`resolve_degenerate`): its members ``idx`` (vertex indices, the first
+    one giving θ, tail, head and the segment's ends)."""
     th = float(V["v_theta"][idx[0]])
+    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
+    n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
+    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
+    mkey = ends[:, 0] * n2 + ends[:, 1]
+    mo = np.argsort(mkey)
+    mkey, midx = mkey[mo], idx[mo]
+
+    def member(ri, rj):
+        key = (ri[2] * 2 + ri[3]) * n2 + rj[2] * 2 + rj[3]
+        at = int(np.searchsorted(mkey, key))
+        return int(midx[at]) if at < mkey.size and mkey[at] == key else None
+
+    return resolve_entries(scene, ent, th, int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]]),
+                           V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:], tol, member)
+
+
+def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
+    """The perturbed vertices of the maximal free segment (tail T, head H, ends seg0, seg1)
+    of the degenerate line of direction θ touched by the entries ``ent`` (codes
+    2·object + side): rows (member(ri, rj), {field: value}) for each vertex, ri / rj the
+    contact rows of its two entries (positions a, b, object, side, supports, points) and
+    ``member`` naming the vertex (its candidate) that carries them."""
     d = np.array([math.cos(th), math.sin(th)])
     n = np.array([-d[1], d[0]])
-    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
     ent = [(int(x) // 2, int(x) % 2) for x in ent]
     rows = []
     for k, sd in ent:
@@ -421,26 +443,18 @@ def _resolve_line(scene, V, idx, tol):
     c = np.where(mate >= 0, 0.5 / (1.0 + (x - _X0) ** 2), c)
     ci = 0.5 * (lo + hi)
     pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
-    n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
-    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
-    mkey = ends[:, 0] * n2 + ends[:, 1]
-    mo = np.argsort(mkey)
-    mkey, midx = mkey[mo], idx[mo]
-    T, H = int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]])
-    seg0, seg1 = V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:]
     out = []
     for i, j, t, a_, b_, bi, bj in zip(pi, pj, tau, tl, hd, ib, jb):
         ri, rj = rows[i], rows[j]
-        key = (ri[2] * 2 + ri[3]) * n2 + rj[2] * 2 + rj[3]
-        at = int(np.searchsorted(mkey, key))
-        if at == mkey.size or mkey[at] != key:
+        at = member(ri, rj)
+        if at is None:
             raise ViscxError(f"degenerate line through {scene.names[ri[2]]!r} and {scene.names[rj[2]]!r} could "
                              "not be resolved (a common tangent was not found as a candidate)")
         p = ri[7] if bi else ri[6]
         q = rj[7] if bj else rj[6]
         start = seg0 if a_ < 0 else rows[a_][7]
         end = seg1 if b_ < 0 else rows[b_][6]
-        out.append((int(midx[at]), dict(
+        out.append((at, dict(
             v_theta=th, v_tau=float(t), v_tail=T if a_ < 0 else rows[a_][2], v_head=H if b_ < 0 else rows[b_][2],
             v_support=np.array([ri[5] if bi else ri[4], rj[5] if bj else rj[4]]), v_p=p, v_q=q,
             v_length=float(d @ (q - p)), v_seg=np.concatenate([start, end]))))

@@ -120,8 +120,19 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
         c, r = _bounding_disk(sc, k)
         near |= np.abs(nrm @ c - u) <= r + 10 * cx.eps
     retest_v = near & ~own_v
-    if np.any(V_old["v_tau"][retest_v | own_v] != 0.0):
-        return _rebuilt(cx, new_scene, total)
+    # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
+    # by earlier moves (their blocked members are not in the blocker table) that K meets
+    tol = C._tol(new_scene)
+    reg_th, reg_u = cx.state.get("lines", (np.zeros(0), np.zeros(0)))
+    reg_near = np.zeros(reg_th.shape[0], bool)
+    for sc in (scene, new_scene):
+        c, r = _bounding_disk(sc, k)
+        reg_near |= np.abs(-np.sin(reg_th) * c[0] + np.cos(reg_th) * c[1] - reg_u) <= r + 10 * cx.eps
+    deg = (retest_v | own_v) & (V_old["v_tau"] != 0.0)
+    lines_th, lines_u = _distinct_lines(np.concatenate([th[deg], reg_th[reg_near]]),
+                                        np.concatenate([u[deg], reg_u[reg_near]]), tol)
+    on_line = _on_lines(th, u, lines_th, lines_u, tol)
+    retest_v |= on_line & ~own_v
     blocked = np.nonzero(cx.blockers == k)[0]
     b_pair = blocked // 4
     blocked = blocked[(b_pair // n != k) & (b_pair % n != k)]
@@ -131,8 +142,20 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     cand = C.candidates(new_scene, np.stack([pid // n, pid % n], 1).astype(np.int64))
     redo = np.concatenate([blocked, V_old["v_key"][retest_v]])
     todo = (cand["a"] == k) | (cand["b"] == k) | np.isin(cand["key"], redo)
-    cls = C.classify(new_scene, cand, cx.eps, todo=todo, grid=K.build_grid(new_scene.bounding_boxes()))
-    fresh = C.resolve_degenerate(new_scene, C.vertices_from(new_scene, cand, cls))
+    grid = K.build_grid(new_scene.bounding_boxes())
+    cls = C.classify(new_scene, cand, cx.eps, todo=todo, grid=grid)
+    fresh = C.vertices_from(new_scene, cand, cls)
+    if lines_th.size:  # the degenerate lines are re-scanned whole, not from their candidates
+        fth = fresh["v_theta"]
+        fu = np.einsum("ij,ij->i", np.stack([-np.sin(fth), np.cos(fth)], 1), fresh["v_p"])
+        off = ~_on_lines(fth, fu, lines_th, lines_u, tol)
+        fresh = {name: arr[off] for name, arr in fresh.items()}
+    fresh = C.resolve_degenerate(new_scene, fresh)
+    if lines_th.size:
+        scanned = [scan_line(new_scene, t_, u_, cx.eps, tol, grid) for t_, u_ in zip(lines_th, lines_u)]
+        fresh = {name: np.concatenate([fresh[name]] + [x[name] for x in scanned]) for name in VERTEX_FIELDS}
+        o = np.argsort(fresh["v_key"], kind="stable")
+        fresh = {name: arr[o] for name, arr in fresh.items()}
     blockers = cx.blockers.copy()
     blockers[cand["key"][todo]] = cls[6][todo]
     clock.lap("candidates")
@@ -147,6 +170,7 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     out, st, zone = _splice(new_scene, cx.state, V, vmap, added)
     V.update(out)
     clock.lap("topology")
+    st["lines"] = _distinct_lines(np.concatenate([reg_th, lines_th]), np.concatenate([reg_u, lines_u]), tol)
     new = C.FlatComplex(scene=new_scene, eps=cx.eps, arrays=V, state=st, blockers=blockers)
     stats = _stats(new, zone["faces"], int(todo.sum()), total)
     stats.zone_vertices_removed = int(np.sum(vmap < 0))
@@ -154,6 +178,117 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     stats.zone_edges, stats.zone_slots = zone["edges"], zone["slots"]
     stats.seconds = clock.laps
     return new, stats
+
+
+def _distinct_lines(th, u, tol):
+    """One (θ, u) per distinct line (copies within the tolerances merged)."""
+    g = C.line_groups(th, u, tol)
+    first = np.unique(g, return_index=True)[1]
+    return th[first], u[first]
+
+
+def _on_lines(th, u, lth, lu, tol):
+    """(N,) bool: the lines (θ, u) that are one of the lines (lth, lu) (canonical θ)."""
+    out = np.zeros(th.shape[0], bool)
+    for t_, u_ in zip(lth, lu):
+        out |= (np.abs(th - t_) <= C.TOL_THETA) & (np.abs(u - u_) <= tol)
+    return out
+
+
+def scan_line(scene, th, u, eps, tol, grid):
+    """The vertices on the degenerate line (θ, u), from the line alone: the objects touching
+    it (support value u on one side) and those crossing it (deeper than eps) split it into
+    maximal free segments; the entries of each are resolved like a rebuild resolves the
+    group of its free candidates (:func:`complex.resolve_entries`), θ, tail, head and the
+    segment's ends taken from its lowest-key candidate, the candidates of the vertices'
+    pairs looked up by their objects and sides.  A segment with one pair of point contacts
+    gives that pair's bitangent as a simple vertex.  O(n) numpy plus O(entries) Python.
+
+    Returns vertex arrays (the fields of ``VERTEX_FIELDS``), sorted by key."""
+    d = np.array([np.cos(th), np.sin(th)])
+    nrm = np.array([-d[1], d[0]])
+    starts = scene.vert_start[:-1]
+    proj = scene.verts @ nrm
+    hi = np.maximum.reduceat(proj, starts) + scene.radius
+    lo = np.minimum.reduceat(proj, starts) - scene.radius
+    codes = np.sort(np.concatenate([2 * np.nonzero(np.abs(hi - u) <= tol)[0] + C.R,
+                                    2 * np.nonzero(np.abs(lo - u) <= tol)[0] + C.L]))
+    o = u * nrm
+    hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
+    so = np.argsort(ti)
+    hk, to = hk[so], to[so]
+    pos = np.array([C._contact(scene, int(c_) // 2, int(c_) % 2, d, nrm, tol)[0] for c_ in codes])
+    seg = np.searchsorted(to, pos)
+    rows = []
+    for s_ in np.unique(seg):
+        ent = codes[seg == s_]
+        objs = np.unique(ent // 2)
+        if objs.size < 2:
+            continue
+        rows.extend(_segment_vertices(scene, ent, objs, th, u, eps, tol, grid))
+    if not rows:
+        return {name: np.zeros((0,) + shape, dtype) for name, (dtype, shape) in _VERTEX_LAYOUT.items()}
+    out = {name: np.concatenate([r[name] for r in rows]) for name in VERTEX_FIELDS}
+    o = np.argsort(out["v_key"], kind="stable")
+    return {name: arr[o] for name, arr in out.items()}
+
+
+_VERTEX_LAYOUT = dict(v_key=(np.int64, ()), v_obj=(np.int64, (2,)), v_support=(np.int64, (2,)), v_side=(np.int8, (2,)),
+                      v_tail=(np.int64, ()), v_head=(np.int64, ()), v_theta=(float, ()), v_tau=(float, ()),
+                      v_p=(float, (2,)), v_q=(float, (2,)), v_length=(float, ()), v_seg=(float, (4,)))
+
+
+def _pair_candidates_on(scene, pairs, th, u, tol):
+    """The candidates of object pairs (P, 2) and which of them lie on the line (θ, u), with
+    their objects and sides in the order along the line (k1 first)."""
+    cand = C.candidates(scene, pairs)
+    p, q = C._tangent_points(scene, cand)
+    ct = cand["theta"]
+    on = (np.abs(ct - th) <= C.TOL_THETA) & (np.abs(-np.sin(ct) * p[:, 0] + np.cos(ct) * p[:, 1] - u) <= tol)
+    first = np.einsum("ij,ij->i", q - p, np.stack([np.cos(ct), np.sin(ct)], 1)) >= 0
+    k1 = np.where(first, cand["a"], cand["b"]); k2 = np.where(first, cand["b"], cand["a"])
+    s1 = np.where(first, cand["side_a"], cand["side_b"]); s2 = np.where(first, cand["side_b"], cand["side_a"])
+    return cand, on, (2 * k1 + s1) * (2 * scene.n) + 2 * k2 + s2
+
+
+def _segment_vertices(scene, ent, objs, th, u, eps, tol, grid):
+    """Vertex rows of one maximal free segment of a degenerate line (see :func:`scan_line`)."""
+    # the lowest-key free candidate on the segment (the rebuild's first member of the group)
+    cand, on, _ = _pair_candidates_on(scene, np.array([[objs[0], objs[1]]], np.int64), th, u, tol)
+    i0 = np.nonzero(on)[0][:1]
+    one = {name: arr[i0] for name, arr in cand.items()}
+    first = C.vertices_from(scene, one, C.classify(scene, one, eps, grid=grid))
+    if first["v_key"].size == 0:
+        return []
+    n_members = ent.size * (ent.size - 1) // 2 - (ent.size - objs.size)
+    point = all(np.ptp(C._contact(scene, int(c_) // 2, int(c_) % 2, np.array([np.cos(th), np.sin(th)]),
+                                  np.array([-np.sin(th), np.cos(th)]), tol)[:2]) == 0 for c_ in ent)
+    if n_members == 1 and point:
+        first["v_tau"] = np.zeros(1)
+        return [first]
+    res = C.resolve_entries(scene, ent, float(first["v_theta"][0]), int(first["v_tail"][0]), int(first["v_head"][0]),
+                            first["v_seg"][0, :2], first["v_seg"][0, 2:], tol,
+                            lambda ri, rj: (ri[2] * 2 + ri[3]) * (2 * scene.n) + rj[2] * 2 + rj[3])
+    if not res:
+        return []
+    want = np.array([r[0] for r in res])
+    pairs = np.stack([want // (2 * scene.n) // 2, want % (2 * scene.n) // 2], 1)
+    cand, on, code = _pair_candidates_on(scene, np.sort(pairs, axis=1).astype(np.int64), th, u, tol)
+    row = {}
+    sel = np.empty(len(res), np.int64)
+    for i, w in enumerate(want):
+        hit = np.nonzero(on[4 * i:4 * i + 4] & (code[4 * i:4 * i + 4] == w))[0]
+        if hit.size != 1:
+            raise ViscxError("a degenerate line could not be resolved (a common tangent was not found as a candidate)")
+        sel[i] = 4 * i + hit[0]
+    row["v_key"] = cand["key"][sel]
+    row["v_obj"] = pairs.astype(np.int64)
+    row["v_side"] = np.stack([(want // (2 * scene.n)) % 2, want % 2], 1).astype(np.int8)
+    for name in ("v_theta", "v_tau", "v_tail", "v_head", "v_length"):
+        row[name] = np.array([r[1][name] for r in res], np.int64 if name in ("v_tail", "v_head") else float)
+    for name in ("v_support", "v_p", "v_q", "v_seg"):
+        row[name] = np.stack([r[1][name] for r in res]).astype(np.int64 if name == "v_support" else float)
+    return [row]
 
 
 class _Clock:

@@ -372,18 +372,26 @@ def _on_edge(scene, obj, sup, nrm, tol):
     return out
 
 
-def _contact(scene, k, side, d, n, tol):
-    """Contact of object k (on side R = 1 / L = 0) with a line of direction d, normal n:
-    (positions a ≤ b along d, support indices ja, jb, points pa, pb)."""
-    s, e = scene.vert_start[k], scene.vert_start[k + 1]
-    v = scene.verts[s:e]
-    sig = 2.0 * side - 1.0
-    pts = v + sig * scene.radius[k] * n
-    proj = pts @ n
-    on = np.nonzero(np.abs(proj - (proj.max() if side == R else proj.min())) <= tol)[0]
-    pos = pts[on] @ d
-    ia, ib = on[np.argmin(pos)], on[np.argmax(pos)]
-    return pos.min(), pos.max(), s + ia, s + ib, pts[ia], pts[ib]
+def contacts(scene, codes, d, n, tol):
+    """Contacts of entries ``codes`` (2·object + side: R = 1 / L = 0) with a line of
+    direction d, normal n: positions a ≤ b along d of the object's extreme points on the
+    line (within tol), their support indices ja, jb and points pa, pb (E, 2).  One pass
+    over the entries' support points (no per-entry Python)."""
+    k, side = codes // 2, codes % 2
+    s = scene.vert_start[k]
+    cnt = scene.vert_start[k + 1] - s
+    start = np.cumsum(cnt) - cnt
+    ent = np.repeat(np.arange(k.size), cnt)
+    vid = s[ent] + np.arange(ent.size) - start[ent]
+    pts = scene.verts[vid] + ((2.0 * side - 1.0) * scene.radius[k])[ent][:, None] * n
+    proj = pts[:, 0] * n[0] + pts[:, 1] * n[1]
+    ext = np.where(side == R, np.maximum.reduceat(proj, start), np.minimum.reduceat(proj, start))
+    on = np.abs(proj - ext[ent]) <= tol
+    pos = pts[:, 0] * d[0] + pts[:, 1] * d[1]
+    # first of the smallest / largest position among each entry's points on the line
+    ia = np.lexsort((np.where(on, pos, np.inf), ent))[start]
+    ib = np.lexsort((np.where(on, -pos, np.inf), ent))[start]
+    return pos[ia], pos[ib], vid[ia], vid[ib], pts[ia], pts[ib]
 
 
 def _resolve_line(scene, V, idx, tol):
@@ -415,12 +423,10 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     ``member`` naming the vertex (its candidate) that carries them."""
     d = np.array([math.cos(th), math.sin(th)])
     n = np.array([-d[1], d[0]])
-    ent = [(int(x) // 2, int(x) % 2) for x in ent]
-    rows = []
-    for k, sd in ent:
-        a, b, ja, jb, pa, pb = _contact(scene, k, sd, d, n, tol)
-        rows.append((a, b, k, sd, ja, jb, pa, pb))
-    rows.sort(key=lambda r: (r[0], r[2], r[3]))
+    ent = np.asarray(ent, np.int64)
+    ca, cb, ja, jb, pa, pb = contacts(scene, ent, d, n, tol)
+    o = np.lexsort((ent % 2, ent // 2, ca))
+    rows = [(ca[i], cb[i], int(ent[i]) // 2, int(ent[i]) % 2, int(ja[i]), int(jb[i]), pa[i], pb[i]) for i in o]
     xa = np.array([r[0] for r in rows]); xb = np.array([r[1] for r in rows])
     obj = np.array([r[2] for r in rows])
     # an object touching the line on both sides lies along it (a segment): two adjacent entries

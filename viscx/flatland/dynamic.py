@@ -217,7 +217,7 @@ def scan_line(scene, th, u, eps, tol, grid):
     hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
     so = np.argsort(ti)
     hk, to = hk[so], to[so]
-    pos = np.array([C._contact(scene, int(c_) // 2, int(c_) % 2, d, nrm, tol)[0] for c_ in codes])
+    pos, pos_b = C.contacts(scene, codes, d, nrm, tol)[:2]
     seg = np.searchsorted(to, pos)
     rows = []
     for s_ in np.unique(seg):
@@ -225,7 +225,8 @@ def scan_line(scene, th, u, eps, tol, grid):
         objs = np.unique(ent // 2)
         if objs.size < 2:
             continue
-        rows.extend(_segment_vertices(scene, ent, objs, th, u, eps, tol, grid))
+        point = bool(np.all(pos[seg == s_] == pos_b[seg == s_]))
+        rows.extend(_segment_vertices(scene, ent, objs, point, th, u, eps, tol, grid))
     if not rows:
         return {name: np.zeros((0,) + shape, dtype) for name, (dtype, shape) in _VERTEX_LAYOUT.items()}
     out = {name: np.concatenate([r[name] for r in rows]) for name in VERTEX_FIELDS}
@@ -251,7 +252,7 @@ def _pair_candidates_on(scene, pairs, th, u, tol):
     return cand, on, (2 * k1 + s1) * (2 * scene.n) + 2 * k2 + s2
 
 
-def _segment_vertices(scene, ent, objs, th, u, eps, tol, grid):
+def _segment_vertices(scene, ent, objs, point, th, u, eps, tol, grid):
     """Vertex rows of one maximal free segment of a degenerate line (see :func:`scan_line`)."""
     # the lowest-key free candidate on the segment (the rebuild's first member of the group)
     cand, on, _ = _pair_candidates_on(scene, np.array([[objs[0], objs[1]]], np.int64), th, u, tol)
@@ -261,8 +262,6 @@ def _segment_vertices(scene, ent, objs, th, u, eps, tol, grid):
     if first["v_key"].size == 0:
         return []
     n_members = ent.size * (ent.size - 1) // 2 - (ent.size - objs.size)
-    point = all(np.ptp(C._contact(scene, int(c_) // 2, int(c_) % 2, np.array([np.cos(th), np.sin(th)]),
-                                  np.array([-np.sin(th), np.cos(th)]), tol)[:2]) == 0 for c_ in ent)
     if n_members == 1 and point:
         first["v_tau"] = np.zeros(1)
         return [first]

@@ -546,6 +546,15 @@ def local_arrangement(xa, xb, right, c, mate):
     ohd = np.empty(cap, np.int64)
     obi = np.empty(cap, np.bool_)
     obj_ = np.empty(cap, np.bool_)
+    # the tail / head searches dominate (O(m) per free pair): for lines without an object
+    # along them, entry l is crossed iff sgn_l (f_l(τ) − u) > 0 (R: u < f, L: u > f)
+    plain = True
+    for l in range(m):
+        if mate[l] >= 0:
+            plain = False
+    x_pos = np.where(right, xa, xb)
+    x_neg = np.where(right, xb, xa)
+    sgn = np.where(right, 1.0, -1.0)
     cnt = 0
     for i in range(m):
         for j in range(i + 1, m):
@@ -561,22 +570,42 @@ def local_arrangement(xa, xb, right, c, mate):
             tau = -g0 / (xj - xi)
             u = c[i] - xi * tau
             free = True
-            for l in range(i + 1, j):
-                if l != mate[i] and l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
-                    free = False
-                    break
+            if plain:
+                xs = x_pos if tau > 0.0 else x_neg
+                for l in range(i + 1, j):
+                    if sgn[l] * ((c[l] - xs[l] * tau) - u) > 0.0:
+                        free = False
+                        break
+            else:
+                for l in range(i + 1, j):
+                    if l != mate[i] and l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                        free = False
+                        break
             if not free:
                 continue
-            tl = -1
-            for l in range(i - 1, -1, -1):
-                if l != mate[i] and _crosses(l, tau, u, xa, xb, right, c, mate):
-                    tl = l
-                    break
-            hd = -1
-            for l in range(j + 1, m):
-                if l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
-                    hd = l
-                    break
+            if plain:  # no object along the line: the test of _crosses, branch-free
+                xs = x_pos if tau > 0.0 else x_neg
+                tl = -1
+                for l in range(i - 1, -1, -1):
+                    if sgn[l] * ((c[l] - xs[l] * tau) - u) > 0.0:
+                        tl = l
+                        break
+                hd = -1
+                for l in range(j + 1, m):
+                    if sgn[l] * ((c[l] - xs[l] * tau) - u) > 0.0:
+                        hd = l
+                        break
+            else:
+                tl = -1
+                for l in range(i - 1, -1, -1):
+                    if l != mate[i] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                        tl = l
+                        break
+                hd = -1
+                for l in range(j + 1, m):
+                    if l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                        hd = l
+                        break
             oi[cnt] = i
             oj[cnt] = j
             ot[cnt] = tau

@@ -351,10 +351,10 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     for g in gids:
         idx = members_of[g]
         keep[idx] = False
-        for i, row in _resolve_line(scene, V, idx, tol):
-            keep[i] = True
-            for name, val in row.items():
-                V[name][i] = val
+        at, fields = _resolve_line(scene, V, idx, tol)
+        keep[at] = True
+        for name, val in fields.items():
+            V[name][at] = val
     return {name: arr[keep] for name, arr in V.items()}
 
 
@@ -406,10 +406,10 @@ def _resolve_line(scene, V, idx, tol):
     mo = np.argsort(mkey)
     mkey, midx = mkey[mo], idx[mo]
 
-    def member(ri, rj):
-        key = (ri[2] * 2 + ri[3]) * n2 + rj[2] * 2 + rj[3]
-        at = int(np.searchsorted(mkey, key))
-        return int(midx[at]) if at < mkey.size and mkey[at] == key else None
+    def member(ci, cj):
+        key = ci * n2 + cj
+        at = np.minimum(np.searchsorted(mkey, key), mkey.size - 1)
+        return np.where(mkey[at] == key, midx[at], -1)
 
     return resolve_entries(scene, ent, th, int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]]),
                            V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:], tol, member)
@@ -418,27 +418,27 @@ def _resolve_line(scene, V, idx, tol):
 def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     """The perturbed vertices of the maximal free segment (tail T, head H, ends seg0, seg1)
     of the degenerate line of direction θ touched by the entries ``ent`` (codes
-    2·object + side): rows (member(ri, rj), {field: value}) for each vertex, ri / rj the
-    contact rows of its two entries (positions a, b, object, side, supports, points) and
-    ``member`` naming the vertex (its candidate) that carries them."""
+    2·object + side).  ``member(ci, cj)`` names, for the entry codes of each vertex (first
+    along the line, second), the vertex (its candidate) that carries it (−1: none).
+
+    Returns (members (k,), {field: (k, ...) values})."""
     d = np.array([math.cos(th), math.sin(th)])
     n = np.array([-d[1], d[0]])
     ent = np.asarray(ent, np.int64)
     ca, cb, ja, jb, pa, pb = contacts(scene, ent, d, n, tol)
     o = np.lexsort((ent % 2, ent // 2, ca))
-    rows = [(ca[i], cb[i], int(ent[i]) // 2, int(ent[i]) % 2, int(ja[i]), int(jb[i]), pa[i], pb[i]) for i in o]
-    xa = np.array([r[0] for r in rows]); xb = np.array([r[1] for r in rows])
-    obj = np.array([r[2] for r in rows])
+    xa, xb, ent, ja, jb, pa, pb = ca[o], cb[o], ent[o], ja[o], jb[o], pa[o], pb[o]
+    obj = ent // 2
     # an object touching the line on both sides lies along it (a segment): two adjacent entries
-    mate = np.full(len(rows), -1, np.int64)
+    mate = np.full(ent.size, -1, np.int64)
     two = np.nonzero(obj[1:] == obj[:-1])[0]
     mate[two], mate[two + 1] = two + 1, two
     clash = (xa[1:] <= xb[:-1]) & (obj[1:] != obj[:-1])
     if np.any(clash):
         i = int(np.nonzero(clash)[0][0])
-        raise ViscxError(f"objects {scene.names[rows[i][2]]!r} and {scene.names[rows[i + 1][2]]!r} touch the same "
+        raise ViscxError(f"objects {scene.names[obj[i]]!r} and {scene.names[obj[i + 1]]!r} touch the same "
                          "line at one point; flatland objects must be disjoint")
-    right = np.array([r[3] == R for r in rows])
+    right = ent % 2 == R
     lo, hi = xa.min(), xb.max()
     half = max(0.5 * (hi - lo), 1e-300)
     x = (0.5 * (xa + xb) - 0.5 * (lo + hi)) / half
@@ -448,22 +448,21 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     # (0.25, 0.5], distinct from every one-sided push (|c| ≥ 1)
     c = np.where(mate >= 0, 0.5 / (1.0 + (x - _X0) ** 2), c)
     ci = 0.5 * (lo + hi)
-    pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
-    out = []
-    for i, j, t, a_, b_, bi, bj in zip(pi, pj, tau, tl, hd, ib, jb):
-        ri, rj = rows[i], rows[j]
-        at = member(ri, rj)
-        if at is None:
-            raise ViscxError(f"degenerate line through {scene.names[ri[2]]!r} and {scene.names[rj[2]]!r} could "
-                             "not be resolved (a common tangent was not found as a candidate)")
-        p = ri[7] if bi else ri[6]
-        q = rj[7] if bj else rj[6]
-        start = seg0 if a_ < 0 else rows[a_][7]
-        end = seg1 if b_ < 0 else rows[b_][6]
-        out.append((at, dict(
-            v_theta=th, v_tau=float(t), v_tail=T if a_ < 0 else rows[a_][2], v_head=H if b_ < 0 else rows[b_][2],
-            v_support=np.array([ri[5] if bi else ri[4], rj[5] if bj else rj[4]]), v_p=p, v_q=q,
-            v_length=float(d @ (q - p)), v_seg=np.concatenate([start, end]))))
+    pi, pj, tau, tl, hd, ib, jb_ = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
+    at = member(ent[pi], ent[pj])
+    if np.any(at < 0):
+        i = int(np.nonzero(at < 0)[0][0])
+        raise ViscxError(f"degenerate line through {scene.names[obj[pi[i]]]!r} and {scene.names[obj[pj[i]]]!r} "
+                         "could not be resolved (a common tangent was not found as a candidate)")
+    p = np.where(ib[:, None], pb[pi], pa[pi])
+    q = np.where(jb_[:, None], pb[pj], pa[pj])
+    start = np.where((tl < 0)[:, None], np.asarray(seg0)[None, :], pb[np.maximum(tl, 0)])
+    end = np.where((hd < 0)[:, None], np.asarray(seg1)[None, :], pa[np.maximum(hd, 0)])
+    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=np.where(tl < 0, T, obj[np.maximum(tl, 0)]),
+                  v_head=np.where(hd < 0, H, obj[np.maximum(hd, 0)]),
+                  v_support=np.stack([np.where(ib, jb[pi], ja[pi]), np.where(jb_, jb[pj], ja[pj])], 1), v_p=p, v_q=q,
+                  v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1],
+                  v_seg=np.concatenate([start, end], 1))
     # the offsets order the vertices along each curve: they must differ on one curve
     ent_id = np.concatenate([pi, pj])
     t2 = np.concatenate([tau, tau])
@@ -471,7 +470,7 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     same = (np.diff(ent_id[o]) == 0) & (np.diff(t2[o]) <= 1e-12 * max(np.abs(tau).max(), 1e-300))
     if np.any(same):
         raise ViscxError("a degenerate line could not be resolved (two of its perturbed vertices coincide)")
-    return out
+    return at, fields
 
 
 def clip_sky_ends(scene, theta, p, q, tail, head, seg):

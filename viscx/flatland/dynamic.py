@@ -138,9 +138,9 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     blocked = blocked[(b_pair // n != k) & (b_pair % n != k)]
     others = np.delete(np.arange(n), k)
     own_pairs = np.stack([np.minimum(others, k), np.maximum(others, k)], 1)
-    pid = np.unique(np.concatenate([own_pairs[:, 0] * n + own_pairs[:, 1], blocked // 4, pair_of[retest_v]]))
+    pid = np.unique(np.concatenate([own_pairs[:, 0] * n + own_pairs[:, 1], blocked // 4, pair_of[retest_v & ~on_line]]))
     cand = C.candidates(new_scene, np.stack([pid // n, pid % n], 1).astype(np.int64))
-    redo = np.concatenate([blocked, V_old["v_key"][retest_v]])
+    redo = np.concatenate([blocked, V_old["v_key"][retest_v & ~on_line]])
     todo = (cand["a"] == k) | (cand["b"] == k) | np.isin(cand["key"], redo)
     grid = K.build_grid(new_scene.bounding_boxes())
     cls = C.classify(new_scene, cand, cx.eps, todo=todo, grid=grid)
@@ -265,28 +265,23 @@ def _segment_vertices(scene, ent, objs, point, th, u, eps, tol, grid):
     if n_members == 1 and point:
         first["v_tau"] = np.zeros(1)
         return [first]
-    res = C.resolve_entries(scene, ent, float(first["v_theta"][0]), int(first["v_tail"][0]), int(first["v_head"][0]),
-                            first["v_seg"][0, :2], first["v_seg"][0, 2:], tol,
-                            lambda ri, rj: (ri[2] * 2 + ri[3]) * (2 * scene.n) + rj[2] * 2 + rj[3])
-    if not res:
+    n2 = 2 * scene.n
+    want, row = C.resolve_entries(scene, ent, float(first["v_theta"][0]), int(first["v_tail"][0]),
+                                  int(first["v_head"][0]), first["v_seg"][0, :2], first["v_seg"][0, 2:], tol,
+                                  lambda ci, cj: ci * n2 + cj)
+    if want.size == 0:
         return []
-    want = np.array([r[0] for r in res])
-    pairs = np.stack([want // (2 * scene.n) // 2, want % (2 * scene.n) // 2], 1)
+    pairs = np.stack([want // n2 // 2, want % n2 // 2], 1)
     cand, on, code = _pair_candidates_on(scene, np.sort(pairs, axis=1).astype(np.int64), th, u, tol)
-    row = {}
-    sel = np.empty(len(res), np.int64)
-    for i, w in enumerate(want):
-        hit = np.nonzero(on[4 * i:4 * i + 4] & (code[4 * i:4 * i + 4] == w))[0]
-        if hit.size != 1:
-            raise ViscxError("a degenerate line could not be resolved (a common tangent was not found as a candidate)")
-        sel[i] = 4 * i + hit[0]
+    hit = (on & (code == np.repeat(want, 4))).reshape(-1, 4)
+    if np.any(hit.sum(axis=1) != 1):
+        raise ViscxError("a degenerate line could not be resolved (a common tangent was not found as a candidate)")
+    sel = 4 * np.arange(want.size) + np.argmax(hit, axis=1)
     row["v_key"] = cand["key"][sel]
     row["v_obj"] = pairs.astype(np.int64)
-    row["v_side"] = np.stack([(want // (2 * scene.n)) % 2, want % 2], 1).astype(np.int8)
-    for name in ("v_theta", "v_tau", "v_tail", "v_head", "v_length"):
-        row[name] = np.array([r[1][name] for r in res], np.int64 if name in ("v_tail", "v_head") else float)
-    for name in ("v_support", "v_p", "v_q", "v_seg"):
-        row[name] = np.stack([r[1][name] for r in res]).astype(np.int64 if name == "v_support" else float)
+    row["v_side"] = np.stack([(want // n2) % 2, want % 2], 1).astype(np.int8)
+    row["v_tail"] = row["v_tail"].astype(np.int64)
+    row["v_head"] = row["v_head"].astype(np.int64)
     return [row]
 
 

@@ -29,10 +29,14 @@ Python work is per changed element; what is O(scene) is numpy gathers and copies
 complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
 scratch, array by array (tests/flatland/test_flatland_dynamic.py).
 
-A degenerate line among the re-tested vertices (resolved by a symbolic perturbation with
-``v_tau``, see :func:`viscx.flatland.complex.resolve_degenerate`: its free candidates are
-not all vertices, so they are not all found from the vertices) and a complex without its
-in-memory state (read from a file) are rebuilt from scratch instead; the statistics say so.
+A degenerate line in the zone (vertices resolved by a symbolic perturbation, ``v_tau``,
+see :func:`viscx.flatland.complex.resolve_degenerate`) is re-scanned whole
+(:func:`scan_line`): its free candidates are not all vertices (a row of m tips has
+m(m − 1)/2 free pairs and about m vertices), so they are found from the line, not from the
+vertices.  Its members then need not be in the blocker table: the line joins a registry
+of re-scanned lines (``state["lines"]``), re-scanned whenever a moving object's disk meets
+it.  A complex without its in-memory state (read from a file) is rebuilt from scratch;
+the statistics say so.
 """
 
 from __future__ import annotations
@@ -59,8 +63,8 @@ TOPOLOGY_FIELDS = ("v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta"
 class MoveStats:
     """What a move recomputed, out of how many, and where the time went.
 
-    ``local`` is False when the move rebuilt the complex (a degenerate line in the zone, or
-    no in-memory state); ``zone_*`` count the vertices that left / entered the complex, the
+    ``local`` is False when the move rebuilt the complex (no in-memory state: a complex
+    read from a file); ``zone_*`` count the vertices that left / entered the complex, the
     edges derived anew and the face slots re-glued; ``seconds`` the CPU time per stage."""
 
     candidates_tested: int
@@ -79,7 +83,7 @@ class MoveStats:
     def summary(self) -> str:
         how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
             self.zone_vertices_removed, self.zone_vertices_added, self.zone_edges, self.zone_slots)
-            if self.local else "rebuilt from scratch (a degenerate line in the zone, or a complex read from a file)")
+            if self.local else "rebuilt from scratch (a complex read from a file keeps no state for a local update)")
         return (f"form factors recomputed: {self.formfactors_recomputed} of {self.formfactors_total} "
                 f"(object pairs incl. the sky); faces re-summed: {self.faces_recomputed} of {self.faces_total}; "
                 f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}; {how}")

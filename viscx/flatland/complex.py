@@ -188,11 +188,11 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
         grid = K.build_grid(scene.bounding_boxes())
     N = cand["theta"].shape[0]
     todo = np.ones(N, bool) if todo is None else todo
-    p, q = _tangent_points(scene, cand)
+    p, q = tangent_points(scene, cand)
     nrm = np.stack([-np.sin(cand["theta"]), np.cos(cand["theta"])], 1)
     idx = np.nonzero(todo)[0]
     group = np.full(N, -1, np.int64)
-    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), _tol(scene))
+    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), line_tol(scene))
     size = np.bincount(group[idx]) if idx.size else np.zeros(0, np.int64)
     on_line = np.zeros(N, bool)
     on_line[idx] = size[group[idx]] >= 3
@@ -204,12 +204,12 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     return out
 
 
-def _tol(scene):
+def line_tol(scene):
     """Distance below which two lines (in u) or a corner and a line are one (TOL_U × diagonal)."""
     return TOL_U * default_eps(scene) / 1e-9
 
 
-def _tangent_points(scene, cand):
+def tangent_points(scene, cand):
     """(N, 2), (N, 2): the tangent points of the candidate lines on objects a and b."""
     th = cand["theta"]
     nrm = np.stack([-np.sin(th), np.cos(th)], 1)
@@ -335,7 +335,7 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     d = np.stack([np.cos(th), np.sin(th)], 1)
     nrm = np.stack([-d[:, 1], d[:, 0]], 1)
     u = np.einsum("ij,ij->i", nrm, V["v_p"])
-    tol = _tol(scene)
+    tol = line_tol(scene)
     # -- group by line, then by (tail, head): one maximal free segment each
     gline = line_groups(th, u, tol)
     n1 = scene.n + 1

@@ -126,7 +126,7 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     retest_v = near & ~own_v
     # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
     # by earlier moves (their blocked members are not in the blocker table) that K meets
-    tol = C._tol(new_scene)
+    tol = C.line_tol(new_scene)
     reg_th, reg_u = cx.state.get("lines", (np.zeros(0), np.zeros(0)))
     reg_near = np.zeros(reg_th.shape[0], bool)
     for sc in (scene, new_scene):
@@ -247,7 +247,7 @@ def _pair_candidates_on(scene, pairs, th, u, tol):
     """The candidates of object pairs (P, 2) and which of them lie on the line (θ, u), with
     their objects and sides in the order along the line (k1 first)."""
     cand = C.candidates(scene, pairs)
-    p, q = C._tangent_points(scene, cand)
+    p, q = C.tangent_points(scene, cand)
     ct = cand["theta"]
     on = (np.abs(ct - th) <= C.TOL_THETA) & (np.abs(-np.sin(ct) * p[:, 0] + np.cos(ct) * p[:, 1] - u) <= tol)
     first = np.einsum("ij,ij->i", q - p, np.stack([np.cos(ct), np.sin(ct)], 1)) >= 0

@@ -207,6 +207,23 @@ def test_rescanned_line_is_rescanned_again():
     assert ((np.sort(back.v_obj, axis=1) == [0, 2]).all(axis=1) & (back.v_tau != 0)).sum() == 1
 
 
+@pytest.mark.parametrize("scene", ["mixed", "rows"])
+def test_move_of_a_complex_read_from_a_file(tmp_path, scene):
+    """A complex read from a file has no state and no blocker table: the state is derived
+    again from its vertices and every candidate whose line meets the moving object is
+    re-tested; still local, equal to a rebuild, and so is the next move (no table yet)."""
+    from viscx.formats.flatland import read_any, write_any
+
+    cx = base(0) if scene == "mixed" else rows_base(0.0)
+    write_any(tmp_path / "c.h5", cx)
+    read = read_any(tmp_path / "c.h5")
+    assert read.state is None and read.blockers is None
+    moved, stats = move_as_rebuild(read, 2, 0.3, -0.2)
+    assert stats.local and moved.blockers is None
+    again, stats = move_as_rebuild(moved, 4, -0.2, 0.1)
+    assert stats.local
+
+
 def test_move_on_a_complex_without_tau():
     """A file written before degenerate lines were resolved has no vertices/tau: a move
     reads it as 0 (its vertices are all simple)."""

@@ -35,8 +35,11 @@ see :func:`viscx.flatland.complex.resolve_degenerate`) is re-scanned whole
 m(m − 1)/2 free pairs and about m vertices), so they are found from the line, not from the
 vertices.  Its members then need not be in the blocker table: the line joins a registry
 of re-scanned lines (``state["lines"]``), re-scanned whenever a moving object's disk meets
-it.  A complex without its in-memory state (read from a file) is rebuilt from scratch;
-the statistics say so.
+it.  A complex read from a file has neither: its state is derived again from the stored
+vertices (O(m log m)), and without a blocker table every candidate whose line meets the
+moving object is re-tested (all pairs' closed-form lines: O(n²) arithmetic), so the move
+costs about half a rebuild there; the complex it returns carries its state, but not a
+blocker table, so the next move pays the candidate scan again.
 """
 
 from __future__ import annotations
@@ -63,8 +66,8 @@ TOPOLOGY_FIELDS = ("v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta"
 class MoveStats:
     """What a move recomputed, out of how many, and where the time went.
 
-    ``local`` is False when the move rebuilt the complex (no in-memory state: a complex
-    read from a file); ``zone_*`` count the vertices that left / entered the complex, the
+    ``local`` is False when the move rebuilt the complex (a file written before degenerate
+    lines were resolved, or a complex without vertices); ``zone_*`` count the vertices that left / entered the complex, the
     edges derived anew and the face slots re-glued; ``seconds`` the CPU time per stage."""
 
     candidates_tested: int
@@ -83,7 +86,7 @@ class MoveStats:
     def summary(self) -> str:
         how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
             self.zone_vertices_removed, self.zone_vertices_added, self.zone_edges, self.zone_slots)
-            if self.local else "rebuilt from scratch (a complex read from a file keeps no state for a local update)")
+            if self.local else "rebuilt from scratch (a file without v_tau, or no vertices)")
         return (f"form factors recomputed: {self.formfactors_recomputed} of {self.formfactors_total} "
                 f"(object pairs incl. the sky); faces re-summed: {self.faces_recomputed} of {self.faces_total}; "
                 f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}; {how}")
@@ -109,9 +112,12 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     check_object_disjoint(new_scene, k)
     n = scene.n
     total = 2 * n * (n - 1)
-    if cx.state is None or cx.blockers is None:
+    if "v_tau" not in cx.arrays or cx.n_vertices == 0:  # written before degenerate lines were resolved
         return _rebuilt(cx, new_scene, total)
     clock = _Clock()
+    if cx.state is None:  # read from a file: the state is derived again from the stored vertices
+        cx = C.FlatComplex(scene=scene, eps=cx.eps, arrays=cx.arrays, state=C.derive(scene, cx.arrays)[1],
+                           blockers=cx.blockers)
     V_old = cx.arrays
     # -- 1. the candidates to re-test
     pair_of = V_old["v_key"] // 4
@@ -137,7 +143,15 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
                                         np.concatenate([u[deg], reg_u[reg_near]]), tol)
     on_line = _on_lines(th, u, lines_th, lines_u, tol)
     retest_v |= on_line & ~own_v
-    blocked = np.nonzero(cx.blockers == k)[0]
+    if cx.blockers is not None:
+        blocked = np.nonzero(cx.blockers == k)[0]
+    else:  # no blocker table (read from a file): every candidate whose line meets K before the move
+        every = C.candidates(scene)
+        c, r = _bounding_disk(scene, k)
+        p_ = C.tangent_points(scene, every)[0]
+        ct = every["theta"]
+        blocked = every["key"][np.abs(-np.sin(ct) * (c[0] - p_[:, 0]) + np.cos(ct) * (c[1] - p_[:, 1]))
+                               <= r + 10 * cx.eps]
     b_pair = blocked // 4
     blocked = blocked[(b_pair // n != k) & (b_pair % n != k)]
     others = np.delete(np.arange(n), k)
@@ -160,8 +174,10 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
         fresh = {name: np.concatenate([fresh[name]] + [x[name] for x in scanned]) for name in VERTEX_FIELDS}
         o = np.argsort(fresh["v_key"], kind="stable")
         fresh = {name: arr[o] for name, arr in fresh.items()}
-    blockers = cx.blockers.copy()
-    blockers[cand["key"][todo]] = cls[6][todo]
+    blockers = None
+    if cx.blockers is not None:
+        blockers = cx.blockers.copy()
+        blockers[cand["key"][todo]] = cls[6][todo]
     clock.lap("candidates")
     # -- 2. the new vertex set, merged by key; re-tested vertices that did not change stay
     V, vmap, added = _merge_vertices(V_old, fresh, retest_v | own_v)

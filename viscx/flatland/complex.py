@@ -806,7 +806,7 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     o = np.lexsort((st["th0"][sl // 3] % TWO_PI, ~below, f_new[comp[sl]]))
     # packed as edge << 2 | upper << 1 | reversed (both stay with the edge while it exists)
     packed = (sl[o] // 3) << 2 | below[o].astype(np.int64) << 1 | ~e_canon[sl[o] // 3]
-    st["fe_start"], fe = _splice(is_new, st.get("fe_start"), st.get("fe_packed"), f_new[comp[sl[o]]], packed)
+    st["fe_start"], fe = _splice_lists(is_new, st.get("fe_start"), st.get("fe_packed"), f_new[comp[sl[o]]], packed)
     st["fe_packed"] = fe
     out["f_edge_start"] = st["fe_start"]
     out["f_edge"] = e_new[fe >> 2]
@@ -820,7 +820,7 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     # packed as vertex << 3 | o << 2 | sign + 1
     packed = (fv_occ % m) << 3 | (fv_occ >= m).astype(np.int64) << 2 | sgn.ravel()[hit] + 1
     o = np.lexsort((fv_occ % m, ff))
-    st["fv_start"], fv = _splice(is_new, st.get("fv_start"), st.get("fv_packed"), ff[o], packed[o])
+    st["fv_start"], fv = _splice_lists(is_new, st.get("fv_start"), st.get("fv_packed"), ff[o], packed[o])
     st["fv_packed"] = fv
     out["f_vert_start"] = st["fv_start"]
     out["f_vert"] = fv >> 3
@@ -836,7 +836,7 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     return out
 
 
-def _splice(is_new, old_start, old_vals, new_face, new_vals):
+def _splice_lists(is_new, old_start, old_vals, new_face, new_vals):
     """CSR lists of F faces (``is_new`` (F,) bool in face order): the kept faces' lists from
     (old_start, old_vals) in order, the new faces' from new_vals grouped by their face id
     ``new_face`` (ascending).  Returns (start (F + 1,), values)."""

@@ -187,7 +187,7 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
         # sky ends are clipped to the scene box, which the move changed
         V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
     clock.lap("vertices")
-    out, st, zone = _splice(new_scene, cx.state, V, vmap, added)
+    out, st, zone = _splice_topology(new_scene, cx.state, V, vmap, added)
     V.update(out)
     clock.lap("topology")
     st["lines"] = _distinct_lines(np.concatenate([reg_th, lines_th]), np.concatenate([reg_u, lines_u]), tol)
@@ -358,7 +358,7 @@ def _merge_vertices(V_old, fresh, redone):
     return V, vmap, fidx[entered]
 
 
-def _splice(scene, old, V, vmap, added):
+def _splice_topology(scene, old, V, vmap, added):
     """The topology state and stored arrays after the vertices changed (see the module
     docstring).  Returns (arrays, state, zone sizes)."""
     m_old, m = vmap.shape[0], V["v_key"].shape[0]

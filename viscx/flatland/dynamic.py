@@ -67,8 +67,9 @@ class MoveStats:
     """What a move recomputed, out of how many, and where the time went.
 
     ``local`` is False when the move rebuilt the complex (a file written before degenerate
-    lines were resolved, or a complex without vertices); ``zone_*`` count the vertices that left / entered the complex, the
-    edges derived anew and the face slots re-glued; ``seconds`` the CPU time per stage."""
+    lines were resolved, or a complex without vertices); ``zone_*`` count the vertices
+    that left / entered the complex, the edges derived anew and the face slots re-glued;
+    ``seconds`` the CPU time per stage."""
 
     candidates_tested: int
     candidates_total: int

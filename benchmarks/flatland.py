@@ -12,7 +12,7 @@ subprocess: its view-factor matrix of an ordered PV array against viscx's form f
 the same geometry (panels as segments, its ground as a segment from x = −100 to 100).
 
 CPU times (user + sys of this process, ``time.process_time``: the machine is shared), best
-of a few runs for the small sizes, medians of 5 moves; no assertions.  The first call
+of a few runs for the small sizes, medians of 7 moves; no assertions.  The first call
 compiles/loads the numba kernels and is excluded (a warm-up build runs first).
 """
 
@@ -61,11 +61,17 @@ def timed(f, repeat=1):
     return best, out
 
 
-def measure(sizes, make=None, step=0.5):
+def measure(sizes, make=None, step=0.5, moves=7):
     """One row per size: (n, vertices, edges, faces, build s, candidates s, freeness s,
-    median move s, median rebuild s, (mean form factors recomputed, mean total))."""
+    median move s, median rebuild s, (mean form factors recomputed, mean total), zone, split).
+
+    ``moves`` random moves of one object from the built complex (timed only: the tests
+    check equality with a rebuild); zone: medians of vertices out / in, edges
+    and face slots re-derived, and how many moves were local (not rebuilt); split: the
+    median CPU seconds of the move's stages (candidates, vertices, topology)."""
     make = make or (lambda n: random_circles(n, seed=n))
     build(random_circles(5))  # warm-up: numba cache
+    move(build(random_circles(5)), 0, 0.01, 0.0)
     rows = []
     for n in sizes:
         scene = make(n)
@@ -76,8 +82,8 @@ def measure(sizes, make=None, step=0.5):
         t_cand, cand = timed(lambda: candidates(scene))
         t_cls, cls = timed(lambda: classify(scene, cand, eps))
         rng = np.random.default_rng(1)
-        t_moves, t_rebuilds, recomputed = [], [], []
-        for _ in range(5):
+        t_moves, t_rebuilds, recomputed, zone, split = [], [], [], [], []
+        for _ in range(moves):
             while True:
                 k = int(rng.integers(n))
                 dx, dy = rng.uniform(-step, step, 2)
@@ -90,9 +96,14 @@ def measure(sizes, make=None, step=0.5):
             t_moves.append(t_m)
             t_rebuilds.append(t_r)
             recomputed.append((stats.formfactors_recomputed, stats.formfactors_total))
+            zone.append((stats.zone_vertices_removed, stats.zone_vertices_added, stats.zone_edges, stats.zone_slots,
+                         stats.local))
+            split.append([stats.seconds.get(s_, np.nan) for s_ in ("candidates", "vertices", "topology")])
         ff = np.mean([a for a, b in recomputed]), np.mean([b for a, b in recomputed])
+        z = np.array(zone, float)
         rows.append((n, cx.n_vertices, cx.n_edges, cx.n_faces, t_build, t_cand, t_cls, np.median(t_moves),
-                     np.median(t_rebuilds), ff))
+                     np.median(t_rebuilds), ff, (*np.median(z[:, :4], axis=0), int(z[:, 4].sum()), len(zone)),
+                     np.median(np.array(split), axis=0)))
     return rows
 
 
@@ -105,11 +116,13 @@ def main(sizes):
 
 def table(rows):
     head = (f"{'n':>5} {'vertices':>9} {'edges':>8} {'faces':>7} {'build s':>8} {'(cand s':>8} {'free s)':>8} "
-            f"{'move s':>8} {'rebuild s':>9} {'FF recomputed / total':>22}")
+            f"{'move s':>8} {'rebuild s':>9} {'ratio':>6} {'FF recomputed / total':>22} "
+            f"{'zone: v out/in, edges, slots':>30} {'local':>6} {'move split s (cand/vert/topo)':>30}")
     print(head)
-    for n, m, E, F, tb, tc, tf, tm, tr, (a, b) in rows:
-        print(f"{n:>5} {m:>9} {E:>8} {F:>7} {tb:>8.3f} {tc:>8.3f} {tf:>8.3f} {tm:>8.3f} {tr:>9.3f} "
-              f"{a:>10.1f} / {b:<10.1f}")
+    for n, m, E, F, tb, tc, tf, tm, tr, (a, b), (vo, vi, ze, zs, loc, mv), sp in rows:
+        print(f"{n:>5} {m:>9} {E:>8} {F:>7} {tb:>8.3f} {tc:>8.3f} {tf:>8.3f} {tm:>8.3f} {tr:>9.3f} {tr / tm:>6.1f} "
+              f"{a:>10.1f} / {b:<10.1f} {vo:>7.0f} / {vi:<5.0f} {ze:>6.0f} {zs:>8.0f} {loc:>3}/{mv:<2} "
+              f"{sp[0]:>9.3f} {sp[1]:>9.3f} {sp[2]:>9.3f}")
 
 
 # pvfactors side: geometry, view-factor matrix timed, and per-row aggregates (both sides of

@@ -98,6 +98,10 @@ class FlatComplex:
     scene: Scene
     eps: float
     arrays: dict
+    # in memory only (not written): the topology's internal state and the candidates'
+    # blockers, which :func:`viscx.flatland.dynamic.move` updates locally
+    state: dict | None = None
+    blockers: np.ndarray | None = None
 
     def __getattr__(self, name):
         arrays = self.__dict__.get("arrays")
@@ -184,11 +188,11 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
         grid = K.build_grid(scene.bounding_boxes())
     N = cand["theta"].shape[0]
     todo = np.ones(N, bool) if todo is None else todo
-    p, q = _tangent_points(scene, cand)
+    p, q = tangent_points(scene, cand)
     nrm = np.stack([-np.sin(cand["theta"]), np.cos(cand["theta"])], 1)
     idx = np.nonzero(todo)[0]
     group = np.full(N, -1, np.int64)
-    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), _tol(scene))
+    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), line_tol(scene))
     size = np.bincount(group[idx]) if idx.size else np.zeros(0, np.int64)
     on_line = np.zeros(N, bool)
     on_line[idx] = size[group[idx]] >= 3
@@ -200,12 +204,12 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     return out
 
 
-def _tol(scene):
+def line_tol(scene):
     """Distance below which two lines (in u) or a corner and a line are one (TOL_U × diagonal)."""
     return TOL_U * default_eps(scene) / 1e-9
 
 
-def _tangent_points(scene, cand):
+def tangent_points(scene, cand):
     """(N, 2), (N, 2): the tangent points of the candidate lines on objects a and b."""
     th = cand["theta"]
     nrm = np.stack([-np.sin(th), np.cos(th)], 1)
@@ -235,7 +239,7 @@ def _classify_lines(scene, cand, p, q, group, idx, eps, out, chunk=1 << 22):
     :func:`kernels.classify_bitangents`), with the same rules as the grid walk: blocked
     by an object cut deeper than eps between the tangent points, tail / head the nearest
     such objects behind / beyond them."""
-    free, a_first, tail, head, tail_t, head_t = out
+    free, a_first, tail, head, tail_t, head_t, blocker = out
     order = idx[np.argsort(group[idx], kind="stable")]
     bounds = np.nonzero(np.diff(group[order]))[0] + 1
     for mem in np.split(order, bounds):
@@ -262,6 +266,7 @@ def _classify_lines(scene, cand, p, q, group, idx, eps, out, chunk=1 << 22):
             last = tout[np.arange(tout.shape[0]), jt] if hk.size else np.full(mem[c].size, -np.inf)
             m_ = mem[c]
             free[m_] = ~blocked
+            blocker[m_] = np.where(blocked, hk[j] if hk.size else -1, -1)
             head[m_] = np.where(blocked, -2, np.where(np.isfinite(first), hk[j] if hk.size else -1, -1))
             head_t[m_] = np.where(np.isfinite(first), first - e[c], np.inf)
             tail[m_] = np.where(blocked, -2, np.where(np.isfinite(last), hk[jt] if hk.size else -1, -1))
@@ -270,7 +275,7 @@ def _classify_lines(scene, cand, p, q, group, idx, eps, out, chunk=1 << 22):
 
 def vertices_from(scene: Scene, cand: dict, cls) -> dict:
     """Vertex arrays (sorted by key) from classified candidates."""
-    free, a_first, tail, head, tail_t, head_t = cls
+    free, a_first, tail, head, tail_t, head_t = cls[:6]
     idx = np.nonzero(free)[0]
     af = a_first[idx]
     a, b = cand["a"][idx], cand["b"][idx]
@@ -330,7 +335,7 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     d = np.stack([np.cos(th), np.sin(th)], 1)
     nrm = np.stack([-d[:, 1], d[:, 0]], 1)
     u = np.einsum("ij,ij->i", nrm, V["v_p"])
-    tol = _tol(scene)
+    tol = line_tol(scene)
     # -- group by line, then by (tail, head): one maximal free segment each
     gline = line_groups(th, u, tol)
     n1 = scene.n + 1
@@ -346,10 +351,10 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     for g in gids:
         idx = members_of[g]
         keep[idx] = False
-        for i, row in _resolve_line(scene, V, idx, tol):
-            keep[i] = True
-            for name, val in row.items():
-                V[name][i] = val
+        at, fields = _resolve_line(scene, V, idx, tol)
+        keep[at] = True
+        for name, val in fields.items():
+            V[name][at] = val
     return {name: arr[keep] for name, arr in V.items()}
 
 
@@ -367,45 +372,73 @@ def _on_edge(scene, obj, sup, nrm, tol):
     return out
 
 
-def _contact(scene, k, side, d, n, tol):
-    """Contact of object k (on side R = 1 / L = 0) with a line of direction d, normal n:
-    (positions a ≤ b along d, support indices ja, jb, points pa, pb)."""
-    s, e = scene.vert_start[k], scene.vert_start[k + 1]
-    v = scene.verts[s:e]
-    sig = 2.0 * side - 1.0
-    pts = v + sig * scene.radius[k] * n
-    proj = pts @ n
-    on = np.nonzero(np.abs(proj - (proj.max() if side == R else proj.min())) <= tol)[0]
-    pos = pts[on] @ d
-    ia, ib = on[np.argmin(pos)], on[np.argmax(pos)]
-    return pos.min(), pos.max(), s + ia, s + ib, pts[ia], pts[ib]
+def contacts(scene, codes, d, n, tol):
+    """Contacts of entries ``codes`` (2·object + side: R = 1 / L = 0) with a line of
+    direction d, normal n: positions a ≤ b along d of the object's extreme points on the
+    line (within tol), their support indices ja, jb and points pa, pb (E, 2).  One pass
+    over the entries' support points (no per-entry Python)."""
+    k, side = codes // 2, codes % 2
+    s = scene.vert_start[k]
+    cnt = scene.vert_start[k + 1] - s
+    start = np.cumsum(cnt) - cnt
+    ent = np.repeat(np.arange(k.size), cnt)
+    vid = s[ent] + np.arange(ent.size) - start[ent]
+    pts = scene.verts[vid] + ((2.0 * side - 1.0) * scene.radius[k])[ent][:, None] * n
+    proj = pts[:, 0] * n[0] + pts[:, 1] * n[1]
+    ext = np.where(side == R, np.maximum.reduceat(proj, start), np.minimum.reduceat(proj, start))
+    on = np.abs(proj - ext[ent]) <= tol
+    pos = pts[:, 0] * d[0] + pts[:, 1] * d[1]
+    # first of the smallest / largest position among each entry's points on the line
+    ia = np.lexsort((np.where(on, pos, np.inf), ent))[start]
+    ib = np.lexsort((np.where(on, -pos, np.inf), ent))[start]
+    return pos[ia], pos[ib], vid[ia], vid[ib], pts[ia], pts[ib]
 
 
 def _resolve_line(scene, V, idx, tol):
     """Rows (vertex index, {field: value}) of the perturbed vertices of one degenerate
-    line (see :func:`resolve_degenerate`)."""
+    line (see :func:`resolve_degenerate`): its members ``idx`` (vertex indices, the first
+    one giving θ, tail, head and the segment's ends)."""
     th = float(V["v_theta"][idx[0]])
+    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
+    n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
+    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
+    mkey = ends[:, 0] * n2 + ends[:, 1]
+    mo = np.argsort(mkey)
+    mkey, midx = mkey[mo], idx[mo]
+
+    def member(ci, cj):
+        key = ci * n2 + cj
+        at = np.minimum(np.searchsorted(mkey, key), mkey.size - 1)
+        return np.where(mkey[at] == key, midx[at], -1)
+
+    return resolve_entries(scene, ent, th, int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]]),
+                           V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:], tol, member)
+
+
+def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
+    """The perturbed vertices of the maximal free segment (tail T, head H, ends seg0, seg1)
+    of the degenerate line of direction θ touched by the entries ``ent`` (codes
+    2·object + side).  ``member(ci, cj)`` names, for the entry codes of each vertex (first
+    along the line, second), the vertex (its candidate) that carries it (−1: none).
+
+    Returns (members (k,), {field: (k, ...) values})."""
     d = np.array([math.cos(th), math.sin(th)])
     n = np.array([-d[1], d[0]])
-    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
-    ent = [(int(x) // 2, int(x) % 2) for x in ent]
-    rows = []
-    for k, sd in ent:
-        a, b, ja, jb, pa, pb = _contact(scene, k, sd, d, n, tol)
-        rows.append((a, b, k, sd, ja, jb, pa, pb))
-    rows.sort(key=lambda r: (r[0], r[2], r[3]))
-    xa = np.array([r[0] for r in rows]); xb = np.array([r[1] for r in rows])
-    obj = np.array([r[2] for r in rows])
+    ent = np.asarray(ent, np.int64)
+    ca, cb, ja, jb, pa, pb = contacts(scene, ent, d, n, tol)
+    o = np.lexsort((ent % 2, ent // 2, ca))
+    xa, xb, ent, ja, jb, pa, pb = ca[o], cb[o], ent[o], ja[o], jb[o], pa[o], pb[o]
+    obj = ent // 2
     # an object touching the line on both sides lies along it (a segment): two adjacent entries
-    mate = np.full(len(rows), -1, np.int64)
+    mate = np.full(ent.size, -1, np.int64)
     two = np.nonzero(obj[1:] == obj[:-1])[0]
     mate[two], mate[two + 1] = two + 1, two
     clash = (xa[1:] <= xb[:-1]) & (obj[1:] != obj[:-1])
     if np.any(clash):
         i = int(np.nonzero(clash)[0][0])
-        raise ViscxError(f"objects {scene.names[rows[i][2]]!r} and {scene.names[rows[i + 1][2]]!r} touch the same "
+        raise ViscxError(f"objects {scene.names[obj[i]]!r} and {scene.names[obj[i + 1]]!r} touch the same "
                          "line at one point; flatland objects must be disjoint")
-    right = np.array([r[3] == R for r in rows])
+    right = ent % 2 == R
     lo, hi = xa.min(), xb.max()
     half = max(0.5 * (hi - lo), 1e-300)
     x = (0.5 * (xa + xb) - 0.5 * (lo + hi)) / half
@@ -415,30 +448,21 @@ def _resolve_line(scene, V, idx, tol):
     # (0.25, 0.5], distinct from every one-sided push (|c| ≥ 1)
     c = np.where(mate >= 0, 0.5 / (1.0 + (x - _X0) ** 2), c)
     ci = 0.5 * (lo + hi)
-    pi, pj, tau, tl, hd, ib, jb = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
-    n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
-    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
-    mkey = ends[:, 0] * n2 + ends[:, 1]
-    mo = np.argsort(mkey)
-    mkey, midx = mkey[mo], idx[mo]
-    T, H = int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]])
-    seg0, seg1 = V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:]
-    out = []
-    for i, j, t, a_, b_, bi, bj in zip(pi, pj, tau, tl, hd, ib, jb):
-        ri, rj = rows[i], rows[j]
-        key = (ri[2] * 2 + ri[3]) * n2 + rj[2] * 2 + rj[3]
-        at = int(np.searchsorted(mkey, key))
-        if at == mkey.size or mkey[at] != key:
-            raise ViscxError(f"degenerate line through {scene.names[ri[2]]!r} and {scene.names[rj[2]]!r} could "
-                             "not be resolved (a common tangent was not found as a candidate)")
-        p = ri[7] if bi else ri[6]
-        q = rj[7] if bj else rj[6]
-        start = seg0 if a_ < 0 else rows[a_][7]
-        end = seg1 if b_ < 0 else rows[b_][6]
-        out.append((int(midx[at]), dict(
-            v_theta=th, v_tau=float(t), v_tail=T if a_ < 0 else rows[a_][2], v_head=H if b_ < 0 else rows[b_][2],
-            v_support=np.array([ri[5] if bi else ri[4], rj[5] if bj else rj[4]]), v_p=p, v_q=q,
-            v_length=float(d @ (q - p)), v_seg=np.concatenate([start, end]))))
+    pi, pj, tau, tl, hd, ib, jb_ = K.local_arrangement(xa - ci, xb - ci, right, c, mate)
+    at = member(ent[pi], ent[pj])
+    if np.any(at < 0):
+        i = int(np.nonzero(at < 0)[0][0])
+        raise ViscxError(f"degenerate line through {scene.names[obj[pi[i]]]!r} and {scene.names[obj[pj[i]]]!r} "
+                         "could not be resolved (a common tangent was not found as a candidate)")
+    p = np.where(ib[:, None], pb[pi], pa[pi])
+    q = np.where(jb_[:, None], pb[pj], pa[pj])
+    start = np.where((tl < 0)[:, None], np.asarray(seg0)[None, :], pb[np.maximum(tl, 0)])
+    end = np.where((hd < 0)[:, None], np.asarray(seg1)[None, :], pa[np.maximum(hd, 0)])
+    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=np.where(tl < 0, T, obj[np.maximum(tl, 0)]),
+                  v_head=np.where(hd < 0, H, obj[np.maximum(hd, 0)]),
+                  v_support=np.stack([np.where(ib, jb[pi], ja[pi]), np.where(jb_, jb[pj], ja[pj])], 1), v_p=p, v_q=q,
+                  v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1],
+                  v_seg=np.concatenate([start, end], 1))
     # the offsets order the vertices along each curve: they must differ on one curve
     ent_id = np.concatenate([pi, pj])
     t2 = np.concatenate([tau, tau])
@@ -446,7 +470,7 @@ def _resolve_line(scene, V, idx, tol):
     same = (np.diff(ent_id[o]) == 0) & (np.diff(t2[o]) <= 1e-12 * max(np.abs(tau).max(), 1e-300))
     if np.any(same):
         raise ViscxError("a degenerate line could not be resolved (two of its perturbed vertices coincide)")
-    return out
+    return at, fields
 
 
 def clip_sky_ends(scene, theta, p, q, tail, head, seg):
@@ -473,273 +497,391 @@ def _box_exit(o, d, lo, hi):
 
 
 # ----------------------------------------------------------------------------- topology
-def derive(scene: Scene, V: dict, previous: dict | None = None):
-    """Edges, faces, incidences, dual areas and string sums from the vertices.
-
-    Pure numpy over flat arrays (sorting and a union–find by connected components).  With
-    ``previous`` (the arrays of an earlier complex of the same objects), faces whose
-    boundary signature is unchanged keep their area and string sum instead of being
-    re-summed.  Returns (arrays, recomputed) with recomputed (F,) bool per face."""
-    n = scene.n
+# The topology is computed on the oriented double cover (θ ∈ [0, 2π)).  Its internal
+# arrays (the *state*: the incidences sorted along the tangency curves, the edges starting
+# at each, the face components of the edge slots) are what :mod:`dynamic` updates locally;
+# :func:`canonical` turns a state into the stored arrays.  The helpers below are shared by
+# the full derivation (:func:`derive`) and the local update.
+def occurrences(V: dict) -> dict:
+    """Per-occurrence arrays (2m,): o = 0 the stored line (occurrence v), o = 1 its reversal
+    θ + π (occurrence m + v): the order along the line flips, both sides flip, tail and
+    head swap.  K1/K2 objects, S1/S2 sides, T/H tail/head, TH θ, TAU offset, J1/J2 support
+    points, LEN |pq|; X_AFTER / Z_AFTER: on K1's curve the (T→K2) edge is after the vertex /
+    on K2's curve the (K1→H) edge is (derivation: f(θ) = u_K1 − u_K2 has slope d·(q − p) > 0
+    at the vertex, so just after it the line tangent to K1 passes above K2's curve; it
+    crosses K2 iff K2 is on its left (λ) side; symmetrically for K2)."""
     m = V["v_key"].shape[0]
     k1, k2 = V["v_obj"][:, 0], V["v_obj"][:, 1]
     s1, s2 = V["v_side"][:, 0].astype(np.int64), V["v_side"][:, 1].astype(np.int64)
     t, h = V["v_tail"], V["v_head"]
     th = V["v_theta"]
-    # -- oriented occurrences: o = 0 the stored line, o = 1 its reversal (θ + π): the
-    #    order along the line flips, both sides flip, tail and head swap
-    OK1 = np.concatenate([k1, k2]); OK2 = np.concatenate([k2, k1])
-    OS1 = np.concatenate([s1, 1 - s2]); OS2 = np.concatenate([s2, 1 - s1])
-    OT = np.concatenate([t, h]); OH = np.concatenate([h, t])
-    OTH = np.concatenate([th, th + math.pi])
     tau = V["v_tau"] if "v_tau" in V else np.zeros(m)
-    OTAU = np.concatenate([tau, tau])
-    OJ1 = np.concatenate([V["v_support"][:, 0], V["v_support"][:, 1]])
-    OJ2 = np.concatenate([V["v_support"][:, 1], V["v_support"][:, 0]])
-    n_occ = 2 * m
-    # -- incidences on tangency curves (curve id 2·object + side): role 0 on K1, 1 on K2
-    inc_occ = np.concatenate([np.arange(n_occ), np.arange(n_occ)])
-    inc_obj = np.concatenate([OK1, OK2])
-    inc_side = np.concatenate([OS1, OS2])
-    inc_curve = 2 * inc_obj + inc_side
-    inc_theta = np.concatenate([OTH, OTH])
-    # vertices of one resolved degenerate line share θ; their infinitesimal offsets order them
-    inc_tau = np.concatenate([OTAU, OTAU])
-    order = np.lexsort((inc_occ, inc_tau, inc_theta, inc_curve))
-    cur = inc_curve[order]
-    n_inc = order.shape[0]
-    # next incidence on the same curve (cyclic)
-    first_of = np.searchsorted(cur, cur, side="left")
-    last_of = np.searchsorted(cur, cur, side="right") - 1
-    pos = np.arange(n_inc)
-    nxt = np.where(pos == last_of, first_of, pos + 1)
-    # edges: one per sorted incidence (starting there); plus full loops for empty curves
-    e_curve = cur
-    e_start_inc = order
-    e_end_inc = order[nxt]
-    th0 = inc_theta[order]
-    th1 = inc_theta[order[nxt]]
-    th1 = np.where(nxt <= pos, th1 + TWO_PI, th1)  # wrap (also the single-vertex loop)
-    # edge starting / ending at each incidence
-    edge_after = np.empty(n_inc, np.int64); edge_after[order] = pos
-    edge_before = np.empty(n_inc, np.int64); edge_before[order[nxt]] = pos
+    cat = np.concatenate
+    O = dict(K1=cat([k1, k2]), K2=cat([k2, k1]), S1=cat([s1, 1 - s2]), S2=cat([s2, 1 - s1]), T=cat([t, h]),
+             H=cat([h, t]), TH=cat([th, th + math.pi]), TAU=cat([tau, tau]),
+             J1=cat([V["v_support"][:, 0], V["v_support"][:, 1]]), J2=cat([V["v_support"][:, 1], V["v_support"][:, 0]]),
+             LEN=cat([V["v_length"], V["v_length"]]))
+    O["X_AFTER"] = O["S2"] == L
+    O["Z_AFTER"] = O["S1"] == R
+    return O
 
-    def inc_id(occ, role):
-        return occ + role * n_occ
 
-    occ = np.arange(n_occ)
-    # labels of the four edges at an occurrence (derivation: f(θ) = u_K1 − u_K2 has slope
-    # d·(q − p) > 0 at the vertex, so just after it the line tangent to K1 passes above
-    # K2's curve; it crosses K2 iff K2 is on its left (λ) side; symmetrically for K2)
-    x_after = OS2 == L            # on K1's curve the (T→K2) edge is after the vertex
-    z_after = OS1 == R            # on K2's curve the (K1→H) edge is after the vertex
-    e1a, e1b = edge_after[inc_id(occ, 0)], edge_before[inc_id(occ, 0)]
-    e2a, e2b = edge_after[inc_id(occ, 1)], edge_before[inc_id(occ, 1)]
-    X = np.where(x_after, e1a, e1b); Y = np.where(x_after, e1b, e1a)
-    Z = np.where(z_after, e2a, e2b); W = np.where(z_after, e2b, e2a)
-    # tail/head from the start vertex of each edge ...
-    start_occ = e_start_inc % n_occ
-    start_role = e_start_inc // n_occ
-    so = start_occ
-    tail_s = np.where(start_role == 0, OT[so], np.where(z_after[so], OK1[so], OT[so]))
-    head_s = np.where(start_role == 0, np.where(x_after[so], OK2[so], OH[so]), OH[so])
-    eo = e_end_inc % n_occ
-    er = e_end_inc // n_occ
+def incidences(O: dict, occ=None):
+    """The incidences of occurrences ``occ`` (default all) on the tangency curves (curve id
+    2·object + side): role 0 on K1's curve, 1 on K2's.  Returns (curve, θ, τ, occ, role),
+    role-major; incidence id = occ + role · 2m."""
+    occ = np.arange(O["K1"].shape[0]) if occ is None else occ
+    cat = np.concatenate
+    curve = cat([2 * O["K1"][occ] + O["S1"][occ], 2 * O["K2"][occ] + O["S2"][occ]])
+    return (curve, cat([O["TH"][occ]] * 2), cat([O["TAU"][occ]] * 2), cat([occ, occ]),
+            np.repeat(np.array([0, 1], np.int64), occ.shape[0]))
+
+
+def edge_labels(scene, O, st, p):
+    """Tail, head, θ range and end support points of the edges starting at sorted positions p
+    (the arc of the curve from incidence p to the next one).  The tail and head follow from
+    the start vertex and are checked against the end vertex.
+
+    Returns th0, th1, tail, head, j0, j1 (each like p)."""
+    q = st["nxt"][p]
+    so, sr = st["s_occ"][p], st["s_role"][p]
+    eo, er = st["s_occ"][q], st["s_role"][q]
+    x_after, z_after = O["X_AFTER"], O["Z_AFTER"]
+    OT, OH, OK1, OK2 = O["T"], O["H"], O["K1"], O["K2"]
+    tail_s = np.where(sr == 0, OT[so], np.where(z_after[so], OK1[so], OT[so]))
+    head_s = np.where(sr == 0, np.where(x_after[so], OK2[so], OH[so]), OH[so])
     # ... and from the end vertex (the edge is 'before' there): must agree
     tail_e = np.where(er == 0, OT[eo], np.where(z_after[eo], OT[eo], OK1[eo]))
     head_e = np.where(er == 0, np.where(x_after[eo], OH[eo], OK2[eo]), OH[eo])
     bad = np.nonzero((tail_s != tail_e) | (head_s != head_e))[0]
     if bad.size:
-        kk = e_curve[bad[0]] // 2
+        kk = st["s_cur"][p[bad[0]]] // 2
         raise ViscxError(f"inconsistent visibility complex along the tangency curve of {scene.names[kk]!r} "
                          "(a degenerate configuration, e.g. edges of three objects on one line); "
                          "rebuild with --perturb (Scene.perturbed())")
-    e_tail, e_head = tail_s, head_s
-    e_obj = e_curve // 2
-    e_side = e_curve % 2
-    e_vs = e_start_inc % n_occ  # start occurrence
-    e_ve = e_end_inc % n_occ
-    # the support point (tangent point) of the edge's object at its two end vertices
-    e_j0 = np.where(start_role == 0, OJ1[e_vs], OJ2[e_vs])
-    e_j1 = np.where(er == 0, OJ1[e_ve], OJ2[e_ve])
-    # full loops: tangency curves without any vertex (a lone object)
-    have = np.zeros(2 * n, bool); have[cur] = True
-    loops = np.nonzero(~have)[0]
-    if loops.size:
-        e_curve = np.concatenate([e_curve, loops])
-        e_obj = e_curve // 2; e_side = e_curve % 2
-        th0 = np.concatenate([th0, np.zeros(loops.size)])
-        th1 = np.concatenate([th1, np.full(loops.size, TWO_PI)])
-        e_tail = np.concatenate([e_tail, np.full(loops.size, SKY)])
-        e_head = np.concatenate([e_head, np.full(loops.size, SKY)])
-        e_vs = np.concatenate([e_vs, np.full(loops.size, -1)])
-        e_ve = np.concatenate([e_ve, np.full(loops.size, -1)])
-        e_j0 = np.concatenate([e_j0, np.full(loops.size, -1)])
-        e_j1 = np.concatenate([e_j1, np.full(loops.size, -1)])
-    E = e_curve.shape[0]
-    # -- faces: union of slots (3·edge + slot) glued at the vertices
+    th0 = st["s_th"][p]
+    th1 = np.where(q <= p, st["s_th"][q] + TWO_PI, st["s_th"][q])  # wrap (also a one-vertex loop)
+    j0 = np.where(sr == 0, O["J1"][so], O["J2"][so])
+    j1 = np.where(er == 0, O["J1"][eo], O["J2"][eo])
+    return th0, th1, tail_s, head_s, j0, j1
+
+
+def vertex_edges(O, st, occ):
+    """The four edges (sorted positions) at occurrences occ: X, Y on K1's curve (X the one
+    bounding (T, K2)), Z, W on K2's (Z bounding (K1, H)); and (before, after) on each curve."""
+    n_occ = O["K1"].shape[0]
+    e1a = st["posof"][occ]; e1b = st["prv"][e1a]
+    e2a = st["posof"][occ + n_occ]; e2b = st["prv"][e2a]
+    xa, za = O["X_AFTER"][occ], O["Z_AFTER"][occ]
+    X = np.where(xa, e1a, e1b); Y = np.where(xa, e1b, e1a)
+    Z = np.where(za, e2a, e2b); W = np.where(za, e2b, e2a)
+    return X, Y, Z, W, (e1b, e1a, e2b, e2a)
+
+
+def glue_pairs(X, Y, Z, W):
+    """Slot pairs (3·edge + slot) glued at vertices whose four edges are X, Y, Z, W: a vertex
+    (k1, k2; t, h) shares (t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h) among its edges."""
     S = lambda e, s: 3 * e + s  # noqa: E731
-    ua = [S(X, 0), S(X, 1), S(X, 2), S(Y, 1), S(Y, 2), S(Z, 1)]
-    ub = [S(Y, 0), S(Z, 0), S(W, 0), S(Z, 2), S(W, 2), S(W, 1)]
-    ua = np.concatenate(ua); ub = np.concatenate(ub)
-    if loops.size:
-        # a lone object: its two loops bound the same faces (lines crossing it)
-        lid = {int(c): n_inc + i for i, c in enumerate(loops)}
-        extra_a, extra_b = [], []
-        for c, e in lid.items():
-            if c % 2 == R and (c - 1) in lid:
-                o = lid[c - 1]
-                extra_a += [S(e, 0), S(e, 1)]; extra_b += [S(o, 0), S(o, 1)]
-        ua = np.concatenate([ua, np.array(extra_a, np.int64)]); ub = np.concatenate([ub, np.array(extra_b, np.int64)])
-    nslot = 3 * E
+    ua = np.concatenate([S(X, 0), S(X, 1), S(X, 2), S(Y, 1), S(Y, 2), S(Z, 1)])
+    ub = np.concatenate([S(Y, 0), S(Z, 0), S(W, 0), S(Z, 2), S(W, 2), S(W, 1)])
+    return ua, ub
+
+
+def six_faces(O, comp, occ, X, Y, Z, signs=True):
+    """The six faces (components) of occurrences occ and the vertex's role on each.  Near the
+    bitangent, (T,K1) is every line crossing K1 and (K2,H) every line crossing K2: the vertex
+    is a smooth point of their boundary (sign 0).  The other four faces fill the four sectors
+    of the crossing of the two tangency curves: 'both' (K1,K2), 'neither' (T,H), 'K1 only'
+    (K1,H), 'K2 only' (T,K2).  When the two sides agree (outer bitangent), 'both' and
+    'neither' are the up/down sectors (a chain vertex, −d_e) and the two others the
+    left/right ones (an extremal vertex, +d_e); inner bitangents swap them.
+
+    Returns six (k, 6) int64 ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h)), sgn (k, 6) int8
+    (None without ``signs``)."""
+    c3 = comp.reshape(-1, 3)
+    six = np.concatenate([np.take(c3, X, axis=0), np.take(c3, Y, axis=0)[:, 1:], np.take(c3, Z, axis=0)[:, 1:2]],
+                         1).reshape(-1, 6)
+    if not signs:
+        return six, None
+    same = O["S1"][occ] == O["S2"][occ]
+    zero = np.zeros_like(same)
+    a, b = np.where(same, -1, 1), np.where(same, 1, -1)
+    sgn = np.stack([zero, a, b, b, a, zero], 1).astype(np.int8).reshape(-1, 6)
+    return six, sgn
+
+
+def slot_faces(st, slots):
+    """Tail, head and 'face below the edge' (the edge is on the face's upper chain) of slots.
+    Above a curve of side L lie the lines crossing k (slots (t,k), (k,h)); above a curve of
+    side R the lines missing it (slot (t,h))."""
+    e, kind = slots // 3, slots % 3
+    obj, side = st["s_cur"][e] // 2, st["s_cur"][e] % 2
+    tail = np.where(kind == SLOT_KH, obj, st["tail"][e])
+    head = np.where(kind == SLOT_TK, obj, st["head"][e])
+    crossing = kind != SLOT_TH
+    below = np.where(side == R, crossing, ~crossing)
+    return tail, head, below
+
+
+def face_sums(O, st, slots, lab, nlab, six, sgn, occ):
+    """Dual area (method a), string sum (method b) and boundedness of faces ``0..nlab-1``
+    from their slots (ascending, labels ``lab``) and the six faces ``six`` (labels, −1 for
+    faces not summed here) of occurrences ``occ`` (ascending).
+
+    Method (a): Green's theorem in the (θ, u) plane, area = ∫ upper u dθ − ∫ lower u dθ.
+    Method (b): Orti et al. §4.1: + d_c for edges on the face's own objects, − d_c for the
+    others; + d_e for extremal vertices (where the two chains meet), − d_e otherwise.
+    Both are summed in slot then occurrence order, so a face gets bit-identical sums
+    whichever set of faces is summed with it."""
+    e, kind = slots // 3, slots % 3
+    _, _, below = slot_faces(st, slots)
+    crossing = kind != SLOT_TH
+    area = np.bincount(lab, weights=np.where(below, st["I"][e], -st["I"][e]), minlength=nlab)
+    strings = np.bincount(lab, weights=np.where(crossing, st["arc"][e], -st["arc"][e]), minlength=nlab)
+    live = six.ravel() >= 0
+    w = (sgn * O["LEN"][occ][:, None]).ravel().astype(float)
+    strings += np.bincount(six.ravel()[live], weights=w[live], minlength=nlab)
+    has_up = np.bincount(lab, weights=below.astype(float), minlength=nlab) > 0
+    has_lo = np.bincount(lab, weights=(~below).astype(float), minlength=nlab) > 0
+    bounded = has_up & has_lo
+    return np.where(bounded, area, np.inf), np.where(bounded, strings, np.inf), bounded
+
+
+def slot_hashes(obj_hash, st, slots, lab, nlab):
+    """(nlab,) uint64 signature of each face: the sum of its boundary slots' digests
+    (object geometry, side, slot, tail, head and the exact θ range of the edge)."""
+    e, kind = slots // 3, slots % 3
+    h = _mix(obj_hash[st["s_cur"][e] // 2] ^ np.uint64(0x9E3779B97F4A7C15))
+    with np.errstate(over="ignore"):
+        for part in ((st["s_cur"][e] % 2) * 3 + kind, st["tail"][e] + 7, st["head"][e] + 11,
+                     st["th0"][e].view(np.int64), st["th1"][e].view(np.int64)):
+            h = _mix(h ^ part.astype(np.int64).view(np.uint64))
+        acc = np.zeros(nlab, np.uint64)
+        np.add.at(acc, lab, h)
+    return _mix(acc)
+
+
+def twin_slots(O, st, slots):
+    """The twin of each slot: the reversal (θ, u) → (θ + π, −u) maps the edge starting at
+    incidence (occ, role) to the one starting at ((occ + m) mod 2m, 1 − role), and slots
+    (t,k), (k,h), (t,h) to (k,h), (t,k), (t,h)."""
+    n_occ = O["K1"].shape[0]
+    e = slots // 3
+    occ = st["s_occ"][e]
+    occ = np.where(occ >= n_occ // 2, occ - n_occ // 2, occ + n_occ // 2)
+    et = st["posof"][occ + (1 - st["s_role"][e]) * n_occ]
+    return 3 * et + np.array([1, 0, 2])[slots % 3]
+
+
+def face_edge_order(slots, face, th0, below):
+    """Order of the boundary slots of faces: by face, upper chain first, by θ0 (mod 2π), then slot."""
+    return np.lexsort((th0 % TWO_PI, ~below, face))
+
+
+def derive(scene: Scene, V: dict):
+    """Edges, faces, incidences, dual areas and string sums from the vertices.
+
+    Pure numpy over flat arrays (sorting and a union–find by connected components).
+    Returns (arrays, state): the stored arrays and the internal state that
+    :func:`viscx.flatland.dynamic.move` updates locally."""
+    m = V["v_key"].shape[0]
+    if m == 0:
+        return _derive_lone(scene), None
+    O = occurrences(V)
+    n_occ = 2 * m
+    cur, th_, tau_, occ_, role_ = incidences(O)
+    # vertices of one resolved degenerate line share θ; their infinitesimal offsets order them
+    order = np.lexsort((occ_, tau_, th_, cur))
+    st = dict(s_occ=occ_[order], s_role=role_[order], s_cur=cur[order], s_th=th_[order], s_tau=tau_[order])
+    link(st, n_occ)
+    pos = np.arange(order.shape[0])
+    edge_attributes(scene, O, st, pos, st)
+    # -- faces: union of slots (3·edge + slot) glued at the vertices
+    occ = np.arange(n_occ)
+    X, Y, Z, W, _ = vertex_edges(O, st, occ)
+    ua, ub = glue_pairs(X, Y, Z, W)
+    nslot = 3 * pos.shape[0]
     g = coo_matrix((np.ones(ua.shape[0]), (ua, ub)), shape=(nslot, nslot))
     ncomp, comp = connected_components(g, directed=False)
-    # labels of the slots
-    slot_edge = np.arange(nslot) // 3
-    slot_kind = np.arange(nslot) % 3
-    slot_tail = np.where(slot_kind == SLOT_KH, e_obj[slot_edge], e_tail[slot_edge])
-    slot_head = np.where(slot_kind == SLOT_TK, e_obj[slot_edge], e_head[slot_edge])
-    c_tail = np.full(ncomp, -3, np.int64); c_tail[comp] = slot_tail
-    c_head = np.full(ncomp, -3, np.int64); c_head[comp] = slot_head
-    # -- twins: reversal maps occurrence (v, o) to (v, 1 − o), role r to 1 − r, side to 1 − side
-    inc_twin = inc_id((np.arange(n_inc) % n_occ + m) % n_occ, 1 - np.arange(n_inc) // n_occ)
-    e_twin = np.empty(E, np.int64)
-    e_twin[:n_inc] = edge_after[inc_twin[e_start_inc]]
-    if loops.size:
-        loop_of = {int(c): n_inc + i for i, c in enumerate(loops)}
-        for c, e in loop_of.items():
-            e_twin[e] = loop_of[c ^ 1]
-    slot_twin = 3 * e_twin[slot_edge] + np.array([1, 0, 2])[slot_kind]
-    c_twin = np.empty(ncomp, np.int64); c_twin[comp] = comp[slot_twin]
-    c_minslot = np.full(ncomp, nslot, np.int64)
-    np.minimum.at(c_minslot, comp, np.arange(nslot))
-    canon_c = np.where(c_tail != c_head, c_tail < c_head,
-                       (c_minslot <= c_minslot[c_twin]))
-    # -- edge integrals: ∫u dθ (method a) and contact arc lengths d_c (method b)
+    st["comp"] = comp.astype(np.int64)
+    slots = np.arange(nslot)
+    six, sgn = six_faces(O, st["comp"], occ, X, Y, Z)
+    comp_attributes(scene, O, st, slots, st["comp"], ncomp, six, sgn, occ, st)
+    return canonical(scene, V, O, st, np.arange(ncomp), slots, occ), st
+
+
+def link(st, n_occ):
+    """Next / previous incidence on each curve and the sorted position of every incidence."""
+    st["nxt"], st["prv"], st["posof"] = K.curve_links(st["s_cur"], st["s_occ"] + st["s_role"] * n_occ)
+
+
+def edge_attributes(scene, O, st, p, out):
+    """Tail, head, θ range, ∫u dθ (method a) and contact arc length d_c (method b) of the
+    edges at sorted positions p, into ``out`` (keys tail, head, th0, th1, I, arc)."""
+    th0, th1, out["tail"], out["head"], j0, j1 = edge_labels(scene, O, st, p)
+    out["th0"], out["th1"] = th0, th1
     A_, cumG, cumS, perim = scene.pieces()
-    I, arc = K.edge_integrals(e_obj, e_side, th0, th1, scene.vert_start, scene.verts, scene.radius,
-                              A_, cumG, cumS, perim, e_j0, e_j1)
-    # -- method (a): Green's theorem in the (θ, u) plane, area = ∫ upper u dθ − ∫ lower u dθ.
-    #    Above a curve of side L lie the lines crossing k (slots (t,k), (k,h)); above a curve
-    #    of side R the lines missing it (slot (t,h)).  A face below an edge has it as upper.
-    crossing = slot_kind != SLOT_TH
-    side_s = e_side[slot_edge]
-    face_below = np.where(side_s == R, crossing, ~crossing)
-    # faces whose boundary is unchanged since `previous` keep their sums (dynamic update)
-    c_hash = _component_hashes(scene, comp, ncomp, slot_edge, slot_kind, e_obj, e_side, e_tail, e_head, th0, th1)
-    need = np.ones(ncomp, bool)
-    if previous is not None and previous["f_hash"].size:
-        ph = np.concatenate([previous["f_hash"], previous["f_hash_twin"]])
-        pa = np.concatenate([previous["f_area"], previous["f_area_twin"]])
-        ps = np.concatenate([previous["f_strings"], previous["f_strings_twin"]])
-        o_ = np.argsort(ph, kind="stable")
-        ph, pa, ps = ph[o_], pa[o_], ps[o_]
-        idx = np.clip(np.searchsorted(ph, c_hash), 0, ph.size - 1)
-        need = ph[idx] != c_hash
-    live = need[comp]
-    contrib = np.where(face_below, I[slot_edge], -I[slot_edge])
-    area = np.bincount(comp[live], weights=contrib[live], minlength=ncomp)
-    has_up = np.bincount(comp, weights=face_below.astype(float), minlength=ncomp) > 0
-    has_lo = np.bincount(comp, weights=(~face_below).astype(float), minlength=ncomp) > 0
-    bounded = has_up & has_lo
-    # -- method (b): Orti et al. §4.1: + d_c for edges on the face's own objects, − d_c for the
-    #    others; + d_e for extremal vertices (where the two chains meet), − d_e otherwise.
-    strings = np.bincount(comp[live], weights=np.where(crossing, arc[slot_edge], -arc[slot_edge])[live],
-                          minlength=ncomp)
-    occ_len = np.concatenate([V["v_length"], V["v_length"]])
-    same = OS1 == OS2
-    # the six faces of an occurrence, as components, and the vertex's role on each.  Near
-    # the bitangent, (T,K1) is every line crossing K1 and (K2,H) every line crossing K2: the
-    # vertex is a smooth point of their boundary (sign 0).  The other four faces fill the
-    # four sectors of the crossing of the two tangency curves: 'both' (K1,K2), 'neither'
-    # (T,H), 'K1 only' (K1,H), 'K2 only' (T,K2).  When the two sides agree (outer
-    # bitangent), 'both' and 'neither' are the up/down sectors (a chain vertex, −d_e) and the
-    # two others the left/right ones (an extremal vertex, +d_e); inner bitangents swap them.
-    six = np.stack([comp[S(X, 0)], comp[S(X, 1)], comp[S(X, 2)], comp[S(Y, 1)], comp[S(Y, 2)], comp[S(Z, 1)]], 1)
-    zero = np.zeros_like(same)
-    sgn = np.stack([zero, np.where(same, -1, 1), np.where(same, 1, -1), np.where(same, 1, -1),
-                    np.where(same, -1, 1), zero], 1).astype(np.int8) if n_occ else np.zeros((0, 6), np.int8)
-    six_live = need[six.ravel()]
-    strings += np.bincount(six.ravel()[six_live], weights=(sgn * occ_len[:, None]).ravel().astype(float)[six_live],
-                           minlength=ncomp)
-    area = np.where(bounded, area, np.inf)
-    strings = np.where(bounded, strings, np.inf)
-    if previous is not None and previous["f_hash"].size:
-        area = np.where(need, area, pa[idx])
-        strings = np.where(need, strings, ps[idx])
-    # -- canonical numbering: edges starting at an o = 0 occurrence (or R loops), in order;
-    #    faces sorted by (tail, head, smallest slot of their representative)
-    e_canon = np.where(e_vs >= 0, e_vs < m, e_side == R)
-    canon_e_ids = np.nonzero(e_canon)[0]
-    e_new = np.full(E, -1, np.int64)
-    e_new[canon_e_ids] = np.arange(canon_e_ids.size)
-    e_new[~e_canon] = e_new[e_twin[~e_canon]]
-    e_rev = ~e_canon
-    rep = np.nonzero(canon_c)[0]
-    rep = rep[np.lexsort((c_minslot[rep], c_head[rep], c_tail[rep]))]
-    f_new = np.full(ncomp, -1, np.int64)
-    f_new[rep] = np.arange(rep.size)
-    f_new[~canon_c] = f_new[c_twin[~canon_c]]
+    out["I"], out["arc"] = K.edge_integrals(st["s_cur"][p] // 2, st["s_cur"][p] % 2, th0, th1, scene.vert_start,
+                                            scene.verts, scene.radius, A_, cumG, cumS, perim, j0, j1)
+
+
+def comp_attributes(scene, O, st, slots, lab, nlab, six, sgn, occ, out):
+    """Tail, head, twin, smallest slot, sums and signatures of components ``0..nlab-1``
+    (their slots ``slots`` ascending with labels ``lab``; ``six`` the labels of the six
+    faces of occurrences ``occ``, −1 for faces of other components), written to ``out`` as
+    c_* arrays (twins as labels of ``st["comp"]``)."""
+    tail, head, _ = slot_faces(st, slots)
+    out["c_tail"] = np.full(nlab, -3, np.int64); out["c_tail"][lab] = tail
+    out["c_head"] = np.full(nlab, -3, np.int64); out["c_head"][lab] = head
+    out["c_twin"] = np.empty(nlab, np.int64); out["c_twin"][lab] = st["comp"][twin_slots(O, st, slots)]
+    out["c_minslot"] = np.full(nlab, np.iinfo(np.int64).max, np.int64)
+    np.minimum.at(out["c_minslot"], lab, slots)
+    out["c_area"], out["c_strings"], out["c_bounded"] = face_sums(O, st, slots, lab, nlab, six, sgn, occ)
+    out["c_hash"] = slot_hashes(scene.object_hashes(), st, slots, lab, nlab)
+
+
+def canonical(scene, V, O, st, fresh, new_slots, new_occ):
+    """The stored arrays of a state: edges starting at an o = 0 occurrence, in order; faces
+    the components oriented from the smaller object id (or from their smaller slot when
+    tail = head), sorted by (tail, head, smallest slot).
+
+    The faces' boundary lists are spliced: ``st["face_label"]`` (components in face
+    order), ``st["fe_*"]`` and ``st["fv_*"]`` hold the kept faces (renumbered by the
+    caller; none the first time), and the components ``fresh`` — whose slots are among
+    ``new_slots`` and whose vertices among the occurrences ``new_occ`` (both ascending) —
+    are added; ``st`` is updated in place."""
+    n = scene.n
+    m = V["v_key"].shape[0]
+    N = st["s_occ"].shape[0]
+    ct, ch, twin, minslot = st["c_tail"], st["c_head"], st["c_twin"], st["c_minslot"]
+    # -- faces: kept ones in their order, the fresh representatives merged in by key
+    canon_c = np.where(ct != ch, ct < ch, minslot <= minslot[twin])
+    key = ((ct + 1) * (n + 1) + (ch + 1)) * (3 * N + 1) + minslot
+    fresh = fresh[canon_c[fresh]]
+    fresh = fresh[np.argsort(key[fresh], kind="stable")]
+    kept = st.get("face_label", np.zeros(0, np.int64))
+    F = kept.size + fresh.size
+    is_new = np.zeros(F, bool)
+    is_new[np.searchsorted(key[kept], key[fresh]) + np.arange(fresh.size)] = True
+    rep = np.empty(F, np.int64)
+    rep[is_new] = fresh
+    rep[~is_new] = kept
+    f_new = np.full(ct.shape[0], -1, np.int64)
+    f_new[rep] = np.arange(F)
+    f_new[twin[rep]] = np.arange(F)
+    # -- edges: canonical ones start at an o = 0 occurrence
+    e_canon = st["s_occ"] < m
+    ce = np.nonzero(e_canon)[0]
+    e_new = np.full(N, -1, np.int64)
+    e_new[ce] = np.arange(ce.size)
+    nc = np.nonzero(~e_canon)[0]
+    e_new[nc] = e_new[twin_slots(O, st, 3 * nc) // 3]
+    comp = st["comp"]
     out = {}
-    ce = canon_e_ids
-    out["e_obj"] = e_obj[ce].astype(np.int64)
-    out["e_side"] = e_side[ce].astype(np.int8)
-    out["e_tail"] = e_tail[ce]
-    out["e_head"] = e_head[ce]
-    out["e_verts"] = np.stack([np.where(e_vs[ce] >= 0, e_vs[ce] % max(m, 1), -1),
-                               np.where(e_ve[ce] >= 0, e_ve[ce] % max(m, 1), -1)], 1).astype(np.int64)
-    out["e_theta"] = np.stack([th0[ce], th1[ce]], 1)
-    out["e_integral"] = I[ce]
-    out["e_arclength"] = arc[ce]
-    out["e_faces"] = f_new[comp[3 * ce[:, None] + np.arange(3)[None, :]]]
-    # vertex incidences (occurrence o = 0)
+    out["e_obj"] = (st["s_cur"][ce] // 2).astype(np.int64)
+    out["e_side"] = (st["s_cur"][ce] % 2).astype(np.int8)
+    out["e_tail"] = st["tail"][ce]
+    out["e_head"] = st["head"][ce]
+    end = st["s_occ"][st["nxt"][ce]]
+    out["e_verts"] = np.stack([st["s_occ"][ce], np.where(end >= m, end - m, end)], 1).astype(np.int64)
+    out["e_theta"] = np.stack([st["th0"][ce], st["th1"][ce]], 1)
+    out["e_integral"] = st["I"][ce]
+    out["e_arclength"] = st["arc"][ce]
+    out["e_faces"] = f_new[np.take(comp.reshape(-1, 3), ce, axis=0)]
+    # -- vertex incidences (occurrence o = 0)
     o0 = np.arange(m)
-    out["v_edges"] = np.stack([e_new[e1b[o0]], e_new[e1a[o0]], e_new[e2b[o0]], e_new[e2a[o0]]], 1) if m else np.zeros((0, 4), np.int64)
-    out["v_faces"] = f_new[six[:m]] if m else np.zeros((0, 6), np.int64)
-    # faces
-    out["f_pair"] = np.stack([c_tail[rep], c_head[rep]], 1)
-    out["f_area"] = area[rep]
-    out["f_strings"] = strings[rep]
-    out["f_bounded"] = bounded[rep]
-    # boundary chains of each face's representative: its slots, upper chain first, by θ0
-    slot_f = f_new[comp]
-    keep = canon_c[comp]
-    sl = np.nonzero(keep)[0]
-    sl = sl[np.lexsort((th0[slot_edge[sl]] % TWO_PI, ~face_below[sl], slot_f[sl]))]
-    out["f_edge_start"] = np.searchsorted(slot_f[sl], np.arange(rep.size + 1)).astype(np.int64)
-    out["f_edge"] = e_new[slot_edge[sl]]
-    out["f_edge_upper"] = face_below[sl]
-    out["f_edge_reversed"] = e_rev[slot_edge[sl]]
-    # boundary vertices of each face's representative, with extremal flag
-    fv_face = six.ravel()
-    fv_occ = np.repeat(np.arange(n_occ), 6)
-    fv_sign = sgn.ravel()
-    kv = canon_c[fv_face]
-    ff = f_new[fv_face[kv]]; vv = fv_occ[kv] % max(m, 1); ex = fv_sign[kv]
-    o = np.lexsort((vv, ff))
-    out["f_vert_start"] = np.searchsorted(ff[o], np.arange(rep.size + 1)).astype(np.int64)
-    out["f_vert"] = vv[o].astype(np.int64)
-    out["f_vert_sign"] = ex[o].astype(np.int8)
+    X, Y, Z, W, (e1b, e1a, e2b, e2a) = vertex_edges(O, st, o0)
+    out["v_edges"] = np.stack([e_new[e1b], e_new[e1a], e_new[e2b], e_new[e2a]], 1)
+    out["v_faces"] = f_new[six_faces(O, comp, o0, X, Y, Z, signs=False)[0]]
+    # -- faces
+    out["f_pair"] = np.stack([ct[rep], ch[rep]], 1)
+    out["f_area"] = st["c_area"][rep]
+    out["f_strings"] = st["c_strings"][rep]
+    out["f_bounded"] = st["c_bounded"][rep]
+    # boundary chains of the representatives: their slots, upper chain first, by θ0
+    is_fresh = np.zeros(ct.shape[0], bool)
+    is_fresh[fresh] = True
+    sl = new_slots[is_fresh[comp[new_slots]]]
+    _, _, below = slot_faces(st, sl)
+    o = np.lexsort((st["th0"][sl // 3] % TWO_PI, ~below, f_new[comp[sl]]))
+    # packed as edge << 2 | upper << 1 | reversed (both stay with the edge while it exists)
+    packed = (sl[o] // 3) << 2 | below[o].astype(np.int64) << 1 | ~e_canon[sl[o] // 3]
+    st["fe_start"], fe = _splice_lists(is_new, st.get("fe_start"), st.get("fe_packed"), f_new[comp[sl[o]]], packed)
+    st["fe_packed"] = fe
+    out["f_edge_start"] = st["fe_start"]
+    out["f_edge"] = e_new[fe >> 2]
+    out["f_edge_upper"] = (fe & 2) > 0
+    out["f_edge_reversed"] = (fe & 1) > 0
+    # boundary vertices of the representatives, with their role (extremal / chain / smooth)
+    six, sgn = six_faces(O, comp, new_occ, *vertex_edges(O, st, new_occ)[:3])
+    hit = is_fresh[six.ravel()]
+    fv_occ = np.repeat(new_occ, 6)[hit]
+    ff = f_new[six.ravel()[hit]]
+    # packed as vertex << 3 | o << 2 | sign + 1
+    packed = (fv_occ % m) << 3 | (fv_occ >= m).astype(np.int64) << 2 | sgn.ravel()[hit] + 1
+    o = np.lexsort((fv_occ % m, ff))
+    st["fv_start"], fv = _splice_lists(is_new, st.get("fv_start"), st.get("fv_packed"), ff[o], packed[o])
+    st["fv_packed"] = fv
+    out["f_vert_start"] = st["fv_start"]
+    out["f_vert"] = fv >> 3
+    out["f_vert_sign"] = ((fv & 3) - 1).astype(np.int8)
     # oriented areas of both twins (for the reciprocity check)
-    out["f_area_twin"] = area[c_twin[rep]]
-    out["f_strings_twin"] = strings[c_twin[rep]]
-    out["f_hash"] = c_hash[rep]
-    out["f_hash_twin"] = c_hash[c_twin[rep]]
+    out["f_area_twin"] = st["c_area"][twin[rep]]
+    out["f_strings_twin"] = st["c_strings"][twin[rep]]
+    out["f_hash"] = st["c_hash"][rep]
+    out["f_hash_twin"] = st["c_hash"][twin[rep]]
+    st["face_label"] = rep
     # form factors F_ab = A_ab / (2 L_a), last column: the sky
     out.update(form_factors(scene, out["f_pair"], out["f_area"], out["f_bounded"], out["f_strings"]))
-    return out, need[rep]
+    return out
 
 
-def _object_hashes(scene):
-    """(n,) uint64: a digest of each object's geometry (support points and radius)."""
-    import hashlib
+def _splice_lists(is_new, old_start, old_vals, new_face, new_vals):
+    """CSR lists of F faces (``is_new`` (F,) bool in face order): the kept faces' lists from
+    (old_start, old_vals) in order, the new faces' from new_vals grouped by their face id
+    ``new_face`` (ascending).  Returns (start (F + 1,), values)."""
+    F = is_new.shape[0]
+    old_start = np.zeros(1, np.int64) if old_start is None else old_start
+    old_vals = np.zeros(0, np.int64) if old_vals is None else old_vals
+    length = np.empty(F, np.int64)
+    length[~is_new] = np.diff(old_start)
+    fid = np.nonzero(is_new)[0]
+    length[fid] = np.bincount(new_face, minlength=F)[fid]
+    start = np.zeros(F + 1, np.int64)
+    np.cumsum(length, out=start[1:])
+    src = np.empty(F, np.int64)
+    src[~is_new] = old_start[:-1]
+    src[fid] = old_vals.size + np.searchsorted(new_face, fid)
+    pool = np.concatenate([old_vals, new_vals]).astype(np.int64)
+    return start, pool[np.repeat(src - start[:-1], length) + np.arange(start[-1])]
 
-    out = np.empty(scene.n, np.uint64)
-    for k in range(scene.n):
-        h = hashlib.blake2b(digest_size=8)
-        h.update(np.ascontiguousarray(scene.verts[scene.vert_start[k]:scene.vert_start[k + 1]]).tobytes())
-        h.update(np.float64(scene.radius[k]).tobytes())
-        out[k] = np.frombuffer(h.digest(), np.uint64)[0]
+
+def _derive_lone(scene):
+    """The complex of a scene of one object: no vertex; its two tangency curves are loops
+    (θ ∈ [0, 2π]) with the sky at both ends; faces: the lines missing it (unbounded) and
+    the lines crossing it (sky → object, dual area 2 L)."""
+    A_, cumG, cumS, perim = scene.pieces()
+    obj, side = np.zeros(2, np.int64), np.array([L, R])
+    th0, th1 = np.zeros(2), np.full(2, TWO_PI)
+    I, arc = K.edge_integrals(obj, side, th0, th1, scene.vert_start, scene.verts, scene.radius, A_, cumG, cumS,
+                              perim, np.full(2, -1), np.full(2, -1))
+    st = dict(s_cur=side, tail=np.full(2, SKY), head=np.full(2, SKY), th0=th0, th1=th1)
+    # slots 0..2 on the L loop, 3..5 on the R loop, glued (t,k) to (t,k) and (k,h) to (k,h):
+    # components A = sky → 0, B = 0 → sky (its twin), C / D = (sky, sky) on the L / R loop
+    h = slot_hashes(scene.object_hashes(), st, np.arange(6), np.array([0, 1, 2, 0, 1, 3]), 4)
+    area = I[1] - I[0]  # Green: above λ (L loop, lower chain) and below μ (R loop, upper)
+    out = dict(e_obj=np.zeros(1, np.int64), e_side=np.array([R], np.int8), e_tail=np.full(1, SKY),
+               e_head=np.full(1, SKY), e_verts=np.full((1, 2), -1, np.int64), e_theta=np.array([[0.0, TWO_PI]]),
+               e_integral=I[1:], e_arclength=arc[1:], e_faces=np.array([[1, 1, 0]]),
+               v_edges=np.zeros((0, 4), np.int64), v_faces=np.zeros((0, 6), np.int64),
+               f_pair=np.array([[SKY, SKY], [SKY, 0]]), f_area=np.array([np.inf, area]),
+               f_strings=np.array([np.inf, arc[1] + arc[0]]), f_bounded=np.array([False, True]),
+               f_edge_start=np.array([0, 1, 3]), f_edge=np.zeros(3, np.int64),
+               f_edge_upper=np.array([True, True, False]), f_edge_reversed=np.array([True, False, True]),
+               f_vert_start=np.zeros(3, np.int64), f_vert=np.zeros(0, np.int64), f_vert_sign=np.zeros(0, np.int8),
+               f_hash=h[[2, 0]], f_hash_twin=h[[3, 1]])
+    out["f_area_twin"], out["f_strings_twin"] = out["f_area"].copy(), out["f_strings"].copy()
+    out.update(form_factors(scene, out["f_pair"], out["f_area"], out["f_bounded"], out["f_strings"]))
     return out
 
 
@@ -752,39 +894,32 @@ def _mix(x):
         return x ^ (x >> np.uint64(31))
 
 
-def _component_hashes(scene, comp, ncomp, slot_edge, slot_kind, e_obj, e_side, e_tail, e_head, th0, th1):
-    """(ncomp,) uint64 signature of each face: the sum of its boundary slots' digests
-    (object geometry, side, slot, tail, head and the exact θ range of the edge).  Two faces
-    with equal signatures have the same boundary, hence the same area."""
-    oh = _object_hashes(scene)
-    e = slot_edge
-    h = _mix(oh[e_obj[e]] ^ np.uint64(0x9E3779B97F4A7C15))
-    with np.errstate(over="ignore"):
-        for part in (e_side[e].astype(np.int64) * 3 + slot_kind, e_tail[e] + 7, e_head[e] + 11,
-                     th0[e].view(np.int64), th1[e].view(np.int64)):
-            h = _mix(h ^ part.astype(np.int64).view(np.uint64))
-        acc = np.zeros(ncomp, np.uint64)
-        np.add.at(acc, comp, h)
-    return _mix(acc)
-
-
 def form_factors(scene, f_pair, f_area, f_bounded, f_strings):
-    """F_area, F_strings (n, n + 1): F_ab = Σ_faces{a,b} A / (2 L_a); column n is the sky."""
+    """F_area, F_strings (n, n + 1): F_ab = Σ_faces{a,b} A / (2 L_a); column n is the sky.
+    (One bincount over both orientations: the same sequential sums as adding them in
+    face order.)"""
     n = scene.n
     Lp = scene.perimeters()
     out = {}
+    a, b = f_pair[:, 0], f_pair[:, 1]
+    ok = f_bounded & ((a >= 0) | (b >= 0))
+    a, b = a[ok], b[ok]
+    ai = np.where(a < 0, n, a); bi = np.where(b < 0, n, b)
+    m1, m2 = a >= 0, b >= 0
+    cell = np.concatenate([a[m1] * (n + 1) + bi[m1], b[m2] * (n + 1) + ai[m2]])
     for name, val in (("F_area", f_area), ("F_strings", f_strings)):
-        F = np.zeros((n, n + 1))
-        a, b = f_pair[:, 0], f_pair[:, 1]
-        ok = f_bounded & ((a >= 0) | (b >= 0))
-        a, b, v = a[ok], b[ok], val[ok]
-        ai = np.where(a < 0, n, a); bi = np.where(b < 0, n, b)
-        m1 = a >= 0
-        np.add.at(F, (a[m1], bi[m1]), v[m1] / (2.0 * Lp[a[m1]]))
-        m2 = b >= 0
-        np.add.at(F, (b[m2], ai[m2]), v[m2] / (2.0 * Lp[b[m2]]))
-        out[name] = F
+        v = val[ok]
+        w = np.concatenate([v[m1] / (2.0 * Lp[a[m1]]), v[m2] / (2.0 * Lp[b[m2]])])
+        out[name] = np.bincount(cell, weights=w, minlength=n * (n + 1)).reshape(n, n + 1)
     return out
+
+
+def blocker_table(scene: Scene, cand: dict, cls) -> np.ndarray:
+    """(4 n²,) int32 indexed by candidate key: an object blocking the candidate's segment
+    (−1: free).  A blocked candidate can only become free when its blocker moves."""
+    table = np.full(4 * scene.n * scene.n, -1, np.int32)
+    table[cand["key"]] = cls[6]
+    return table
 
 
 def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatComplex:
@@ -798,6 +933,7 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
         cls = classify(scene, cand, eps)
         V = resolve_degenerate(scene, vertices_from(scene, cand, cls))
         pb.update()
-        V.update(derive(scene, V)[0])
+        out, state = derive(scene, V)
+        V.update(out)
         pb.update()
-    return FlatComplex(scene=scene, eps=eps, arrays=V)
+    return FlatComplex(scene=scene, eps=eps, arrays=V, state=state, blockers=blocker_table(scene, cand, cls))

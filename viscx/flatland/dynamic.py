@@ -1,36 +1,75 @@
-"""Dynamic update of the complex after an object moves (Orti et al. §4.3).
+"""Dynamic update of the complex after an object moves (Orti et al. §4.3): linear in the zone.
 
-A translation of object K can only change
+Moving object K can only change
 
-- the bitangents of K itself (all pairs (K, j)), and
-- the freeness, tail or head of a bitangent of another pair whose *line* meets K before
-  or after the move (K may start or stop blocking its segment, or become / stop being the
-  first object at one of its ends).
+- the bitangents of K itself (all pairs (K, j)),
+- the bitangents that K blocked before the move (a blocked candidate stays blocked unless
+  its blocker moves: :func:`viscx.flatland.complex.blocker_table` keeps one blocker per
+  candidate), and
+- the vertices whose line meets K before or after the move (K may start blocking them, or
+  become / stop being the first object at one of their ends).
 
-So we recompute the candidates' closed-form lines (cheap, deterministic: bit-identical for
-pairs that did not move), re-run the free-segment test only for the affected candidates
-(lines meeting the bounding disk of K at either position, plus K's own pairs), keep every
-other vertex as it was, and re-derive edges and faces.  A face whose boundary signature
-(objects, sides, tails, heads and exact θ ranges of its edges) is unchanged keeps its area
-and string sum; only the changed faces are re-summed, and only the form factors of object
-pairs having a changed face are recomputed.  The result equals a rebuild from scratch
-(tested on random moves).
+Only these candidates are re-tested (closed-form lines of their pairs, bit-identical to a
+rebuild's; grid walks).  A re-tested vertex that comes back with the same line, objects,
+sides, tail and head is the same vertex.  The others leave or enter the complex, and the
+topology is spliced where they are — the *zone*:
+
+1. incidences: the kept ones (already sorted along the tangency curves) and the new ones
+   are merged by binary search (:func:`kernels.merge_ranks`);
+2. edges: an edge whose two end incidences are kept and still consecutive keeps its
+   tail, head, θ range and integrals; the others are derived from their end vertices;
+3. faces: the face components holding a slot of a vanished edge, with the new edges'
+   slots, are re-glued by a union–find over their slots alone (a slot glued to a kept
+   face's slot would have been in that face before the move: the zone is closed), and
+   re-summed in the same slot order as a rebuild (bit-identical sums);
+4. the stored arrays are renumbered by gathers (vertices by key, edges and faces in the
+   order of a rebuild), the kept faces' boundary lists spliced with the new ones.
+
+Python work is per changed element; what is O(scene) is numpy gathers and copies over the
+complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
+scratch, array by array (tests/flatland/test_flatland_dynamic.py).
+
+A degenerate line in the zone (vertices resolved by a symbolic perturbation, ``v_tau``,
+see :func:`viscx.flatland.complex.resolve_degenerate`) is re-scanned whole
+(:func:`scan_line`): its free candidates are not all vertices (a row of m tips has
+m(m − 1)/2 free pairs and about m vertices), so they are found from the line, not from the
+vertices.  Its members then need not be in the blocker table: the line joins a registry
+of re-scanned lines (``state["lines"]``), re-scanned whenever a moving object's disk meets
+it.  A complex read from a file has neither: its state is derived again from the stored
+vertices (O(m log m)), and without a blocker table every candidate whose line meets the
+moving object is re-tested (all pairs' closed-form lines: O(n²) arithmetic), so the move
+costs about half a rebuild there; the complex it returns carries its state, but not a
+blocker table, so the next move pays the candidate scan again.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from viscx.errors import ViscxError
 from viscx.flatland import complex as C
-from viscx.flatland.scene import check_disjoint
+from viscx.flatland import kernels as K
+from viscx.flatland.scene import check_object_disjoint
+
+VERTEX_FIELDS = ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q",
+                 "v_length", "v_seg")
+# the fields that place a vertex in the topology (v_seg may change without changing it)
+TOPOLOGY_FIELDS = ("v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau")
 
 
 @dataclass
 class MoveStats:
-    """What a move recomputed, out of how many."""
+    """What a move recomputed, out of how many, and where the time went.
+
+    ``local`` is False when the move rebuilt the complex (a file written before degenerate
+    lines were resolved, or a complex without vertices); ``zone_*`` count the vertices
+    that left / entered the complex, the edges derived anew and the face slots re-glued;
+    ``seconds`` the CPU time per stage."""
 
     candidates_tested: int
     candidates_total: int
@@ -38,11 +77,20 @@ class MoveStats:
     faces_total: int
     formfactors_recomputed: int
     formfactors_total: int
+    local: bool = True
+    zone_vertices_removed: int = 0
+    zone_vertices_added: int = 0
+    zone_edges: int = 0
+    zone_slots: int = 0
+    seconds: dict = field(default_factory=dict)
 
     def summary(self) -> str:
+        how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
+            self.zone_vertices_removed, self.zone_vertices_added, self.zone_edges, self.zone_slots)
+            if self.local else "rebuilt from scratch (a file without v_tau, or no vertices)")
         return (f"form factors recomputed: {self.formfactors_recomputed} of {self.formfactors_total} "
                 f"(object pairs incl. the sky); faces re-summed: {self.faces_recomputed} of {self.faces_total}; "
-                f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}")
+                f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}; {how}")
 
 
 def _bounding_disk(scene, k):
@@ -62,42 +110,369 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     if not (np.isfinite(dx) and np.isfinite(dy)):
         raise ViscxError("the displacement must be finite")
     new_scene = scene.moved(k, dx, dy)
-    check_disjoint(new_scene)
-    eps = cx.eps
-    cand = C.candidates(new_scene)
-    # affected: K's own pairs, and lines meeting K's bounding disk before or after
-    theta = cand["theta"]
-    nrm = np.stack([-np.sin(theta), np.cos(theta)], axis=1)
-    # a point of each candidate line: its tangent point on object a
-    sig = 2.0 * cand["side_a"] - 1.0
-    pa = new_scene.verts[cand["va"]] + (sig * new_scene.radius[cand["a"]])[:, None] * nrm
-    u = np.einsum("ij,ij->i", nrm, pa)
-    todo = (cand["a"] == k) | (cand["b"] == k)
+    check_object_disjoint(new_scene, k)
+    n = scene.n
+    total = 2 * n * (n - 1)
+    if "v_tau" not in cx.arrays or cx.n_vertices == 0:  # written before degenerate lines were resolved
+        return _rebuilt(cx, new_scene, total)
+    clock = _Clock()
+    if cx.state is None:  # read from a file: the state is derived again from the stored vertices
+        cx = C.FlatComplex(scene=scene, eps=cx.eps, arrays=cx.arrays, state=C.derive(scene, cx.arrays)[1],
+                           blockers=cx.blockers)
+    V_old = cx.arrays
+    # -- 1. the candidates to re-test
+    pair_of = V_old["v_key"] // 4
+    own_v = (V_old["v_obj"][:, 0] == k) | (V_old["v_obj"][:, 1] == k)
+    th = V_old["v_theta"]
+    nrm = np.stack([-np.sin(th), np.cos(th)], axis=1)
+    u = np.einsum("ij,ij->i", nrm, V_old["v_p"])
+    near = np.zeros(th.shape[0], bool)
     for sc in (scene, new_scene):
         c, r = _bounding_disk(sc, k)
-        todo |= np.abs(nrm @ c - u) <= r + 10 * eps
-    cls = C.classify(new_scene, cand, eps, todo=todo)
-    fresh = C.resolve_degenerate(new_scene, C.vertices_from(new_scene, cand, cls))
-    # unaffected candidates keep their old status: the old vertices whose keys are not redone
-    old_keys = cx.v_key
-    redo_keys = cand["key"][todo]
-    keep_old = ~np.isin(old_keys, redo_keys)
-    if "v_tau" not in cx.arrays:  # a file written before degenerate lines were resolved
-        cx.arrays["v_tau"] = np.zeros(cx.n_vertices)
-    V = {}
-    for name in ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q", "v_length", "v_seg"):
-        V[name] = np.concatenate([cx.arrays[name][keep_old], fresh[name]])
-    order = np.argsort(V["v_key"], kind="stable")
-    V = {name: arr[order] for name, arr in V.items()}
-    # sky ends are clipped to the scene box, which the move may have changed
-    V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
-    previous = {name: cx.arrays[name] for name in ("f_hash", "f_hash_twin", "f_area", "f_area_twin",
-                                                    "f_strings", "f_strings_twin")}
-    out, recomputed = C.derive(new_scene, V, previous=previous)
+        near |= np.abs(nrm @ c - u) <= r + 10 * cx.eps
+    retest_v = near & ~own_v
+    # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
+    # by earlier moves (their blocked members are not in the blocker table) that K meets
+    tol = C.line_tol(new_scene)
+    reg_th, reg_u = cx.state.get("lines", (np.zeros(0), np.zeros(0)))
+    reg_near = np.zeros(reg_th.shape[0], bool)
+    for sc in (scene, new_scene):
+        c, r = _bounding_disk(sc, k)
+        reg_near |= np.abs(-np.sin(reg_th) * c[0] + np.cos(reg_th) * c[1] - reg_u) <= r + 10 * cx.eps
+    deg = (retest_v | own_v) & (V_old["v_tau"] != 0.0)
+    lines_th, lines_u = _distinct_lines(np.concatenate([th[deg], reg_th[reg_near]]),
+                                        np.concatenate([u[deg], reg_u[reg_near]]), tol)
+    on_line = _on_lines(th, u, lines_th, lines_u, tol)
+    retest_v |= on_line & ~own_v
+    if cx.blockers is not None:
+        blocked = np.nonzero(cx.blockers == k)[0]
+    else:  # no blocker table (read from a file): every candidate whose line meets K before the move
+        every = C.candidates(scene)
+        c, r = _bounding_disk(scene, k)
+        p_ = C.tangent_points(scene, every)[0]
+        ct = every["theta"]
+        blocked = every["key"][np.abs(-np.sin(ct) * (c[0] - p_[:, 0]) + np.cos(ct) * (c[1] - p_[:, 1]))
+                               <= r + 10 * cx.eps]
+    b_pair = blocked // 4
+    blocked = blocked[(b_pair // n != k) & (b_pair % n != k)]
+    others = np.delete(np.arange(n), k)
+    own_pairs = np.stack([np.minimum(others, k), np.maximum(others, k)], 1)
+    pid = np.unique(np.concatenate([own_pairs[:, 0] * n + own_pairs[:, 1], blocked // 4, pair_of[retest_v & ~on_line]]))
+    cand = C.candidates(new_scene, np.stack([pid // n, pid % n], 1).astype(np.int64))
+    redo = np.concatenate([blocked, V_old["v_key"][retest_v & ~on_line]])
+    todo = (cand["a"] == k) | (cand["b"] == k) | np.isin(cand["key"], redo)
+    grid = K.build_grid(new_scene.bounding_boxes())
+    cls = C.classify(new_scene, cand, cx.eps, todo=todo, grid=grid)
+    fresh = C.vertices_from(new_scene, cand, cls)
+    if lines_th.size:  # the degenerate lines are re-scanned whole, not from their candidates
+        fth = fresh["v_theta"]
+        fu = np.einsum("ij,ij->i", np.stack([-np.sin(fth), np.cos(fth)], 1), fresh["v_p"])
+        off = ~_on_lines(fth, fu, lines_th, lines_u, tol)
+        fresh = {name: arr[off] for name, arr in fresh.items()}
+    fresh = C.resolve_degenerate(new_scene, fresh)
+    if lines_th.size:
+        scanned = [scan_line(new_scene, t_, u_, cx.eps, tol, grid) for t_, u_ in zip(lines_th, lines_u)]
+        fresh = {name: np.concatenate([fresh[name]] + [x[name] for x in scanned]) for name in VERTEX_FIELDS}
+        o = np.argsort(fresh["v_key"], kind="stable")
+        fresh = {name: arr[o] for name, arr in fresh.items()}
+    blockers = None
+    if cx.blockers is not None:
+        blockers = cx.blockers.copy()
+        blockers[cand["key"][todo]] = cls[6][todo]
+    clock.lap("candidates")
+    # -- 2. the new vertex set, merged by key; re-tested vertices that did not change stay
+    V, vmap, added = _merge_vertices(V_old, fresh, retest_v | own_v)
+    old_bb, new_bb = scene.bounding_boxes(), new_scene.bounding_boxes()
+    if not (np.array_equal(old_bb[:, :2].min(0), new_bb[:, :2].min(0))
+            and np.array_equal(old_bb[:, 2:].max(0), new_bb[:, 2:].max(0))):
+        # sky ends are clipped to the scene box, which the move changed
+        V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
+    clock.lap("vertices")
+    out, st, zone = _splice_topology(new_scene, cx.state, V, vmap, added)
     V.update(out)
-    new = C.FlatComplex(scene=new_scene, eps=eps, arrays=V)
-    stats = _stats(new, recomputed, int(todo.sum()), int(todo.size))
+    clock.lap("topology")
+    st["lines"] = _distinct_lines(np.concatenate([reg_th, lines_th]), np.concatenate([reg_u, lines_u]), tol)
+    new = C.FlatComplex(scene=new_scene, eps=cx.eps, arrays=V, state=st, blockers=blockers)
+    stats = _stats(new, zone["faces"], int(todo.sum()), total)
+    stats.zone_vertices_removed = int(np.sum(vmap < 0))
+    stats.zone_vertices_added = int(added.size)
+    stats.zone_edges, stats.zone_slots = zone["edges"], zone["slots"]
+    stats.seconds = clock.laps
     return new, stats
+
+
+def _distinct_lines(th, u, tol):
+    """One (θ, u) per distinct line (copies within the tolerances merged)."""
+    g = C.line_groups(th, u, tol)
+    first = np.unique(g, return_index=True)[1]
+    return th[first], u[first]
+
+
+def _on_lines(th, u, lth, lu, tol):
+    """(N,) bool: the lines (θ, u) that are one of the lines (lth, lu) (canonical θ)."""
+    out = np.zeros(th.shape[0], bool)
+    for t_, u_ in zip(lth, lu):
+        out |= (np.abs(th - t_) <= C.TOL_THETA) & (np.abs(u - u_) <= tol)
+    return out
+
+
+def scan_line(scene, th, u, eps, tol, grid):
+    """The vertices on the degenerate line (θ, u), from the line alone: the objects touching
+    it (support value u on one side) and those crossing it (deeper than eps) split it into
+    maximal free segments; the entries of each are resolved like a rebuild resolves the
+    group of its free candidates (:func:`complex.resolve_entries`), θ, tail, head and the
+    segment's ends taken from its lowest-key candidate, the candidates of the vertices'
+    pairs looked up by their objects and sides.  A segment with one pair of point contacts
+    gives that pair's bitangent as a simple vertex.  O(n) numpy plus O(entries) Python.
+
+    Returns vertex arrays (the fields of ``VERTEX_FIELDS``), sorted by key."""
+    d = np.array([np.cos(th), np.sin(th)])
+    nrm = np.array([-d[1], d[0]])
+    starts = scene.vert_start[:-1]
+    proj = scene.verts @ nrm
+    hi = np.maximum.reduceat(proj, starts) + scene.radius
+    lo = np.minimum.reduceat(proj, starts) - scene.radius
+    codes = np.sort(np.concatenate([2 * np.nonzero(np.abs(hi - u) <= tol)[0] + C.R,
+                                    2 * np.nonzero(np.abs(lo - u) <= tol)[0] + C.L]))
+    o = u * nrm
+    hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
+    so = np.argsort(ti)
+    hk, to = hk[so], to[so]
+    pos, pos_b = C.contacts(scene, codes, d, nrm, tol)[:2]
+    seg = np.searchsorted(to, pos)
+    rows = []
+    for s_ in np.unique(seg):
+        ent = codes[seg == s_]
+        objs = np.unique(ent // 2)
+        if objs.size < 2:
+            continue
+        point = bool(np.all(pos[seg == s_] == pos_b[seg == s_]))
+        rows.extend(_segment_vertices(scene, ent, objs, point, th, u, eps, tol, grid))
+    if not rows:
+        return {name: np.zeros((0,) + shape, dtype) for name, (dtype, shape) in _VERTEX_LAYOUT.items()}
+    out = {name: np.concatenate([r[name] for r in rows]) for name in VERTEX_FIELDS}
+    o = np.argsort(out["v_key"], kind="stable")
+    return {name: arr[o] for name, arr in out.items()}
+
+
+_VERTEX_LAYOUT = dict(v_key=(np.int64, ()), v_obj=(np.int64, (2,)), v_support=(np.int64, (2,)), v_side=(np.int8, (2,)),
+                      v_tail=(np.int64, ()), v_head=(np.int64, ()), v_theta=(float, ()), v_tau=(float, ()),
+                      v_p=(float, (2,)), v_q=(float, (2,)), v_length=(float, ()), v_seg=(float, (4,)))
+
+
+def _pair_candidates_on(scene, pairs, th, u, tol):
+    """The candidates of object pairs (P, 2) and which of them lie on the line (θ, u), with
+    their objects and sides in the order along the line (k1 first)."""
+    cand = C.candidates(scene, pairs)
+    p, q = C.tangent_points(scene, cand)
+    ct = cand["theta"]
+    on = (np.abs(ct - th) <= C.TOL_THETA) & (np.abs(-np.sin(ct) * p[:, 0] + np.cos(ct) * p[:, 1] - u) <= tol)
+    first = np.einsum("ij,ij->i", q - p, np.stack([np.cos(ct), np.sin(ct)], 1)) >= 0
+    k1 = np.where(first, cand["a"], cand["b"]); k2 = np.where(first, cand["b"], cand["a"])
+    s1 = np.where(first, cand["side_a"], cand["side_b"]); s2 = np.where(first, cand["side_b"], cand["side_a"])
+    return cand, on, (2 * k1 + s1) * (2 * scene.n) + 2 * k2 + s2
+
+
+def _segment_vertices(scene, ent, objs, point, th, u, eps, tol, grid):
+    """Vertex rows of one maximal free segment of a degenerate line (see :func:`scan_line`)."""
+    # the lowest-key free candidate on the segment (the rebuild's first member of the group)
+    cand, on, _ = _pair_candidates_on(scene, np.array([[objs[0], objs[1]]], np.int64), th, u, tol)
+    i0 = np.nonzero(on)[0][:1]
+    one = {name: arr[i0] for name, arr in cand.items()}
+    first = C.vertices_from(scene, one, C.classify(scene, one, eps, grid=grid))
+    if first["v_key"].size == 0:
+        return []
+    n_members = ent.size * (ent.size - 1) // 2 - (ent.size - objs.size)
+    if n_members == 1 and point:
+        first["v_tau"] = np.zeros(1)
+        return [first]
+    n2 = 2 * scene.n
+    want, row = C.resolve_entries(scene, ent, float(first["v_theta"][0]), int(first["v_tail"][0]),
+                                  int(first["v_head"][0]), first["v_seg"][0, :2], first["v_seg"][0, 2:], tol,
+                                  lambda ci, cj: ci * n2 + cj)
+    if want.size == 0:
+        return []
+    pairs = np.stack([want // n2 // 2, want % n2 // 2], 1)
+    cand, on, code = _pair_candidates_on(scene, np.sort(pairs, axis=1).astype(np.int64), th, u, tol)
+    hit = (on & (code == np.repeat(want, 4))).reshape(-1, 4)
+    if np.any(hit.sum(axis=1) != 1):
+        raise ViscxError("a degenerate line could not be resolved (a common tangent was not found as a candidate)")
+    sel = 4 * np.arange(want.size) + np.argmax(hit, axis=1)
+    row["v_key"] = cand["key"][sel]
+    row["v_obj"] = pairs.astype(np.int64)
+    row["v_side"] = np.stack([(want // n2) % 2, want % 2], 1).astype(np.int8)
+    row["v_tail"] = row["v_tail"].astype(np.int64)
+    row["v_head"] = row["v_head"].astype(np.int64)
+    return [row]
+
+
+class _Clock:
+    """CPU seconds per named stage."""
+
+    def __init__(self):
+        self.laps, self.t = {}, time.process_time()
+
+    def lap(self, name):
+        t = time.process_time()
+        self.laps[name] = t - self.t
+        self.t = t
+
+
+def _rebuilt(cx, new_scene, total):
+    new = C.build(new_scene, eps=cx.eps)
+    stats = _stats(new, np.ones(new.n_faces, bool), total, total)
+    stats.local = False
+    return new, stats
+
+
+def _merge_vertices(V_old, fresh, redone):
+    """The vertices after the move: the old ones not re-done and the fresh ones, by key.
+
+    Returns (V, vmap, added): vmap (m_old,) the new index of each old vertex that stays in
+    the topology (a re-done vertex whose fresh copy has the same topology fields stays),
+    −1 for one that left; added the new indices of the vertices that entered."""
+    keep = np.nonzero(~redone)[0]
+    fk = fresh["v_key"]
+    V = {}
+    fidx = np.searchsorted(V_old["v_key"][keep], fk) + np.arange(fk.size)
+    m = keep.size + fk.size
+    kidx = np.arange(keep.size) + np.searchsorted(fidx - np.arange(fk.size), np.arange(keep.size), side="right")
+    for name in VERTEX_FIELDS:
+        old = V_old[name]
+        arr = np.empty((m,) + old.shape[1:], old.dtype)
+        arr[kidx] = old[keep]
+        arr[fidx] = fresh[name]
+        V[name] = arr
+    vmap = np.full(V_old["v_key"].shape[0], -1, np.int64)
+    vmap[keep] = kidx
+    # a re-done vertex found again, unchanged
+    rd = np.nonzero(redone)[0]
+    j = np.searchsorted(fk, V_old["v_key"][rd])
+    j = np.minimum(j, max(fk.size - 1, 0))
+    same = (fk.size > 0) & (fk[j] == V_old["v_key"][rd]) if fk.size else np.zeros(rd.size, bool)
+    for name in TOPOLOGY_FIELDS:
+        a, b = V_old[name][rd], fresh[name][j] if fk.size else V_old[name][rd]
+        same &= np.all((a == b).reshape(rd.size, -1), axis=1)
+    vmap[rd[same]] = fidx[j[same]]
+    entered = np.ones(fk.size, bool)
+    entered[j[same]] = False
+    return V, vmap, fidx[entered]
+
+
+def _splice_topology(scene, old, V, vmap, added):
+    """The topology state and stored arrays after the vertices changed (see the module
+    docstring).  Returns (arrays, state, zone sizes)."""
+    m_old, m = vmap.shape[0], V["v_key"].shape[0]
+    O = C.occurrences(V)
+    N_old = old["s_occ"].shape[0]
+    # -- incidences: the kept ones in order, renumbered; the new ones merged in
+    v_old, o_old = old["s_occ"] % m_old, old["s_occ"] >= m_old
+    kpos = np.nonzero(vmap[v_old] >= 0)[0]
+    k_occ = vmap[v_old[kpos]] + o_old[kpos] * m
+    cur, th, tau, occ, role = C.incidences(O, np.concatenate([added, added + m]))
+    o = np.lexsort((occ, tau, th, cur))
+    cur, th, tau, occ, role = cur[o], th[o], tau[o], occ[o], role[o]
+    ins = K.merge_ranks(old["s_cur"][kpos], old["s_th"][kpos], old["s_tau"][kpos], k_occ, cur, th, tau, occ)
+    N = kpos.size + cur.size
+    at_new = ins + np.arange(cur.size)
+    at_kept = np.arange(kpos.size) + np.cumsum(np.bincount(ins, minlength=kpos.size + 1))[:kpos.size]
+    st = {}
+    for name, kept_vals, new_vals in (("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role),
+                                      ("s_cur", old["s_cur"][kpos], cur), ("s_th", old["s_th"][kpos], th),
+                                      ("s_tau", old["s_tau"][kpos], tau)):
+        arr = np.empty(N, kept_vals.dtype)
+        arr[at_kept] = kept_vals
+        arr[at_new] = new_vals
+        st[name] = arr
+    C.link(st, 2 * m)
+    newpos = np.full(N_old, -1, np.int64)
+    newpos[kpos] = at_kept
+    # -- edges: kept when both ends are kept and still consecutive
+    nxt_old = newpos[old["nxt"][kpos]]
+    surv_old = kpos[(nxt_old >= 0) & (nxt_old == st["nxt"][at_kept])]
+    surv = newpos[surv_old]
+    fresh_e = np.ones(N, bool)
+    fresh_e[surv] = False
+    pe = np.nonzero(fresh_e)[0]
+    tmp = {}
+    C.edge_attributes(scene, O, st, pe, tmp)
+    for name in ("tail", "head", "th0", "th1", "I", "arc"):
+        arr = np.empty(N, old[name].dtype)
+        arr[surv] = old[name][surv_old]
+        arr[pe] = tmp[name]
+        st[name] = arr
+    # -- faces: the old components holding a slot of a vanished edge form the zone
+    dead = np.ones(N_old, bool)
+    dead[surv_old] = False
+    L_old = old["c_tail"].shape[0]
+    in_zone = np.zeros(L_old + 1, bool)
+    in_zone[np.take(old["comp"].reshape(-1, 3), np.nonzero(dead)[0], axis=0)] = True
+    comp = np.full((N, 3), L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
+    in_zone[L_old] = True
+    rows = np.dtype((np.void, 3 * comp.itemsize))  # a slot triple as one item: fast row gathers
+    comp.reshape(-1).view(rows)[surv] = old["comp"].view(rows)[surv_old]
+    comp = comp.ravel()
+    zslots = np.nonzero(in_zone[comp])[0]
+    zedges = zslots // 3
+    zedges = zedges[np.append(zedges[:1] >= 0, zedges[1:] != zedges[:-1])]
+    zocc = np.unique(np.concatenate([st["s_occ"][zedges], st["s_occ"][st["nxt"][zedges]]]))
+    X, Y, Z, W, _ = C.vertex_edges(O, st, zocc)
+    ua, ub = C.glue_pairs(X, Y, Z, W)
+    ia = np.minimum(np.searchsorted(zslots, ua), zslots.size - 1)
+    ib = np.minimum(np.searchsorted(zslots, ub), zslots.size - 1)
+    ina, inb = zslots[ia] == ua, zslots[ib] == ub
+    if np.any(ina != inb):  # cannot happen (see the module docstring): a bug, not an input error
+        raise RuntimeError("flatland move: the zone of the update is not closed under the vertex gluing")
+    g = coo_matrix((np.ones(int(ina.sum())), (ia[ina], ib[ina])), shape=(zslots.size, zslots.size))
+    nlab, lab = connected_components(g, directed=False)
+    comp[zslots] = L_old + lab
+    st["comp"] = comp
+    six, sgn = C.six_faces(O, comp, zocc, X, Y, Z)
+    six = np.where(six >= L_old, six - L_old, -1)
+    new_attr = {}
+    C.comp_attributes(scene, O, st, zslots, lab, nlab, six, sgn, zocc, new_attr)
+    keep_lab = ~in_zone[:L_old]
+    remap_slot = lambda s: 3 * newpos[s // 3] + s % 3  # noqa: E731
+    for name, vals in new_attr.items():
+        base = old[name].copy()
+        if name == "c_minslot":
+            base[keep_lab] = remap_slot(base[keep_lab])
+        st[name] = np.concatenate([base, vals])
+    # -- the kept faces' boundary lists, renumbered
+    kf = keep_lab[old["face_label"]]
+    st["face_label"] = old["face_label"][kf]
+    st["fe_start"], fe = _csr_keep(old["fe_start"], old["fe_packed"], kf)
+    st["fe_packed"] = newpos[fe >> 2] << 2 | fe & 3
+    st["fv_start"], fv = _csr_keep(old["fv_start"], old["fv_packed"], kf)
+    st["fv_packed"] = vmap[fv >> 3] << 3 | fv & 7
+    out = C.canonical(scene, V, O, st, L_old + np.arange(nlab), zslots, zocc)
+    faces = st["face_label"] >= L_old
+    if st["c_tail"].shape[0] > 2 * st["face_label"].shape[0] + 2 * nlab:
+        _compact(st)  # amortised: when dead labels outnumber the live ones
+    return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size))
+
+
+def _csr_keep(start, vals, keep):
+    """CSR lists restricted to the rows ``keep`` (bool): (start, values)."""
+    length = np.diff(start)[keep]
+    new_start = np.zeros(length.size + 1, np.int64)
+    np.cumsum(length, out=new_start[1:])
+    src = start[:-1][keep]
+    return new_start, vals[np.repeat(src - new_start[:-1], length) + np.arange(new_start[-1])]
+
+
+def _compact(st):
+    """Drop dead component labels (those of the zone before the move), renumbering comp,
+    c_* and face_label."""
+    comp = st["comp"]
+    alive = np.zeros(st["c_tail"].shape[0], bool)
+    alive[comp] = True
+    new_id = np.cumsum(alive) - 1
+    st["comp"] = new_id[comp]
+    for name in [k for k in st if k.startswith("c_")]:
+        st[name] = st[name][alive]
+    st["c_twin"] = new_id[st["c_twin"]]
+    st["face_label"] = new_id[st["face_label"]]
 
 
 def _pair_ids(f_pair, n):
@@ -111,8 +486,10 @@ def _stats(new, recomputed, tested, total):
     n = new.scene.n
     ok = new.f_bounded & ~((new.f_pair[:, 0] < 0) & (new.f_pair[:, 1] < 0))
     pid = _pair_ids(new.f_pair, n)[ok]
-    pairs_all = np.unique(pid)
-    pairs_re = np.unique(pid[recomputed[ok]])
+    seen = np.zeros((n + 1) ** 2, bool)
+    seen[pid] = True
+    again = np.zeros((n + 1) ** 2, bool)
+    again[pid[recomputed[ok]]] = True
     return MoveStats(candidates_tested=tested, candidates_total=total,
                      faces_recomputed=int(recomputed[ok].sum()), faces_total=int(ok.sum()),
-                     formfactors_recomputed=int(pairs_re.size), formfactors_total=int(pairs_all.size))
+                     formfactors_recomputed=int(again.sum()), formfactors_total=int(seen.sum()))

@@ -168,14 +168,13 @@ def build_grid(bboxes, target_per_cell=2.0):
     i1 = np.clip(((bboxes[:, 2] - lo[0]) / cell).astype(np.int64), 0, nx - 1)
     j0 = np.clip(((bboxes[:, 1] - lo[1]) / cell).astype(np.int64), 0, ny - 1)
     j1 = np.clip(((bboxes[:, 3] - lo[1]) / cell).astype(np.int64), 0, ny - 1)
-    cells, objs = [], []
-    for k in range(n):
-        ii, jj = np.meshgrid(np.arange(i0[k], i1[k] + 1), np.arange(j0[k], j1[k] + 1), indexing="ij")
-        c = (jj * nx + ii).ravel()
-        cells.append(c)
-        objs.append(np.full(c.shape, k, dtype=np.int64))
-    cells = np.concatenate(cells)
-    objs = np.concatenate(objs)
+    # every object's block of cells [i0, i1] × [j0, j1], enumerated without a Python loop
+    wi, wj = i1 - i0 + 1, j1 - j0 + 1
+    objs = np.repeat(np.arange(n, dtype=np.int64), wi * wj)
+    local = np.arange(objs.size) - np.repeat(np.cumsum(wi * wj) - wi * wj, wi * wj)
+    ii = i0[objs] + local // wj[objs]
+    jj = j0[objs] + local % wj[objs]
+    cells = jj * nx + ii
     order = np.lexsort((objs, cells))
     cells, objs = cells[order], objs[order]
     cell_start = np.searchsorted(cells, np.arange(nx * ny + 1)).astype(np.int64)
@@ -391,7 +390,9 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
     beyond the second (−1: the blue sky).
 
     Returns free (bool), first (which of a/b is first along d: 0 → a), tail, head,
-    tail_t, head_t (distance from the first/second tangent point to the blocker)."""
+    tail_t, head_t (distance from the first/second tangent point to the blocker), blocker
+    (an object cutting the segment of a blocked candidate, −1 if free: the dynamic update
+    re-tests a blocked candidate only when its blocker moves)."""
     N = theta.shape[0]
     free = np.zeros(N, np.bool_)
     a_first = np.zeros(N, np.bool_)
@@ -399,6 +400,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
     head = np.full(N, -2, np.int64)
     tail_t = np.zeros(N)
     head_t = np.zeros(N)
+    blocker = np.full(N, -1, np.int64)
     stamp = np.zeros(kind.shape[0], np.int64)
     sid = 0
     for i in range(N):
@@ -424,6 +426,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
         k, t = first_hit(px, py, dx, dy, oa[i], ob[i], L - eps, eps, stamp, sid,
                          origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
         if k >= 0 and t < L - eps:
+            blocker[i] = k
             continue
         free[i] = True
         head[i] = k
@@ -433,7 +436,7 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
                            origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
         tail[i] = k2
         tail_t[i] = t2 if k2 >= 0 else np.inf
-    return free, a_first, tail, head, tail_t, head_t
+    return free, a_first, tail, head, tail_t, head_t, blocker
 
 
 @nb.njit(cache=True)
@@ -543,6 +546,15 @@ def local_arrangement(xa, xb, right, c, mate):
     ohd = np.empty(cap, np.int64)
     obi = np.empty(cap, np.bool_)
     obj_ = np.empty(cap, np.bool_)
+    # the tail / head searches dominate (O(m) per free pair): for lines without an object
+    # along them, entry l is crossed iff sgn_l (f_l(τ) − u) > 0 (R: u < f, L: u > f)
+    plain = True
+    for l in range(m):
+        if mate[l] >= 0:
+            plain = False
+    x_pos = np.where(right, xa, xb)
+    x_neg = np.where(right, xb, xa)
+    sgn = np.where(right, 1.0, -1.0)
     cnt = 0
     for i in range(m):
         for j in range(i + 1, m):
@@ -558,22 +570,42 @@ def local_arrangement(xa, xb, right, c, mate):
             tau = -g0 / (xj - xi)
             u = c[i] - xi * tau
             free = True
-            for l in range(i + 1, j):
-                if l != mate[i] and l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
-                    free = False
-                    break
+            if plain:
+                xs = x_pos if tau > 0.0 else x_neg
+                for l in range(i + 1, j):
+                    if sgn[l] * ((c[l] - xs[l] * tau) - u) > 0.0:
+                        free = False
+                        break
+            else:
+                for l in range(i + 1, j):
+                    if l != mate[i] and l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                        free = False
+                        break
             if not free:
                 continue
-            tl = -1
-            for l in range(i - 1, -1, -1):
-                if l != mate[i] and _crosses(l, tau, u, xa, xb, right, c, mate):
-                    tl = l
-                    break
-            hd = -1
-            for l in range(j + 1, m):
-                if l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
-                    hd = l
-                    break
+            if plain:  # no object along the line: the test of _crosses, branch-free
+                xs = x_pos if tau > 0.0 else x_neg
+                tl = -1
+                for l in range(i - 1, -1, -1):
+                    if sgn[l] * ((c[l] - xs[l] * tau) - u) > 0.0:
+                        tl = l
+                        break
+                hd = -1
+                for l in range(j + 1, m):
+                    if sgn[l] * ((c[l] - xs[l] * tau) - u) > 0.0:
+                        hd = l
+                        break
+            else:
+                tl = -1
+                for l in range(i - 1, -1, -1):
+                    if l != mate[i] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                        tl = l
+                        break
+                hd = -1
+                for l in range(j + 1, m):
+                    if l != mate[j] and _crosses(l, tau, u, xa, xb, right, c, mate):
+                        hd = l
+                        break
             oi[cnt] = i
             oj[cnt] = j
             ot[cnt] = tau
@@ -603,3 +635,52 @@ def line_hits(ox, oy, dx, dy, eps, kind, vert_start, verts, radius):
             to[cnt] = b
             cnt += 1
     return hk[:cnt], ti[:cnt], to[:cnt]
+
+
+@nb.njit(cache=True)
+def merge_ranks(cur, th, tau, occ, ncur, nth, ntau, nocc):
+    """For each new incidence key (ncur, nth, ntau, nocc)[i], the number of keys of the
+    lexicographically sorted (cur, th, tau, occ) smaller than it: where it goes when the
+    two sorted lists are merged (binary search; O(new · log N))."""
+    N = cur.shape[0]
+    M = ncur.shape[0]
+    out = np.empty(M, np.int64)
+    for i in range(M):
+        lo, hi = 0, N
+        while lo < hi:
+            j = (lo + hi) // 2
+            if cur[j] != ncur[i]:
+                less = cur[j] < ncur[i]
+            elif th[j] != nth[i]:
+                less = th[j] < nth[i]
+            elif tau[j] != ntau[i]:
+                less = tau[j] < ntau[i]
+            else:
+                less = occ[j] < nocc[i]
+            if less:
+                lo = j + 1
+            else:
+                hi = j
+        out[i] = lo
+    return out
+
+
+@nb.njit(cache=True)
+def curve_links(cur, inc):
+    """Incidences sorted by curve (``cur``) with ids ``inc``: the next and previous position
+    on the same curve (cyclic) and the sorted position of every incidence id (one pass)."""
+    N = cur.shape[0]
+    nxt = np.empty(N, np.int64)
+    prv = np.empty(N, np.int64)
+    posof = np.empty(N, np.int64)
+    s = 0
+    for p in range(N):
+        posof[inc[p]] = p
+        if p + 1 == N or cur[p + 1] != cur[p]:  # p ends the curve that starts at s
+            for q in range(s, p):
+                nxt[q] = q + 1
+                prv[q + 1] = q
+            nxt[p] = s
+            prv[s] = p
+            s = p + 1
+    return nxt, prv, posof

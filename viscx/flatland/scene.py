@@ -76,19 +76,25 @@ class Scene:
             self._pieces = support_pieces(self.vert_start, self.verts, self.radius)
         return self._pieces
 
+    def object_hashes(self) -> np.ndarray:
+        """(n,) uint64: a digest of each object's geometry (support points and radius), cached."""
+        if not hasattr(self, "_hashes"):
+            self._hashes = np.array([_geometry_hash(self.verts[self.vert_start[k]:self.vert_start[k + 1]],
+                                                    self.radius[k]) for k in range(self.n)], np.uint64)
+        return self._hashes
+
     def perimeters(self) -> np.ndarray:
         """(n,) float64: boundary length L_k (= measure of the lines meeting O_k)."""
         return self.pieces()[3]
 
     def bounding_boxes(self) -> np.ndarray:
-        """(n, 4) float64: xmin, ymin, xmax, ymax per object."""
-        out = np.empty((self.n, 4))
-        for k in range(self.n):
-            v = self.verts[self.vert_start[k] : self.vert_start[k + 1]]
-            r = self.radius[k]
-            out[k, :2] = v.min(axis=0) - r
-            out[k, 2:] = v.max(axis=0) + r
-        return out
+        """(n, 4) float64: xmin, ymin, xmax, ymax per object (cached; do not modify)."""
+        if not hasattr(self, "_bboxes"):
+            s = self.vert_start[:-1]
+            r = self.radius[:, None]
+            self._bboxes = np.concatenate([np.minimum.reduceat(self.verts, s, axis=0) - r,
+                                           np.maximum.reduceat(self.verts, s, axis=0) + r], axis=1)
+        return self._bboxes
 
     def object_polygon(self, k, samples=128) -> np.ndarray:
         """(m, 2) float64: the boundary of object k as a closed-ready polygon (circles sampled)."""
@@ -99,11 +105,32 @@ class Scene:
         return v.copy()
 
     def moved(self, k, dx, dy) -> "Scene":
-        """A copy of the scene with object k translated by (dx, dy) (no overlap check)."""
+        """A copy of the scene with object k translated by (dx, dy) (no overlap check).
+
+        The cached support pieces and bounding boxes are carried over with object k's
+        entries alone recomputed (from its new corners, as a fresh scene would), so a move
+        costs O(size of k), not O(n)."""
+        s, e = int(self.vert_start[k]), int(self.vert_start[k + 1])
         verts = self.verts.copy()
-        verts[self.vert_start[k] : self.vert_start[k + 1]] += (dx, dy)
-        return Scene(self.kind.copy(), self.vert_start.copy(), verts, self.radius.copy(),
-                     self.emission.copy(), self.reflectance.copy(), list(self.names))
+        verts[s:e] += (dx, dy)
+        out = Scene(self.kind.copy(), self.vert_start.copy(), verts, self.radius.copy(),
+                    self.emission.copy(), self.reflectance.copy(), list(self.names))
+        if hasattr(self, "_pieces"):
+            mine = support_pieces(np.array([0, e - s]), verts[s:e], self.radius[k:k + 1])
+            pieces = [x.copy() for x in self._pieces]
+            for whole, part in zip(pieces[:3], mine[:3]):
+                whole[s:e] = part
+            pieces[3][k] = mine[3][0]
+            out._pieces = tuple(pieces)
+        if hasattr(self, "_hashes"):
+            out._hashes = self._hashes.copy()
+            out._hashes[k] = _geometry_hash(verts[s:e], self.radius[k])
+        if hasattr(self, "_bboxes"):
+            bb = self._bboxes.copy()
+            r = self.radius[k]
+            bb[k] = np.concatenate([verts[s:e].min(axis=0) - r, verts[s:e].max(axis=0) + r])
+            out._bboxes = bb
+        return out
 
     def perturbed(self, rel=1e-7) -> "Scene":
         """A copy with every object rotated about its centre and translated by tiny,
@@ -141,6 +168,16 @@ class Scene:
                 o.update(type="segment" if self.kind[k] == SEGMENT else "polygon", points=v.tolist())
             objs.append(o)
         return {"objects": objs}
+
+
+def _geometry_hash(v, r):
+    """uint64 digest of one object's support points and radius."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=8)
+    h.update(np.ascontiguousarray(v).tobytes())
+    h.update(np.float64(r).tobytes())
+    return np.frombuffer(h.digest(), np.uint64)[0]
 
 
 def support_pieces(vert_start, verts, radius):
@@ -324,6 +361,20 @@ def check_disjoint(scene: Scene, eps=None):
                 a, b = sorted((int(i), int(j)))
                 raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} overlap or touch; "
                                  "flatland objects must be disjoint")
+
+
+def check_object_disjoint(scene: Scene, k: int, eps=None):
+    """:func:`check_disjoint` for the pairs of object k alone (the others are known disjoint)."""
+    bb = scene.bounding_boxes()
+    scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
+    eps = 1e-9 * scale if eps is None else eps
+    near = np.nonzero((bb[:, 0] <= bb[k, 2] + eps) & (bb[k, 0] <= bb[:, 2] + eps)
+                      & (bb[:, 1] <= bb[k, 3] + eps) & (bb[k, 1] <= bb[:, 3] + eps))[0]
+    for j in near:
+        if j != k and not _separated(scene, k, j, eps):
+            a, b = sorted((int(k), int(j)))
+            raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} overlap or touch; "
+                             "flatland objects must be disjoint")
 
 
 def _separated(scene, i, j, eps):

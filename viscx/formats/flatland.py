@@ -155,14 +155,14 @@ def check_complex(c, scene, names, arrays, eps):
     """The scene (as :func:`viscx.flatland.scene.make_scene` checks a scene file: convex,
     disjoint objects) and the complex's arrays (dtypes, shapes, ids in range, CSR lists,
     finite numbers) of a flatland file. Returns the :class:`Scene`."""
-    from viscx.flatland.scene import CIRCLE, POLYGON, Scene, make_scene
+    from viscx.flatland.scene import CIRCLE, SEGMENT, Scene, make_scene
 
     where = str(c.path)
     if not (np.ndim(eps) == 0 and np.asarray(eps).dtype.kind in "iuf" and np.isfinite(eps) and eps > 0):
         raise ViscxError(f"{where}: the epsilon attribute {eps!r} is not a finite positive number")
     s = c.sizes
     c.offsets("/scene/vert_start", scene["vert_start"], s["V"], strict=True)
-    c.within("/scene/kind", scene["kind"], CIRCLE, POLYGON + 1)
+    c.within("/scene/kind", scene["kind"], CIRCLE, SEGMENT + 1)
     flat = Scene(scene["kind"].astype(np.int8), scene["vert_start"], scene["verts"], scene["radius"], scene["emission"],
                  scene["reflectance"], list(names))
     make_scene(flat.to_json()["objects"])  # every rule of a scene file, one line naming the object

@@ -259,11 +259,15 @@ def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dim
     stamp = np.full(triangles.shape[0], -1, dtype=np.int64)
     a0 = np.empty(3, dtype=np.int64)
     a1 = np.empty(3, dtype=np.int64)
+    box_lo = np.empty(3)
+    box_hi = np.empty(3)
     for r in range(starts.shape[0]):
         p0, p1 = starts[r], ends[r]
         for d in range(3):
-            a0[d] = cell_of(min(p0[d], p1[d]) - tol, lo[d], cell[d], dims[d])
-            a1[d] = cell_of(max(p0[d], p1[d]) + tol, lo[d], cell[d], dims[d])
+            box_lo[d] = min(p0[d], p1[d]) - tol
+            box_hi[d] = max(p0[d], p1[d]) + tol
+            a0[d] = cell_of(box_lo[d], lo[d], cell[d], dims[d])
+            a1[d] = cell_of(box_hi[d], lo[d], cell[d], dims[d])
         for x in range(a0[0], a1[0] + 1):
             for y in range(a0[1], a1[1] + 1):
                 for z in range(a0[2], a1[2] + 1):
@@ -275,6 +279,14 @@ def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dim
                         stamp[tri] = r
                         t = triangles[tri]
                         a, b, cc = vertices[t[0]], vertices[t[1]], vertices[t[2]]
+                        # boxes apart by more than tol on an axis: farther than tol (most
+                        # triangles of a dense cell; the exact distance is the costly part)
+                        apart = False
+                        for d in range(3):
+                            if (min(a[d], b[d], cc[d]) > box_hi[d]) or (max(a[d], b[d], cc[d]) < box_lo[d]):
+                                apart = True
+                        if apart:
+                            continue
                         dist2 = _segment_triangle_dist2(p0, p1, a, b, cc) if segments else _point_triangle_dist2(p0, a, b, cc)
                         if dist2 <= tol2:
                             if k < out_row.shape[0]:

@@ -9,7 +9,7 @@ of X-junctions are judged the same way (:mod:`viscx.skeleton.arcs.xe`).
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges
+from viscx.arrays import expand_ranges, unique_rows
 from viscx.geometry.lines import line_through_point_and_two_lines
 from viscx.grid import overlapping_box_pairs
 from viscx.scene.neighbourhood import faces_near
@@ -159,7 +159,7 @@ def edge_pairs_seen_together(p, a, b, slack):
     for i in np.flatnonzero(degenerate):
         j = np.delete(np.arange(n), i)
         parts.append(np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1))
-    pairs = np.unique(np.concatenate(parts).reshape(-1, 2), axis=0) if parts else np.zeros((0, 2), np.int64)
+    pairs = unique_rows(np.concatenate(parts).reshape(-1, 2))[0] if parts else np.zeros((0, 2), np.int64)
     return pairs[_seen_together_mask(pairs, ua, ub, nrm, slack)]
 
 

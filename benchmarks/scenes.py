@@ -11,6 +11,16 @@ def spheres_in_room(n_spheres=6, subdivisions=5, seed=0):
 
     With the defaults: 122,880 sphere triangles plus the room's 12.
     """
+    soup = spheres_in_room_soup(n_spheres, subdivisions, seed)
+    return build_scene(soup, source=f"spheres_in_room(n={n_spheres}, subdivisions={subdivisions}, seed={seed})")
+
+
+#: Where the light hangs in :func:`spheres_in_room` (under the ceiling, y = 5).
+SPHERES_LIGHT = (0.0, 4.5, 0.0)
+
+
+def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0):
+    """The polygons of :func:`spheres_in_room` (a PolygonSoup, e.g. for :func:`write_obj`)."""
     rng = np.random.default_rng(seed)
     room = trimesh.creation.box(extents=(20, 10, 20))
     room.invert()  # faces look inward
@@ -30,7 +40,7 @@ def spheres_in_room(n_spheres=6, subdivisions=5, seed=0):
         polygon_group=groups,
         group_names=["room"] + [f"sphere{i}" for i in range(n_spheres)],
     )
-    return build_scene(soup, source=f"spheres_in_room(n={n_spheres}, subdivisions={subdivisions}, seed={seed})")
+    return soup
 
 
 def random_boxes(n_polygons, seed=0, coverage=0.15):
@@ -75,3 +85,75 @@ def random_boxes(n_polygons, seed=0, coverage=0.15):
         group_names=["floor"] + [f"box{i}" for i in range(n_boxes)],
     )
     return build_scene(soup, source=f"random_boxes(n_polygons={n_polygons}, seed={seed})")
+
+
+def read_bunny(path):
+    """The Stanford bunny of the npm registry (package ``bunny``: the scan of the Stanford 3D
+    Scanning Repository, 1,839 vertices and 3,674 triangles), from its ``index.js``
+    (``exports.positions=[[x, y, z], …]; exports.cells=[[i, j, k], …]``) or a JSON file
+    ``{"positions": …, "cells": …}``. The data is not shipped with viscx (the repository asks
+    to be credited and keeps its terms): ``npm pack bunny`` fetches it.
+
+    Returns
+    -------
+    positions : (n, 3) float64
+        y up, the ears at y ≈ 9.65.
+    cells : (t, 3) int64
+    """
+    import json
+    import re
+
+    text = open(path, encoding="utf-8").read()
+    if text.lstrip().startswith("{"):
+        data = json.loads(text)
+    else:
+        data = {k: json.loads(v) for k, v in re.findall(r"exports\.(positions|cells)\s*=\s*(\[.*?\]\])", text, re.S)}
+    return np.asarray(data["positions"], dtype=np.float64), np.asarray(data["cells"], dtype=np.int64)
+
+
+#: Where a point light hangs in :func:`bunny_in_room` (under the quad light).
+BUNNY_LIGHT = (0.0, 19.0, 0.0)
+
+
+def bunny_in_room(path, room=30.0, height=20.0, light=4.0, light_drop=0.5):
+    """The npm bunny (:func:`read_bunny`) standing on the floor of a closed room under a
+    quad light: its lowest vertex on the floor (y = 0), the room ``room`` wide and deep
+    and ``height`` high around it, the light a ``light``-wide square ``light_drop`` under
+    the ceiling, above the bunny. Groups: floor, ceiling, wall_x0, wall_x1, wall_z0,
+    wall_z1, light, bunny.
+
+    Returns
+    -------
+    PolygonSoup
+    """
+    positions, cells = read_bunny(path)
+    positions = positions - [0.0, positions[:, 1].min(), 0.0]
+    h, y, q = room / 2, height, light / 2
+    box = np.array([[x, yy, z] for x in (-h, h) for yy in (0.0, y) for z in (-h, h)])  # index 4x + 2y + z
+    quads = {"floor": (0, 1, 5, 4), "ceiling": (2, 6, 7, 3), "wall_x0": (0, 2, 3, 1), "wall_x1": (4, 5, 7, 6),
+             "wall_z0": (0, 4, 6, 2), "wall_z1": (1, 3, 7, 5)}
+    lamp = np.array([[-q, y - light_drop, -q], [q, y - light_drop, -q], [q, y - light_drop, q], [-q, y - light_drop, q]])
+    vertices = np.concatenate([box, lamp, positions])
+    polygons = [list(v) for v in quads.values()] + [[8, 9, 10, 11]] + (cells + 12).tolist()
+    names = list(quads) + ["light", "bunny"]
+    groups = list(range(7)) + [7] * len(cells)
+    sizes = [len(p) for p in polygons]
+    return PolygonSoup(
+        vertices=vertices,
+        polygon_offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        polygon_vertices=np.concatenate(polygons).astype(np.int64),
+        polygon_group=np.asarray(groups, dtype=np.int64),
+        group_names=names,
+    )
+
+
+def write_obj(path, soup):
+    """Write a PolygonSoup as an OBJ file, one ``o`` group per group name (what
+    ``viscx build`` and the scoped queries read)."""
+    with open(path, "w", encoding="ascii") as out:
+        out.write("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in soup.vertices.tolist()))
+        off, pv = soup.polygon_offsets, soup.polygon_vertices + 1
+        for g, name in enumerate(soup.group_names):
+            out.write(f"o {name}\n")
+            for i in np.flatnonzero(soup.polygon_group == g):
+                out.write("f " + " ".join(map(str, pv[off[i]:off[i + 1]].tolist())) + "\n")

@@ -9,6 +9,7 @@ import numpy as np
 from oracles import sample_on_triangles
 
 from viscx.geometry.polygon import plane_basis
+from viscx.queries.visibility import face_areas
 
 #: Samples per chunk of the point-in-polygon and distance tests.
 CHUNK = 1 << 14
@@ -62,8 +63,11 @@ def judge(scene, view, point, n, rng, band):
     lit_ray = scene.ray_caster.free_segments(pts, np.broadcast_to(point, pts.shape))
     lit_json = np.zeros(n, bool)
     near = np.zeros(n, bool)
-    for f, fv in enumerate(view.faces):
-        rows = np.flatnonzero(face == f)
+    by_face = np.argsort(face, kind="stable")  # the samples of each face, ascending
+    start = np.searchsorted(face[by_face], np.arange(len(view.faces) + 1))
+    for f in np.unique(face).tolist():
+        fv = view.faces[f]
+        rows = by_face[start[f]:start[f + 1]]
         loops = fv.loops
         if len(rows) == 0 or not loops:
             continue
@@ -82,7 +86,7 @@ def judge(scene, view, point, n, rng, band):
         near[rows] = (dist <= band) | (dist_b <= band)
     judged = ~near
     agree = np.count_nonzero((lit_json == lit_ray) & judged)
-    lit_area = sum(fv.area() for fv in view.faces)
+    lit_area = float(face_areas(view.faces).sum())
     mc_area = float(np.mean(lit_ray)) * float(scene.face_area.sum())
     bad = np.flatnonzero((lit_json != lit_ray) & judged)
     return {

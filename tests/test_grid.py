@@ -60,3 +60,27 @@ def test_serial_kernel_and_pooled_threads_are_the_brute_force(boxes_and_rays):
                        workers=2)
     assert np.array_equal(np.concatenate([p[0] for p in parts]), tri)
     assert np.array_equal(np.concatenate([p[1] for p in parts]), t)
+
+
+def test_segment_triangle_distance_against_sampling():
+    """The exact segment-triangle distance (scalar code) against the distance from points
+    densely spaced along the segment (Ericson's point-triangle distance): never above the
+    sampled minimum, and within the sampling step of it; zero where the segment pierces the
+    triangle (crossing its plane inside it)."""
+    from viscx.grid import _point_triangle_dist2, _segment_triangle_dist2
+
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 1.0, 1001)
+    for k in range(150):
+        p0, p1, a, b, c = rng.normal(size=(5, 3))
+        if k % 3 == 0:  # a segment through the triangle's interior
+            w = rng.dirichlet(np.ones(3))
+            x = w[0] * a + w[1] * b + w[2] * c
+            p1 = x + (x - p0) * rng.uniform(0.2, 2.0)
+        exact = np.sqrt(_segment_triangle_dist2(p0, p1, a, b, c))
+        sampled = min(np.sqrt(_point_triangle_dist2(p0 + s * (p1 - p0), a, b, c)) for s in t)
+        step = np.linalg.norm(p1 - p0) / (len(t) - 1)
+        assert exact <= sampled + 1e-12
+        assert sampled - exact <= step
+        if k % 3 == 0:
+            assert exact <= 1e-9

@@ -6,8 +6,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, SAMPLES
 
+from viscx.scene import load_scene
 from viscx.skeleton.point_nodes import edge_pairs_seen_together, seen_together
 from viscx.tolerances import ANGLE_TOLERANCE
 
@@ -54,3 +55,59 @@ def test_coplanar_edges_far_apart_on_one_circle():
     found = edge_pairs_seen_together(p, a, b, slack)
     assert [0, 1] in found.tolist()
     assert np.array_equal(found, _all_pairs(p, a, b, slack))
+
+
+def _free_points(scene, rng):
+    """Free points of a scene: random ones, on the line of an edge (beyond its end) and in
+    the plane of a face (off the face), as far as check_points admits them."""
+    from viscx.skeleton.points import check_points
+
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    ev = scene.half_edges.edge_vertices
+    out = [lo + (hi - lo) * rng.uniform(0.05, 0.95, 3) for _ in range(3)]
+    for e in rng.choice(len(ev), 3, replace=False):
+        a, b = scene.vertices[ev[e]]
+        out.append(b + (b - a) * rng.uniform(0.5, 3.0))
+    for f in rng.choice(scene.n_faces, 3, replace=False):
+        loop = scene.face_loops(f)[0]
+        u = loop[1] - loop[0]
+        out.append(loop.mean(axis=0) + u * rng.uniform(1.5, 4.0))
+    free = []
+    for p in out:
+        try:
+            check_points(scene, p[None])
+            free.append(p)
+        except Exception:
+            pass
+    return free
+
+
+@pytest.mark.parametrize("make", [lambda: random_boxes(60, seed=5), lambda: spheres_in_room(subdivisions=2),
+                                  lambda: load_scene(SAMPLES / "boxes_on_floor.obj"),
+                                  lambda: load_scene(SAMPLES / "room_with_door.obj")],
+                         ids=["boxes", "spheres", "boxes_on_floor", "room_with_door"])
+def test_blocked_inner_edges_leave_the_nodes_unchanged(make, monkeypatch):
+    """Dropping the VEE candidates whose nearer edge blocks the line (inner_edge_blocks)
+    before validation gives the nodes of validating every candidate, field for field, at
+    random points, points on an edge's line and points in a face's plane."""
+    from viscx.skeleton import point_nodes as pn
+    from viscx.skeleton.nodes import Nodes, validate_candidates
+    from viscx.skeleton.points import with_points
+
+    scene = make()
+    points = _free_points(scene, np.random.default_rng(9))
+    assert len(points) >= 5
+    dropped = []
+    for p in points:
+        ext = with_points(scene, p[None])
+        ids = np.array([scene.n_vertices])
+        fast = pn.point_nodes(ext, ids)
+        kept = len(pn.point_candidates(ext, ids)[0])
+        with monkeypatch.context() as m:
+            m.setattr(pn, "inner_edge_blocks", lambda scene, p, e1, e2, d: np.zeros(len(d), bool))
+            every = pn.point_candidates(ext, ids)
+        slow = validate_candidates(ext, *every)
+        dropped.append(1 - kept / len(every[0]))
+        for name in Nodes.__dataclass_fields__:
+            np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name), err_msg=name)
+    assert max(dropped) > 0.2  # the rule does drop candidates here

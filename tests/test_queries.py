@@ -12,7 +12,7 @@ from random_scenes import random_boxes, random_tetrahedra
 
 from viscx.formats.hdf5 import ViscxFile, read_arcs, read_nodes, read_vcells
 from viscx.pipeline import build_file
-from viscx.queries.visibility import point_view
+from viscx.queries.visibility import face_areas, point_view
 from viscx.scene import build_scene, load_scene
 from viscx.skeleton.nodes import VEE, VV, vertex_ray_blockers
 from viscx.skeleton.points import build_points, check_points, with_points
@@ -217,3 +217,24 @@ def test_bad_queries(cornell_file, tmp_path, args, message):
     assert r.returncode == 2
     err = r.stderr.decode().strip()
     assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_face_areas_are_the_faces_own():
+    """face_areas (one pass over every loop) equals FaceView.area() face by face."""
+    scene = load_scene(SAMPLES / "room_with_door.obj")
+    p = np.array(LIGHTS["room_with_door.obj"])
+    pc = build_points(scene, p[None])
+    view = point_view(pc.scene, pc.arcs, pc.vcells, scene.n_vertices, p)
+    own = np.array([fv.area() for fv in view.faces])
+    assert np.count_nonzero(own) >= 8  # the faces the light sees, holes included
+    np.testing.assert_allclose(face_areas(view.faces), own, rtol=1e-13, atol=0)
+
+
+def test_point_arcs_build_no_pencil_planes():
+    """A free point's VE lines lie in no pencil of a touched plane: its arcs leave the
+    scene-wide pencil planes unbuilt (on 122,892 triangles they took 16 of 25 CPU s)."""
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    pc = build_points(scene, np.array(LIGHTS["boxes_on_floor.obj"])[None])
+    assert len(pc.arcs) and "pencil_planes" not in pc.scene.cache
+    from viscx.skeleton.arcs.pencils import pencil_planes
+    assert len(pencil_planes(scene)[0])  # the scene has such planes: EEE families need them

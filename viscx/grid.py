@@ -23,6 +23,7 @@ import threading
 import numpy as np
 from numba import njit, prange
 
+from viscx.arrays import unique_rows
 from viscx.parallel import in_pool
 from viscx.tolerances import BARY_SLACK, PARALLEL_COSINE
 
@@ -259,11 +260,15 @@ def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dim
     stamp = np.full(triangles.shape[0], -1, dtype=np.int64)
     a0 = np.empty(3, dtype=np.int64)
     a1 = np.empty(3, dtype=np.int64)
+    box_lo = np.empty(3)
+    box_hi = np.empty(3)
     for r in range(starts.shape[0]):
         p0, p1 = starts[r], ends[r]
         for d in range(3):
-            a0[d] = cell_of(min(p0[d], p1[d]) - tol, lo[d], cell[d], dims[d])
-            a1[d] = cell_of(max(p0[d], p1[d]) + tol, lo[d], cell[d], dims[d])
+            box_lo[d] = min(p0[d], p1[d]) - tol
+            box_hi[d] = max(p0[d], p1[d]) + tol
+            a0[d] = cell_of(box_lo[d], lo[d], cell[d], dims[d])
+            a1[d] = cell_of(box_hi[d], lo[d], cell[d], dims[d])
         for x in range(a0[0], a1[0] + 1):
             for y in range(a0[1], a1[1] + 1):
                 for z in range(a0[2], a1[2] + 1):
@@ -275,6 +280,14 @@ def _near_counts(starts, ends, segments, tol, vertices, triangles, lo, cell, dim
                         stamp[tri] = r
                         t = triangles[tri]
                         a, b, cc = vertices[t[0]], vertices[t[1]], vertices[t[2]]
+                        # boxes apart by more than tol on an axis: farther than tol (most
+                        # triangles of a dense cell; the exact distance is the costly part)
+                        apart = False
+                        for d in range(3):
+                            if (min(a[d], b[d], cc[d]) > box_hi[d]) or (max(a[d], b[d], cc[d]) < box_lo[d]):
+                                apart = True
+                        if apart:
+                            continue
                         dist2 = _segment_triangle_dist2(p0, p1, a, b, cc) if segments else _point_triangle_dist2(p0, a, b, cc)
                         if dist2 <= tol2:
                             if k < out_row.shape[0]:
@@ -346,22 +359,27 @@ def _point_triangle_dist2(p, a, b, c):
     return dx * dx + dy * dy + dz * dz
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _segment_segment_dist2(p0, p1, q0, q1):
     """Squared distance between the closed segments p0p1 and q0q1: minimise
-    |p0 + s u - q0 - t v|² over [0, 1]², clamping s, then t, then s again."""
-    u, v, w = p1 - p0, q1 - q0, p0 - q0
-    a, e, f = (u * u).sum(), (v * v).sum(), (v * w).sum()
+    |p0 + s u - q0 - t v|² over [0, 1]², clamping s, then t, then s again. Scalar code
+    (no 3-vector temporaries: it runs for every pair of nearby edge and triangle side)."""
+    ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+    vx, vy, vz = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
+    wx, wy, wz = p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]
+    a = ux * ux + uy * uy + uz * uz
+    e = vx * vx + vy * vy + vz * vz
+    f = vx * wx + vy * wy + vz * wz
     if a <= 0.0 and e <= 0.0:
-        return (w * w).sum()
+        return wx * wx + wy * wy + wz * wz
     if a <= 0.0:
         s, t = 0.0, min(max(f / e, 0.0), 1.0)
     else:
-        c = (u * w).sum()
+        c = ux * wx + uy * wy + uz * wz
         if e <= 0.0:
             s, t = min(max(-c / a, 0.0), 1.0), 0.0
         else:
-            b = (u * v).sum()
+            b = ux * vx + uy * vy + uz * vz
             den = a * e - b * b
             s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 0.0 else 0.0
             t = (b * s + f) / e
@@ -369,8 +387,10 @@ def _segment_segment_dist2(p0, p1, q0, q1):
                 s, t = min(max(-c / a, 0.0), 1.0), 0.0
             elif t > 1.0:
                 s, t = min(max((b - c) / a, 0.0), 1.0), 1.0
-    d = p0 + s * u - q0 - t * v
-    return (d * d).sum()
+    dx = p0[0] + s * ux - q0[0] - t * vx
+    dy = p0[1] + s * uy - q0[1] - t * vy
+    dz = p0[2] + s * uz - q0[2] - t * vz
+    return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True)
@@ -382,8 +402,12 @@ def _segment_triangle_dist2(p0, p1, a, b, c):
     an edge (an interior pair at a positive distance is not stationary unless the
     segment is parallel, when an end does as well)."""
     best = min(_point_triangle_dist2(p0, a, b, c), _point_triangle_dist2(p1, a, b, c))
-    n = np.cross(b - a, c - a)
-    s0, s1 = (n * (p0 - a)).sum(), (n * (p1 - a)).sum()
+    # n = (b - a) × (c - a), and n·(p - a) at both ends (scalar: no temporaries)
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
+    s0 = nx * (p0[0] - a[0]) + ny * (p0[1] - a[1]) + nz * (p0[2] - a[2])
+    s1 = nx * (p1[0] - a[0]) + ny * (p1[1] - a[1]) + nz * (p1[2] - a[2])
     if (s0 <= 0.0 <= s1 or s1 <= 0.0 <= s0) and s0 != s1:
         # where the segment crosses the plane (a candidate, exact up to rounding)
         best = min(best, _point_triangle_dist2(p0 + (s0 / (s0 - s1)) * (p1 - p0), a, b, c))
@@ -585,4 +609,4 @@ def overlapping_box_pairs(boxes_lo, boxes_hi, owner, side, cell_size):
     m = _pairs_in_cells(lo, cell, dims, offsets, items, boxes_lo, boxes_hi, owner, side, np.zeros((0, 2), np.int64), False)
     out = np.empty((m, 2), np.int64)
     _pairs_in_cells(lo, cell, dims, offsets, items, boxes_lo, boxes_hi, owner, side, out, True)
-    return np.unique(out, axis=0)
+    return unique_rows(out)[0]  # (np.unique(axis=0) is several times slower)

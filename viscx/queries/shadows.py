@@ -11,7 +11,7 @@ lit on its back (``front`` says which side the light is on).
 
 import numpy as np
 
-from viscx.queries.visibility import as_query, view_from, view_summary
+from viscx.queries.visibility import as_query, face_areas, view_from, view_summary
 
 
 def shadow_result(scene, view, stored=False):
@@ -33,15 +33,18 @@ def shadow_result(scene, view, stored=False):
     """
     p = view.point
     faces = []
+    area = face_areas(view.faces).tolist()
+    front = (scene.face_normal @ p > scene.face_offset).tolist()
+    names = [scene.group_names[g] for g in scene.face_group.tolist()]
     for fv in view.faces:
         f = fv.face
         faces.append({
             "face": f,
-            "group": scene.group_names[scene.face_group[f]],
+            "group": names[f],
             "lit": [loop.tolist() for loop in fv.loops],
             "boundary": np.asarray(fv.boundary).tolist(),
-            "front": bool(scene.face_normal[f] @ p > scene.face_offset[f]),
-            "lit_area": fv.area(),
+            "front": front[f],
+            "lit_area": area[f],
             "complete": fv.complete,
         })
     return {"light": p.tolist(), "faces": faces, **view_summary(view, stored)}

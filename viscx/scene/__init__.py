@@ -110,8 +110,10 @@ class Scene(Cached):
 
     @property
     def bbox(self):
-        """(2, 3) float: lower and upper corner of the bounding box."""
-        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+        """(2, 3) float: lower and upper corner of the bounding box (a copy of the cached
+        corners: every first hit asks for the diagonal, and a min/max over the vertices
+        of a large scene at each call cost more than the hits of a few rays)."""
+        return self.cached("bbox", lambda s: np.stack([s.vertices.min(axis=0), s.vertices.max(axis=0)])).copy()
 
     @property
     def diagonal(self):

@@ -99,6 +99,14 @@ def _contacts(a, b, ends, tol, offsets, items, out, fill):
                 if j == i or ends[i, 0] == ends[j, 0] or ends[i, 0] == ends[j, 1] or ends[i, 1] == ends[j, 0] \
                         or ends[i, 1] == ends[j, 1]:
                     continue
+                # boxes farther apart than tol on an axis: no contact (most pairs of a dense cell)
+                apart = False
+                for d in range(3):
+                    if min(a[j, d], b[j, d]) - max(a[i, d], b[i, d]) > tol \
+                            or min(a[i, d], b[i, d]) - max(a[j, d], b[j, d]) > tol:
+                        apart = True
+                if apart:
+                    continue
                 for w in range(2):  # an endpoint of j on i
                     x = a[j] if w == 0 else b[j]
                     s = ((x - a[i]) * u).sum() / uu

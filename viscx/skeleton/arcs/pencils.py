@@ -176,9 +176,11 @@ def pencil_plane_of(scene, kind, generators):
     generators : (m, 3) int
     """
     out = np.full(len(kind), -1, dtype=np.int64)
-    face, role, incidence = pencil_planes(scene)
     rows = np.flatnonzero(np.asarray(kind) == EEE)
-    if not len(face) or not len(rows):
+    if not len(rows):  # VE lines lie in no pencil: the planes are not built for them
+        return out
+    face, role, incidence = pencil_planes(scene)
+    if not len(face):
         return out
     g = np.asarray(generators)[rows]
     # A plane holding two of the three edges holds the first or the second: the candidate

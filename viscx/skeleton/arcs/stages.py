@@ -125,7 +125,8 @@ def arcs_on_intervals(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=No
         The fields of :class:`Arcs` (not sorted) and ``sides`` (m, 8), the half-cells'
         pairs of each arc's sample.
     """
-    pencil_planes(scene)  # the samples' threads read it: built here once, not in each of them
+    if np.any(fkind[f] == EEE):  # the samples' threads read it: built here once, not in each of them
+        pencil_planes(scene)  # (VE lines lie in no pencil: a free point's arcs never need it)
     parts, mixed = first_pass(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers)
     return arcs_of_pieces(scene, fkind, fgens, parts + refine_intervals(scene, fkind, fgens, *mixed, workers=workers))
 

@@ -133,7 +133,7 @@ from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums
+from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums, unique_elements
 from viscx.tolerances import (
     ANGLE_TOLERANCE,
     PARALLEL_TOLERANCE,
@@ -1180,7 +1180,8 @@ def _uncovered(seg, lo, hi, n, tol):
 
 def boundary_elements(scene, arcs, squares=None, segments=None):
     """Every boundary element of every square, sorted by (e1, e2, kind, arc, interval, side):
-    the arcs' (:func:`side_pieces`), then V2's own segments' (:func:`segment_pieces`).
+    the arcs' (:func:`side_pieces`), then V2's own segments' (:func:`segment_pieces`), each
+    boundary given twice kept once (:func:`_unique`).
 
     Parameters
     ----------
@@ -1195,11 +1196,19 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
     """
     pieces = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares), segments)
     if segments is None:
-        return _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), PROBE)
+        return _unique(scene, _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), PROBE))
     el = _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), FINE_PROBE)
     more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el), FINE_PROBE)
     el = Elements.concatenate([el, more])
-    return el.take(_element_order(el))
+    return _unique(scene, el.take(_element_order(el)))
+
+
+def _unique(scene, el):
+    """The elements with each boundary given twice kept once (:func:`loops.unique_elements`;
+    two pencils of one plane through one point of the other edge, e.g. of two coplanar edges
+    of a floor: docs/skeleton.md "Furnished buildings")."""
+    middle = _lift((1 - el.weight) * el.start[:, :2] + el.weight * el.end[:, :2])
+    return el.take(unique_elements(el, _groups(el), join_tolerance(scene, el.e1, el.e2), middle))
 
 
 def _element_order(el):

@@ -928,10 +928,6 @@ def pencil_value(scene, crossed, held, third):
     return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
 
 
-#: Chain ends times generator edges compared at once by :func:`_pencils_through`.
-PENCIL_CHUNK = 1 << 20
-
-
 def _pencils_through(scene, crossed, held, x, tol):
     """The pencils whose segment passes each point: third edges t (generator edges coplanar
     with ``held``) whose plane with ``held`` crosses ``crossed`` within ``tol`` of x.
@@ -940,8 +936,11 @@ def _pencils_through(scene, crossed, held, x, tol):
     Moving q by tol along ``crossed`` (|δ| = tol |crossed|) turns that plane about held's
     line by at most |δ| / r_q (r_q: q's distance from the line), which moves a point at
     distance r by that angle times r; four times that, plus epsilon, is the test. Then
-    exactly: t not skew to ``held`` (coplanar, arcs' rule) and :func:`pencil_value`
-    within tol of x, strictly inside the edge.
+    exactly: t not skew to ``held`` (coplanar, arcs' rule: ``generators.skew_edges``) and
+    :func:`pencil_value` within tol of x, strictly inside the edge. One numba pass over
+    the points and the generator edges (:func:`_pencil_kernel`): the candidates passing the
+    prefilter are many (every edge of a floor for a point near the floor's plane), so they
+    are judged where they are found, with the arithmetic of those two functions.
 
     Parameters
     ----------
@@ -966,39 +965,74 @@ def _pencils_through(scene, crossed, held, x, tol):
     normal /= np.maximum(r_q, 1e-300)[:, None]
     turn = 4 * tol * np.linalg.norm(b - a, axis=1) / np.maximum(r_q, 1e-300)
     ta, tb = _edge_ends(scene, ge)
-    rows, thirds = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    for chunk in row_chunks(len(x), max(1, PENCIL_CHUNK // max(len(ge), 1))):
-        i, j = np.nonzero(_near_plane(normal[chunk], ah[chunk], unit[chunk], turn[chunk], scene.epsilon, ta, tb))
-        rows.append(chunk.start + i)
-        thirds.append(ge[j])
-    rows, third = np.concatenate(rows), np.concatenate(thirds)
-    keep = (third != held[rows]) & (third != crossed[rows]) & ~skew_edges(scene, held[rows], third)
-    rows, third = rows[keep], third[keep]
-    value = pencil_value(scene, crossed[rows], held[rows], third)
-    with np.errstate(invalid="ignore"):
-        keep = (np.abs(value - x[rows]) <= tol[rows]) & (value > tol[rows]) & (value < 1 - tol[rows])
-    return rows[keep], third[keep], value[keep]
+    ev = scene.half_edges.edge_vertices
+    return _pencil_kernel(normal, unit, turn, scene.epsilon, a, b, ah, bh, ev[held], np.asarray(crossed, np.int64),
+                          np.asarray(held, np.int64), x, tol, ta, tb, ev[ge], np.asarray(ge, np.int64),
+                          ANGLE_TOLERANCE, PARALLEL_TOLERANCE)
 
 
 @njit(cache=True)
-def _near_plane(normal, origin, unit, turn, eps, ta, tb):
-    """(n, g) bool: whether both ends of each segment (ta, tb: (g, 3) float) lie within
-    turn[i] r + eps of plane i (unit normal, through origin[i], holding the line of
-    direction unit[i]), r their distance from that line (a brute force without
-    temporaries: the ends of the open chains against every generator edge)."""
-    out = np.zeros((len(normal), len(ta)), np.bool_)
+def _pencil_kernel(normal, unit, turn, eps, a, b, ah, bh, held_v, crossed, held, x, tol, ta, tb, third_v, ge,
+                   angle_tol, parallel_tol):
+    """:func:`_pencils_through` for each point i and generator edge j: the prefilter (both ends
+    of t within turn[i] r + eps of plane i, r their distance from held's line), then
+    ``~skew_edges(held, t)`` and :func:`pencil_value` within tol[i] of x[i], each with the
+    numpy functions' arithmetic (``tests/test_buildings.py`` checks they agree)."""
+    cap = 1024
+    out_row = np.empty(cap, np.int64)
+    out_third = np.empty(cap, np.int64)
+    out_value = np.empty(cap)
+    m = 0
     for i in range(len(normal)):
         n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
         u0, u1, u2 = unit[i, 0], unit[i, 1], unit[i, 2]
+        dh0, dh1, dh2 = bh[i, 0] - ah[i, 0], bh[i, 1] - ah[i, 1], bh[i, 2] - ah[i, 2]
+        dh_len = np.sqrt(dh0 * dh0 + dh1 * dh1 + dh2 * dh2)
+        # skew_edges' unit vector of held
+        h0, h1, h2 = dh0 / dh_len, dh1 / dh_len, dh2 / dh_len
+        d0, d1, d2 = b[i, 0] - a[i, 0], b[i, 1] - a[i, 1], b[i, 2] - a[i, 2]
+        d_len = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         for j in range(len(ta)):
             near = True
             for t in (ta, tb):
-                r0, r1, r2 = t[j, 0] - origin[i, 0], t[j, 1] - origin[i, 1], t[j, 2] - origin[i, 2]
+                r0, r1, r2 = t[j, 0] - ah[i, 0], t[j, 1] - ah[i, 1], t[j, 2] - ah[i, 2]
                 off = abs(n0 * r0 + n1 * r1 + n2 * r2)
                 c0, c1, c2 = u1 * r2 - u2 * r1, u2 * r0 - u0 * r2, u0 * r1 - u1 * r0
                 near &= off <= turn[i] * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + eps
-            out[i, j] = near
-    return out
+            if not near or ge[j] == held[i] or ge[j] == crossed[i]:
+                continue
+            # generators.skew_edges(held, t): no shared vertex, not parallel, not coplanar
+            share = False
+            for p in range(2):
+                for r in range(2):
+                    share |= held_v[i, p] == third_v[j, r]
+            dt0, dt1, dt2 = tb[j, 0] - ta[j, 0], tb[j, 1] - ta[j, 1], tb[j, 2] - ta[j, 2]
+            dt_len = np.sqrt(dt0 * dt0 + dt1 * dt1 + dt2 * dt2)
+            v0, v1, v2 = dt0 / dt_len, dt1 / dt_len, dt2 / dt_len
+            c0, c1, c2 = h1 * v2 - h2 * v1, h2 * v0 - h0 * v2, h0 * v1 - h1 * v0
+            size = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            w0, w1, w2 = ta[j, 0] - ah[i, 0], ta[j, 1] - ah[i, 1], ta[j, 2] - ah[i, 2]
+            if not share and size > angle_tol and abs(w0 * c0 + w1 * c1 + w2 * c2) / size > eps:
+                continue  # skew
+            # pencil_value(crossed, held, t)
+            p0, p1, p2 = dh1 * dt2 - dh2 * dt1, dh2 * dt0 - dh0 * dt2, dh0 * dt1 - dh1 * dt0
+            if np.sqrt(p0 * p0 + p1 * p1 + p2 * p2) <= angle_tol * dh_len * dt_len:
+                p0, p1, p2 = dh1 * w2 - dh2 * w1, dh2 * w0 - dh0 * w2, dh0 * w1 - dh1 * w0
+            den = p0 * d0 + p1 * d1 + p2 * d2
+            if not abs(den) > parallel_tol * np.sqrt(p0 * p0 + p1 * p1 + p2 * p2) * d_len:
+                continue
+            e0, e1, e2 = ah[i, 0] - a[i, 0], ah[i, 1] - a[i, 1], ah[i, 2] - a[i, 2]
+            value = (p0 * e0 + p1 * e1 + p2 * e2) / den
+            if not (abs(value - x[i]) <= tol[i] and value > tol[i] and value < 1 - tol[i]):
+                continue
+            if m == cap:
+                cap *= 2
+                out_row = np.concatenate((out_row, np.empty(cap - m, np.int64)))
+                out_third = np.concatenate((out_third, np.empty(cap - m, np.int64)))
+                out_value = np.concatenate((out_value, np.empty(cap - m)))
+            out_row[m], out_third[m], out_value[m] = i, ge[j], value
+            m += 1
+    return out_row[:m], out_third[:m], out_value[:m]
 
 
 def open_segments(scene, el, order, chain_offsets):

@@ -757,9 +757,12 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     -------
     arc, e1, e2 : (m,) int
     interval : (m, 2) float
+    curves : tuple
+        The pieces' :func:`_curves` (an EEE arc's whole, as computed for the cuts).
     """
     interval = arcs.interval[arc]
-    start, _, end, _ = _curves(scene, arcs, arc, e1, e2, interval)
+    curves = _curves(scene, arcs, arc, e1, e2, interval)
+    start, _, end, _ = curves
     tol = join_tolerance(scene, e1, e2)
     pair_key = e1 * (1 << 32) + e2
     # each VE or XE row is a segment x1 = const (its edge is e2) or x2 = const; s runs along it
@@ -787,7 +790,10 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     ivl = np.concatenate([interval[eee], piece_interval])
     order = np.lexsort([ivl[:, 0], arc[rows], e2[rows], e1[rows]])
     rows, ivl = rows[order], ivl[order]
-    return arc[rows], e1[rows], e2[rows], ivl
+    cut = ve[piece_row]
+    piece_curves = _curves(scene, arcs, arc[cut], e1[cut], e2[cut], piece_interval)
+    curves = tuple(np.concatenate([c[eee], p])[order] for c, p in zip(curves, piece_curves))
+    return arc[rows], e1[rows], e2[rows], ivl, curves
 
 
 def _same_square(sorted_key, key):
@@ -1091,7 +1097,7 @@ def open_segments(scene, el, order, chain_offsets):
     return Segments(kind[keep].astype(np.int8), ident[keep], e1[keep], e2[keep], axis[keep], value[keep])
 
 
-def segment_pieces(scene, arcs, segments, pieces, el):
+def segment_pieces(scene, arcs, segments, pieces, el, curves=None):
     """The pieces of V2's segments that may bound a cell: the parts no V1 arc runs along,
     cut where the square's other boundaries meet them.
 
@@ -1112,6 +1118,8 @@ def segment_pieces(scene, arcs, segments, pieces, el):
         (arc, e1, e2, interval) of the squares' arcs (:func:`side_pieces`).
     el : Elements
         Their elements.
+    curves : tuple, optional
+        The pieces' :func:`_curves`, if known.
 
     Returns
     -------
@@ -1124,7 +1132,7 @@ def segment_pieces(scene, arcs, segments, pieces, el):
     tol = join_tolerance(scene, segments.e1, segments.e2)
     axis, value = segments.axis, segments.value
     arc, p_e1, p_e2, interval = pieces
-    start, _, end, _ = _curves(scene, arcs, arc, p_e1, p_e2, interval)
+    start, _, end, _ = _curves(scene, arcs, arc, p_e1, p_e2, interval) if curves is None else curves
     # arc pieces on a segment's line: the free coordinate's range
     row, seg = _same_square(seg_key, p_e1 * (1 << 32) + p_e2)
     a = axis[seg]
@@ -1228,11 +1236,12 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
     -------
     Elements
     """
-    pieces = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares), segments)
+    *pieces, curves = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares), segments)
+    kind = np.full(len(pieces[0]), ARC, np.int8)
     if segments is None:
-        return _unique(scene, _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), PROBE))
-    el = _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), FINE_PROBE)
-    more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el), FINE_PROBE)
+        return _unique(scene, _bounding_elements(scene, arcs, *pieces, kind, PROBE, curves))
+    el = _bounding_elements(scene, arcs, *pieces, kind, FINE_PROBE, curves)
+    more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el, curves), FINE_PROBE)
     el = Elements.concatenate([el, more])
     return _unique(scene, el.take(_element_order(el)))
 
@@ -1250,10 +1259,12 @@ def _element_order(el):
     return np.lexsort([el.side, el.interval[:, 0], el.arc, el.kind, el.e2, el.e1])
 
 
-def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe):
+def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe, curves=None):
     """The elements of the given pieces (arcs or segments): their sides that bound a cell,
-    by the probes of :func:`side_pairs`, in the order of the pieces, left side first."""
-    curves = _curves(scene, arcs, arc, e1, e2, interval, kind)
+    by the probes of :func:`side_pairs`, in the order of the pieces, left side first
+    (``curves``: their :func:`_curves`, if known)."""
+    if curves is None:
+        curves = _curves(scene, arcs, arc, e1, e2, interval, kind)
     pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval, kind, probe, curves)
     row, side = np.nonzero(bounds)
     return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row], kind[row],
@@ -1610,10 +1621,14 @@ def _demote(order, loop_offsets, chain_offsets, bad):
 def join_tolerance(scene, e1, e2):
     """(k,) float: SQUARE_JOIN_EPSILONS epsilon along the shorter edge of each element's pair, in
     square units (events merged 4 epsilon apart along an edge end arcs there)."""
-    a1, b1 = _edge_ends(scene, e1)
-    a2, b2 = _edge_ends(scene, e2)
-    shorter = np.minimum(np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1))
-    return SQUARE_JOIN_EPSILONS * scene.epsilon / shorter
+    length = scene.cached("edge_lengths", _edge_lengths)
+    return SQUARE_JOIN_EPSILONS * scene.epsilon / np.minimum(length[e1], length[e2])
+
+
+def _edge_lengths(scene):
+    """(e,) float: the length of every edge (the scene's cache ``edge_lengths``)."""
+    a, b = _edge_ends(scene, np.arange(len(scene.half_edges.edge_vertices)))
+    return np.linalg.norm(b - a, axis=1)
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):

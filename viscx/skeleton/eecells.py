@@ -1249,9 +1249,24 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
 def _unique(scene, el):
     """The elements with each boundary given twice kept once (:func:`loops.unique_elements`;
     two pencils of one plane through one point of the other edge, e.g. of two coplanar edges
-    of a floor: docs/skeleton.md "Furnished buildings")."""
+    of a floor: docs/skeleton.md "Furnished buildings"). Elements sorted by square; squares
+    are independent, so they are judged UNIQUE_CHUNK elements at a time (whole squares), which
+    bounds the memory of the neighbour search."""
+    key = el.e1 * (1 << 32) + el.e2
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    cuts = start[np.searchsorted(start, np.arange(UNIQUE_CHUNK, len(key), UNIQUE_CHUNK), "right") - 1]
+    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
     middle = _lift((1 - el.weight) * el.start[:, :2] + el.weight * el.end[:, :2])
-    return el.take(unique_elements(el, _groups(el), join_tolerance(scene, el.e1, el.e2), middle))
+    tol = join_tolerance(scene, el.e1, el.e2)
+    keep = []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        part = el.take(np.arange(lo, hi))
+        keep.append(lo + unique_elements(part, _groups(part), tol[lo:hi], middle[lo:hi]))
+    return el.take(np.concatenate(keep))
+
+
+#: Elements judged at once by :func:`_unique` (whole squares).
+UNIQUE_CHUNK = 1 << 18
 
 
 def _element_order(el):

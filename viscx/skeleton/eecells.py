@@ -133,7 +133,7 @@ from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums
+from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums, unique_elements
 from viscx.tolerances import (
     ANGLE_TOLERANCE,
     PARALLEL_TOLERANCE,
@@ -757,9 +757,12 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     -------
     arc, e1, e2 : (m,) int
     interval : (m, 2) float
+    curves : tuple
+        The pieces' :func:`_curves` (an EEE arc's whole, as computed for the cuts).
     """
     interval = arcs.interval[arc]
-    start, _, end, _ = _curves(scene, arcs, arc, e1, e2, interval)
+    curves = _curves(scene, arcs, arc, e1, e2, interval)
+    start, _, end, _ = curves
     tol = join_tolerance(scene, e1, e2)
     pair_key = e1 * (1 << 32) + e2
     # each VE or XE row is a segment x1 = const (its edge is e2) or x2 = const; s runs along it
@@ -787,7 +790,10 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     ivl = np.concatenate([interval[eee], piece_interval])
     order = np.lexsort([ivl[:, 0], arc[rows], e2[rows], e1[rows]])
     rows, ivl = rows[order], ivl[order]
-    return arc[rows], e1[rows], e2[rows], ivl
+    cut = ve[piece_row]
+    piece_curves = _curves(scene, arcs, arc[cut], e1[cut], e2[cut], piece_interval)
+    curves = tuple(np.concatenate([c[eee], p])[order] for c, p in zip(curves, piece_curves))
+    return arc[rows], e1[rows], e2[rows], ivl, curves
 
 
 def _same_square(sorted_key, key):
@@ -928,10 +934,6 @@ def pencil_value(scene, crossed, held, third):
     return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
 
 
-#: Chain ends times generator edges compared at once by :func:`_pencils_through`.
-PENCIL_CHUNK = 1 << 20
-
-
 def _pencils_through(scene, crossed, held, x, tol):
     """The pencils whose segment passes each point: third edges t (generator edges coplanar
     with ``held``) whose plane with ``held`` crosses ``crossed`` within ``tol`` of x.
@@ -940,8 +942,11 @@ def _pencils_through(scene, crossed, held, x, tol):
     Moving q by tol along ``crossed`` (|δ| = tol |crossed|) turns that plane about held's
     line by at most |δ| / r_q (r_q: q's distance from the line), which moves a point at
     distance r by that angle times r; four times that, plus epsilon, is the test. Then
-    exactly: t not skew to ``held`` (coplanar, arcs' rule) and :func:`pencil_value`
-    within tol of x, strictly inside the edge.
+    exactly: t not skew to ``held`` (coplanar, arcs' rule: ``generators.skew_edges``) and
+    :func:`pencil_value` within tol of x, strictly inside the edge. One numba pass over
+    the points and the generator edges (:func:`_pencil_kernel`): the candidates passing the
+    prefilter are many (every edge of a floor for a point near the floor's plane), so they
+    are judged where they are found, with the arithmetic of those two functions.
 
     Parameters
     ----------
@@ -966,39 +971,74 @@ def _pencils_through(scene, crossed, held, x, tol):
     normal /= np.maximum(r_q, 1e-300)[:, None]
     turn = 4 * tol * np.linalg.norm(b - a, axis=1) / np.maximum(r_q, 1e-300)
     ta, tb = _edge_ends(scene, ge)
-    rows, thirds = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    for chunk in row_chunks(len(x), max(1, PENCIL_CHUNK // max(len(ge), 1))):
-        i, j = np.nonzero(_near_plane(normal[chunk], ah[chunk], unit[chunk], turn[chunk], scene.epsilon, ta, tb))
-        rows.append(chunk.start + i)
-        thirds.append(ge[j])
-    rows, third = np.concatenate(rows), np.concatenate(thirds)
-    keep = (third != held[rows]) & (third != crossed[rows]) & ~skew_edges(scene, held[rows], third)
-    rows, third = rows[keep], third[keep]
-    value = pencil_value(scene, crossed[rows], held[rows], third)
-    with np.errstate(invalid="ignore"):
-        keep = (np.abs(value - x[rows]) <= tol[rows]) & (value > tol[rows]) & (value < 1 - tol[rows])
-    return rows[keep], third[keep], value[keep]
+    ev = scene.half_edges.edge_vertices
+    return _pencil_kernel(normal, unit, turn, scene.epsilon, a, b, ah, bh, ev[held], np.asarray(crossed, np.int64),
+                          np.asarray(held, np.int64), x, tol, ta, tb, ev[ge], np.asarray(ge, np.int64),
+                          ANGLE_TOLERANCE, PARALLEL_TOLERANCE)
 
 
 @njit(cache=True)
-def _near_plane(normal, origin, unit, turn, eps, ta, tb):
-    """(n, g) bool: whether both ends of each segment (ta, tb: (g, 3) float) lie within
-    turn[i] r + eps of plane i (unit normal, through origin[i], holding the line of
-    direction unit[i]), r their distance from that line (a brute force without
-    temporaries: the ends of the open chains against every generator edge)."""
-    out = np.zeros((len(normal), len(ta)), np.bool_)
+def _pencil_kernel(normal, unit, turn, eps, a, b, ah, bh, held_v, crossed, held, x, tol, ta, tb, third_v, ge,
+                   angle_tol, parallel_tol):
+    """:func:`_pencils_through` for each point i and generator edge j: the prefilter (both ends
+    of t within turn[i] r + eps of plane i, r their distance from held's line), then
+    ``~skew_edges(held, t)`` and :func:`pencil_value` within tol[i] of x[i], each with the
+    numpy functions' arithmetic (``tests/test_buildings.py`` checks they agree)."""
+    cap = 1024
+    out_row = np.empty(cap, np.int64)
+    out_third = np.empty(cap, np.int64)
+    out_value = np.empty(cap)
+    m = 0
     for i in range(len(normal)):
         n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
         u0, u1, u2 = unit[i, 0], unit[i, 1], unit[i, 2]
+        dh0, dh1, dh2 = bh[i, 0] - ah[i, 0], bh[i, 1] - ah[i, 1], bh[i, 2] - ah[i, 2]
+        dh_len = np.sqrt(dh0 * dh0 + dh1 * dh1 + dh2 * dh2)
+        # skew_edges' unit vector of held
+        h0, h1, h2 = dh0 / dh_len, dh1 / dh_len, dh2 / dh_len
+        d0, d1, d2 = b[i, 0] - a[i, 0], b[i, 1] - a[i, 1], b[i, 2] - a[i, 2]
+        d_len = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         for j in range(len(ta)):
             near = True
             for t in (ta, tb):
-                r0, r1, r2 = t[j, 0] - origin[i, 0], t[j, 1] - origin[i, 1], t[j, 2] - origin[i, 2]
+                r0, r1, r2 = t[j, 0] - ah[i, 0], t[j, 1] - ah[i, 1], t[j, 2] - ah[i, 2]
                 off = abs(n0 * r0 + n1 * r1 + n2 * r2)
                 c0, c1, c2 = u1 * r2 - u2 * r1, u2 * r0 - u0 * r2, u0 * r1 - u1 * r0
                 near &= off <= turn[i] * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + eps
-            out[i, j] = near
-    return out
+            if not near or ge[j] == held[i] or ge[j] == crossed[i]:
+                continue
+            # generators.skew_edges(held, t): no shared vertex, not parallel, not coplanar
+            share = False
+            for p in range(2):
+                for r in range(2):
+                    share |= held_v[i, p] == third_v[j, r]
+            dt0, dt1, dt2 = tb[j, 0] - ta[j, 0], tb[j, 1] - ta[j, 1], tb[j, 2] - ta[j, 2]
+            dt_len = np.sqrt(dt0 * dt0 + dt1 * dt1 + dt2 * dt2)
+            v0, v1, v2 = dt0 / dt_len, dt1 / dt_len, dt2 / dt_len
+            c0, c1, c2 = h1 * v2 - h2 * v1, h2 * v0 - h0 * v2, h0 * v1 - h1 * v0
+            size = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            w0, w1, w2 = ta[j, 0] - ah[i, 0], ta[j, 1] - ah[i, 1], ta[j, 2] - ah[i, 2]
+            if not share and size > angle_tol and abs(w0 * c0 + w1 * c1 + w2 * c2) / size > eps:
+                continue  # skew
+            # pencil_value(crossed, held, t)
+            p0, p1, p2 = dh1 * dt2 - dh2 * dt1, dh2 * dt0 - dh0 * dt2, dh0 * dt1 - dh1 * dt0
+            if np.sqrt(p0 * p0 + p1 * p1 + p2 * p2) <= angle_tol * dh_len * dt_len:
+                p0, p1, p2 = dh1 * w2 - dh2 * w1, dh2 * w0 - dh0 * w2, dh0 * w1 - dh1 * w0
+            den = p0 * d0 + p1 * d1 + p2 * d2
+            if not abs(den) > parallel_tol * np.sqrt(p0 * p0 + p1 * p1 + p2 * p2) * d_len:
+                continue
+            e0, e1, e2 = ah[i, 0] - a[i, 0], ah[i, 1] - a[i, 1], ah[i, 2] - a[i, 2]
+            value = (p0 * e0 + p1 * e1 + p2 * e2) / den
+            if not (abs(value - x[i]) <= tol[i] and value > tol[i] and value < 1 - tol[i]):
+                continue
+            if m == cap:
+                cap *= 2
+                out_row = np.concatenate((out_row, np.empty(cap - m, np.int64)))
+                out_third = np.concatenate((out_third, np.empty(cap - m, np.int64)))
+                out_value = np.concatenate((out_value, np.empty(cap - m)))
+            out_row[m], out_third[m], out_value[m] = i, ge[j], value
+            m += 1
+    return out_row[:m], out_third[:m], out_value[:m]
 
 
 def open_segments(scene, el, order, chain_offsets):
@@ -1057,7 +1097,7 @@ def open_segments(scene, el, order, chain_offsets):
     return Segments(kind[keep].astype(np.int8), ident[keep], e1[keep], e2[keep], axis[keep], value[keep])
 
 
-def segment_pieces(scene, arcs, segments, pieces, el):
+def segment_pieces(scene, arcs, segments, pieces, el, curves=None):
     """The pieces of V2's segments that may bound a cell: the parts no V1 arc runs along,
     cut where the square's other boundaries meet them.
 
@@ -1078,6 +1118,8 @@ def segment_pieces(scene, arcs, segments, pieces, el):
         (arc, e1, e2, interval) of the squares' arcs (:func:`side_pieces`).
     el : Elements
         Their elements.
+    curves : tuple, optional
+        The pieces' :func:`_curves`, if known.
 
     Returns
     -------
@@ -1090,7 +1132,7 @@ def segment_pieces(scene, arcs, segments, pieces, el):
     tol = join_tolerance(scene, segments.e1, segments.e2)
     axis, value = segments.axis, segments.value
     arc, p_e1, p_e2, interval = pieces
-    start, _, end, _ = _curves(scene, arcs, arc, p_e1, p_e2, interval)
+    start, _, end, _ = _curves(scene, arcs, arc, p_e1, p_e2, interval) if curves is None else curves
     # arc pieces on a segment's line: the free coordinate's range
     row, seg = _same_square(seg_key, p_e1 * (1 << 32) + p_e2)
     a = axis[seg]
@@ -1180,7 +1222,8 @@ def _uncovered(seg, lo, hi, n, tol):
 
 def boundary_elements(scene, arcs, squares=None, segments=None):
     """Every boundary element of every square, sorted by (e1, e2, kind, arc, interval, side):
-    the arcs' (:func:`side_pieces`), then V2's own segments' (:func:`segment_pieces`).
+    the arcs' (:func:`side_pieces`), then V2's own segments' (:func:`segment_pieces`), each
+    boundary given twice kept once (:func:`_unique`).
 
     Parameters
     ----------
@@ -1193,13 +1236,37 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
     -------
     Elements
     """
-    pieces = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares), segments)
+    *pieces, curves = side_pieces(scene, arcs, *(arc_squares(scene, arcs) if squares is None else squares), segments)
+    kind = np.full(len(pieces[0]), ARC, np.int8)
     if segments is None:
-        return _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), PROBE)
-    el = _bounding_elements(scene, arcs, *pieces, np.full(len(pieces[0]), ARC, np.int8), FINE_PROBE)
-    more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el), FINE_PROBE)
+        return _unique(scene, _bounding_elements(scene, arcs, *pieces, kind, PROBE, curves))
+    el = _bounding_elements(scene, arcs, *pieces, kind, FINE_PROBE, curves)
+    more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el, curves), FINE_PROBE)
     el = Elements.concatenate([el, more])
-    return el.take(_element_order(el))
+    return _unique(scene, el.take(_element_order(el)))
+
+
+def _unique(scene, el):
+    """The elements with each boundary given twice kept once (:func:`loops.unique_elements`;
+    two pencils of one plane through one point of the other edge, e.g. of two coplanar edges
+    of a floor: docs/skeleton.md "Furnished buildings"). Elements sorted by square; squares
+    are independent, so they are judged UNIQUE_CHUNK elements at a time (whole squares), which
+    bounds the memory of the neighbour search."""
+    key = el.e1 * (1 << 32) + el.e2
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    cuts = start[np.searchsorted(start, np.arange(UNIQUE_CHUNK, len(key), UNIQUE_CHUNK), "right") - 1]
+    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
+    middle = _lift((1 - el.weight) * el.start[:, :2] + el.weight * el.end[:, :2])
+    tol = join_tolerance(scene, el.e1, el.e2)
+    keep = []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        part = el.take(np.arange(lo, hi))
+        keep.append(lo + unique_elements(part, _groups(part), tol[lo:hi], middle[lo:hi]))
+    return el.take(np.concatenate(keep))
+
+
+#: Elements judged at once by :func:`_unique` (whole squares).
+UNIQUE_CHUNK = 1 << 18
 
 
 def _element_order(el):
@@ -1207,10 +1274,12 @@ def _element_order(el):
     return np.lexsort([el.side, el.interval[:, 0], el.arc, el.kind, el.e2, el.e1])
 
 
-def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe):
+def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe, curves=None):
     """The elements of the given pieces (arcs or segments): their sides that bound a cell,
-    by the probes of :func:`side_pairs`, in the order of the pieces, left side first."""
-    curves = _curves(scene, arcs, arc, e1, e2, interval, kind)
+    by the probes of :func:`side_pairs`, in the order of the pieces, left side first
+    (``curves``: their :func:`_curves`, if known)."""
+    if curves is None:
+        curves = _curves(scene, arcs, arc, e1, e2, interval, kind)
     pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval, kind, probe, curves)
     row, side = np.nonzero(bounds)
     return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row], kind[row],
@@ -1567,10 +1636,14 @@ def _demote(order, loop_offsets, chain_offsets, bad):
 def join_tolerance(scene, e1, e2):
     """(k,) float: SQUARE_JOIN_EPSILONS epsilon along the shorter edge of each element's pair, in
     square units (events merged 4 epsilon apart along an edge end arcs there)."""
-    a1, b1 = _edge_ends(scene, e1)
-    a2, b2 = _edge_ends(scene, e2)
-    shorter = np.minimum(np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1))
-    return SQUARE_JOIN_EPSILONS * scene.epsilon / shorter
+    length = scene.cached("edge_lengths", _edge_lengths)
+    return SQUARE_JOIN_EPSILONS * scene.epsilon / np.minimum(length[e1], length[e2])
+
+
+def _edge_lengths(scene):
+    """(e,) float: the length of every edge (the scene's cache ``edge_lengths``)."""
+    a, b = _edge_ends(scene, np.arange(len(scene.half_edges.edge_vertices)))
+    return np.linalg.norm(b - a, axis=1)
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):

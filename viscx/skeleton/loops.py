@@ -131,6 +131,47 @@ def near_pairs(a, b, group, tolerance):
     return i[pick], j[pick]
 
 
+def unique_elements(el, group, tolerance, middle=None):
+    """The elements to keep: of elements of one group running between the same two points
+    (and through the same middle point, if given), each within ``tolerance`` of the first
+    one's, the first (smallest index).
+
+    Two families whose lines coincide give the same boundary twice: collinear edges
+    overlapping (two boxes' bottom edges along their contact), a vertex and two edges in
+    one plane (a line through v meets both), two pencils of one plane through one point
+    (an edge pair's square, docs/skeleton.md "Furnished buildings"). FormLoops would take
+    one of the two and leave the other dangling as an open chain. In general position no
+    two elements coincide.
+
+    Parameters
+    ----------
+    el : Elements
+        Anything with ``start``, ``end`` ((k, 3) float).
+    group : (k,) int
+    tolerance : float or (k,) float
+    middle : (k, 3) float, optional
+        A point of each element between its ends: on the sphere the ends fix an arc
+        shorter than pi, in an edge pair's square they do not fix the curve.
+
+    Returns
+    -------
+    (k,) int
+        Increasing element indices.
+    """
+    if len(el) == 0:
+        return np.zeros(0, np.int64)
+    tolerance = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (len(el),))
+    i, j = near_pairs(el.start, el.start, group, tolerance)
+    later = j > i
+    i, j = i[later], j[later]
+    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= tolerance[i]
+    if middle is not None:
+        same &= np.linalg.norm(middle[i] - middle[j], axis=1) <= tolerance[i]
+    drop = np.zeros(len(el), bool)
+    drop[j[same]] = True
+    return np.flatnonzero(~drop)
+
+
 def form_loops(el, group, tolerance):
     """Chain each group's elements end to start into loops (Hoberock et al. §5.3 FormLoops).
 

@@ -90,8 +90,8 @@ from viscx.skeleton.loops import (
     corner_turns,
     form_loops,
     loop_successors,
-    near_pairs,
     signed_angle,
+    unique_elements,
 )
 from viscx.skeleton.nodes import BLOCK_VERTEX, vertex_ray_blockers
 from viscx.tolerances import (
@@ -357,31 +357,6 @@ def _image_point(scene, vertex, edge, s):
     along = scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]]
     t = along - np.einsum("ij,ij->i", along, d)[:, None] * d
     return d, t / np.linalg.norm(t, axis=1, keepdims=True), r
-
-
-def unique_elements(el, group):
-    """The elements to keep: of elements of one group running between the same two points
-    (within JOIN_CHORD), the first (smallest half-cell).
-
-    Two VE families whose lines coincide give the same boundary twice: collinear
-    edges overlapping (two boxes' bottom edges along their contact), or a vertex and
-    two edges in one plane (a line through v meets both). In general position no two
-    elements coincide.
-
-    Returns
-    -------
-    (k,) int
-        Increasing element indices.
-    """
-    if len(el) == 0:
-        return np.zeros(0, np.int64)
-    i, j = near_pairs(el.start, el.start, group, JOIN_CHORD)
-    later = j > i
-    i, j = i[later], j[later]
-    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= JOIN_CHORD
-    drop = np.zeros(len(el), bool)
-    drop[j[same]] = True
-    return np.flatnonzero(~drop)
 
 
 # --------------------------------------------------------------------------------------
@@ -778,7 +753,7 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         el = boundary_elements(scene, arcs)
         key = np.concatenate([el.vertex[:, None], el.pair], axis=1)
         _, group = unique_rows(key)
-        keep = unique_elements(el, group)
+        keep = unique_elements(el, group, JOIN_CHORD)
         el, group = el.take(keep), group[keep]
         progress.update()
 

@@ -65,6 +65,44 @@ def angular_distance_to_arcs(d, starts, ends):
     return np.arccos(np.clip(near, -1.0, 1.0))
 
 
+def near_arcs(d, starts, ends, band, chunk=1 << 21):
+    """Whether each direction ((n, 3) unit) lies within ``band`` radians of one of the minor
+    great-circle arcs starts[k] -> ends[k]: :func:`angular_distance_to_arcs` <= band,
+    evaluated only for the directions whose z can be that near. A minor arc lies in the
+    ball of radius |end - start| / 2 around its chord's midpoint (its farthest points from
+    there are its ends), and a direction within band radians of it lies within band of it
+    in space: directions with z outside that ball's z-range widened by band are farther."""
+    near = np.zeros(len(d), bool)
+    order = np.argsort(d[:, 2])
+    z = d[order, 2]
+    mid, reach = (starts[:, 2] + ends[:, 2]) / 2, np.linalg.norm(ends - starts, axis=1) / 2 + band
+    lo, hi = np.searchsorted(z, mid - reach, "left"), np.searchsorted(z, mid + reach, "right")
+    count = hi - lo
+    if count.sum() > len(d) * len(starts) / 10:  # long arcs (the samples' big faces): all pairs at once, as fast
+        return np.concatenate([angular_distance_to_arcs(d[k:k + 2000], starts, ends) for k in range(0, len(d), 2000)]) <= band
+    total = np.concatenate([[0], np.cumsum(count)])
+    first = 0
+    while first < len(count):  # arcs in runs of at most `chunk` (direction, arc) pairs
+        last = max(first + 1, int(np.searchsorted(total, total[first] + chunk, "right")) - 1)
+        c = count[first:last]
+        arc = np.repeat(np.arange(first, last), c)
+        k = order[np.arange(c.sum()) - np.repeat(np.cumsum(c) - c - lo[first:last], c)]
+        cos = angular_distance_to_arcs_pairs(d[k], starts[arc], ends[arc])
+        near[k[cos >= np.cos(band)]] = True
+        first = last
+    return near
+
+
+def angular_distance_to_arcs_pairs(d, starts, ends):
+    """:func:`angular_distance_to_arcs`'s cosine, direction d[i] to arc i only ((p, 3) each)."""
+    normal = np.cross(starts, ends)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    h = np.sum(d * normal, axis=1)
+    inside = (np.sum(d * np.cross(normal, starts), axis=1) >= 0) & (np.sum(d * np.cross(ends, normal), axis=1) >= 0)
+    near = np.where(inside, np.sqrt(np.maximum(1.0 - h * h, 0.0)), -1.0)
+    return np.maximum(near, np.maximum(np.sum(d * starts, axis=1), np.sum(d * ends, axis=1)))
+
+
 def vertex_boundaries(scene, arcs, vc, v):
     """Start and end directions of every boundary element of vertex v (loops and open chains)."""
     cells = np.flatnonzero(vc.vertex == v)
@@ -108,7 +146,7 @@ def ray_oracle(scene, arcs, vc, vertices, n=DIRECTIONS, seed=0, memo=None):
         if memo is None or key not in memo:
             up_kind, up, down_kind, down, grazing = vertex_ray_blockers(scene, np.full(n, v), d)
             starts, ends = vertex_boundaries(scene, arcs, vc, v)
-            away = np.concatenate([angular_distance_to_arcs(d[k:k + 2000], starts, ends) for k in range(0, n, 2000)]) > BAND
+            away = ~near_arcs(d, starts, ends, BAND)
             if memo is not None:
                 memo[key] = up_kind, up, down_kind, down, grazing, away
         else:

@@ -22,8 +22,9 @@ DTYPES = ["int8", "int32", "uint64", "float32", "float64", "bool", "str"]
 
 
 def datasets(f):
-    names = []
-    f.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
+    names = []  # HDF5's walk with its object types (h5py's visititems opens each object)
+    h5py.h5o.visit(f.id, lambda name, info: names.append(name.decode()) if info.type == h5py.h5o.TYPE_DATASET else None,
+                   info=True)
     return sorted(names)
 
 

@@ -97,21 +97,28 @@ def arc_polylines(scene, arcs, e1, e2, arc, s):
     return out.reshape(k, m, 2)
 
 
-def distance_to_polylines(points, lines):
-    """Distance from each point (n, 2) to the nearest polyline segment ((k, m, 2))."""
+def near_polylines(points, lines, band):
+    """Whether each point ((n, 2) float) lies within ``band`` of a polyline segment
+    ((k, m, 2) float): exact point-segment distances, computed only for the points whose
+    x lies within ``band`` of the segment's x-range (farther ones are farther than band;
+    the points sorted by x, the segments short). A polyline with an undefined point
+    (NaN) puts every point near it: nothing is judged beside a boundary not drawn."""
     a = lines[:, :-1].reshape(-1, 2)
     b = lines[:, 1:].reshape(-1, 2)
-    if len(a) == 0:
-        return np.full(len(points), np.inf)
-    ax, ay = a[:, 0][None], a[:, 1][None]
-    abx, aby = (b[:, 0] - a[:, 0])[None], (b[:, 1] - a[:, 1])[None]
-    size = np.maximum(abx**2 + aby**2, 1e-300)
-    best = np.full(len(points), np.inf)
-    for lo in range(0, len(points), 100):
-        px, py = points[lo:lo + 100, :1], points[lo:lo + 100, 1:]
-        t = np.clip(((px - ax) * abx + (py - ay) * aby) / size, 0.0, 1.0)
-        best[lo:lo + 100] = ((px - ax - t * abx) ** 2 + (py - ay - t * aby) ** 2).min(axis=1)
-    return np.sqrt(best)
+    if not np.isfinite(a).all() or not np.isfinite(b).all():
+        return np.ones(len(points), bool)
+    order = np.argsort(points[:, 0])
+    lo = np.searchsorted(points[order, 0], np.minimum(a[:, 0], b[:, 0]) - band, "left")
+    hi = np.searchsorted(points[order, 0], np.maximum(a[:, 0], b[:, 0]) + band, "right")
+    count = hi - lo
+    segment = np.repeat(np.arange(len(a)), count)
+    point = order[np.arange(count.sum()) - np.repeat(np.cumsum(count) - count - lo, count)]
+    ab = b[segment] - a[segment]
+    ap = points[point] - a[segment]
+    t = np.clip(np.sum(ap * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-300), 0.0, 1.0)
+    near = np.zeros(len(points), bool)
+    near[point[np.sum((ap - t[:, None] * ab) ** 2, axis=1) <= band * band]] = True
+    return near
 
 
 def pair_boundaries(scene, arcs, ee, e1, e2):
@@ -159,7 +166,7 @@ def ray_oracle(scene, arcs, ee, pairs, n=POINTS, seed=0):
                          points[..., 1].reshape(-1)).reshape(len(pairs), n, 5)
     for (e1, e2), x, state in zip(pairs, points, states):
         cell, holders = locate(scene, arcs, ee, e1, e2, x)
-        away = distance_to_polylines(x, pair_boundaries(scene, arcs, ee, e1, e2)) > BAND
+        away = ~near_polylines(x, pair_boundaries(scene, arcs, ee, e1, e2), BAND)
         # within epsilon of an edge's end the caster judges nothing (node condition 5)
         away &= np.all((x > BAND) & (x < 1 - BAND), axis=1)
         c = np.maximum(cell, 0)

@@ -252,12 +252,14 @@ def test_occluded_against_monte_carlo_slow(cornell, pair):
 
 
 def test_matrix_small_scene_reciprocity_and_rows():
-    """Two unit squares and a small occluder between them: rows + sky = 1, reciprocity."""
+    """Two unit squares and a small occluder between them: rows + sky = 1, reciprocity,
+    within 10 tol (tol 1e-7: rows off by 3.1e-8, reciprocity 3.1e-9; tol 1e-9 took 11x the CPU, 16 s,
+    for the same methods and the same margins)."""
     s = scene_of([square(0), square(1, flip=True), [[0.3, 0.3, 0.5], [0.6, 0.35, 0.5], [0.45, 0.7, 0.55]]])
-    m = ff.form_factor_matrix(s, tol=1e-9)
+    m = ff.form_factor_matrix(s, tol=1e-7)
     summary = m.summary()
-    assert summary["reciprocity_max_error"] < 1e-8
-    assert summary["row_sum_max_deviation"] < 1e-8
+    assert summary["reciprocity_max_error"] < 1e-6
+    assert summary["row_sum_max_deviation"] < 1e-6
     assert m.method_counts.get("quadrature", 0) >= 2
 
 

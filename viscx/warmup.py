@@ -6,8 +6,8 @@ from the cache. ``make venv`` (and so ``make demo`` and ``make test``) runs this
 so that a user's first ``viscx build`` is as fast as the next.
 
 It builds a small scene with every level and a free point, and runs each query once
-(point views, the discontinuity mesh, the three renderers, the form factors), in a
-temporary folder: the same calls the commands make, so the same kernel signatures.
+(point views, the discontinuity mesh, the three renderers, the form factors) and the
+flatland commands, in a temporary folder: the same calls the commands make, so the same kernel signatures.
 """
 
 import sys
@@ -55,6 +55,41 @@ f 17 18 19 20
 """
 
 
+#: A flatland scene (``viscx flatland``): a lamp, a convex polygon and a two-sided segment.
+FLATLAND = """\
+{"objects": [
+  {"name": "lamp", "type": "circle", "center": [0, 0], "radius": 1, "emission": 1.0},
+  {"name": "block", "type": "polygon", "points": [[2.5, -0.5], [3.5, -0.2], [3.2, 1.0]], "reflectance": 0.5},
+  {"name": "wall", "type": "segment", "points": [[-1, 3], [3, 3.5]], "reflectance": 0.4}
+]}
+"""
+#: A row of three equal squares: lines along their tops touch all three (degenerate
+#: layouts take the perturbation kernels of :func:`viscx.flatland.complex.resolve_degenerate`).
+FLATLAND_ROW = """\
+{"objects": [
+  {"type": "polygon", "points": [[0, 0], [1, 0], [1, 1], [0, 1]], "emission": 1.0},
+  {"type": "polygon", "points": [[2, 0], [3, 0], [3, 1], [2, 1]], "reflectance": 0.5},
+  {"type": "polygon", "points": [[4, 0], [5, 0], [5, 1], [4, 1]], "reflectance": 0.5}
+]}
+"""
+
+
+def warm_up_flatland(folder):
+    """``viscx flatland build``, ``radiosity`` and ``move`` on :data:`FLATLAND` and
+    :data:`FLATLAND_ROW` in ``folder``."""
+    from viscx.flatland.complex import build
+    from viscx.flatland.dynamic import move
+    from viscx.flatland.mesh import radiosity
+    from viscx.flatland.scene import load_scene
+
+    for k, text in enumerate((FLATLAND, FLATLAND_ROW)):
+        path = Path(folder) / f"flatland{k}.json"
+        path.write_text(text)
+        complex_ = build(load_scene(path), quiet=True)
+        radiosity(complex_, quiet=True, sky_radiance=1.0)
+        move(complex_, 1, 0.25, -0.1)
+
+
 def warm_up():
     """Run every kernel once; returns the seconds it took."""
     from viscx.pipeline import build_file
@@ -81,6 +116,7 @@ def warm_up():
         camera = Camera([2.0, 1.5, -4.0], [2.0, 1.0, 2.0], [0, 1, 0], 45.0, 24, 24)
         for options in ({}, {"samples": 40}, {"reference": 2}):
             render(scene, mesh, camera, radiance=[1.0, 1.0, 1.0], **options)
+        warm_up_flatland(folder)
     return time.perf_counter() - start
 
 

@@ -60,6 +60,34 @@ def _clip_loop(poly, n_in, out, px, m):
 
 
 @njit(cache=True)
+def _clip_to_frustum(pts, lo, hi, x, planes, n_planes, buf_a, buf_b):
+    """The loop ``pts[lo:hi]`` clipped to the planes through x (inward normals
+    ``planes[:n_planes]``) into ``buf_a``; returns its size (0 when a plane has every vertex
+    outside, or fewer than 3 are left)."""
+    for i in range(n_planes):
+        out = True
+        for q in range(lo, hi):
+            if ((pts[q, 0] - x[0]) * planes[i, 0] + (pts[q, 1] - x[1]) * planes[i, 1]
+                    + (pts[q, 2] - x[2]) * planes[i, 2]) >= 0:
+                out = False
+                break
+        if out:
+            return 0
+    n_in = hi - lo
+    for q in range(n_in):
+        for c in range(3):
+            buf_a[q, c] = pts[lo + q, c]
+    for i in range(n_planes):
+        n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+        for q in range(n_in):
+            for c in range(3):
+                buf_a[q, c] = buf_b[q, c]
+        if n_in < 3:
+            return 0
+    return n_in
+
+
+@njit(cache=True)
 def _gamma_dot(x, pa, pb, n):
     """Γ · n of the directed edge pa → pb seen from x (Lambert's contour term)."""
     ax, ay, az = pa[0] - x[0], pa[1] - x[1], pa[2] - x[2]
@@ -110,6 +138,58 @@ def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
 
 
 @njit(cache=True)
+def _crossing_u(seg_a, seg_b, e, f):
+    """u of the crossing of segments e and f inside both (NaN if they do not cross; the
+    caller has checked that their u ranges overlap)."""
+    ax, ay, bx, by = seg_a[e, 0], seg_a[e, 1], seg_b[e, 0], seg_b[e, 1]
+    cx, cy, dx, dy = seg_a[f, 0], seg_a[f, 1], seg_b[f, 0], seg_b[f, 1]
+    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+        return np.nan
+    rx, ry = bx - ax, by - ay
+    sx, sy = dx - cx, dy - cy
+    den = rx * sy - ry * sx
+    if den == 0.0:
+        return np.nan
+    t = ((cx - ax) * sy - (cy - ay) * sx) / den
+    s = ((cx - ax) * ry - (cy - ay) * rx) / den
+    if 0.0 < t < 1.0 and 0.0 < s < 1.0:
+        return ax + t * rx
+    return np.nan
+
+
+@njit(cache=True)
+def _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
+    """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
+    middle are dropped (in place), the others sorted by height at the middle, highest first,
+    into ``act`` (edge ids) with their heights at the middle, u0 and u1. Returns
+    ``(n_on, n_act)``."""
+    um = 0.5 * (u0 + u1)
+    m = 0
+    n_act = 0
+    for r in range(n_on):
+        e = on[r]
+        if max(seg_a[e, 0], seg_b[e, 0]) <= um:
+            continue
+        on[m] = e
+        m += 1
+        slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
+        vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
+        j = n_act
+        while j > 0 and act_v[j - 1] < vm:
+            act_v[j] = act_v[j - 1]
+            act_v0[j] = act_v0[j - 1]
+            act_v1[j] = act_v1[j - 1]
+            act[j] = act[j - 1]
+            j -= 1
+        act_v[j] = vm
+        act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
+        act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
+        act[j] = e
+        n_act += 1
+    return m, n_act
+
+
+@njit(cache=True)
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0,
                  act_v1, p0, p1):
@@ -156,31 +236,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             if abs(side) <= tiny:
                 continue  # x in the occluder's plane: it is seen edge-on and hides nothing
             sgn = 1 if side > 0 else -1
-            # quick rejection: every vertex outside one plane
-            rejected = False
-            for i in range(n_hull):
-                out = True
-                for q in range(lo, hi):
-                    if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
-                            + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
-                        out = False
-                        break
-                if out:
-                    rejected = True
-                    break
-            if rejected:
-                continue
-            n_in = hi - lo
-            for q in range(n_in):
-                for c in range(3):
-                    buf_a[q, c] = occ[lo + q, c]
-            for i in range(n_hull):
-                n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
-                for q in range(n_in):
-                    for c in range(3):
-                        buf_a[q, c] = buf_b[q, c]
-                if n_in < 3:
-                    break
+            n_in = _clip_to_frustum(occ, lo, hi, x, planes, n_hull, buf_a, buf_b)
             if n_in < 3:
                 continue
             # project
@@ -217,24 +273,16 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     for e in range(n_seg):
         if seg_w[e] == 0:
             continue
-        ax, ay, bx, by = seg_a[e, 0], seg_a[e, 1], seg_b[e, 0], seg_b[e, 1]
+        ax, bx = seg_a[e, 0], seg_b[e, 0]
         for f in range(e + 1, n_seg):
             if seg_p[f] == seg_p[e] or seg_w[f] == 0:
                 continue
-            cx, cy, dx, dy = seg_a[f, 0], seg_a[f, 1], seg_b[f, 0], seg_b[f, 1]
+            cx, dx = seg_a[f, 0], seg_b[f, 0]
             if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
                 continue
-            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-                continue
-            rx, ry = bx - ax, by - ay
-            sx, sy = dx - cx, dy - cy
-            den = rx * sy - ry * sx
-            if den == 0.0:
-                continue
-            t = ((cx - ax) * sy - (cy - ay) * sx) / den
-            s = ((cx - ax) * ry - (cy - ay) * rx) / den
-            if 0.0 < t < 1.0 and 0.0 < s < 1.0:
-                brk[n_brk] = ax + t * rx
+            u = _crossing_u(seg_a, seg_b, e, f)
+            if u == u:
+                brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     has_vertical = False
@@ -244,7 +292,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     runs = np.zeros((n_seg, 3))  # per edge: direction (0 none), run start u, run end u
     # sweep: edges by their left end, an active list updated slab by slab
     lo_u = np.empty(n_seg)
-    hi_u = np.empty(n_seg)
+    act_e = np.empty(n_seg, np.int64)  # the slab's edges by height
     n_live = 0
     for e in range(n_seg):
         if seg_w[e] != 0:
@@ -265,30 +313,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             on[n_on] = act[by_lo[nxt]]
             n_on += 1
             nxt += 1
-        # drop edges that ended, compute the others' heights; insertion sort by height (descending)
-        m = 0
-        n_act = 0
-        for r in range(n_on):
-            e = on[r]
-            if max(seg_a[e, 0], seg_b[e, 0]) <= um:
-                continue
-            on[m] = e
-            m += 1
-            slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
-            vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
-            j = n_act
-            while j > 0 and act_v[j - 1] < vm:
-                act_v[j] = act_v[j - 1]
-                act_v0[j] = act_v0[j - 1]
-                act_v1[j] = act_v1[j - 1]
-                hi_u[j] = hi_u[j - 1]
-                j -= 1
-            act_v[j] = vm
-            act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
-            act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
-            hi_u[j] = e
-            n_act += 1
-        n_on = m
+        # drop edges that ended, the others by height (descending)
+        n_on, n_act = _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act_e, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -297,7 +323,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         visible = False
         top = -1
         for q in range(n_act):
-            e = int(hi_u[q])
+            e = act_e[q]
             p = seg_p[e]
             before = wind[p]
             wind[p] += seg_w[e]
@@ -313,8 +339,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                 if not has_vertical:
                     # bottom side left to right, top side right to left; the vertical sides
                     # cancel between neighbouring slabs (no input edge is vertical)
-                    total += _run(runs, int(hi_u[q]), 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
-                    total += _run(runs, int(hi_u[top]), -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    total += _run(runs, act_e[q], 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    total += _run(runs, act_e[top], -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
                     visible = now
                     continue
                 # trapezoid (u0, vb0) -> (u1, vb1) -> (u1, vt1) -> (u0, vt0), counter-clockwise
@@ -671,31 +697,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         p = loop_poly[L]
         if not use[p]:
             continue
-        lo, hi = loop_lo[L], loop_hi[L]
-        rejected = False
-        for i in range(n_planes):
-            out = True
-            for q in range(lo, hi):
-                if ((pts[q, 0] - x[0]) * planes[i, 0] + (pts[q, 1] - x[1]) * planes[i, 1]
-                        + (pts[q, 2] - x[2]) * planes[i, 2]) >= 0:
-                    out = False
-                    break
-            if out:
-                rejected = True
-                break
-        if rejected:
-            continue
-        n_in = hi - lo
-        for q in range(n_in):
-            for c in range(3):
-                buf_a[q, c] = pts[lo + q, c]
-        for i in range(n_planes):
-            n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
-            for q in range(n_in):
-                for c in range(3):
-                    buf_a[q, c] = buf_b[q, c]
-            if n_in < 3:
-                break
+        n_in = _clip_to_frustum(pts, loop_lo[L], loop_hi[L], x, planes, n_planes, buf_a, buf_b)
         if n_in < 3:
             continue
         first = n_seg
@@ -736,26 +738,16 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         e = by_lo[r]
         if seg_w[e] == 0:
             continue
-        ax, ay, bx, by = seg_a[e, 0], seg_a[e, 1], seg_b[e, 0], seg_b[e, 1]
         for r2 in range(r + 1, n_seg):
             f = by_lo[r2]
             if lo_u[f] > hi_u[e]:
                 break
             if seg_p[f] == seg_p[e] or seg_w[f] == 0:
                 continue
-            cx, cy, dx, dy = seg_a[f, 0], seg_a[f, 1], seg_b[f, 0], seg_b[f, 1]
-            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-                continue
-            rx, ry = bx - ax, by - ay
-            sx, sy = dx - cx, dy - cy
-            den = rx * sy - ry * sx
-            if den == 0.0:
-                continue
-            t = ((cx - ax) * sy - (cy - ay) * sx) / den
-            s = ((cx - ax) * ry - (cy - ay) * rx) / den
-            if 0.0 < t < 1.0 and 0.0 < s < 1.0:
+            u = _crossing_u(seg_a, seg_b, e, f)
+            if u == u:
                 brk = _grow(brk, n_brk)
-                brk[n_brk] = ax + t * rx
+                brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     has_vertical = False
@@ -787,29 +779,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             on[n_on] = live[nxt]
             n_on += 1
             nxt += 1
-        m = 0
-        n_act = 0
-        for r in range(n_on):
-            e = on[r]
-            if hi_u[e] <= um:
-                continue
-            on[m] = e
-            m += 1
-            slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
-            vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
-            j = n_act
-            while j > 0 and act_v[j - 1] < vm:
-                act_v[j] = act_v[j - 1]
-                act_v0[j] = act_v0[j - 1]
-                act_v1[j] = act_v1[j - 1]
-                act[j] = act[j - 1]
-                j -= 1
-            act_v[j] = vm
-            act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
-            act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
-            act[j] = e
-            n_act += 1
-        n_on = m
+        n_on, n_act = _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
         n_cover = 0

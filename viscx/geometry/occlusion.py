@@ -30,6 +30,8 @@ import numpy as np
 from numba import njit
 
 TWO_PI = 2.0 * np.pi
+#: Rotation (radians) of each hemicube face's 2-D basis in :func:`point_views`.
+GENERIC_TURN = 0.4127319
 
 
 @njit(cache=True)
@@ -55,6 +57,34 @@ def _clip_loop(poly, n_in, out, px, m):
         prev = cur
         hp = hc
     return k
+
+
+@njit(cache=True)
+def _clip_to_frustum(pts, lo, hi, x, planes, n_planes, buf_a, buf_b):
+    """The loop ``pts[lo:hi]`` clipped to the planes through x (inward normals
+    ``planes[:n_planes]``) into ``buf_a``; returns its size (0 when a plane has every vertex
+    outside, or fewer than 3 are left)."""
+    for i in range(n_planes):
+        out = True
+        for q in range(lo, hi):
+            if ((pts[q, 0] - x[0]) * planes[i, 0] + (pts[q, 1] - x[1]) * planes[i, 1]
+                    + (pts[q, 2] - x[2]) * planes[i, 2]) >= 0:
+                out = False
+                break
+        if out:
+            return 0
+    n_in = hi - lo
+    for q in range(n_in):
+        for c in range(3):
+            buf_a[q, c] = pts[lo + q, c]
+    for i in range(n_planes):
+        n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
+        for q in range(n_in):
+            for c in range(3):
+                buf_a[q, c] = buf_b[q, c]
+        if n_in < 3:
+            return 0
+    return n_in
 
 
 @njit(cache=True)
@@ -108,6 +138,58 @@ def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
 
 
 @njit(cache=True)
+def _crossing_u(seg_a, seg_b, e, f):
+    """u of the crossing of segments e and f inside both (NaN if they do not cross; the
+    caller has checked that their u ranges overlap)."""
+    ax, ay, bx, by = seg_a[e, 0], seg_a[e, 1], seg_b[e, 0], seg_b[e, 1]
+    cx, cy, dx, dy = seg_a[f, 0], seg_a[f, 1], seg_b[f, 0], seg_b[f, 1]
+    if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
+        return np.nan
+    rx, ry = bx - ax, by - ay
+    sx, sy = dx - cx, dy - cy
+    den = rx * sy - ry * sx
+    if den == 0.0:
+        return np.nan
+    t = ((cx - ax) * sy - (cy - ay) * sx) / den
+    s = ((cx - ax) * ry - (cy - ay) * rx) / den
+    if 0.0 < t < 1.0 and 0.0 < s < 1.0:
+        return ax + t * rx
+    return np.nan
+
+
+@njit(cache=True)
+def _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
+    """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
+    middle are dropped (in place), the others sorted by height at the middle, highest first,
+    into ``act`` (edge ids) with their heights at the middle, u0 and u1. Returns
+    ``(n_on, n_act)``."""
+    um = 0.5 * (u0 + u1)
+    m = 0
+    n_act = 0
+    for r in range(n_on):
+        e = on[r]
+        if max(seg_a[e, 0], seg_b[e, 0]) <= um:
+            continue
+        on[m] = e
+        m += 1
+        slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
+        vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
+        j = n_act
+        while j > 0 and act_v[j - 1] < vm:
+            act_v[j] = act_v[j - 1]
+            act_v0[j] = act_v0[j - 1]
+            act_v1[j] = act_v1[j - 1]
+            act[j] = act[j - 1]
+            j -= 1
+        act_v[j] = vm
+        act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
+        act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
+        act[j] = e
+        n_act += 1
+    return m, n_act
+
+
+@njit(cache=True)
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0,
                  act_v1, p0, p1):
@@ -154,31 +236,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             if abs(side) <= tiny:
                 continue  # x in the occluder's plane: it is seen edge-on and hides nothing
             sgn = 1 if side > 0 else -1
-            # quick rejection: every vertex outside one plane
-            rejected = False
-            for i in range(n_hull):
-                out = True
-                for q in range(lo, hi):
-                    if ((occ[q, 0] - x[0]) * planes[i, 0] + (occ[q, 1] - x[1]) * planes[i, 1]
-                            + (occ[q, 2] - x[2]) * planes[i, 2]) >= 0:
-                        out = False
-                        break
-                if out:
-                    rejected = True
-                    break
-            if rejected:
-                continue
-            n_in = hi - lo
-            for q in range(n_in):
-                for c in range(3):
-                    buf_a[q, c] = occ[lo + q, c]
-            for i in range(n_hull):
-                n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
-                for q in range(n_in):
-                    for c in range(3):
-                        buf_a[q, c] = buf_b[q, c]
-                if n_in < 3:
-                    break
+            n_in = _clip_to_frustum(occ, lo, hi, x, planes, n_hull, buf_a, buf_b)
             if n_in < 3:
                 continue
             # project
@@ -215,24 +273,16 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     for e in range(n_seg):
         if seg_w[e] == 0:
             continue
-        ax, ay, bx, by = seg_a[e, 0], seg_a[e, 1], seg_b[e, 0], seg_b[e, 1]
+        ax, bx = seg_a[e, 0], seg_b[e, 0]
         for f in range(e + 1, n_seg):
             if seg_p[f] == seg_p[e] or seg_w[f] == 0:
                 continue
-            cx, cy, dx, dy = seg_a[f, 0], seg_a[f, 1], seg_b[f, 0], seg_b[f, 1]
+            cx, dx = seg_a[f, 0], seg_b[f, 0]
             if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
                 continue
-            if max(ay, by) < min(cy, dy) or max(cy, dy) < min(ay, by):
-                continue
-            rx, ry = bx - ax, by - ay
-            sx, sy = dx - cx, dy - cy
-            den = rx * sy - ry * sx
-            if den == 0.0:
-                continue
-            t = ((cx - ax) * sy - (cy - ay) * sx) / den
-            s = ((cx - ax) * ry - (cy - ay) * rx) / den
-            if 0.0 < t < 1.0 and 0.0 < s < 1.0:
-                brk[n_brk] = ax + t * rx
+            u = _crossing_u(seg_a, seg_b, e, f)
+            if u == u:
+                brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     has_vertical = False
@@ -242,7 +292,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     runs = np.zeros((n_seg, 3))  # per edge: direction (0 none), run start u, run end u
     # sweep: edges by their left end, an active list updated slab by slab
     lo_u = np.empty(n_seg)
-    hi_u = np.empty(n_seg)
+    act_e = np.empty(n_seg, np.int64)  # the slab's edges by height
     n_live = 0
     for e in range(n_seg):
         if seg_w[e] != 0:
@@ -263,30 +313,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             on[n_on] = act[by_lo[nxt]]
             n_on += 1
             nxt += 1
-        # drop edges that ended, compute the others' heights; insertion sort by height (descending)
-        m = 0
-        n_act = 0
-        for r in range(n_on):
-            e = on[r]
-            if max(seg_a[e, 0], seg_b[e, 0]) <= um:
-                continue
-            on[m] = e
-            m += 1
-            slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
-            vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
-            j = n_act
-            while j > 0 and act_v[j - 1] < vm:
-                act_v[j] = act_v[j - 1]
-                act_v0[j] = act_v0[j - 1]
-                act_v1[j] = act_v1[j - 1]
-                hi_u[j] = hi_u[j - 1]
-                j -= 1
-            act_v[j] = vm
-            act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
-            act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
-            hi_u[j] = e
-            n_act += 1
-        n_on = m
+        # drop edges that ended, the others by height (descending)
+        n_on, n_act = _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act_e, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -295,7 +323,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         visible = False
         top = -1
         for q in range(n_act):
-            e = int(hi_u[q])
+            e = act_e[q]
             p = seg_p[e]
             before = wind[p]
             wind[p] += seg_w[e]
@@ -311,8 +339,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                 if not has_vertical:
                     # bottom side left to right, top side right to left; the vertical sides
                     # cancel between neighbouring slabs (no input edge is vertical)
-                    total += _run(runs, int(hi_u[q]), 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
-                    total += _run(runs, int(hi_u[top]), -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    total += _run(runs, act_e[q], 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    total += _run(runs, act_e[top], -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
                     visible = now
                     continue
                 # trapezoid (u0, vb0) -> (u1, vb1) -> (u1, vt1) -> (u0, vt0), counter-clockwise
@@ -571,3 +599,406 @@ def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly,
                 break
         out[c] = not sep
     return out
+
+
+# --------------------------------------------------------------------------------------
+# a point's view of every polygon at once (one evaluation per point for a whole matrix row)
+
+
+@njit(cache=True)
+def _inside_plane(x, pts, loop_lo, loop_hi, first, last, normal):
+    """Whether x (in the polygon's plane) lies inside the polygon's loops (even–odd rule in
+    the plane, the coordinate of the normal's largest component dropped)."""
+    k = 0
+    if abs(normal[1]) > abs(normal[k]):
+        k = 1
+    if abs(normal[2]) > abs(normal[k]):
+        k = 2
+    a, b = (k + 1) % 3, (k + 2) % 3
+    inside = False
+    for L in range(first, last):
+        lo, hi = loop_lo[L], loop_hi[L]
+        for i in range(lo, hi):
+            j = i + 1 if i + 1 < hi else lo
+            ya, yb = pts[i, b] - x[b], pts[j, b] - x[b]
+            if (ya > 0) != (yb > 0):
+                xa, xb = pts[i, a] - x[a], pts[j, a] - x[a]
+                if xa + (xb - xa) * ya / (ya - yb) > 0:
+                    inside = not inside
+    return inside
+
+
+@njit(cache=True)
+def _trapezoid(x, n_i, fa, fb, fc, u0, u1, vb0, vb1, vt0, vt1, p0, p1):
+    """F from (x, n_i) to the trapezoid (u0, vb0), (u1, vb1), (u1, vt1), (u0, vt0) of a
+    hemicube face's plane (points x + fc + u fa + v fb): Lambert's contour sum."""
+    total = 0.0
+    us = (u0, u1, u1, u0)
+    vs = (vb0, vb1, vt1, vt0)
+    for k in range(4):
+        r = (k + 1) % 4
+        for c in range(3):
+            p0[c] = x[c] + fc[c] + us[k] * fa[c] + vs[k] * fb[c]
+            p1[c] = x[c] + fc[c] + us[r] * fa[c] + vs[r] * fb[c]
+        total += _gamma_dot(x, p0, p1, n_i)
+    return abs(total) / TWO_PI
+
+
+@njit(cache=True)
+def _grow(a, n):
+    if n < a.shape[0]:
+        return a
+    b = np.empty(2 * a.shape[0] + 16)
+    b[:a.shape[0]] = a
+    return b
+
+
+@njit(cache=True)
+def _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1):
+    """Γ · n of edge e's current run on side k (0: the owner's region lies above it, run left
+    to right; 1: below it, right to left) added to its owner's column (then cleared)."""
+    ua, ub = runs[e, k, 0], runs[e, k, 1]
+    slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
+    va = seg_a[e, 1] + (ua - seg_a[e, 0]) * slope
+    vb = seg_a[e, 1] + (ub - seg_a[e, 0]) * slope
+    for c in range(3):
+        p0[c] = x[c] + fc[c] + ua * fa[c] + va * fb[c]
+        p1[c] = x[c] + fc[c] + ub * fa[c] + vb * fb[c]
+    g = _gamma_dot(x, p0, p1, n_i) if k == 0 else _gamma_dot(x, p1, p0, n_i)
+    seen[col[run_o[e, k]]] += g / TWO_PI
+    run_o[e, k] = -1
+
+
+@njit(cache=True)
+def _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1):
+    """Add the piece [u0, u1] of edge e's side k, owned by ``owner``, to its run (flushing
+    a run it cannot extend)."""
+    if run_o[e, k] == owner and runs[e, k, 1] == u0:
+        runs[e, k, 1] = u1
+        return
+    if run_o[e, k] >= 0:
+        _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1)
+    run_o[e, k] = owner
+    runs[e, k, 0] = u0
+    runs[e, k, 1] = u1
+
+
+@njit(cache=True)
+def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
+                   side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1):
+    """Add to ``seen`` the visible part of every polygon through one face of the hemicube
+    around x (the frustum ``planes`` through x, inward normals): each polygon clipped to the
+    frustum and projected centrally on the face's plane, the slab sweep of
+    :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
+    nearest along the ray through its centre (polygons do not cross: the front-most one of
+    those covering a trapezoid is the same all over it)."""
+    n_seg = 0
+    for L in range(loop_lo.shape[0]):
+        p = loop_poly[L]
+        if not use[p]:
+            continue
+        n_in = _clip_to_frustum(pts, loop_lo[L], loop_hi[L], x, planes, n_planes, buf_a, buf_b)
+        if n_in < 3:
+            continue
+        first = n_seg
+        for q in range(n_in):
+            dx, dy, dz = buf_a[q, 0] - x[0], buf_a[q, 1] - x[1], buf_a[q, 2] - x[2]
+            den = dx * fc[0] + dy * fc[1] + dz * fc[2]
+            if den <= 1e-300:
+                den = 1e-300  # x itself (a polygon through the apex)
+            seg_a[first + q, 0] = (dx * fa[0] + dy * fa[1] + dz * fa[2]) / den
+            seg_a[first + q, 1] = (dx * fb[0] + dy * fb[1] + dz * fb[2]) / den
+        for q in range(n_in):
+            k = first + q + 1 if q + 1 < n_in else first
+            seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
+            seg_p[first + q] = p
+        n_seg += n_in
+    if n_seg == 0:
+        return brk
+    # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
+    n_brk = 0
+    lo_u = np.empty(n_seg)
+    hi_u = np.empty(n_seg)
+    for e in range(n_seg):
+        if seg_a[e, 0] > seg_b[e, 0]:
+            seg_w[e] = 1
+        elif seg_a[e, 0] < seg_b[e, 0]:
+            seg_w[e] = -1
+        else:
+            seg_w[e] = 0
+        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
+        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
+        brk = _grow(brk, n_brk)
+        brk[n_brk] = seg_a[e, 0]
+        n_brk += 1
+    # crossings of edges of different polygons: edges by their left ends, each against the
+    # ones starting before it ends
+    by_lo = np.argsort(lo_u)
+    for r in range(n_seg):
+        e = by_lo[r]
+        if seg_w[e] == 0:
+            continue
+        for r2 in range(r + 1, n_seg):
+            f = by_lo[r2]
+            if lo_u[f] > hi_u[e]:
+                break
+            if seg_p[f] == seg_p[e] or seg_w[f] == 0:
+                continue
+            u = _crossing_u(seg_a, seg_b, e, f)
+            if u == u:
+                brk = _grow(brk, n_brk)
+                brk[n_brk] = u
+                n_brk += 1
+    us = np.sort(brk[:n_brk])
+    has_vertical = False
+    for e in range(n_seg):
+        if seg_w[e] == 0 and seg_a[e, 1] != seg_b[e, 1]:
+            has_vertical = True
+    runs = np.empty((n_seg, 2, 2))  # per edge, bottom/top side: the current run's u range
+    run_o = np.full((n_seg, 2), -1, np.int64)  # ... and its owner (-1 none)
+    live = np.empty(n_seg, np.int64)
+    n_live = 0
+    for r in range(n_seg):
+        if seg_w[by_lo[r]] != 0:
+            live[n_live] = by_lo[r]
+            n_live += 1
+    on = np.empty(n_live, np.int64)
+    act = np.empty(n_live, np.int64)
+    act_v = np.empty(n_live)
+    act_v0 = np.empty(n_live)
+    act_v1 = np.empty(n_live)
+    nxt = 0
+    n_on = 0
+    d = np.empty(3)
+    for k in range(n_brk - 1):
+        u0, u1 = us[k], us[k + 1]
+        if not u1 > u0:
+            continue
+        um = 0.5 * (u0 + u1)
+        while nxt < n_live and lo_u[live[nxt]] < um:
+            on[n_on] = live[nxt]
+            n_on += 1
+            nxt += 1
+        n_on, n_act = _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1)
+        if n_act < 2:
+            continue
+        n_cover = 0
+        owner, top = -1, -1
+        for q in range(n_act):
+            p = seg_p[act[q]]
+            before = wind[p]
+            wind[p] += seg_w[act[q]]
+            if before == 0 and wind[p] != 0:
+                cover[n_cover] = p
+                n_cover += 1
+            elif before != 0 and wind[p] == 0:
+                for r in range(n_cover):
+                    if cover[r] == p:
+                        cover[r] = cover[n_cover - 1]
+                        n_cover -= 1
+                        break
+            # the region below edge q, down to edge q + 1: its nearest covering polygon
+            now = -1
+            if n_cover == 1 and q + 1 < n_act:
+                now = cover[0]
+            elif n_cover > 1 and q + 1 < n_act:
+                vm = 0.5 * (act_v[q] + act_v[q + 1])
+                for c in range(3):
+                    d[c] = fc[c] + um * fa[c] + vm * fb[c]
+                best = np.inf
+                for r in range(n_cover):
+                    pr = cover[r]
+                    dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
+                    if dn == 0.0:
+                        continue
+                    t = -side[pr] / dn
+                    if t <= 0:
+                        continue
+                    # a tie (two faces in one plane, one lying on the other): the smaller lies
+                    # on the larger's front (docs/queries.md, "Faces lying on faces")
+                    if abs(t - best) <= 1e-9 * t:
+                        big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
+                        now = small if side[big] > 0 else big
+                    elif t < best:
+                        best = t
+                        now = pr
+            if now != owner:
+                if owner >= 0:
+                    if has_vertical:
+                        seen[col[owner]] += _trapezoid(x, n_i, fa, fb, fc, u0, u1, act_v0[q], act_v1[q], act_v0[top],
+                                                       act_v1[top], p0, p1)
+                    else:
+                        # bottom side left to right, top side right to left; the vertical
+                        # sides cancel between slabs (the owner changes only across edges)
+                        _owner_run(runs, run_o, act[q], 0, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
+                                   p0, p1)
+                        _owner_run(runs, run_o, act[top], 1, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
+                                   p0, p1)
+                owner = now
+                top = q
+        for q in range(n_act):
+            wind[seg_p[act[q]]] = 0
+    if not has_vertical:
+        for e in range(n_seg):
+            for k in range(2):
+                if run_o[e, k] >= 0:
+                    _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1)
+    return brk
+
+
+@njit(cache=True)
+def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny):
+    """What each point of an emitter sees of every polygon side, and what is hidden of it:
+    a from-point hidden-surface computation over the whole scene at once, so that a matrix
+    row costs one evaluation per point, not one per receiver.
+
+    For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
+    seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
+    back). The front hemisphere is cut into the five faces of a hemicube (top along n_i, four
+    half sides), each a frustum through x; in each, the polygons are clipped, projected
+    centrally and swept (:func:`_hemicube_face`): every trapezoid of the sweep goes to the
+    nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
+    depends only on the solid angle, so the projected region gives the same value).
+
+    Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
+    smaller lies on the larger's front. A point of the larger's front inside the smaller
+    sees the smaller's side facing it with F = 1 and nothing else, and so does a point of
+    the smaller's side against the larger (it sees the larger's front); seen from elsewhere,
+    the smaller covers the larger on the larger's front side, the larger the smaller on
+    its back side.
+
+    Returns ``hidden`` (m, 2P + 1) float64: for every column, ``F(x → polygon side clipped
+    to the front hemisphere) − F(x → its visible part)`` (≥ 0 up to rounding; −1 at a
+    contact column, whose unoccluded F is 0), and last what x sees of no polygon (the sky:
+    1 − Σ seen, F to the whole hemisphere being 1).
+
+    Parameters
+    ----------
+    points : (m, 3) float64
+    n_i, eu, ev : (3,) float64
+        The emitting side's unit normal and a right-handed basis of its plane.
+    pts : (n, 3) float64
+        Loop vertices; loop L at ``pts[loop_lo[L]:loop_hi[L]]`` of polygon ``loop_poly[L]``
+        (non-decreasing), outer loops counter-clockwise about the polygon's normal, holes
+        clockwise.
+    poly_normal : (P, 3) float64; poly_c : (P,) float64
+        Planes ``poly_normal[p] · y = poly_c[p]``.
+    rank : (P,) int64
+        Order of the polygons by area (0 the smallest): which of two overlapping polygons in
+        one plane lies on the other.
+    skip : int
+        The emitter's polygon (never seen).
+    tiny : float
+        Distance below which x counts as in a polygon's plane.
+    """
+    P = poly_normal.shape[0]
+    n_loops = loop_lo.shape[0]
+    first = np.zeros(P + 1, np.int64)
+    for L in range(n_loops):
+        first[loop_poly[L] + 1] += 1
+    for p in range(P):
+        first[p + 1] += first[p]
+    kmax = 3
+    emax = 1
+    for L in range(n_loops):
+        kmax = max(kmax, loop_hi[L] - loop_lo[L])
+        emax += loop_hi[L] - loop_lo[L] + 5
+    kmax += 8
+    seg_a, seg_b = np.empty((emax, 2)), np.empty((emax, 2))
+    seg_p, seg_w = np.empty(emax, np.int64), np.empty(emax, np.int64)
+    buf_a, buf_b = np.empty((kmax, 3)), np.empty((kmax, 3))
+    brk = np.empty(4 * emax)
+    wind = np.zeros(P, np.int64)
+    cover = np.empty(P, np.int64)
+    col = np.empty(P, np.int64)
+    side = np.empty(P)
+    use = np.zeros(P, np.bool_)
+    seen = np.zeros(2 * P)
+    p0, p1 = np.empty(3), np.empty(3)
+    # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
+    frames = np.empty((5, 3, 3))
+    planes = np.empty((5, 4, 3))
+    for c in range(3):
+        frames[0, 0, c], frames[0, 1, c], frames[0, 2, c] = eu[c], ev[c], n_i[c]
+    for k in range(4):
+        sgn = 1.0 if k % 2 == 0 else -1.0
+        for c in range(3):
+            fc = sgn * (eu[c] if k < 2 else ev[c])
+            frames[k + 1, 2, c] = fc
+            frames[k + 1, 1, c] = n_i[c]
+        fcv = frames[k + 1, 2]
+        frames[k + 1, 0, 0] = n_i[1] * fcv[2] - n_i[2] * fcv[1]
+        frames[k + 1, 0, 1] = n_i[2] * fcv[0] - n_i[0] * fcv[2]
+        frames[k + 1, 0, 2] = n_i[0] * fcv[1] - n_i[1] * fcv[0]
+    for k in range(5):
+        for c in range(3):
+            fa, fb, fc = frames[k, 0, c], frames[k, 1, c], frames[k, 2, c]
+            planes[k, 0, c] = fc - fa
+            planes[k, 1, c] = fc + fa
+            planes[k, 2, c] = fc - fb
+            planes[k, 3, c] = fc + fb if k == 0 else fb
+    # each face's 2-D basis turned by a generic angle: the frustum's sides and the edges of an
+    # axis-aligned scene are not vertical in 2-D, so the sweep needs no vertical sides
+    ca, sa = np.cos(GENERIC_TURN), np.sin(GENERIC_TURN)
+    for k in range(5):
+        for c in range(3):
+            fa, fb = frames[k, 0, c], frames[k, 1, c]
+            frames[k, 0, c] = ca * fa + sa * fb
+            frames[k, 1, c] = -sa * fa + ca * fb
+    hidden = np.zeros((points.shape[0], 2 * P + 1))
+    for i in range(points.shape[0]):
+        x = points[i]
+        contact = -1
+        for p in range(P):
+            use[p] = False
+            if p == skip:
+                continue
+            s = poly_normal[p, 0] * x[0] + poly_normal[p, 1] * x[1] + poly_normal[p, 2] * x[2] - poly_c[p]
+            side[p] = s
+            if abs(s) <= tiny:
+                dn = poly_normal[p, 0] * n_i[0] + poly_normal[p, 1] * n_i[1] + poly_normal[p, 2] * n_i[2]
+                # the smaller of two faces lying on each other touches the larger's front with
+                # its side facing it: the larger's front, the smaller's side against it
+                if rank[skip] > rank[p]:
+                    touching = (poly_normal[skip, 0] * n_i[0] + poly_normal[skip, 1] * n_i[1]
+                                + poly_normal[skip, 2] * n_i[2]) > 0
+                else:
+                    touching = dn < 0
+                if touching and _inside_plane(x, pts, loop_lo, loop_hi, first[p], first[p + 1], poly_normal[p]):
+                    contact = 2 * p + (1 if dn > 0 else 0)
+                continue
+            col[p] = 2 * p + (0 if s > 0 else 1)
+            # unoccluded: Lambert over the loops clipped to the front hemisphere
+            total = 0.0
+            ahead = False
+            for L in range(first[p], first[p + 1]):
+                lo, hi = loop_lo[L], loop_hi[L]
+                n_in = hi - lo
+                for q in range(n_in):
+                    for c in range(3):
+                        buf_a[q, c] = pts[lo + q, c]
+                n_in = _clip_loop(buf_a, n_in, buf_b, x, n_i)
+                if n_in < 3:
+                    continue
+                ahead = True
+                for q in range(n_in):
+                    r = q + 1 if q + 1 < n_in else 0
+                    total += _gamma_dot(x, buf_b[q], buf_b[r], n_i)
+            if ahead:
+                use[p] = True
+                hidden[i, col[p]] = abs(total) / TWO_PI
+        if contact >= 0:
+            hidden[i, contact] = -1.0  # it sees that side only: all else it would see is hidden
+            continue
+        for k in range(5):
+            brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,
+                                 loop_poly, poly_normal, poly_c, rank, side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a,
+                                 buf_b, brk, wind, cover, p0, p1)
+        sky = 1.0
+        for p in range(P):
+            if use[p]:
+                hidden[i, col[p]] -= seen[col[p]]
+                sky -= seen[col[p]]
+                seen[col[p]] = 0.0
+        hidden[i, 2 * P] = max(sky, 0.0)
+    return hidden

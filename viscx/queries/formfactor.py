@@ -61,7 +61,7 @@ import numpy as np
 
 from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon
-from viscx.geometry.occlusion import blocked_form_factors, shaft_meets, visible_form_factors
+from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
 from viscx.geometry.polygon import newell_normal, plane_basis
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
@@ -673,7 +673,7 @@ class PairSetup:
     ``cells``: :func:`emitter_cells` of (face_i, side_i) when the caller has them (they
     depend on the emitter only), else computed when needed."""
 
-    def __init__(self, scene, face_i, side_i, target, side_t, cells=None):
+    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True):
         self.scene = scene
         self.face_i, self.side_i, self._cells = int(face_i), int(side_i), cells
         self.area_i = float(scene.face_area[face_i])
@@ -695,7 +695,7 @@ class PairSetup:
             or max(float(np.max(l @ n_i)) for l in self.J) - c_i <= tiny
             or max(float(np.max(l @ n_t)) for l in self.I) - c_t <= tiny
         )
-        if self.empty:
+        if self.empty or not occluders:
             self.occluders = []
             return
         self.occluders = pair_occluders(scene, self.I, n_i, c_i, self.J, n_t, c_t, {int(face_i), int(target.face)})
@@ -1004,12 +1004,202 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     return np.asarray(cols, np.int64), np.asarray(vals, np.float64), np.asarray(errs, np.float64), counts, sky_v, sky_e
 
 
+# --------------------------------------------------------------------------------------
+# a whole row at once: every receiver from the same points
+
+
+def scene_polygons(scene):
+    """The faces as the flat arrays of :func:`viscx.geometry.occlusion.point_views`:
+    ``(pts, loop_lo, loop_hi, loop_poly, normals, offsets, rank)`` (cached; rank: the order
+    of the faces by area, the smallest first)."""
+
+    def build(scene):
+        polys = [(oriented_loops(scene.face_loops(f), scene.face_normal[f]), scene.face_normal[f])
+                 for f in range(scene.n_faces)]
+        loops = [(np.asarray(loop, np.float64), p) for p, (ls, _) in enumerate(polys) for loop in ls]
+        sizes = np.array([len(l) for l, _ in loops], np.int64)
+        hi = np.cumsum(sizes)
+        normals = np.array([n for _, n in polys], np.float64)
+        offsets = np.array([float(n @ ls[0][0]) for ls, n in polys])
+        rank = np.empty(len(polys), np.int64)
+        rank[np.argsort(scene.face_area, kind="stable")] = np.arange(len(polys))
+        return (np.ascontiguousarray(np.concatenate([l for l, _ in loops])), (hi - sizes).astype(np.int64),
+                hi.astype(np.int64), np.array([p for _, p in loops], np.int64), normals, offsets, rank)
+
+    return scene.cached("formfactor_polygons", build)
+
+
+class RowCubature:
+    """The adaptive cubature of :class:`Cubature` for a vector integrand: one value per
+    receiver column at each point, each column with its own budget. Every triangle is
+    evaluated on the same three levels (its rule, 4 children, 16 grandchildren); a column's
+    estimate is the sum of its triangles' estimates (:meth:`Cubature.estimates`, column by
+    column), and while some column's exceeds its budget, that column's triangles with the
+    largest estimates are split (until what is left is half its budget). A point is
+    evaluated once for all receivers.
+
+    Parameters
+    ----------
+    integrand : callable
+        ``integrand(points (m, 3)) -> (m, R) float64``.
+    unresolved : callable, optional
+        ``unresolved(tri (g, 3, 3)) -> (g,) float64``, added to every column's estimate.
+    """
+
+    def __init__(self, integrand, unresolved=None):
+        self.integrand = integrand
+        self.unresolved = unresolved
+        self.evaluations = 0
+
+    def rule(self, tri, width):
+        """(g, R) float64: Radon's rule on each triangle."""
+        out = np.zeros((len(tri), width))
+        area = triangle_areas(tri)
+        chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
+        for lo in range(0, len(tri), chunk):
+            part = tri[lo:lo + chunk]
+            pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
+            values = self.integrand(np.ascontiguousarray(pts))
+            self.evaluations += len(pts)
+            out[lo:lo + chunk] = np.einsum("grc,r->gc", values.reshape(len(part), 7, -1), RULE_WEIGHTS) * area[lo:lo + chunk, None]
+        return out
+
+    def estimates(self, tri, q, kq, gq):
+        """(g, R): :meth:`Cubature.estimates` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
+        k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
+        err = np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64)
+        if self.unresolved is not None and len(tri):
+            extra = np.minimum(self.unresolved(tri), triangle_areas(tri))
+            err = np.maximum(err, extra[:, None] * (np.abs(g_sum) > 0))
+        return err
+
+    def integrate(self, tri, budget, min_size=0.0):
+        """∫ over the triangles (g, 3, 3) of every column; ``budget`` (R,) the targets on the
+        columns' estimates. Returns ``value, error`` (R,) and the triangles evaluated."""
+        width = len(budget)
+        while len(tri) and min_size > 0:
+            long = np.sqrt(2 * triangle_areas(tri)) > min_size
+            if not np.any(long):
+                break
+            tri = np.concatenate([tri[~long], split4(tri[long]).reshape(-1, 3, 3)])
+        q = self.rule(tri, width)
+        K = split4(tri).reshape(-1, 3, 3)
+        kq = self.rule(K, width)
+        G = split4(K).reshape(-1, 3, 3)
+        gq = self.rule(G, width)
+        cells = 21 * len(tri)
+        four = np.arange(4)
+        for _ in range(200):
+            err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
+            total = err.sum(axis=0)
+            over = np.flatnonzero(total > budget)
+            if not len(over) or cells >= MAX_CELLS or not len(tri):
+                break
+            split = np.zeros(len(tri), bool)
+            for c in over:
+                order = np.argsort(-err[:, c], kind="stable")
+                rest = total[c] - np.cumsum(err[order, c])
+                split[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
+            child = (4 * rows[:, None] + four).reshape(-1)
+            grand = (4 * child[:, None] + four).reshape(-1)
+            new_G = split4(G[grand]).reshape(-1, 3, 3)
+            new_gq = self.rule(new_G, width)
+            cells += 16 * len(child)
+            k_keep = (4 * keep[:, None] + four).reshape(-1)
+            g_keep = (16 * keep[:, None] + np.arange(16)).reshape(-1)
+            tri = np.concatenate([tri[keep], K[child]])
+            q = np.concatenate([q[keep], kq[child]])
+            K = np.concatenate([K[k_keep], G[grand]])
+            kq = np.concatenate([kq[k_keep], gq[grand]])
+            G = np.concatenate([G[g_keep], new_G])
+            gq = np.concatenate([gq[g_keep], new_gq])
+        err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
+        return gq.sum(axis=0), err.sum(axis=0), cells
+
+
+def coplanar_faces(scene, face):
+    """(k,) int64: the other faces lying in the plane of a face (all their vertices within
+    1e-9 of the scene's size of it), which may lie on it (docs/queries.md, "Faces lying on
+    faces")."""
+    outline, lo, hi = face_outlines(scene)
+    n = scene.face_normal[face]
+    h = np.abs(outline @ n - float(n @ outline[lo[face]]))
+    flat = np.maximum.reduceat(h, lo) <= 1e-9 * scene.diagonal
+    flat[face] = False
+    return np.flatnonzero(flat)
+
+
+def row_form_factors(scene, face, side, faces, tol, sky=True):
+    """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
+    once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
+    contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
+    ``hidden`` the vector :func:`viscx.geometry.occlusion.point_views` gives at each point
+    (every receiver from one hidden-surface computation), integrated by
+    :class:`RowCubature` over the emitter's cells (:func:`emitter_cells`) with each
+    column's budget ``tol − (contour error)`` (in F).
+
+    Returns what :func:`emitter_row` returns.
+    """
+    n = scene.n_faces
+    faces = np.asarray(faces, np.int64)
+    fj, sj = facing_sides(scene, face, side, np.arange(n, dtype=np.int64))
+    if not len(fj) and not len(coplanar_faces(scene, face)):
+        # nothing in front of the side and nothing lying on it: it sees the sky, exactly
+        return (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {"none": 2 * len(faces)}, 1.0 if sky else 0.0, 0.0)
+    cells = emitter_cells(scene, face, side)
+    width = 2 * n + 1  # the sides of the faces, then the sky
+    f0, e0 = np.zeros(width), np.zeros(width)
+    targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
+    area = float(scene.face_area[face])
+    for target, t, c in targets:
+        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
+        if not setup.empty:
+            value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+            scale = loops_area(setup.I, setup.n_i) / area
+            f0[c], e0[c] = value * scale, err * scale
+    n_i = side * scene.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    polygons = scene_polygons(scene)
+    tiny = 1e-9 * scene.diagonal
+
+    def hidden(points):
+        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny)
+
+    tri = []
+    for cell in cells:
+        k = np.arange(1, len(cell) - 1)
+        tri.append(np.stack([np.repeat(cell[:1], len(k), axis=0), cell[k], cell[k + 1]], axis=1))
+    tri = np.concatenate(tri)
+    budget = np.maximum(tol - e0, 0.1 * tol) * area
+    # the first triangles no larger than 1 / MIN_SPLIT of the smallest box holding the
+    # emitter and a receiver, as the pair cubature's (4 times larger, the Cornell matrix
+    # at 1e-4 took half the time, but 3 of 376 entries were off by more than their
+    # estimates, up to 30 times: grazing pairs whose small shadows the coarser start missed)
+    box_lo, box_hi = face_boxes(scene)
+    others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
+    extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
+                            axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
+    cub = RowCubature(hidden)
+    h, h_err, _ = cub.integrate(tri, budget, extent / MIN_SPLIT)
+    F, E = f0 - h / area, e0 + h_err / area
+    F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
+    wanted = np.zeros(width, bool)
+    wanted[2 * faces] = wanted[2 * faces + 1] = True
+    wanted[2 * face:2 * face + 2] = False
+    cols = np.flatnonzero(wanted & (F != 0.0))
+    counts = {"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
+              "evaluations": int(cub.evaluations)}
+    sky_v, sky_e = (float(F[-1]), float(E[-1])) if sky else (0.0, 0.0)
+    return cols.astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
+
+
 _POOL_SCENE = None
 
 
 def _row_task(args):
     face, side, faces, tol, sky = args
-    return emitter_row(_POOL_SCENE, face, side, faces, tol, sky)
+    return (row_form_factors if sky else emitter_row)(_POOL_SCENE, face, side, faces, tol, sky)
 
 
 def _map_rows(scene, rows, faces, tol, sky, workers=None, progress=None):
@@ -1026,7 +1216,7 @@ def _map_rows(scene, rows, faces, tol, sky, workers=None, progress=None):
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:
-            out.append(emitter_row(scene, *t))
+            out.append((row_form_factors if sky else emitter_row)(scene, *t))
             if progress:
                 progress()
         return out

@@ -158,6 +158,17 @@ def _crossing_u(seg_a, seg_b, e, f):
 
 
 @njit(cache=True)
+def _has_vertical(seg_a, seg_b, seg_w, n_seg):
+    """Whether an input edge is vertical in the projection (winding weight 0, a v extent
+    at one u): the vertical sides of neighbouring slabs then do not cancel, and the sweeps
+    sum whole trapezoids instead of joining runs along the edges."""
+    for e in range(n_seg):
+        if seg_w[e] == 0 and seg_a[e, 1] != seg_b[e, 1]:
+            return True
+    return False
+
+
+@njit(cache=True)
 def _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
     """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
     middle are dropped (in place), the others sorted by height at the middle, highest first,
@@ -285,10 +296,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
-    has_vertical = False
-    for e in range(n_seg):
-        if seg_w[e] == 0 and seg_a[e, 1] != seg_b[e, 1]:
-            has_vertical = True
+    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
     runs = np.zeros((n_seg, 3))  # per edge: direction (0 none), run start u, run end u
     # sweep: edges by their left end, an active list updated slab by slab
     lo_u = np.empty(n_seg)
@@ -750,10 +758,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
-    has_vertical = False
-    for e in range(n_seg):
-        if seg_w[e] == 0 and seg_a[e, 1] != seg_b[e, 1]:
-            has_vertical = True
+    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
     runs = np.empty((n_seg, 2, 2))  # per edge, bottom/top side: the current run's u range
     run_o = np.full((n_seg, 2), -1, np.int64)  # ... and its owner (-1 none)
     live = np.empty(n_seg, np.int64)

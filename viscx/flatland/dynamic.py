@@ -17,7 +17,8 @@ topology is spliced where they are — the *zone*:
 1. incidences: the kept ones (already sorted along the tangency curves) and the new ones
    are merged by binary search (:func:`kernels.merge_ranks`);
 2. edges: an edge whose two end incidences are kept and still consecutive keeps its
-   tail, head, θ range and integrals; the others are derived from their end vertices;
+   tail, head, θ range and integrals, unless it lies on the moved object's tangency curve
+   (its ∫u dθ moves with the object); the others are derived from their end vertices;
 3. faces: the face components holding a slot of a vanished edge, with the new edges'
    slots, are re-glued by a union–find over their slots alone (a slot glued to a kept
    face's slot would have been in that face before the move: the zone is closed), and
@@ -188,7 +189,7 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
         # sky ends are clipped to the scene box, which the move changed
         V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
     clock.lap("vertices")
-    out, st, zone = _splice_topology(new_scene, cx.state, V, vmap, added)
+    out, st, zone = _splice_topology(new_scene, cx.state, V, vmap, added, k if dx or dy else -1)
     V.update(out)
     clock.lap("topology")
     st["lines"] = _distinct_lines(np.concatenate([reg_th, lines_th]), np.concatenate([reg_u, lines_u]), tol)
@@ -359,9 +360,9 @@ def _merge_vertices(V_old, fresh, redone):
     return V, vmap, fidx[entered]
 
 
-def _splice_topology(scene, old, V, vmap, added):
+def _splice_topology(scene, old, V, vmap, added, moved):
     """The topology state and stored arrays after the vertices changed (see the module
-    docstring).  Returns (arrays, state, zone sizes)."""
+    docstring); ``moved`` the object that moved (−1: none).  Returns (arrays, state, zone sizes)."""
     m_old, m = vmap.shape[0], V["v_key"].shape[0]
     O = C.occurrences(V)
     N_old = old["s_occ"].shape[0]
@@ -387,9 +388,11 @@ def _splice_topology(scene, old, V, vmap, added):
     C.link(st, 2 * m)
     newpos = np.full(N_old, -1, np.int64)
     newpos[kpos] = at_kept
-    # -- edges: kept when both ends are kept and still consecutive
+    # -- edges: kept when both ends are kept and still consecutive, and not on the moved
+    # object's tangency curves: their ∫u dθ follows the object (u shifts by the move) even
+    # when their end vertices come back unchanged (a move too small to change any θ)
     nxt_old = newpos[old["nxt"][kpos]]
-    surv_old = kpos[(nxt_old >= 0) & (nxt_old == st["nxt"][at_kept])]
+    surv_old = kpos[(nxt_old >= 0) & (nxt_old == st["nxt"][at_kept]) & (old["s_cur"][kpos] // 2 != moved)]
     surv = newpos[surv_old]
     fresh_e = np.ones(N, bool)
     fresh_e[surv] = False

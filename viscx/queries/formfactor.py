@@ -468,6 +468,25 @@ def triangle_areas(tri):
     return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
 
 
+def three_level_error(q, kq, gq):
+    """The error estimate of the sum of a triangle's 16 grandchildren, and that sum: the
+    change from its 4 children to them, at least 1/64 of the change from its own rule to
+    its children (:class:`Cubature`). Works column by column alike.
+
+    Parameters
+    ----------
+    q : (g,) or (g, R) float
+    kq : (g, 4) or (g, 4, R) float
+    gq : (g, 16) or (g, 16, R) float
+
+    Returns
+    -------
+    err, g_sum : (g,) or (g, R) float
+    """
+    k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
+    return np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64), g_sum
+
+
 class Cubature:
     """Adaptive cubature of an integrand over triangles, each triangle carrying the list of
     occluders that may matter on it (CSR ``ptr``, ``ids``; an empty list means the integrand
@@ -513,8 +532,7 @@ class Cubature:
         is not forgotten), and at least what the ``unresolved`` callback says a feature
         smaller than the rule can see may hide in it (at most the triangle's area: the
         integrand's values lie in [0, 1])."""
-        k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
-        err = np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64)
+        err, _ = three_level_error(q, kq, gq)
         if self.unresolved is not None and len(tri):
             err = np.maximum(err, np.minimum(self.unresolved(tri, ptr, ids), triangle_areas(tri)))
         return err
@@ -941,7 +959,7 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
     faces_i = [int(i) for i in faces_i]
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
     area = scene.face_area
-    rows = _map_rows(scene, [(i, side_i) for i in faces_i], faces_j, tol, False, workers)
+    rows = _map_rows(emitter_row, scene, [(i, side_i) for i in faces_i], faces_j, tol, False, workers)
     total = sum(area[i] * r[1].sum() for i, r in zip(faces_i, rows))
     err = sum(area[i] * r[2].sum() for i, r in zip(faces_i, rows))
     a = float(area[faces_i].sum())
@@ -1066,8 +1084,7 @@ class RowCubature:
 
     def estimates(self, tri, q, kq, gq):
         """(g, R): :meth:`Cubature.estimates` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
-        k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
-        err = np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64)
+        err, g_sum = three_level_error(q, kq, gq)
         if self.unresolved is not None and len(tri):
             extra = np.minimum(self.unresolved(tri), triangle_areas(tri))
             err = np.maximum(err, extra[:, None] * (np.abs(g_sum) > 0))
@@ -1198,30 +1215,32 @@ _POOL_SCENE = None
 
 
 def _row_task(args):
-    face, side, faces, tol, sky = args
-    return (row_form_factors if sky else emitter_row)(_POOL_SCENE, face, side, faces, tol, sky)
+    row, face, side, faces, tol, sky = args
+    return row(_POOL_SCENE, face, side, faces, tol, sky)
 
 
-def _map_rows(scene, rows, faces, tol, sky, workers=None, progress=None):
-    """:func:`emitter_row` of every (face, side) in ``rows``, in that order, on ``workers``
-    processes (forked: they share the scene; the results do not depend on their number)."""
+def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None):
+    """``row(scene, face, side, faces, tol, sky)`` (:func:`emitter_row` pair by pair, or
+    :func:`row_form_factors` all receivers at once) of every (face, side) in ``rows``, in
+    that order, on ``workers`` processes (forked: they share the scene; the results do not
+    depend on their number)."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     from viscx.parallel import default_workers
 
     global _POOL_SCENE
-    tasks = [(int(f), int(s), faces, tol, sky) for f, s in rows]
+    tasks = [(row, int(f), int(s), faces, tol, sky) for f, s in rows]
     workers = min(default_workers(workers), len(tasks))
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:
-            out.append((row_form_factors if sky else emitter_row)(scene, *t))
+            out.append(row(scene, *t[1:]))
             if progress:
                 progress()
         return out
     # the costly rows (large faces) first, so that no worker is left with one at the end
-    order = np.argsort(-scene.face_area[[t[0] for t in tasks]], kind="stable")
+    order = np.argsort(-scene.face_area[[t[1] for t in tasks]], kind="stable")
     _POOL_SCENE = scene
     try:
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
@@ -1312,7 +1331,7 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     faces = np.arange(n, dtype=np.int64)
     rows = [(i, s) for i in range(n) for s in SIDES]
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
-        results = _map_rows(scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
+        results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
     counts = {}
     for r in results:
         for k, v in r[3].items():

@@ -36,10 +36,12 @@ images: demo
 
 # the warm-up first: after a change of source its kernels are compiled once, not inside a test
 # (the workers then only read numba's cache); JOBS pytest-xdist workers, each given whole files
+# in the order tests/conftest.py sorts them, longest first (pytest-xdist would otherwise sort
+# the files by their number of tests and hand a long file of one test out last)
 JOBS ?= 2
 test: venv
 	$(BIN)/python -m viscx.warmup
-	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope
+	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder
 
 # Rebuild the golden files that tests/test_golden.py diffs against; run it only
 # when a change of output is intended, and commit the result.

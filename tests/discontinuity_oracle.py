@@ -60,50 +60,67 @@ def oracle_setup(scene, light_faces):
 
 def labels_at(scene, setup, x, receiver):
     """The label set (frozenset) of the light's visible part from point x on face ``receiver``."""
-    x = np.asarray(x, dtype=np.float64)
+    return labels_of(scene, setup, np.asarray(x, dtype=np.float64)[None], receiver)[0]
+
+
+def labels_of(scene, setup, points, receiver, chunk=64):
+    """:func:`labels_at` of each point ((m, 3) float, all on face ``receiver``): a list of
+    frozensets. The clipping is computed for ``chunk`` points at once (arrays of
+    (points, triangles, light edges, 4) constraints), the union of the hidden intervals
+    point by point."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     lf = setup["light_faces"]
-    if np.all(scene.face_normal[lf] @ x - scene.face_offset[lf] <= TSLACK * scene.diagonal):
-        return BEHIND
-    tri_ok = ~np.isin(scene.triangle_face, np.r_[setup["light_faces"], receiver])
+    tri_ok = ~np.isin(scene.triangle_face, np.r_[lf, receiver])
     T = scene.vertices[scene.triangles[tri_ok]]  # (t, 3, 3)
-    tedge = setup["tri_edge"][tri_ok]
-    tface = scene.triangle_face[tri_ok]
     A = scene.vertices[setup["lverts"][:, 0]]  # (k, 3)
     B = scene.vertices[setup["lverts"][:, 1]]
-    sigma = np.sign(_det(T[:, 0] - x, T[:, 1] - x, T[:, 2] - x))  # (t,)
     nrm = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-    px = np.einsum("ti,ti->t", nrm, x - T[:, 0])
-
-    def cons(y):  # (k, 3) -> (t, k, 4) constraint values (>= 0 inside the hidden set)
-        y = y[None, :, :]
-        c = [sigma[:, None] * _det(T[:, None, i] - x, T[:, None, (i + 1) % 3] - x, y - x) for i in range(3)]
-        c.append(-np.sign(px)[:, None] * np.einsum("ti,tki->tk", nrm, y - T[:, None, 0]))
-        return np.stack(c, axis=-1)
-
-    c0, c1 = cons(A), cons(B)
-    slope = c1 - c0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        root = -c0 / slope
-    inc, dec = slope > 0, slope < 0
-    flat_bad = (slope == 0) & (c0 < 0)
-    # a light edge in the triangle's plane (a light face's neighbour): segments to it end on
-    # the triangle's boundary and are not hidden by it
-    scale = np.abs(c0).max() + np.abs(c1).max() + 1e-300
-    flat_bad[..., 3] |= (np.abs(c0[..., 3]) <= 1e-12 * scale) & (np.abs(c1[..., 3]) <= 1e-12 * scale)
-    lo_cand = np.where(inc, root, -np.inf)
-    hi_cand = np.where(dec, root, np.inf)
-    lo_k, hi_k = np.argmax(lo_cand, axis=-1), np.argmin(hi_cand, axis=-1)
-    lo = np.maximum(np.take_along_axis(lo_cand, lo_k[..., None], -1)[..., 0], 0.0)
-    hi = np.minimum(np.take_along_axis(hi_cand, hi_k[..., None], -1)[..., 0], 1.0)
-    ok = (sigma != 0)[:, None] & (px != 0)[:, None] & ~flat_bad.any(axis=-1) & (hi - lo > TSLACK)
-    labels = set()
-    nk = len(A)
-    covered0 = np.zeros(nk, bool)
-    covered1 = np.zeros(nk, bool)
-
+    # the plane constraint's value at the light edges' ends does not depend on x, its sign does
+    plane = [np.einsum("ti,tki->tk", nrm, y[None, :, :] - T[:, None, 0]) for y in (A, B)]
     # the receiver's own edges lie in x's plane: their images are one line, so which of
     # them casts a crossing is a tie; they are one label
     own = set(scene.half_edges.edge[scene.half_edges.face == receiver].tolist())
+    tables = (setup["tri_edge"][tri_ok], scene.triangle_face[tri_ok], own)
+    # a point on or behind the planes of all the light's faces sees nothing of it
+    behind = [bool(np.all(scene.face_normal[lf] @ p - scene.face_offset[lf] <= TSLACK * scene.diagonal)) for p in points]
+    front = points[~np.array(behind, bool).reshape(-1)]
+    out = []
+    for c in range(0, len(front), chunk):
+        x = front[c:c + chunk, None, None, :]  # (m, 1, 1, 3)
+        sigma = np.sign(_det(T[None, :, 0] - x[:, 0], T[None, :, 1] - x[:, 0], T[None, :, 2] - x[:, 0]))  # (m, t)
+        px = np.einsum("...i,...i->...", nrm[None], x[:, 0] - T[None, :, 0])
+
+        def cons(y, plane):  # (k, 3) -> (m, t, k, 4) constraint values (>= 0 inside the hidden set)
+            y = y[None, None, :, :]
+            c = [sigma[..., None] * _det(T[None, :, None, i] - x, T[None, :, None, (i + 1) % 3] - x, y - x) for i in range(3)]
+            c.append(-np.sign(px)[..., None] * plane[None])
+            return np.stack(c, axis=-1)
+
+        c0, c1 = cons(A, plane[0]), cons(B, plane[1])
+        slope = c1 - c0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = -c0 / slope
+        inc, dec = slope > 0, slope < 0
+        flat_bad = (slope == 0) & (c0 < 0)
+        # a light edge in the triangle's plane (a light face's neighbour): segments to it end on
+        # the triangle's boundary and are not hidden by it
+        scale = (np.abs(c0).max(axis=(1, 2, 3)) + np.abs(c1).max(axis=(1, 2, 3)) + 1e-300)[:, None, None]
+        flat_bad[..., 3] |= (np.abs(c0[..., 3]) <= 1e-12 * scale) & (np.abs(c1[..., 3]) <= 1e-12 * scale)
+        lo_cand = np.where(inc, root, -np.inf)
+        hi_cand = np.where(dec, root, np.inf)
+        lo_k, hi_k = np.argmax(lo_cand, axis=-1), np.argmin(hi_cand, axis=-1)
+        lo = np.maximum(np.take_along_axis(lo_cand, lo_k[..., None], -1)[..., 0], 0.0)
+        hi = np.minimum(np.take_along_axis(hi_cand, hi_k[..., None], -1)[..., 0], 1.0)
+        ok = (sigma != 0)[..., None] & (px != 0)[..., None] & ~flat_bad.any(axis=-1) & (hi - lo > TSLACK)
+        out += [_union_labels(setup, tables, ok[i], lo[i], hi[i], lo_k[i], hi_k[i]) for i in range(len(x))]
+    seen = iter(out)
+    return [BEHIND if b else next(seen) for b in behind]
+
+
+def _union_labels(setup, tables, ok, lo, hi, lo_k, hi_k):
+    """The labels of one point from its hidden intervals ((t, k) each: triangle t on light
+    edge k, ``ok`` where it hides a part [lo, hi], bounded by constraints lo_k, hi_k)."""
+    tedge, tface, own = tables
 
     def lab(t, k):
         if k == 3:
@@ -111,6 +128,10 @@ def labels_at(scene, setup, x, receiver):
         e = int(tedge[t, k])
         return ("e", -2 if e in own else e)
 
+    labels = set()
+    nk = ok.shape[1]
+    covered0 = np.zeros(nk, bool)
+    covered1 = np.zeros(nk, bool)
     for l in range(nk):
         ts = np.flatnonzero(ok[:, l])
         if not len(ts):
@@ -252,21 +273,16 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
             return np.where(odd.any(axis=1), np.argmax(odd, axis=1), -1)
 
         out["regions"] += len(r.regions)
+        # the points to label: each sampled region's, then each crossed trace's pair (all
+        # labelled at once below)
+        sampled = []
         for j, g in enumerate(r.regions):
             lo, hi = g.outer.min(axis=0), g.outer.max(axis=0)
             q = lo + (hi - lo) * rng.uniform(size=(400, 2))
             q = q[_parity(q, [g.outer, *g.holes])]
             q = _first_far(q, a, b, margin, samples)
-            if len(q) < 2:
-                continue
-            out["regions_sampled"] += 1
-            labs = [labels_at(scene, setup, r.to3(x), r.face) for x in q]
-            for i in range(1, len(labs)):
-                out["same_pairs"] += 1
-                if labs[i] == labs[0]:
-                    out["same_agree"] += 1
-                else:
-                    out["same_fail"].append((r.face, j, r.to3(q[0]).tolist(), r.to3(q[i]).tolist(), labs[0] ^ labs[i]))
+            if len(q) >= 2:
+                sampled.append((j, q))
         # every trace ends on another line (or runs out of the face): a dangling end
         # leaves one region on both sides of the trace
         for k in r.events:
@@ -277,6 +293,7 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
             for e in np.flatnonzero(inside & (gap > mesh.snap)):
                 out["dangling"].append((r.face, int(k), r.to3(ends[e]).tolist(), float(gap[e])))
         nb = len(np.concatenate(outline))
+        crossed = []
         for k in r.events:
             rows = np.flatnonzero(owner == k)
             others = owner != k
@@ -303,8 +320,21 @@ def check_mesh(scene, mesh, rng, margin, samples=4):
             reg = region_of(q)
             if reg[0] == reg[1]:
                 out["cross_same_region"] += 1
-            la, lb = (labels_at(scene, setup, r.to3(x), r.face) for x in q)
-            if la != lb:
+            crossed.append((k, q))
+        pieces = [q for _, q in sampled] + [q for _, q in crossed]
+        labs = iter(labels_of(scene, setup, r.to3(np.concatenate(pieces)), r.face) if pieces else [])
+        for j, q in sampled:
+            out["regions_sampled"] += 1
+            first = next(labs)
+            for i in range(1, len(q)):
+                out["same_pairs"] += 1
+                other = next(labs)
+                if other == first:
+                    out["same_agree"] += 1
+                else:
+                    out["same_fail"].append((r.face, j, r.to3(q[0]).tolist(), r.to3(q[i]).tolist(), first ^ other))
+        for k, q in crossed:
+            if next(labs) != next(labs):
                 out["cross_agree"] += 1
             else:
                 out["cross_fail"].append((r.face, int(k), r.to3(q.mean(axis=0)).tolist()))

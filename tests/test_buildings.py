@@ -259,7 +259,8 @@ def test_pencil_kernels_equal_their_plain_numpy_definitions():
         t = np.einsum("ij,ij->i", ea + np.nan_to_num(x)[:, None] * (eb - ea) - p0, p1 - p0) / span
         with np.errstate(invalid="ignore"):
             want = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps) & (t >= -eps) & (t <= span + eps)
-        got = pencils._crossed_mask(ends[:, 0], ends[:, 1], a, b, eps)
+        # contiguous ends, as pencil_crossings passes them (the kernel's cached signature)
+        got = pencils._crossed_mask(np.ascontiguousarray(ends[:, 0]), np.ascontiguousarray(ends[:, 1]), a, b, eps)
         assert np.array_equal(got.reshape(-1), want)
         total += np.count_nonzero(want)
     assert total > 1000

@@ -215,7 +215,8 @@ def test_segments_across_moved_in_solids_are_not_free():
     s, t = rng.random((2, len(a)))
     A = x[ev[a, 0]] + s[:, None] * (x[ev[a, 1]] - x[ev[a, 0]])
     D = x[ev[d, 0]] + t[:, None] * (x[ev[d, 1]] - x[ev[d, 0]])
-    owner = np.stack([solids[0][ev[a, 0]], solids[0][ev[d, 0]]], axis=1)
+    # int64 owners, as the scans pass them: the kernel's cached signature, not one of the test's own
+    owner = np.stack([solids[0][ev[a, 0]], solids[0][ev[d, 0]]], axis=1).astype(np.int64)
     delta = POINT_SLACK * scene.epsilon
     stamp = np.full(grid.n_solids, -1, dtype=np.int64)
     crosses = np.array(

@@ -56,19 +56,20 @@ def test_point_views_equal_the_pair_kernel(cornell, face, rng):
     assert np.abs(h[:, -1] - sky).max() < 1e-12
 
 
-def test_row_equals_pairs(cornell):
+@pytest.mark.parametrize("tol", [1e-4, pytest.param(1e-5, marks=pytest.mark.slow)])
+def test_row_equals_pairs(cornell, tol):
     """The floor's row and sky by the row cubature agree with the pair by pair ones within
-    the sum of their error estimates."""
+    the sum of their error estimates, at tol 1e-4 (1e-5 with -m slow: 17 s of CPU)."""
     faces = np.arange(cornell.n_faces)
-    r = ff.row_form_factors(cornell, 0, 1, faces, 1e-5)
-    o = ff.emitter_row(cornell, 0, 1, faces, 1e-5)
+    r = ff.row_form_factors(cornell, 0, 1, faces, tol)
+    o = ff.emitter_row(cornell, 0, 1, faces, tol)
     a, b = dict(zip(r[0], zip(r[1], r[2]))), dict(zip(o[0], zip(o[1], o[2])))
     assert set(b) <= set(a)
     for c in a:
         fb, eb = b.get(c, (0.0, 0.0))
         assert abs(a[c][0] - fb) <= a[c][1] + eb + 1e-12, c
     assert abs(r[4] - o[4]) <= r[5] + o[5]
-    assert r[2].max() <= 1e-5 and r[5] <= 1e-5
+    assert r[2].max() <= tol and r[5] <= tol
 
 
 def cube_with_a_tile():

@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-#: A floor, a box standing on it (contacts), a tilted panel above it (skew edges) and a
-#: square light under the ceiling, facing down: a few hundred nodes.
+#: A floor, a box standing on it (contacts), a block touching the box's side (the pencils
+#: of a touched plane), a tilted panel above them (skew edges) and a square light under
+#: the ceiling, facing down: a few hundred nodes.
 SCENE = """\
 v 0 0 0
 v 0 0 4
@@ -52,6 +53,38 @@ g panel
 f 13 14 15 16
 g light
 f 17 18 19 20
+v 2 0 1
+v 2 0 1.8
+v 2 0.7 1.8
+v 2 0.7 1
+v 2.6 0 1
+v 2.6 0 1.8
+v 2.6 0.7 1.8
+v 2.6 0.7 1
+g block
+f 21 24 28 25
+f 22 26 27 23
+f 24 23 27 28
+f 25 28 27 26
+"""
+
+#: Two unit squares facing each other and a small triangle between them: the form-factor
+#: matrix (``viscx formfactor matrix``: a row of every receiver at once).
+MATRIX = """\
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 0 1 1
+v 1 1 1
+v 1 0 1
+v 0.3 0.3 0.5
+v 0.6 0.35 0.5
+v 0.45 0.7 0.55
+f 1 2 3 4
+f 5 6 7 8
+f 9 10 11
 """
 
 
@@ -94,11 +127,12 @@ def warm_up():
     """Run every kernel once; returns the seconds it took."""
     from viscx.pipeline import build_file
     from viscx.queries.discontinuities import open_discontinuities
-    from viscx.queries.formfactor import face_to_face, point_to_faces
+    from viscx.queries.formfactor import face_to_face, form_factor_matrix, point_to_faces
     from viscx.queries.shadows import shadows
     from viscx.queries.visibility import open_query, view_from
     from viscx.render.camera import Camera
     from viscx.render.image import render
+    from viscx.scene import load_scene
 
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="viscx-warmup-") as folder:
@@ -112,6 +146,9 @@ def warm_up():
         shadows(h5, light)
         point_to_faces(query, [3.0, 0.001, 3.0], [0, 1, 0], range(query.scene.n_faces))
         face_to_face(query.scene, 0, 7, tol=1e-5)
+        matrix = Path(folder) / "matrix.obj"
+        matrix.write_text(MATRIX)
+        form_factor_matrix(load_scene(matrix), tol=1e-3, workers=1)  # in this process: its cache, not a fork's
         scene, mesh = open_discontinuities(h5, light_group="light")
         camera = Camera([2.0, 1.5, -4.0], [2.0, 1.0, 2.0], [0, 1, 0], 45.0, 24, 24)
         for options in ({}, {"samples": 40}, {"reference": 2}):

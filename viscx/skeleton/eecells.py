@@ -972,6 +972,9 @@ def _pencils_through(scene, crossed, held, x, tol):
     turn = 4 * tol * np.linalg.norm(b - a, axis=1) / np.maximum(r_q, 1e-300)
     ta, tb = _edge_ends(scene, ge)
     ev = scene.half_edges.edge_vertices
+    # x contiguous: a column of the caller's points is strided unless it holds one point, and
+    # each layout is a signature of its own (compiled mid-build if the warm-up had the other)
+    x = np.ascontiguousarray(x, dtype=np.float64)
     return _pencil_kernel(normal, unit, turn, scene.epsilon, a, b, ah, bh, ev[held], np.asarray(crossed, np.int64),
                           np.asarray(held, np.int64), x, tol, ta, tb, ev[ge], np.asarray(ge, np.int64),
                           ANGLE_TOLERANCE, PARALLEL_TOLERANCE)

@@ -835,10 +835,19 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                     else:
                         # bottom side left to right, top side right to left; the vertical
                         # sides cancel between slabs (the owner changes only across edges)
-                        _owner_run(runs, run_o, act[q], 0, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
-                                   p0, p1)
-                        _owner_run(runs, run_o, act[top], 1, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
-                                   p0, p1)
+                        # (a run extended in place, the common case, costs no call)
+                        e = act[q]
+                        if run_o[e, 0] == owner and runs[e, 0, 1] == u0:
+                            runs[e, 0, 1] = u1
+                        else:
+                            _owner_run(runs, run_o, e, 0, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
+                                       p0, p1)
+                        e = act[top]
+                        if run_o[e, 1] == owner and runs[e, 1, 1] == u0:
+                            runs[e, 1, 1] = u1
+                        else:
+                            _owner_run(runs, run_o, e, 1, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
+                                       p0, p1)
                 owner = now
                 top = q
         for q in range(n_act):

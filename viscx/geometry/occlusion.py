@@ -347,8 +347,17 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                 if not has_vertical:
                     # bottom side left to right, top side right to left; the vertical sides
                     # cancel between neighbouring slabs (no input edge is vertical)
-                    total += _run(runs, act_e[q], 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
-                    total += _run(runs, act_e[top], -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    # (a run extended in place, the common case, costs no call)
+                    e = act_e[q]
+                    if runs[e, 0] == 1 and runs[e, 2] == u0:
+                        runs[e, 2] = u1
+                    else:
+                        total += _run(runs, e, 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    e = act_e[top]
+                    if runs[e, 0] == -1 and runs[e, 2] == u0:
+                        runs[e, 2] = u1
+                    else:
+                        total += _run(runs, e, -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
                     visible = now
                     continue
                 # trapezoid (u0, vb0) -> (u1, vb1) -> (u1, vt1) -> (u0, vt0), counter-clockwise

@@ -761,6 +761,10 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                 break
             if seg_p[f] == seg_p[e] or seg_w[f] == 0:
                 continue
+            # v ranges apart: no crossing (the common case, tested before the call)
+            if (max(seg_a[e, 1], seg_b[e, 1]) < min(seg_a[f, 1], seg_b[f, 1])
+                    or max(seg_a[f, 1], seg_b[f, 1]) < min(seg_a[e, 1], seg_b[e, 1])):
+                continue
             u = _crossing_u(seg_a, seg_b, e, f)
             if u == u:
                 brk = _grow(brk, n_brk)

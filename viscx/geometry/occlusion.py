@@ -849,18 +849,13 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                         # bottom side left to right, top side right to left; the vertical
                         # sides cancel between slabs (the owner changes only across edges)
                         # (a run extended in place, the common case, costs no call)
-                        e = act[q]
-                        if run_o[e, 0] == owner and runs[e, 0, 1] == u0:
-                            runs[e, 0, 1] = u1
-                        else:
-                            _owner_run(runs, run_o, e, 0, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
-                                       p0, p1)
-                        e = act[top]
-                        if run_o[e, 1] == owner and runs[e, 1, 1] == u0:
-                            runs[e, 1, 1] = u1
-                        else:
-                            _owner_run(runs, run_o, e, 1, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
-                                       p0, p1)
+                        for k in range(2):
+                            e = act[q] if k == 0 else act[top]
+                            if run_o[e, k] == owner and runs[e, k, 1] == u0:
+                                runs[e, k, 1] = u1
+                            else:
+                                _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col,
+                                           seen, p0, p1)
                 owner = now
                 top = q
         for q in range(n_act):

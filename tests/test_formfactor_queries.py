@@ -403,13 +403,16 @@ def test_file_without_v2(tmp_path):
 def test_hover_cells_follow_the_light_outline(cornell):
     """The ceiling's cells are cut along the light's outline projected on the ceiling and
     graded towards it (offsets h·8^k, h = 0.1 mm): no projected edge crosses a cell's
-    interior, the cells tile the ceiling, and the narrowest cells are no wider than h. Without the cuts the ceiling is its two triangles."""
+    interior, the cells tile the ceiling, and the narrowest cells are no wider than h. Without the cuts the ceiling is its two triangles.
+    The light's outline hovers all round and is convex: rings around it (6 rings of 4
+    trapezoids and the core, cut by the ceiling's diagonal, and the parts outside them: 45
+    cells), not the parallels extended across the whole ceiling (177 cells)."""
     seg = ff.hover_segments(cornell, 1, 1)
     light = cornell.face_loops(15)[0]
     assert len(seg) == 4 * 7  # 4 edges: the edge and 3 offsets on each side (0.1, 0.8, 6.4 mm)
     cells = ff.emitter_cells(cornell, 1, 1)
     n = cornell.face_normal[1]
-    assert len(cells) > 100
+    assert 25 < len(cells) < 60
     assert abs(sum(ff.loops_area([c], n) for c in cells) - cornell.face_area[1]) < 1e-6
     proj = light * [1, 0, 1] + [0, 548.8, 0]
     t = np.linspace(0.01, 0.99, 50)
@@ -424,7 +427,43 @@ def test_hover_cells_follow_the_light_outline(cornell):
     for c in cells:
         e = np.roll(c, -1, axis=0) - c
         widths.append(2 * ff.loops_area([c], n) / np.linalg.norm(e, axis=1).max())
-    assert 0.01 < min(widths) <= 0.1 + 1e-9
+    # 2 area / longest side: a triangle's width, up to twice a trapezoid's (the rings' cells)
+    assert 0.01 < min(widths) <= 2 * 0.1 + 1e-9
+
+
+def _cells_follow(cells, n, area, outline):
+    """The cells tile a face of ``area`` and no edge of ``outline`` (projected) crosses a cell."""
+    assert abs(sum(ff.loops_area([c], n) for c in cells) - area) < 1e-9 * area
+    t = np.linspace(0.01, 0.99, 40)
+    for k in range(len(outline)):
+        a, b = outline[k], outline[(k + 1) % len(outline)]
+        pts = a + t[:, None] * (b - a)
+        for c in cells:
+            e = np.roll(c, -1, axis=0) - c
+            left = np.einsum("pkj,j->pk", np.cross(e[None], pts[:, None] - c[None]), n)
+            assert not np.any((left > 1e-9).all(axis=1))
+
+
+@pytest.mark.parametrize("light", [
+    [[0.3, 0.2, 0.999], [0.5, 0.75, 0.999], [0.7, 0.2, 0.999]],  # convex: rings
+    [[0.2, 0.2, 0.999], [0.2, 0.7, 0.999], [0.4, 0.7, 0.999], [0.4, 0.4, 0.999], [0.7, 0.4, 0.999], [0.7, 0.2, 0.999]],  # L: lines
+])
+def test_hover_rings_and_lines_tile_the_face(light):
+    """A light 1 mm under a unit ceiling: a convex one grades the ceiling by rings (graded
+    widths h·8^k around it, the narrowest h), a non-convex one by the extended parallels;
+    both tile the ceiling with no projected light edge crossing a cell."""
+    scene = scene_of([[[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], light])
+    side = 1 if scene.face_normal[0][2] < 0 else -1  # the ceiling's side facing down
+    cells = ff.emitter_cells(scene, 0, side)
+    n = side * scene.face_normal[0]
+    proj = np.asarray(light, float) * [1, 1, 0] + [0, 0, 1]
+    _cells_follow(cells, n, scene.face_area[0], proj)
+    # 2 area / longest side: the width of a triangle, up to twice that of a trapezoid
+    widths = [2 * ff.loops_area([c], n) / np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1).max() for c in cells]
+    assert 1e-4 < min(widths) <= 2e-3 + 1e-12
+    convex = len(light) == 3
+    # rings: 1 core + 6 rings x 3 trapezoids, cut by the ceiling's diagonal, and the parts outside
+    assert (len(cells) < 60) == convex, len(cells)
 
 
 @pytest.mark.parametrize("tol", [1e-5, pytest.param(1e-6, marks=pytest.mark.slow)])

@@ -347,8 +347,17 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                 if not has_vertical:
                     # bottom side left to right, top side right to left; the vertical sides
                     # cancel between neighbouring slabs (no input edge is vertical)
-                    total += _run(runs, act_e[q], 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
-                    total += _run(runs, act_e[top], -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    # (a run extended in place, the common case, costs no call)
+                    e = act_e[q]
+                    if runs[e, 0] == 1 and runs[e, 2] == u0:
+                        runs[e, 2] = u1
+                    else:
+                        total += _run(runs, e, 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                    e = act_e[top]
+                    if runs[e, 0] == -1 and runs[e, 2] == u0:
+                        runs[e, 2] = u1
+                    else:
+                        total += _run(runs, e, -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
                     visible = now
                     continue
                 # trapezoid (u0, vb0) -> (u1, vb1) -> (u1, vt1) -> (u0, vt0), counter-clockwise
@@ -752,6 +761,10 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                 break
             if seg_p[f] == seg_p[e] or seg_w[f] == 0:
                 continue
+            # v ranges apart: no crossing (the common case, tested before the call)
+            if (max(seg_a[e, 1], seg_b[e, 1]) < min(seg_a[f, 1], seg_b[f, 1])
+                    or max(seg_a[f, 1], seg_b[f, 1]) < min(seg_a[e, 1], seg_b[e, 1])):
+                continue
             u = _crossing_u(seg_a, seg_b, e, f)
             if u == u:
                 brk = _grow(brk, n_brk)
@@ -835,10 +848,14 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                     else:
                         # bottom side left to right, top side right to left; the vertical
                         # sides cancel between slabs (the owner changes only across edges)
-                        _owner_run(runs, run_o, act[q], 0, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
-                                   p0, p1)
-                        _owner_run(runs, run_o, act[top], 1, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
-                                   p0, p1)
+                        # (a run extended in place, the common case, costs no call)
+                        for k in range(2):
+                            e = act[q] if k == 0 else act[top]
+                            if run_o[e, k] == owner and runs[e, k, 1] == u0:
+                                runs[e, k, 1] = u1
+                            else:
+                                _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col,
+                                           seen, p0, p1)
                 owner = now
                 top = q
         for q in range(n_act):

@@ -351,6 +351,34 @@ def contact_segments(scene, face, side):
 HOVER_GRADING = 8.0
 
 
+def _hovering_loops(scene, face, side):
+    """The loops of the other faces' parts in front of side ``side`` of a face that may
+    hover over it (within a quarter of its extent), projected on its plane, with which of
+    their edges hover (ends at heights 0 < h ≤ a quarter of the edge's length):
+    ``(n, [(proj (k, 3), hover (k,) bool, low (k,), length (k,))])``, edge k from vertex k
+    to k + 1, ``low`` its lower end's height."""
+    box_lo, box_hi = face_boxes(scene)
+    n, c, tiny, edges = _front_edges(scene, face, side, 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face])))
+    out = []
+    for loop, b in edges:
+        ha, hb = loop @ n - c, b @ n - c
+        length = np.linalg.norm(b - loop, axis=1)
+        low = np.minimum(ha, hb)
+        hover = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
+        if np.any(hover):
+            out.append((loop - ha[:, None] * n, hover, low, length))
+    return n, out
+
+
+def _offsets(h, length):
+    """The grading offsets h·g^k ≤ length / 4 (g = :data:`HOVER_GRADING`)."""
+    out, off = [], h
+    while off <= 0.25 * length:
+        out.append(off)
+        off *= HOVER_GRADING
+    return out
+
+
 def hover_segments(scene, face, side):
     """Segments of face ``face``'s plane along which the form factor of its side ``side``
     changes over a width much smaller than the face: the outlines of faces that *hover* in
@@ -366,40 +394,98 @@ def hover_segments(scene, face, side):
     towards the near-discontinuity, each as wide as the scale of the integrand's variation
     in it, as contact lines (:func:`contact_segments`) are for true discontinuities. The
     offsets run past the edge's ends by their distance, so that the cells near a corner are
-    graded in both directions.
+    graded in both directions. (:func:`emitter_cells` grades a convex outline that hovers
+    all round by rings instead: :func:`hover_rings`.)
 
     Returns
     -------
     (s, 2, 3) float64
     """
-    box_lo, box_hi = face_boxes(scene)
-    # only faces within a quarter of the face's extent can hover over it
-    n, c, tiny, edges = _front_edges(scene, face, side, 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face])))
+    n, loops = _hovering_loops(scene, face, side)
+    return _loop_segments(n, loops)
+
+
+def _loop_segments(n, loops):
     out = []
-    for loop, b in edges:
-        ha, hb = loop @ n - c, b @ n - c
-        length = np.linalg.norm(b - loop, axis=1)
-        low = np.minimum(ha, hb)
-        keep = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
-        for p, q, h, ell in zip(loop[keep], b[keep], low[keep], length[keep]):
-            p, q = p - (p @ n - c) * n, q - (q @ n - c) * n
+    for proj, hover, low, length in loops:
+        nxt = np.roll(proj, -1, axis=0)
+        for p, q, h, ell in zip(proj[hover], nxt[hover], low[hover], length[hover]):
             d = (q - p) / np.linalg.norm(q - p)
             across = np.cross(n, d)
             out.append((p, q))
-            off = h
-            while off <= 0.25 * ell:
+            for off in _offsets(h, ell):
                 for sgn in (1.0, -1.0):
                     out.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
-                off *= HOVER_GRADING
     return np.asarray(out, np.float64).reshape(-1, 2, 3)
+
+
+def _offset_polygon(poly, s):
+    """A convex counter-clockwise 2-D polygon (k, 2) with every edge moved outwards by s
+    (inwards for s < 0), vertices at the moved edges' crossings; None when an edge turns
+    over (s too far inwards)."""
+    d = np.roll(poly, -1, axis=0) - poly
+    d = d / np.linalg.norm(d, axis=1)[:, None]
+    out_n = np.stack([d[:, 1], -d[:, 0]], axis=1)  # outward normals of a counter-clockwise polygon
+    a = poly + s * out_n
+    pd, pa = np.roll(d, 1, axis=0), np.roll(a, 1, axis=0)  # the previous edge
+    # vertex k: pa + t pd = a + r d
+    den = pd[:, 0] * d[:, 1] - pd[:, 1] * d[:, 0]
+    t = ((a[:, 0] - pa[:, 0]) * d[:, 1] - (a[:, 1] - pa[:, 1]) * d[:, 0]) / den
+    v = pa + t[:, None] * pd
+    e = np.roll(v, -1, axis=0) - v
+    return v if np.all(np.einsum("kj,kj->k", e, d) > 0) else None
+
+
+def hover_rings(outline, offsets):
+    """Cells graded towards a convex outline (k, 2) that hovers all round, counter-clockwise
+    in 2-D: the outline moved out and in by each offset (:func:`_offset_polygon`), the
+    rings between consecutive ones cut at the corners into trapezoids (one per edge), and
+    the innermost polygon. The graded parallels of :func:`hover_segments` without their
+    extensions across the whole emitter: a ring is as wide as the scale of the integrand's
+    variation in it (its distance to the outline) all along, also at the corners.
+
+    Returns
+    -------
+    cells : list of (m, 2) float64
+        Convex, counter-clockwise; they tile the outermost polygon.
+    outer : (k, 2) float64
+        The outermost polygon.
+    """
+    levels = [_offset_polygon(outline, -o) for o in offsets[::-1]] + [outline] + [_offset_polygon(outline, o) for o in offsets]
+    levels = [v for v in levels if v is not None]
+    cells = [levels[0]]
+    k = len(outline)
+    for inner, outer in zip(levels[:-1], levels[1:]):
+        for e in range(k):
+            f = (e + 1) % k
+            cells.append(np.stack([outer[e], outer[f], inner[f], inner[e]]))
+    return cells, levels[-1]
+
+
+def _clip_convex(piece, poly, eps):
+    """A convex 2-D piece's parts outside the convex counter-clockwise ``poly`` (convex,
+    one per edge of poly at most) and its part inside (None if empty)."""
+    outside, rest = [], piece
+    for e in range(len(poly)):
+        a, b = poly[e], poly[(e + 1) % len(poly)]
+        d = (b - a) / np.linalg.norm(b - a)
+        right, left = _cut_convex(rest, a, d, eps)  # the inside of a counter-clockwise polygon is on the left
+        if right is not None:
+            outside.append(right)
+        rest = left
+        if rest is None:
+            break
+    return outside, rest
 
 
 def emitter_cells(scene, face, side):
     """Side ``side`` of a face cut into convex cells along its contact segments
-    (:func:`contact_segments`): the face's triangles, each cut by the line of every segment
-    that crosses its interior, so that the form factor of the points is continuous on every
-    cell (the cubature's error estimate assumes it). Depends on the emitter only: computed
-    once per side and shared by all its pairs.
+    (:func:`contact_segments`) and graded towards the outlines that hover over it: the
+    face's triangles, each cut by the line of every segment that crosses its interior, so
+    that the form factor of the points is continuous on every cell (the cubature's error
+    estimate assumes it), and graded along the hovering outlines (:func:`hover_segments`;
+    a convex outline whose every edge hovers by rings around it, :func:`hover_rings`).
+    Depends on the emitter only: computed once per side and shared by all its pairs.
 
     Returns
     -------
@@ -416,7 +502,30 @@ def emitter_cells(scene, face, side):
         return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
 
     pieces = [t if _area2(t) > 0 else t[::-1] for t in to2(tri)]
-    seg = to2(np.concatenate([contact_segments(scene, face, side), hover_segments(scene, face, side)]))
+    n_h, loops = _hovering_loops(scene, face, side)
+    lines = []
+    for loop in loops:
+        proj, hover, low, length = loop
+        outline = to2(proj)
+        if _area2(outline) < 0:
+            outline = outline[::-1]
+        e = np.roll(outline, -1, axis=0) - outline
+        turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+        if not (np.all(hover) and np.all(turn > eps * np.linalg.norm(e, axis=1).max())):
+            lines.append(loop)
+            continue
+        rings, outer = hover_rings(outline, _offsets(float(low.min()), float(length.min())))
+        out = []
+        for p in pieces:
+            outside, rest = _clip_convex(p, outer, eps)
+            out.extend(outside)
+            if rest is not None:
+                for r in rings:
+                    part = _clip_convex(rest, r, eps)[1]
+                    if part is not None:
+                        out.append(part)
+        pieces = out
+    seg = to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)]))
     for a, b in seg:
         length = np.linalg.norm(b - a)
         d = (b - a) / length

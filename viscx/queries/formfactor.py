@@ -873,7 +873,7 @@ class PairSetup:
         return value, error, cub.evaluations, cells
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -881,30 +881,129 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     integrand is zero, exactly, on every triangle of I' whose shaft to J' meets no
     occluder, so the cubature works only where shadows are.
 
+    Faces lying on faces (docs/queries.md) as the matrix has them: the emitter's cells that
+    lie against another face (:func:`contact_sides`) see that face's side with F = 1 and
+    nothing else (their unoccluded part is taken off the contour integral, exactly, and
+    they add their area to the pair they touch), and the receiver's cells covered from
+    side t (:func:`covered_cells`) receive nothing (their pairs are taken off).
+
     Parameters
     ----------
     tol : float
         Target on the error estimate (absolute, in F).
-    cells : list, optional
-        :func:`emitter_cells` of (face_i, side_i), shared by the pairs of one emitter.
+    cells, contact : list, (c,) int64, optional
+        :func:`emitter_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
+        by the pairs of one emitter.
 
     Returns
     -------
     PairResult
     """
     t0 = time.perf_counter()
-    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=cells)
+    if cells is None:
+        cells = emitter_cells(scene, face_i, side_i)
+    if contact is None:
+        contact = contact_sides(scene, face_i, side_i, cells)
+    covered = covered_cells(scene, target.face, side_t) if target.face >= 0 else []
+    if covered:  # the covered cells' pairs share half the budget
+        tol = 0.5 * tol
+    r = _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, True)
+    for cell in covered:  # what they would receive past the occluders (not the contact: it is their own)
+        part = _uncovered_pair(scene, face_i, side_i, Target([cell], target.normal, target.face), side_t,
+                               tol / len(covered), cells, contact, False)
+        r.F, r.error = r.F - part.F, r.error + part.error
+        r.evaluations, r.cells = r.evaluations + part.evaluations, r.cells + part.cells
+    r.seconds = time.perf_counter() - t0
+    return r
+
+
+def _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, touch):
+    """:func:`pair_form_factor` but for the target's covered cells: the emitter's free cells
+    (``contact`` −1) by the contour integral and the cubature, and (``touch``) its cells in
+    contact with the target's side t by their area."""
+    free = [c for c, k in zip(cells, contact) if k < 0]
+    touching = 0.0
+    if touch and target.face >= 0:
+        element = 2 * target.face + (0 if side_t > 0 else 1)
+        touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
+    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free)
     if setup.empty:
-        return PairResult(0.0, 0.0, "none", seconds=time.perf_counter() - t0)
+        return PairResult(touching, 0.0, "contact" if touching else "none")
     value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
     scale = loops_area(setup.I, setup.n_i) / setup.area_i
-    value, err = value * scale, err * scale
-    if not setup.occluders:
-        return PairResult(value, err, "contour", seconds=time.perf_counter() - t0)
+    value, err = value * scale + touching, err * scale
+    # what the emitter's cells in contact would see unoccluded, and see not at all
+    for cell in (c for c, k in zip(cells, contact) if k >= 0):
+        part = clip_loops([cell], setup.n_t, setup.c_t + setup.tiny)
+        if part and loops_area(part, setup.n_i) > setup.tiny ** 2:
+            v, e = contour_form_factor(part, setup.n_i, setup.J, setup.n_t)
+            a = loops_area(part, setup.n_i) / setup.area_i
+            value, err = value - v * a, err + e * a
+    if not setup.occluders or not free:
+        return PairResult(value, err, "contour")
     budget = max(tol - err, 0.1 * tol) * setup.area_i
     hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
-                      evals, n_cells, time.perf_counter() - t0)
+                      evals, n_cells)
+
+
+def _cell_area(cell):
+    return 0.5 * float(np.linalg.norm(newell_normal(cell)))
+
+
+def polygon_subset(scene, keep):
+    """:func:`scene_polygons` of the faces ``keep`` (sorted (k,) int64) only, polygon p of
+    the result being face ``keep[p]`` (ranks kept: only their order matters)."""
+    pts, lo, hi, loop_poly, normals, offsets, rank = scene_polygons(scene)
+    loops = np.flatnonzero(np.isin(loop_poly, keep))
+    sizes = hi[loops] - lo[loops]
+    new_hi = np.cumsum(sizes)
+    idx = np.repeat(lo[loops] - (new_hi - sizes), sizes) + np.arange(int(sizes.sum()))
+    return (np.ascontiguousarray(pts[idx]), (new_hi - sizes).astype(np.int64), new_hi.astype(np.int64),
+            np.searchsorted(keep, loop_poly[loops]).astype(np.int64), np.ascontiguousarray(normals[keep]),
+            np.ascontiguousarray(offsets[keep]), np.ascontiguousarray(rank[keep]))
+
+
+def contact_sides(scene, face, side, cells):
+    """(c,) int64: for each cell of side ``side`` of a face (:func:`emitter_cells`), the
+    element (``2 k`` front, ``2 k + 1`` back) of the face side it lies against, −1 if none
+    (docs/queries.md, "Faces lying on faces"). Decided by the matrix's own kernel,
+    :func:`viscx.geometry.occlusion.point_views`, at each cell's centroid, over the face and
+    the faces in its plane: the cells are cut along the other faces' outlines there
+    (:func:`contact_segments`), so a cell lies against one face or none."""
+    others = coplanar_faces(scene, face)
+    out = np.full(len(cells), -1, np.int64)
+    if not len(others) or not len(cells):
+        return out
+    keep = np.unique(np.concatenate([[face], others])).astype(np.int64)
+    n_i = side * scene.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    centroids = np.ascontiguousarray([c.mean(axis=0) for c in cells])  # convex cells: inside
+    h = point_views(centroids, n_i, eu, ev, *polygon_subset(scene, keep), int(np.searchsorted(keep, face)),
+                    1e-9 * scene.diagonal)
+    rows, col = np.nonzero(h[:, :-1] == -1.0)
+    out[rows] = 2 * keep[col // 2] + col % 2
+    return out
+
+
+def covered_cells(scene, face, side):
+    """The cells of side ``side`` of a face that another face covers from that side (a
+    cabinet's back on the wall's front, the wall on the back's side against it): the cells
+    of the side in contact (:func:`contact_sides`; seen from side t, the point of J lies
+    against K exactly where, emitting from side t, it would). Cached per face side.
+
+    Returns
+    -------
+    list of (k, 3) float64
+    """
+
+    def build(scene):
+        if not len(coplanar_faces(scene, face)):
+            return []
+        cells = emitter_cells(scene, face, side)
+        return [c for c, k in zip(cells, contact_sides(scene, face, side, cells)) if k >= 0]
+
+    return scene.cached(f"covered_cells {int(face)} {int(side)}", build)
 
 
 def contour_form_factor(loops_i, n_i, loops_j, n_j):
@@ -933,9 +1032,10 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=No
     target = face_target(scene, target_face)
     if cells is None:
         cells = emitter_cells(scene, face_i, side_i)
+    contact = contact_sides(scene, face_i, side_i, cells)
     parts = {}
     for name, t in (("front", 1), ("back", -1)):
-        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells)
+        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact)
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -1002,11 +1102,16 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     sky, sky_error : float
     """
     cells = emitter_cells(scene, face, side)
+    contact = contact_sides(scene, face, side, cells)
     cols, vals, errs, counts = [], [], [], {}
     fj, sj = facing_sides(scene, face, side, np.asarray(faces, np.int64))
+    # the sides it lies against (faces in its plane: not facing it, F = their common area)
+    touched = np.unique(contact[contact >= 0])
+    touched = touched[np.isin(touched // 2, np.asarray(faces, np.int64))]
+    fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
     for j, t in zip(fj, sj):
-        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells)
+        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -1015,7 +1120,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells)
+            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error

@@ -80,27 +80,29 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def oriented_loops(loops, normal):
-    """Loops with the outer (first) counter-clockwise about ``normal`` and holes clockwise."""
+def oriented_loops(loops, normal, pieces=False):
+    """Loops with the outer (first) counter-clockwise about ``normal`` and holes clockwise
+    (``pieces``: every loop counter-clockwise, disjoint or edge-adjacent pieces)."""
     out = []
     for k, loop in enumerate(loops):
         loop = np.asarray(loop, dtype=np.float64)
-        if (newell_normal(loop) @ normal > 0) != (k == 0):
+        if (newell_normal(loop) @ normal > 0) != (k == 0 or pieces):
             loop = loop[::-1]
         out.append(loop)
     return out
 
 
-def clip_loops(loops, normal, offset):
+def clip_loops(loops, normal, offset, pieces=False):
     """The loops' parts with ``normal · y >= offset`` (Sutherland–Hodgman per loop; holes
-    stay holes, degenerate bridges along the cut cancel in every contour or winding sum)."""
+    stay holes, degenerate bridges along the cut cancel in every contour or winding sum;
+    ``pieces``: each loop is a piece of its own, kept or not)."""
     point = np.asarray(normal) * offset
     out = []
     for k, loop in enumerate(loops):
         part = clip_to_hemisphere(loop, point, normal)
         if len(part) >= 3:
             out.append(part)
-        elif k == 0:
+        elif k == 0 and not pieces:
             return []
     return out
 
@@ -122,11 +124,15 @@ class Target:
         Its geometric normal (side +1).
     face : int
         Face id, -1 for a virtual polygon (no face is excluded from its occluders).
+    pieces : bool
+        The loops are convex pieces (each counter-clockwise, a union: a face's covered
+        cells, :func:`covered_cells`) rather than an outer loop and holes.
     """
 
     loops: list
     normal: np.ndarray
     face: int = -1
+    pieces: bool = False
 
 
 def face_target(scene, face):
@@ -699,13 +705,14 @@ class PairSetup:
         loops_i = oriented_loops(scene.face_loops(face_i), n_i)
         c_i = float(n_i @ loops_i[0][0])
         n_t = side_t * np.asarray(target.normal, dtype=np.float64)
-        loops_t = oriented_loops(target.loops, n_t)
+        loops_t = oriented_loops(target.loops, n_t, target.pieces)
         c_t = float(n_t @ loops_t[0][0])
         tiny = 1e-9 * scene.diagonal
         self.tiny = tiny
         self.n_i, self.c_i, self.n_t, self.c_t = n_i, c_i, n_t, c_t
         self.I = clip_loops(loops_i, n_t, c_t + tiny)
-        self.J = clip_loops(loops_t, n_i, c_i)
+        self.J = clip_loops(loops_t, n_i, c_i, target.pieces)
+        self.pieces = target.pieces
         self.empty = (
             not self.I or not self.J
             or loops_area(self.I, n_i) <= tiny * tiny
@@ -873,7 +880,7 @@ class PairSetup:
         return value, error, cub.evaluations, cells
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1)):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -894,6 +901,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     cells, contact : list, (c,) int64, optional
         :func:`emitter_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
         by the pairs of one emitter.
+    part : (k, K)
+        Only part k of K of the pair (for K processes): the cubature over every K-th free
+        cell from the k-th, to ``tol / K``, and the exact terms in part 0; the K parts'
+        values and estimates add up to the pair's.
 
     Returns
     -------
@@ -905,40 +916,46 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
     covered = covered_cells(scene, target.face, side_t) if target.face >= 0 else []
-    if covered:  # the covered cells' pairs share half the budget
+    if covered:  # the covered part's own pair takes half the budget
         tol = 0.5 * tol
-    r = _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, True)
-    for cell in covered:  # what they would receive past the occluders (not the contact: it is their own)
-        part = _uncovered_pair(scene, face_i, side_i, Target([cell], target.normal, target.face), side_t,
-                               tol / len(covered), cells, contact, False)
-        r.F, r.error = r.F - part.F, r.error + part.error
-        r.evaluations, r.cells = r.evaluations + part.evaluations, r.cells + part.cells
+    r = _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, True, part)
+    if covered:  # what they would receive past the occluders (not the contact: it is their own)
+        c = _uncovered_pair(scene, face_i, side_i, Target(covered, target.normal, target.face, True), side_t, tol,
+                            cells, contact, False, part)
+        r.F, r.error = r.F - c.F, r.error + c.error
+        r.evaluations, r.cells = r.evaluations + c.evaluations, r.cells + c.cells
     r.seconds = time.perf_counter() - t0
     return r
 
 
-def _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, touch):
+def _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, touch, part=(0, 1)):
     """:func:`pair_form_factor` but for the target's covered cells: the emitter's free cells
     (``contact`` −1) by the contour integral and the cubature, and (``touch``) its cells in
-    contact with the target's side t by their area."""
-    free = [c for c, k in zip(cells, contact) if k < 0]
+    contact with the target's side t by their area; ``part`` as there."""
+    k_part, n_parts = part
+    free = [c for c, k in zip(cells, contact) if k < 0][k_part::n_parts]
+    exact = k_part == 0  # the exact terms once, in part 0
+    tol = tol / n_parts
     touching = 0.0
-    if touch and target.face >= 0:
+    if touch and exact and target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
         touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none")
-    value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
-    scale = loops_area(setup.I, setup.n_i) / setup.area_i
-    value, err = value * scale + touching, err * scale
-    # what the emitter's cells in contact would see unoccluded, and see not at all
-    for cell in (c for c, k in zip(cells, contact) if k >= 0):
-        part = clip_loops([cell], setup.n_t, setup.c_t + setup.tiny)
-        if part and loops_area(part, setup.n_i) > setup.tiny ** 2:
-            v, e = contour_form_factor(part, setup.n_i, setup.J, setup.n_t)
-            a = loops_area(part, setup.n_i) / setup.area_i
-            value, err = value - v * a, err + e * a
+    receivers = [[piece] for piece in setup.J] if setup.pieces else [setup.J]
+    value, err = touching, 0.0
+    # the emitter's part I' (all its cells) by the contour integral, less its cells in
+    # contact, which see nothing else
+    parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c, k in zip(cells, contact)
+                                if k >= 0]
+    for loops, sign in parts if exact else []:
+        a = loops_area(loops, setup.n_i) / setup.area_i
+        if not loops or a * setup.area_i <= setup.tiny ** 2:
+            continue
+        for J in receivers:
+            v, e = contour_form_factor(loops, setup.n_i, J, setup.n_t)
+            value, err = value + sign * v * a, err + e * a
     if not setup.occluders or not free:
         return PairResult(value, err, "contour")
     budget = max(tol - err, 0.1 * tol) * setup.area_i
@@ -1019,6 +1036,8 @@ def contour_form_factor(loops_i, n_i, loops_j, n_j):
 # many pairs: faces, groups, the matrix
 
 SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
+#: Parts a group query of a single emitting face is cut into (:func:`group_to_group`).
+SINGLE_PARTS = 2
 
 
 def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=None):
@@ -1054,14 +1073,19 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
 
     Each emitting face's cells are computed once for all its receivers, and the pairs it
     cannot see are skipped by the vectorised facing test of :func:`emitter_row`; emitters
-    run on ``workers`` processes (default: the CPU count). ``tol`` bounds the error
-    estimate of each face pair."""
+    run on ``workers`` processes (default: the CPU count). A single emitter (a floor, a
+    wall) runs as :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too
+    uses the cores; the parts depend on the group, never on the workers. ``tol`` bounds
+    the error estimate of each face pair."""
     faces_i = [int(i) for i in faces_i]
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
     area = scene.face_area
-    rows = _map_rows(emitter_row, scene, [(i, side_i) for i in faces_i], faces_j, tol, False, workers)
-    total = sum(area[i] * r[1].sum() for i, r in zip(faces_i, rows))
-    err = sum(area[i] * r[2].sum() for i, r in zip(faces_i, rows))
+    n_parts = SINGLE_PARTS if len(faces_i) == 1 else 1
+    emitters = [i for i in faces_i for _ in range(n_parts)]
+    rows = _map_rows(emitter_row, scene, [(i, side_i, (k, n_parts)) for i in faces_i for k in range(n_parts)], faces_j,
+                     tol, False, workers)
+    total = sum(area[i] * r[1].sum() for i, r in zip(emitters, rows))
+    err = sum(area[i] * r[2].sum() for i, r in zip(emitters, rows))
     a = float(area[faces_i].sum())
     pairs = sum(len(set(faces_j.tolist()) - {i}) for i in faces_i)
     return {"F": float(total / a), "error": float(err / a), "pairs": int(pairs)}
@@ -1089,8 +1113,9 @@ def facing_sides(scene, face, side, faces):
     return f[order], s[order]
 
 
-def emitter_row(scene, face, side, faces, tol, sky=True):
-    """F from one side of a face to every side of ``faces`` it may see, and to the sky.
+def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
+    """F from one side of a face to every side of ``faces`` it may see, and to the sky
+    (``part``: that part of each pair, :func:`pair_form_factor`).
 
     Returns
     -------
@@ -1111,7 +1136,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
     for j, t in zip(fj, sj):
-        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact)
+        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact,
+                             part=part)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -1120,7 +1146,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact)
+            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -1319,28 +1345,29 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
 _POOL_SCENE = None
 
 
-def _row_task(args):
-    row, face, side, faces, tol, sky = args
-    return row(_POOL_SCENE, face, side, faces, tol, sky)
+def _row_task(args, scene=None):
+    row, face, side, faces, tol, sky, *part = args
+    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part)
 
 
 def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None):
     """``row(scene, face, side, faces, tol, sky)`` (:func:`emitter_row` pair by pair, or
     :func:`row_form_factors` all receivers at once) of every (face, side) in ``rows``, in
     that order, on ``workers`` processes (forked: they share the scene; the results do not
-    depend on their number)."""
+    depend on their number). A row given as (face, side, part) is that part of it
+    (``row(..., sky, part)``, :func:`emitter_row`)."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     from viscx.parallel import default_workers
 
     global _POOL_SCENE
-    tasks = [(row, int(f), int(s), faces, tol, sky) for f, s in rows]
+    tasks = [(row, int(r[0]), int(r[1]), faces, tol, sky, *r[2:]) for r in rows]
     workers = min(default_workers(workers), len(tasks))
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:
-            out.append(row(scene, *t[1:]))
+            out.append(_row_task(t, scene))
             if progress:
                 progress()
         return out

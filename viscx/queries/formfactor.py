@@ -80,29 +80,27 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def oriented_loops(loops, normal, pieces=False):
-    """Loops with the outer (first) counter-clockwise about ``normal`` and holes clockwise
-    (``pieces``: every loop counter-clockwise, disjoint or edge-adjacent pieces)."""
+def oriented_loops(loops, normal):
+    """Loops with the outer (first) counter-clockwise about ``normal`` and holes clockwise."""
     out = []
     for k, loop in enumerate(loops):
         loop = np.asarray(loop, dtype=np.float64)
-        if (newell_normal(loop) @ normal > 0) != (k == 0 or pieces):
+        if (newell_normal(loop) @ normal > 0) != (k == 0):
             loop = loop[::-1]
         out.append(loop)
     return out
 
 
-def clip_loops(loops, normal, offset, pieces=False):
+def clip_loops(loops, normal, offset):
     """The loops' parts with ``normal · y >= offset`` (Sutherland–Hodgman per loop; holes
-    stay holes, degenerate bridges along the cut cancel in every contour or winding sum;
-    ``pieces``: each loop is a piece of its own, kept or not)."""
+    stay holes, degenerate bridges along the cut cancel in every contour or winding sum)."""
     point = np.asarray(normal) * offset
     out = []
     for k, loop in enumerate(loops):
         part = clip_to_hemisphere(loop, point, normal)
         if len(part) >= 3:
             out.append(part)
-        elif k == 0 and not pieces:
+        elif k == 0:
             return []
     return out
 
@@ -124,15 +122,11 @@ class Target:
         Its geometric normal (side +1).
     face : int
         Face id, -1 for a virtual polygon (no face is excluded from its occluders).
-    pieces : bool
-        The loops are convex pieces (each counter-clockwise, a union: a face's covered
-        cells, :func:`covered_cells`) rather than an outer loop and holes.
     """
 
     loops: list
     normal: np.ndarray
     face: int = -1
-    pieces: bool = False
 
 
 def face_target(scene, face):
@@ -705,14 +699,13 @@ class PairSetup:
         loops_i = oriented_loops(scene.face_loops(face_i), n_i)
         c_i = float(n_i @ loops_i[0][0])
         n_t = side_t * np.asarray(target.normal, dtype=np.float64)
-        loops_t = oriented_loops(target.loops, n_t, target.pieces)
+        loops_t = oriented_loops(target.loops, n_t)
         c_t = float(n_t @ loops_t[0][0])
         tiny = 1e-9 * scene.diagonal
         self.tiny = tiny
         self.n_i, self.c_i, self.n_t, self.c_t = n_i, c_i, n_t, c_t
         self.I = clip_loops(loops_i, n_t, c_t + tiny)
-        self.J = clip_loops(loops_t, n_i, c_i, target.pieces)
-        self.pieces = target.pieces
+        self.J = clip_loops(loops_t, n_i, c_i)
         self.empty = (
             not self.I or not self.J
             or loops_area(self.I, n_i) <= tiny * tiny
@@ -892,7 +885,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     lie against another face (:func:`contact_sides`) see that face's side with F = 1 and
     nothing else (their unoccluded part is taken off the contour integral, exactly, and
     they add their area to the pair they touch), and the receiver's cells covered from
-    side t (:func:`covered_cells`) receive nothing (their pairs are taken off).
+    side t (:func:`covered_cells`) receive nothing (they are holes of the target).
 
     Parameters
     ----------
@@ -915,35 +908,22 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         cells = emitter_cells(scene, face_i, side_i)
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
-    covered = covered_cells(scene, target.face, side_t) if target.face >= 0 else []
-    if covered:  # the covered part's own pair takes half the budget
-        tol = 0.5 * tol
-    r = _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, True, part)
-    if covered:  # what they would receive past the occluders (not the contact: it is their own)
-        c = _uncovered_pair(scene, face_i, side_i, Target(covered, target.normal, target.face, True), side_t, tol,
-                            cells, contact, False, part)
-        r.F, r.error = r.F - c.F, r.error + c.error
-        r.evaluations, r.cells = r.evaluations + c.evaluations, r.cells + c.cells
-    r.seconds = time.perf_counter() - t0
-    return r
-
-
-def _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, touch, part=(0, 1)):
-    """:func:`pair_form_factor` but for the target's covered cells: the emitter's free cells
-    (``contact`` −1) by the contour integral and the cubature, and (``touch``) its cells in
-    contact with the target's side t by their area; ``part`` as there."""
+    if target.face >= 0:
+        # the cells covered from side t are holes of the target (they are cells of J, so
+        # they lie inside it and do not overlap its holes or each other: non-zero winding
+        # and the contour integral take J minus them)
+        target = Target(target.loops + covered_cells(scene, target.face, side_t), target.normal, target.face)
     k_part, n_parts = part
     free = [c for c, k in zip(cells, contact) if k < 0][k_part::n_parts]
     exact = k_part == 0  # the exact terms once, in part 0
     tol = tol / n_parts
     touching = 0.0
-    if touch and exact and target.face >= 0:
+    if exact and target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
         touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free)
     if setup.empty:
-        return PairResult(touching, 0.0, "contact" if touching else "none")
-    receivers = [[piece] for piece in setup.J] if setup.pieces else [setup.J]
+        return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, 0.0
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else
@@ -953,15 +933,14 @@ def _uncovered_pair(scene, face_i, side_i, target, side_t, tol, cells, contact, 
         a = loops_area(loops, setup.n_i) / setup.area_i
         if not loops or a * setup.area_i <= setup.tiny ** 2:
             continue
-        for J in receivers:
-            v, e = contour_form_factor(loops, setup.n_i, J, setup.n_t)
-            value, err = value + sign * v * a, err + e * a
+        v, e = contour_form_factor(loops, setup.n_i, setup.J, setup.n_t)
+        value, err = value + sign * v * a, err + e * a
     if not setup.occluders or not free:
-        return PairResult(value, err, "contour")
+        return PairResult(value, err, "contour", seconds=time.perf_counter() - t0)
     budget = max(tol - err, 0.1 * tol) * setup.area_i
     hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
-                      evals, n_cells)
+                      evals, n_cells, time.perf_counter() - t0)
 
 
 def _cell_area(cell):

@@ -74,3 +74,15 @@ def test_cabinet_room_pairs_equal_the_matrix(cabinet_room):
     scene, (west, east), rows = cabinet_room
     for i, j in [(west, east), (east, west)] + [(west, int(c)) for c in scene.group_faces("cabinet0")]:
         check_pair(scene, rows, i, j, 1e-4)
+
+
+def test_single_emitter_group_runs_in_parts(tile_cube):
+    """A group of one face runs as SINGLE_PARTS parts (its free cells dealt out): the same
+    value on 1 or 2 workers, equal to the pair query within the estimates."""
+    scene, rows = tile_cube
+    one = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=1)
+    two = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=2)
+    assert one == two
+    pair = sum(ff.face_to_face(scene, 0, j, tol=TOL)["F"] for j in (1, 2))
+    assert abs(one["F"] - pair) <= one["error"] + 4 * TOL
+    assert abs(one["F"] - sum(rows[0].get(c, (0.0, 0.0))[0] for c in (2, 3, 4, 5))) <= one["error"] + 2 * TOL

@@ -982,7 +982,7 @@ class PairSetup:
         return value, error, cub.evaluations, cells
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1)):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -990,30 +990,125 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     integrand is zero, exactly, on every triangle of I' whose shaft to J' meets no
     occluder, so the cubature works only where shadows are.
 
+    Faces lying on faces (docs/queries.md) as the matrix has them: the emitter's cells that
+    lie against another face (:func:`contact_sides`) see that face's side with F = 1 and
+    nothing else (their unoccluded part is taken off the contour integral, exactly, and
+    they add their area to the pair they touch), and the receiver's cells covered from
+    side t (:func:`covered_cells`) receive nothing (they are holes of the target).
+
     Parameters
     ----------
     tol : float
         Target on the error estimate (absolute, in F).
-    cells : list, optional
-        :func:`emitter_cells` of (face_i, side_i), shared by the pairs of one emitter.
+    cells, contact : list, (c,) int64, optional
+        :func:`emitter_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
+        by the pairs of one emitter.
+    part : (k, K)
+        Only part k of K of the pair (for K processes): the cubature over every K-th free
+        cell from the k-th, to ``tol / K``, and the exact terms in part 0; the K parts'
+        values and estimates add up to the pair's.
 
     Returns
     -------
     PairResult
     """
     t0 = time.perf_counter()
-    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=cells)
+    if cells is None:
+        cells = emitter_cells(scene, face_i, side_i)
+    if contact is None:
+        contact = contact_sides(scene, face_i, side_i, cells)
+    if target.face >= 0:
+        # the cells covered from side t are holes of the target (they are cells of J, so
+        # they lie inside it and do not overlap its holes or each other: non-zero winding
+        # and the contour integral take J minus them)
+        target = Target(target.loops + covered_cells(scene, target.face, side_t), target.normal, target.face)
+    k_part, n_parts = part
+    free = [c for c, k in zip(cells, contact) if k < 0][k_part::n_parts]
+    exact = k_part == 0  # the exact terms once, in part 0
+    tol = tol / n_parts
+    touching = 0.0
+    if exact and target.face >= 0:
+        element = 2 * target.face + (0 if side_t > 0 else 1)
+        touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
+    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free)
     if setup.empty:
-        return PairResult(0.0, 0.0, "none", seconds=time.perf_counter() - t0)
-    value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
-    scale = loops_area(setup.I, setup.n_i) / setup.area_i
-    value, err = value * scale, err * scale
-    if not setup.occluders:
+        return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
+    value, err = touching, 0.0
+    # the emitter's part I' (all its cells) by the contour integral, less its cells in
+    # contact, which see nothing else
+    parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c, k in zip(cells, contact)
+                                if k >= 0]
+    for loops, sign in parts if exact else []:
+        a = loops_area(loops, setup.n_i) / setup.area_i
+        if not loops or a * setup.area_i <= setup.tiny ** 2:
+            continue
+        v, e = contour_form_factor(loops, setup.n_i, setup.J, setup.n_t)
+        value, err = value + sign * v * a, err + e * a
+    if not setup.occluders or not free:
         return PairResult(value, err, "contour", seconds=time.perf_counter() - t0)
     budget = max(tol - err, 0.1 * tol) * setup.area_i
     hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
                       evals, n_cells, time.perf_counter() - t0)
+
+
+def _cell_area(cell):
+    return 0.5 * float(np.linalg.norm(newell_normal(cell)))
+
+
+def polygon_subset(scene, keep):
+    """:func:`scene_polygons` of the faces ``keep`` (sorted (k,) int64) only, polygon p of
+    the result being face ``keep[p]`` (ranks kept: only their order matters)."""
+    pts, lo, hi, loop_poly, normals, offsets, rank = scene_polygons(scene)
+    loops = np.flatnonzero(np.isin(loop_poly, keep))
+    sizes = hi[loops] - lo[loops]
+    new_hi = np.cumsum(sizes)
+    idx = np.repeat(lo[loops] - (new_hi - sizes), sizes) + np.arange(int(sizes.sum()))
+    return (np.ascontiguousarray(pts[idx]), (new_hi - sizes).astype(np.int64), new_hi.astype(np.int64),
+            np.searchsorted(keep, loop_poly[loops]).astype(np.int64), np.ascontiguousarray(normals[keep]),
+            np.ascontiguousarray(offsets[keep]), np.ascontiguousarray(rank[keep]))
+
+
+def contact_sides(scene, face, side, cells):
+    """(c,) int64: for each cell of side ``side`` of a face (:func:`emitter_cells`), the
+    element (``2 k`` front, ``2 k + 1`` back) of the face side it lies against, −1 if none
+    (docs/queries.md, "Faces lying on faces"). Decided by the matrix's own kernel,
+    :func:`viscx.geometry.occlusion.point_views`, at each cell's centroid, over the face and
+    the faces in its plane: the cells are cut along the other faces' outlines there
+    (:func:`contact_segments`), so a cell lies against one face or none."""
+    others = coplanar_faces(scene, face)
+    out = np.full(len(cells), -1, np.int64)
+    if not len(others) or not len(cells):
+        return out
+    keep = np.unique(np.concatenate([[face], others])).astype(np.int64)
+    n_i = side * scene.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    centroids = np.ascontiguousarray([c.mean(axis=0) for c in cells])  # convex cells: inside
+    h = point_views(centroids, n_i, eu, ev, *polygon_subset(scene, keep), int(np.searchsorted(keep, face)),
+                    1e-9 * scene.diagonal)
+    rows, col = np.nonzero(h[:, :-1] == -1.0)
+    out[rows] = 2 * keep[col // 2] + col % 2
+    return out
+
+
+def covered_cells(scene, face, side):
+    """The cells of side ``side`` of a face that another face covers from that side (a
+    cabinet's back on the wall's front, the wall on the back's side against it): the cells
+    of the side in contact (:func:`contact_sides`; seen from side t, the point of J lies
+    against K exactly where, emitting from side t, it would). Cached per face side.
+
+    Returns
+    -------
+    list of (k, 3) float64
+    """
+
+    def build(scene):
+        if not len(coplanar_faces(scene, face)):
+            return []
+        cells = emitter_cells(scene, face, side)
+        return [c for c, k in zip(cells, contact_sides(scene, face, side, cells)) if k >= 0]
+
+    return scene.cached(f"covered_cells {int(face)} {int(side)}", build)
 
 
 def contour_form_factor(loops_i, n_i, loops_j, n_j):
@@ -1029,6 +1124,8 @@ def contour_form_factor(loops_i, n_i, loops_j, n_j):
 # many pairs: faces, groups, the matrix
 
 SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
+#: Parts a group query of a single emitting face is cut into (:func:`group_to_group`).
+SINGLE_PARTS = 2
 
 
 def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=None):
@@ -1042,9 +1139,10 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=No
     target = face_target(scene, target_face)
     if cells is None:
         cells = emitter_cells(scene, face_i, side_i)
+    contact = contact_sides(scene, face_i, side_i, cells)
     parts = {}
     for name, t in (("front", 1), ("back", -1)):
-        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells)
+        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact)
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -1063,14 +1161,19 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
 
     Each emitting face's cells are computed once for all its receivers, and the pairs it
     cannot see are skipped by the vectorised facing test of :func:`emitter_row`; emitters
-    run on ``workers`` processes (default: the CPU count). ``tol`` bounds the error
-    estimate of each face pair."""
+    run on ``workers`` processes (default: the CPU count). A single emitter (a floor, a
+    wall) runs as :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too
+    uses the cores; the parts depend on the group, never on the workers. ``tol`` bounds
+    the error estimate of each face pair."""
     faces_i = [int(i) for i in faces_i]
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
     area = scene.face_area
-    rows = _map_rows(emitter_row, scene, [(i, side_i) for i in faces_i], faces_j, tol, False, workers)
-    total = sum(area[i] * r[1].sum() for i, r in zip(faces_i, rows))
-    err = sum(area[i] * r[2].sum() for i, r in zip(faces_i, rows))
+    n_parts = SINGLE_PARTS if len(faces_i) == 1 else 1
+    emitters = [i for i in faces_i for _ in range(n_parts)]
+    rows = _map_rows(emitter_row, scene, [(i, side_i, (k, n_parts)) for i in faces_i for k in range(n_parts)], faces_j,
+                     tol, False, workers)
+    total = sum(area[i] * r[1].sum() for i, r in zip(emitters, rows))
+    err = sum(area[i] * r[2].sum() for i, r in zip(emitters, rows))
     a = float(area[faces_i].sum())
     pairs = sum(len(set(faces_j.tolist()) - {i}) for i in faces_i)
     return {"F": float(total / a), "error": float(err / a), "pairs": int(pairs)}
@@ -1098,8 +1201,9 @@ def facing_sides(scene, face, side, faces):
     return f[order], s[order]
 
 
-def emitter_row(scene, face, side, faces, tol, sky=True):
-    """F from one side of a face to every side of ``faces`` it may see, and to the sky.
+def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
+    """F from one side of a face to every side of ``faces`` it may see, and to the sky
+    (``part``: that part of each pair, :func:`pair_form_factor`).
 
     Returns
     -------
@@ -1111,11 +1215,17 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     sky, sky_error : float
     """
     cells = emitter_cells(scene, face, side)
+    contact = contact_sides(scene, face, side, cells)
     cols, vals, errs, counts = [], [], [], {}
     fj, sj = facing_sides(scene, face, side, np.asarray(faces, np.int64))
+    # the sides it lies against (faces in its plane: not facing it, F = their common area)
+    touched = np.unique(contact[contact >= 0])
+    touched = touched[np.isin(touched // 2, np.asarray(faces, np.int64))]
+    fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
     for j, t in zip(fj, sj):
-        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells)
+        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact,
+                             part=part)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -1124,7 +1234,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells)
+            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -1323,28 +1433,29 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
 _POOL_SCENE = None
 
 
-def _row_task(args):
-    row, face, side, faces, tol, sky = args
-    return row(_POOL_SCENE, face, side, faces, tol, sky)
+def _row_task(args, scene=None):
+    row, face, side, faces, tol, sky, *part = args
+    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part)
 
 
 def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None):
     """``row(scene, face, side, faces, tol, sky)`` (:func:`emitter_row` pair by pair, or
     :func:`row_form_factors` all receivers at once) of every (face, side) in ``rows``, in
     that order, on ``workers`` processes (forked: they share the scene; the results do not
-    depend on their number)."""
+    depend on their number). A row given as (face, side, part) is that part of it
+    (``row(..., sky, part)``, :func:`emitter_row`)."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     from viscx.parallel import default_workers
 
     global _POOL_SCENE
-    tasks = [(row, int(f), int(s), faces, tol, sky) for f, s in rows]
+    tasks = [(row, int(r[0]), int(r[1]), faces, tol, sky, *r[2:]) for r in rows]
     workers = min(default_workers(workers), len(tasks))
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:
-            out.append(row(scene, *t[1:]))
+            out.append(_row_task(t, scene))
             if progress:
                 progress()
         return out

@@ -515,10 +515,11 @@ def occurrences(V: dict) -> dict:
     s1, s2 = V["v_side"][:, 0].astype(np.int64), V["v_side"][:, 1].astype(np.int64)
     t, h = V["v_tail"], V["v_head"]
     th = V["v_theta"]
+    ths = V.get("v_theta_sort", th)
     tau = V["v_tau"] if "v_tau" in V else np.zeros(m)
     cat = np.concatenate
     O = dict(K1=cat([k1, k2]), K2=cat([k2, k1]), S1=cat([s1, 1 - s2]), S2=cat([s2, 1 - s1]), T=cat([t, h]),
-             H=cat([h, t]), TH=cat([th, th + math.pi]), TAU=cat([tau, tau]),
+             H=cat([h, t]), TH=cat([th, th + math.pi]), THS=cat([ths, ths + math.pi]), TAU=cat([tau, tau]),
              J1=cat([V["v_support"][:, 0], V["v_support"][:, 1]]), J2=cat([V["v_support"][:, 1], V["v_support"][:, 0]]),
              LEN=cat([V["v_length"], V["v_length"]]))
     O["X_AFTER"] = O["S2"] == L
@@ -691,7 +692,9 @@ def derive(scene: Scene, V: dict):
     n_occ = 2 * m
     cur, th_, tau_, occ_, role_ = incidences(O)
     # vertices of one resolved degenerate line share θ; their infinitesimal offsets order them
-    order = np.lexsort((occ_, tau_, th_, cur))
+    # (and at contacts, the θ of the opened scene orders the vertices: close_contacts)
+    ths_ = np.concatenate([O["THS"], O["THS"]])
+    order = np.lexsort((occ_, tau_, ths_, cur))
     st = dict(s_occ=occ_[order], s_role=role_[order], s_cur=cur[order], s_th=th_[order], s_tau=tau_[order])
     link(st, n_occ)
     pos = np.arange(order.shape[0])
@@ -928,12 +931,60 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
 
     eps = default_eps(scene) if eps is None else float(eps)
     with bar(total=3, desc="flatland complex", quiet=quiet, unit="stage") as pb:
-        cand = candidates(scene)
+        # touching objects: the vertices of the opened scene (every contact a small gap),
+        # carried back to the scene as the limit of the closing gap (close_contacts)
+        opened = scene.opened() if scene.contacts().size else scene
+        cand = candidates(opened)
         pb.update()
-        cls = classify(scene, cand, eps)
-        V = resolve_degenerate(scene, vertices_from(scene, cand, cls))
+        cls = classify(opened, cand, eps)
+        V = resolve_degenerate(opened, vertices_from(opened, cand, cls))
+        if opened is not scene:
+            V = close_contacts(scene, V)
         pb.update()
         out, state = derive(scene, V)
         V.update(out)
         pb.update()
     return FlatComplex(scene=scene, eps=eps, arrays=V, state=state, blockers=blocker_table(scene, cand, cls))
+
+
+def close_contacts(scene: Scene, V: dict) -> dict:
+    """The vertices of the opened scene (:meth:`Scene.opened`) carried to ``scene``: the
+    complex of touching objects as the limit of a closing gap.
+
+    Each vertex keeps what the opened scene decided — its objects, sides, support points,
+    tail and head, and its place along the tangency curves, ``v_theta_sort`` (the opened
+    θ, with ``v_tau``; :func:`derive` sorts by it) — and takes its line from the scene
+    itself: the common tangent of its two support disks (v_j, r) on their sides,
+    n(θ)·(v_2 − v_1) = σ_1 r_1 − σ_2 r_2, the root nearest the opened θ (closed form as in
+    :func:`kernels.pair_bitangents`; when both support points coincide — two corners
+    touching — the line through them keeps the opened direction, the direction in which
+    the gap closes).  As the gap closes nothing changes but these lines (no vertex
+    appears or vanishes: the opened scene differs from the scene by γ only near the
+    contacts, where the vertices converge), so dual areas summed with the limit θ's in
+    the opened order are the limits of the opened scene's: the form factors of the
+    touching objects, where the lines through a contact of measure 0 go from one object
+    straight into the other (contact faces see each other)."""
+    V = dict(V)
+    ths = V["v_theta"]
+    k1, k2 = V["v_obj"][:, 0], V["v_obj"][:, 1]
+    j1, j2 = V["v_support"][:, 0], V["v_support"][:, 1]
+    sg1 = 2.0 * V["v_side"][:, 0] - 1.0
+    sg2 = 2.0 * V["v_side"][:, 1] - 1.0
+    r1, r2 = sg1 * scene.radius[k1], sg2 * scene.radius[k2]
+    w = scene.verts[j2] - scene.verts[j1]
+    wn = np.hypot(w[:, 0], w[:, 1])
+    beta = np.arctan2(w[:, 1], w[:, 0])
+    asn = np.arcsin(np.clip((r1 - r2) / np.where(wn > 0, wn, 1.0), -1.0, 1.0))
+    d1 = np.mod(beta - asn - ths + math.pi, TWO_PI) - math.pi
+    d2 = np.mod(beta - math.pi + asn - ths + math.pi, TWO_PI) - math.pi
+    th = np.where(wn > 0, ths + np.where(np.abs(d1) <= np.abs(d2), d1, d2), ths)
+    d = np.stack([np.cos(th), np.sin(th)], 1)
+    nrm = np.stack([-d[:, 1], d[:, 0]], 1)
+    p = scene.verts[j1] + r1[:, None] * nrm
+    q = scene.verts[j2] + r2[:, None] * nrm
+    seg = V["v_seg"]
+    a = np.einsum("ij,ij->i", seg[:, :2] - p, d)
+    b = np.einsum("ij,ij->i", seg[:, 2:] - q, d)
+    V.update(v_theta_sort=ths, v_theta=th, v_p=p, v_q=q, v_length=np.einsum("ij,ij->i", q - p, d),
+             v_seg=np.concatenate([p + a[:, None] * d, q + b[:, None] * d], 1))
+    return V

@@ -79,6 +79,7 @@ class MoveStats:
     formfactors_recomputed: int
     formfactors_total: int
     local: bool = True
+    why: str = ""
     zone_vertices_removed: int = 0
     zone_vertices_added: int = 0
     zone_edges: int = 0
@@ -88,7 +89,7 @@ class MoveStats:
     def summary(self) -> str:
         how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
             self.zone_vertices_removed, self.zone_vertices_added, self.zone_edges, self.zone_slots)
-            if self.local else "rebuilt from scratch (a file without v_tau, or no vertices)")
+            if self.local else f"rebuilt from scratch ({self.why})")
         return (f"form factors recomputed: {self.formfactors_recomputed} of {self.formfactors_total} "
                 f"(object pairs incl. the sky); faces re-summed: {self.faces_recomputed} of {self.faces_total}; "
                 f"bitangent candidates re-tested: {self.candidates_tested} of {self.candidates_total}; {how}")
@@ -111,11 +112,18 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     if not (np.isfinite(dx) and np.isfinite(dy)):
         raise ViscxError("the displacement must be finite")
     new_scene = scene.moved(k, dx, dy)
-    check_object_disjoint(new_scene, k)
+    old_contacts = scene.contacts()
+    mine = (old_contacts[:, 0] == k) | (old_contacts[:, 1] == k)
+    new_scene._contacts = np.unique(np.concatenate([old_contacts[~mine], check_object_disjoint(new_scene, k)]),
+                                    axis=0).reshape(-1, 2)
     n = scene.n
     total = 2 * n * (n - 1)
     if "v_tau" not in cx.arrays or cx.n_vertices == 0:  # written before degenerate lines were resolved
         return _rebuilt(cx, new_scene, total)
+    if old_contacts.size or new_scene._contacts.size:
+        # touching objects: the complex is the limit of an opened scene whose gaps depend
+        # on the scene diagonal, so it is rebuilt (equal to a rebuild by construction)
+        return _rebuilt(cx, new_scene, total, "touching objects")
     clock = _Clock()
     if cx.state is None:  # read from a file: the state is derived again from the stored vertices
         cx = C.FlatComplex(scene=scene, eps=cx.eps, arrays=cx.arrays, state=C.derive(scene, cx.arrays)[1],
@@ -319,10 +327,11 @@ class _Clock:
         self.t = t
 
 
-def _rebuilt(cx, new_scene, total):
+def _rebuilt(cx, new_scene, total, why="a file without v_tau, or no vertices"):
     new = C.build(new_scene, eps=cx.eps)
     stats = _stats(new, np.ones(new.n_faces, bool), total, total)
     stats.local = False
+    stats.why = why
     return new, stats
 
 

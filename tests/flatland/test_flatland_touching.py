@@ -8,16 +8,21 @@ integration of ``flatland_oracles`` with contacts taken as the limit of a gap
 (:func:`exact_F_touching`), itself checked against the same scenes with gaps of 10⁻⁷ and
 10⁻⁸ (linear convergence), and crossed strings for the unobstructed circle."""
 
+import functools
 import math
 
 import numpy as np
 import pytest
 from flatland_oracles import circle_on_edge_measure, exact_F_graded, exact_F_touching
 from flatland_scenes import corners_of
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+from test_flatland_dynamic import assert_same_complex
 
 from viscx.errors import ViscxError
 from viscx.flatland.complex import build
-from viscx.flatland.scene import SEGMENT, make_scene
+from viscx.flatland.dynamic import move
+from viscx.flatland.scene import SEGMENT, check_disjoint, make_scene
 
 GROUND = {"type": "polygon", "points": [[-5, -1], [5, -1], [5, 0], [-5, 0]], "name": "ground"}
 
@@ -135,3 +140,89 @@ def test_polyline_pieces():
 def test_overlaps_refused(objs, msg):
     with pytest.raises(ViscxError, match=msg):
         build(make_scene(objs))
+
+
+def test_polyline_in_every_format(tmp_path):
+    """An open polyline of three pieces from JSON, SVG (polyline and open path) and DXF
+    (one open polyline entity) gives the same complex."""
+    import json
+
+    import trimesh
+    from trimesh.path.entities import Line
+
+    from viscx.flatland.scene import load_scene
+
+    scene = flat_segment_and_polyline()
+    cx = build(scene)
+    fence = [[-1, 0.5], [0, 1.5], [1, 1.0], [2.5, 1.0]]
+    doc = scene.to_json()
+    (tmp_path / "a.json").write_text(json.dumps(doc))
+    others = [o for o in doc["objects"] if not o["name"].startswith("fence")]
+    body = []
+    for o in others:
+        pts = " ".join(f"{x!r},{y!r}" for x, y in o["points"])
+        body.append(f'<polygon id="{o["name"]}" points="{pts}"/>' if o["type"] == "polygon"
+                    else f'<polyline id="{o["name"]}" points="{pts}"/>')
+    for tag in ("polyline", "path"):
+        fb = (f'<polyline id="fence" points="{" ".join(f"{x},{y}" for x, y in fence)}"/>' if tag == "polyline"
+              else '<path id="fence" d="M -1 0.5 L 0 1.5 l 1 -0.5 H 2.5"/>')
+        (tmp_path / f"{tag}.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg">' + "".join(body) + fb + "</svg>")
+    verts, ents = [], []
+    for o in others + [{"type": "segment", "points": fence}]:
+        at = len(verts)
+        verts += o["points"]
+        m = len(o["points"])
+        ents.append(Line(points=list(range(at, at + m)) + ([at] if o["type"] == "polygon" else [])))
+    (tmp_path / "a.dxf").write_text(trimesh.path.exchange.dxf.export_dxf(
+        trimesh.path.Path2D(entities=ents, vertices=np.array(verts, float))))
+    key = lambda s: np.lexsort(np.array([c.mean(0) for c in corners_of(s)]).T)  # noqa: E731
+    b = key(scene)
+    for name in ("a.json", "polyline.svg", "path.svg", "a.dxf"):
+        sc = load_scene(tmp_path / name)
+        assert sc.n == scene.n and len(sc.contacts()) == len(scene.contacts()), name
+        got = build(sc)
+        a = key(sc)
+        Fa = got.F_area[np.ix_(a, np.append(a, sc.n))]
+        assert np.max(np.abs(Fa - cx.F_area[np.ix_(b, np.append(b, scene.n))])) < 1e-12, name
+
+
+@functools.lru_cache(maxsize=None)
+def _side_by_side():
+    return build(boxes_side_by_side())
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(k=st.integers(1, 3), dx=st.floats(-1.5, 1.5), dy=st.floats(-0.5, 1.0), snap=st.sampled_from(["", "ground", "box"]))
+def test_moves_with_contacts_equal_rebuild(k, dx, dy, snap):
+    """Moves in a scene with contacts, and moves that make or break one (snapped onto the
+    ground, or against box 'a'), equal a rebuild array by array; the contact list is kept
+    up to date incrementally; such a move is a rebuild (MoveStats.local False)."""
+    cx = _side_by_side()
+    v = cx.scene.verts[cx.scene.vert_start[k]:cx.scene.vert_start[k + 1]]
+    if snap == "ground":
+        dy = -v[:, 1].min()
+    elif snap == "box" and k != 1:
+        dx = -0.5 - v[:, 0].min()
+    try:
+        moved, stats = move(cx, k, dx, dy)
+    except ViscxError as e:
+        assert "overlap" in str(e)
+        assume(False)
+    assert not stats.local and "touching objects" in stats.summary()
+    assert np.array_equal(moved.scene.contacts(), check_disjoint(moved.scene))
+    assert_same_complex(moved, build(moved.scene, eps=cx.eps))
+    assert np.max(np.abs(moved.F_area.sum(axis=1) - 1.0)) < 1e-9
+    assert np.max(np.abs(moved.F_area - moved.F_strings)) < 1e-9
+
+
+def test_move_onto_the_ground_from_a_scene_without_contacts():
+    """A box lowered onto the ground (no contact before): rebuilt, equal to a rebuild and
+    to the touching scene built directly; raised again: back to the gap's complex."""
+    lifted = build(box_on_ground(0.5))
+    assert lifted.scene.contacts().size == 0
+    down, stats = move(lifted, 1, 0.0, -0.5)
+    assert not stats.local
+    assert_same_complex(down, build(box_on_ground(), eps=lifted.eps))
+    up, stats = move(down, 1, 0.0, 0.5)
+    assert not stats.local
+    assert_same_complex(up, lifted)

@@ -1,4 +1,4 @@
-"""Flatland scenes: disjoint convex objects (circles, convex polygons, segments) plus the blue sky.
+"""Flatland scenes: convex objects (circles, polygons, segments) that are disjoint or touch, plus the blue sky.
 
 Every object is stored the same way, as a *rounded convex polygon*: support points
 ``v_0 .. v_{m-1}`` (counter-clockwise) and a radius ``r``.  A circle is one support point

@@ -565,6 +565,13 @@ def radiosity(cx, quiet=True, sky_radiance=0.0):
     same Gauss–Seidel solve (an outdoor layout's diffuse irradiance per element and side)."""
     if not (np.isfinite(sky_radiance) and sky_radiance >= 0):
         raise ViscxError("the sky radiance must be finite and >= 0")
+    if cx.scene.contacts().size:
+        # the maximal free segments of the vertices at contacts end where the opened scene
+        # put them (γ off the contact), which cuts slivers whose rows do not sum to 1
+        a, b = cx.scene.contacts()[0]
+        raise ViscxError(f"objects {cx.scene.names[a]!r} and {cx.scene.names[b]!r} touch: the radiosity mesh of "
+                         "touching objects is not supported yet (their object form factors are exact; leave a gap "
+                         "for the mesh)")
     mesh = discontinuity_mesh(cx)
     F = element_form_factors(cx, mesh, quiet=quiet)
     k = mesh["elem_obj"]

@@ -412,21 +412,26 @@ def exact_F_touching(objects, i, j, rel=1e-12):
     rest of the edge is integrated as usual (contacts at points have measure 0, and a
     touching object is an ordinary occluder there).  Independent of viscx.flatland."""
     Li = sum(np.hypot(*(b - a)) for a, b in _edges(objects[i]))
+    return sum(exact_F_touching_part(objects, i, j, e0, e1, rel) * np.hypot(*(e1 - e0))
+               for e0, e1 in _edges(objects[i])) / Li
+
+
+def exact_F_touching_part(objects, i, j, e0, e1, rel=1e-12):
+    """:func:`exact_F_touching` from the piece e0 → e1 of an edge of object i (an element)."""
+    le = np.hypot(*(e1 - e0))
+    t = (e1 - e0) / le
+    cuts = _contact_pieces(objects, i, e0, e1)
+    brk = np.unique(np.concatenate([_graded_breaks(objects, i, e0, e1, True), [c[0] for c in cuts],
+                                    [c[1] for c in cuts]]))
     total = 0.0
-    for e0, e1 in _edges(objects[i]):
-        le = np.hypot(*(e1 - e0))
-        t = (e1 - e0) / le
-        cuts = _contact_pieces(objects, i, e0, e1)
-        brk = np.unique(np.concatenate([_graded_breaks(objects, i, e0, e1, True), [c[0] for c in cuts],
-                                        [c[1] for c in cuts]]))
-        for a, b in zip(brk[:-1], brk[1:]):
-            mid = 0.5 * (a + b)
-            on = [k for s0, s1, k in cuts if s0 <= mid <= s1]
-            if on:
-                total += (b - a) * (on[0] == j)
-            else:
-                total += (b - a) * exact_F_part(objects, i, j, e0 + a * t, e0 + b * t, rel, le)
-    return total / Li
+    for a, b in zip(brk[:-1], brk[1:]):
+        mid = 0.5 * (a + b)
+        on = [k for s0, s1, k in cuts if s0 <= mid <= s1]
+        if on:
+            total += (b - a) * (on[0] == j)
+        else:
+            total += (b - a) * exact_F_part(objects, i, j, e0 + a * t, e0 + b * t, rel, le)
+    return total / le
 
 
 def circle_on_edge_measure(c, r, A, B):

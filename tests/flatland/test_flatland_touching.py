@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from flatland_oracles import circle_on_edge_measure, exact_F_graded, exact_F_touching
+from flatland_oracles import circle_on_edge_measure, exact_F_graded, exact_F_touching, exact_F_touching_part
 from flatland_scenes import corners_of
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
@@ -228,10 +228,26 @@ def test_move_onto_the_ground_from_a_scene_without_contacts():
     assert_same_complex(up, lifted)
 
 
-def test_radiosity_mesh_of_touching_objects_refused():
-    """The element mesh is not built for touching objects yet (its slivers at the contacts
-    would give rows that do not sum to 1): a one-line error naming them."""
-    from viscx.flatland.mesh import radiosity
+@pytest.mark.parametrize("name", ["box-on-ground"] + [pytest.param(n, marks=pytest.mark.slow) for n in (
+    "boxes-side-by-side", "panel-on-ground", "flat-segment-and-polyline")])  # 6 s, 3 s, 21 s
+def test_radiosity_mesh_of_touching_objects(name):
+    """The discontinuity mesh of touching objects: every element's row sums to 1 with the
+    sky, and each element-to-object sum equals the exact integration over the element
+    with contacts as closing gaps (1e-9)."""
+    from viscx.flatland.mesh import point_at, radiosity
 
-    with pytest.raises(ViscxError, match="'a' and 'b' touch"):
-        radiosity(build(make_scene([box(0, 0, 1, 1, "a"), box(1, 0, 1, 1, "b")])))
+    scene = SCENES[name]()
+    cx = build(scene)
+    m = radiosity(cx)
+    F = m["elem_F"]
+    assert np.max(np.abs(F.sum(axis=1) - 1.0)) < 1e-9
+    objs = corners_of(scene)
+    G = np.zeros((len(F), scene.n))
+    np.add.at(G.T, m["elem_obj"], F[:, :-1].T)
+    for e in range(len(F)):
+        k = int(m["elem_obj"][e])
+        s0, s1 = m["elem_s"][e]
+        p0 = point_at(scene, k, np.array([s0]))[0]
+        p1 = point_at(scene, k, np.array([s1]))[0] if s1 < scene.perimeters()[k] else objs[k][0]
+        want = np.array([exact_F_touching_part(objs, k, j, p0, p1) if j != k else 0.0 for j in range(scene.n)])
+        assert np.max(np.abs(G[e] - want)) < 1e-9, (e, scene.names[k], G[e], want)

@@ -982,9 +982,47 @@ def close_contacts(scene: Scene, V: dict) -> dict:
     nrm = np.stack([-d[:, 1], d[:, 0]], 1)
     p = scene.verts[j1] + r1[:, None] * nrm
     q = scene.verts[j2] + r2[:, None] * nrm
+    # the maximal free segment ends where the line meets its tail / head in the scene: the
+    # boundary point of that object on the line nearest the opened end (γ away)
     seg = V["v_seg"]
-    a = np.einsum("ij,ij->i", seg[:, :2] - p, d)
-    b = np.einsum("ij,ij->i", seg[:, 2:] - q, d)
-    V.update(v_theta_sort=ths, v_theta=th, v_p=p, v_q=q, v_length=np.einsum("ij,ij->i", q - p, d),
-             v_seg=np.concatenate([p + a[:, None] * d, q + b[:, None] * d], 1))
+    ends = []
+    for e, x, end in ((V["v_tail"], p, seg[:, :2]), (V["v_head"], q, seg[:, 2:])):
+        pt = x + np.einsum("ij,ij->i", end - x, d)[:, None] * d
+        on = e >= 0
+        pt[on] += boundary_hits(scene, e[on], pt[on], d[on])[:, None] * d[on]
+        ends.append(pt)
+    seg = clip_sky_ends(scene, th, p, q, V["v_tail"], V["v_head"], np.concatenate(ends, 1))
+    V.update(v_theta_sort=ths, v_theta=th, v_p=p, v_q=q, v_length=np.einsum("ij,ij->i", q - p, d), v_seg=seg)
     return V
+
+
+def boundary_hits(scene: Scene, obj, o, d):
+    """(N,) t of the point o + t d of object obj's boundary nearest o (0 if the line misses
+    it): o (N, 2) points, d (N, 2) unit directions.  Polygons: the line's crossings of the
+    edges and the corners on it (within the line tolerance); circles: both crossings (a
+    tangent line: the tangent point)."""
+    t = np.zeros(obj.shape[0])
+    tol = line_tol(scene)
+    for k in np.unique(obj):
+        rows = np.nonzero(obj == k)[0]
+        v = scene.verts[scene.vert_start[k]:scene.vert_start[k + 1]]
+        oo, dd = o[rows], d[rows]
+        if scene.radius[k] > 0:
+            w = v[0] - oo
+            b = np.einsum("ij,ij->i", w, dd)
+            h = np.sqrt(np.maximum(scene.radius[k] ** 2 - (np.einsum("ij,ij->i", w, w) - b * b), 0.0))
+            cand = np.stack([b - h, b + h], 1)
+        else:
+            w = v[None, :, :] - oo[:, None, :]                                   # (R, m, 2)
+            off = w[:, :, 0] * dd[:, None, 1] - w[:, :, 1] * dd[:, None, 0]      # signed distances
+            along = w[:, :, 0] * dd[:, None, 0] + w[:, :, 1] * dd[:, None, 1]
+            corner = np.where(np.abs(off) <= tol, along, np.inf)
+            o2, a2 = np.roll(off, -1, axis=1), np.roll(along, -1, axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = off / (off - o2)
+            cross = np.where((off * o2 < 0) & np.isfinite(f), along + f * (a2 - along), np.inf)
+            cand = np.concatenate([corner, cross], 1)
+        j = np.argmin(np.abs(cand), axis=1)
+        best = cand[np.arange(rows.size), j]
+        t[rows] = np.where(np.isfinite(best), best, 0.0)
+    return t

@@ -251,3 +251,35 @@ def test_radiosity_mesh_of_touching_objects(name):
         p1 = point_at(scene, k, np.array([s1]))[0] if s1 < scene.perimeters()[k] else objs[k][0]
         want = np.array([exact_F_touching_part(objs, k, j, p0, p1) if j != k else 0.0 for j in range(scene.n)])
         assert np.max(np.abs(G[e] - want)) < 1e-9, (e, scene.names[k], G[e], want)
+
+
+def test_touching_circles_crossed_strings():
+    """Two circles touching (a point contact of two curves: the inner tangents meet at the
+    contact at angles ~√gap in the opened scene): crossed strings in the limit."""
+    from flatland_oracles import crossed_strings_circles
+
+    scene = make_scene([{"type": "circle", "center": [0, 0], "radius": 1}, {"type": "circle", "center": [3, 0], "radius": 2}])
+    cx = build(scene)
+    assert abs(cx.F_area[0, 1] - crossed_strings_circles((0, 0), 1, (3, 0), 2)) < 1e-12
+    assert abs(cx.F_area[1, 0] - crossed_strings_circles((3, 0), 2, (0, 0), 1)) < 1e-12
+    assert np.max(np.abs(cx.F_area - cx.F_strings)) < 1e-12
+
+
+def test_tiled_squares():
+    """A 6 × 6 block of unit squares tiling a square (every side shared, corners meeting
+    four at a time): an inner square's sides each see only the neighbour across them
+    (F = 1/4 to each, 0 to the diagonal ones and to the sky); the outer sides of the
+    block see the sky alone."""
+    n = 6
+    scene = make_scene([box(i, j, 1, 1, f"c{i}_{j}") for i in range(n) for j in range(n)])
+    cx = build(scene)
+    F = cx.F_area
+    for i in range(n):
+        for j in range(n):
+            k = i * n + j
+            nb = [(i + a) * n + (j + b) for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1)) if 0 <= i + a < n and 0 <= j + b < n]
+            want = np.zeros(n * n + 1)
+            want[nb] = 0.25
+            want[-1] = 0.25 * (4 - len(nb))
+            assert np.max(np.abs(F[k] - want)) < 1e-12, (i, j)
+    assert np.max(np.abs(F - cx.F_strings)) < 1e-12

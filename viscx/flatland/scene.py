@@ -284,7 +284,7 @@ def make_scene(objects) -> Scene:
     if not isinstance(objects, (list, tuple)) or len(objects) == 0:
         raise ViscxError("flatland scene has no objects")
     kinds, starts, verts, radius, E, rho, names = [], [0], [], [], [], [], []
-    for i, o, name in _pieces_of(objects):
+    for o, name in _pieces_of(objects):
         t = o.get("type")
         try:
             if t == "circle":
@@ -330,7 +330,7 @@ def make_scene(objects) -> Scene:
 
 
 def _pieces_of(objects):
-    """(index, object dict, name) of every object, an open polyline of m > 1 segments
+    """(object dict, name) of every object, an open polyline of m > 1 segments
     split into its m pieces (segments named ``name[0]`` .. ``name[m-1]``, touching at the
     shared corners: point contacts, docs/flatland.md)."""
     for i, o in enumerate(objects):
@@ -340,9 +340,9 @@ def _pieces_of(objects):
         pts = o.get("points") if o.get("type") in ("segment", "polyline") else None
         if isinstance(pts, (list, tuple)) and len(pts) > 2:
             for j in range(len(pts) - 1):
-                yield i, dict(o, type="segment", points=[pts[j], pts[j + 1]]), f"{name}[{j}]"
+                yield dict(o, type="segment", points=[pts[j], pts[j + 1]]), f"{name}[{j}]"
         else:
-            yield i, o, name
+            yield o, name
 
 
 def _off_line(p):

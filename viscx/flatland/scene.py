@@ -172,7 +172,12 @@ class Scene:
             width = min(np.max((v - v[j]) @ nu[j] * -1.0) for j in range(e - s))
             g = min(rel * diag, 0.25 * width)
             prev = np.roll(nu, 1, axis=0)
-            verts[s:e] = v - g * (prev + nu) / (1.0 + np.einsum("ij,ij->i", prev, nu))[:, None]
+            shift = (prev + nu) / (1.0 + np.einsum("ij,ij->i", prev, nu))[:, None]
+            # a short edge between two sharp corners vanishes when eroded too far: keep
+            # every edge's direction (halve γ until it does)
+            while np.any(np.einsum("ij,ij->i", np.roll(v - g * shift, -1, axis=0) - (v - g * shift), edge) <= 0.0):
+                g *= 0.5
+            verts[s:e] = v - g * shift
         out = Scene(self.kind.copy(), self.vert_start.copy(), verts, radius, self.emission.copy(),
                     self.reflectance.copy(), list(self.names))
         left = check_disjoint(out, eps=0.01 * rel * diag)

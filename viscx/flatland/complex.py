@@ -458,11 +458,15 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     q = np.where(jb_[:, None], pb[pj], pa[pj])
     start = np.where((tl < 0)[:, None], np.asarray(seg0)[None, :], pb[np.maximum(tl, 0)])
     end = np.where((hd < 0)[:, None], np.asarray(seg1)[None, :], pa[np.maximum(hd, 0)])
-    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=np.where(tl < 0, T, obj[np.maximum(tl, 0)]),
-                  v_head=np.where(hd < 0, H, obj[np.maximum(hd, 0)]),
+    tail = np.where(tl < 0, T, obj[np.maximum(tl, 0)])
+    head = np.where(hd < 0, H, obj[np.maximum(hd, 0)])
+    # sky ends clipped from the vertices' own tangent points, as a move re-clips them when
+    # the scene box changes (the first member's, within the line tolerance of the line,
+    # gave ends 1e-8 apart)
+    seg = clip_sky_ends(scene, np.full(pi.size, th), p, q, tail, head, np.concatenate([start, end], 1))
+    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=tail, v_head=head,
                   v_support=np.stack([np.where(ib, jb[pi], ja[pi]), np.where(jb_, jb[pj], ja[pj])], 1), v_p=p, v_q=q,
-                  v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1],
-                  v_seg=np.concatenate([start, end], 1))
+                  v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1], v_seg=seg)
     # the offsets order the vertices along each curve: they must differ on one curve
     ent_id = np.concatenate([pi, pj])
     t2 = np.concatenate([tau, tau])

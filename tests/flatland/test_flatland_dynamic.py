@@ -264,3 +264,11 @@ def test_moves_from_a_file_equal_rebuild(tmp_path):
             moved, stats = move(read, k, dx, dy)
             assert stats.local
             assert_same_complex(moved, build(moved.scene, eps=read.eps))
+
+
+def test_box_change_reclips_resolved_vertices_like_a_rebuild():
+    """A panel raised above the tips' line (it sets the scene box's top) and moved back
+    below it: the move re-clips every sky end to the new box from the vertices' own
+    tangent points, as the rebuild does for the vertices of a degenerate line (they took
+    the group's first member's ends, 1.5e-8 apart)."""
+    chain_as_rebuild(rows_base(0.001), [(1, 0.0, 0.1), (1, -0.7, -0.3)])

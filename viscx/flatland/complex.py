@@ -58,6 +58,11 @@ L, R = 0, 1
 # one line (rounding of the closed forms is ~1e-13 at 1e4 objects)
 TOL_THETA = 1e-9
 TOL_U = 1e-9
+# the gaps that open the contacts of touching objects (Scene.opened), relative to the scene
+# diagonal, tried in this order: the direction of a line between the two sides of an
+# opened contact is known to ~1e-16 |x| / γ, so γ stays well above TOL_THETA × |x|, and far
+# below the features of a layout (at most a quarter of each object's width)
+OPEN_RELS = (1e-6, 2.3e-6, 4.3e-7)
 # the perturbation of resolve_degenerate: δ(x) = 1 + w (x − X0)², X0 = √2 − 1 so that no two
 # positions of a real layout are symmetric about it, w = π/2 on the left side (unrelated
 # constants: three perturbed contacts of a lattice line are then never collinear)
@@ -937,15 +942,23 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
     with bar(total=3, desc="flatland complex", quiet=quiet, unit="stage") as pb:
         # touching objects: the vertices of the opened scene (every contact a small gap),
         # carried back to the scene as the limit of the closing gap (close_contacts)
-        opened = scene.opened() if scene.contacts().size else scene
-        cand = candidates(opened)
-        pb.update()
-        cls = classify(opened, cand, eps)
-        V = resolve_degenerate(opened, vertices_from(opened, cand, cls))
-        if opened is not scene:
-            V = close_contacts(scene, V)
-        pb.update()
-        out, state = derive(scene, V)
+        for attempt, rel in enumerate(OPEN_RELS if scene.contacts().size else (0.0,)):
+            opened = scene.opened(rel) if rel else scene
+            try:
+                cand = candidates(opened)
+                cls = classify(opened, cand, eps)
+                V = resolve_degenerate(opened, vertices_from(opened, cand, cls))
+                pb.update(2)
+                if opened is not scene:
+                    V = close_contacts(scene, V)
+                out, state = derive(scene, V)
+                break
+            except ViscxError:
+                # a line between the two sides of an opened contact is known to ~ulp(x)/γ
+                # in direction: near the 1e-9 line tolerance in a large scene, the opened
+                # scene may be unresolvable at one γ and not at another (tried in order)
+                if attempt + 1 == len(OPEN_RELS) or not rel:
+                    raise
         V.update(out)
         pb.update()
     return FlatComplex(scene=scene, eps=eps, arrays=V, state=state, blockers=blocker_table(scene, cand, cls))

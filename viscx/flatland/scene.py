@@ -35,8 +35,9 @@ from viscx.errors import ViscxError
 SKY = -1
 CIRCLE, POLYGON, SEGMENT = 0, 1, 2
 # the gap that opens every contact (Scene.opened), relative to the scene diagonal: far above the
-# 1e-9 line tolerance of the complex, far below any feature of a real layout
-OPEN_REL = 1e-7
+# 1e-9 line tolerance of the complex, far below any feature of a real layout (the build
+# tries complex.OPEN_RELS in turn)
+OPEN_REL = 1e-6
 TWO_PI = 2.0 * math.pi
 
 

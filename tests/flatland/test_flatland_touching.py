@@ -290,7 +290,7 @@ def test_panels_on_posts_300_rows():
     """300 rows of panels resting on posts standing on the ground (600 contacts, x up to
     900): the opened contacts' lines are resolved (with γ = 1e-7 × the diagonal their
     directions were known only to ~1e-9 and a degenerate line failed); rows sum to 1 and
-    both methods agree (28 s)."""
+    both methods agree (30–45 s CPU)."""
     cx = build(panels_on_posts(300))
     assert np.max(np.abs(cx.F_area.sum(axis=1) - 1.0)) < 1e-9
     assert np.max(np.abs(cx.F_area - cx.F_strings)) < 1e-9

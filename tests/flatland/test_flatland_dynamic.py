@@ -247,3 +247,28 @@ def test_move_on_a_complex_without_tau():
     old = FlatComplex(scene=cx.scene, eps=cx.eps, arrays={k: v for k, v in cx.arrays.items() if k != "v_tau"})
     moved, stats = move_as_rebuild(old, 4, 0.4, -0.3)
     assert not stats.local  # no in-memory state (a complex read from a file): rebuilt
+
+
+def test_moves_from_a_file_equal_rebuild(tmp_path):
+    """From a complex read from a file (no blocker table) only the candidates whose
+    segment between the tangent points meets the moving object's disk are re-tested
+    (pairs pruned by their bounding disks' capsule): every object of a mixed scene moved
+    far away (freeing all it blocked) or a little still equals a rebuild."""
+    from viscx.formats.flatland import read_any, write_any
+
+    write_any(tmp_path / "c.h5", base(1))
+    read = read_any(tmp_path / "c.h5")
+    far = 10.0 * np.ptp(read.scene.verts, axis=0).max()
+    for k in range(read.scene.n):
+        for dx, dy in ((far, 0.0), (0.0, -far), (0.05, -0.03)):
+            moved, stats = move(read, k, dx, dy)
+            assert stats.local
+            assert_same_complex(moved, build(moved.scene, eps=read.eps))
+
+
+def test_box_change_reclips_resolved_vertices_like_a_rebuild():
+    """A panel raised above the tips' line (it sets the scene box's top) and moved back
+    below it: the move re-clips every sky end to the new box from the vertices' own
+    tangent points, as the rebuild does for the vertices of a degenerate line (they took
+    the group's first member's ends, 1.5e-8 apart)."""
+    chain_as_rebuild(rows_base(0.001), [(1, 0.0, 0.1), (1, -0.7, -0.3)])

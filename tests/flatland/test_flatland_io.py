@@ -41,8 +41,6 @@ def test_svg_shapes_and_materials(tmp_path):
 @pytest.mark.parametrize("body,msg", [
     ('<ellipse id="e" cx="0" cy="0" rx="1" ry="2"/>', "ellipses are not supported"),
     ('<path id="q" d="M 0 0 C 1 1 2 2 3 0 Z"/>', "curved"),
-    ('<path id="o" d="M 0 0 L 1 0 L 1 1"/>', "open polyline"),
-    ('<polyline id="pl" points="0,0 1,0 1,1"/>', "open polyline"),
     ('<polygon id="v" points="0,0 4,0 4,4 2,1 0,4"/>', "'v' is not convex"),
     ('<circle id="a" cx="0" cy="0" r="1"/><circle id="b" cx="1.5" cy="0" r="1"/>', "'a' and 'b' overlap"),
     ('<rect id="rr" x="0" y="0" width="1" height="1" rx="0.2"/>', "rounded"),

@@ -115,7 +115,7 @@ def test_segments_in_every_format(tmp_path, rows_of_segments):
 
 
 @pytest.mark.parametrize("obj,msg", [
-    ({"type": "segment", "points": [[0, 0], [1, 0], [2, 1]]}, "exactly 2 points"),
+    ({"type": "segment", "points": [[0, 0]]}, "at least 2 points"),
     ({"type": "segment", "points": [[1, 1], [1, 1]]}, "coincide"),
 ])
 def test_segment_errors(obj, msg):

@@ -58,6 +58,11 @@ L, R = 0, 1
 # one line (rounding of the closed forms is ~1e-13 at 1e4 objects)
 TOL_THETA = 1e-9
 TOL_U = 1e-9
+# the gaps that open the contacts of touching objects (Scene.opened), relative to the scene
+# diagonal, tried in this order: the direction of a line between the two sides of an
+# opened contact is known to ~1e-16 |x| / γ, so γ stays well above TOL_THETA × |x|, and far
+# below the features of a layout (at most a quarter of each object's width)
+OPEN_RELS = (1e-6, 2.3e-6, 4.3e-7)
 # the perturbation of resolve_degenerate: δ(x) = 1 + w (x − X0)², X0 = √2 − 1 so that no two
 # positions of a real layout are symmetric about it, w = π/2 on the left side (unrelated
 # constants: three perturbed contacts of a lattice line are then never collinear)
@@ -458,11 +463,15 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     q = np.where(jb_[:, None], pb[pj], pa[pj])
     start = np.where((tl < 0)[:, None], np.asarray(seg0)[None, :], pb[np.maximum(tl, 0)])
     end = np.where((hd < 0)[:, None], np.asarray(seg1)[None, :], pa[np.maximum(hd, 0)])
-    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=np.where(tl < 0, T, obj[np.maximum(tl, 0)]),
-                  v_head=np.where(hd < 0, H, obj[np.maximum(hd, 0)]),
+    tail = np.where(tl < 0, T, obj[np.maximum(tl, 0)])
+    head = np.where(hd < 0, H, obj[np.maximum(hd, 0)])
+    # sky ends clipped from the vertices' own tangent points, as a move re-clips them when
+    # the scene box changes (the first member's, within the line tolerance of the line,
+    # gave ends 1e-8 apart)
+    seg = clip_sky_ends(scene, np.full(pi.size, th), p, q, tail, head, np.concatenate([start, end], 1))
+    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=tail, v_head=head,
                   v_support=np.stack([np.where(ib, jb[pi], ja[pi]), np.where(jb_, jb[pj], ja[pj])], 1), v_p=p, v_q=q,
-                  v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1],
-                  v_seg=np.concatenate([start, end], 1))
+                  v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1], v_seg=seg)
     # the offsets order the vertices along each curve: they must differ on one curve
     ent_id = np.concatenate([pi, pj])
     t2 = np.concatenate([tau, tau])
@@ -515,10 +524,11 @@ def occurrences(V: dict) -> dict:
     s1, s2 = V["v_side"][:, 0].astype(np.int64), V["v_side"][:, 1].astype(np.int64)
     t, h = V["v_tail"], V["v_head"]
     th = V["v_theta"]
+    ths = V.get("v_theta_sort", th)
     tau = V["v_tau"] if "v_tau" in V else np.zeros(m)
     cat = np.concatenate
     O = dict(K1=cat([k1, k2]), K2=cat([k2, k1]), S1=cat([s1, 1 - s2]), S2=cat([s2, 1 - s1]), T=cat([t, h]),
-             H=cat([h, t]), TH=cat([th, th + math.pi]), TAU=cat([tau, tau]),
+             H=cat([h, t]), TH=cat([th, th + math.pi]), THS=cat([ths, ths + math.pi]), TAU=cat([tau, tau]),
              J1=cat([V["v_support"][:, 0], V["v_support"][:, 1]]), J2=cat([V["v_support"][:, 1], V["v_support"][:, 0]]),
              LEN=cat([V["v_length"], V["v_length"]]))
     O["X_AFTER"] = O["S2"] == L
@@ -691,7 +701,9 @@ def derive(scene: Scene, V: dict):
     n_occ = 2 * m
     cur, th_, tau_, occ_, role_ = incidences(O)
     # vertices of one resolved degenerate line share θ; their infinitesimal offsets order them
-    order = np.lexsort((occ_, tau_, th_, cur))
+    # (and at contacts, the θ of the opened scene orders the vertices: close_contacts)
+    ths_ = np.concatenate([O["THS"], O["THS"]])
+    order = np.lexsort((occ_, tau_, ths_, cur))
     st = dict(s_occ=occ_[order], s_role=role_[order], s_cur=cur[order], s_th=th_[order], s_tau=tau_[order])
     link(st, n_occ)
     pos = np.arange(order.shape[0])
@@ -928,12 +940,106 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
 
     eps = default_eps(scene) if eps is None else float(eps)
     with bar(total=3, desc="flatland complex", quiet=quiet, unit="stage") as pb:
-        cand = candidates(scene)
-        pb.update()
-        cls = classify(scene, cand, eps)
-        V = resolve_degenerate(scene, vertices_from(scene, cand, cls))
-        pb.update()
-        out, state = derive(scene, V)
+        # touching objects: the vertices of the opened scene (every contact a small gap),
+        # carried back to the scene as the limit of the closing gap (close_contacts)
+        for attempt, rel in enumerate(OPEN_RELS if scene.contacts().size else (0.0,)):
+            opened = scene.opened(rel) if rel else scene
+            try:
+                cand = candidates(opened)
+                cls = classify(opened, cand, eps)
+                V = resolve_degenerate(opened, vertices_from(opened, cand, cls))
+                pb.update(2)
+                if opened is not scene:
+                    V = close_contacts(scene, V)
+                out, state = derive(scene, V)
+                break
+            except ViscxError:
+                # a line between the two sides of an opened contact is known to ~ulp(x)/γ
+                # in direction: near the 1e-9 line tolerance in a large scene, the opened
+                # scene may be unresolvable at one γ and not at another (tried in order)
+                if attempt + 1 == len(OPEN_RELS) or not rel:
+                    raise
         V.update(out)
         pb.update()
     return FlatComplex(scene=scene, eps=eps, arrays=V, state=state, blockers=blocker_table(scene, cand, cls))
+
+
+def close_contacts(scene: Scene, V: dict) -> dict:
+    """The vertices of the opened scene (:meth:`Scene.opened`) carried to ``scene``: the
+    complex of touching objects as the limit of a closing gap.
+
+    Each vertex keeps what the opened scene decided — its objects, sides, support points,
+    tail and head, and its place along the tangency curves, ``v_theta_sort`` (the opened
+    θ, with ``v_tau``; :func:`derive` sorts by it) — and takes its line from the scene
+    itself: the common tangent of its two support disks (v_j, r) on their sides,
+    n(θ)·(v_2 − v_1) = σ_1 r_1 − σ_2 r_2, the root nearest the opened θ (closed form as in
+    :func:`kernels.pair_bitangents`; when both support points coincide — two corners
+    touching — the line through them keeps the opened direction, the direction in which
+    the gap closes).  As the gap closes nothing changes but these lines (no vertex
+    appears or vanishes: the opened scene differs from the scene by γ only near the
+    contacts, where the vertices converge), so dual areas summed with the limit θ's in
+    the opened order are the limits of the opened scene's: the form factors of the
+    touching objects, where the lines through a contact of measure 0 go from one object
+    straight into the other (contact faces see each other)."""
+    V = dict(V)
+    ths = V["v_theta"]
+    k1, k2 = V["v_obj"][:, 0], V["v_obj"][:, 1]
+    j1, j2 = V["v_support"][:, 0], V["v_support"][:, 1]
+    sg1 = 2.0 * V["v_side"][:, 0] - 1.0
+    sg2 = 2.0 * V["v_side"][:, 1] - 1.0
+    r1, r2 = sg1 * scene.radius[k1], sg2 * scene.radius[k2]
+    w = scene.verts[j2] - scene.verts[j1]
+    wn = np.hypot(w[:, 0], w[:, 1])
+    beta = np.arctan2(w[:, 1], w[:, 0])
+    asn = np.arcsin(np.clip((r1 - r2) / np.where(wn > 0, wn, 1.0), -1.0, 1.0))
+    d1 = np.mod(beta - asn - ths + math.pi, TWO_PI) - math.pi
+    d2 = np.mod(beta - math.pi + asn - ths + math.pi, TWO_PI) - math.pi
+    th = np.where(wn > 0, ths + np.where(np.abs(d1) <= np.abs(d2), d1, d2), ths)
+    d = np.stack([np.cos(th), np.sin(th)], 1)
+    nrm = np.stack([-d[:, 1], d[:, 0]], 1)
+    p = scene.verts[j1] + r1[:, None] * nrm
+    q = scene.verts[j2] + r2[:, None] * nrm
+    # the maximal free segment ends where the line meets its tail / head in the scene: the
+    # boundary point of that object on the line nearest the opened end (γ away)
+    seg = V["v_seg"]
+    ends = []
+    for e, x, end in ((V["v_tail"], p, seg[:, :2]), (V["v_head"], q, seg[:, 2:])):
+        pt = x + np.einsum("ij,ij->i", end - x, d)[:, None] * d
+        on = e >= 0
+        pt[on] += boundary_hits(scene, e[on], pt[on], d[on])[:, None] * d[on]
+        ends.append(pt)
+    seg = clip_sky_ends(scene, th, p, q, V["v_tail"], V["v_head"], np.concatenate(ends, 1))
+    V.update(v_theta_sort=ths, v_theta=th, v_p=p, v_q=q, v_length=np.einsum("ij,ij->i", q - p, d), v_seg=seg)
+    return V
+
+
+def boundary_hits(scene: Scene, obj, o, d):
+    """(N,) t of the point o + t d of object obj's boundary nearest o (0 if the line misses
+    it): o (N, 2) points, d (N, 2) unit directions.  Polygons: the line's crossings of the
+    edges and the corners on it (within the line tolerance); circles: both crossings (a
+    tangent line: the tangent point)."""
+    t = np.zeros(obj.shape[0])
+    tol = line_tol(scene)
+    for k in np.unique(obj):
+        rows = np.nonzero(obj == k)[0]
+        v = scene.verts[scene.vert_start[k]:scene.vert_start[k + 1]]
+        oo, dd = o[rows], d[rows]
+        if scene.radius[k] > 0:
+            w = v[0] - oo
+            b = np.einsum("ij,ij->i", w, dd)
+            h = np.sqrt(np.maximum(scene.radius[k] ** 2 - (np.einsum("ij,ij->i", w, w) - b * b), 0.0))
+            cand = np.stack([b - h, b + h], 1)
+        else:
+            w = v[None, :, :] - oo[:, None, :]                                   # (R, m, 2)
+            off = w[:, :, 0] * dd[:, None, 1] - w[:, :, 1] * dd[:, None, 0]      # signed distances
+            along = w[:, :, 0] * dd[:, None, 0] + w[:, :, 1] * dd[:, None, 1]
+            corner = np.where(np.abs(off) <= tol, along, np.inf)
+            o2, a2 = np.roll(off, -1, axis=1), np.roll(along, -1, axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = off / (off - o2)
+            cross = np.where((off * o2 < 0) & np.isfinite(f), along + f * (a2 - along), np.inf)
+            cand = np.concatenate([corner, cross], 1)
+        j = np.argmin(np.abs(cand), axis=1)
+        best = cand[np.arange(rows.size), j]
+        t[rows] = np.where(np.isfinite(best), best, 0.0)
+    return t

@@ -451,11 +451,17 @@ def contact_length_at(k, phi, j_forced, vert_start, verts, radius, A, cumS, peri
         return contact_length(k, phi, vert_start, verts, radius, A, cumS, perimeter)
     a0 = A[s]
     turns = math.floor((phi - a0) / TWO_PI)
-    j = support_index(k, phi - turns * TWO_PI, vert_start, A)
-    if j == s and j_forced == e - 1:
-        turns -= 1
-    elif j == e - 1 and j_forced == s:
-        turns += 1
+    p = phi - turns * TWO_PI
+    j = support_index(k, p, vert_start, A)
+    if j_forced != j:
+        # the forced corner is the piece after j (φ at j's end) or before it (at its
+        # start): decided by the nearer end, since a segment's two pieces meet at both
+        end = A[j + 1] if j + 1 < e else a0 + TWO_PI
+        if end - p < p - A[j]:
+            if j == e - 1:
+                turns += 1
+        elif j == s:
+            turns -= 1
     return turns * perimeter[k] + cumS[j_forced]
 
 

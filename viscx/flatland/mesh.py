@@ -53,8 +53,11 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
 
 
 # ----------------------------------------------------------------------------- positions
-def arc_position(scene, k, x):
-    """(N,) arc length s ∈ [0, L_k) of boundary points x (N, 2) of object k."""
+def arc_position(scene, k, x, d=None, exit_side=False):
+    """(N,) arc length s ∈ [0, L_k) of boundary points x (N, 2) of object k.  With ray
+    directions d (N, 2): the point where the ray enters k (``exit_side``: leaves it), i.e.
+    on an edge whose outward normal faces against d (along d) — on a segment both sides
+    pass through x, and only the direction tells them apart."""
     A, cumG, cumS, perim = scene.pieces()
     s0, e0 = scene.vert_start[k], scene.vert_start[k + 1]
     v = scene.verts[s0:e0]
@@ -66,7 +69,12 @@ def arc_position(scene, k, x):
     ab = b - a
     t = np.clip(np.einsum("nij,ij->ni", x[:, None, :] - a[None], ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
     proj = a[None] + t[..., None] * ab[None]
-    j = np.argmin(np.linalg.norm(x[:, None, :] - proj, axis=2), axis=1)
+    dist = np.linalg.norm(x[:, None, :] - proj, axis=2)
+    if d is not None:  # a tie between the two sides of a segment goes to the side the ray meets
+        facing = d @ np.stack([ab[:, 1], -ab[:, 0]], 1).T                   # (N, m) d · outward normal
+        wrong = facing < 0 if exit_side else facing > 0
+        dist = dist + wrong * 1e-9 * (1.0 + np.abs(v).max())
+    j = np.argmin(dist, axis=1)
     elen = np.linalg.norm(ab, axis=1)
     return np.mod(cumS[s0 + j] + t[np.arange(len(j)), j] * elen[j], perim[k])
 
@@ -451,13 +459,12 @@ def _elements_touched(scene, mesh, k, idx, eo, es, t0, t1, exit_side, args):
     for i in range(len(eo)):
         _, sk = _tangent_u_and_s(int(eo[i]), int(es[i]), th[i], *args)
         if eo[i] == k:
-            x = point_at(scene, k, sk)
+            pos[i] = np.mod(sk, L)
         else:
             d = np.stack([np.cos(th[i]), np.sin(th[i])], 1)
             o = point_at(scene, int(eo[i]), sk)
             tin, tout = _chord(scene, k, o, d)
-            x = o + (tout if exit_side else tin)[:, None] * d
-        pos[i] = arc_position(scene, k, x)
+            pos[i] = arc_position(scene, k, o + (tout if exit_side else tin)[:, None] * d, d, exit_side)
     s0, sm, s1 = pos[:, 0], pos[:, 1], pos[:, 2]
     fwd = np.mod(sm - s0, L) <= np.mod(s1 - s0, L)
     a0 = np.where(fwd, s0, s1)

@@ -1,4 +1,4 @@
-"""Flatland scenes: disjoint convex objects (circles, convex polygons, segments) plus the blue sky.
+"""Flatland scenes: convex objects (circles, polygons, segments) that are disjoint or touch, plus the blue sky.
 
 Every object is stored the same way, as a *rounded convex polygon*: support points
 ``v_0 .. v_{m-1}`` (counter-clockwise) and a radius ``r``.  A circle is one support point
@@ -34,6 +34,10 @@ from viscx.errors import ViscxError
 
 SKY = -1
 CIRCLE, POLYGON, SEGMENT = 0, 1, 2
+# the gap that opens every contact (Scene.opened), relative to the scene diagonal: far above the
+# 1e-9 line tolerance of the complex, far below any feature of a real layout (the build
+# tries complex.OPEN_RELS in turn)
+OPEN_REL = 1e-6
 TWO_PI = 2.0 * math.pi
 
 
@@ -130,6 +134,58 @@ class Scene:
             r = self.radius[k]
             bb[k] = np.concatenate([verts[s:e].min(axis=0) - r, verts[s:e].max(axis=0) + r])
             out._bboxes = bb
+        return out
+
+    def contacts(self) -> np.ndarray:
+        """(c, 2) int64: the pairs of objects that touch (i < j), cached
+        (:func:`check_disjoint`; raises on an overlap)."""
+        if not hasattr(self, "_contacts"):
+            self._contacts = check_disjoint(self)
+        return self._contacts
+
+    def opened(self, rel=OPEN_REL) -> "Scene":
+        """A copy in which every object that touches another is eroded by a small γ
+        (``rel`` × the scene diagonal, at most a quarter of the object's width), so that
+        every contact opens into a gap: the closing gap whose limit defines touching
+        objects (docs/flatland.md).  Support points keep their indices and the edges
+        their directions (a polygon's edges move inward by γ, corner j by
+        γ (ν_{j−1} + ν_j) / (1 + ν_{j−1}·ν_j), ν the outward unit normals; a segment
+        loses γ at each end; a circle's radius γ), so a support point of the opened
+        scene names the same corner of the scene.  Convex sets shrunk into their
+        interiors are disjoint when the originals only touched."""
+        bb = self.bounding_boxes()
+        diag = math.hypot(bb[:, 2].max() - bb[:, 0].min(), bb[:, 3].max() - bb[:, 1].min())
+        verts, radius = self.verts.copy(), self.radius.copy()
+        for k in np.unique(self.contacts()):
+            s, e = self.vert_start[k], self.vert_start[k + 1]
+            v = self.verts[s:e]
+            if self.kind[k] == CIRCLE:
+                radius[k] -= min(rel * diag, 0.25 * radius[k])
+                continue
+            edge = np.roll(v, -1, axis=0) - v
+            length = np.hypot(edge[:, 0], edge[:, 1])
+            if self.kind[k] == SEGMENT:
+                g = min(rel * diag, 0.1 * length[0])
+                t = edge[0] / length[0]
+                verts[s:e] = v + np.array([g, -g])[:, None] * t
+                continue
+            nu = np.stack([edge[:, 1], -edge[:, 0]], 1) / length[:, None]
+            width = min(np.max((v - v[j]) @ nu[j] * -1.0) for j in range(e - s))
+            g = min(rel * diag, 0.25 * width)
+            prev = np.roll(nu, 1, axis=0)
+            shift = (prev + nu) / (1.0 + np.einsum("ij,ij->i", prev, nu))[:, None]
+            # a short edge between two sharp corners vanishes when eroded too far: keep
+            # every edge's direction (halve γ until it does)
+            while np.any(np.einsum("ij,ij->i", np.roll(v - g * shift, -1, axis=0) - (v - g * shift), edge) <= 0.0):
+                g *= 0.5
+            verts[s:e] = v - g * shift
+        out = Scene(self.kind.copy(), self.vert_start.copy(), verts, radius, self.emission.copy(),
+                    self.reflectance.copy(), list(self.names))
+        left = check_disjoint(out, eps=0.01 * rel * diag)
+        if left.size:
+            a, b = left[0]
+            raise ViscxError(f"objects {self.names[a]!r} and {self.names[b]!r} lie along each other (two segments "
+                             "on one line, or a segment inside a polygon's edge twice): they overlap")
         return out
 
     def perturbed(self, rel=1e-7) -> "Scene":
@@ -234,10 +290,7 @@ def make_scene(objects) -> Scene:
     if not isinstance(objects, (list, tuple)) or len(objects) == 0:
         raise ViscxError("flatland scene has no objects")
     kinds, starts, verts, radius, E, rho, names = [], [0], [], [], [], [], []
-    for i, o in enumerate(objects):
-        if not isinstance(o, dict):
-            raise ViscxError(f"object {i} is not a JSON object")
-        name = str(o.get("name", f"object{i}"))
+    for o, name in _pieces_of(objects):
         t = o.get("type")
         try:
             if t == "circle":
@@ -278,8 +331,24 @@ def make_scene(objects) -> Scene:
         raise ViscxError(f"two objects are named {dup!r}; names must be unique")
     scene = Scene(np.array(kinds, dtype=np.int8), np.array(starts, dtype=np.int64), np.concatenate(verts),
                   np.array(radius), np.array(E), np.array(rho), names)
-    check_disjoint(scene)
+    scene._contacts = check_disjoint(scene)
     return scene
+
+
+def _pieces_of(objects):
+    """(object dict, name) of every object, an open polyline of m > 1 segments
+    split into its m pieces (segments named ``name[0]`` .. ``name[m-1]``, touching at the
+    shared corners: point contacts, docs/flatland.md)."""
+    for i, o in enumerate(objects):
+        if not isinstance(o, dict):
+            raise ViscxError(f"object {i} is not a JSON object")
+        name = str(o.get("name", f"object{i}"))
+        pts = o.get("points") if o.get("type") in ("segment", "polyline") else None
+        if isinstance(pts, (list, tuple)) and len(pts) > 2:
+            for j in range(len(pts) - 1):
+                yield dict(o, type="segment", points=[pts[j], pts[j + 1]]), f"{name}[{j}]"
+        else:
+            yield o, name
 
 
 def _off_line(p):
@@ -289,16 +358,13 @@ def _off_line(p):
 
 
 def _segment(points, name):
-    """(2, 2) float64 ends of a segment object, or ViscxError.  An open polyline of more
-    than one segment is refused: its pieces would touch at their shared corners (touching
-    objects are not supported)."""
+    """(2, 2) float64 ends of a segment object, or ViscxError (open polylines of several
+    segments are split into pieces before, :func:`_pieces_of`)."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 2 or not np.all(np.isfinite(p)):
         raise ViscxError(f"object {name!r}: 'points' must be a list of finite [x, y] pairs")
     if len(p) != 2:
-        raise ViscxError(f"object {name!r}: a segment has exactly 2 points (an open polyline of {len(p) - 1} "
-                         "segments would be touching objects, which flatland does not support: give its pieces "
-                         "as separate segments with gaps)")
+        raise ViscxError(f"object {name!r}: a segment or polyline needs at least 2 points")
     if np.all(p[0] == p[1]):
         raise ViscxError(f"object {name!r}: the two ends of a segment coincide")
     return p
@@ -340,15 +406,25 @@ def _convex_ccw(p, name, eps=1e-12):
     return p
 
 
-def check_disjoint(scene: Scene, eps=None):
-    """Raise ViscxError naming the first two objects that touch or overlap.
+def _sat_eps(scene, eps):
+    bb = scene.bounding_boxes()
+    scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
+    return 1e-9 * scale if eps is None else eps
+
+
+def check_disjoint(scene: Scene, eps=None) -> np.ndarray:
+    """Raise ViscxError naming the first two objects that overlap; return the pairs that
+    touch, (c, 2) int64 (i < j, ascending).
 
     Separating-axis test: two convex objects are disjoint iff some direction separates
     them; for circle/rounded polygons the candidate axes are the polygons' edge normals
-    and the directions between support points (exact for circles and polygons)."""
+    and the directions between support points (exact for circles and polygons).  The
+    largest gap over the axes is > eps for disjoint objects, within ±eps for touching
+    ones (a point or an edge in common, interiors disjoint), < −eps for overlapping
+    ones.  Touching objects are the limit of a closing gap (docs/flatland.md)."""
     bb = scene.bounding_boxes()
-    scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
-    eps = 1e-9 * scale if eps is None else eps
+    eps = _sat_eps(scene, eps)
+    touch = []
     # broad phase: overlapping bounding boxes
     order = np.argsort(bb[:, 0], kind="stable")
     for ii, i in enumerate(order):
@@ -357,27 +433,38 @@ def check_disjoint(scene: Scene, eps=None):
                 break
             if bb[j, 1] > bb[i, 3] + eps or bb[i, 1] > bb[j, 3] + eps:
                 continue
-            if not _separated(scene, i, j, eps):
-                a, b = sorted((int(i), int(j)))
-                raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} overlap or touch; "
-                                 "flatland objects must be disjoint")
+            _pair_contact(scene, int(i), int(j), eps, touch)
+    return np.array(sorted(touch), np.int64).reshape(-1, 2)
 
 
-def check_object_disjoint(scene: Scene, k: int, eps=None):
-    """:func:`check_disjoint` for the pairs of object k alone (the others are known disjoint)."""
+def check_object_disjoint(scene: Scene, k: int, eps=None) -> np.ndarray:
+    """:func:`check_disjoint` for the pairs of object k alone (the others are known
+    disjoint or touching): raises on an overlap, returns k's touching pairs (c, 2)."""
     bb = scene.bounding_boxes()
-    scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
-    eps = 1e-9 * scale if eps is None else eps
+    eps = _sat_eps(scene, eps)
     near = np.nonzero((bb[:, 0] <= bb[k, 2] + eps) & (bb[k, 0] <= bb[:, 2] + eps)
                       & (bb[:, 1] <= bb[k, 3] + eps) & (bb[k, 1] <= bb[:, 3] + eps))[0]
+    touch = []
     for j in near:
-        if j != k and not _separated(scene, k, j, eps):
-            a, b = sorted((int(k), int(j)))
-            raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} overlap or touch; "
-                             "flatland objects must be disjoint")
+        if j != k:
+            _pair_contact(scene, int(k), int(j), eps, touch)
+    return np.array(sorted(touch), np.int64).reshape(-1, 2)
 
 
-def _separated(scene, i, j, eps):
+def _pair_contact(scene, i, j, eps, touch):
+    """Append (min, max) to ``touch`` if objects i, j touch; raise if they overlap."""
+    gap = _separation(scene, i, j)
+    if gap > eps:
+        return
+    a, b = sorted((i, j))
+    if gap < -eps:
+        raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} overlap; "
+                         "flatland objects must not overlap (they may touch)")
+    touch.append((a, b))
+
+
+def _separation(scene, i, j):
+    """The largest gap between objects i and j over the separating-axis candidates."""
     vi = scene.verts[scene.vert_start[i]:scene.vert_start[i + 1]]
     vj = scene.verts[scene.vert_start[j]:scene.vert_start[j + 1]]
     ri, rj = scene.radius[i], scene.radius[j]
@@ -395,7 +482,7 @@ def _separated(scene, i, j, eps):
     pj = vj @ ax.T
     gap1 = pj.min(axis=0) - rj - (pi.max(axis=0) + ri)
     gap2 = pi.min(axis=0) - ri - (pj.max(axis=0) + rj)
-    return bool(np.max(np.maximum(gap1, gap2)) > eps)
+    return float(np.max(np.maximum(gap1, gap2)))
 
 
 # ----------------------------------------------------------------------------- loaders

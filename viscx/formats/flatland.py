@@ -165,7 +165,8 @@ def check_complex(c, scene, names, arrays, eps):
     c.within("/scene/kind", scene["kind"], CIRCLE, SEGMENT + 1)
     flat = Scene(scene["kind"].astype(np.int8), scene["vert_start"], scene["verts"], scene["radius"], scene["emission"],
                  scene["reflectance"], list(names))
-    make_scene(flat.to_json()["objects"])  # every rule of a scene file, one line naming the object
+    # every rule of a scene file, one line naming the object; its contact pairs are kept
+    flat._contacts = make_scene(flat.to_json()["objects"])._contacts
     sizes = {"n": s["n"], "V": s["V"], "nv": len(arrays.get("v_key", ())), "ne": len(arrays.get("e_obj", ())),
              "nf": len(arrays.get("f_area", ()))}
     for name, a in arrays.items():

@@ -1256,17 +1256,74 @@ def _unique(scene, el):
     start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     cuts = start[np.searchsorted(start, np.arange(UNIQUE_CHUNK, len(key), UNIQUE_CHUNK), "right") - 1]
     bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
-    middle = _lift((1 - el.weight) * el.start[:, :2] + el.weight * el.end[:, :2])
     tol = join_tolerance(scene, el.e1, el.e2)
     keep = []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         part = el.take(np.arange(lo, hi))
-        keep.append(lo + unique_elements(part, _groups(part), tol[lo:hi], middle[lo:hi]))
+        keep.append(lo + unique_elements(part, _groups(part), tol[lo:hi], lambda i, j: one_curve(scene, part, i, j)))
     return el.take(np.concatenate(keep))
 
 
 #: Elements judged at once by :func:`_unique` (whole squares).
 UNIQUE_CHUNK = 1 << 18
+
+
+def one_curve(scene, el, i, j):
+    """Whether elements j, whose ends agree with i's within the join tolerance, lie on i's
+    curve: j's middle (:func:`chord_middles`) within epsilon of the point of i's curve with
+    the same value of the coordinate that changes more along i, across it (the other
+    coordinate, in length along its edge).
+
+    Two families whose lines coincide give one boundary twice, with one pair beside it;
+    two curves closer than the join tolerance at both ends but more than epsilon apart
+    between them are distinct boundaries (office(300), pair (41, 579): a pencil at x1 =
+    0.99953 and the side x1 = 1, 7e-4 apart along the 1.5-long e1, bound a sliver cell).
+
+    Parameters
+    ----------
+    el : Elements
+    i, j : (m,) int
+
+    Returns
+    -------
+    (m,) bool
+    """
+    middle = chord_middles(el.take(j))
+    span = el.end[i, :2] - el.start[i, :2]
+    k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)
+    rows = np.arange(len(i))
+    c0, c1, w = el.start[i, k], el.end[i, k], el.weight[i, k]
+    c = np.clip(middle[rows, k], np.minimum(c0, c1), np.maximum(c0, c1))
+    a, b = (1 - w) * (c - c0), w * (c1 - c)  # _bezier_inverse: u = a / (a + b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(a + b != 0, a / (a + b), 0.5)
+    other = _bezier(el.start[i, 1 - k], el.end[i, 1 - k], el.weight[i, 1 - k], u)
+    length = scene.cached("edge_lengths", _edge_lengths)[np.where(k == 0, el.e2[i], el.e1[i])]
+    return np.abs(other - middle[rows, 1 - k]) * length <= scene.epsilon
+
+
+def chord_middles(el):
+    """The point of each element's curve where the coordinate that changes more along it
+    takes the middle value of its ends ((k, 2) float).
+
+    It depends on the curve alone, not on its family's parameter: a VE arc through a
+    junction vertex w of e1 (s is x2, linear) and a pencil through the same point of e1 (s
+    runs along the pencil's third edge: x2 is linear-fractional in s) give one segment
+    x1 = s_w of the square; the points at their parameters' middles differ (floor_plan((1,
+    1)): 47 such segments, each left an open chain with its duplicate's pair), these do
+    not. Each coordinate is monotone along an element, so the point is unique."""
+    span = el.end[:, :2] - el.start[:, :2]
+    k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)
+    rows = np.arange(len(k))
+    c0, c1 = el.start[rows, k], el.end[rows, k]
+    w = el.weight[rows, k]
+    # _bezier_inverse at the middle value c = (c0 + c1) / 2: a / (a + b) with a = (1 - w)(c - c0),
+    # b = w (c1 - c), both proportional to (c1 - c0) / 2
+    u = 1 - w  # a point-like element (c0 = c1) takes the same value
+    out = np.empty((len(k), 2))
+    out[rows, k] = 0.5 * (c0 + c1)
+    out[rows, 1 - k] = _bezier(el.start[rows, 1 - k], el.end[rows, 1 - k], el.weight[rows, 1 - k], u)
+    return out
 
 
 def _element_order(el):
@@ -1528,7 +1585,8 @@ def _squares_cells(scene, arcs, squares):
     ref = reference_points(walk, loop_offsets)
     loop_group = group[order[loop_offsets[:-1]]]
     cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
-    return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell), int(np.count_nonzero(bad))
+    points = point_chains(scene, walk, chain_offsets)
+    return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell, points), int(np.count_nonzero(bad))
 
 
 def _groups(el):
@@ -1646,8 +1704,44 @@ def _edge_lengths(scene):
     return np.linalg.norm(b - a, axis=1)
 
 
-def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
-    """Cells in canonical order with their loops (outer first) and areas."""
+def point_chains(scene, walk, chain_offsets):
+    """Open chains that are points at epsilon's resolution: every end of their elements lies
+    within the join tolerance of the chain's start (as the V-cells' ``vcells.point_chains``).
+
+    They are V1 arcs, or pieces of them, shorter than the join tolerance, between events
+    merged by epsilon-visibility or a transition, which close on themselves within it: a
+    loop whose winding is no ±2π (:func:`_demote`), or a chain beside a sliver whose other
+    sides V1 merged away. They bound nothing at epsilon's resolution and do not keep their
+    pair from being complete (office(300): 491 of the 497 demoted loops, the only open
+    chains of 227 pairs; docs/skeleton.md "Furnished buildings").
+
+    Parameters
+    ----------
+    walk : Elements
+        Loops then chains, contiguous (chain j is ``chain_offsets[j]:chain_offsets[j + 1]``).
+    chain_offsets : (o + 1,) int
+
+    Returns
+    -------
+    (o,) bool
+    """
+    n = len(chain_offsets) - 1
+    if n == 0:
+        return np.zeros(0, bool)
+    first = chain_offsets[:-1]
+    k = np.arange(chain_offsets[0], chain_offsets[-1])
+    chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
+    origin = walk.start[first][chain_of, :2]
+    far = np.maximum(np.linalg.norm(walk.start[k, :2] - origin, axis=1), np.linalg.norm(walk.end[k, :2] - origin, axis=1))
+    extent = np.zeros(n)
+    np.maximum.at(extent, chain_of, far)
+    return extent <= join_tolerance(scene, walk.e1[first], walk.e2[first])
+
+
+def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell, points):
+    """Cells in canonical order with their loops (outer first) and areas; ``points`` ((o,)
+    bool): the open chains that do not keep their pair from being complete
+    (:func:`point_chains`)."""
     n_loops = len(loop_offsets) - 1
     n_cells = int(cell.max()) + 1 if n_loops else 0
     first = order[loop_offsets[:-1]]
@@ -1673,7 +1767,8 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
     cp = cell_pair[cell_order]
     chain = walk.take(np.arange(n_el, len(walk)))
     chain_first = chain_offsets[:-1] - n_el
-    open_key = unique_sorted(chain.e1 * (1 << 32) + chain.e2)
+    points = np.repeat(points, np.diff(chain_offsets))
+    open_key = unique_sorted(chain.e1[~points] * (1 << 32) + chain.e2[~points])
     complete = ~np.isin(cp[:, 0] * (1 << 32) + cp[:, 1], open_key)
     return EECells(
         edge1=cp[:, 0],

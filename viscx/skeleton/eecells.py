@@ -1091,10 +1091,27 @@ def open_segments(scene, el, order, chain_offsets):
     kind, ident, key, axis, value = kind[order], ident[order], key[order], axis[order], value[order]
     e1, e2 = key >> 32, key & ((1 << 32) - 1)
     # one segment per line of the square: the first of values closer than the tolerance
-    tol = join_tolerance(scene, e1, e2)
+    tol = segment_tolerance(scene, e1, e2, axis)
     keep = np.ones(len(key), bool)
     keep[1:] = (key[1:] != key[:-1]) | (axis[1:] != axis[:-1]) | (value[1:] - value[:-1] > tol[1:])
     return Segments(kind[keep].astype(np.int8), ident[keep], e1[keep], e2[keep], axis[keep], value[keep])
+
+
+def segment_tolerance(scene, e1, e2, axis):
+    """(k,) float: how close two of V2's segments x_axis = c of one square are one line:
+    SQUARE_JOIN_EPSILONS epsilon along the edge c runs on, in square units.
+
+    Not the join tolerance (epsilon along the shorter edge of the pair, in both coordinates):
+    office(300), pair (1, 242) (the floor's 12-long edge and a 0.03-long edge under a desk
+    top) merged the pencils x1 = 0.83075 and x1 = 0.83184 of two planes 1.3 cm apart (4e-3 of
+    the square is 5 cm along the floor's edge), and the one bounding the cell was lost.
+
+    Parameters
+    ----------
+    e1, e2, axis : (k,) int
+    """
+    length = scene.cached("edge_lengths", _edge_lengths)
+    return SQUARE_JOIN_EPSILONS * scene.epsilon / length[np.where(axis == 0, e1, e2)]
 
 
 def segment_pieces(scene, arcs, segments, pieces, el, curves=None):
@@ -1272,7 +1289,8 @@ def one_curve(scene, el, i, j):
     """Whether elements j, whose ends agree with i's within the join tolerance, lie on i's
     curve: j's middle (:func:`chord_middles`) within epsilon of the point of i's curve with
     the same value of the coordinate that changes more along i, across it (the other
-    coordinate, in length along its edge).
+    coordinate, in length along its edge), and the two overlapping along that coordinate by
+    more than half the longer one.
 
     Two families whose lines coincide give one boundary twice, with one pair beside it;
     two curves closer than the join tolerance at both ends but more than epsilon apart
@@ -1299,7 +1317,14 @@ def one_curve(scene, el, i, j):
         u = np.where(a + b != 0, a / (a + b), 0.5)
     other = _bezier(el.start[i, 1 - k], el.end[i, 1 - k], el.weight[i, 1 - k], u)
     length = scene.cached("edge_lengths", _edge_lengths)[np.where(k == 0, el.e2[i], el.e1[i])]
-    return np.abs(other - middle[rows, 1 - k]) * length <= scene.epsilon
+    # and overlap along it by more than half the longer: consecutive pieces of one side shorter
+    # than the join tolerance (cut at coplanar events 6e-5 apart) meet, they do not repeat
+    lo_i, hi_i = np.minimum(c0, c1), np.maximum(c0, c1)
+    d0, d1 = el.start[j, k], el.end[j, k]
+    lo_j, hi_j = np.minimum(d0, d1), np.maximum(d0, d1)
+    overlap = np.minimum(hi_i, hi_j) - np.maximum(lo_i, lo_j)
+    return (np.abs(other - middle[rows, 1 - k]) * length <= scene.epsilon) & (
+        overlap > 0.5 * np.maximum(hi_i - lo_i, hi_j - lo_j))
 
 
 def chord_middles(el):

@@ -133,7 +133,15 @@ from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums, unique_elements
+from viscx.skeleton.loops import (
+    TURNING_DECIMALS,
+    cells_of_loops,
+    chain_extents,
+    form_loops,
+    signed_angle,
+    turning_sums,
+    unique_elements,
+)
 from viscx.tolerances import (
     ANGLE_TOLERANCE,
     PARALLEL_TOLERANCE,
@@ -1754,13 +1762,7 @@ def point_chains(scene, walk, chain_offsets):
     if n == 0:
         return np.zeros(0, bool)
     first = chain_offsets[:-1]
-    k = np.arange(chain_offsets[0], chain_offsets[-1])
-    chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
-    origin = walk.start[first][chain_of, :2]
-    far = np.maximum(np.linalg.norm(walk.start[k, :2] - origin, axis=1), np.linalg.norm(walk.end[k, :2] - origin, axis=1))
-    extent = np.zeros(n)
-    np.maximum.at(extent, chain_of, far)
-    return extent <= join_tolerance(scene, walk.e1[first], walk.e2[first])
+    return chain_extents(walk, chain_offsets) <= join_tolerance(scene, walk.e1[first], walk.e2[first])
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell, points):

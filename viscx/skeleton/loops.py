@@ -175,6 +175,22 @@ def unique_elements(el, group, tolerance, same_curve=None):
     return np.flatnonzero(~drop)
 
 
+def chain_extents(walk, chain_offsets):
+    """How far each chain reaches: the largest distance of an end of its elements from the
+    chain's start ((o,) float; chain j is ``walk[chain_offsets[j]:chain_offsets[j + 1]]``,
+    ``start`` and ``end`` (k, 3) float). A chain within the join tolerance is a point at
+    epsilon's resolution (the V-cells' and the EE-cells' ``point_chains``)."""
+    n = len(chain_offsets) - 1
+    first = chain_offsets[:-1]
+    k = np.arange(chain_offsets[0], chain_offsets[-1])
+    chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
+    origin = walk.start[first][chain_of]
+    far = np.maximum(np.linalg.norm(walk.start[k] - origin, axis=1), np.linalg.norm(walk.end[k] - origin, axis=1))
+    extent = np.zeros(n)
+    np.maximum.at(extent, chain_of, far)
+    return extent
+
+
 def form_loops(el, group, tolerance):
     """Chain each group's elements end to start into loops (Hoberock et al. §5.3 FormLoops).
 

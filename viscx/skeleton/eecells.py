@@ -1746,21 +1746,9 @@ def point_chains(scene, walk, chain_offsets):
     loop whose winding is no ±2π (:func:`_demote`), or a chain beside a sliver whose other
     sides V1 merged away. They bound nothing at epsilon's resolution and do not keep their
     pair from being complete (office(300): 491 of the 497 demoted loops, the only open
-    chains of 227 pairs; docs/skeleton.md "Furnished buildings").
-
-    Parameters
-    ----------
-    walk : Elements
-        Loops then chains, contiguous (chain j is ``chain_offsets[j]:chain_offsets[j + 1]``).
-    chain_offsets : (o + 1,) int
-
-    Returns
-    -------
-    (o,) bool
+    chains of 227 pairs; docs/skeleton.md "Furnished buildings"). ``walk`` and
+    ``chain_offsets`` as :func:`loops.chain_extents` takes them; returns (o,) bool.
     """
-    n = len(chain_offsets) - 1
-    if n == 0:
-        return np.zeros(0, bool)
     first = chain_offsets[:-1]
     return chain_extents(walk, chain_offsets) <= join_tolerance(scene, walk.e1[first], walk.e2[first])
 

@@ -181,6 +181,8 @@ def chain_extents(walk, chain_offsets):
     ``start`` and ``end`` (k, 3) float). A chain within the join tolerance is a point at
     epsilon's resolution (the V-cells' and the EE-cells' ``point_chains``)."""
     n = len(chain_offsets) - 1
+    if n == 0:
+        return np.zeros(0)
     first = chain_offsets[:-1]
     k = np.arange(chain_offsets[0], chain_offsets[-1])
     chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))

@@ -335,15 +335,28 @@ def test_one_arc_per_pencil_line(monkeypatch):
     """A line of a touched plane's pencil crossing several of the plane's edges has one arc:
     without ``arcs.first_pencil_pair`` boxes_on_floor's pencils through floor edges 1 and 2
     get several arcs over the same lines (one per pair of the faces' edges they cross that
-    node condition (4) admits), and the EE-squares they run in do not close."""
+    node condition (4) admits). The EE-squares they run in did not close; since V2 keeps a
+    boundary given twice once when the two are one curve (``eecells.one_curve``, compared
+    as curves, not at their parameters' middles) they close either way, so the repeated
+    arcs are counted here: the same pencil lines (EEE families with one third edge and one
+    interval) in several families."""
+    from viscx.skeleton.arcs import EEE
     from viscx.skeleton.arcs import lines as arcs_lines
+
+    def repeated(arcs):
+        """EEE arcs of pencils (p, q, r) whose lines another family's arc also runs along:
+        same parameter edge p and interval, another pair (q, r)."""
+        eee = arcs.kind == EEE
+        key = np.concatenate([arcs.generators[eee][:, :1], np.round(arcs.interval[eee], 9)], axis=1)
+        _, count = np.unique(key, axis=0, return_counts=True)
+        return int(np.sum(count[count > 1]))
 
     scene, arcs, ee = built("boxes_on_floor.obj")
     assert ee.complete.all()
     monkeypatch.setattr(arcs_lines, "first_pencil_pair", lambda scene, plane, gens, ends, valid: np.ones(len(plane), bool))
     scene = load_scene(SAMPLES / "boxes_on_floor.obj")
-    _, ee = build_all(scene)
-    assert not ee.complete.all()
+    knocked, _ = build_all(scene)
+    assert repeated(knocked) > repeated(arcs), (repeated(knocked), repeated(arcs))
 
 
 def test_pencil_blocked_at_its_last_edge(tmp_path):

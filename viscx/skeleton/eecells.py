@@ -133,7 +133,15 @@ from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
 from viscx.skeleton.generators import skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
-from viscx.skeleton.loops import TURNING_DECIMALS, cells_of_loops, form_loops, signed_angle, turning_sums, unique_elements
+from viscx.skeleton.loops import (
+    TURNING_DECIMALS,
+    cells_of_loops,
+    chain_extents,
+    form_loops,
+    signed_angle,
+    turning_sums,
+    unique_elements,
+)
 from viscx.tolerances import (
     ANGLE_TOLERANCE,
     PARALLEL_TOLERANCE,
@@ -1094,10 +1102,27 @@ def open_segments(scene, el, order, chain_offsets):
     kind, ident, key, axis, value = kind[order], ident[order], key[order], axis[order], value[order]
     e1, e2 = key >> 32, key & ((1 << 32) - 1)
     # one segment per line of the square: the first of values closer than the tolerance
-    tol = join_tolerance(scene, e1, e2)
+    tol = segment_tolerance(scene, e1, e2, axis)
     keep = np.ones(len(key), bool)
     keep[1:] = (key[1:] != key[:-1]) | (axis[1:] != axis[:-1]) | (value[1:] - value[:-1] > tol[1:])
     return Segments(kind[keep].astype(np.int8), ident[keep], e1[keep], e2[keep], axis[keep], value[keep])
+
+
+def segment_tolerance(scene, e1, e2, axis):
+    """(k,) float: how close two of V2's segments x_axis = c of one square are one line:
+    SQUARE_JOIN_EPSILONS epsilon along the edge c runs on, in square units.
+
+    Not the join tolerance (epsilon along the shorter edge of the pair, in both coordinates):
+    office(300), pair (1, 242) (the floor's 12-long edge and a 0.03-long edge under a desk
+    top) merged the pencils x1 = 0.83075 and x1 = 0.83184 of two planes 1.3 cm apart (4e-3 of
+    the square is 5 cm along the floor's edge), and the one bounding the cell was lost.
+
+    Parameters
+    ----------
+    e1, e2, axis : (k,) int
+    """
+    length = scene.cached("edge_lengths", _edge_lengths)
+    return SQUARE_JOIN_EPSILONS * scene.epsilon / length[np.where(axis == 0, e1, e2)]
 
 
 def segment_pieces(scene, arcs, segments, pieces, el, curves=None):
@@ -1259,17 +1284,82 @@ def _unique(scene, el):
     start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     cuts = start[np.searchsorted(start, np.arange(UNIQUE_CHUNK, len(key), UNIQUE_CHUNK), "right") - 1]
     bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
-    middle = _lift((1 - el.weight) * el.start[:, :2] + el.weight * el.end[:, :2])
     tol = join_tolerance(scene, el.e1, el.e2)
     keep = []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         part = el.take(np.arange(lo, hi))
-        keep.append(lo + unique_elements(part, _groups(part), tol[lo:hi], middle[lo:hi]))
+        keep.append(lo + unique_elements(part, _groups(part), tol[lo:hi], lambda i, j: one_curve(scene, part, i, j)))
     return el.take(np.concatenate(keep))
 
 
 #: Elements judged at once by :func:`_unique` (whole squares).
 UNIQUE_CHUNK = 1 << 18
+
+
+def one_curve(scene, el, i, j):
+    """Whether elements j, whose ends agree with i's within the join tolerance, lie on i's
+    curve: j's middle (:func:`chord_middles`) within epsilon of the point of i's curve with
+    the same value of the coordinate that changes more along i, across it (the other
+    coordinate, in length along its edge), and the two overlapping along that coordinate by
+    more than half the longer one.
+
+    Two families whose lines coincide give one boundary twice, with one pair beside it;
+    two curves closer than the join tolerance at both ends but more than epsilon apart
+    between them are distinct boundaries (office(300), pair (41, 579): a pencil at x1 =
+    0.99953 and the side x1 = 1, 7e-4 apart along the 1.5-long e1, bound a sliver cell).
+
+    Parameters
+    ----------
+    el : Elements
+    i, j : (m,) int
+
+    Returns
+    -------
+    (m,) bool
+    """
+    middle = chord_middles(el.take(j))
+    span = el.end[i, :2] - el.start[i, :2]
+    k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)
+    rows = np.arange(len(i))
+    c0, c1, w = el.start[i, k], el.end[i, k], el.weight[i, k]
+    c = np.clip(middle[rows, k], np.minimum(c0, c1), np.maximum(c0, c1))
+    a, b = (1 - w) * (c - c0), w * (c1 - c)  # _bezier_inverse: u = a / (a + b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(a + b != 0, a / (a + b), 0.5)
+    other = _bezier(el.start[i, 1 - k], el.end[i, 1 - k], el.weight[i, 1 - k], u)
+    length = scene.cached("edge_lengths", _edge_lengths)[np.where(k == 0, el.e2[i], el.e1[i])]
+    # and overlap along it by more than half the longer: consecutive pieces of one side shorter
+    # than the join tolerance (cut at coplanar events 6e-5 apart) meet, they do not repeat
+    lo_i, hi_i = np.minimum(c0, c1), np.maximum(c0, c1)
+    d0, d1 = el.start[j, k], el.end[j, k]
+    lo_j, hi_j = np.minimum(d0, d1), np.maximum(d0, d1)
+    overlap = np.minimum(hi_i, hi_j) - np.maximum(lo_i, lo_j)
+    return (np.abs(other - middle[rows, 1 - k]) * length <= scene.epsilon) & (
+        overlap > 0.5 * np.maximum(hi_i - lo_i, hi_j - lo_j))
+
+
+def chord_middles(el):
+    """The point of each element's curve where the coordinate that changes more along it
+    takes the middle value of its ends ((k, 2) float).
+
+    It depends on the curve alone, not on its family's parameter: a VE arc through a
+    junction vertex w of e1 (s is x2, linear) and a pencil through the same point of e1 (s
+    runs along the pencil's third edge: x2 is linear-fractional in s) give one segment
+    x1 = s_w of the square; the points at their parameters' middles differ (floor_plan((1,
+    1)): 47 such segments, each left an open chain with its duplicate's pair), these do
+    not. Each coordinate is monotone along an element, so the point is unique."""
+    span = el.end[:, :2] - el.start[:, :2]
+    k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)
+    rows = np.arange(len(k))
+    c0, c1 = el.start[rows, k], el.end[rows, k]
+    w = el.weight[rows, k]
+    # _bezier_inverse at the middle value c = (c0 + c1) / 2: a / (a + b) with a = (1 - w)(c - c0),
+    # b = w (c1 - c), both proportional to (c1 - c0) / 2
+    u = 1 - w  # a point-like element (c0 = c1) takes the same value
+    out = np.empty((len(k), 2))
+    out[rows, k] = 0.5 * (c0 + c1)
+    out[rows, 1 - k] = _bezier(el.start[rows, 1 - k], el.end[rows, 1 - k], el.weight[rows, 1 - k], u)
+    return out
 
 
 def _element_order(el):
@@ -1531,7 +1621,8 @@ def _squares_cells(scene, arcs, squares):
     ref = reference_points(walk, loop_offsets)
     loop_group = group[order[loop_offsets[:-1]]]
     cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
-    return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell), int(np.count_nonzero(bad))
+    points = point_chains(scene, walk, chain_offsets)
+    return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell, points), int(np.count_nonzero(bad))
 
 
 def _groups(el):
@@ -1649,8 +1740,26 @@ def _edge_lengths(scene):
     return np.linalg.norm(b - a, axis=1)
 
 
-def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
-    """Cells in canonical order with their loops (outer first) and areas."""
+def point_chains(scene, walk, chain_offsets):
+    """Open chains that are points at epsilon's resolution: every end of their elements lies
+    within the join tolerance of the chain's start (as the V-cells' ``vcells.point_chains``).
+
+    They are V1 arcs, or pieces of them, shorter than the join tolerance, between events
+    merged by epsilon-visibility or a transition, which close on themselves within it: a
+    loop whose winding is no ±2π (:func:`_demote`), or a chain beside a sliver whose other
+    sides V1 merged away. They bound nothing at epsilon's resolution and do not keep their
+    pair from being complete (office(300): 491 of the 497 demoted loops, the only open
+    chains of 227 pairs; docs/skeleton.md "Furnished buildings"). ``walk`` and
+    ``chain_offsets`` as :func:`loops.chain_extents` takes them; returns (o,) bool.
+    """
+    first = chain_offsets[:-1]
+    return chain_extents(walk, chain_offsets) <= join_tolerance(scene, walk.e1[first], walk.e2[first])
+
+
+def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell, points):
+    """Cells in canonical order with their loops (outer first) and areas; ``points`` ((o,)
+    bool): the open chains that do not keep their pair from being complete
+    (:func:`point_chains`)."""
     n_loops = len(loop_offsets) - 1
     n_cells = int(cell.max()) + 1 if n_loops else 0
     first = order[loop_offsets[:-1]]
@@ -1676,7 +1785,8 @@ def _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell):
     cp = cell_pair[cell_order]
     chain = walk.take(np.arange(n_el, len(walk)))
     chain_first = chain_offsets[:-1] - n_el
-    open_key = unique_sorted(chain.e1 * (1 << 32) + chain.e2)
+    points = np.repeat(points, np.diff(chain_offsets))
+    open_key = unique_sorted(chain.e1[~points] * (1 << 32) + chain.e2[~points])
     complete = ~np.isin(cp[:, 0] * (1 << 32) + cp[:, 1], open_key)
     return EECells(
         edge1=cp[:, 0],

@@ -136,10 +136,10 @@ def near_pairs(a, b, group, tolerance):
     return i[pick], j[pick]
 
 
-def unique_elements(el, group, tolerance, middle=None):
+def unique_elements(el, group, tolerance, same_curve=None):
     """The elements to keep: of elements of one group running between the same two points
-    (and through the same middle point, if given), each within ``tolerance`` of the first
-    one's, the first (smallest index).
+    (and one curve by the test ``same_curve``, if given), each within ``tolerance`` of the first one's,
+    the first (smallest index).
 
     Two families whose lines coincide give the same boundary twice: collinear edges
     overlapping (two boxes' bottom edges along their contact), a vertex and two edges in
@@ -154,9 +154,10 @@ def unique_elements(el, group, tolerance, middle=None):
         Anything with ``start``, ``end`` ((k, 3) float).
     group : (k,) int
     tolerance : float or (k,) float
-    middle : (k, 3) float, optional
-        A point of each element between its ends: on the sphere the ends fix an arc
-        shorter than pi, in an edge pair's square they do not fix the curve.
+    same_curve : callable, optional
+        ``same_curve(i, j)`` ((m,) int each, i < j) -> (m,) bool: whether elements i and j, whose
+        ends agree, are one curve. On the sphere the ends fix an arc shorter than pi; in an
+        edge pair's square they do not fix the curve.
 
     Returns
     -------
@@ -170,11 +171,31 @@ def unique_elements(el, group, tolerance, middle=None):
     later = j > i
     i, j = i[later], j[later]
     same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= tolerance[i]
-    if middle is not None:
-        same &= np.linalg.norm(middle[i] - middle[j], axis=1) <= tolerance[i]
+    i, j = i[same], j[same]
+    if same_curve is not None and len(i):
+        keep = same_curve(i, j)
+        i, j = i[keep], j[keep]
     drop = np.zeros(len(el), bool)
-    drop[j[same]] = True
+    drop[j] = True
     return np.flatnonzero(~drop)
+
+
+def chain_extents(walk, chain_offsets):
+    """How far each chain reaches: the largest distance of an end of its elements from the
+    chain's start ((o,) float; chain j is ``walk[chain_offsets[j]:chain_offsets[j + 1]]``,
+    ``start`` and ``end`` (k, 3) float). A chain within the join tolerance is a point at
+    epsilon's resolution (the V-cells' and the EE-cells' ``point_chains``)."""
+    n = len(chain_offsets) - 1
+    if n == 0:
+        return np.zeros(0)
+    first = chain_offsets[:-1]
+    k = np.arange(chain_offsets[0], chain_offsets[-1])
+    chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
+    origin = walk.start[first][chain_of]
+    far = np.maximum(np.linalg.norm(walk.start[k] - origin, axis=1), np.linalg.norm(walk.end[k] - origin, axis=1))
+    extent = np.zeros(n)
+    np.maximum.at(extent, chain_of, far)
+    return extent
 
 
 def form_loops(el, group, tolerance):

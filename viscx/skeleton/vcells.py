@@ -87,6 +87,7 @@ from viscx.skeleton.arcs import VE, family_lines, vertex_side_backs
 from viscx.skeleton.loops import (
     TURNING_DECIMALS,
     cells_of_loops,
+    chain_extents,
     corner_turns,
     form_loops,
     loop_successors,
@@ -832,16 +833,10 @@ def point_chains(scene, walk, chain_offsets):
     n = len(chain_offsets) - 1
     if n == 0:
         return np.zeros(0, bool)
-    first, last = chain_offsets[:-1], chain_offsets[1:] - 1
+    last = chain_offsets[1:] - 1
     reach = line_reach(scene, walk.vertex[last], walk.end[last], walk.end_reach[last])
     tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
-    k = np.arange(chain_offsets[0], chain_offsets[-1])
-    chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
-    origin = walk.start[first][chain_of]
-    far = np.maximum(np.linalg.norm(walk.start[k] - origin, axis=1), np.linalg.norm(walk.end[k] - origin, axis=1))
-    extent = np.zeros(n)
-    np.maximum.at(extent, chain_of, far)
-    return extent <= tolerance
+    return chain_extents(walk, chain_offsets) <= tolerance
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole, points):

@@ -38,10 +38,13 @@ images: demo
 # (the workers then only read numba's cache); JOBS pytest-xdist workers, each given whole files
 # in the order tests/conftest.py sorts them, longest first (pytest-xdist would otherwise sort
 # the files by their number of tests and hand a long file of one test out last)
+# (the tests keep Python's bytecode cache even where PYTHONDONTWRITEBYTECODE is set: without it
+# each worker and each of the tests' subprocesses compiles viscx and the tests from source again,
+# about 15 s of the suite's wall on 2 cores)
 JOBS ?= 2
 test: venv
-	$(BIN)/python -m viscx.warmup
-	$(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder
+	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m viscx.warmup
+	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder
 
 # Rebuild the golden files that tests/test_golden.py diffs against; run it only
 # when a change of output is intended, and commit the result.

@@ -990,10 +990,7 @@ def close_contacts(scene: Scene, V: dict) -> dict:
     r1, r2 = sg1 * scene.radius[k1], sg2 * scene.radius[k2]
     w = scene.verts[j2] - scene.verts[j1]
     wn = np.hypot(w[:, 0], w[:, 1])
-    beta = np.arctan2(w[:, 1], w[:, 0])
-    asn = np.arcsin(np.clip((r1 - r2) / np.where(wn > 0, wn, 1.0), -1.0, 1.0))
-    d1 = np.mod(beta - asn - ths + math.pi, TWO_PI) - math.pi
-    d2 = np.mod(beta - math.pi + asn - ths + math.pi, TWO_PI) - math.pi
+    d1, d2 = (np.mod(t - ths + math.pi, TWO_PI) - math.pi for t in K.sine_roots(w, r1 - r2))
     th = np.where(wn > 0, ths + np.where(np.abs(d1) <= np.abs(d2), d1, d2), ths)
     d = np.stack([np.cos(th), np.sin(th)], 1)
     nrm = np.stack([-d[:, 1], d[:, 0]], 1)

@@ -289,6 +289,26 @@ def _next_piece(k, j, vert_start, A):
     return j2, end - A[j2]
 
 
+def sine_roots(w, rho):
+    """The two θ with n(θ)·w = ρ, n(θ) = (−sin θ, cos θ), for many (w, ρ): as in
+    :func:`pair_bitangents`, n(θ)·w = |w| sin(β − θ), so θ = β − asin(ρ/|w|) or
+    θ = β − π + asin(ρ/|w|) (ρ/|w| clipped to [−1, 1]; |w| = 0 gives β − asin(ρ)).
+
+    Parameters
+    ----------
+    w : (N, 2) float
+    rho : (N,) float
+
+    Returns
+    -------
+    (N,) float, (N,) float
+    """
+    wn = np.hypot(w[:, 0], w[:, 1])
+    beta = np.arctan2(w[:, 1], w[:, 0])
+    q = np.arcsin(np.clip(rho / np.where(wn > 0, wn, 1.0), -1.0, 1.0))
+    return beta - q, beta - math.pi + q
+
+
 @nb.njit(cache=True)
 def pair_bitangents(a, b, sa, sb, vert_start, verts, radius, A, out_theta, out_va, out_vb, tol):
     """The oriented common tangents of objects a, b with a on side sa and b on side sb.

@@ -174,9 +174,7 @@ def _crossings(P, c, lo, hi, P2=None, c2=None):
         rho = (c[:, None] - c2[None, :]).ravel()
     wn = np.hypot(w[:, 0], w[:, 1])
     ok = (wn > 1e-300) & (np.abs(rho) <= wn)
-    beta = np.arctan2(w[ok, 1], w[ok, 0])
-    q = np.arcsin(np.clip(rho[ok] / wn[ok], -1, 1))
-    roots = np.concatenate([beta - q, beta - math.pi + q])
+    roots = np.concatenate(K.sine_roots(w[ok], rho[ok]))
     return _in_range(roots, lo, hi)
 
 

@@ -12,14 +12,21 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-# Re-install when the package metadata changes; then compile and cache the numba kernels
-# (about a minute of CPU, once) so that the first build is as fast as the next.
+# Re-install when the package metadata changes.
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test,plot]'
-	$(BIN)/python -m viscx.warmup
 	touch $@
 
-venv: $(VENV)/.installed
+# Compile and cache the numba kernels (about a minute of CPU, once) so that the first build is
+# as fast as the next; again after an install or a change of viscx's sources (numba's cache is
+# keyed on them), not on every `make test` (with every kernel cached it still takes 3 s).
+# The bytecode cache is kept where PYTHONDONTWRITEBYTECODE is set (see `test`).
+SOURCES := $(shell find viscx -name '*.py')
+$(VENV)/.warm: $(VENV)/.installed $(SOURCES)
+	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m viscx.warmup
+	touch $@
+
+venv: $(VENV)/.warm
 
 demo: venv
 	mkdir -p $(OUT)
@@ -34,8 +41,8 @@ demo: venv
 images: demo
 	cp $(OUT)/cornell_exact.png $(OUT)/cornell_sparse500.png $(OUT)/cornell_mc16.png docs/images/
 
-# the warm-up first: after a change of source its kernels are compiled once, not inside a test
-# (the workers then only read numba's cache); JOBS pytest-xdist workers, each given whole files
+# `venv` warms the kernels up first after a change of source: they are compiled once, not inside
+# a test (the workers then only read numba's cache); JOBS pytest-xdist workers, each given whole files
 # in the order tests/conftest.py sorts them, longest first (pytest-xdist would otherwise sort
 # the files by their number of tests and hand a long file of one test out last)
 # (the tests keep Python's bytecode cache even where PYTHONDONTWRITEBYTECODE is set: without it
@@ -43,7 +50,6 @@ images: demo
 # about 15 s of the suite's wall on 2 cores)
 JOBS ?= 2
 test: venv
-	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m viscx.warmup
 	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder
 
 # Rebuild the golden files that tests/test_golden.py diffs against; run it only

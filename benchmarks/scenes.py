@@ -43,7 +43,7 @@ def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0):
     return soup
 
 
-def random_boxes(n_polygons, seed=0, coverage=0.15):
+def random_boxes(n_polygons, seed=0, coverage=0.15, keep=None):
     """Boxes standing on a floor quad, about ``n_polygons`` faces (six per box plus the floor).
 
     A small city: each box has a random footprint (0.6–2.0 units a side), height
@@ -51,6 +51,10 @@ def random_boxes(n_polygons, seed=0, coverage=0.15):
     touch one another (a gap of at least 0.2 between their bounding circles), and
     they cover about ``coverage`` of the floor, whose side grows as the square
     root of the number of boxes (constant density). Deterministic in ``seed``.
+
+    ``keep`` (box numbers, in the order the boxes are placed, from 0) keeps only those
+    boxes, each where it stands in the whole city, on the whole city's floor: a smaller
+    scene with the same neighbourhoods around the kept boxes (the others are still drawn).
     """
     rng = np.random.default_rng(seed)
     n_boxes = max(1, int(round((n_polygons - 1) / 6)))
@@ -59,6 +63,7 @@ def random_boxes(n_polygons, seed=0, coverage=0.15):
     vertices = [[0.0, 0.0, 0.0], [0.0, 0.0, side], [side, 0.0, side], [side, 0.0, 0.0]]
     polygons = [[0, 1, 2, 3]]
     groups = [0]
+    names = ["floor"]
     placed = []
     unit = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (0.0, 1.0) for z in (-0.5, 0.5)])
     while len(placed) < n_boxes:
@@ -69,22 +74,26 @@ def random_boxes(n_polygons, seed=0, coverage=0.15):
             continue
         placed.append((center, radius))
         angle = rng.uniform(0, np.pi / 2)
+        if keep is not None and len(placed) - 1 not in keep:
+            continue
         rot = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
         corners = (unit * size) @ rot.T + [center[0], 0.0, center[1]]
         base = len(vertices)
         vertices += corners.tolist()
+        names.append(f"box{len(placed) - 1}")
         for quad in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
             polygons.append([base + i for i in quad])
-            groups.append(len(placed))
+            groups.append(len(names) - 1)
     sizes = [len(p) for p in polygons]
     soup = PolygonSoup(
         vertices=np.asarray(vertices, dtype=np.float64),
         polygon_offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
         polygon_vertices=np.concatenate(polygons).astype(np.int64),
         polygon_group=np.asarray(groups, dtype=np.int64),
-        group_names=["floor"] + [f"box{i}" for i in range(n_boxes)],
+        group_names=names,
     )
-    return build_scene(soup, source=f"random_boxes(n_polygons={n_polygons}, seed={seed})")
+    kept = "" if keep is None else f", keep={sorted(keep)}"
+    return build_scene(soup, source=f"random_boxes(n_polygons={n_polygons}, seed={seed}{kept})")
 
 
 def read_bunny(path):

@@ -3,8 +3,9 @@ stderr naming the problem and the file, no traceback, no output or temporary fil
 documented success.
 
 Every case runs in-process (fast), with warnings turned into errors and WARNING log records
-counted, because in a real process both would reach stderr. A handful also run through the
-real command (``python -m viscx``) in parallel subprocesses.
+counted, because in a real process both would reach stderr. One case of each kind of outcome
+also runs through the real command (``python -m viscx``) in parallel subprocesses (more with
+``-m slow``).
 """
 
 import logging
@@ -86,25 +87,31 @@ def test_in_process(name, command, code, keyword, tmp_path, capsys, caplog, monk
     check(name, code, keyword, exc.value.code, err, tmp_path)
 
 
-# one case of each kind of failure, through the real command and a real stderr
+# Through the real command and a real stderr (every case also runs in-process above): one
+# case of each kind of outcome, a file no reader takes, a scene the checks refuse, an HDF5
+# file the HDF5 library refuses (its C library writes to the real stderr) and a documented
+# success; ``-m slow`` adds a case of each other reader and check (an interpreter's start-up
+# each, a second of CPU).
 SUBPROCESS = [
     ("empty.obj", "build"),
+    ("self_intersecting_polygon.obj", "build"),
+    ("truncated.h5", "info"),
+    ("non_manifold_fan.obj", "build"),
+]
+SUBPROCESS_SLOW = [
     ("binary_garbage.ply", "build"),
     ("overflowing_bbox.obj", "build"),
     ("truncated.stl", "build"),
-    ("self_intersecting_polygon.obj", "build"),
-    ("truncated.h5", "info"),
     ("future_version.h5", "diff"),
-    ("non_manifold_fan.obj", "build"),
 ]
 
 
-@pytest.fixture(scope="module")
-def subprocess_runs(tmp_path_factory):
-    """Start every SUBPROCESS case at once (they are dominated by start-up), then collect them."""
+def run_all(cases, tmp_path_factory):
+    """Start every case at once (they are dominated by start-up), then collect them:
+    {(name, command): (exit status, stderr, folder, expected code, keyword)}."""
     expected = {(name, command): (code, keyword) for name, command, code, keyword in CASES}
     runs = {}
-    for name, command in SUBPROCESS:
+    for name, command in cases:
         folder = tmp_path_factory.mktemp(Path(name).stem)
         process = subprocess.Popen(
             [sys.executable, "-m", "viscx", *argv(name, command, folder / "out.h5")],
@@ -121,13 +128,32 @@ def subprocess_runs(tmp_path_factory):
     return results
 
 
-@pytest.mark.parametrize("name, command", SUBPROCESS, ids=[f"{c}-{n}" for n, c in SUBPROCESS])
-def test_real_command(name, command, subprocess_runs):
-    returncode, err, folder, code, keyword = subprocess_runs[name, command]
+@pytest.fixture(scope="module")
+def subprocess_runs(tmp_path_factory):
+    return run_all(SUBPROCESS, tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def slow_subprocess_runs(tmp_path_factory):
+    return run_all(SUBPROCESS_SLOW, tmp_path_factory)
+
+
+def check_run(returncode, err, folder, code, keyword, name):
     if code == 0:
         assert returncode == 0 and (folder / "out.h5").exists(), err
         (folder / "out.h5").unlink()
     check(name, code, keyword, returncode, err, folder)
+
+
+@pytest.mark.parametrize("name, command", SUBPROCESS, ids=[f"{c}-{n}" for n, c in SUBPROCESS])
+def test_real_command(name, command, subprocess_runs):
+    check_run(*subprocess_runs[name, command], name)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, command", SUBPROCESS_SLOW, ids=[f"{c}-{n}" for n, c in SUBPROCESS_SLOW])
+def test_real_command_of_other_readers(name, command, slow_subprocess_runs):
+    check_run(*slow_subprocess_runs[name, command], name)
 
 
 def test_documented_successes_write_a_readable_file(tmp_path, capsys):

@@ -550,25 +550,38 @@ def test_near_pairs_equal_the_brute_force_join():
     np.testing.assert_array_equal(np.stack([fi, fj], axis=1), brute)
 
 
-def city():
-    """(scene, arcs) of the 300-polygon city of boxes on a floor, built once."""
-    if "city300" not in _CACHE:
+#: The cities of the join tests (benchmarks/scenes.random_boxes): by default 11 of the 50
+#: boxes of the 300-polygon city, each where it stands there (67 polygons, 92 vertices; the
+#: whole city's V0 to V2 cost 9 s, these 1 s), kept by dropping boxes while every join rule
+#: below still completed some vertex; ``-m slow`` runs the whole city.
+CITIES = {"city": dict(keep=[16, 17, 18, 26, 29, 33, 38, 40, 41, 46, 48]), "city300": {}}
+#: Cities and ray directions per vertex of the city tests: the default city at 500 per
+#: vertex (~5 000 directions at its 10 joined vertices; the gap knock-out below still leaves
+#: some of them in two cells), the whole city at the measured 2000 with ``-m slow``.
+CITY_RUNS = [("city", 500), pytest.param("city300", 2000, marks=pytest.mark.slow)]
+CITY_NAMES = ["city", pytest.param("city300", marks=pytest.mark.slow)]
+
+
+def city(name):
+    """(scene, arcs) of the city ``name`` of :data:`CITIES` (random_boxes(300, seed=0) or
+    some of its boxes), built once."""
+    if name not in _CACHE:
         import sys
         from pathlib import Path
 
         sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
         from scenes import random_boxes
 
-        scene = random_boxes(300, seed=0)
-        _CACHE["city300"] = scene, build_arcs(scene, build_nodes(scene))
-    return _CACHE["city300"]
+        scene = random_boxes(300, seed=0, **CITIES[name])
+        _CACHE[name] = scene, build_arcs(scene, build_nodes(scene))
+    return _CACHE[name]
 
 
-def city_vcells():
+def city_vcells(name):
     """The V-cells of :func:`city`, built once (the tests only read them)."""
-    if "city300 vcells" not in _CACHE:
-        _CACHE["city300 vcells"] = build_vcells(*city())
-    return _CACHE["city300 vcells"]
+    if (name, "vcells") not in _CACHE:
+        _CACHE[name, "vcells"] = build_vcells(*city(name))
+    return _CACHE[name, "vcells"]
 
 
 def without_join(scene, el, group, *loops):
@@ -576,59 +589,61 @@ def without_join(scene, el, group, *loops):
     return loops
 
 
-def city_strict():
+def city_strict(name):
     """The V-cells of :func:`city` without the join of open chains, built once."""
     import viscx.skeleton.vcells as vcells
 
-    if "city300 strict" not in _CACHE:
+    if (name, "strict") not in _CACHE:
         with pytest.MonkeyPatch.context() as m:
             m.setattr(vcells, "join_open_chains", without_join)
-            _CACHE["city300 strict"] = build_vcells(*city())
-    return _CACHE["city300 strict"]
+            _CACHE[name, "strict"] = build_vcells(*city(name))
+    return _CACHE[name, "strict"]
 
 
-def city_joined():
+def city_joined(name):
     """The vertices of :func:`city` the join completes (complete with it, not without)."""
-    return np.setdiff1d(complete_vertices(city_vcells()), complete_vertices(city_strict()))
+    return np.setdiff1d(complete_vertices(city_vcells(name)), complete_vertices(city_strict(name)))
 
 
-#: :func:`ray_oracle`'s memo for :func:`city_vcells` (the caster's pairs and the band around
-#: the boundaries, per vertex and direction), and its results per set of vertices: the
-#: vertices the join completes (64) are judged by two tests with the same directions
+#: Per city, :func:`ray_oracle`'s memo for :func:`city_vcells` (the caster's pairs and the
+#: band around the boundaries, per vertex and direction), and its results per set of
+#: vertices: the vertices the join completes are judged by two tests with the same directions
 CITY_ORACLE = {}
 
 
-#: Directions per vertex of the city's ray oracle by default; ``-m slow`` runs the measured 2000
-#: (the default's 500 per vertex judge ~32 000 directions at the 64 joined vertices, and the gap
-#: knock-out below still leaves ~120 of them in two cells).
-CITY_DIRECTIONS = [500, pytest.param(2000, marks=pytest.mark.slow)]
-
-
-def city_oracle(vertices, n):
+def city_oracle(name, vertices, n):
     """:func:`ray_oracle` of :func:`city_vcells` at ``vertices``, ``n`` directions each, computed once per set."""
-    scene, arcs = city()
+    scene, arcs = city(name)
+    memo = CITY_ORACLE.setdefault(name, {})
     key = ("result", n, tuple(int(v) for v in vertices))
-    if key not in CITY_ORACLE:
-        CITY_ORACLE[key] = ray_oracle(scene, arcs, city_vcells(), vertices, n=n, memo=CITY_ORACLE)
-    return CITY_ORACLE[key]
+    if key not in memo:
+        memo[key] = ray_oracle(scene, arcs, city_vcells(name), vertices, n=n, memo=memo)
+    return memo[key]
 
 
-@pytest.mark.parametrize("n", CITY_DIRECTIONS)
-def test_open_chains_joined_across_merged_events(n):
-    """A city of boxes on a floor (300 polygons): where V1 merged a family's events closer
-    than 4 epsilon, the two families at a cell's corner may keep different events, and the
-    cell's boundary jumps by a few epsilon there. Without the join a sixth of the vertices
-    kept open chains (measured 340 of 404 complete, 235 chains); with it every chain whose
-    ends lie that close closes (all 404 complete; 1 chain left, a VE arc 0.8 epsilon long
-    taken as a point), and the vertices it completes agree with the ray caster (measured
-    127 901 of 127 901 directions at 2000 per vertex)."""
-    scene, arcs = city()
-    joined = city_vcells()
-    before, after = complete_vertices(city_strict()), complete_vertices(joined)
+#: Per city: its vertices, and at most how many of them are complete without the join.
+CITY_COUNTS = {"city": (92, 84), "city300": (404, 345)}
+
+
+@pytest.mark.parametrize("name, n", CITY_RUNS)
+def test_open_chains_joined_across_merged_events(name, n):
+    """A city of boxes on a floor: where V1 merged a family's events closer than 4 epsilon,
+    the two families at a cell's corner may keep different events, and the cell's boundary
+    jumps by a few epsilon there. Without the join some vertices keep open chains (measured
+    on the whole city: 340 of 404 complete, 235 chains; on the default city 82 of 92); with
+    it every chain whose ends lie that close closes (all complete; on the whole city 1 chain
+    left, a VE arc 0.8 epsilon long taken as a point), and the vertices it completes agree
+    with the ray caster (measured on the whole city 127 901 of 127 901 directions at 2000
+    per vertex)."""
+    scene, arcs = city(name)
+    joined = city_vcells(name)
+    before, after = complete_vertices(city_strict(name)), complete_vertices(joined)
+    n_vertices, most = CITY_COUNTS[name]
     assert set(before) <= set(after)
-    assert len(after) == len(scene.generator_vertices) and len(joined.open_vertex) <= 2 and len(before) <= 345
-    new = city_joined()
-    judged, agreed, wrong = city_oracle(new, n)
+    assert len(after) == len(scene.generator_vertices) == n_vertices and len(joined.open_vertex) <= 2
+    assert len(before) <= most
+    new = city_joined(name)
+    judged, agreed, wrong = city_oracle(name, new, n)
     assert judged >= 0.99 * n * len(new) and agreed >= 0.9999 * judged, wrong[:5]
     # a complete vertex's cells still cover its sphere
     total = per_vertex_solid_angle(joined, scene.n_vertices)[after]
@@ -650,37 +665,40 @@ def only_vertices(monkeypatch, vertices):
     monkeypatch.setattr(vcells, "boundary_elements", theirs)
 
 
-def test_cells_of_some_vertices_equal_the_whole_build(monkeypatch):
+@pytest.mark.parametrize("name", CITY_NAMES)
+def test_cells_of_some_vertices_equal_the_whole_build(monkeypatch, name):
     """:func:`only_vertices` (the knock-outs below build the vertices the join completes
     only): the same cells as the whole build at those vertices."""
-    scene, arcs = city()
-    new = city_joined()
+    scene, arcs = city(name)
+    new = city_joined(name)
     only_vertices(monkeypatch, new)
-    part, whole = build_vcells(scene, arcs, vertices=new), city_vcells()
+    part, whole = build_vcells(scene, arcs, vertices=new), city_vcells(name)
     assert np.array_equal(complete_vertices(part), new)
     mine = np.isin(whole.vertex, new)
     assert np.array_equal(part.vertex, whole.vertex[mine]) and np.array_equal(part.solid_angle, whole.solid_angle[mine])
-    for name in ("up_kind", "up", "down_kind", "down", "turning"):
-        loops = np.repeat(mine, np.diff(whole.loop_offsets)) if name == "turning" else mine
-        assert np.array_equal(getattr(part, name), getattr(whole, name)[loops]), name
+    for field in ("up_kind", "up", "down_kind", "down", "turning"):
+        loops = np.repeat(mine, np.diff(whole.loop_offsets)) if field == "turning" else mine
+        assert np.array_equal(getattr(part, field), getattr(whole, field)[loops]), field
 
 
+@pytest.mark.parametrize("name", CITY_NAMES)
 @pytest.mark.parametrize("knockout", ["own_reach", "three_elements", "small_limit", "no_spike", "no_points"])
-def test_each_join_rule_completes_city_vertices(knockout, monkeypatch):
-    """Each rule is needed on the city (measured complete vertices of 404 with it knocked
-    out, against all 404): the gap measured from the nearest edge the end's line meets,
-    not from its own edge (392: a VEE node (v, e, e') seen along e is merged on VE (v, e')
-    nearer v); loops of two elements (399: a thin triangle whose third side V1 merged
-    away); gaps up to JOIN_LIMIT = 1e-3 (401: edges within a unit of the vertex); the
+def test_each_join_rule_completes_city_vertices(knockout, name, monkeypatch):
+    """Each rule is needed on the city (measured on the whole city, complete vertices of 404
+    with it knocked out, against all 404): the gap measured from the nearest edge the end's
+    line meets, not from its own edge (392: a VEE node (v, e, e') seen along e is merged on
+    VE (v, e') nearer v); loops of two elements (399: a thin triangle whose third side V1
+    merged away); gaps up to JOIN_LIMIT = 1e-3 (401: edges within a unit of the vertex); the
     spike rule of the turning sums (403: a gap running straight back along a collinear
     overlap turned by 2π instead of 0); open chains shorter than the join tolerance taken
-    as points (403: a VE arc 0.8 epsilon long beside a sliver V1 merged away). Every
-    vertex each knock-out leaves open is one the join completes: the cells of those 64
-    are built (:func:`only_vertices`)."""
+    as points (403: a VE arc 0.8 epsilon long beside a sliver V1 merged away). On the
+    default city, of its 92: 88, 91, 91, 91, 91. Every vertex each knock-out leaves open is
+    one the join completes: the cells of those (64 in the whole city, 10 in the default
+    one) are built (:func:`only_vertices`)."""
     import viscx.skeleton.vcells as vcells
 
-    scene, arcs = city()
-    new = city_joined()
+    scene, arcs = city(name)
+    new = city_joined(name)
     only_vertices(monkeypatch, new)
     if knockout == "own_reach":
         monkeypatch.setattr(vcells, "line_reach", lambda scene, vertex, direction, reach: reach)
@@ -698,21 +716,21 @@ def test_each_join_rule_completes_city_vertices(knockout, monkeypatch):
     assert np.allclose(per_vertex_solid_angle(vc, scene.n_vertices)[complete_vertices(vc)], FOUR_PI, atol=1e-6)
 
 
-@pytest.mark.parametrize("n", CITY_DIRECTIONS)
-def test_point_location_crosses_the_gaps_of_joined_loops(monkeypatch, n):
+@pytest.mark.parametrize("name, n", CITY_RUNS)
+def test_point_location_crosses_the_gaps_of_joined_loops(monkeypatch, name, n):
     """A path from a loop's reference point that passes through a gap of a joined loop
     crosses the loop there: without the gaps' arcs in the parity test, directions of
-    the city's joined vertices lie in two cells (measured at the 64 vertices the join
-    completes, 2000 directions each: 495 of 127 901 judged directions disagree; 493
-    directions are held by two cells)."""
+    the city's joined vertices lie in two cells (measured on the whole city, at the 64
+    vertices the join completes, 2000 directions each: 495 of 127 901 judged directions
+    disagree; 493 directions are held by two cells)."""
     import viscx.skeleton.vcells as vcells
 
-    scene, arcs = city()
-    vc = city_vcells()
+    scene, arcs = city(name)
+    vc = city_vcells(name)
     gapped = np.unique(vc.vertex[vc.complete & np.isin(vc.vertex, vertices_with_gaps(scene, arcs, vc))])
     assert len(gapped) >= 10
     # the same directions, pairs and boundaries below (CITY_ORACLE): only the location changes
-    judged, agreed, wrong = city_oracle(gapped, n)
+    judged, agreed, wrong = city_oracle(name, gapped, n)
     assert agreed == judged, wrong[:5]
 
     def without_gaps(el, loop_offsets):
@@ -720,7 +738,7 @@ def test_point_location_crosses_the_gaps_of_joined_loops(monkeypatch, n):
         return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
 
     monkeypatch.setattr(vcells, "loop_segments", without_gaps)
-    judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=n, memo=CITY_ORACLE)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, gapped, n=n, memo=CITY_ORACLE[name])
     assert agreed < judged and any("2 cells" in w for w in wrong)
 
 

@@ -705,6 +705,8 @@ def derive(scene: Scene, V: dict):
     ths_ = np.concatenate([O["THS"], O["THS"]])
     order = np.lexsort((occ_, tau_, ths_, cur))
     st = dict(s_occ=occ_[order], s_role=role_[order], s_cur=cur[order], s_th=th_[order], s_tau=tau_[order])
+    if "v_theta_sort" in V:  # the update merges new incidences in by it
+        st["s_ths"] = ths_[order]
     link(st, n_occ)
     pos = np.arange(order.shape[0])
     edge_attributes(scene, O, st, pos, st)
@@ -952,6 +954,9 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
                 if opened is not scene:
                     V = close_contacts(scene, V)
                 out, state = derive(scene, V)
+                if state is not None and opened is not scene:  # the update re-tests its zone there
+                    opened._contacts = np.zeros((0, 2), np.int64)
+                    state["open"] = (rel, opened)
                 break
             except ViscxError:
                 # a line between the two sides of an opened contact is known to ~ulp(x)/γ

@@ -72,7 +72,9 @@ class MoveStats:
     ``local`` is False when the move rebuilt the complex (a file written before degenerate
     lines were resolved, or a complex without vertices); ``zone_*`` count the vertices
     that left / entered the complex, the edges derived anew and the face slots re-glued;
-    ``seconds`` the CPU time per stage."""
+    ``seconds`` the CPU time per stage; ``pairs`` (P, 2) int64 the object pairs (a, b),
+    b = −1 the sky, whose form factors were recomputed (a face of theirs was re-summed):
+    every other entry of F_area / F_strings is the old one."""
 
     candidates_tested: int
     candidates_total: int
@@ -87,6 +89,7 @@ class MoveStats:
     zone_edges: int = 0
     zone_slots: int = 0
     seconds: dict = field(default_factory=dict)
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
 
     def summary(self) -> str:
         how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
@@ -340,7 +343,7 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
     if rel:
         st["open"] = (rel, work_new)
     new = C.FlatComplex(scene=new_scene, eps=cx.eps, arrays=V, state=st, blockers=blockers)
-    stats = _stats(new, zone["faces"], int(todo.sum()), total)
+    stats = _stats(new, zone["faces"], int(todo.sum()), total, zone["lost"])
     stats.zone_vertices_removed = int(np.sum(vmap < 0))
     stats.zone_vertices_added = int(added.size)
     stats.zone_edges, stats.zone_slots = zone["edges"], zone["slots"]
@@ -588,7 +591,8 @@ def _merge_vertices(V_old, fresh, redone):
     same = (fk.size > 0) & (fk[j] == V_old["v_key"][rd]) if fk.size else np.zeros(rd.size, bool)
     for name in TOPOLOGY_FIELDS + (("v_theta_sort",) if "v_theta_sort" in fields else ()):
         a, b = V_old[name][rd], fresh[name][j] if fk.size else V_old[name][rd]
-        same &= np.all((a == b).reshape(rd.size, -1), axis=1)
+        eq = a == b
+        same &= eq.all(axis=tuple(range(1, eq.ndim)))
     vmap[rd[same]] = fidx[j[same]]
     entered = np.ones(fk.size, bool)
     entered[j[same]] = False
@@ -674,11 +678,13 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     new_attr = {}
     C.comp_attributes(scene, O, st, zslots, lab, nlab, six, sgn, zocc, new_attr)
     keep_lab = ~in_zone[:L_old]
+    # labels without slots (left by earlier updates, until compacted) keep stale slots
+    live = keep_lab & (np.bincount(old["comp"], minlength=L_old) > 0)
     remap_slot = lambda s: 3 * newpos[s // 3] + s % 3  # noqa: E731
     for name, vals in new_attr.items():
         base = old[name].copy()
         if name == "c_minslot":
-            base[keep_lab] = remap_slot(base[keep_lab])
+            base[live] = remap_slot(base[live])
         st[name] = np.concatenate([base, vals])
     # -- the kept faces' boundary lists, renumbered
     kf = keep_lab[old["face_label"]]
@@ -691,7 +697,10 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     faces = st["face_label"] >= L_old
     if st["c_tail"].shape[0] > 2 * st["face_label"].shape[0] + 2 * nlab:
         _compact(st)  # amortised: when dead labels outnumber the live ones
-    return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size))
+    # the faces that left (their pairs' form factors are recomputed too, if only to 0)
+    lost = old["face_label"][~kf]
+    lost = np.stack([old["c_tail"][lost], old["c_head"][lost]], 1)
+    return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size), lost=lost)
 
 
 def _csr_keep(start, vals, keep):
@@ -724,7 +733,9 @@ def _pair_ids(f_pair, n):
     return lo * (n + 1) + hi
 
 
-def _stats(new, recomputed, tested, total):
+def _stats(new, recomputed, tested, total, lost=None):
+    """MoveStats of a new complex whose faces ``recomputed`` (F,) bool were re-summed;
+    ``lost`` (L, 2): the (tail, head) of the old faces that left (−2: a removed object)."""
     n = new.scene.n
     ok = new.f_bounded & ~((new.f_pair[:, 0] < 0) & (new.f_pair[:, 1] < 0))
     pid = _pair_ids(new.f_pair, n)[ok]
@@ -732,6 +743,11 @@ def _stats(new, recomputed, tested, total):
     seen[pid] = True
     again = np.zeros((n + 1) ** 2, bool)
     again[pid[recomputed[ok]]] = True
-    return MoveStats(candidates_tested=tested, candidates_total=total,
+    if lost is not None:
+        lost = lost[np.all(lost >= -1, axis=1) & np.any(lost >= 0, axis=1)]
+        again[_pair_ids(lost, n)] = True
+    lo, hi = np.divmod(np.nonzero(again)[0], n + 1)
+    pairs = np.stack([lo, np.where(hi == n, -1, hi)], 1)
+    return MoveStats(pairs=pairs, candidates_tested=tested, candidates_total=total,
                      faces_recomputed=int(recomputed[ok].sum()), faces_total=int(ok.sum()),
                      formfactors_recomputed=int(again.sum()), formfactors_total=int(seen.sum()))

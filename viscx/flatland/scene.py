@@ -530,6 +530,8 @@ def _separation(scene, i, j):
     ax = np.concatenate(axes)
     nrm = np.hypot(ax[:, 0], ax[:, 1])
     ax = ax[nrm > 0] / nrm[nrm > 0, None]
+    if ax.shape[0] == 0:  # two circles with one centre: no axis separates them
+        return -(ri + rj)
     pi = vi @ ax.T
     pj = vj @ ax.T
     gap1 = pj.min(axis=0) - rj - (pi.max(axis=0) + ri)

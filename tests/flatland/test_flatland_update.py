@@ -222,3 +222,68 @@ def test_insert_errors():
         insert(cx, {"type": "circle", "center": c.tolist(), "radius": 0.1})
     with pytest.raises(ViscxError, match="objects 0..13"):
         remove(cx, 14)
+
+
+# -- the update group of a file: moves on a file are local -----------------------------------
+def h5_datasets(path):
+    import h5py
+
+    with h5py.File(path) as f:
+        out = {}
+        f.visititems(lambda name, obj: out.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
+    return out
+
+
+@pytest.mark.parametrize("scene", ["mixed", "rows", "yard"])
+def test_updates_of_a_file_are_local_and_write_a_rebuilds_file(tmp_path, scene):
+    """A file keeps what the update needs (group /update, docs/format.md): a move, a
+    removal and an insertion of a complex read from a file use it (no derivation, blocker
+    table included), are local, and write the same datasets as a rebuild's file — the
+    update group too, but for its bookkeeping (/update/lines, /update/blockers)."""
+    from test_flatland_dynamic import rows_base
+
+    from viscx.formats.flatland import read_any, write_any
+
+    cx = {"mixed": lambda: base(3), "rows": lambda: rows_base(0.0), "yard": yard_cx}[scene]()
+    write_any(tmp_path / "c.h5", cx)
+    steps = [(move, (2, 0.3, -0.2)), (remove, (1,)),
+             (insert, ({"type": "circle", "center": [1.5, 3.5], "radius": 0.3, "name": "pot"},))]
+    path = tmp_path / "c.h5"
+    for i, (op, args) in enumerate(steps):
+        read = read_any(path)
+        assert read.stored is not None and read.state is None
+        try:
+            new, stats = op(read, *args)
+        except ViscxError as e:
+            assert "overlap" in str(e)
+            continue
+        assert stats.local, stats.why
+        assert new.blockers is not None
+        rebuilt = build(new.scene, eps=cx.eps)
+        assert_same_complex(new, rebuilt)
+        path = tmp_path / f"u{i}.h5"
+        write_any(path, new)
+        write_any(tmp_path / f"r{i}.h5", rebuilt)
+        got, want = h5_datasets(path), h5_datasets(tmp_path / f"r{i}.h5")
+        assert set(got) == set(want)
+        for name in want:
+            if name not in ("update/lines", "update/blockers"):
+                assert got[name].shape == want[name].shape and np.array_equal(got[name], want[name]), name
+
+
+def test_damaged_update_group_is_a_one_line_error(tmp_path):
+    import h5py
+
+    from viscx.formats.flatland import read_any, write_any
+
+    write_any(tmp_path / "c.h5", base(0))
+    for name, bad in (("incidence", lambda a: a[::-1]), ("slot_face", lambda a: a + 10**6),
+                      ("tail", lambda a: a + 100), ("open_rel", lambda a: a + 0.5), ("blockers", lambda a: a[:-1])):
+        path = tmp_path / f"bad_{name}.h5"
+        path.write_bytes((tmp_path / "c.h5").read_bytes())
+        with h5py.File(path, "a") as f:
+            data = bad(f["update"][name][()])
+            del f["update"][name]
+            f["update"].create_dataset(name, data=data)
+        with pytest.raises(ViscxError, match=f"/update/{name}"):
+            read_any(path)

@@ -107,6 +107,9 @@ class FlatComplex:
     # blockers, which :func:`viscx.flatland.dynamic.move` updates locally
     state: dict | None = None
     blockers: np.ndarray | None = None
+    # read from a file: its ``update`` group (dynamic.update_arrays), made into the state
+    # and blocker table by the first update
+    stored: dict | None = None
 
     def __getattr__(self, name):
         arrays = self.__dict__.get("arrays")

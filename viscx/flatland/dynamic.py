@@ -198,7 +198,9 @@ def update(cx: C.FlatComplex, new_scene, gone, came, objmap, curves=None):
     came0 = came
     if "v_tau" not in cx.arrays or cx.n_vertices == 0 or n < 2:  # written before degenerate lines were resolved
         return _rebuilt(cx, new_scene, total)
-    if cx.state is None:  # read from a file: the state is derived again from the stored vertices
+    if cx.state is None and cx.stored is not None:  # read from a file with its update group
+        cx = state_from_update_arrays(cx, cx.stored)
+    if cx.state is None:  # read from an older file: the state is derived again from the stored vertices
         cx = C.FlatComplex(scene=scene, eps=cx.eps, arrays=cx.arrays, state=C.derive(scene, cx.arrays)[1],
                            blockers=cx.blockers)
     opened = _opened_scenes(cx, new_scene, gone, came, objmap)
@@ -751,3 +753,137 @@ def _stats(new, recomputed, tested, total, lost=None):
     return MoveStats(pairs=pairs, candidates_tested=tested, candidates_total=total,
                      faces_recomputed=int(recomputed[ok].sum()), faces_total=int(ok.sum()),
                      formfactors_recomputed=int(again.sum()), formfactors_total=int(seen.sum()))
+
+
+# ----------------------------------------------------------------------------- the update state in files
+def update_arrays(cx: C.FlatComplex) -> dict | None:
+    """What a local update needs beyond the stored arrays, for the ``update`` group of a
+    file (docs/format.md), or None without a state.
+
+    The topology's state on the double cover, canonical — equal for an updated complex and
+    a rebuilt one: ``incidence`` (4m,) the incidences in their order along the tangency
+    curves (id occ + role · 2m, occ = v or m + v for the reversed line), per incidence the
+    edge starting there: ``tail``, ``head``, ``th0``, ``th1``, ``integral`` (∫u dθ),
+    ``arclength``; ``slot_face`` (12m,) the face of each of its three slots as 2·f (the
+    face as stored) or 2·f + 1 (its twin, the reversed lines); ``minslot`` (2F,) the
+    smallest slot of each; ``edge_slots`` / ``vert_slots`` the faces' boundary lists as
+    incidences (edge << 2 | upper << 1 | reversed; vertex << 3 | o << 2 | sign + 1).
+    And the bookkeeping of the updates: ``blockers`` (4n²,) int32 one object blocking each
+    candidate (−1 free; any blocker will do, so an updated complex's may differ from a
+    rebuild's), ``lines`` (L, 2) the degenerate lines re-scanned by earlier updates (θ, u),
+    ``open_rel`` (1,) the gap of the opened scene (0: no contacts)."""
+    st = cx.state
+    if st is None or cx.blockers is None:
+        return None
+    m, F = cx.n_vertices, cx.n_faces
+    rep = st["face_label"]
+    tw = st["c_twin"][rep]
+    lab = np.full(st["c_tail"].shape[0], -1, np.int64)
+    lab[tw] = 2 * np.arange(F) + 1
+    lab[rep] = 2 * np.arange(F)  # a face that is its own twin keeps 2·f
+    minslot = np.full(2 * F, -1, np.int64)
+    minslot[lab[tw]] = st["c_minslot"][tw]
+    minslot[lab[rep]] = st["c_minslot"][rep]
+    lines = st.get("lines", (np.zeros(0), np.zeros(0)))
+    return dict(incidence=st["s_occ"] + st["s_role"] * 2 * m, tail=st["tail"], head=st["head"], th0=st["th0"],
+                th1=st["th1"], integral=st["I"], arclength=st["arc"], slot_face=lab[st["comp"]], minslot=minslot,
+                edge_slots=st["fe_packed"], vert_slots=st["fv_packed"], blockers=cx.blockers.astype(np.int32),
+                lines=np.stack(lines, 1).reshape(-1, 2), open_rel=np.array([st.get("open", (0.0,))[0]], np.float64))
+
+
+def check_update_arrays(c, arrays, upd, n):
+    """Refuse an ``update`` group that does not fit the complex (shapes, ids in range, the
+    incidences a permutation in curve order): ``c`` a :class:`viscx.formats.validate.Checker`.
+    Returns the arrays (numbers checked by kind)."""
+    m = arrays["v_key"].shape[0]
+    F = arrays["f_area"].shape[0]
+    N = 4 * m
+    where = "/update/"
+    need = dict(incidence=(N, "i"), tail=(N, "i"), head=(N, "i"), th0=(N, "f"), th1=(N, "f"), integral=(N, "f"),
+                arclength=(N, "f"), slot_face=(3 * N, "i"), minslot=(2 * F, "i"),
+                edge_slots=(arrays["f_edge"].shape[0], "i"), vert_slots=(arrays["f_vert"].shape[0], "i"),
+                blockers=(4 * n * n, "i"))
+    out = {}
+    for name, (size, kind) in need.items():
+        if name not in upd:
+            c.fail(where + name, "missing")
+        a = c.convert(where + name, upd[name], kind)
+        if a.shape != (size,):
+            c.fail(where + name, f"shape {a.shape}, expected ({size},)")
+        out[name] = a
+    lines = c.convert(where + "lines", upd.get("lines", np.zeros((0, 2))), "f")
+    if lines.ndim != 2 or lines.shape[1] != 2:
+        c.fail(where + "lines", f"shape {lines.shape}, expected (L, 2)")
+    out["lines"] = lines
+    rel = c.convert(where + "open_rel", upd.get("open_rel", np.zeros(1)), "f")
+    if rel.shape != (1,) or float(rel[0]) not in (0.0,) + C.OPEN_RELS:
+        c.fail(where + "open_rel", "not [0] or [one of the opening gaps]")
+    out["open_rel"] = float(rel[0])
+    inc = out["incidence"]
+    c.within(where + "incidence", inc, 0, N)
+    if N and np.bincount(inc, minlength=N).max() != 1:
+        c.fail(where + "incidence", "not a permutation of the incidences")
+    for name in ("tail", "head", "blockers"):
+        c.within(where + name, out[name], -1, n)
+    c.within(where + "slot_face", out["slot_face"], 0, 2 * F)
+    c.within(where + "minslot", out["minslot"], -1, 3 * N)
+    c.within(where + "edge_slots", out["edge_slots"] >> 2, 0, N)
+    c.within(where + "vert_slots", out["vert_slots"] >> 3, 0, m)
+    # the order along the curves: (curve, θ, τ, occurrence) strictly increasing
+    st = _incidence_state(arrays, inc)
+    key = (st["s_cur"], st.get("s_ths", st["s_th"]), st["s_tau"], st["s_occ"])
+    less, same = np.zeros(N - 1, bool), np.ones(N - 1, bool)
+    for k_ in key:
+        less |= same & (k_[1:] > k_[:-1])
+        same &= k_[1:] == k_[:-1]
+    if N > 1 and not less.all():
+        c.fail(where + "incidence", "not in order along the tangency curves")
+    return out
+
+
+def _incidence_state(V, inc):
+    """The sorted incidence arrays of the state from the incidence order ``inc``."""
+    m = V["v_key"].shape[0]
+    O = C.occurrences(V)
+    occ, role = inc % (2 * m), inc // (2 * m)
+    st = dict(s_occ=occ, s_role=role, s_cur=np.where(role == 0, 2 * O["K1"][occ] + O["S1"][occ],
+                                                         2 * O["K2"][occ] + O["S2"][occ]),
+              s_th=O["TH"][occ], s_tau=O["TAU"][occ])
+    if "v_theta_sort" in V:
+        st["s_ths"] = O["THS"][occ]
+    return st
+
+
+def state_from_update_arrays(cx: C.FlatComplex, upd: dict) -> C.FlatComplex:
+    """The complex with the state and blocker table of its file's ``update`` group
+    (:func:`update_arrays`, checked by :func:`check_update_arrays`): O(m) gathers instead
+    of the derivation; the opened scene of touching objects made again."""
+    V = cx.arrays
+    F = cx.n_faces
+    st = _incidence_state(V, upd["incidence"])
+    C.link(st, 2 * V["v_key"].shape[0])
+    st.update(tail=upd["tail"], head=upd["head"], th0=upd["th0"], th1=upd["th1"], I=upd["integral"],
+              arc=upd["arclength"], comp=upd["slot_face"], c_minslot=upd["minslot"])
+    has = np.zeros(2 * F, bool)
+    has[st["comp"]] = True
+    f = np.arange(F)
+    pair = V["f_pair"]
+    st["c_tail"] = np.full(2 * F, -3, np.int64)
+    st["c_head"] = np.full(2 * F, -3, np.int64)
+    st["c_tail"][0::2], st["c_head"][0::2] = pair[:, 0], pair[:, 1]
+    st["c_tail"][1::2] = np.where(has[1::2], pair[:, 1], -3)
+    st["c_head"][1::2] = np.where(has[1::2], pair[:, 0], -3)
+    st["c_twin"] = np.stack([np.where(has[1::2], 2 * f + 1, 2 * f), 2 * f], 1).reshape(-1)
+    for name, own, twin in (("c_area", "f_area", "f_area_twin"), ("c_strings", "f_strings", "f_strings_twin"),
+                            ("c_bounded", "f_bounded", "f_bounded"), ("c_hash", "f_hash", "f_hash_twin")):
+        st[name] = np.stack([V[own], V[twin]], 1).reshape(-1)
+    st["face_label"] = 2 * f
+    st["fe_start"], st["fe_packed"] = V["f_edge_start"], upd["edge_slots"]
+    st["fv_start"], st["fv_packed"] = V["f_vert_start"], upd["vert_slots"]
+    st["lines"] = (upd["lines"][:, 0].copy(), upd["lines"][:, 1].copy())
+    if upd["open_rel"]:
+        opened = cx.scene.opened(upd["open_rel"])
+        opened._contacts = np.zeros((0, 2), np.int64)
+        st["open"] = (upd["open_rel"], opened)
+    return C.FlatComplex(scene=cx.scene, eps=cx.eps, arrays=cx.arrays, state=st,
+                         blockers=upd["blockers"].astype(np.int32))

@@ -95,7 +95,7 @@ def test_hdf5_msgpack_roundtrip_and_determinism(tmp_path):
     cx = read_hdf5(a)
     with h5py.File(a) as f:
         assert f.attrs["format"] == "viscx-flatland"
-        assert set(f) == {"scene", "vertices", "edges", "faces", "formfactors"}
+        assert set(f) == {"scene", "vertices", "edges", "faces", "formfactors", "update"}
         # every stored maximal free segment is finite
         assert np.all(np.isfinite(f["vertices/seg"][()]))
     write_msgpack(tmp_path / "c.msgpack", cx)

@@ -55,10 +55,25 @@ def circle_or_square(x, y, r, square):
     return {"type": "circle", "center": [x, y], "radius": r}
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 3), x=st.floats(0.0, 1.0), y=st.floats(0.0, 1.0), r=st.floats(0.1, 1.0),
-       square=st.booleans())
+INSERTS = dict(seed=st.integers(0, 3), x=st.floats(0.0, 1.0), y=st.floats(0.0, 1.0), r=st.floats(0.1, 1.0),
+               square=st.booleans())
+QUICK = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@settings(max_examples=40, **QUICK)
+@given(**INSERTS)
 def test_insert_equals_rebuild(seed, x, y, r, square):
+    check_insert(seed, x, y, r, square)
+
+
+@pytest.mark.slow
+@settings(max_examples=400, **QUICK)
+@given(**INSERTS)
+def test_many_inserts_equal_rebuild(seed, x, y, r, square):
+    check_insert(seed, x, y, r, square)
+
+
+def check_insert(seed, x, y, r, square):
     cx = base(seed)
     bb = cx.scene.bounding_boxes()
     lo, hi = bb[:, :2].min(0), bb[:, 2:].max(0)
@@ -107,10 +122,24 @@ def test_insert_then_remove_restores_the_complex():
         assert_same_complex(back, cx)
 
 
-@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 3), ops=st.lists(st.tuples(st.sampled_from("imr"), st.floats(0, 1), st.floats(0, 1),
-                                                      st.floats(-1.5, 1.5)), min_size=4, max_size=8))
+CHAINS = dict(seed=st.integers(0, 3), ops=st.lists(st.tuples(st.sampled_from("imr"), st.floats(0, 1), st.floats(0, 1),
+                                                            st.floats(-1.5, 1.5)), min_size=4, max_size=8))
+
+
+@settings(max_examples=10, **QUICK)
+@given(**CHAINS)
 def test_chained_inserts_removes_moves(seed, ops):
+    check_chain(seed, ops)
+
+
+@pytest.mark.slow
+@settings(max_examples=150, **QUICK)
+@given(**CHAINS)
+def test_many_chains_of_inserts_removes_moves(seed, ops):
+    check_chain(seed, ops)
+
+
+def check_chain(seed, ops):
     """Inserts, removes and moves applied one after the other to the updated complex (its
     state renumbered and spliced again and again) equal a rebuild after every step."""
     cx = base(seed)
@@ -164,10 +193,24 @@ def yard_cx():
     return build(yard())
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(k=st.integers(1, 4), dx=st.floats(-1.5, 1.5), dy=st.floats(-0.3, 1.5),
-       snap=st.sampled_from(["", "ground", "box", "top"]))
+CONTACT_MOVES = dict(k=st.integers(1, 4), dx=st.floats(-1.5, 1.5), dy=st.floats(-0.3, 1.5),
+                     snap=st.sampled_from(["", "ground", "box", "top"]))
+
+
+@settings(max_examples=25, **QUICK)
+@given(**CONTACT_MOVES)
 def test_local_moves_with_contacts_equal_rebuild(k, dx, dy, snap):
+    check_contact_move(k, dx, dy, snap)
+
+
+@pytest.mark.slow
+@settings(max_examples=300, **QUICK)
+@given(**CONTACT_MOVES)
+def test_many_local_moves_with_contacts(k, dx, dy, snap):
+    check_contact_move(k, dx, dy, snap)
+
+
+def check_contact_move(k, dx, dy, snap):
     """Moves that keep, make or break contacts (snapped onto the ground, against box 'a',
     onto the top of box 'b'), the diagonal unchanged: local in the opened scene (objects
     whose erosion changes join the zone) and equal to a rebuild array by array."""
@@ -203,6 +246,20 @@ def test_insert_and_remove_with_contacts():
         back, stats = as_rebuild(back, remove, k)
         assert stats.local, stats.why
     assert_same_complex(back, cx)
+
+
+@settings(max_examples=20, **QUICK)
+@given(x=st.floats(-4.5, 4.0), w=st.floats(0.05, 1.0), h=st.floats(0.05, 1.5), lift=st.sampled_from([0.0, 0.0, 0.3]),
+       k=st.integers(1, 5))
+def test_inserts_and_removes_with_contacts_equal_rebuild(x, w, h, lift, k):
+    """A box set down on the ground (or floating) anywhere in the yard, touching what it
+    meets; object k removed (the tower too: the ground still touches the boxes): local,
+    equal to a rebuild."""
+    cx = yard_cx()
+    _, stats = as_rebuild(cx, insert, box(x, lift, w, h, "crate"))
+    assert stats.local, stats.why
+    gone, stats = as_rebuild(cx, remove, k)
+    assert stats.local == (gone.scene.diagonal() == cx.scene.diagonal()), stats.why
 
 
 def test_contact_update_rebuilds_when_the_gap_changes():

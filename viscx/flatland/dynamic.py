@@ -1,6 +1,10 @@
-"""Dynamic update of the complex after an object moves (Orti et al. §4.3): linear in the zone.
+"""Dynamic update of the complex after objects move, appear or vanish (Orti et al. §4.3):
+linear in the zone.  :func:`move`, :func:`insert` and :func:`remove` are one
+:func:`update` (a move is a removal and an insertion of the same object): the old complex
+renumbered to the new scene's objects, then the zone of the changed objects K re-tested
+and spliced.
 
-Moving object K can only change
+Changing object K can only change
 
 - the bitangents of K itself (all pairs (K, j)),
 - the bitangents that K blocked before the move (a blocked candidate stays blocked unless
@@ -36,13 +40,18 @@ see :func:`viscx.flatland.complex.resolve_degenerate`) is re-scanned whole
 m(m − 1)/2 free pairs and about m vertices), so they are found from the line, not from the
 vertices.  Its members then need not be in the blocker table: the line joins a registry
 of re-scanned lines (``state["lines"]``), re-scanned whenever a moving object's disk meets
-it.  A complex read from a file has neither: its state is derived again from the stored
-vertices (O(m log m)), and without a blocker table every candidate whose segment between
-its tangent points meets the moving object's disk is re-tested (the pairs first pruned by
-the capsules around their bounding disks, O(n²) arithmetic in numpy, then only their
-candidates computed), so the move costs about a quarter of a rebuild there (most of it
-the state's derivation); the complex it returns carries its state, but not a blocker
-table, so the next move pays the candidate scan again.
+it.
+
+Touching objects: the zone is re-tested in the opened scene (:meth:`Scene.opened`), the
+fresh vertices carried to the contacts' limit lines (:func:`complex.close_contacts`); see
+:func:`update` for when that is not local.
+
+A complex read from a file carries the file's ``update`` group (:func:`update_arrays`):
+the state and the blocker table by gathers.  From an older file without it, the state is
+derived again from the stored vertices (O(m log m)), and without a blocker table every
+candidate whose segment between its tangent points meets a changed object's disk is
+re-tested (the pairs first pruned by the capsules around their bounding disks, O(n²)
+arithmetic in numpy, then only their candidates computed).
 """
 
 from __future__ import annotations
@@ -196,8 +205,10 @@ def update(cx: C.FlatComplex, new_scene, gone, came, objmap, curves=None):
     total = 2 * n * (n - 1)
     gone, came = np.asarray(gone, np.int64), np.asarray(came, np.int64)
     came0 = came
-    if "v_tau" not in cx.arrays or cx.n_vertices == 0 or n < 2:  # written before degenerate lines were resolved
+    if "v_tau" not in cx.arrays:  # written before degenerate lines were resolved
         return _rebuilt(cx, new_scene, total)
+    if cx.n_vertices == 0 or n < 2:
+        return _rebuilt(cx, new_scene, total, "a scene of one object before or after (no vertex)")
     if cx.state is None and cx.stored is not None:  # read from a file with its update group
         cx = state_from_update_arrays(cx, cx.stored)
     if cx.state is None:  # read from an older file: the state is derived again from the stored vertices
@@ -377,7 +388,8 @@ def _new_keys(keys, objmap, n_old, n):
 def _renumbered(cx, new_scene, objmap):
     """The vertex fields, the state and the blocker table of ``cx`` in the new numbering
     of objects (``objmap``; a removed object becomes −2 as a tail or head, which no vertex
-    of the new scene has).  Only the vertex keys change when objects are appended."""
+    of the new scene has; as an index, −2 picks the last object's digest, harmless: its
+    faces are all in the zone).  Only the vertex keys change when objects are appended."""
     n_old, n = cx.scene.n, new_scene.n
     fields = VERTEX_FIELDS + (("v_theta_sort",) if "v_theta_sort" in cx.arrays else ())
     V = {name: cx.arrays[name] for name in fields}
@@ -385,18 +397,23 @@ def _renumbered(cx, new_scene, objmap):
     if n == n_old:
         return V, st, None if blockers is None else blockers.copy()
     V["v_key"] = _new_keys(V["v_key"], objmap, n_old, n)
-    if blockers is not None:
-        kept = np.nonzero(objmap >= 0)[0]
+    kept = np.nonzero(objmap >= 0)[0]
+    lut = np.append(np.where(objmap >= 0, objmap, -2), -1)  # lut[-1]: the sky stays
+    if blockers is not None:  # rows and columns of the kept objects' pairs, by blocks of consecutive ones
+        old = blockers.reshape(n_old, n_old, 4)
         tab = np.full((n, n, 4), -1, np.int32)
-        tab[np.ix_(objmap[kept], objmap[kept])] = blockers.reshape(n_old, n_old, 4)[np.ix_(kept, kept)]
-        blockers = tab.reshape(-1)
+        runs = np.split(kept, np.nonzero(np.diff(kept) > 1)[0] + 1)
+        for ri in runs:
+            for rj in runs:
+                tab[objmap[ri[0]]:objmap[ri[-1]] + 1, objmap[rj[0]]:objmap[rj[-1]] + 1] = \
+                    old[ri[0]:ri[-1] + 1, rj[0]:rj[-1] + 1]
+        if kept.size < n_old:  # a removal: blockers renumbered (those it blocked are re-tested)
+            tab = lut[tab]
+        blockers = tab.reshape(-1).astype(np.int32, copy=False)
     if np.array_equal(objmap, np.arange(n_old)):
         return V, st, blockers
-    lut = np.append(np.where(objmap >= 0, objmap, -2), -1)  # lut[-1]: the sky stays
     obj = lambda a: lut[a]  # noqa: E731
     V["v_obj"], V["v_tail"], V["v_head"] = obj(V["v_obj"]), obj(V["v_tail"]), obj(V["v_head"])
-    if blockers is not None:
-        blockers = lut[blockers].astype(np.int32)
     size = np.diff(cx.scene.vert_start)
     gone_v = np.repeat(objmap < 0, size)
     sup = np.cumsum(~gone_v) - 1  # support points keep their order
@@ -407,10 +424,7 @@ def _renumbered(cx, new_scene, objmap):
     ct, ch = st["c_tail"], st["c_head"]
     st["c_tail"] = np.where(ct >= 0, lut[np.maximum(ct, 0)], ct)
     st["c_head"] = np.where(ch >= 0, lut[np.maximum(ch, 0)], ch)
-    # face signatures digest their objects' ids: re-summed for every face (O(slots) numpy)
-    slots = np.arange(st["comp"].shape[0])
-    st["c_hash"] = C.slot_hashes(new_scene.object_hashes(), st, slots, st["comp"], st["c_tail"].shape[0])
-    return V, st, blockers
+    return V, st, blockers  # (face signatures digest tail and head by name, not by id: kept)
 
 
 def _segment_distance(a, b, c):
@@ -557,7 +571,7 @@ class _Clock:
         self.t = t
 
 
-def _rebuilt(cx, new_scene, total, why="a file without v_tau, or no vertices"):
+def _rebuilt(cx, new_scene, total, why="a file written before degenerate lines were resolved (no vertices/tau)"):
     new = C.build(new_scene, eps=cx.eps)
     stats = _stats(new, np.ones(new.n_faces, bool), total, total)
     stats.local = False

@@ -87,6 +87,13 @@ class Scene:
                                                     self.radius[k]) for k in range(self.n)], np.uint64)
         return self._hashes
 
+    def name_hashes(self) -> np.ndarray:
+        """(n,) uint64: a digest of each object's name (stable when others move, appear or
+        vanish), cached."""
+        if not hasattr(self, "_name_hashes"):
+            self._name_hashes = np.array([_text_hash(x) for x in self.names], np.uint64).reshape(-1)
+        return self._name_hashes
+
     def perimeters(self) -> np.ndarray:
         """(n,) float64: boundary length L_k (= measure of the lines meeting O_k)."""
         return self.pieces()[3]
@@ -135,6 +142,8 @@ class Scene:
         if hasattr(self, "_hashes"):
             out._hashes = self._hashes.copy()
             out._hashes[k] = _geometry_hash(verts[s:e], radius[k])
+        if hasattr(self, "_name_hashes"):
+            out._name_hashes = self._name_hashes
         if hasattr(self, "_bboxes"):
             bb = self._bboxes.copy()
             bb[k] = np.concatenate([verts[s:e].min(axis=0) - radius[k], verts[s:e].max(axis=0) + radius[k]])
@@ -155,6 +164,8 @@ class Scene:
             out._pieces = tuple(x[vi] for x in self._pieces[:3]) + (self._pieces[3][keep],)
         if hasattr(self, "_hashes"):
             out._hashes = self._hashes[keep]
+        if hasattr(self, "_name_hashes"):
+            out._name_hashes = self._name_hashes[keep]
         if hasattr(self, "_bboxes"):
             out._bboxes = self._bboxes[keep]
         return out
@@ -169,6 +180,8 @@ class Scene:
                     np.concatenate([self.reflectance, other.reflectance]), list(self.names) + list(other.names))
         if hasattr(self, "_hashes"):
             out._hashes = np.concatenate([self._hashes, other.object_hashes()])
+        if hasattr(self, "_name_hashes"):
+            out._name_hashes = np.concatenate([self._name_hashes, other.name_hashes()])
         if hasattr(self, "_bboxes"):
             out._bboxes = np.concatenate([self._bboxes, other.bounding_boxes()])
         if hasattr(self, "_pieces"):
@@ -276,6 +289,13 @@ def raise_along(scene, a, b):
     """The error of two objects that still meet once opened: they lie along each other."""
     raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} lie along each other (two segments "
                      "on one line, or a segment inside a polygon's edge twice): they overlap")
+
+
+def _text_hash(text):
+    """uint64 digest of a string."""
+    import hashlib
+
+    return np.frombuffer(hashlib.blake2b(text.encode("utf-8", "surrogatepass"), digest_size=8).digest(), np.uint64)[0]
 
 
 def _geometry_hash(v, r):

@@ -20,6 +20,11 @@ Root attributes: ``format``, ``format_version``, ``viscx_version``, ``epsilon``,
   ``vert_start``/``vert``/``vert_sign``).  The unbounded face (lines missing every
   object) has area ``inf``.
 - ``formfactors/``: ``F_area`` and ``F_strings`` (n, n+1), column n = the blue sky.
+- ``update/``: what a local move / insert / remove needs beyond these (the topology's state
+  in canonical form, the blocker table, the re-scanned degenerate lines, the opening gap;
+  :func:`viscx.flatland.dynamic.update_arrays`, checked by
+  :func:`viscx.flatland.dynamic.check_update_arrays`; docs/flatland.md).  Optional: a
+  file without it is updated by deriving the state again.
 - ``mesh/`` (optional, after ``viscx flatland radiosity``): the discontinuity mesh and the
   radiosity solution (see :mod:`viscx.flatland.mesh`), with ``elem_H`` the irradiance,
   ``elem_edge`` each element's boundary edge (segment side) and ``sky_radiance``.

@@ -321,32 +321,40 @@ def support_pieces(vert_start, verts, radius):
     A, cumG, cumS : (V,) float64 ; perimeter : (n,) float64
     """
     V = verts.shape[0]
-    A = np.zeros(V)
-    cumG = np.zeros(V)
-    cumS = np.zeros(V)
     n = vert_start.shape[0] - 1
+    size = np.diff(vert_start)
+    start = vert_start[:-1]
+    # all objects at once (numpy over vertices; the running sums by position within each
+    # object, so every object's values are what it gets alone: a moved object's pieces are
+    # recomputed by itself, bit-identical)
+    owner = np.repeat(np.arange(n), size)
+    j = np.arange(V) - start[owner]
+    nxt = np.where(j + 1 < size[owner], np.arange(V) + 1, start[owner])
+    prv = np.where(j > 0, np.arange(V) - 1, start[owner] + size[owner] - 1)
+    edge = verts[nxt] - verts                                   # edge j: v_j -> v_{j+1}
+    alpha = np.arctan2(-edge[:, 0], edge[:, 1])                 # outward normal angle (dy, -dx)
+    # corner j is active between the normals of edges j-1 and j
+    ext = np.mod(alpha - alpha[prv], TWO_PI)                    # exterior angle at corner j
+    a0 = np.mod(alpha[start + size - 1], TWO_PI)                # start of piece 0
+    elen = np.hypot(edge[:, 0], edge[:, 1])
+    A, cumG, cumS = np.zeros(V), np.zeros(V), np.zeros(V)
     perimeter = np.zeros(n)
-    for k in range(n):
-        s, e = vert_start[k], vert_start[k + 1]
-        m = e - s
-        if m == 1:
-            perimeter[k] = TWO_PI * radius[k]
-            continue
-        v = verts[s:e]
-        edge = np.roll(v, -1, axis=0) - v                      # edge j: v_j -> v_{j+1}
-        alpha = np.arctan2(-edge[:, 0], edge[:, 1])            # outward normal angle (dy, -dx)
-        # corner j is active between the normals of edges j-1 and j
-        ext = np.mod(alpha - np.roll(alpha, 1), TWO_PI)        # exterior angle at corner j
-        a0 = np.mod(alpha[-1], TWO_PI)                          # start of piece 0
-        Aj = a0 + np.concatenate([[0.0], np.cumsum(ext[:-1])])
-        A[s:e] = Aj
-        # ∫ v_j·e(φ) dφ = v_j·(sin φ, −cos φ) between the piece ends
-        b = Aj + ext
-        piece = v[:, 0] * (np.sin(b) - np.sin(Aj)) - v[:, 1] * (np.cos(b) - np.cos(Aj))
-        cumG[s:e] = np.concatenate([[0.0], np.cumsum(piece[:-1])])
-        elen = np.hypot(edge[:, 0], edge[:, 1])
-        cumS[s:e] = np.concatenate([[0.0], np.cumsum(elen[:-1])])  # corner j after edges 0..j-1
-        perimeter[k] = elen.sum()
+    poly = size > 1
+    for i in range(1, int(size.max()) if V else 0):             # Σ of the exterior angles before corner i
+        at = start[size > i] + i
+        A[at] = A[at - 1] + ext[at - 1]
+    A += a0[owner]
+    # ∫ v_j·e(φ) dφ = v_j·(sin φ, −cos φ) between the piece ends
+    b = A + ext
+    piece = verts[:, 0] * (np.sin(b) - np.sin(A)) - verts[:, 1] * (np.cos(b) - np.cos(A))
+    for i in range(1, int(size.max()) if V else 0):
+        at = start[size > i] + i
+        cumG[at] = cumG[at - 1] + piece[at - 1]
+        cumS[at] = cumS[at - 1] + elen[at - 1]                  # corner j after edges 0..j-1
+    perimeter[poly] = [elen[a:b].sum() for a, b in zip(start[poly], (start + size)[poly])]
+    perimeter[~poly] = TWO_PI * radius[~poly]
+    A[~poly[owner]] = 0.0
+    cumG[~poly[owner]] = 0.0
     return A, cumG, cumS, perimeter
 
 

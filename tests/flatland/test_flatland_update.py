@@ -213,7 +213,9 @@ def test_many_local_moves_with_contacts(k, dx, dy, snap):
 def check_contact_move(k, dx, dy, snap):
     """Moves that keep, make or break contacts (snapped onto the ground, against box 'a',
     onto the top of box 'b'), the diagonal unchanged: local in the opened scene (objects
-    whose erosion changes join the zone) and equal to a rebuild array by array."""
+    whose erosion changes join the zone) and equal to a rebuild array by array.  Rebuilt
+    only when a degenerate line (box bottoms on the ground line, aligned box sides) is
+    tilted by about its tolerance: a displacement component below 1e-6 of the diagonal."""
     cx = yard_cx()
     sc = cx.scene
     v = sc.verts[sc.vert_start[k]:sc.vert_start[k + 1]]
@@ -225,8 +227,9 @@ def check_contact_move(k, dx, dy, snap):
     elif snap == "top" and k != 2:
         dx, dy = -0.2 - lo[0], 0.6 - lo[1]
     new, stats = as_rebuild(cx, move, k, dx, dy)
-    assert stats.local, stats.why
-    assert stats.zone_vertices_added < new.n_vertices
+    tiny = min(abs(dx), abs(dy)) < 1e-6 * sc.diagonal()
+    assert stats.local or (tiny and "could not be resolved locally" in stats.why), stats.why
+    assert not stats.local or stats.zone_vertices_added < new.n_vertices
     assert np.max(np.abs(new.F_area.sum(axis=1) - 1.0)) < 1e-9
     assert np.max(np.abs(new.F_area - new.F_strings)) < 1e-9
 

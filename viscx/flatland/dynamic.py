@@ -197,7 +197,10 @@ def update(cx: C.FlatComplex, new_scene, gone, came, objmap, curves=None):
     the objects whose erosion changes (they make or lose their only contact) join the
     changed objects.  Rebuilt instead (``MoveStats.local`` False, with the reason) when the
     opened scene itself changes globally: the diagonal changes (so does γ), the scene gains
-    its first contact or loses its last, or the complex was opened with a fallback gap.
+    its first contact or loses its last, or the complex was opened with a fallback gap; and
+    when the zone cannot be resolved locally (a degenerate line tilted by about its
+    tolerance: the rebuild's chained grouping of lines sees one line where the zone's
+    re-scan sees two).
 
     Returns (new FlatComplex, MoveStats)."""
     scene = cx.scene
@@ -221,11 +224,11 @@ def update(cx: C.FlatComplex, new_scene, gone, came, objmap, curves=None):
     try:
         return _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel,
                        came if curves is None else np.union1d(curves, came[~np.isin(came, came0)]))
-    except ViscxError:
-        if not rel:
-            raise
-        # the opened scene may be unresolvable at this γ (complex.build tries others)
-        return _rebuilt(cx, new_scene, total, "the opened scene needs another gap")
+    except ViscxError as e:
+        # a degenerate line the change tilts by about its tolerance is one line for the
+        # rebuild's chained grouping but not for the zone's re-scan (and an opened scene
+        # may be unresolvable at this gap, where the build tries others): rebuilt
+        return _rebuilt(cx, new_scene, total, f"the zone could not be resolved locally: {str(e)[:60]}…")
 
 
 def _opened_scenes(cx, new_scene, gone, came, objmap):

@@ -1,9 +1,11 @@
 """Flatland benchmark: build time and complex size for random circle scenes and for
-uniform PV arrays (degenerate: every panel tip on one line), and the dynamic update (one
-object moved) against a rebuild from scratch.
+uniform PV arrays (degenerate: every panel tip on one line), and the dynamic updates (one
+object moved, removed, inserted; in memory and on a complex read from its file) against a
+rebuild from scratch.
 
     python benchmarks/flatland.py            # 10, 100, 300, 1000 circles; 10, 100, 1000 rows
     python benchmarks/flatland.py 10 100     # chosen sizes (circles and rows)
+    python benchmarks/flatland.py --updates 1000   # move / remove / insert only
     python benchmarks/flatland.py --pvfactors /work/side-flatland/bin/python 3 10 30 100 300
 
 ``--pvfactors PYTHON``: a side-by-side with pvfactors (solarfactors), installed in a SIDE
@@ -107,11 +109,71 @@ def measure(sizes, make=None, step=0.5, moves=7):
     return rows
 
 
+def measure_updates(sizes, make=None, step=0.5, samples=5):
+    """Move, remove and insert against a rebuild, in memory and on a file: per size and
+    operation, medians over ``samples`` random objects of the CPU seconds of the update
+    of the built complex, of the same update of the complex read back from its file (the
+    read itself, which the update group makes O(file) numpy, timed apart), and of a
+    rebuild of the new scene; and how many updates were local.  A removal takes object k
+    out; the insertion puts that same object back (appended) into the complex without it.
+
+    Returns rows (n, op, memory s, file s, read s, rebuild s, local, samples)."""
+    import tempfile
+    from pathlib import Path
+
+    from viscx.flatland.dynamic import insert, remove
+    from viscx.formats.flatland import read_any, write_any
+
+    make = make or (lambda n: random_circles(n, seed=n))
+    build(random_circles(5))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            cx = build(make(n))
+            src = Path(tmp) / f"c{n}.h5"
+            write_any(src, cx)
+            rng = np.random.default_rng(2)
+            got = {op: [] for op in ("move", "remove", "insert")}
+            for i in range(samples):
+                k = int(rng.integers(n))
+                dx, dy = rng.uniform(-step, step, 2)
+                obj = cx.scene.to_json()["objects"][k]
+                obj["name"] = "again"
+                gone = remove(cx, k)[0]
+                gone_file = Path(tmp) / f"g{n}_{i}.h5"
+                write_any(gone_file, gone)
+                for op, base, path, f in (("move", cx, src, lambda c: move(c, k, dx, dy)),
+                                          ("remove", cx, src, lambda c: remove(c, k)),
+                                          ("insert", gone, gone_file, lambda c: insert(c, obj))):
+                    try:
+                        t_mem, (new, stats) = timed(lambda: f(base))
+                    except Exception:
+                        continue
+                    t_read, read = timed(lambda: read_any(path))
+                    t_file, (new_f, stats_f) = timed(lambda: f(read))
+                    t_rb, _ = timed(lambda: build(new.scene, eps=cx.eps))
+                    got[op].append((t_mem, t_file, t_read, t_rb, stats.local and stats_f.local))
+            for op, vals in got.items():
+                v = np.array(vals, float)
+                rows.append((n, op, *np.median(v[:, :4], axis=0), int(v[:, 4].sum()), len(vals)))
+    return rows
+
+
+def table_updates(rows):
+    print(f"{'n':>5} {'op':>7} {'memory s':>9} {'ratio':>6} {'file s':>8} {'ratio':>6} {'(read s)':>9} "
+          f"{'rebuild s':>9} {'local':>6}")
+    for n, op, tm, tf, tr, tb, loc, cnt in rows:
+        print(f"{n:>5} {op:>7} {tm:>9.3f} {tb / tm:>6.1f} {tf:>8.3f} {tb / tf:>6.1f} {tr:>9.3f} {tb:>9.3f} "
+              f"{loc:>3}/{cnt:<2}")
+
+
 def main(sizes):
     for title, make, ns in (("random circles", None, sizes or [10, 100, 300, 1000]),
                             ("uniform rows (segments) above a ground block", panel_rows, sizes or [10, 100, 1000])):
         print(title)
         table(measure(ns, make, step=0.5 if make is None else 0.2))
+        print(title + ": move, remove, insert (medians), in memory and on a file")
+        table_updates(measure_updates(ns, make, step=0.5 if make is None else 0.2))
 
 
 def table(rows):
@@ -185,5 +247,11 @@ if __name__ == "__main__":
                 print(f"{n:>5} {a}")
             else:
                 print(f"{n:>5} {a:>12.3f} {b:>8.3f} {d:>9.2e}")
+        sys.exit(0)
+    if len(sys.argv) > 1 and sys.argv[1] == "--updates":
+        for title, make in (("random circles", None), ("uniform rows (segments) above a ground block", panel_rows)):
+            print(title + ": move, remove, insert (medians), in memory and on a file")
+            table_updates(measure_updates([int(x) for x in sys.argv[2:]] or [1000], make,
+                                          step=0.5 if make is None else 0.2))
         sys.exit(0)
     main([int(x) for x in sys.argv[1:]])

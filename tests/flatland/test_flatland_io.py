@@ -95,7 +95,7 @@ def test_hdf5_msgpack_roundtrip_and_determinism(tmp_path):
     cx = read_hdf5(a)
     with h5py.File(a) as f:
         assert f.attrs["format"] == "viscx-flatland"
-        assert set(f) == {"scene", "vertices", "edges", "faces", "formfactors"}
+        assert set(f) == {"scene", "vertices", "edges", "faces", "formfactors", "update"}
         # every stored maximal free segment is finite
         assert np.all(np.isfinite(f["vertices/seg"][()]))
     write_msgpack(tmp_path / "c.msgpack", cx)
@@ -179,3 +179,42 @@ def test_cli_rows_of_segments_with_sky(tmp_path):
         main(["flatland", "radiosity", str(scene), "--sky-radiance", "-1", "-o", str(tmp_path / "bad.h5")])
     assert exc.value.code == 2
     assert not (tmp_path / "bad.h5").exists()
+
+
+def test_cli_insert_and_remove(tmp_path):
+    """`insert` (inline JSON, a scene file) and `remove` update the file; the result equals
+    a rebuild of its scene; bad specs, name clashes and overlaps are one-line errors (exit
+    2) that leave the file as it was."""
+    from viscx.cli import cli, main
+    from viscx.cli.flatland import flatland
+
+    if "flatland" not in cli.commands and "flatland" not in getattr(cli, "lazy_commands", {}):
+        cli.add_command(flatland)
+    out = tmp_path / "three.h5"
+    assert run("build", SAMPLES / "three_circles.json", "-o", out).exit_code == 0
+    r = run("insert", out, "--object", '{"type": "circle", "center": [2, 6], "radius": 0.5, "name": "pot"}')
+    assert r.exit_code == 0, r.output
+    assert "inserted 'pot'" in r.output and "zone:" in r.output
+    shed = write(tmp_path, "shed.json", json.dumps({"objects": [
+        {"type": "polyline", "points": [[-6, 0], [-6, 2], [-4, 3]], "name": "shed"}]}))
+    r = run("insert", out, "--object", shed, "-o", tmp_path / "shed.h5")
+    assert r.exit_code == 0, r.output
+    assert "'shed[0]', 'shed[1]'" in r.output
+    r = run("remove", tmp_path / "shed.h5", "--object", "left")
+    assert r.exit_code == 0, r.output
+    for path, names in ((out, ["lamp", "left", "right", "pot"]),
+                        (tmp_path / "shed.h5", ["lamp", "right", "pot", "shed[0]", "shed[1]"])):
+        got = read_hdf5(path)
+        assert got.scene.names == names
+        rebuilt = build(got.scene, eps=got.eps)
+        for name in rebuilt.arrays:
+            assert np.allclose(got.arrays[name], rebuilt.arrays[name], rtol=1e-12, atol=1e-12, equal_nan=True), name
+    before = out.read_bytes()
+    for argv in (["insert", str(out), "--object", "{bad"], ["insert", str(out), "--object", "pot.txt"],
+                 ["insert", str(out), "--object", '{"type": "circle", "center": [2, 6], "radius": 0.1, "name": "x"}'],
+                 ["insert", str(out), "--object", '{"type": "circle", "center": [9, 9], "radius": 0.1, "name": "pot"}'],
+                 ["remove", str(out), "--object", "nope"]):
+        with pytest.raises(SystemExit) as exc:
+            main(["flatland", *argv])
+        assert exc.value.code == 2
+    assert out.read_bytes() == before

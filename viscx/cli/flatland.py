@@ -48,6 +48,8 @@ def flatland():
     viscx flatland formfactor three.h5
     viscx flatland radiosity three.h5 -o three_rad.h5
     viscx flatland move three.h5 --object 2 --by 0.5,-0.25
+    viscx flatland insert three.h5 --object '{"type": "circle", "center": [2, 3], "radius": 0.5}'
+    viscx flatland remove three.h5 --object 1
     viscx flatland plot three_rad.h5 -o three.png
     """
 
@@ -166,6 +168,26 @@ def radiosity(ctx, file, output, sky_radiance):
         click.echo(line)
 
 
+def _update_file(file, output, change):
+    """The flow of move / insert / remove: read the complex, ``change(cx)`` -> (new complex,
+    MoveStats, what was done), write it atomically (FILE in place by default), print the
+    zone.  The mesh of a radiosity file is not carried over (re-run ``radiosity``)."""
+    from viscx.formats.atomic import release_input
+    from viscx.formats.flatland import read_any, write_any
+
+    if not Path(file).is_file():
+        raise ViscxError(f"no such file: {file}")
+    cx = read_any(file)
+    if output is None:  # the documented update in place
+        release_input(file)
+    t0 = time.perf_counter()
+    new, stats, what = change(cx)
+    dt = time.perf_counter() - t0
+    write_any(output or file, new)
+    click.echo(f"{what} in {dt:.3f} s -> {output or file}")
+    click.echo(stats.summary())
+
+
 @flatland.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--object", "obj", required=True, metavar="K", help="The object to move: its index or name.")
@@ -180,25 +202,82 @@ def move(ctx, file, obj, by, output):
     viscx flatland move three.h5 --object lamp --by 1,0 -o three_moved.h5
     """
     from viscx.flatland.dynamic import move as move_object
-    from viscx.formats.atomic import release_input
-    from viscx.formats.flatland import read_any, write_any
 
     try:
         dx, dy = (float(x) for x in by.split(","))
     except ValueError:
         raise ViscxError(f"--by {by!r}: expected DX,DY (two numbers separated by a comma)") from None
-    if not Path(file).is_file():
-        raise ViscxError(f"no such file: {file}")
-    cx = read_any(file)
-    if output is None:  # the documented update in place
-        release_input(file)
-    k = _object_index(cx.scene, obj)
-    t0 = time.perf_counter()
-    new, stats = move_object(cx, k, dx, dy)
-    dt = time.perf_counter() - t0
-    write_any(output or file, new)
-    click.echo(f"moved {cx.scene.names[k]!r} by ({dx:g}, {dy:g}) in {dt:.3f} s -> {output or file}")
-    click.echo(stats.summary())
+
+    def change(cx):
+        k = _object_index(cx.scene, obj)
+        return (*move_object(cx, k, dx, dy), f"moved {cx.scene.names[k]!r} by ({dx:g}, {dy:g})")
+
+    _update_file(file, output, change)
+
+
+def _objects_of(spec):
+    """Object dicts from ``--object``: inline JSON (one object, a list, or a scene
+    document ``{"objects": [...]}``) or a scene file (.json/.svg/.dxf: all its objects)."""
+    from viscx.flatland.scene import load_scene
+
+    text = spec.strip()
+    if text[:1] in "{[":
+        try:
+            doc = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ViscxError(f"--object: not valid JSON ({e.msg} at character {e.pos})") from None
+        doc = doc.get("objects", doc) if isinstance(doc, dict) else doc
+        return [doc] if isinstance(doc, dict) else doc
+    if Path(spec).suffix.lower() in SCENE_SUFFIXES:
+        return load_scene(spec).to_json()["objects"]
+    raise ViscxError(f"--object {spec!r}: expected a JSON object or a scene file (.json, .svg, .dxf)")
+
+
+@flatland.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--object", "spec", required=True, metavar="SPEC",
+              help="The object(s) to insert: JSON as in a scene file (one object, a list, or {\"objects\": ...}) "
+                   "or a .json/.svg/.dxf scene file whose objects are all inserted.")
+@output_option("Where to write the updated complex (default: update FILE in place).", required=False)
+@click.pass_context
+def insert(ctx, file, spec, output):
+    """Insert objects after the scene's and update the complex in their zone only.
+
+    \b
+    viscx flatland insert three.h5 --object '{"type": "circle", "center": [2, 3], "radius": 0.5, "name": "pot"}'
+    viscx flatland insert three.h5 --object shed.svg -o three_shed.h5
+    """
+    from viscx.flatland.dynamic import insert as insert_objects
+
+    objects = _objects_of(spec)
+
+    def change(cx):
+        new, stats = insert_objects(cx, objects)
+        names = new.scene.names[cx.scene.n:]
+        return new, stats, f"inserted {', '.join(map(repr, names))}"
+
+    _update_file(file, output, change)
+
+
+@flatland.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--object", "obj", required=True, metavar="K", help="The object to remove: its index or name.")
+@output_option("Where to write the updated complex (default: update FILE in place).", required=False)
+@click.pass_context
+def remove(ctx, file, obj, output):
+    """Remove one object (the later ones move down an index) and update the complex in its zone only.
+
+    \b
+    viscx flatland remove three.h5 --object 1
+    viscx flatland remove three.h5 --object lamp -o three_dark.h5
+    """
+    from viscx.flatland.dynamic import remove as remove_object
+
+    def change(cx):
+        k = _object_index(cx.scene, obj)
+        return (*remove_object(cx, k), f"removed {cx.scene.names[k]!r}")
+
+    _update_file(file, output, change)
 
 
 @flatland.command()

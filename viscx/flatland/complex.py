@@ -107,6 +107,9 @@ class FlatComplex:
     # blockers, which :func:`viscx.flatland.dynamic.move` updates locally
     state: dict | None = None
     blockers: np.ndarray | None = None
+    # read from a file: its ``update`` group (dynamic.update_arrays), made into the state
+    # and blocker table by the first update
+    stored: dict | None = None
 
     def __getattr__(self, name):
         arrays = self.__dict__.get("arrays")
@@ -657,13 +660,16 @@ def face_sums(O, st, slots, lab, nlab, six, sgn, occ):
     return np.where(bounded, area, np.inf), np.where(bounded, strings, np.inf), bounded
 
 
-def slot_hashes(obj_hash, st, slots, lab, nlab):
+def slot_hashes(scene, st, slots, lab, nlab):
     """(nlab,) uint64 signature of each face: the sum of its boundary slots' digests
-    (object geometry, side, slot, tail, head and the exact θ range of the edge)."""
+    (object geometry, side, slot, tail and head, and the exact θ range of the edge).  Tail
+    and head enter by their names' digests, not their indices: removing or inserting
+    another object (a renumbering) keeps every other face's signature."""
     e, kind = slots // 3, slots % 3
-    h = _mix(obj_hash[st["s_cur"][e] // 2] ^ np.uint64(0x9E3779B97F4A7C15))
+    h = _mix(scene.object_hashes()[st["s_cur"][e] // 2] ^ np.uint64(0x9E3779B97F4A7C15))
+    ends = np.append(scene.name_hashes(), np.uint64(7)).view(np.int64)  # [-1]: the sky
     with np.errstate(over="ignore"):
-        for part in ((st["s_cur"][e] % 2) * 3 + kind, st["tail"][e] + 7, st["head"][e] + 11,
+        for part in ((st["s_cur"][e] % 2) * 3 + kind, ends[st["tail"][e]] + 7, ends[st["head"][e]] + 11,
                      st["th0"][e].view(np.int64), st["th1"][e].view(np.int64)):
             h = _mix(h ^ part.astype(np.int64).view(np.uint64))
         acc = np.zeros(nlab, np.uint64)
@@ -705,6 +711,8 @@ def derive(scene: Scene, V: dict):
     ths_ = np.concatenate([O["THS"], O["THS"]])
     order = np.lexsort((occ_, tau_, ths_, cur))
     st = dict(s_occ=occ_[order], s_role=role_[order], s_cur=cur[order], s_th=th_[order], s_tau=tau_[order])
+    if "v_theta_sort" in V:  # the update merges new incidences in by it
+        st["s_ths"] = ths_[order]
     link(st, n_occ)
     pos = np.arange(order.shape[0])
     edge_attributes(scene, O, st, pos, st)
@@ -749,7 +757,7 @@ def comp_attributes(scene, O, st, slots, lab, nlab, six, sgn, occ, out):
     out["c_minslot"] = np.full(nlab, np.iinfo(np.int64).max, np.int64)
     np.minimum.at(out["c_minslot"], lab, slots)
     out["c_area"], out["c_strings"], out["c_bounded"] = face_sums(O, st, slots, lab, nlab, six, sgn, occ)
-    out["c_hash"] = slot_hashes(scene.object_hashes(), st, slots, lab, nlab)
+    out["c_hash"] = slot_hashes(scene, st, slots, lab, nlab)
 
 
 def canonical(scene, V, O, st, fresh, new_slots, new_occ):
@@ -880,7 +888,7 @@ def _derive_lone(scene):
     st = dict(s_cur=side, tail=np.full(2, SKY), head=np.full(2, SKY), th0=th0, th1=th1)
     # slots 0..2 on the L loop, 3..5 on the R loop, glued (t,k) to (t,k) and (k,h) to (k,h):
     # components A = sky → 0, B = 0 → sky (its twin), C / D = (sky, sky) on the L / R loop
-    h = slot_hashes(scene.object_hashes(), st, np.arange(6), np.array([0, 1, 2, 0, 1, 3]), 4)
+    h = slot_hashes(scene, st, np.arange(6), np.array([0, 1, 2, 0, 1, 3]), 4)
     area = I[1] - I[0]  # Green: above λ (L loop, lower chain) and below μ (R loop, upper)
     out = dict(e_obj=np.zeros(1, np.int64), e_side=np.array([R], np.int8), e_tail=np.full(1, SKY),
                e_head=np.full(1, SKY), e_verts=np.full((1, 2), -1, np.int64), e_theta=np.array([[0.0, TWO_PI]]),
@@ -952,6 +960,9 @@ def build(scene: Scene, eps: float | None = None, quiet: bool = True) -> FlatCom
                 if opened is not scene:
                     V = close_contacts(scene, V)
                 out, state = derive(scene, V)
+                if state is not None and opened is not scene:  # the update re-tests its zone there
+                    opened._contacts = np.zeros((0, 2), np.int64)
+                    state["open"] = (rel, opened)
                 break
             except ViscxError:
                 # a line between the two sides of an opened contact is known to ~ulp(x)/γ

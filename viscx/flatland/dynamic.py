@@ -1,6 +1,10 @@
-"""Dynamic update of the complex after an object moves (Orti et al. §4.3): linear in the zone.
+"""Dynamic update of the complex after objects move, appear or vanish (Orti et al. §4.3):
+linear in the zone.  :func:`move`, :func:`insert` and :func:`remove` are one
+:func:`update` (a move is a removal and an insertion of the same object): the old complex
+renumbered to the new scene's objects, then the zone of the changed objects K re-tested
+and spliced.
 
-Moving object K can only change
+Changing object K can only change
 
 - the bitangents of K itself (all pairs (K, j)),
 - the bitangents that K blocked before the move (a blocked candidate stays blocked unless
@@ -36,13 +40,18 @@ see :func:`viscx.flatland.complex.resolve_degenerate`) is re-scanned whole
 m(m − 1)/2 free pairs and about m vertices), so they are found from the line, not from the
 vertices.  Its members then need not be in the blocker table: the line joins a registry
 of re-scanned lines (``state["lines"]``), re-scanned whenever a moving object's disk meets
-it.  A complex read from a file has neither: its state is derived again from the stored
-vertices (O(m log m)), and without a blocker table every candidate whose segment between
-its tangent points meets the moving object's disk is re-tested (the pairs first pruned by
-the capsules around their bounding disks, O(n²) arithmetic in numpy, then only their
-candidates computed), so the move costs about a quarter of a rebuild there (most of it
-the state's derivation); the complex it returns carries its state, but not a blocker
-table, so the next move pays the candidate scan again.
+it.
+
+Touching objects: the zone is re-tested in the opened scene (:meth:`Scene.opened`), the
+fresh vertices carried to the contacts' limit lines (:func:`complex.close_contacts`); see
+:func:`update` for when that is not local.
+
+A complex read from a file carries the file's ``update`` group (:func:`update_arrays`):
+the state and the blocker table by gathers.  From an older file without it, the state is
+derived again from the stored vertices (O(m log m)), and without a blocker table every
+candidate whose segment between its tangent points meets a changed object's disk is
+re-tested (the pairs first pruned by the capsules around their bounding disks, O(n²)
+arithmetic in numpy, then only their candidates computed).
 """
 
 from __future__ import annotations
@@ -57,7 +66,7 @@ from scipy.sparse.csgraph import connected_components
 from viscx.errors import ViscxError
 from viscx.flatland import complex as C
 from viscx.flatland import kernels as K
-from viscx.flatland.scene import check_object_disjoint
+from viscx.flatland.scene import check_object_disjoint, make_scene, raise_along
 
 VERTEX_FIELDS = ("v_key", "v_obj", "v_support", "v_side", "v_tail", "v_head", "v_theta", "v_tau", "v_p", "v_q",
                  "v_length", "v_seg")
@@ -72,7 +81,9 @@ class MoveStats:
     ``local`` is False when the move rebuilt the complex (a file written before degenerate
     lines were resolved, or a complex without vertices); ``zone_*`` count the vertices
     that left / entered the complex, the edges derived anew and the face slots re-glued;
-    ``seconds`` the CPU time per stage."""
+    ``seconds`` the CPU time per stage; ``pairs`` (P, 2) int64 the object pairs (a, b),
+    b = −1 the sky, whose form factors were recomputed (a face of theirs was re-summed):
+    every other entry of F_area / F_strings is the old one."""
 
     candidates_tested: int
     candidates_total: int
@@ -87,6 +98,7 @@ class MoveStats:
     zone_edges: int = 0
     zone_slots: int = 0
     seconds: dict = field(default_factory=dict)
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
 
     def summary(self) -> str:
         how = ("zone: {} vertices out, {} in, {} edges and {} face slots re-derived".format(
@@ -104,51 +116,185 @@ def _bounding_disk(scene, k):
 
 
 def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
-    """Move object k by (dx, dy) and update the complex.
+    """Move object k by (dx, dy) and update the complex in the zone (:func:`update`).
 
     Returns (new FlatComplex, MoveStats).  Raises ViscxError if k is not an object or the
     moved object would overlap another."""
     scene = cx.scene
-    if not (0 <= k < scene.n):
-        raise ViscxError(f"--object {k}: the scene has objects 0..{scene.n - 1}")
+    _check_index(scene, k)
     if not (np.isfinite(dx) and np.isfinite(dy)):
         raise ViscxError("the displacement must be finite")
     new_scene = scene.moved(k, dx, dy)
-    old_contacts = scene.contacts()
-    mine = (old_contacts[:, 0] == k) | (old_contacts[:, 1] == k)
-    new_scene._contacts = np.unique(np.concatenate([old_contacts[~mine], check_object_disjoint(new_scene, k)]),
-                                    axis=0).reshape(-1, 2)
-    n = scene.n
+    old_c = scene.contacts()
+    mine = (old_c[:, 0] == k) | (old_c[:, 1] == k)
+    new_scene._contacts = _pairs_union(old_c[~mine], check_object_disjoint(new_scene, k))
+    same = np.arange(scene.n)
+    return update(cx, new_scene, [k], [k], same, curves=[k] if dx or dy else [])
+
+
+def insert(cx: C.FlatComplex, objects):
+    """Insert objects (JSON object dicts as in a scene file: circle, polygon, segment or
+    open polyline, the last split into its pieces) after the scene's objects, and update
+    the complex in their zone (:func:`update`).  An object without a name is named
+    ``object<i>``, i its index in the new scene.
+
+    Returns (new FlatComplex, MoveStats).  Raises ViscxError for a bad object, a name
+    already used, or an overlap."""
+    scene = cx.scene
+    objects = [objects] if isinstance(objects, dict) else list(objects)
+    objects = [dict(o, name=o.get("name", f"object{scene.n + i}")) if isinstance(o, dict) else o
+               for i, o in enumerate(objects)]
+    extra = make_scene(objects)
+    clash = sorted(set(extra.names) & set(scene.names))
+    if clash:
+        raise ViscxError(f"an object is already named {clash[0]!r}; names must be unique")
+    new_scene = scene.joined(extra)
+    came = np.arange(scene.n, new_scene.n)
+    new_scene._contacts = _pairs_union(scene.contacts(), extra.contacts() + scene.n,
+                                       *[check_object_disjoint(new_scene, j) for j in came])
+    return update(cx, new_scene, [], came, np.arange(scene.n))
+
+
+def remove(cx: C.FlatComplex, k: int):
+    """Remove object k (the objects after it move down one index, as in a scene file
+    without it) and update the complex in its zone (:func:`update`).
+
+    Returns (new FlatComplex, MoveStats).  Raises ViscxError if k is not an object or it
+    is the last one."""
+    scene = cx.scene
+    _check_index(scene, k)
+    if scene.n == 1:
+        raise ViscxError("cannot remove the only object of the scene")
+    objmap = np.arange(scene.n) - (np.arange(scene.n) > k)
+    objmap[k] = -1
+    new_scene = scene.selected(np.delete(np.arange(scene.n), k))
+    old_c = scene.contacts()
+    new_scene._contacts = objmap[old_c[(old_c[:, 0] != k) & (old_c[:, 1] != k)]].reshape(-1, 2)
+    return update(cx, new_scene, [k], [], objmap)
+
+
+def _check_index(scene, k):
+    if not (0 <= k < scene.n):
+        raise ViscxError(f"--object {k}: the scene has objects 0..{scene.n - 1}")
+
+
+def _pairs_union(*pairs):
+    """Sorted distinct (i, j) rows of several (c, 2) arrays."""
+    return np.unique(np.concatenate([np.asarray(p, np.int64).reshape(-1, 2) for p in pairs]), axis=0).reshape(-1, 2)
+
+
+def update(cx: C.FlatComplex, new_scene, gone, came, objmap, curves=None):
+    """The complex of ``new_scene`` from ``cx``'s, re-deriving only the zone of the objects
+    that changed: ``gone`` the objects of the old scene that moved or vanished, ``came``
+    the objects of the new scene that moved or appeared (their edges are redone), ``objmap``
+    (n_old,) the new index of every old object (−1: removed; a monotone map).  A move is
+    gone = came = [k]; an insertion gone = [], came = the new objects; a removal gone =
+    [k], came = [].
+
+    Touching objects: the vertices are those of the opened scene (:meth:`Scene.opened`,
+    every touching object eroded by γ = rel × the diagonal) carried to the contacts' limit
+    lines (:func:`complex.close_contacts`), so the zone is re-tested in the opened scene;
+    the objects whose erosion changes (they make or lose their only contact) join the
+    changed objects.  Rebuilt instead (``MoveStats.local`` False, with the reason) when the
+    opened scene itself changes globally: the diagonal changes (so does γ), the scene gains
+    its first contact or loses its last, or the complex was opened with a fallback gap; and
+    when the zone cannot be resolved locally (a degenerate line tilted by about its
+    tolerance: the rebuild's chained grouping of lines sees one line where the zone's
+    re-scan sees two).
+
+    Returns (new FlatComplex, MoveStats)."""
+    scene = cx.scene
+    n = new_scene.n
     total = 2 * n * (n - 1)
-    if "v_tau" not in cx.arrays or cx.n_vertices == 0:  # written before degenerate lines were resolved
+    gone, came = np.asarray(gone, np.int64), np.asarray(came, np.int64)
+    came0 = came
+    if "v_tau" not in cx.arrays:  # written before degenerate lines were resolved
         return _rebuilt(cx, new_scene, total)
-    if old_contacts.size or new_scene._contacts.size:
-        # touching objects: the complex is the limit of an opened scene whose gaps depend
-        # on the scene diagonal, so it is rebuilt (equal to a rebuild by construction)
-        return _rebuilt(cx, new_scene, total, "touching objects")
-    clock = _Clock()
-    if cx.state is None:  # read from a file: the state is derived again from the stored vertices
+    if cx.n_vertices == 0 or n < 2:
+        return _rebuilt(cx, new_scene, total, "a scene of one object before or after (no vertex)")
+    if cx.state is None and cx.stored is not None:  # read from a file with its update group
+        cx = state_from_update_arrays(cx, cx.stored)
+    if cx.state is None:  # read from an older file: the state is derived again from the stored vertices
         cx = C.FlatComplex(scene=scene, eps=cx.eps, arrays=cx.arrays, state=C.derive(scene, cx.arrays)[1],
                            blockers=cx.blockers)
+    opened = _opened_scenes(cx, new_scene, gone, came, objmap)
+    if isinstance(opened, str):
+        return _rebuilt(cx, new_scene, total, opened)
+    work_old, work_new, gone, came, rel = opened
+    try:
+        return _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel,
+                       came if curves is None else np.union1d(curves, came[~np.isin(came, came0)]))
+    except ViscxError as e:
+        # a degenerate line the change tilts by about its tolerance is one line for the
+        # rebuild's chained grouping but not for the zone's re-scan (and an opened scene
+        # may be unresolvable at this gap, where the build tries others): rebuilt
+        return _rebuilt(cx, new_scene, total, f"the zone could not be resolved locally: {str(e)[:60]}…")
+
+
+def _opened_scenes(cx, new_scene, gone, came, objmap):
+    """The scenes the zone is re-tested in, before and after: the scenes themselves, or
+    with touching objects their opened scenes (only the changed objects and those whose
+    erosion changes re-eroded; bit-identical to ``new_scene.opened(rel)``).  Returns
+    (old, new, gone, came, rel) or, when the update cannot be local, the reason."""
+    scene = cx.scene
+    old_c, new_c = scene.contacts(), new_scene.contacts()
+    if not (old_c.size or new_c.size):
+        return scene, new_scene, gone, came, 0.0
+    if not (old_c.size and new_c.size):
+        return "touching objects: the scene gains its first contact or loses its last, which moves every vertex"
+    rel, work_old = cx.state.get("open", (None, None))
+    if rel is None:
+        return "touching objects in a complex read from a file (the opened scene is not stored)"
+    if rel != C.OPEN_RELS[0]:
+        return "touching objects: the complex was opened with a fallback gap"
+    diag = new_scene.diagonal()
+    if diag != scene.diagonal():
+        return "touching objects: the scene diagonal changed, and with it the gap γ of every contact"
+    was = np.zeros(scene.n, bool)
+    was[old_c.ravel()] = True
+    now = np.zeros(new_scene.n, bool)
+    now[new_c.ravel()] = True
+    kept = np.nonzero(objmap >= 0)[0]
+    flip = kept[was[kept] != now[objmap[kept]]]
+    gone = np.union1d(gone, flip)
+    came = np.union1d(came, objmap[flip])
+    work_new = work_old.selected(kept)
+    if n_new := new_scene.n - kept.size:
+        work_new = work_new.joined(new_scene.selected(np.arange(new_scene.n - n_new, new_scene.n)))
+    for j in came:
+        s, e = new_scene.vert_start[j], new_scene.vert_start[j + 1]
+        geo = new_scene.eroded(j, rel * diag) if now[j] else (new_scene.verts[s:e], new_scene.radius[j])
+        work_new = work_new.replaced(j, *geo)
+    for j in came:
+        left = check_object_disjoint(work_new, j, eps=0.01 * rel * diag)
+        if left.size:
+            raise_along(new_scene, *left[0])
+    work_new._contacts = np.zeros((0, 2), np.int64)
+    return work_old, work_new, gone, came, rel
+
+
+def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, curves):
+    """:func:`update` in the scenes ``work_old`` / ``work_new`` (the opened scenes when
+    objects touch, else the scenes)."""
+    scene = cx.scene
+    n_old, n = scene.n, new_scene.n
+    clock = _Clock()
     V_old = cx.arrays
-    # -- 1. the candidates to re-test
-    pair_of = V_old["v_key"] // 4
-    own_v = (V_old["v_obj"][:, 0] == k) | (V_old["v_obj"][:, 1] == k)
-    th = V_old["v_theta"]
+    # -- 1. the candidates to re-test (in the old numbering)
+    own_v = np.isin(V_old["v_obj"], gone).any(axis=1)
+    th, u = _working_lines(work_old, V_old, rel)
     nrm = np.stack([-np.sin(th), np.cos(th)], axis=1)
-    u = np.einsum("ij,ij->i", nrm, V_old["v_p"])
+    disks = [_bounding_disk(work_old, j) for j in gone] + [_bounding_disk(work_new, j) for j in came]
     near = np.zeros(th.shape[0], bool)
-    for sc in (scene, new_scene):
-        c, r = _bounding_disk(sc, k)
+    for c, r in disks:
         near |= np.abs(nrm @ c - u) <= r + 10 * cx.eps
     retest_v = near & ~own_v
     # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
-    # by earlier moves (their blocked members are not in the blocker table) that K meets
-    tol = C.line_tol(new_scene)
+    # by earlier moves (their blocked members are not in the blocker table) that it meets
+    tol = C.line_tol(work_new)
     reg_th, reg_u = cx.state.get("lines", (np.zeros(0), np.zeros(0)))
     reg_near = np.zeros(reg_th.shape[0], bool)
-    for sc in (scene, new_scene):
-        c, r = _bounding_disk(sc, k)
+    for c, r in disks:
         reg_near |= np.abs(-np.sin(reg_th) * c[0] + np.cos(reg_th) * c[1] - reg_u) <= r + 10 * cx.eps
     deg = (retest_v | own_v) & (V_old["v_tau"] != 0.0)
     lines_th, lines_u = _distinct_lines(np.concatenate([th[deg], reg_th[reg_near]]),
@@ -156,37 +302,46 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     on_line = _on_lines(th, u, lines_th, lines_u, tol)
     retest_v |= on_line & ~own_v
     if cx.blockers is not None:
-        blocked = np.nonzero(cx.blockers == k)[0]
-    else:  # no blocker table (read from a file): every candidate whose segment meets K before the move
-        c, r = _bounding_disk(scene, k)
-        some = C.candidates(scene, _pairs_near(scene, c, r + 10 * cx.eps))
-        p_, q_ = C.tangent_points(scene, some)
-        blocked = some["key"][_segment_distance(p_, q_, c) <= r + 10 * cx.eps]
+        blocked = np.nonzero(np.isin(cx.blockers, gone))[0]
+    else:  # no blocker table (read from a file): every candidate whose segment meets a gone object
+        blocked = [np.zeros(0, np.int64)]
+        for c, r in disks[:gone.size]:
+            some = C.candidates(work_old, _pairs_near(work_old, c, r + 10 * cx.eps))
+            p_, q_ = C.tangent_points(work_old, some)
+            blocked.append(some["key"][_segment_distance(p_, q_, c) <= r + 10 * cx.eps])
+        blocked = np.unique(np.concatenate(blocked))
     b_pair = blocked // 4
-    blocked = blocked[(b_pair // n != k) & (b_pair % n != k)]
-    others = np.delete(np.arange(n), k)
-    own_pairs = np.stack([np.minimum(others, k), np.maximum(others, k)], 1)
+    blocked = blocked[~np.isin(b_pair // n_old, gone) & ~np.isin(b_pair % n_old, gone)]
+    # -- the old complex in the new numbering
+    V_old, state, blockers = _renumbered(cx, new_scene, objmap)
+    blocked = _new_keys(blocked, objmap, n_old, n)
+    pair_of = V_old["v_key"] // 4
+    own_pairs = [np.zeros((0, 2), np.int64)]
+    for j in came:
+        others = np.delete(np.arange(n), j)
+        own_pairs.append(np.stack([np.minimum(others, j), np.maximum(others, j)], 1))
+    own_pairs = np.concatenate(own_pairs)
     pid = np.unique(np.concatenate([own_pairs[:, 0] * n + own_pairs[:, 1], blocked // 4, pair_of[retest_v & ~on_line]]))
-    cand = C.candidates(new_scene, np.stack([pid // n, pid % n], 1).astype(np.int64))
+    cand = C.candidates(work_new, np.stack([pid // n, pid % n], 1).astype(np.int64))
     redo = np.concatenate([blocked, V_old["v_key"][retest_v & ~on_line]])
-    todo = (cand["a"] == k) | (cand["b"] == k) | np.isin(cand["key"], redo)
-    grid = K.build_grid(new_scene.bounding_boxes())
-    cls = C.classify(new_scene, cand, cx.eps, todo=todo, grid=grid)
-    fresh = C.vertices_from(new_scene, cand, cls)
+    todo = np.isin(cand["a"], came) | np.isin(cand["b"], came) | np.isin(cand["key"], redo)
+    grid = K.build_grid(work_new.bounding_boxes())
+    cls = C.classify(work_new, cand, cx.eps, todo=todo, grid=grid)
+    fresh = C.vertices_from(work_new, cand, cls)
     if lines_th.size:  # the degenerate lines are re-scanned whole, not from their candidates
         fth = fresh["v_theta"]
         fu = np.einsum("ij,ij->i", np.stack([-np.sin(fth), np.cos(fth)], 1), fresh["v_p"])
         off = ~_on_lines(fth, fu, lines_th, lines_u, tol)
         fresh = {name: arr[off] for name, arr in fresh.items()}
-    fresh = C.resolve_degenerate(new_scene, fresh)
+    fresh = C.resolve_degenerate(work_new, fresh)
     if lines_th.size:
-        scanned = [scan_line(new_scene, t_, u_, cx.eps, tol, grid) for t_, u_ in zip(lines_th, lines_u)]
+        scanned = [scan_line(work_new, t_, u_, cx.eps, tol, grid) for t_, u_ in zip(lines_th, lines_u)]
         fresh = {name: np.concatenate([fresh[name]] + [x[name] for x in scanned]) for name in VERTEX_FIELDS}
         o = np.argsort(fresh["v_key"], kind="stable")
         fresh = {name: arr[o] for name, arr in fresh.items()}
-    blockers = None
-    if cx.blockers is not None:
-        blockers = cx.blockers.copy()
+    if rel:  # carried to the contacts' limit lines
+        fresh = C.close_contacts(new_scene, fresh)
+    if blockers is not None:
         blockers[cand["key"][todo]] = cls[6][todo]
     clock.lap("candidates")
     # -- 2. the new vertex set, merged by key; re-tested vertices that did not change stay
@@ -194,20 +349,85 @@ def move(cx: C.FlatComplex, k: int, dx: float, dy: float):
     old_bb, new_bb = scene.bounding_boxes(), new_scene.bounding_boxes()
     if not (np.array_equal(old_bb[:, :2].min(0), new_bb[:, :2].min(0))
             and np.array_equal(old_bb[:, 2:].max(0), new_bb[:, 2:].max(0))):
-        # sky ends are clipped to the scene box, which the move changed
+        # sky ends are clipped to the scene box, which the update changed
         V["v_seg"] = C.clip_sky_ends(new_scene, V["v_theta"], V["v_p"], V["v_q"], V["v_tail"], V["v_head"], V["v_seg"])
     clock.lap("vertices")
-    out, st, zone = _splice_topology(new_scene, cx.state, V, vmap, added, k if dx or dy else -1)
+    out, st, zone = _splice_topology(new_scene, state, V, vmap, added, curves)
     V.update(out)
     clock.lap("topology")
     st["lines"] = _distinct_lines(np.concatenate([reg_th, lines_th]), np.concatenate([reg_u, lines_u]), tol)
+    if rel:
+        st["open"] = (rel, work_new)
     new = C.FlatComplex(scene=new_scene, eps=cx.eps, arrays=V, state=st, blockers=blockers)
-    stats = _stats(new, zone["faces"], int(todo.sum()), total)
+    stats = _stats(new, zone["faces"], int(todo.sum()), total, zone["lost"])
     stats.zone_vertices_removed = int(np.sum(vmap < 0))
     stats.zone_vertices_added = int(added.size)
     stats.zone_edges, stats.zone_slots = zone["edges"], zone["slots"]
     stats.seconds = clock.laps
     return new, stats
+
+
+def _working_lines(work, V, rel):
+    """(θ, u) of every vertex's line in the scene the zone is re-tested in: the stored
+    line, or with touching objects the opened scene's (θ of the opened scene, u from its
+    first support disk: n·v_j + σ r, σ = +1 for an object on the right)."""
+    if not rel:
+        th = V["v_theta"]
+        return th, -np.sin(th) * V["v_p"][:, 0] + np.cos(th) * V["v_p"][:, 1]
+    th = V["v_theta_sort"]
+    j1, k1 = V["v_support"][:, 0], V["v_obj"][:, 0]
+    v = work.verts[j1]
+    return th, -np.sin(th) * v[:, 0] + np.cos(th) * v[:, 1] + (2.0 * V["v_side"][:, 0] - 1.0) * work.radius[k1]
+
+
+def _new_keys(keys, objmap, n_old, n):
+    """Candidate keys (pair (i, j) · 4 + kind) in the new numbering: i, j → objmap[i],
+    objmap[j] (monotone, so sorted keys stay sorted); −1 where an object was removed."""
+    pair, kind = keys // 4, keys % 4
+    i, j = objmap[pair // n_old], objmap[pair % n_old]
+    return np.where((i >= 0) & (j >= 0), (i * n + j) * 4 + kind, -1)
+
+
+def _renumbered(cx, new_scene, objmap):
+    """The vertex fields, the state and the blocker table of ``cx`` in the new numbering
+    of objects (``objmap``; a removed object becomes −2 as a tail or head, which no vertex
+    of the new scene has; as an index, −2 picks the last object's digest, harmless: its
+    faces are all in the zone).  Only the vertex keys change when objects are appended."""
+    n_old, n = cx.scene.n, new_scene.n
+    fields = VERTEX_FIELDS + (("v_theta_sort",) if "v_theta_sort" in cx.arrays else ())
+    V = {name: cx.arrays[name] for name in fields}
+    st, blockers = cx.state, cx.blockers
+    if n == n_old:
+        return V, st, None if blockers is None else blockers.copy()
+    V["v_key"] = _new_keys(V["v_key"], objmap, n_old, n)
+    kept = np.nonzero(objmap >= 0)[0]
+    lut = np.append(np.where(objmap >= 0, objmap, -2), -1)  # lut[-1]: the sky stays
+    if blockers is not None:  # rows and columns of the kept objects' pairs, by blocks of consecutive ones
+        old = blockers.reshape(n_old, n_old, 4)
+        tab = np.full((n, n, 4), -1, np.int32)
+        runs = np.split(kept, np.nonzero(np.diff(kept) > 1)[0] + 1)
+        for ri in runs:
+            for rj in runs:
+                tab[objmap[ri[0]]:objmap[ri[-1]] + 1, objmap[rj[0]]:objmap[rj[-1]] + 1] = \
+                    old[ri[0]:ri[-1] + 1, rj[0]:rj[-1] + 1]
+        if kept.size < n_old:  # a removal: blockers renumbered (those it blocked are re-tested)
+            tab = lut[tab]
+        blockers = tab.reshape(-1).astype(np.int32, copy=False)
+    if np.array_equal(objmap, np.arange(n_old)):
+        return V, st, blockers
+    obj = lambda a: lut[a]  # noqa: E731
+    V["v_obj"], V["v_tail"], V["v_head"] = obj(V["v_obj"]), obj(V["v_tail"]), obj(V["v_head"])
+    size = np.diff(cx.scene.vert_start)
+    gone_v = np.repeat(objmap < 0, size)
+    sup = np.cumsum(~gone_v) - 1  # support points keep their order
+    V["v_support"] = np.where(gone_v[V["v_support"]], -1, sup[V["v_support"]])
+    st = dict(st)
+    st["s_cur"] = 2 * lut[st["s_cur"] // 2] + st["s_cur"] % 2
+    st["tail"], st["head"] = obj(st["tail"]), obj(st["head"])
+    ct, ch = st["c_tail"], st["c_head"]
+    st["c_tail"] = np.where(ct >= 0, lut[np.maximum(ct, 0)], ct)
+    st["c_head"] = np.where(ch >= 0, lut[np.maximum(ch, 0)], ch)
+    return V, st, blockers  # (face signatures digest tail and head by name, not by id: kept)
 
 
 def _segment_distance(a, b, c):
@@ -354,7 +574,7 @@ class _Clock:
         self.t = t
 
 
-def _rebuilt(cx, new_scene, total, why="a file without v_tau, or no vertices"):
+def _rebuilt(cx, new_scene, total, why="a file written before degenerate lines were resolved (no vertices/tau)"):
     new = C.build(new_scene, eps=cx.eps)
     stats = _stats(new, np.ones(new.n_faces, bool), total, total)
     stats.local = False
@@ -370,11 +590,12 @@ def _merge_vertices(V_old, fresh, redone):
     −1 for one that left; added the new indices of the vertices that entered."""
     keep = np.nonzero(~redone)[0]
     fk = fresh["v_key"]
+    fields = tuple(V_old)
     V = {}
     fidx = np.searchsorted(V_old["v_key"][keep], fk) + np.arange(fk.size)
     m = keep.size + fk.size
     kidx = np.arange(keep.size) + np.searchsorted(fidx - np.arange(fk.size), np.arange(keep.size), side="right")
-    for name in VERTEX_FIELDS:
+    for name in fields:
         old = V_old[name]
         arr = np.empty((m,) + old.shape[1:], old.dtype)
         arr[kidx] = old[keep]
@@ -387,18 +608,19 @@ def _merge_vertices(V_old, fresh, redone):
     j = np.searchsorted(fk, V_old["v_key"][rd])
     j = np.minimum(j, max(fk.size - 1, 0))
     same = (fk.size > 0) & (fk[j] == V_old["v_key"][rd]) if fk.size else np.zeros(rd.size, bool)
-    for name in TOPOLOGY_FIELDS:
+    for name in TOPOLOGY_FIELDS + (("v_theta_sort",) if "v_theta_sort" in fields else ()):
         a, b = V_old[name][rd], fresh[name][j] if fk.size else V_old[name][rd]
-        same &= np.all((a == b).reshape(rd.size, -1), axis=1)
+        eq = a == b
+        same &= eq.all(axis=tuple(range(1, eq.ndim)))
     vmap[rd[same]] = fidx[j[same]]
     entered = np.ones(fk.size, bool)
     entered[j[same]] = False
     return V, vmap, fidx[entered]
 
 
-def _splice_topology(scene, old, V, vmap, added, moved):
+def _splice_topology(scene, old, V, vmap, added, curves):
     """The topology state and stored arrays after the vertices changed (see the module
-    docstring); ``moved`` the object that moved (−1: none).  Returns (arrays, state, zone sizes)."""
+    docstring); ``curves`` the objects whose tangency curves' edges are all redone.  Returns (arrays, state, zone sizes)."""
     m_old, m = vmap.shape[0], V["v_key"].shape[0]
     O = C.occurrences(V)
     N_old = old["s_occ"].shape[0]
@@ -407,16 +629,20 @@ def _splice_topology(scene, old, V, vmap, added, moved):
     kpos = np.nonzero(vmap[v_old] >= 0)[0]
     k_occ = vmap[v_old[kpos]] + o_old[kpos] * m
     cur, th, tau, occ, role = C.incidences(O, np.concatenate([added, added + m]))
-    o = np.lexsort((occ, tau, th, cur))
-    cur, th, tau, occ, role = cur[o], th[o], tau[o], occ[o], role[o]
-    ins = K.merge_ranks(old["s_cur"][kpos], old["s_th"][kpos], old["s_tau"][kpos], k_occ, cur, th, tau, occ)
+    ths = O["THS"][occ]  # the order along the curves (the opened scene's θ at contacts)
+    o = np.lexsort((occ, tau, ths, cur))
+    cur, th, ths, tau, occ, role = cur[o], th[o], ths[o], tau[o], occ[o], role[o]
+    old_ths = old.get("s_ths", old["s_th"])
+    ins = K.merge_ranks(old["s_cur"][kpos], old_ths[kpos], old["s_tau"][kpos], k_occ, cur, ths, tau, occ)
     N = kpos.size + cur.size
     at_new = ins + np.arange(cur.size)
     at_kept = np.arange(kpos.size) + np.cumsum(np.bincount(ins, minlength=kpos.size + 1))[:kpos.size]
     st = {}
-    for name, kept_vals, new_vals in (("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role),
-                                      ("s_cur", old["s_cur"][kpos], cur), ("s_th", old["s_th"][kpos], th),
-                                      ("s_tau", old["s_tau"][kpos], tau)):
+    parts = [("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role), ("s_cur", old["s_cur"][kpos], cur),
+             ("s_th", old["s_th"][kpos], th), ("s_tau", old["s_tau"][kpos], tau)]
+    if "s_ths" in old:
+        parts.append(("s_ths", old_ths[kpos], ths))
+    for name, kept_vals, new_vals in parts:
         arr = np.empty(N, kept_vals.dtype)
         arr[at_kept] = kept_vals
         arr[at_new] = new_vals
@@ -428,7 +654,7 @@ def _splice_topology(scene, old, V, vmap, added, moved):
     # object's tangency curves: their ∫u dθ follows the object (u shifts by the move) even
     # when their end vertices come back unchanged (a move too small to change any θ)
     nxt_old = newpos[old["nxt"][kpos]]
-    surv_old = kpos[(nxt_old >= 0) & (nxt_old == st["nxt"][at_kept]) & (old["s_cur"][kpos] // 2 != moved)]
+    surv_old = kpos[(nxt_old >= 0) & (nxt_old == st["nxt"][at_kept]) & ~np.isin(old["s_cur"][kpos] // 2, curves)]
     surv = newpos[surv_old]
     fresh_e = np.ones(N, bool)
     fresh_e[surv] = False
@@ -471,11 +697,13 @@ def _splice_topology(scene, old, V, vmap, added, moved):
     new_attr = {}
     C.comp_attributes(scene, O, st, zslots, lab, nlab, six, sgn, zocc, new_attr)
     keep_lab = ~in_zone[:L_old]
+    # labels without slots (left by earlier updates, until compacted) keep stale slots
+    live = keep_lab & (np.bincount(old["comp"], minlength=L_old) > 0)
     remap_slot = lambda s: 3 * newpos[s // 3] + s % 3  # noqa: E731
     for name, vals in new_attr.items():
         base = old[name].copy()
         if name == "c_minslot":
-            base[keep_lab] = remap_slot(base[keep_lab])
+            base[live] = remap_slot(base[live])
         st[name] = np.concatenate([base, vals])
     # -- the kept faces' boundary lists, renumbered
     kf = keep_lab[old["face_label"]]
@@ -488,7 +716,10 @@ def _splice_topology(scene, old, V, vmap, added, moved):
     faces = st["face_label"] >= L_old
     if st["c_tail"].shape[0] > 2 * st["face_label"].shape[0] + 2 * nlab:
         _compact(st)  # amortised: when dead labels outnumber the live ones
-    return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size))
+    # the faces that left (their pairs' form factors are recomputed too, if only to 0)
+    lost = old["face_label"][~kf]
+    lost = np.stack([old["c_tail"][lost], old["c_head"][lost]], 1)
+    return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size), lost=lost)
 
 
 def _csr_keep(start, vals, keep):
@@ -521,7 +752,9 @@ def _pair_ids(f_pair, n):
     return lo * (n + 1) + hi
 
 
-def _stats(new, recomputed, tested, total):
+def _stats(new, recomputed, tested, total, lost=None):
+    """MoveStats of a new complex whose faces ``recomputed`` (F,) bool were re-summed;
+    ``lost`` (L, 2): the (tail, head) of the old faces that left (−2: a removed object)."""
     n = new.scene.n
     ok = new.f_bounded & ~((new.f_pair[:, 0] < 0) & (new.f_pair[:, 1] < 0))
     pid = _pair_ids(new.f_pair, n)[ok]
@@ -529,6 +762,145 @@ def _stats(new, recomputed, tested, total):
     seen[pid] = True
     again = np.zeros((n + 1) ** 2, bool)
     again[pid[recomputed[ok]]] = True
-    return MoveStats(candidates_tested=tested, candidates_total=total,
+    if lost is not None:
+        lost = lost[np.all(lost >= -1, axis=1) & np.any(lost >= 0, axis=1)]
+        again[_pair_ids(lost, n)] = True
+    lo, hi = np.divmod(np.nonzero(again)[0], n + 1)
+    pairs = np.stack([lo, np.where(hi == n, -1, hi)], 1)
+    return MoveStats(pairs=pairs, candidates_tested=tested, candidates_total=total,
                      faces_recomputed=int(recomputed[ok].sum()), faces_total=int(ok.sum()),
                      formfactors_recomputed=int(again.sum()), formfactors_total=int(seen.sum()))
+
+
+# ----------------------------------------------------------------------------- the update state in files
+def update_arrays(cx: C.FlatComplex) -> dict | None:
+    """What a local update needs beyond the stored arrays, for the ``update`` group of a
+    file (docs/format.md), or None without a state.
+
+    The topology's state on the double cover, canonical — equal for an updated complex and
+    a rebuilt one: ``incidence`` (4m,) the incidences in their order along the tangency
+    curves (id occ + role · 2m, occ = v or m + v for the reversed line), per incidence the
+    edge starting there: ``tail``, ``head``, ``th0``, ``th1``, ``integral`` (∫u dθ),
+    ``arclength``; ``slot_face`` (12m,) the face of each of its three slots as 2·f (the
+    face as stored) or 2·f + 1 (its twin, the reversed lines); ``minslot`` (2F,) the
+    smallest slot of each; ``edge_slots`` / ``vert_slots`` the faces' boundary lists as
+    incidences (edge << 2 | upper << 1 | reversed; vertex << 3 | o << 2 | sign + 1).
+    And the bookkeeping of the updates: ``blockers`` (4n²,) int32 one object blocking each
+    candidate (−1 free; any blocker will do, so an updated complex's may differ from a
+    rebuild's), ``lines`` (L, 2) the degenerate lines re-scanned by earlier updates (θ, u),
+    ``open_rel`` (1,) the gap of the opened scene (0: no contacts)."""
+    st = cx.state
+    if st is None or cx.blockers is None:
+        return None
+    m, F = cx.n_vertices, cx.n_faces
+    rep = st["face_label"]
+    tw = st["c_twin"][rep]
+    lab = np.full(st["c_tail"].shape[0], -1, np.int64)
+    lab[tw] = 2 * np.arange(F) + 1
+    lab[rep] = 2 * np.arange(F)  # a face that is its own twin keeps 2·f
+    minslot = np.full(2 * F, -1, np.int64)
+    minslot[lab[tw]] = st["c_minslot"][tw]
+    minslot[lab[rep]] = st["c_minslot"][rep]
+    lines = st.get("lines", (np.zeros(0), np.zeros(0)))
+    return dict(incidence=st["s_occ"] + st["s_role"] * 2 * m, tail=st["tail"], head=st["head"], th0=st["th0"],
+                th1=st["th1"], integral=st["I"], arclength=st["arc"], slot_face=lab[st["comp"]], minslot=minslot,
+                edge_slots=st["fe_packed"], vert_slots=st["fv_packed"], blockers=cx.blockers.astype(np.int32),
+                lines=np.stack(lines, 1).reshape(-1, 2), open_rel=np.array([st.get("open", (0.0,))[0]], np.float64))
+
+
+def check_update_arrays(c, arrays, upd, n):
+    """Refuse an ``update`` group that does not fit the complex (shapes, ids in range, the
+    incidences a permutation in curve order): ``c`` a :class:`viscx.formats.validate.Checker`.
+    Returns the arrays (numbers checked by kind)."""
+    m = arrays["v_key"].shape[0]
+    F = arrays["f_area"].shape[0]
+    N = 4 * m
+    where = "/update/"
+    need = dict(incidence=(N, "i"), tail=(N, "i"), head=(N, "i"), th0=(N, "f"), th1=(N, "f"), integral=(N, "f"),
+                arclength=(N, "f"), slot_face=(3 * N, "i"), minslot=(2 * F, "i"),
+                edge_slots=(arrays["f_edge"].shape[0], "i"), vert_slots=(arrays["f_vert"].shape[0], "i"),
+                blockers=(4 * n * n, "i"))
+    out = {}
+    for name, (size, kind) in need.items():
+        if name not in upd:
+            c.fail(where + name, "missing")
+        a = c.convert(where + name, upd[name], kind)
+        if a.shape != (size,):
+            c.fail(where + name, f"shape {a.shape}, expected ({size},)")
+        out[name] = a
+    lines = c.convert(where + "lines", upd.get("lines", np.zeros((0, 2))), "f")
+    if lines.ndim != 2 or lines.shape[1] != 2:
+        c.fail(where + "lines", f"shape {lines.shape}, expected (L, 2)")
+    out["lines"] = lines
+    rel = c.convert(where + "open_rel", upd.get("open_rel", np.zeros(1)), "f")
+    if rel.shape != (1,) or float(rel[0]) not in (0.0,) + C.OPEN_RELS:
+        c.fail(where + "open_rel", "not [0] or [one of the opening gaps]")
+    out["open_rel"] = float(rel[0])
+    inc = out["incidence"]
+    c.within(where + "incidence", inc, 0, N)
+    if N and np.bincount(inc, minlength=N).max() != 1:
+        c.fail(where + "incidence", "not a permutation of the incidences")
+    for name in ("tail", "head", "blockers"):
+        c.within(where + name, out[name], -1, n)
+    c.within(where + "slot_face", out["slot_face"], 0, 2 * F)
+    c.within(where + "minslot", out["minslot"], -1, 3 * N)
+    c.within(where + "edge_slots", out["edge_slots"] >> 2, 0, N)
+    c.within(where + "vert_slots", out["vert_slots"] >> 3, 0, m)
+    # the order along the curves: (curve, θ, τ, occurrence) strictly increasing
+    st = _incidence_state(arrays, inc)
+    key = (st["s_cur"], st.get("s_ths", st["s_th"]), st["s_tau"], st["s_occ"])
+    less, same = np.zeros(N - 1, bool), np.ones(N - 1, bool)
+    for k_ in key:
+        less |= same & (k_[1:] > k_[:-1])
+        same &= k_[1:] == k_[:-1]
+    if N > 1 and not less.all():
+        c.fail(where + "incidence", "not in order along the tangency curves")
+    return out
+
+
+def _incidence_state(V, inc):
+    """The sorted incidence arrays of the state from the incidence order ``inc``."""
+    m = V["v_key"].shape[0]
+    O = C.occurrences(V)
+    occ, role = inc % (2 * m), inc // (2 * m)
+    st = dict(s_occ=occ, s_role=role, s_cur=np.where(role == 0, 2 * O["K1"][occ] + O["S1"][occ],
+                                                         2 * O["K2"][occ] + O["S2"][occ]),
+              s_th=O["TH"][occ], s_tau=O["TAU"][occ])
+    if "v_theta_sort" in V:
+        st["s_ths"] = O["THS"][occ]
+    return st
+
+
+def state_from_update_arrays(cx: C.FlatComplex, upd: dict) -> C.FlatComplex:
+    """The complex with the state and blocker table of its file's ``update`` group
+    (:func:`update_arrays`, checked by :func:`check_update_arrays`): O(m) gathers instead
+    of the derivation; the opened scene of touching objects made again."""
+    V = cx.arrays
+    F = cx.n_faces
+    st = _incidence_state(V, upd["incidence"])
+    C.link(st, 2 * V["v_key"].shape[0])
+    st.update(tail=upd["tail"], head=upd["head"], th0=upd["th0"], th1=upd["th1"], I=upd["integral"],
+              arc=upd["arclength"], comp=upd["slot_face"], c_minslot=upd["minslot"])
+    has = np.zeros(2 * F, bool)
+    has[st["comp"]] = True
+    f = np.arange(F)
+    pair = V["f_pair"]
+    st["c_tail"] = np.full(2 * F, -3, np.int64)
+    st["c_head"] = np.full(2 * F, -3, np.int64)
+    st["c_tail"][0::2], st["c_head"][0::2] = pair[:, 0], pair[:, 1]
+    st["c_tail"][1::2] = np.where(has[1::2], pair[:, 1], -3)
+    st["c_head"][1::2] = np.where(has[1::2], pair[:, 0], -3)
+    st["c_twin"] = np.stack([np.where(has[1::2], 2 * f + 1, 2 * f), 2 * f], 1).reshape(-1)
+    for name, own, twin in (("c_area", "f_area", "f_area_twin"), ("c_strings", "f_strings", "f_strings_twin"),
+                            ("c_bounded", "f_bounded", "f_bounded"), ("c_hash", "f_hash", "f_hash_twin")):
+        st[name] = np.stack([V[own], V[twin]], 1).reshape(-1)
+    st["face_label"] = 2 * f
+    st["fe_start"], st["fe_packed"] = V["f_edge_start"], upd["edge_slots"]
+    st["fv_start"], st["fv_packed"] = V["f_vert_start"], upd["vert_slots"]
+    st["lines"] = (upd["lines"][:, 0].copy(), upd["lines"][:, 1].copy())
+    if upd["open_rel"]:
+        opened = cx.scene.opened(upd["open_rel"])
+        opened._contacts = np.zeros((0, 2), np.int64)
+        st["open"] = (upd["open_rel"], opened)
+    return C.FlatComplex(scene=cx.scene, eps=cx.eps, arrays=cx.arrays, state=st,
+                         blockers=upd["blockers"].astype(np.int32))

@@ -87,6 +87,13 @@ class Scene:
                                                     self.radius[k]) for k in range(self.n)], np.uint64)
         return self._hashes
 
+    def name_hashes(self) -> np.ndarray:
+        """(n,) uint64: a digest of each object's name (stable when others move, appear or
+        vanish), cached."""
+        if not hasattr(self, "_name_hashes"):
+            self._name_hashes = np.array([_text_hash(x) for x in self.names], np.uint64).reshape(-1)
+        return self._name_hashes
+
     def perimeters(self) -> np.ndarray:
         """(n,) float64: boundary length L_k (= measure of the lines meeting O_k)."""
         return self.pieces()[3]
@@ -109,18 +116,24 @@ class Scene:
         return v.copy()
 
     def moved(self, k, dx, dy) -> "Scene":
-        """A copy of the scene with object k translated by (dx, dy) (no overlap check).
-
-        The cached support pieces and bounding boxes are carried over with object k's
-        entries alone recomputed (from its new corners, as a fresh scene would), so a move
-        costs O(size of k), not O(n)."""
+        """A copy of the scene with object k translated by (dx, dy) (no overlap check);
+        caches carried over (:meth:`replaced`), so a move costs O(size of k), not O(n)."""
         s, e = int(self.vert_start[k]), int(self.vert_start[k + 1])
-        verts = self.verts.copy()
-        verts[s:e] += (dx, dy)
-        out = Scene(self.kind.copy(), self.vert_start.copy(), verts, self.radius.copy(),
+        return self.replaced(k, self.verts[s:e] + (dx, dy), self.radius[k])
+
+    def replaced(self, k, verts_k, radius_k) -> "Scene":
+        """A copy with object k's support points (same count) and radius replaced.
+
+        The cached support pieces, digests and bounding boxes are carried over with object
+        k's entries alone recomputed (from its new corners, as a fresh scene would)."""
+        s, e = int(self.vert_start[k]), int(self.vert_start[k + 1])
+        verts, radius = self.verts.copy(), self.radius.copy()
+        verts[s:e] = verts_k
+        radius[k] = radius_k
+        out = Scene(self.kind.copy(), self.vert_start.copy(), verts, radius,
                     self.emission.copy(), self.reflectance.copy(), list(self.names))
         if hasattr(self, "_pieces"):
-            mine = support_pieces(np.array([0, e - s]), verts[s:e], self.radius[k:k + 1])
+            mine = support_pieces(np.array([0, e - s]), verts[s:e], radius[k:k + 1])
             pieces = [x.copy() for x in self._pieces]
             for whole, part in zip(pieces[:3], mine[:3]):
                 whole[s:e] = part
@@ -128,12 +141,51 @@ class Scene:
             out._pieces = tuple(pieces)
         if hasattr(self, "_hashes"):
             out._hashes = self._hashes.copy()
-            out._hashes[k] = _geometry_hash(verts[s:e], self.radius[k])
+            out._hashes[k] = _geometry_hash(verts[s:e], radius[k])
+        if hasattr(self, "_name_hashes"):
+            out._name_hashes = self._name_hashes
         if hasattr(self, "_bboxes"):
             bb = self._bboxes.copy()
-            r = self.radius[k]
-            bb[k] = np.concatenate([verts[s:e].min(axis=0) - r, verts[s:e].max(axis=0) + r])
+            bb[k] = np.concatenate([verts[s:e].min(axis=0) - radius[k], verts[s:e].max(axis=0) + radius[k]])
             out._bboxes = bb
+        return out
+
+    def selected(self, keep) -> "Scene":
+        """A copy holding the objects ``keep`` (ascending indices) alone, in that order,
+        caches carried over per object (an object's cached entries depend on it alone)."""
+        keep = np.asarray(keep, np.int64)
+        size = np.diff(self.vert_start)[keep]
+        vs = np.zeros(keep.size + 1, np.int64)
+        np.cumsum(size, out=vs[1:])
+        vi = np.repeat(self.vert_start[keep] - vs[:-1], size) + np.arange(vs[-1])
+        out = Scene(self.kind[keep], vs, self.verts[vi], self.radius[keep], self.emission[keep],
+                    self.reflectance[keep], [self.names[k] for k in keep])
+        if hasattr(self, "_pieces"):
+            out._pieces = tuple(x[vi] for x in self._pieces[:3]) + (self._pieces[3][keep],)
+        if hasattr(self, "_hashes"):
+            out._hashes = self._hashes[keep]
+        if hasattr(self, "_name_hashes"):
+            out._name_hashes = self._name_hashes[keep]
+        if hasattr(self, "_bboxes"):
+            out._bboxes = self._bboxes[keep]
+        return out
+
+    def joined(self, other: "Scene") -> "Scene":
+        """A scene of this scene's objects followed by ``other``'s (caches carried over
+        when both have them; contacts not checked)."""
+        out = Scene(np.concatenate([self.kind, other.kind]),
+                    np.concatenate([self.vert_start, other.vert_start[1:] + self.vert_start[-1]]),
+                    np.concatenate([self.verts, other.verts]), np.concatenate([self.radius, other.radius]),
+                    np.concatenate([self.emission, other.emission]),
+                    np.concatenate([self.reflectance, other.reflectance]), list(self.names) + list(other.names))
+        if hasattr(self, "_hashes"):
+            out._hashes = np.concatenate([self._hashes, other.object_hashes()])
+        if hasattr(self, "_name_hashes"):
+            out._name_hashes = np.concatenate([self._name_hashes, other.name_hashes()])
+        if hasattr(self, "_bboxes"):
+            out._bboxes = np.concatenate([self._bboxes, other.bounding_boxes()])
+        if hasattr(self, "_pieces"):
+            out._pieces = tuple(np.concatenate([a, b]) for a, b in zip(self._pieces, other.pieces()))
         return out
 
     def contacts(self) -> np.ndarray:
@@ -153,40 +205,47 @@ class Scene:
         loses γ at each end; a circle's radius γ), so a support point of the opened
         scene names the same corner of the scene.  Convex sets shrunk into their
         interiors are disjoint when the originals only touched."""
-        bb = self.bounding_boxes()
-        diag = math.hypot(bb[:, 2].max() - bb[:, 0].min(), bb[:, 3].max() - bb[:, 1].min())
+        diag = self.diagonal()
         verts, radius = self.verts.copy(), self.radius.copy()
         for k in np.unique(self.contacts()):
             s, e = self.vert_start[k], self.vert_start[k + 1]
-            v = self.verts[s:e]
-            if self.kind[k] == CIRCLE:
-                radius[k] -= min(rel * diag, 0.25 * radius[k])
-                continue
-            edge = np.roll(v, -1, axis=0) - v
-            length = np.hypot(edge[:, 0], edge[:, 1])
-            if self.kind[k] == SEGMENT:
-                g = min(rel * diag, 0.1 * length[0])
-                t = edge[0] / length[0]
-                verts[s:e] = v + np.array([g, -g])[:, None] * t
-                continue
-            nu = np.stack([edge[:, 1], -edge[:, 0]], 1) / length[:, None]
-            width = min(np.max((v - v[j]) @ nu[j] * -1.0) for j in range(e - s))
-            g = min(rel * diag, 0.25 * width)
-            prev = np.roll(nu, 1, axis=0)
-            shift = (prev + nu) / (1.0 + np.einsum("ij,ij->i", prev, nu))[:, None]
-            # a short edge between two sharp corners vanishes when eroded too far: keep
-            # every edge's direction (halve γ until it does)
-            while np.any(np.einsum("ij,ij->i", np.roll(v - g * shift, -1, axis=0) - (v - g * shift), edge) <= 0.0):
-                g *= 0.5
-            verts[s:e] = v - g * shift
+            verts[s:e], radius[k] = self.eroded(k, rel * diag)
         out = Scene(self.kind.copy(), self.vert_start.copy(), verts, radius, self.emission.copy(),
                     self.reflectance.copy(), list(self.names))
         left = check_disjoint(out, eps=0.01 * rel * diag)
         if left.size:
-            a, b = left[0]
-            raise ViscxError(f"objects {self.names[a]!r} and {self.names[b]!r} lie along each other (two segments "
-                             "on one line, or a segment inside a polygon's edge twice): they overlap")
+            raise_along(self, *left[0])
         return out
+
+    def diagonal(self) -> float:
+        """The diagonal of the scene's bounding box."""
+        bb = self.bounding_boxes()
+        return math.hypot(bb[:, 2].max() - bb[:, 0].min(), bb[:, 3].max() - bb[:, 1].min())
+
+    def eroded(self, k, gap):
+        """Object k shrunk by ``gap`` (at most a quarter of its width): (support points
+        (m, 2), radius), as :meth:`opened` erodes it (it depends on the object and the gap
+        alone)."""
+        s, e = self.vert_start[k], self.vert_start[k + 1]
+        v = self.verts[s:e]
+        if self.kind[k] == CIRCLE:
+            return v.copy(), self.radius[k] - min(gap, 0.25 * self.radius[k])
+        edge = np.roll(v, -1, axis=0) - v
+        length = np.hypot(edge[:, 0], edge[:, 1])
+        if self.kind[k] == SEGMENT:
+            g = min(gap, 0.1 * length[0])
+            t = edge[0] / length[0]
+            return v + np.array([g, -g])[:, None] * t, self.radius[k]
+        nu = np.stack([edge[:, 1], -edge[:, 0]], 1) / length[:, None]
+        width = min(np.max((v - v[j]) @ nu[j] * -1.0) for j in range(e - s))
+        g = min(gap, 0.25 * width)
+        prev = np.roll(nu, 1, axis=0)
+        shift = (prev + nu) / (1.0 + np.einsum("ij,ij->i", prev, nu))[:, None]
+        # a short edge between two sharp corners vanishes when eroded too far: keep
+        # every edge's direction (halve γ until it does)
+        while np.any(np.einsum("ij,ij->i", np.roll(v - g * shift, -1, axis=0) - (v - g * shift), edge) <= 0.0):
+            g *= 0.5
+        return v - g * shift, self.radius[k]
 
     def perturbed(self, rel=1e-7) -> "Scene":
         """A copy with every object rotated about its centre and translated by tiny,
@@ -226,6 +285,19 @@ class Scene:
         return {"objects": objs}
 
 
+def raise_along(scene, a, b):
+    """The error of two objects that still meet once opened: they lie along each other."""
+    raise ViscxError(f"objects {scene.names[a]!r} and {scene.names[b]!r} lie along each other (two segments "
+                     "on one line, or a segment inside a polygon's edge twice): they overlap")
+
+
+def _text_hash(text):
+    """uint64 digest of a string."""
+    import hashlib
+
+    return np.frombuffer(hashlib.blake2b(text.encode("utf-8", "surrogatepass"), digest_size=8).digest(), np.uint64)[0]
+
+
 def _geometry_hash(v, r):
     """uint64 digest of one object's support points and radius."""
     import hashlib
@@ -249,32 +321,40 @@ def support_pieces(vert_start, verts, radius):
     A, cumG, cumS : (V,) float64 ; perimeter : (n,) float64
     """
     V = verts.shape[0]
-    A = np.zeros(V)
-    cumG = np.zeros(V)
-    cumS = np.zeros(V)
     n = vert_start.shape[0] - 1
+    size = np.diff(vert_start)
+    start = vert_start[:-1]
+    # all objects at once (numpy over vertices; the running sums by position within each
+    # object, so every object's values are what it gets alone: a moved object's pieces are
+    # recomputed by itself, bit-identical)
+    owner = np.repeat(np.arange(n), size)
+    j = np.arange(V) - start[owner]
+    nxt = np.where(j + 1 < size[owner], np.arange(V) + 1, start[owner])
+    prv = np.where(j > 0, np.arange(V) - 1, start[owner] + size[owner] - 1)
+    edge = verts[nxt] - verts                                   # edge j: v_j -> v_{j+1}
+    alpha = np.arctan2(-edge[:, 0], edge[:, 1])                 # outward normal angle (dy, -dx)
+    # corner j is active between the normals of edges j-1 and j
+    ext = np.mod(alpha - alpha[prv], TWO_PI)                    # exterior angle at corner j
+    a0 = np.mod(alpha[start + size - 1], TWO_PI)                # start of piece 0
+    elen = np.hypot(edge[:, 0], edge[:, 1])
+    A, cumG, cumS = np.zeros(V), np.zeros(V), np.zeros(V)
     perimeter = np.zeros(n)
-    for k in range(n):
-        s, e = vert_start[k], vert_start[k + 1]
-        m = e - s
-        if m == 1:
-            perimeter[k] = TWO_PI * radius[k]
-            continue
-        v = verts[s:e]
-        edge = np.roll(v, -1, axis=0) - v                      # edge j: v_j -> v_{j+1}
-        alpha = np.arctan2(-edge[:, 0], edge[:, 1])            # outward normal angle (dy, -dx)
-        # corner j is active between the normals of edges j-1 and j
-        ext = np.mod(alpha - np.roll(alpha, 1), TWO_PI)        # exterior angle at corner j
-        a0 = np.mod(alpha[-1], TWO_PI)                          # start of piece 0
-        Aj = a0 + np.concatenate([[0.0], np.cumsum(ext[:-1])])
-        A[s:e] = Aj
-        # ∫ v_j·e(φ) dφ = v_j·(sin φ, −cos φ) between the piece ends
-        b = Aj + ext
-        piece = v[:, 0] * (np.sin(b) - np.sin(Aj)) - v[:, 1] * (np.cos(b) - np.cos(Aj))
-        cumG[s:e] = np.concatenate([[0.0], np.cumsum(piece[:-1])])
-        elen = np.hypot(edge[:, 0], edge[:, 1])
-        cumS[s:e] = np.concatenate([[0.0], np.cumsum(elen[:-1])])  # corner j after edges 0..j-1
-        perimeter[k] = elen.sum()
+    poly = size > 1
+    for i in range(1, int(size.max()) if V else 0):             # Σ of the exterior angles before corner i
+        at = start[size > i] + i
+        A[at] = A[at - 1] + ext[at - 1]
+    A += a0[owner]
+    # ∫ v_j·e(φ) dφ = v_j·(sin φ, −cos φ) between the piece ends
+    b = A + ext
+    piece = verts[:, 0] * (np.sin(b) - np.sin(A)) - verts[:, 1] * (np.cos(b) - np.cos(A))
+    for i in range(1, int(size.max()) if V else 0):
+        at = start[size > i] + i
+        cumG[at] = cumG[at - 1] + piece[at - 1]
+        cumS[at] = cumS[at - 1] + elen[at - 1]                  # corner j after edges 0..j-1
+    perimeter[poly] = [elen[a:b].sum() for a, b in zip(start[poly], (start + size)[poly])]
+    perimeter[~poly] = TWO_PI * radius[~poly]
+    A[~poly[owner]] = 0.0
+    cumG[~poly[owner]] = 0.0
     return A, cumG, cumS, perimeter
 
 
@@ -478,6 +558,8 @@ def _separation(scene, i, j):
     ax = np.concatenate(axes)
     nrm = np.hypot(ax[:, 0], ax[:, 1])
     ax = ax[nrm > 0] / nrm[nrm > 0, None]
+    if ax.shape[0] == 0:  # two circles with one centre: no axis separates them
+        return -(ri + rj)
     pi = vi @ ax.T
     pj = vj @ ax.T
     gap1 = pj.min(axis=0) - rj - (pi.max(axis=0) + ri)

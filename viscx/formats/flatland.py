@@ -20,6 +20,11 @@ Root attributes: ``format``, ``format_version``, ``viscx_version``, ``epsilon``,
   ``vert_start``/``vert``/``vert_sign``).  The unbounded face (lines missing every
   object) has area ``inf``.
 - ``formfactors/``: ``F_area`` and ``F_strings`` (n, n+1), column n = the blue sky.
+- ``update/``: what a local move / insert / remove needs beyond these (the topology's state
+  in canonical form, the blocker table, the re-scanned degenerate lines, the opening gap;
+  :func:`viscx.flatland.dynamic.update_arrays`, checked by
+  :func:`viscx.flatland.dynamic.check_update_arrays`; docs/flatland.md).  Optional: a
+  file without it is updated by deriving the state again.
 - ``mesh/`` (optional, after ``viscx flatland radiosity``): the discontinuity mesh and the
   radiosity solution (see :mod:`viscx.flatland.mesh`), with ``elem_H`` the irradiance,
   ``elem_edge`` each element's boundary edge (segment side) and ``sky_radiance``.
@@ -59,6 +64,7 @@ def write_hdf5(path, cx, mesh=None):
     import h5py
 
     from viscx import __version__
+    from viscx.flatland.dynamic import update_arrays
 
     with atomic_path(path, stream=False) as tmp:
         with h5py.File(tmp, "w", track_order=False) as f:
@@ -81,6 +87,12 @@ def write_hdf5(path, cx, mesh=None):
             gf = f.create_group("formfactors")
             for k in ("F_area", "F_strings"):
                 gf.create_dataset(k, data=cx.arrays[k], track_times=False)
+            upd = update_arrays(cx)
+            if upd is not None:
+                gu = f.create_group("update")
+                for k in sorted(upd):
+                    big = dict(compression="gzip", compression_opts=1, shuffle=True) if k == "blockers" else {}
+                    gu.create_dataset(k, data=upd[k], track_times=False, **big)
             if mesh is not None:
                 gm = f.create_group("mesh")
                 for k in sorted(mesh):
@@ -91,8 +103,6 @@ def read_hdf5(path, with_mesh=False):
     """Read a flatland HDF5 file back into a :class:`FlatComplex` (and the mesh dict),
     checked (:func:`check_complex`; HDF5 structure by :func:`viscx.formats.validate.check_structure`)."""
     import h5py
-
-    from viscx.flatland.complex import FlatComplex
 
     register_input(path)
     try:
@@ -123,9 +133,20 @@ def read_hdf5(path, with_mesh=False):
         mesh = None
         if "mesh" in f:
             mesh = {k: _numbers(c, f["mesh"], k) for k in f["mesh"]}
+        upd = {k: _numbers(c, f["update"], k) for k in f["update"]} if isinstance(f.get("update"), h5py.Group) else None
         eps = f.attrs.get("epsilon")
-    cx = FlatComplex(scene=check_complex(c, scene, names, arrays, eps), eps=float(eps), arrays=arrays)
+    cx = _complex(c, scene, names, arrays, eps, upd)
     return (cx, mesh) if with_mesh else cx
+
+
+def _complex(c, scene, names, arrays, eps, upd):
+    """The checked :class:`FlatComplex` of a file, with its checked update group."""
+    from viscx.flatland.complex import FlatComplex
+    from viscx.flatland.dynamic import check_update_arrays
+
+    flat = check_complex(c, scene, names, arrays, eps)
+    stored = None if upd is None else check_update_arrays(c, arrays, upd, flat.n)
+    return FlatComplex(scene=flat, eps=float(eps), arrays=arrays, stored=stored)
 
 
 _SCENE_DIMS = {"kind": ("n",), "vert_start": ("n+1",), "verts": ("V", 2), "radius": ("n",), "emission": ("n",),
@@ -222,6 +243,8 @@ def write_msgpack(path, cx, mesh=None):
     raw array bytes, numpy dtype strings)."""
     import msgpack
 
+    from viscx.flatland.dynamic import update_arrays
+
     doc = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "epsilon": float(cx.eps),
         "scene": {k: _pack_array(v) for k, v in _scene_arrays(cx.scene).items()},
@@ -229,6 +252,9 @@ def write_msgpack(path, cx, mesh=None):
         "arrays": {k: _pack_array(cx.arrays[k]) for k in sorted(cx.arrays)},
         "mesh": None if mesh is None else {k: _pack_array(mesh[k]) for k in sorted(mesh)},
     }
+    upd = update_arrays(cx)
+    if upd is not None:
+        doc["update"] = {k: _pack_array(upd[k]) for k in sorted(upd)}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(msgpack.packb(doc, use_bin_type=True))
@@ -237,8 +263,6 @@ def write_msgpack(path, cx, mesh=None):
 def read_msgpack(path, with_mesh=False):
     """Read a flatland msgpack file, checked as :func:`read_hdf5` checks its HDF5 twin."""
     import msgpack
-
-    from viscx.flatland.complex import FlatComplex
 
     register_input(path)
     try:
@@ -274,9 +298,14 @@ def read_msgpack(path, with_mesh=False):
         if not isinstance(mesh, dict):
             c.fail("mesh", "not a map of arrays")
         mesh = {str(k): _unpack_array(v, c, f"mesh/{k}") for k, v in mesh.items()}
+    upd = doc.get("update")
+    if upd is not None:
+        if not isinstance(upd, dict):
+            c.fail("update", "not a map of arrays")
+        upd = {str(k): _unpack_array(v, c, f"update/{k}") for k, v in upd.items()}
     eps = doc.get("epsilon")
     eps = eps if isinstance(eps, (int, float)) and not isinstance(eps, bool) else repr(eps)
-    cx = FlatComplex(scene=check_complex(c, scene, names, arrays, eps), eps=float(eps), arrays=arrays)
+    cx = _complex(c, scene, names, arrays, eps, upd)
     return (cx, mesh) if with_mesh else cx
 
 

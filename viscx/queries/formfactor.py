@@ -63,6 +63,7 @@ from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon
 from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
 from viscx.geometry.polygon import newell_normal, plane_basis
+from viscx.queries.kinks import kink_segments
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -478,7 +479,50 @@ def _clip_convex(piece, poly, eps):
     return outside, rest
 
 
-def emitter_cells(scene, face, side):
+def cut_along(pieces, seg, eps):
+    """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
+    a piece is cut by the line of a segment when the line crosses its interior (more than
+    ``eps`` either side) along a chord that overlaps the segment by more than ``eps``.
+    Each piece is tested against all the segments at once; the first one that cuts it
+    splits it, and both parts go on with the segments after it (the result is that of
+    cutting every piece by each segment in turn, in the same order).
+
+    Returns
+    -------
+    list of (m, 2) float64
+    """
+    if not len(seg):
+        return list(pieces)
+    a = seg[:, 0]
+    length = np.linalg.norm(seg[:, 1] - a, axis=1)
+    ok = length > eps
+    a, d, length = a[ok], (seg[ok, 1] - a[ok]) / length[ok, None], length[ok]
+    out = []
+    stack = [(p, 0) for p in pieces[::-1]]
+    while stack:
+        p, first = stack.pop()
+        rel = p[None, :, :] - a[first:, None, :]  # (s, k, 2)
+        s = rel[..., 0] * d[first:, None, 1] - rel[..., 1] * d[first:, None, 0]
+        t = np.einsum("skj,sj->sk", rel, d[first:])
+        s_r, t_r = np.roll(s, -1, axis=1), np.roll(t, -1, axis=1)
+        cross = (s > 0) != (s_r > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tc = np.where(cross & (s != s_r), t + (t_r - t) * s / (s - s_r), np.nan)
+        with np.errstate(invalid="ignore"):
+            lo = np.fmax(np.nanmin(np.where(cross, tc, np.inf), axis=1), 0.0)
+            hi = np.fmin(np.nanmax(np.where(cross, tc, -np.inf), axis=1), length[first:])
+        hit = (s.max(axis=1) > eps) & (s.min(axis=1) < -eps) & (hi - lo > eps)
+        k = np.flatnonzero(hit)
+        if not len(k):
+            out.append(p)
+            continue
+        i = first + int(k[0])
+        parts = [q for q in _cut_convex(p, a[i], d[i], eps) if q is not None]
+        stack.extend((q, i + 1) for q in parts[::-1])
+    return out
+
+
+def emitter_cells(scene, face, side, kinks=False):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -486,6 +530,9 @@ def emitter_cells(scene, face, side):
     estimate assumes it), and graded along the hovering outlines (:func:`hover_segments`;
     a convex outline whose every edge hovers by rings around it, :func:`hover_rings`).
     Depends on the emitter only: computed once per side and shared by all its pairs.
+    With ``kinks`` the cells are cut along the D1 lines of every receiver too
+    (:func:`viscx.queries.kinks.kink_segments`: the matrix row, whose columns are all the
+    receivers), so that every integrand is C1 on every cell.
 
     Returns
     -------
@@ -525,26 +572,10 @@ def emitter_cells(scene, face, side):
                     if part is not None:
                         out.append(part)
         pieces = out
-    seg = to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)]))
-    for a, b in seg:
-        length = np.linalg.norm(b - a)
-        d = (b - a) / length
-        out = []
-        for p in pieces:
-            s = (p[:, 0] - a[0]) * d[1] - (p[:, 1] - a[1]) * d[0]
-            t = (p - a) @ d
-            # the segment's line crosses the piece's interior, within the segment's extent
-            if s.max() > eps and s.min() < -eps and t.max() > eps and t.min() < length - eps:
-                chord = []
-                for k in range(len(p)):
-                    r = (k + 1) % len(p)
-                    if (s[k] > 0) != (s[r] > 0) and s[k] != s[r]:
-                        chord.append(t[k] + (t[r] - t[k]) * s[k] / (s[k] - s[r]))
-                if chord and min(max(chord), length) - max(min(chord), 0.0) > eps:
-                    out.extend(q for q in _cut_convex(p, a, d, eps) if q is not None)
-                    continue
-            out.append(p)
-        pieces = out
+    seg = [contact_segments(scene, face, side), _loop_segments(n_h, lines)]
+    if kinks:
+        seg.append(kink_segments(scene, face, side))
+    pieces = cut_along(pieces, to2(np.concatenate(seg)), eps)
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
@@ -1266,92 +1297,139 @@ def scene_polygons(scene):
     return scene.cached("formfactor_polygons", build)
 
 
+def _degree2_weights(a):
+    """Weights (7,) on Radon's nodes of the degree-2 rule on the centroid and the orbit
+    (a, a, 1 − 2a) (the second moments: w₀/9 + w₁ Σ λ₁² = 1/6 with w₀ + 3 w₁ = 1)."""
+    w1 = (1 / 18) / (2 * a * a + (1 - 2 * a) ** 2 - 1 / 3)
+    out = np.zeros(7)
+    out[0] = 1 - 3 * w1
+    out[1:4] = w1 if a == _A else 0.0
+    out[4:7] = w1 if a == _C else 0.0
+    return out
+
+
+#: Two degree-2 rules embedded in Radon's (its centroid with either orbit): the differences
+#: of Radon's rule from them are null rules of degree 2 (:class:`RowCubature`).
+NULL_RULES = np.stack([RULE_WEIGHTS - _degree2_weights(_A), RULE_WEIGHTS - _degree2_weights(_C)], axis=1)
+
+
 class RowCubature:
-    """The adaptive cubature of :class:`Cubature` for a vector integrand: one value per
-    receiver column at each point, each column with its own budget. Every triangle is
-    evaluated on the same three levels (its rule, 4 children, 16 grandchildren); a column's
-    estimate is the sum of its triangles' estimates (:meth:`Cubature.estimates`, column by
-    column), and while some column's exceeds its budget, that column's triangles with the
-    largest estimates are split (until what is left is half its budget). A point is
-    evaluated once for all receivers.
+    """Adaptive cubature of a vector integrand (one value per receiver column at each point,
+    each column with its own budget) over triangles on which every column is C1: the
+    triangles of the emitter's cells cut along the contact (D0) and kink (D1) lines
+    (:func:`emitter_cells` with ``kinks``), so that what is left inside them is smooth up to
+    the D2 traces, across which the integrands' second derivatives jump.
+
+    A leaf T is on one of two levels:
+
+    * **its rule only** (7 points): the value is Radon's degree-5 rule Q, the estimate the
+      larger difference of Q from the two degree-2 rules on subsets of its nodes
+      (:data:`NULL_RULES`), i.e. about the error of a degree-2 rule: O(h³) against Q's
+      O(h⁶) where the integrand is smooth and O(h⁴) where a D2 trace crosses T;
+    * **with its four midpoint children** (28 more points): the value is their sum S,
+      the estimate ``|Q − S|``. Halving the triangles divides the rule's error along a
+      D2 trace by ~8 and elsewhere by ~64, so S's error is ≤ 1/7 of ``|Q − S|``
+      (= |(I − Q) − (I − S)|) wherever the rule is in its asymptotic regime.
+
+    Both are honest only where no kink line crosses T: a kink (D1) can clip a corner of T
+    between the nodes of every level, which then agree while all are off (the reason for
+    the three levels of :class:`Cubature`, whose cells are not cut along kinks); here no
+    kink line crosses a leaf. A feature smaller than the nodes' spacing (a small shadow
+    lying between them) is what the first split guards against (``min_size``).
+
+    While some column's summed estimate exceeds its budget, that column's leaves with the
+    largest estimates are refined (until what is left is half its budget): a leaf on its
+    rule only gets its children evaluated; a leaf with its children is replaced by them,
+    each on its rule only (nothing evaluated: their rules and null rules are known). A
+    point is evaluated once for all receivers.
 
     Parameters
     ----------
     integrand : callable
         ``integrand(points (m, 3)) -> (m, R) float64``.
-    unresolved : callable, optional
-        ``unresolved(tri (g, 3, 3)) -> (g,) float64``, added to every column's estimate.
     """
 
-    def __init__(self, integrand, unresolved=None):
+    def __init__(self, integrand):
         self.integrand = integrand
-        self.unresolved = unresolved
         self.evaluations = 0
 
     def rule(self, tri, width):
-        """(g, R) float64: Radon's rule on each triangle."""
-        out = np.zeros((len(tri), width))
+        """Radon's rule on each triangle and its null-rule estimate: ``q, e`` (g, R) float64."""
+        q, e = np.zeros((len(tri), width)), np.zeros((len(tri), width))
         area = triangle_areas(tri)
         chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
         for lo in range(0, len(tri), chunk):
             part = tri[lo:lo + chunk]
             pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-            values = self.integrand(np.ascontiguousarray(pts))
+            values = self.integrand(np.ascontiguousarray(pts)).reshape(len(part), 7, -1)
             self.evaluations += len(pts)
-            out[lo:lo + chunk] = np.einsum("grc,r->gc", values.reshape(len(part), 7, -1), RULE_WEIGHTS) * area[lo:lo + chunk, None]
-        return out
-
-    def estimates(self, tri, q, kq, gq):
-        """(g, R): :meth:`Cubature.estimates` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
-        err, g_sum = three_level_error(q, kq, gq)
-        if self.unresolved is not None and len(tri):
-            extra = np.minimum(self.unresolved(tri), triangle_areas(tri))
-            err = np.maximum(err, extra[:, None] * (np.abs(g_sum) > 0))
-        return err
+            a = area[lo:lo + chunk, None]
+            q[lo:lo + chunk] = np.einsum("grc,r->gc", values, RULE_WEIGHTS) * a
+            e[lo:lo + chunk] = np.abs(np.einsum("grc,rn->gcn", values, NULL_RULES)).max(axis=2) * a
+        return q, e
 
     def integrate(self, tri, budget, min_size=0.0):
         """∫ over the triangles (g, 3, 3) of every column; ``budget`` (R,) the targets on the
-        columns' estimates. Returns ``value, error`` (R,) and the triangles evaluated."""
+        columns' estimates; triangles larger than ``min_size`` (the side of a square of
+        twice their area) are split first. Returns ``value, error`` (R,) and the triangles
+        evaluated."""
         width = len(budget)
         while len(tri) and min_size > 0:
             long = np.sqrt(2 * triangle_areas(tri)) > min_size
             if not np.any(long):
                 break
             tri = np.concatenate([tri[~long], split4(tri[long]).reshape(-1, 3, 3)])
-        q = self.rule(tri, width)
-        K = split4(tri).reshape(-1, 3, 3)
-        kq = self.rule(K, width)
-        G = split4(K).reshape(-1, 3, 3)
-        gq = self.rule(G, width)
-        cells = 21 * len(tri)
+        q, e = self.rule(tri, width)
+        # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
+        K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
+        kid_of = np.full(len(tri), -1, np.int64)
+        cells = len(tri)
         four = np.arange(4)
-        for _ in range(200):
-            err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
+        for _ in range(400):
+            value, err = self._leaves(q, e, kid_of, kq)
             total = err.sum(axis=0)
             over = np.flatnonzero(total > budget)
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
-            split = np.zeros(len(tri), bool)
+            pick = np.zeros(len(tri), bool)
             for c in over:
                 order = np.argsort(-err[:, c], kind="stable")
                 rest = total[c] - np.cumsum(err[order, c])
-                split[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
-            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
-            child = (4 * rows[:, None] + four).reshape(-1)
-            grand = (4 * child[:, None] + four).reshape(-1)
-            new_G = split4(G[grand]).reshape(-1, 3, 3)
-            new_gq = self.rule(new_G, width)
-            cells += 16 * len(child)
-            k_keep = (4 * keep[:, None] + four).reshape(-1)
-            g_keep = (16 * keep[:, None] + np.arange(16)).reshape(-1)
-            tri = np.concatenate([tri[keep], K[child]])
-            q = np.concatenate([q[keep], kq[child]])
-            K = np.concatenate([K[k_keep], G[grand]])
-            kq = np.concatenate([kq[k_keep], gq[grand]])
-            G = np.concatenate([G[g_keep], new_G])
-            gq = np.concatenate([gq[g_keep], new_gq])
-        err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
-        return gq.sum(axis=0), err.sum(axis=0), cells
+                pick[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+            deep = kid_of >= 0
+            # leaves on their rule only: evaluate their children
+            grow = np.flatnonzero(pick & ~deep)
+            new_K = split4(tri[grow]).reshape(-1, 3, 3)
+            new_kq, new_ke = self.rule(new_K, width)
+            cells += len(new_K)
+            kid_of[grow] = len(K) // 4 + np.arange(len(grow))
+            K, kq, ke = np.concatenate([K, new_K]), np.concatenate([kq, new_kq]), np.concatenate([ke, new_ke])
+            # leaves with their children: replaced by them
+            split = pick & deep
+            if np.any(split):
+                rows = (4 * kid_of[split][:, None] + four).reshape(-1)
+                keep = ~split
+                tri = np.concatenate([tri[keep], K[rows]])
+                q, e = np.concatenate([q[keep], kq[rows]]), np.concatenate([e[keep], ke[rows]])
+                kid_of = np.concatenate([kid_of[keep], np.full(len(rows), -1, np.int64)])
+                # drop the children no leaf refers to any more (bounded memory)
+                live = np.flatnonzero(kid_of >= 0)
+                idx = (4 * kid_of[live][:, None] + four).reshape(-1)
+                K, kq, ke = K[idx], kq[idx], ke[idx]
+                kid_of[live] = np.arange(len(live))
+        value, err = self._leaves(q, e, kid_of, kq)
+        return value.sum(axis=0), err.sum(axis=0), cells
+
+    @staticmethod
+    def _leaves(q, e, kid_of, kq):
+        """Each leaf's value and estimate (g, R): S and |Q − S| where its children are known,
+        else Q and its null-rule estimate."""
+        value, err = q.copy(), e.copy()
+        deep = np.flatnonzero(kid_of >= 0)
+        if len(deep):
+            s = kq.reshape(-1, 4, q.shape[1])[kid_of[deep]].sum(axis=1)
+            value[deep], err[deep] = s, np.abs(q[deep] - s)
+        return value, err
 
 
 def coplanar_faces(scene, face):
@@ -1383,7 +1461,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     if not len(fj) and not len(coplanar_faces(scene, face)):
         # nothing in front of the side and nothing lying on it: it sees the sky, exactly
         return (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {"none": 2 * len(faces)}, 1.0 if sky else 0.0, 0.0)
-    cells = emitter_cells(scene, face, side)
+    cells = emitter_cells(scene, face, side, kinks=True)
     width = 2 * n + 1  # the sides of the faces, then the sky
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]

@@ -1408,9 +1408,15 @@ class RowCubature:
             split = pick & deep
             if np.any(split):
                 rows = (4 * kid_of[split][:, None] + four).reshape(-1)
+                # the children share their parent's estimate |Q − S| (which bounds the error
+                # of S, the sum of their rules) in proportion to their null rules: the total
+                # stays what it was, and the next round deepens the children that carry most
+                share = ke[rows].reshape(-1, 4, width) + 1e-300
+                parent = np.abs(q[split] - kq[rows].reshape(-1, 4, width).sum(axis=1))
+                kid_e = (share / share.sum(axis=1, keepdims=True) * parent[:, None, :]).reshape(-1, width)
                 keep = ~split
                 tri = np.concatenate([tri[keep], K[rows]])
-                q, e = np.concatenate([q[keep], kq[rows]]), np.concatenate([e[keep], ke[rows]])
+                q, e = np.concatenate([q[keep], kq[rows]]), np.concatenate([e[keep], kid_e])
                 kid_of = np.concatenate([kid_of[keep], np.full(len(rows), -1, np.int64)])
                 # drop the children no leaf refers to any more (bounded memory)
                 live = np.flatnonzero(kid_of >= 0)

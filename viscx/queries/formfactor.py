@@ -312,7 +312,8 @@ def _cut_convex(piece, a, d, eps):
 
 
 def _area2(p):
-    return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(x[:-1] @ y[1:] - x[1:] @ y[:-1] + x[-1] * y[0] - x[0] * y[-1])
 
 
 def _front_edges(scene, face, side, margin):
@@ -479,47 +480,56 @@ def _clip_convex(piece, poly, eps):
     return outside, rest
 
 
+def _padded(pieces):
+    """Convex 2-D pieces as one array (N, K, 2), each repeated from its last vertex up to K,
+    and the index of each vertex's successor (N, K)."""
+    count = np.array([len(p) for p in pieces], np.int64)
+    k = int(count.max())
+    idx = np.minimum(np.arange(k)[None, :], count[:, None] - 1)
+    flat = np.concatenate(pieces)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    nxt = np.where(np.arange(k)[None, :] + 1 < count[:, None], np.arange(k)[None, :] + 1, 0)
+    return flat[start[:, None] + idx], nxt
+
+
 def cut_along(pieces, seg, eps):
     """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
     a piece is cut by the line of a segment when the line crosses its interior (more than
-    ``eps`` either side) along a chord that overlaps the segment by more than ``eps``.
-    Each piece is tested against all the segments at once; the first one that cuts it
-    splits it, and both parts go on with the segments after it (the result is that of
-    cutting every piece by each segment in turn, in the same order).
+    ``eps`` either side) along a chord that overlaps the segment by more than ``eps``;
+    segment after segment, each tested against all the pieces at once (the parts of a cut
+    piece take its place in the list).
 
     Returns
     -------
     list of (m, 2) float64
     """
-    if not len(seg):
-        return list(pieces)
-    a = seg[:, 0]
-    length = np.linalg.norm(seg[:, 1] - a, axis=1)
-    ok = length > eps
-    a, d, length = a[ok], (seg[ok, 1] - a[ok]) / length[ok, None], length[ok]
-    out = []
-    stack = [(p, 0) for p in pieces[::-1]]
-    while stack:
-        p, first = stack.pop()
-        rel = p[None, :, :] - a[first:, None, :]  # (s, k, 2)
-        s = rel[..., 0] * d[first:, None, 1] - rel[..., 1] * d[first:, None, 0]
-        t = np.einsum("skj,sj->sk", rel, d[first:])
-        s_r, t_r = np.roll(s, -1, axis=1), np.roll(t, -1, axis=1)
-        cross = (s > 0) != (s_r > 0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tc = np.where(cross & (s != s_r), t + (t_r - t) * s / (s - s_r), np.nan)
-        with np.errstate(invalid="ignore"):
-            lo = np.fmax(np.nanmin(np.where(cross, tc, np.inf), axis=1), 0.0)
-            hi = np.fmin(np.nanmax(np.where(cross, tc, -np.inf), axis=1), length[first:])
-        hit = (s.max(axis=1) > eps) & (s.min(axis=1) < -eps) & (hi - lo > eps)
-        k = np.flatnonzero(hit)
-        if not len(k):
-            out.append(p)
+    pieces = list(pieces)
+    if not len(seg) or not pieces:
+        return pieces
+    v, nxt = _padded(pieces)
+    rows = np.arange(len(pieces))[:, None]
+    for a, b in seg:
+        length = float(np.linalg.norm(b - a))
+        if length <= eps:
             continue
-        i = first + int(k[0])
-        parts = [q for q in _cut_convex(p, a[i], d[i], eps) if q is not None]
-        stack.extend((q, i + 1) for q in parts[::-1])
-    return out
+        d = (b - a) / length
+        rel = v - a
+        s = rel[..., 0] * d[1] - rel[..., 1] * d[0]  # (N, K): side of the line
+        t = rel @ d  # along the segment
+        s_r, t_r = s[rows, nxt], t[rows, nxt]
+        cross = ((s > 0) != (s_r > 0)) & (s != s_r)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tc = t + (t_r - t) * s / (s - s_r)
+        lo = np.maximum(np.where(cross, tc, np.inf).min(axis=1), 0.0)
+        hi = np.minimum(np.where(cross, tc, -np.inf).max(axis=1), length)
+        hit = np.flatnonzero((s.max(axis=1) > eps) & (s.min(axis=1) < -eps) & (hi - lo > eps))
+        if not len(hit):
+            continue
+        for i in hit[::-1]:
+            pieces[i:i + 1] = [q for q in _cut_convex(pieces[i], a, d, eps) if q is not None]
+        v, nxt = _padded(pieces)
+        rows = np.arange(len(pieces))[:, None]
+    return pieces
 
 
 def emitter_cells(scene, face, side, kinks=False):

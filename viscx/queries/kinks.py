@@ -130,4 +130,40 @@ def kink_segments(scene, face, side):
     overlap = np.minimum(ang_a[..., 1], ang_b[..., 1]) - np.maximum(ang_a[..., 0], ang_b[..., 0])
     live = (overlap > 1e-12) & (t1 - t0 > tiny)
     k, j = np.nonzero(live)
-    return np.stack([o[k] + t0[k, j, None] * dl[k], o[k] + t1[k, j, None] * dl[k]], axis=1)
+    return merge_collinear(o[k] + t0[k, j, None] * dl[k], o[k] + t1[k, j, None] * dl[k],
+                           np.mean(scene.face_loops(face)[0], axis=0), scene.diagonal)
+
+
+def merge_collinear(a, b, centre, scale):
+    """Segments a → b ((k, 3) each) merged where they lie on one line (direction and
+    position equal to 1e-9 of ``scale``) and overlap: the union of the pieces of each line
+    (many edge pairs span one plane: the edges of one face, parallel edges of one box).
+
+    Returns
+    -------
+    (s, 2, 3) float64
+    """
+    if not len(a):
+        return np.zeros((0, 2, 3))
+    d = b - a
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    # one direction per line: the first non-zero coordinate positive
+    first = np.argmax(np.abs(d) > 1e-12, axis=1)
+    d *= np.sign(d[np.arange(len(d)), first])[:, None]
+    foot = a + np.einsum("kj,kj->k", centre - a, d)[:, None] * d  # the line's point nearest the centre
+    key = np.round(np.concatenate([d, (foot - centre) / scale], axis=1) * 1e9).astype(np.int64)
+    _, line = np.unique(key, axis=0, return_inverse=True)
+    line = line.reshape(-1)
+    ta, tb = np.einsum("kj,kj->k", a - foot, d), np.einsum("kj,kj->k", b - foot, d)
+    t0, t1 = np.minimum(ta, tb), np.maximum(ta, tb)
+    order = np.lexsort((t0, line))
+    line, t0, t1, d, foot = line[order], t0[order], t1[order], d[order], foot[order]
+    # a piece starts a new run where its line changes or it begins past the run's end so far
+    big = 4.0 * (np.abs(t1).max() + np.abs(t0).max() + 1.0)
+    reach = np.maximum.accumulate(t1 + big * line)  # the running end within each line
+    start = np.ones(len(t0), bool)
+    start[1:] = (line[1:] != line[:-1]) | (t0[1:] + big * line[1:] > reach[:-1] + 1e-9 * scale)
+    lo = t0[start]
+    hi = np.maximum.reduceat(t1, np.flatnonzero(start))
+    d, foot = d[start], foot[start]
+    return np.stack([foot + lo[:, None] * d, foot + hi[:, None] * d], axis=1)

@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 from conftest import SAMPLES
+from test_formfactor_queries import scene_of
 
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
@@ -150,3 +151,30 @@ def test_kink_cuts_make_the_row_estimate_honest(cornell):
     assert abs(fine.sum() - _levels(cub, tri)[3].sum()) < 1e-3  # the same integral, roughly
     assert np.all(np.abs(s - fine) <= np.abs(q - s) + 1e-12)
     assert np.all(np.abs(q - fine) <= e + 1e-12)
+
+
+def _box(x0, x1, y0, y1, h):
+    """The four sides (normals out) and the top of a box standing on z = 0."""
+    return [[[x0, y0, 0], [x1, y0, 0], [x1, y0, h], [x0, y0, h]], [[x1, y0, 0], [x1, y1, 0], [x1, y1, h], [x1, y0, h]],
+            [[x1, y1, 0], [x0, y1, 0], [x0, y1, h], [x1, y1, h]], [[x0, y1, 0], [x0, y0, 0], [x0, y0, h], [x0, y1, h]],
+            [[x0, y0, h], [x1, y0, h], [x1, y1, h], [x0, y1, h]]]
+
+
+def test_row_within_its_estimates_of_a_tight_row():
+    """A unit floor with a back and a left wall and a box standing on it (its vertical edges
+    parallel to the walls' corner: kink lines through the floor): the floor's row and sky at
+    tol 1e-3 and 1e-4 are within their estimates of the row at 1e-7 (plus its estimate)."""
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    back = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]]
+    left = [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]]
+    scene = scene_of([floor, back, left] + _box(0.3, 0.6, 0.4, 0.7, 0.4))
+    faces = np.arange(scene.n_faces)
+    assert len(kink_segments(scene, 0, 1)) > 10
+    ref = ff.row_form_factors(scene, 0, 1, faces, 1e-7)
+    tight = dict(zip(ref[0], zip(ref[1], ref[2])))
+    for tol in (1e-3, 1e-4):
+        cols, F, E, _, sky, sky_e = ff.row_form_factors(scene, 0, 1, faces, tol)
+        assert set(cols) == set(tight) and E.max() <= tol
+        for c, f, e in zip(cols, F, E):
+            assert abs(f - tight[c][0]) <= e + tight[c][1], (tol, c)
+        assert abs(sky - ref[4]) <= sky_e + ref[5]

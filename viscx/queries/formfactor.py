@@ -492,16 +492,16 @@ def _padded(pieces):
     return flat[start[:, None] + idx], nxt
 
 
-def cut_along(pieces, seg, eps):
+def cut_along(pieces, seg, eps, limit=None):
     """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
     a piece is cut by the line of a segment when the line crosses its interior (more than
     ``eps`` either side) along a chord that overlaps the segment by more than ``eps``;
     segment after segment, each tested against all the pieces at once (the parts of a cut
-    piece take its place in the list).
+    piece take its place in the list). None when there would be more than ``limit`` pieces.
 
     Returns
     -------
-    list of (m, 2) float64
+    list of (m, 2) float64, or None
     """
     pieces = list(pieces)
     if not len(seg) or not pieces:
@@ -527,12 +527,21 @@ def cut_along(pieces, seg, eps):
             continue
         for i in hit[::-1]:
             pieces[i:i + 1] = [q for q in _cut_convex(pieces[i], a, d, eps) if q is not None]
+        if limit is not None and len(pieces) > limit:
+            return None
         v, nxt = _padded(pieces)
         rows = np.arange(len(pieces))[:, None]
     return pieces
 
 
-def emitter_cells(scene, face, side, kinks=False):
+#: Cells beyond which an emitter is not cut along its kink lines (:func:`emitter_cells`):
+#: the Cornell box's sides have at most 286; the floor of a 58-polygon office would have
+#: 15,596 (1,036 kink segments), more points for the start alone than the three-level
+#: cubature of the uncut cells takes (:class:`ThreeLevelRowCubature`).
+MAX_KINK_CELLS = 1_000
+
+
+def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -542,7 +551,9 @@ def emitter_cells(scene, face, side, kinks=False):
     Depends on the emitter only: computed once per side and shared by all its pairs.
     With ``kinks`` the cells are cut along the D1 lines of every receiver too
     (:func:`viscx.queries.kinks.kink_segments`: the matrix row, whose columns are all the
-    receivers), so that every integrand is C1 on every cell.
+    receivers), so that every integrand is C1 on every cell; None when that would make more
+    than ``limit`` cells (in a cluttered scene the lines are quadratic in the
+    edges and their arrangement quadratic in the lines).
 
     Returns
     -------
@@ -582,10 +593,11 @@ def emitter_cells(scene, face, side, kinks=False):
                     if part is not None:
                         out.append(part)
         pieces = out
-    seg = [contact_segments(scene, face, side), _loop_segments(n_h, lines)]
+    pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)])), eps)
     if kinks:
-        seg.append(kink_segments(scene, face, side))
-    pieces = cut_along(pieces, to2(np.concatenate(seg)), eps)
+        pieces = cut_along(pieces, to2(kink_segments(scene, face, side)), eps, limit)
+        if pieces is None:
+            return None
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
@@ -612,6 +624,21 @@ def split4(tri):
     ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
     return np.stack([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1), np.stack([ca, bc, c], 1),
                      np.stack([bc, ca, ab], 1)], axis=1)
+
+
+def first_triangles(cells, min_size):
+    """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), those larger than
+    ``min_size`` (the side of a square of twice their area) split by midpoints until none
+    is: a rule on a large triangle may miss a small shadow entirely. (Area, not length: the
+    thin cells graded along a hovering outline are as thin as the integrand's scale across
+    them and smooth along them; halving them in both directions would only multiply them.)"""
+    tri = np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1) for c in cells])
+    while len(tri) and min_size > 0:
+        long = np.sqrt(2 * triangle_areas(tri)) > min_size
+        if not np.any(long):
+            break
+        tri = np.concatenate([tri[~long], split4(tri[long]).reshape(-1, 3, 3)])
+    return tri
 
 
 def triangle_areas(tri):
@@ -1378,17 +1405,11 @@ class RowCubature:
             e[lo:lo + chunk] = np.abs(np.einsum("grc,rn->gcn", values, NULL_RULES)).max(axis=2) * a
         return q, e
 
-    def integrate(self, tri, budget, min_size=0.0):
-        """∫ over the triangles (g, 3, 3) of every column; ``budget`` (R,) the targets on the
-        columns' estimates; triangles larger than ``min_size`` (the side of a square of
-        twice their area) are split first. Returns ``value, error`` (R,) and the triangles
-        evaluated."""
+    def integrate(self, tri, budget):
+        """∫ over the triangles (g, 3, 3) of every column (:func:`first_triangles`);
+        ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error``
+        (R,) and the triangles evaluated."""
         width = len(budget)
-        while len(tri) and min_size > 0:
-            long = np.sqrt(2 * triangle_areas(tri)) > min_size
-            if not np.any(long):
-                break
-            tri = np.concatenate([tri[~long], split4(tri[long]).reshape(-1, 3, 3)])
         q, e = self.rule(tri, width)
         # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
         K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
@@ -1448,6 +1469,93 @@ class RowCubature:
         return value, err
 
 
+class ThreeLevelRowCubature:
+    """The adaptive cubature of :class:`Cubature` for a vector integrand, for the rows whose
+    kink lines are too many to cut the emitter along (:data:`MAX_KINK_CELLS`): its cells
+    are not cut along kinks, so the estimate needs the three levels (:class:`RowCubature`
+    explains why): one value per receiver column at each point, each column with its own
+    budget. Every triangle is
+    evaluated on the same three levels (its rule, 4 children, 16 grandchildren); a column's
+    estimate is the sum of its triangles' estimates (:meth:`Cubature.estimates`, column by
+    column), and while some column's exceeds its budget, that column's triangles with the
+    largest estimates are split (until what is left is half its budget). A point is
+    evaluated once for all receivers.
+
+    Parameters
+    ----------
+    integrand : callable
+        ``integrand(points (m, 3)) -> (m, R) float64``.
+    unresolved : callable, optional
+        ``unresolved(tri (g, 3, 3)) -> (g,) float64``, added to every column's estimate.
+    """
+
+    def __init__(self, integrand, unresolved=None):
+        self.integrand = integrand
+        self.unresolved = unresolved
+        self.evaluations = 0
+
+    def rule(self, tri, width):
+        """(g, R) float64: Radon's rule on each triangle."""
+        out = np.zeros((len(tri), width))
+        area = triangle_areas(tri)
+        chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
+        for lo in range(0, len(tri), chunk):
+            part = tri[lo:lo + chunk]
+            pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
+            values = self.integrand(np.ascontiguousarray(pts))
+            self.evaluations += len(pts)
+            out[lo:lo + chunk] = np.einsum("grc,r->gc", values.reshape(len(part), 7, -1), RULE_WEIGHTS) * area[lo:lo + chunk, None]
+        return out
+
+    def estimates(self, tri, q, kq, gq):
+        """(g, R): :meth:`Cubature.estimates` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
+        err, g_sum = three_level_error(q, kq, gq)
+        if self.unresolved is not None and len(tri):
+            extra = np.minimum(self.unresolved(tri), triangle_areas(tri))
+            err = np.maximum(err, extra[:, None] * (np.abs(g_sum) > 0))
+        return err
+
+    def integrate(self, tri, budget):
+        """∫ over the triangles (g, 3, 3) of every column (:func:`first_triangles`);
+        ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error`` (R,)
+        and the triangles evaluated."""
+        width = len(budget)
+        q = self.rule(tri, width)
+        K = split4(tri).reshape(-1, 3, 3)
+        kq = self.rule(K, width)
+        G = split4(K).reshape(-1, 3, 3)
+        gq = self.rule(G, width)
+        cells = 21 * len(tri)
+        four = np.arange(4)
+        for _ in range(200):
+            err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
+            total = err.sum(axis=0)
+            over = np.flatnonzero(total > budget)
+            if not len(over) or cells >= MAX_CELLS or not len(tri):
+                break
+            split = np.zeros(len(tri), bool)
+            for c in over:
+                order = np.argsort(-err[:, c], kind="stable")
+                rest = total[c] - np.cumsum(err[order, c])
+                split[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
+            child = (4 * rows[:, None] + four).reshape(-1)
+            grand = (4 * child[:, None] + four).reshape(-1)
+            new_G = split4(G[grand]).reshape(-1, 3, 3)
+            new_gq = self.rule(new_G, width)
+            cells += 16 * len(child)
+            k_keep = (4 * keep[:, None] + four).reshape(-1)
+            g_keep = (16 * keep[:, None] + np.arange(16)).reshape(-1)
+            tri = np.concatenate([tri[keep], K[child]])
+            q = np.concatenate([q[keep], kq[child]])
+            K = np.concatenate([K[k_keep], G[grand]])
+            kq = np.concatenate([kq[k_keep], gq[grand]])
+            G = np.concatenate([G[g_keep], new_G])
+            gq = np.concatenate([gq[g_keep], new_gq])
+        err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
+        return gq.sum(axis=0), err.sum(axis=0), cells
+
+
 def coplanar_faces(scene, face):
     """(k,) int64: the other faces lying in the plane of a face (all their vertices within
     1e-9 of the scene's size of it), which may lie on it (docs/queries.md, "Faces lying on
@@ -1477,7 +1585,24 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     if not len(fj) and not len(coplanar_faces(scene, face)):
         # nothing in front of the side and nothing lying on it: it sees the sky, exactly
         return (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {"none": 2 * len(faces)}, 1.0 if sky else 0.0, 0.0)
-    cells = emitter_cells(scene, face, side, kinks=True)
+    # the first triangles no larger than 1 / MIN_SPLIT of the smallest box holding the
+    # emitter and a receiver, as the pair cubature's (4 times larger, the Cornell matrix
+    # at 1e-4 took half the time, but 3 of 376 entries were off by more than their
+    # estimates, up to 30 times: grazing pairs whose small shadows the coarser start missed)
+    box_lo, box_hi = face_boxes(scene)
+    others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
+    extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
+                            axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
+    # cut along the kink lines (two levels, 7 points a first triangle) unless that costs
+    # more points at the start than three levels (147 a triangle) on the uncut cells
+    cells = emitter_cells(scene, face, side)
+    tri = first_triangles(cells, extent / MIN_SPLIT)
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
+    cubature = ThreeLevelRowCubature
+    if kinked is not None:
+        kinked_tri = first_triangles(kinked, extent / MIN_SPLIT)
+        if len(kinked_tri) <= 21 * len(tri):
+            cells, tri, cubature = kinked, kinked_tri, RowCubature
     width = 2 * n + 1  # the sides of the faces, then the sky
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
@@ -1496,22 +1621,9 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     def hidden(points):
         return point_views(points, n_i, eu, ev, *polygons, int(face), tiny)
 
-    tri = []
-    for cell in cells:
-        k = np.arange(1, len(cell) - 1)
-        tri.append(np.stack([np.repeat(cell[:1], len(k), axis=0), cell[k], cell[k + 1]], axis=1))
-    tri = np.concatenate(tri)
     budget = np.maximum(tol - e0, 0.1 * tol) * area
-    # the first triangles no larger than 1 / MIN_SPLIT of the smallest box holding the
-    # emitter and a receiver, as the pair cubature's (4 times larger, the Cornell matrix
-    # at 1e-4 took half the time, but 3 of 376 entries were off by more than their
-    # estimates, up to 30 times: grazing pairs whose small shadows the coarser start missed)
-    box_lo, box_hi = face_boxes(scene)
-    others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
-    extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
-                            axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
-    cub = RowCubature(hidden)
-    h, h_err, _ = cub.integrate(tri, budget, extent / MIN_SPLIT)
+    cub = cubature(hidden)
+    h, h_err, _ = cub.integrate(tri, budget)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted = np.zeros(width, bool)

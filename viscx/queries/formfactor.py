@@ -626,7 +626,7 @@ def split4(tri):
                      np.stack([bc, ca, ab], 1)], axis=1)
 
 
-def first_triangles(cells, min_size):
+def start_triangles(cells, min_size):
     """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), those larger than
     ``min_size`` (the side of a square of twice their area) split by midpoints until none
     is: a rule on a large triangle may miss a small shadow entirely. (Area, not length: the
@@ -1406,7 +1406,7 @@ class RowCubature:
         return q, e
 
     def integrate(self, tri, budget):
-        """∫ over the triangles (g, 3, 3) of every column (:func:`first_triangles`);
+        """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
         ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error``
         (R,) and the triangles evaluated."""
         width = len(budget)
@@ -1516,7 +1516,7 @@ class ThreeLevelRowCubature:
         return err
 
     def integrate(self, tri, budget):
-        """∫ over the triangles (g, 3, 3) of every column (:func:`first_triangles`);
+        """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
         ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error`` (R,)
         and the triangles evaluated."""
         width = len(budget)
@@ -1596,11 +1596,11 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     # cut along the kink lines (two levels, 7 points a first triangle) unless that costs
     # more points at the start than three levels (147 a triangle) on the uncut cells
     cells = emitter_cells(scene, face, side)
-    tri = first_triangles(cells, extent / MIN_SPLIT)
+    tri = start_triangles(cells, extent / MIN_SPLIT)
     kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
     cubature = ThreeLevelRowCubature
     if kinked is not None:
-        kinked_tri = first_triangles(kinked, extent / MIN_SPLIT)
+        kinked_tri = start_triangles(kinked, extent / MIN_SPLIT)
         if len(kinked_tri) <= 21 * len(tri):
             cells, tri, cubature = kinked, kinked_tri, RowCubature
     width = 2 * n + 1  # the sides of the faces, then the sky

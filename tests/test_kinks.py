@@ -160,14 +160,20 @@ def _box(x0, x1, y0, y1, h):
             [[x0, y0, h], [x1, y0, h], [x1, y1, h], [x0, y1, h]]]
 
 
-def test_row_within_its_estimates_of_a_tight_row():
+@pytest.fixture(scope="module")
+def box_room():
     """A unit floor with a back and a left wall and a box standing on it (its vertical edges
-    parallel to the walls' corner: kink lines through the floor): the floor's row and sky at
-    tol 1e-3 and 1e-4 are within their estimates of the row at 1e-7 (plus its estimate)."""
+    parallel to the walls' corner: kink lines through the floor)."""
     floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
     back = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]]
     left = [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]]
-    scene = scene_of([floor, back, left] + _box(0.3, 0.6, 0.4, 0.7, 0.4))
+    return scene_of([floor, back, left] + _box(0.3, 0.6, 0.4, 0.7, 0.4))
+
+
+def test_row_within_its_estimates_of_a_tight_row(box_room):
+    """The box room's floor row and sky at tol 1e-3 and 1e-4 are within their estimates of
+    the row at 1e-7 (plus its estimate)."""
+    scene = box_room
     faces = np.arange(scene.n_faces)
     assert len(kink_segments(scene, 0, 1)) > 10
     ref = ff.row_form_factors(scene, 0, 1, faces, 1e-7)
@@ -178,6 +184,22 @@ def test_row_within_its_estimates_of_a_tight_row():
         for c, f, e in zip(cols, F, E):
             assert abs(f - tight[c][0]) <= e + tight[c][1], (tol, c)
         assert abs(sky - ref[4]) <= sky_e + ref[5]
+
+
+def test_rows_with_too_many_kink_cells_use_three_levels(box_room, monkeypatch):
+    """Where the kink cells would cost more than three levels on the uncut cells (a
+    cluttered scene: :data:`MAX_KINK_CELLS`), the row falls back to the three-level
+    cubature; both agree within their estimates."""
+    faces = np.arange(box_room.n_faces)
+    kinked = ff.row_form_factors(box_room, 0, 1, faces, 1e-4)
+    calls = []
+    monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
+    monkeypatch.setattr(ff.ThreeLevelRowCubature, "rule", lambda self, *a, _r=ff.ThreeLevelRowCubature.rule:
+                        calls.append(1) or _r(self, *a))
+    plain = ff.row_form_factors(box_room, 0, 1, faces, 1e-4)
+    assert calls and list(plain[0]) == list(kinked[0])
+    assert np.all(np.abs(plain[1] - kinked[1]) <= plain[2] + kinked[2])
+    assert abs(plain[4] - kinked[4]) <= plain[5] + kinked[5]
 
 
 @pytest.mark.slow

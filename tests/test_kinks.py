@@ -202,6 +202,21 @@ def test_rows_with_too_many_kink_cells_use_three_levels(box_room, monkeypatch):
     assert abs(plain[4] - kinked[4]) <= plain[5] + kinked[5]
 
 
+def test_a_shadow_between_the_start_nodes_is_looked_for(cornell):
+    """Short block top+ → light+: the tall block's corner hides a small penumbra of the light
+    near the short block's corner (∫ hidden = 0.0298 of 27,633, 1.1e-6 in F) that no node of
+    the start triangles sees (their rules are 1e-12): their estimates said 1.4e-7 for an
+    error of 9.3e-7 at tol 1e-4. The shaft test says an occluder may hide the light there,
+    so those triangles start at their 16 grandchildren, and the entry is within its
+    estimate of the 1e-7 row."""
+    faces = np.arange(cornell.n_faces)
+    ref = ff.row_form_factors(cornell, 5, 1, faces, 1e-7)
+    r = ff.row_form_factors(cornell, 5, 1, faces, 1e-4)
+    (k,), (j,) = np.flatnonzero(r[0] == 30), np.flatnonzero(ref[0] == 30)
+    assert abs(r[1][k] - ref[1][j]) <= r[2][k] + ref[2][j]
+    assert abs(r[1][k] - ref[1][j]) > 1e-8  # the rule is not exact there: the estimate matters
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("face", [0, 2])  # floor, back wall: kink lines of the blocks and the walls' corners
 def test_cornell_rows_within_their_estimates_of_tight_rows(cornell, face):

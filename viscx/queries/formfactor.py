@@ -1405,12 +1405,21 @@ class RowCubature:
             e[lo:lo + chunk] = np.abs(np.einsum("grc,rn->gcn", values, NULL_RULES)).max(axis=2) * a
         return q, e
 
-    def integrate(self, tri, budget):
+    def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error``
-        (R,) and the triangles evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live`` (g, R) bool, where
+        an occluder may hide the column (its shaft test). Returns ``value, error`` (R,) and
+        the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
+        if live is not None:
+            # a shadow the rule's nodes do not see at all: replaced by the 16 grandchildren
+            unseen = np.any(live & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]), axis=1)
+            if np.any(unseen):
+                grand = split4(split4(tri[unseen]).reshape(-1, 3, 3)).reshape(-1, 3, 3)
+                gq, ge = self.rule(grand, width)
+                tri = np.concatenate([tri[~unseen], grand])
+                q, e = np.concatenate([q[~unseen], gq]), np.concatenate([e[~unseen], ge])
         # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
         K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
         kid_of = np.full(len(tri), -1, np.int64)
@@ -1607,12 +1616,17 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
+    live = np.zeros((len(tri), width), bool)  # an occluder meets the triangle's shaft to the column
     for target, t, c in targets:
-        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
+        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
         if not setup.empty:
             value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
+            k = len(setup.occluders)
+            if k:
+                ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                live[:, c] = np.diff(ptr) > 0
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
     polygons = scene_polygons(scene)
@@ -1623,7 +1637,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area
     cub = cubature(hidden)
-    h, h_err, _ = cub.integrate(tri, budget)
+    h, h_err, _ = cub.integrate(tri, budget, live) if cubature is RowCubature else cub.integrate(tri, budget)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted = np.zeros(width, bool)

@@ -1583,8 +1583,12 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
     ``hidden`` the vector :func:`viscx.geometry.occlusion.point_views` gives at each point
     (every receiver from one hidden-surface computation), integrated by
-    :class:`RowCubature` over the emitter's cells (:func:`emitter_cells`) with each
-    column's budget ``tol − (contour error)`` (in F).
+    :class:`RowCubature` over the emitter's cells cut along the kink lines of all the
+    receivers (:func:`emitter_cells` with ``kinks``; where those cells would cost more points
+    at the start than three levels on the uncut cells, :class:`ThreeLevelRowCubature` on
+    these) with each column's budget ``tol − (contour error)`` (in F). Each column's pair
+    occluders, tested against the first triangles' shafts, say where a shadow may lie
+    that the rule's nodes miss (:meth:`RowCubature.integrate`).
 
     Returns what :func:`emitter_row` returns.
     """

@@ -1372,7 +1372,10 @@ class RowCubature:
     between the nodes of every level, which then agree while all are off (the reason for
     the three levels of :class:`Cubature`, whose cells are not cut along kinks); here no
     kink line crosses a leaf. A feature smaller than the nodes' spacing (a small shadow
-    lying between them) is what the first split guards against (``min_size``).
+    lying between them) is what the first split guards against (:func:`start_triangles`),
+    and where the columns' shaft tests say an occluder may hide a column on a first
+    triangle whose nodes see nothing of it, that triangle starts at its 16 grandchildren
+    (the node density of three levels, there only; :meth:`integrate`).
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
     largest estimates are refined (until what is left is half its budget): a leaf on its

@@ -1334,6 +1334,18 @@ def scene_polygons(scene):
     return scene.cached("formfactor_polygons", build)
 
 
+def worst_leaves(err, total, over, budget):
+    """(g,) bool: for each column in ``over`` (its summed estimate ``total`` above its
+    ``budget``), its leaves with the largest estimates (``err`` (g, R)) until what is left
+    of its estimate is half its budget."""
+    pick = np.zeros(len(err), bool)
+    for c in over:
+        order = np.argsort(-err[:, c], kind="stable")
+        rest = total[c] - np.cumsum(err[order, c])
+        pick[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+    return pick
+
+
 def _degree2_weights(a):
     """Weights (7,) on Radon's nodes of the degree-2 rule on the centroid and the orbit
     (a, a, 1 − 2a) (the second moments: w₀/9 + w₁ Σ λ₁² = 1/6 with w₀ + 3 w₁ = 1)."""
@@ -1434,11 +1446,7 @@ class RowCubature:
             over = np.flatnonzero(total > budget)
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
-            pick = np.zeros(len(tri), bool)
-            for c in over:
-                order = np.argsort(-err[:, c], kind="stable")
-                rest = total[c] - np.cumsum(err[order, c])
-                pick[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+            pick = worst_leaves(err, total, over, budget)
             deep = kid_of >= 0
             # leaves on their rule only: evaluate their children
             grow = np.flatnonzero(pick & ~deep)
@@ -1545,11 +1553,7 @@ class ThreeLevelRowCubature:
             over = np.flatnonzero(total > budget)
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
-            split = np.zeros(len(tri), bool)
-            for c in over:
-                order = np.argsort(-err[:, c], kind="stable")
-                rest = total[c] - np.cumsum(err[order, c])
-                split[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+            split = worst_leaves(err, total, over, budget)
             keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
             child = (4 * rows[:, None] + four).reshape(-1)
             grand = (4 * child[:, None] + four).reshape(-1)

@@ -124,8 +124,8 @@ def _levels(cub, tri, deep=4):
 def test_kink_cuts_make_the_row_estimate_honest(cornell):
     """Light → floor, the triangle at the light's corner (213, 227) whose opposite corner a
     kink line clips (an event of the short block, `test_estimate_sees_a_kink_clipping_a_corner`):
-    uncut, the rule, its children and its null rules all miss the kink, and both of the
-    row cubature's estimates (null rules for Q, |Q − S| for S) are below the error. Cut
+    uncut, the rule, its children and its null rule all miss the kink, and both of the
+    row cubature's estimates (null rule for Q, |Q − S| for S) are below the error. Cut
     along the emitter's kink segments (the cells of `emitter_cells(kinks=True)`), each
     piece's estimates are above it."""
     setup = ff.PairSetup(cornell, 15, 1, ff.face_target(cornell, 0), 1)

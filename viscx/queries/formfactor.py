@@ -63,6 +63,7 @@ from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon
 from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
 from viscx.geometry.polygon import newell_normal, plane_basis
+from viscx.queries.kinks import kink_segments
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -311,7 +312,8 @@ def _cut_convex(piece, a, d, eps):
 
 
 def _area2(p):
-    return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(x[:-1] @ y[1:] - x[1:] @ y[:-1] + x[-1] * y[0] - x[0] * y[-1])
 
 
 def _front_edges(scene, face, side, margin):
@@ -478,7 +480,68 @@ def _clip_convex(piece, poly, eps):
     return outside, rest
 
 
-def emitter_cells(scene, face, side):
+def _padded(pieces):
+    """Convex 2-D pieces as one array (N, K, 2), each repeated from its last vertex up to K,
+    and the index of each vertex's successor (N, K)."""
+    count = np.array([len(p) for p in pieces], np.int64)
+    k = int(count.max())
+    idx = np.minimum(np.arange(k)[None, :], count[:, None] - 1)
+    flat = np.concatenate(pieces)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    nxt = np.where(np.arange(k)[None, :] + 1 < count[:, None], np.arange(k)[None, :] + 1, 0)
+    return flat[start[:, None] + idx], nxt
+
+
+def cut_along(pieces, seg, eps, limit=None):
+    """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
+    a piece is cut by the line of a segment when the line crosses its interior (more than
+    ``eps`` either side) along a chord that overlaps the segment by more than ``eps``;
+    segment after segment, each tested against all the pieces at once (the parts of a cut
+    piece take its place in the list). None when there would be more than ``limit`` pieces.
+
+    Returns
+    -------
+    list of (m, 2) float64, or None
+    """
+    pieces = list(pieces)
+    if not len(seg) or not pieces:
+        return pieces
+    v, nxt = _padded(pieces)
+    rows = np.arange(len(pieces))[:, None]
+    for a, b in seg:
+        length = float(np.linalg.norm(b - a))
+        if length <= eps:
+            continue
+        d = (b - a) / length
+        rel = v - a
+        s = rel[..., 0] * d[1] - rel[..., 1] * d[0]  # (N, K): side of the line
+        t = rel @ d  # along the segment
+        s_r, t_r = s[rows, nxt], t[rows, nxt]
+        cross = ((s > 0) != (s_r > 0)) & (s != s_r)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tc = t + (t_r - t) * s / (s - s_r)
+        lo = np.maximum(np.where(cross, tc, np.inf).min(axis=1), 0.0)
+        hi = np.minimum(np.where(cross, tc, -np.inf).max(axis=1), length)
+        hit = np.flatnonzero((s.max(axis=1) > eps) & (s.min(axis=1) < -eps) & (hi - lo > eps))
+        if not len(hit):
+            continue
+        for i in hit[::-1]:
+            pieces[i:i + 1] = [q for q in _cut_convex(pieces[i], a, d, eps) if q is not None]
+        if limit is not None and len(pieces) > limit:
+            return None
+        v, nxt = _padded(pieces)
+        rows = np.arange(len(pieces))[:, None]
+    return pieces
+
+
+#: Cells beyond which an emitter is not cut along its kink lines (:func:`emitter_cells`):
+#: the Cornell box's sides have at most 286; the floor of a 58-polygon office would have
+#: 15,596 (1,036 kink segments), more points for the start alone than the three-level
+#: cubature of the uncut cells takes (:class:`ThreeLevelRowCubature`).
+MAX_KINK_CELLS = 1_000
+
+
+def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -486,6 +549,11 @@ def emitter_cells(scene, face, side):
     estimate assumes it), and graded along the hovering outlines (:func:`hover_segments`;
     a convex outline whose every edge hovers by rings around it, :func:`hover_rings`).
     Depends on the emitter only: computed once per side and shared by all its pairs.
+    With ``kinks`` the cells are cut along the D1 lines of every receiver too
+    (:func:`viscx.queries.kinks.kink_segments`: the matrix row, whose columns are all the
+    receivers), so that every integrand is C1 on every cell; None when that would make more
+    than ``limit`` cells (in a cluttered scene the lines are quadratic in the
+    edges and their arrangement quadratic in the lines).
 
     Returns
     -------
@@ -525,26 +593,11 @@ def emitter_cells(scene, face, side):
                     if part is not None:
                         out.append(part)
         pieces = out
-    seg = to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)]))
-    for a, b in seg:
-        length = np.linalg.norm(b - a)
-        d = (b - a) / length
-        out = []
-        for p in pieces:
-            s = (p[:, 0] - a[0]) * d[1] - (p[:, 1] - a[1]) * d[0]
-            t = (p - a) @ d
-            # the segment's line crosses the piece's interior, within the segment's extent
-            if s.max() > eps and s.min() < -eps and t.max() > eps and t.min() < length - eps:
-                chord = []
-                for k in range(len(p)):
-                    r = (k + 1) % len(p)
-                    if (s[k] > 0) != (s[r] > 0) and s[k] != s[r]:
-                        chord.append(t[k] + (t[r] - t[k]) * s[k] / (s[k] - s[r]))
-                if chord and min(max(chord), length) - max(min(chord), 0.0) > eps:
-                    out.extend(q for q in _cut_convex(p, a, d, eps) if q is not None)
-                    continue
-            out.append(p)
-        pieces = out
+    pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)])), eps)
+    if kinks:
+        pieces = cut_along(pieces, to2(kink_segments(scene, face, side)), eps, limit)
+        if pieces is None:
+            return None
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
@@ -571,6 +624,21 @@ def split4(tri):
     ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
     return np.stack([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1), np.stack([ca, bc, c], 1),
                      np.stack([bc, ca, ab], 1)], axis=1)
+
+
+def start_triangles(cells, min_size):
+    """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), those larger than
+    ``min_size`` (the side of a square of twice their area) split by midpoints until none
+    is: a rule on a large triangle may miss a small shadow entirely. (Area, not length: the
+    thin cells graded along a hovering outline are as thin as the integrand's scale across
+    them and smooth along them; halving them in both directions would only multiply them.)"""
+    tri = np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1) for c in cells])
+    while len(tri) and min_size > 0:
+        long = np.sqrt(2 * triangle_areas(tri)) > min_size
+        if not np.any(long):
+            break
+        tri = np.concatenate([tri[~long], split4(tri[long]).reshape(-1, 3, 3)])
+    return tri
 
 
 def triangle_areas(tri):
@@ -1266,9 +1334,170 @@ def scene_polygons(scene):
     return scene.cached("formfactor_polygons", build)
 
 
+def worst_leaves(err, total, over, budget):
+    """(g,) bool: for each column in ``over`` (its summed estimate ``total`` above its
+    ``budget``), its leaves with the largest estimates (``err`` (g, R)) until what is left
+    of its estimate is half its budget."""
+    pick = np.zeros(len(err), bool)
+    for c in over:
+        order = np.argsort(-err[:, c], kind="stable")
+        rest = total[c] - np.cumsum(err[order, c])
+        pick[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+    return pick
+
+
+def _degree2_weights(a):
+    """Weights (7,) on Radon's nodes of the degree-2 rule on the centroid and the orbit
+    (a, a, 1 − 2a) (the second moments: w₀/9 + w₁ Σ λ₁² = 1/6 with w₀ + 3 w₁ = 1)."""
+    w1 = (1 / 18) / (2 * a * a + (1 - 2 * a) ** 2 - 1 / 3)
+    out = np.zeros(7)
+    out[0] = 1 - 3 * w1
+    out[1:4] = w1 if a == _A else 0.0
+    out[4:7] = w1 if a == _C else 0.0
+    return out
+
+
+#: Radon's rule minus the degree-2 rule on its centroid and its orbit near the edges'
+#: midpoints: a null rule of degree 2 (it integrates every quadratic to 0). It is the only
+#: one on these 7 nodes up to a factor (7 nodes, 6 quadratic monomials; the rule on the
+#: other orbit gives −0.365 times it), so ``|values · NULL_RULE|`` is about the error of a
+#: degree-2 rule (:class:`RowCubature`).
+NULL_RULE = RULE_WEIGHTS - _degree2_weights(_C)
+
+
 class RowCubature:
-    """The adaptive cubature of :class:`Cubature` for a vector integrand: one value per
-    receiver column at each point, each column with its own budget. Every triangle is
+    """Adaptive cubature of a vector integrand (one value per receiver column at each point,
+    each column with its own budget) over triangles on which every column is C1: the
+    triangles of the emitter's cells cut along the contact (D0) and kink (D1) lines
+    (:func:`emitter_cells` with ``kinks``), so that what is left inside them is smooth up to
+    the D2 traces, across which the integrands' second derivatives jump.
+
+    A leaf T is on one of two levels:
+
+    * **its rule only** (7 points): the value is Radon's degree-5 rule Q, the estimate the
+      difference of Q from a degree-2 rule on four of its nodes (:data:`NULL_RULE`), about
+      the error of a degree-2 rule: O(h³) against Q's O(h⁶) where the integrand is smooth
+      and O(h⁴) where a D2 trace crosses T;
+    * **with its four midpoint children** (28 more points): the value is their sum S,
+      the estimate ``|Q − S|``. Halving the triangles divides the rule's error along a
+      D2 trace by ~8 and elsewhere by ~64, so S's error is ≤ 1/7 of ``|Q − S|``
+      (= |(I − Q) − (I − S)|) wherever the rule is in its asymptotic regime.
+
+    Both are honest only where no kink line crosses T: a kink (D1) can clip a corner of T
+    between the nodes of every level, which then agree while all are off (the reason for
+    the three levels of :class:`Cubature`, whose cells are not cut along kinks); here no
+    kink line crosses a leaf. A feature smaller than the nodes' spacing (a small shadow
+    lying between them) is what the first split guards against (:func:`start_triangles`),
+    and where the columns' shaft tests say an occluder may hide a column on a first
+    triangle whose nodes see nothing of it, that triangle starts at its 16 grandchildren
+    (the node density of three levels, there only; :meth:`integrate`).
+
+    While some column's summed estimate exceeds its budget, that column's leaves with the
+    largest estimates are refined (until what is left is half its budget): a leaf on its
+    rule only gets its children evaluated; a leaf with its children is replaced by them,
+    each on its rule only (nothing evaluated: their rules and null rules are known). A
+    point is evaluated once for all receivers.
+
+    Parameters
+    ----------
+    integrand : callable
+        ``integrand(points (m, 3)) -> (m, R) float64``.
+    """
+
+    def __init__(self, integrand):
+        self.integrand = integrand
+        self.evaluations = 0
+
+    def rule(self, tri, width):
+        """Radon's rule on each triangle and its null-rule estimate: ``q, e`` (g, R) float64."""
+        q, e = np.zeros((len(tri), width)), np.zeros((len(tri), width))
+        area = triangle_areas(tri)
+        chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
+        for lo in range(0, len(tri), chunk):
+            part = tri[lo:lo + chunk]
+            pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
+            values = self.integrand(np.ascontiguousarray(pts)).reshape(len(part), 7, -1)
+            self.evaluations += len(pts)
+            a = area[lo:lo + chunk, None]
+            q[lo:lo + chunk] = np.einsum("grc,r->gc", values, RULE_WEIGHTS) * a
+            e[lo:lo + chunk] = np.abs(np.einsum("grc,r->gc", values, NULL_RULE)) * a
+        return q, e
+
+    def integrate(self, tri, budget, live=None):
+        """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
+        ``budget`` (R,) the targets on the columns' estimates; ``live`` (g, R) bool, where
+        an occluder may hide the column (its shaft test). Returns ``value, error`` (R,) and
+        the triangles evaluated."""
+        width = len(budget)
+        q, e = self.rule(tri, width)
+        if live is not None:
+            # a shadow the rule's nodes do not see at all: replaced by the 16 grandchildren
+            unseen = np.any(live & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]), axis=1)
+            if np.any(unseen):
+                grand = split4(split4(tri[unseen]).reshape(-1, 3, 3)).reshape(-1, 3, 3)
+                gq, ge = self.rule(grand, width)
+                tri = np.concatenate([tri[~unseen], grand])
+                q, e = np.concatenate([q[~unseen], gq]), np.concatenate([e[~unseen], ge])
+        # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
+        K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
+        kid_of = np.full(len(tri), -1, np.int64)
+        cells = len(tri)
+        four = np.arange(4)
+        for _ in range(400):
+            value, err = self._leaves(q, e, kid_of, kq)
+            total = err.sum(axis=0)
+            over = np.flatnonzero(total > budget)
+            if not len(over) or cells >= MAX_CELLS or not len(tri):
+                break
+            pick = worst_leaves(err, total, over, budget)
+            deep = kid_of >= 0
+            # leaves on their rule only: evaluate their children
+            grow = np.flatnonzero(pick & ~deep)
+            new_K = split4(tri[grow]).reshape(-1, 3, 3)
+            new_kq, new_ke = self.rule(new_K, width)
+            cells += len(new_K)
+            kid_of[grow] = len(K) // 4 + np.arange(len(grow))
+            K, kq, ke = np.concatenate([K, new_K]), np.concatenate([kq, new_kq]), np.concatenate([ke, new_ke])
+            # leaves with their children: replaced by them
+            split = pick & deep
+            if np.any(split):
+                rows = (4 * kid_of[split][:, None] + four).reshape(-1)
+                # the children share their parent's estimate |Q − S| (which bounds the error
+                # of S, the sum of their rules) in proportion to their null rules: the total
+                # stays what it was, and the next round deepens the children that carry most
+                share = ke[rows].reshape(-1, 4, width) + 1e-300
+                parent = np.abs(q[split] - kq[rows].reshape(-1, 4, width).sum(axis=1))
+                kid_e = (share / share.sum(axis=1, keepdims=True) * parent[:, None, :]).reshape(-1, width)
+                keep = ~split
+                tri = np.concatenate([tri[keep], K[rows]])
+                q, e = np.concatenate([q[keep], kq[rows]]), np.concatenate([e[keep], kid_e])
+                kid_of = np.concatenate([kid_of[keep], np.full(len(rows), -1, np.int64)])
+                # drop the children no leaf refers to any more (bounded memory)
+                live = np.flatnonzero(kid_of >= 0)
+                idx = (4 * kid_of[live][:, None] + four).reshape(-1)
+                K, kq, ke = K[idx], kq[idx], ke[idx]
+                kid_of[live] = np.arange(len(live))
+        value, err = self._leaves(q, e, kid_of, kq)
+        return value.sum(axis=0), err.sum(axis=0), cells
+
+    @staticmethod
+    def _leaves(q, e, kid_of, kq):
+        """Each leaf's value and estimate (g, R): S and |Q − S| where its children are known,
+        else Q and its null-rule estimate."""
+        value, err = q.copy(), e.copy()
+        deep = np.flatnonzero(kid_of >= 0)
+        if len(deep):
+            s = kq.reshape(-1, 4, q.shape[1])[kid_of[deep]].sum(axis=1)
+            value[deep], err[deep] = s, np.abs(q[deep] - s)
+        return value, err
+
+
+class ThreeLevelRowCubature:
+    """The adaptive cubature of :class:`Cubature` for a vector integrand, for the rows whose
+    kink lines are too many to cut the emitter along (:data:`MAX_KINK_CELLS`): its cells
+    are not cut along kinks, so the estimate needs the three levels (:class:`RowCubature`
+    explains why): one value per receiver column at each point, each column with its own
+    budget. Every triangle is
     evaluated on the same three levels (its rule, 4 children, 16 grandchildren); a column's
     estimate is the sum of its triangles' estimates (:meth:`Cubature.estimates`, column by
     column), and while some column's exceeds its budget, that column's triangles with the
@@ -1309,15 +1538,11 @@ class RowCubature:
             err = np.maximum(err, extra[:, None] * (np.abs(g_sum) > 0))
         return err
 
-    def integrate(self, tri, budget, min_size=0.0):
-        """∫ over the triangles (g, 3, 3) of every column; ``budget`` (R,) the targets on the
-        columns' estimates. Returns ``value, error`` (R,) and the triangles evaluated."""
+    def integrate(self, tri, budget):
+        """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
+        ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error`` (R,)
+        and the triangles evaluated."""
         width = len(budget)
-        while len(tri) and min_size > 0:
-            long = np.sqrt(2 * triangle_areas(tri)) > min_size
-            if not np.any(long):
-                break
-            tri = np.concatenate([tri[~long], split4(tri[long]).reshape(-1, 3, 3)])
         q = self.rule(tri, width)
         K = split4(tri).reshape(-1, 3, 3)
         kq = self.rule(K, width)
@@ -1331,11 +1556,7 @@ class RowCubature:
             over = np.flatnonzero(total > budget)
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
-            split = np.zeros(len(tri), bool)
-            for c in over:
-                order = np.argsort(-err[:, c], kind="stable")
-                rest = total[c] - np.cumsum(err[order, c])
-                split[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+            split = worst_leaves(err, total, over, budget)
             keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
             child = (4 * rows[:, None] + four).reshape(-1)
             grand = (4 * child[:, None] + four).reshape(-1)
@@ -1372,8 +1593,12 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
     ``hidden`` the vector :func:`viscx.geometry.occlusion.point_views` gives at each point
     (every receiver from one hidden-surface computation), integrated by
-    :class:`RowCubature` over the emitter's cells (:func:`emitter_cells`) with each
-    column's budget ``tol − (contour error)`` (in F).
+    :class:`RowCubature` over the emitter's cells cut along the kink lines of all the
+    receivers (:func:`emitter_cells` with ``kinks``; where those cells would cost more points
+    at the start than three levels on the uncut cells, :class:`ThreeLevelRowCubature` on
+    these) with each column's budget ``tol − (contour error)`` (in F). Each column's pair
+    occluders, tested against the first triangles' shafts, say where a shadow may lie
+    that the rule's nodes miss (:meth:`RowCubature.integrate`).
 
     Returns what :func:`emitter_row` returns.
     """
@@ -1383,31 +1608,6 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     if not len(fj) and not len(coplanar_faces(scene, face)):
         # nothing in front of the side and nothing lying on it: it sees the sky, exactly
         return (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {"none": 2 * len(faces)}, 1.0 if sky else 0.0, 0.0)
-    cells = emitter_cells(scene, face, side)
-    width = 2 * n + 1  # the sides of the faces, then the sky
-    f0, e0 = np.zeros(width), np.zeros(width)
-    targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
-    area = float(scene.face_area[face])
-    for target, t, c in targets:
-        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
-        if not setup.empty:
-            value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
-            scale = loops_area(setup.I, setup.n_i) / area
-            f0[c], e0[c] = value * scale, err * scale
-    n_i = side * scene.face_normal[face]
-    eu, ev = plane_basis(n_i)
-    polygons = scene_polygons(scene)
-    tiny = 1e-9 * scene.diagonal
-
-    def hidden(points):
-        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny)
-
-    tri = []
-    for cell in cells:
-        k = np.arange(1, len(cell) - 1)
-        tri.append(np.stack([np.repeat(cell[:1], len(k), axis=0), cell[k], cell[k + 1]], axis=1))
-    tri = np.concatenate(tri)
-    budget = np.maximum(tol - e0, 0.1 * tol) * area
     # the first triangles no larger than 1 / MIN_SPLIT of the smallest box holding the
     # emitter and a receiver, as the pair cubature's (4 times larger, the Cornell matrix
     # at 1e-4 took half the time, but 3 of 376 entries were off by more than their
@@ -1416,8 +1616,42 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
-    cub = RowCubature(hidden)
-    h, h_err, _ = cub.integrate(tri, budget, extent / MIN_SPLIT)
+    # cut along the kink lines (two levels, 7 points a first triangle) unless that costs
+    # more points at the start than three levels (147 a triangle) on the uncut cells
+    cells = emitter_cells(scene, face, side)
+    tri = start_triangles(cells, extent / MIN_SPLIT)
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
+    cubature = ThreeLevelRowCubature
+    if kinked is not None:
+        kinked_tri = start_triangles(kinked, extent / MIN_SPLIT)
+        if len(kinked_tri) <= 21 * len(tri):
+            cells, tri, cubature = kinked, kinked_tri, RowCubature
+    width = 2 * n + 1  # the sides of the faces, then the sky
+    f0, e0 = np.zeros(width), np.zeros(width)
+    targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
+    area = float(scene.face_area[face])
+    live = np.zeros((len(tri), width), bool)  # an occluder meets the triangle's shaft to the column
+    for target, t, c in targets:
+        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
+        if not setup.empty:
+            value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+            scale = loops_area(setup.I, setup.n_i) / area
+            f0[c], e0[c] = value * scale, err * scale
+            k = len(setup.occluders)
+            if k:
+                ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                live[:, c] = np.diff(ptr) > 0
+    n_i = side * scene.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    polygons = scene_polygons(scene)
+    tiny = 1e-9 * scene.diagonal
+
+    def hidden(points):
+        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny)
+
+    budget = np.maximum(tol - e0, 0.1 * tol) * area
+    cub = cubature(hidden)
+    h, h_err, _ = cub.integrate(tri, budget, live) if cubature is RowCubature else cub.integrate(tri, budget)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted = np.zeros(width, bool)

@@ -222,13 +222,13 @@ def _outside_box(x, box_planes, lo, hi, tiny):
 
 
 @njit(cache=True)
-def _back_face(x, b, box_state, box_ptr, box_planes, tiny):
-    """Whether a face of box b (>= 0) that x is behind may be left out: x is outside the
-    box (:func:`_outside_box`, decided once per point: ``box_state[b]`` 0 unknown, 1 yes,
-    2 no). Every ray from x that meets such a face has entered the box before, through a
-    face x is in front of (a ray leaves a closed solid through a face whose outward normal
-    it goes along, and enters it through one it goes against), so the box's front faces
-    hide everything its back faces would: leaving these out changes no visible part."""
+def _outside(x, b, box_state, box_ptr, box_planes, tiny):
+    """Whether x is outside box b (-1: no box) (:func:`_outside_box`, decided once per
+    point: ``box_state[b]`` 0 unknown, 1 yes, 2 no; the caller resets it). Then every ray
+    from x that meets a face of the box that x is behind has entered the box before,
+    through a face x is in front of (a ray leaves a closed solid through a face whose
+    outward normal it goes along, and enters it through one it goes against): the box's
+    front faces hide everything its back faces would."""
     if b < 0:
         return False
     if box_state[b] == 0:
@@ -237,13 +237,65 @@ def _back_face(x, b, box_state, box_ptr, box_planes, tiny):
 
 
 @njit(cache=True)
+def _project(buf, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, out, first):
+    """The points ``buf[:n_in]`` (inside the pyramid from x over J) projected centrally
+    through x on J's plane, in its 2-D basis, into ``out[first:first + n_in]``."""
+    for q in range(n_in):
+        h = n_j[0] * buf[q, 0] + n_j[1] * buf[q, 1] + n_j[2] * buf[q, 2] - c_j
+        den = hx - h
+        if den <= 0:
+            den = tiny  # only x itself (the apex) projects to infinity
+        t = hx / den
+        zx = x[0] + (buf[q, 0] - x[0]) * t - origin[0]
+        zy = x[1] + (buf[q, 1] - x[1]) * t - origin[1]
+        zz = x[2] + (buf[q, 2] - x[2]) * t - origin[2]
+        out[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
+        out[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
+
+
+@njit(cache=True)
+def _convex_hull(pts, n, out):
+    """Andrew's monotone chain: the convex hull of ``pts[:n]`` (2-D) counter-clockwise, as
+    indices into ``out`` (size >= n + 1); returns its size (collinear points left out).
+    The points are sorted in place by (u, v)."""
+    for i in range(1, n):  # insertion sort by (u, v): a few dozen points
+        u, v = pts[i, 0], pts[i, 1]
+        j = i
+        while j > 0 and (pts[j - 1, 0] > u or (pts[j - 1, 0] == u and pts[j - 1, 1] > v)):
+            pts[j, 0], pts[j, 1] = pts[j - 1, 0], pts[j - 1, 1]
+            j -= 1
+        pts[j, 0], pts[j, 1] = u, v
+    if n < 3:
+        return 0
+    m = 0
+    for i in range(n):  # lower chain
+        while m >= 2 and _turn(pts, out[m - 2], out[m - 1], i) <= 0:
+            m -= 1
+        out[m] = i
+        m += 1
+    low = m + 1
+    for i in range(n - 2, -1, -1):  # upper chain
+        while m >= low and _turn(pts, out[m - 2], out[m - 1], i) <= 0:
+            m -= 1
+        out[m] = i
+        m += 1
+    return m - 1  # the last point is the first
+
+
+@njit(cache=True)
+def _turn(pts, a, b, c):
+    return (pts[b, 0] - pts[a, 0]) * (pts[c, 1] - pts[a, 1]) - (pts[b, 1] - pts[a, 1]) * (pts[c, 0] - pts[a, 0])
+
+
+@njit(cache=True)
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
-                 poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state, seg_a, seg_b, seg_p, seg_w, buf_a,
-                 buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1):
+                 poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state, box_head, box_next, box_list,
+                 hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0,
+                 p1):
     """Form factor from (x, n_i) to the visible part of J past the occluder polygons ``sel``
     (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring), and ``brk``
-    (grown if it had to). Occluders that are back faces of a closed box x is outside of
-    (``poly_box``, :func:`_back_face`) are left out: its front faces hide all they would."""
+    (grown if it had to). The faces of a closed convex box x is outside of (``poly_box``,
+    :func:`_outside`) are replaced by the convex hull of their projection."""
     hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
     if hx <= 0:
         return 0.0, brk
@@ -274,41 +326,69 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             seg_p[n_seg] = 0
             seg_w[n_seg] = 1
             n_seg += 1
-    # occluders: clipped to the pyramid, projected through x
+    # occluders: clipped to the pyramid, projected through x; the faces of a closed box
+    # that x is outside of are gathered first (one convex polygon per box, below)
     n_poly = poly_normal.shape[0]
+    n_box = 0
     for r in range(sel.shape[0]):
         pid = sel[r]
+        b = poly_box[pid]
+        if _outside(x, b, box_state, box_ptr, box_planes, tiny):
+            if box_head[b] < 0:
+                box_list[n_box] = b
+                n_box += 1
+            box_next[pid] = box_head[b]
+            box_head[b] = pid
+            continue
         for L in range(poly_loop[pid], poly_loop[pid + 1]):
             lo, hi = occ_loop[L], occ_loop[L + 1]
             side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
                     + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
             if abs(side) <= tiny:
                 continue  # x in the occluder's plane: it is seen edge-on and hides nothing
-            if side < 0 and _back_face(x, poly_box[pid], box_state, box_ptr, box_planes, tiny):
-                break
             sgn = 1 if side > 0 else -1
             n_in = _clip_to_frustum(occ, lo, hi, x, planes, n_hull, buf_a, buf_b)
             if n_in < 3:
                 continue
-            # project
+            _project(buf_a, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, seg_a, n_seg)
             first = n_seg
-            for q in range(n_in):
-                h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
-                den = hx - h
-                if den <= 0:
-                    den = tiny  # only x itself (the apex) projects to infinity
-                t = hx / den
-                zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
-                zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
-                zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
-                seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
-                seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
             for q in range(n_in):
                 k = first + q + 1 if q + 1 < n_in else first
                 seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
                 seg_p[first + q] = pid + 1
                 seg_w[first + q] = sgn
             n_seg += n_in
+    # a closed convex box x is outside of hides the central projection of its part inside
+    # the pyramid: a convex set (the box cut by the pyramid's planes and the half-spaces the
+    # occluders were clipped to), the convex hull of the projected vertices of its faces
+    # clipped to the pyramid. Those of the faces listed suffice: a ray from x that meets the
+    # box enters it through a face x is in front of, at a point of the ray's segment to J,
+    # inside the shaft, so that face meets the shaft and is listed. One convex polygon
+    # instead of two or three faces (no shared edges, no back faces).
+    for k in range(n_box):
+        b = box_list[k]
+        n_pts = 0
+        pid = box_head[b]
+        head = pid
+        while pid >= 0:
+            for L in range(poly_loop[pid], poly_loop[pid + 1]):
+                n_in = _clip_to_frustum(occ, occ_loop[L], occ_loop[L + 1], x, planes, n_hull, buf_a, buf_b)
+                if n_in >= 3:
+                    _project(buf_a, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, hull_pts, n_pts)
+                    n_pts += n_in
+            pid = box_next[pid]
+        box_head[b] = -1
+        box_state[b] = 0
+        m = _convex_hull(hull_pts, n_pts, hull_idx)
+        if m < 3:
+            continue
+        for q in range(m):
+            a, c = hull_idx[q], hull_idx[q + 1 if q + 1 < m else 0]
+            seg_a[n_seg, 0], seg_a[n_seg, 1] = hull_pts[a, 0], hull_pts[a, 1]
+            seg_b[n_seg, 0], seg_b[n_seg, 1] = hull_pts[c, 0], hull_pts[c, 1]
+            seg_p[n_seg] = head + 1
+            seg_w[n_seg] = 1  # counter-clockwise
+            n_seg += 1
     for r in range(sel.shape[0]):
         b = poly_box[sel[r]]
         if b >= 0:
@@ -459,7 +539,8 @@ def _buffers(j2, hull, occ_loop, n_poly):
     emax = j2.shape[0] + n_loops * kmax + 1
     return (np.empty((emax, 2)), np.empty((emax, 2)), np.empty(emax, np.int64), np.empty(emax, np.int64),
             np.empty((kmax, 3)), np.empty((kmax, 3)), np.empty(4 * emax), np.zeros(n_poly + 1, np.int64),
-            np.empty(emax, np.int64), np.empty(emax), np.empty(emax), np.empty(emax), np.empty(3), np.empty(3))
+            np.empty(emax, np.int64), np.empty(emax), np.empty(emax), np.empty(emax), np.empty(3), np.empty(3),
+            np.empty((emax, 2)), np.empty(emax + 1, np.int64))
 
 
 @njit(cache=True)
@@ -493,7 +574,7 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         The closed convex box each occluder is a face of (-1 none; its normal outward),
         ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 4) float64 the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): a point outside a box skips its
-        back faces (:func:`_back_face`).
+        faces as one convex polygon (:func:`_visible_one`).
 
     Returns
     -------
@@ -503,13 +584,16 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     poly_loop = _loops_of_polygons(occ_poly, n_poly)
     sel = np.arange(n_poly)
     box_state = np.zeros(box_ptr.shape[0], np.int64)
-    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1, hull_pts, hull_idx = _buffers(
         j2, hull, occ_loop, n_poly)
+    box_head = np.full(box_ptr.shape[0], -1, np.int64)
+    box_next = np.empty(n_poly, np.int64)
+    box_list = np.empty(box_ptr.shape[0], np.int64)
     out = np.empty(points.shape[0])
     for i in range(points.shape[0]):
         out[i], brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                    poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
-                                   seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+                                   box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
     return out
 
 
@@ -538,8 +622,11 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
     poly_loop = _loops_of_polygons(occ_poly, n_poly)
     none = np.zeros(0, np.int64)
     box_state = np.zeros(box_ptr.shape[0], np.int64)
-    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1, hull_pts, hull_idx = _buffers(
         j2, hull, occ_loop, n_poly)
+    box_head = np.full(box_ptr.shape[0], -1, np.int64)
+    box_next = np.empty(n_poly, np.int64)
+    box_list = np.empty(box_ptr.shape[0], np.int64)
     out = np.zeros(points.shape[0])
     for i in range(points.shape[0]):
         g = point_group[i]
@@ -548,10 +635,10 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
             continue
         whole, brk = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                   poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
-                                  seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+                                  box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
         seen, brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                  poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
-                                 seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+                                 box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
         out[i] = whole - seen
     return out
 
@@ -982,7 +1069,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 4) float64
         The closed convex box of each polygon (-1 none) and the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
-        outside of are not swept (:func:`_back_face`; their front faces hide them: what x
+        outside of are not swept (:func:`_outside`; their front faces hide them: what x
         sees of them is 0, all of their unoccluded F is hidden).
     """
     P = poly_normal.shape[0]
@@ -1087,7 +1174,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
             hidden[i, contact] = -1.0  # it sees that side only: all else it would see is hidden
             continue
         for p in range(P):
-            sweep[p] = use[p] and not (side[p] < 0 and _back_face(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
+            sweep[p] = use[p] and not (side[p] < 0 and _outside(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
         box_state[:] = 0
         for k in range(5):
             brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,

@@ -317,6 +317,58 @@ def closed_boxes(scene):
     return scene.cached("closed_boxes", build)
 
 
+def _box_plane_table(scene):
+    """The planes of each :func:`closed_boxes` box as one padded (b, k, 4) float64 array
+    (padding: the plane 0 · y = 1, behind every point), cached."""
+
+    def build(scene):
+        _, ptr, planes = closed_boxes(scene)
+        k = int(np.diff(ptr).max(initial=1))
+        out = np.zeros((len(ptr) - 1, k, 4))
+        out[:, :, 3] = 1.0
+        for b in range(len(ptr) - 1):
+            out[b, :ptr[b + 1] - ptr[b]] = planes[ptr[b]:ptr[b + 1]]
+        return out
+
+    return scene.cached("box_plane_table", build)
+
+
+def back_faces(scene, tri, cell, faces, tiny):
+    """(c,) bool: for each pair (triangle ``tri[cell[c]]``, face ``faces[c]``), whether the
+    face is a back face of a closed convex box (:func:`closed_boxes`) for every point of the
+    triangle, each of which is outside the box: all three vertices behind the face's plane
+    (by more than tiny), and for each plane of the box either all three on or behind it or
+    all three more than 2 tiny in front, the latter for at least one (a convex combination
+    keeps each, so every point of the triangle is outside the box and not within 2 tiny in
+    front of one of its planes, as :func:`viscx.geometry.occlusion._outside_box` asks). Such
+    a face hides nothing from the triangle that the box's front faces do not
+    (:func:`viscx.geometry.occlusion._outside`): it can be dropped from its occluders.
+
+    Parameters
+    ----------
+    tri : (g, 3, 3) float64
+    cell, faces : (c,) int64
+        ``faces`` -1 for an occluder that is no face of the scene.
+    """
+    out = np.zeros(len(cell), bool)
+    face_box = closed_boxes(scene)[0]
+    boxed = np.flatnonzero(faces >= 0)
+    boxed = boxed[face_box[faces[boxed]] >= 0]
+    if not len(boxed):
+        return out
+    f = faces[boxed]
+    v = tri[cell[boxed]]  # (k, 3, 3)
+    own = np.einsum("kvj,kj->kv", v, scene.face_normal[f]) - scene.face_offset[f][:, None]
+    behind = np.all(own < -tiny, axis=1)
+    boxed, f, v = boxed[behind], f[behind], v[behind]
+    planes = _box_plane_table(scene)[face_box[f]]  # (k, m, 4)
+    h = np.einsum("kvj,kmj->kmv", v, planes[:, :, :3]) - planes[:, :, 3][:, :, None]
+    front = np.all(h > 2 * tiny, axis=2)
+    ok = np.all(front | np.all(h <= 0, axis=2), axis=1) & np.any(front, axis=1)
+    out[boxed[ok]] = True
+    return out
+
+
 def no_boxes(n):
     """The box arrays of :func:`closed_boxes` for n polygons none of which is culled (a
     subset of the faces: a box's front faces may be missing from it)."""
@@ -1001,9 +1053,13 @@ class PairSetup:
 
     def shaft_cull(self, tri, ptr, ids):
         """Each triangle's occluders (CSR ``ptr, ids`` into :attr:`occluders`) reduced to the
-        ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`)."""
+        ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`) that are
+        not back faces of a closed box outside of which the whole triangle lies
+        (:func:`back_faces`)."""
         pts, lo, hi, normals = self._outlines
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
+        keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
+        cell, ids = cell[keep], ids[keep]
         meets = shaft_meets(np.ascontiguousarray(tri), np.ascontiguousarray(np.broadcast_to(self.n_i, (len(tri), 3))),
                             self.frame[6], np.asarray(self.n_t, np.float64), cell, ids, pts, lo, hi, normals, self.tiny)
         counts = np.bincount(cell[meets], minlength=len(tri))
@@ -1012,6 +1068,11 @@ class PairSetup:
     @functools.cached_property
     def _outlines(self):
         return _polygon_arrays(self.occluders)
+
+    @functools.cached_property
+    def _occluder_faces(self):
+        """(P,) int64: the scene's face of each occluder (-1 none)."""
+        return np.asarray([o[2] if len(o) > 2 else -1 for o in self.occluders], np.int64).reshape(-1)
 
     @functools.cached_property
     def _heights(self):

@@ -288,6 +288,68 @@ def _turn(pts, a, b, c):
 
 
 @njit(cache=True)
+def _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, hull_first, n_hulls):
+    """Leave out the holes of J (its loops after the first, J's edges first in the segment
+    arrays) that lie inside one box's shadow (a convex counter-clockwise polygon; the
+    hulls' edges run from ``hull_first[k]`` to the next hull's first edge or ``n_seg``):
+    inside the shadow nothing of J is visible with or without the hole, outside nothing
+    changes (a covered cell under a cabinet, inside the cabinet's shadow from every point
+    above the floor). A hole on the shadow's boundary (that cell: the cabinet's bottom
+    projects to itself) counts as inside within 1e-12 of the shadow's size: the sliver
+    this may leave visible is below 1e-12 of F. Returns the new number of edges (the
+    arrays compacted in order)."""
+    out = j_loop[1]  # the outer loop stays
+    for L in range(1, j_loop.shape[0] - 1):
+        lo, hi = j_loop[L], j_loop[L + 1]
+        u_lo, u_hi = np.inf, -np.inf
+        v_lo, v_hi = np.inf, -np.inf
+        for e in range(lo, hi):
+            u_lo, u_hi = min(u_lo, seg_a[e, 0]), max(u_hi, seg_a[e, 0])
+            v_lo, v_hi = min(v_lo, seg_a[e, 1]), max(v_hi, seg_a[e, 1])
+        inside = False
+        for k in range(n_hulls):
+            first = hull_first[k]
+            last = hull_first[k + 1] if k + 1 < n_hulls else n_seg
+            bu_lo, bu_hi = np.inf, -np.inf
+            bv_lo, bv_hi = np.inf, -np.inf
+            for f in range(first, last):
+                bu_lo, bu_hi = min(bu_lo, seg_a[f, 0]), max(bu_hi, seg_a[f, 0])
+                bv_lo, bv_hi = min(bv_lo, seg_a[f, 1]), max(bv_hi, seg_a[f, 1])
+            eps = 1e-12 * (bu_hi - bu_lo + bv_hi - bv_lo)
+            if u_lo < bu_lo - eps or u_hi > bu_hi + eps or v_lo < bv_lo - eps or v_hi > bv_hi + eps:
+                continue
+            inside = True
+            for e in range(lo, hi):
+                for f in range(first, last):
+                    du, dv = seg_b[f, 0] - seg_a[f, 0], seg_b[f, 1] - seg_a[f, 1]
+                    if du * (seg_a[e, 1] - seg_a[f, 1]) - dv * (seg_a[e, 0] - seg_a[f, 0]) < -eps * (abs(du) + abs(dv)):
+                        inside = False
+                        break
+                if not inside:
+                    break
+            if inside:
+                break
+        if inside:
+            continue
+        for e in range(lo, hi):
+            seg_a[out, 0], seg_a[out, 1] = seg_a[e, 0], seg_a[e, 1]
+            seg_b[out, 0], seg_b[out, 1] = seg_b[e, 0], seg_b[e, 1]
+            seg_p[out], seg_w[out] = seg_p[e], seg_w[e]
+            out += 1
+    shift = j_loop[j_loop.shape[0] - 1] - out
+    if shift == 0:
+        return n_seg
+    for k in range(n_hulls):
+        hull_first[k] -= shift
+    for e in range(j_loop[j_loop.shape[0] - 1], n_seg):
+        seg_a[out, 0], seg_a[out, 1] = seg_a[e, 0], seg_a[e, 1]
+        seg_b[out, 0], seg_b[out, 1] = seg_b[e, 0], seg_b[e, 1]
+        seg_p[out], seg_w[out] = seg_p[e], seg_w[e]
+        out += 1
+    return out
+
+
+@njit(cache=True)
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state, box_head, box_next, box_list,
                  hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0,
@@ -365,6 +427,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     # box enters it through a face x is in front of, at a point of the ray's segment to J,
     # inside the shaft, so that face meets the shaft and is listed. One convex polygon
     # instead of two or three faces (no shared edges, no back faces).
+    n_hulls = 0
     for k in range(n_box):
         b = box_list[k]
         n_pts = 0
@@ -382,6 +445,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         m = _convex_hull(hull_pts, n_pts, hull_idx)
         if m < 3:
             continue
+        box_list[n_hulls] = n_seg  # (box_list[:k + 1] is done with: the hulls' first edges)
+        n_hulls += 1
         for q in range(m):
             a, c = hull_idx[q], hull_idx[q + 1 if q + 1 < m else 0]
             seg_a[n_seg, 0], seg_a[n_seg, 1] = hull_pts[a, 0], hull_pts[a, 1]
@@ -393,6 +458,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         b = poly_box[sel[r]]
         if b >= 0:
             box_state[b] = 0
+    if n_hulls and j_loop.shape[0] > 2:
+        n_seg = _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, box_list, n_hulls)
     # winding weights: an edge running right to left adds its polygon's sign below it
     n_brk = 0
     lo_u = np.empty(n_seg)

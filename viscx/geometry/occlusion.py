@@ -16,6 +16,11 @@ Everything here is for one emitter/target pair whose occluders are known
    trapezoids' boundaries (interior sides cancel; the sum is additive along a
    straight edge, so the cutting changes nothing but rounding).
 
+The faces of a closed convex box that x is outside of (:func:`_outside`; the boxes from
+:func:`viscx.queries.formfactor.closed_boxes`) enter as one convex polygon, the hull of
+their clipped projections, and J's holes inside such a polygon are left out (the same
+visible part, fewer edges). The sweep keeps its edges' order from slab to slab.
+
 Nothing is sampled: the visible part is the exact polygon (float64 crossings),
 the same set the point's V-cells give (tests/test_formfactor_queries.py checks
 both against each other and against shadow rays).

@@ -8,6 +8,13 @@ default workers: one per core). One JSON line per query.
 
 Without ``--pairs``: every ordered pair of the groups ``floor, ceiling, wall_*,
 light1..4, desk0, cabinet0, divider0`` (the other desks and cabinets are alike).
+
+``--kernels``: the per-point cost (CPU µs) of the two from-point kernels on this office
+instead: ``point_views`` from the floor (a matrix row's integrand) and the pair kernel
+(``blocked_form_factors``, all the pair's occluders, J's covered cells as holes as the
+cubature has them) for a few group pairs, at 300 random points each.
+
+    python benchmarks/office_groups.py --polygons 1000 --kernels
 """
 
 import argparse
@@ -31,6 +38,45 @@ def cpu_seconds():
     return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
 
 
+def kernel_costs(scene, n=300, seed=1):
+    """{name: CPU µs per point} of point_views and of the pair kernel on the office."""
+    import numpy as np
+
+    from viscx.geometry.occlusion import point_views
+    from viscx.geometry.polygon import plane_basis
+    from viscx.queries import formfactor as ff
+
+    rng = np.random.default_rng(seed)
+
+    def points(face):
+        tri = scene.vertices[scene.triangles[scene.triangle_face == face]]
+        w = rng.dirichlet([1, 1, 1], n)
+        return np.ascontiguousarray(np.einsum("gk,gkd->gd", w, tri[rng.integers(0, len(tri), n)]))
+
+    def per_point(f, pts):
+        f(pts[:2])  # compiled or loaded
+        c0 = time.process_time()
+        f(pts)
+        return round(1e6 * (time.process_time() - c0) / len(pts), 1)
+
+    floor = int(scene.group_faces("floor")[0])
+    n_i = scene.face_normal[floor]
+    eu, ev = plane_basis(n_i)
+    args = (*ff.scene_polygons(scene), floor, 1e-9 * scene.diagonal, *ff.closed_boxes(scene))
+    out = {"faces": int(scene.n_faces),
+           "point_views floor": per_point(lambda p: point_views(p, n_i, eu, ev, *args), points(floor))}
+    for a, b in (("floor", "ceiling"), ("ceiling", "floor"), ("wall_west", "wall_east"), ("floor", "light1")):
+        i, j = int(scene.group_faces(a)[0]), int(scene.group_faces(b)[0])
+        target = ff.face_target(scene, j)
+        target = ff.Target(target.loops + ff.covered_cells(scene, j, 1), target.normal, j)
+        setup = ff.PairSetup(scene, i, 1, target, 1)
+        ids = np.arange(len(setup.occluders), dtype=np.int64)
+        ptr = np.array([0, len(ids)], np.int64)
+        out[f"pair {a}->{b} ({len(ids)} occluders)"] = per_point(
+            lambda p: setup.blocked(p, np.zeros(len(p), np.int64), ptr, ids), points(i))
+    return out
+
+
 def main(argv=None):
     from buildings import office
 
@@ -41,8 +87,12 @@ def main(argv=None):
     parser.add_argument("--polygons", type=int, default=300)
     parser.add_argument("--tol", type=float, default=1e-4)
     parser.add_argument("--pairs", nargs="*", default=None, metavar="FROM:TO")
+    parser.add_argument("--kernels", action="store_true", help="per-point cost of the kernels instead")
     args = parser.parse_args(argv)
     scene = build_scene(office(args.polygons, seed=0))
+    if args.kernels:
+        print(json.dumps(kernel_costs(scene)), flush=True)
+        return
     pairs = [tuple(p.split(":")) for p in args.pairs] if args.pairs else [(a, b) for a in GROUPS for b in GROUPS if a != b]
     for a, b in pairs:
         c0, w0 = cpu_seconds(), time.perf_counter()

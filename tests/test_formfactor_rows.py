@@ -27,7 +27,8 @@ def emitter_points(scene, face, k, rng):
 def views(scene, face, side, points):
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
-    return point_views(np.ascontiguousarray(points), n_i, eu, ev, *ff.scene_polygons(scene), face, 1e-9 * scene.diagonal)
+    return point_views(np.ascontiguousarray(points), n_i, eu, ev, *ff.scene_polygons(scene), face, 1e-9 * scene.diagonal,
+                       *ff.closed_boxes(scene))
 
 
 @pytest.mark.parametrize("face", [0, 1, 2, 15])  # floor, ceiling (light 0.1 mm under it), back wall, light

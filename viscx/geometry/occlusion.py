@@ -16,6 +16,11 @@ Everything here is for one emitter/target pair whose occluders are known
    trapezoids' boundaries (interior sides cancel; the sum is additive along a
    straight edge, so the cutting changes nothing but rounding).
 
+The faces of a closed convex box that x is outside of (:func:`_outside`; the boxes from
+:func:`viscx.queries.formfactor.closed_boxes`) enter as one convex polygon, the hull of
+their clipped projections, and J's holes inside such a polygon are left out (the same
+visible part, fewer edges). The sweep keeps its edges' order from slab to slab.
+
 Nothing is sampled: the visible part is the exact polygon (float64 crossings),
 the same set the point's V-cells give (tests/test_formfactor_queries.py checks
 both against each other and against shadow rays).
@@ -169,24 +174,27 @@ def _has_vertical(seg_a, seg_b, seg_w, n_seg):
 
 
 @njit(cache=True)
-def _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
+def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
     """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
-    middle are dropped (in place), the others sorted by height at the middle, highest first,
-    into ``act`` (edge ids) with their heights at the middle, u0 and u1. Returns
-    ``(n_on, n_act)``."""
+    middle are dropped, the others sorted by height at the middle, highest first (ties by
+    ``entry``, the order in which they entered the sweep), into ``act`` (edge ids) with
+    their heights at the middle, u0 and u1; ``on`` is left in that order. Returns
+    ``(n_on, n_act)``, equal.
+
+    The order is kept from slab to slab: edges do not cross inside a slab, so the previous
+    slab's order differs from this one's only by the crossings at their common side and by
+    the edges that entered (appended at the end). Insertion sort costs the length plus
+    those changes, not the square of the length."""
     um = 0.5 * (u0 + u1)
-    m = 0
     n_act = 0
     for r in range(n_on):
         e = on[r]
         if max(seg_a[e, 0], seg_b[e, 0]) <= um:
             continue
-        on[m] = e
-        m += 1
         slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
         vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
         j = n_act
-        while j > 0 and act_v[j - 1] < vm:
+        while j > 0 and (act_v[j - 1] < vm or (act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
             act_v[j] = act_v[j - 1]
             act_v0[j] = act_v0[j - 1]
             act_v1[j] = act_v1[j - 1]
@@ -197,18 +205,167 @@ def _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
         act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
         act[j] = e
         n_act += 1
-    return m, n_act
+    for r in range(n_act):
+        on[r] = act[r]
+    return n_act, n_act
+
+
+@njit(cache=True)
+def _outside_box(x, box_planes, lo, hi, tiny):
+    """Whether x lies strictly outside the closed convex box with the outward planes
+    ``box_planes[lo:hi]`` (n, c), and not within 2 tiny in front of any of them (a face that
+    close is seen edge-on and skipped by the kernels, though rays could enter the box
+    through it)."""
+    out = False
+    for k in range(lo, hi):
+        s = box_planes[k, 0] * x[0] + box_planes[k, 1] * x[1] + box_planes[k, 2] * x[2] - box_planes[k, 3]
+        if s > 2.0 * tiny:
+            out = True
+        elif s > 0.0:
+            return False
+    return out
+
+
+@njit(cache=True)
+def _outside(x, b, box_state, box_ptr, box_planes, tiny):
+    """Whether x is outside box b (-1: no box) (:func:`_outside_box`, decided once per
+    point: ``box_state[b]`` 0 unknown, 1 yes, 2 no; the caller resets it). Then every ray
+    from x that meets a face of the box that x is behind has entered the box before,
+    through a face x is in front of (a ray leaves a closed solid through a face whose
+    outward normal it goes along, and enters it through one it goes against): the box's
+    front faces hide everything its back faces would."""
+    if b < 0:
+        return False
+    if box_state[b] == 0:
+        box_state[b] = 1 if _outside_box(x, box_planes, box_ptr[b], box_ptr[b + 1], tiny) else 2
+    return box_state[b] == 1
+
+
+@njit(cache=True)
+def _project(buf, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, out, first):
+    """The points ``buf[:n_in]`` (inside the pyramid from x over J) projected centrally
+    through x on J's plane, in its 2-D basis, into ``out[first:first + n_in]``."""
+    for q in range(n_in):
+        h = n_j[0] * buf[q, 0] + n_j[1] * buf[q, 1] + n_j[2] * buf[q, 2] - c_j
+        den = hx - h
+        if den <= 0:
+            den = tiny  # only x itself (the apex) projects to infinity
+        t = hx / den
+        zx = x[0] + (buf[q, 0] - x[0]) * t - origin[0]
+        zy = x[1] + (buf[q, 1] - x[1]) * t - origin[1]
+        zz = x[2] + (buf[q, 2] - x[2]) * t - origin[2]
+        out[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
+        out[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
+
+
+@njit(cache=True)
+def _convex_hull(pts, n, out):
+    """Andrew's monotone chain: the convex hull of ``pts[:n]`` (2-D) counter-clockwise, as
+    indices into ``out`` (size >= n + 1); returns its size (collinear points left out).
+    The points are sorted in place by (u, v)."""
+    for i in range(1, n):  # insertion sort by (u, v): a few dozen points
+        u, v = pts[i, 0], pts[i, 1]
+        j = i
+        while j > 0 and (pts[j - 1, 0] > u or (pts[j - 1, 0] == u and pts[j - 1, 1] > v)):
+            pts[j, 0], pts[j, 1] = pts[j - 1, 0], pts[j - 1, 1]
+            j -= 1
+        pts[j, 0], pts[j, 1] = u, v
+    if n < 3:
+        return 0
+    m = 0
+    for i in range(n):  # lower chain
+        while m >= 2 and _turn(pts, out[m - 2], out[m - 1], i) <= 0:
+            m -= 1
+        out[m] = i
+        m += 1
+    low = m + 1
+    for i in range(n - 2, -1, -1):  # upper chain
+        while m >= low and _turn(pts, out[m - 2], out[m - 1], i) <= 0:
+            m -= 1
+        out[m] = i
+        m += 1
+    return m - 1  # the last point is the first
+
+
+@njit(cache=True)
+def _turn(pts, a, b, c):
+    return (pts[b, 0] - pts[a, 0]) * (pts[c, 1] - pts[a, 1]) - (pts[b, 1] - pts[a, 1]) * (pts[c, 0] - pts[a, 0])
+
+
+@njit(cache=True)
+def _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, hull_first, n_hulls):
+    """Leave out the holes of J (its loops after the first, J's edges first in the segment
+    arrays) that lie inside one box's shadow (a convex counter-clockwise polygon; the
+    hulls' edges run from ``hull_first[k]`` to the next hull's first edge or ``n_seg``):
+    inside the shadow nothing of J is visible with or without the hole, outside nothing
+    changes (a covered cell under a cabinet, inside the cabinet's shadow from every point
+    above the floor). A hole on the shadow's boundary (that cell: the cabinet's bottom
+    projects to itself) counts as inside within 1e-12 of the shadow's size: the sliver
+    this may leave visible is below 1e-12 of F. Returns the new number of edges (the
+    arrays compacted in order)."""
+    out = j_loop[1]  # the outer loop stays
+    for L in range(1, j_loop.shape[0] - 1):
+        lo, hi = j_loop[L], j_loop[L + 1]
+        u_lo, u_hi = np.inf, -np.inf
+        v_lo, v_hi = np.inf, -np.inf
+        for e in range(lo, hi):
+            u_lo, u_hi = min(u_lo, seg_a[e, 0]), max(u_hi, seg_a[e, 0])
+            v_lo, v_hi = min(v_lo, seg_a[e, 1]), max(v_hi, seg_a[e, 1])
+        inside = False
+        for k in range(n_hulls):
+            first = hull_first[k]
+            last = hull_first[k + 1] if k + 1 < n_hulls else n_seg
+            bu_lo, bu_hi = np.inf, -np.inf
+            bv_lo, bv_hi = np.inf, -np.inf
+            for f in range(first, last):
+                bu_lo, bu_hi = min(bu_lo, seg_a[f, 0]), max(bu_hi, seg_a[f, 0])
+                bv_lo, bv_hi = min(bv_lo, seg_a[f, 1]), max(bv_hi, seg_a[f, 1])
+            eps = 1e-12 * (bu_hi - bu_lo + bv_hi - bv_lo)
+            if u_lo < bu_lo - eps or u_hi > bu_hi + eps or v_lo < bv_lo - eps or v_hi > bv_hi + eps:
+                continue
+            inside = True
+            for e in range(lo, hi):
+                for f in range(first, last):
+                    du, dv = seg_b[f, 0] - seg_a[f, 0], seg_b[f, 1] - seg_a[f, 1]
+                    if du * (seg_a[e, 1] - seg_a[f, 1]) - dv * (seg_a[e, 0] - seg_a[f, 0]) < -eps * (abs(du) + abs(dv)):
+                        inside = False
+                        break
+                if not inside:
+                    break
+            if inside:
+                break
+        if inside:
+            continue
+        for e in range(lo, hi):
+            seg_a[out, 0], seg_a[out, 1] = seg_a[e, 0], seg_a[e, 1]
+            seg_b[out, 0], seg_b[out, 1] = seg_b[e, 0], seg_b[e, 1]
+            seg_p[out], seg_w[out] = seg_p[e], seg_w[e]
+            out += 1
+    shift = j_loop[j_loop.shape[0] - 1] - out
+    if shift == 0:
+        return n_seg
+    for k in range(n_hulls):
+        hull_first[k] -= shift
+    for e in range(j_loop[j_loop.shape[0] - 1], n_seg):
+        seg_a[out, 0], seg_a[out, 1] = seg_a[e, 0], seg_a[e, 1]
+        seg_b[out, 0], seg_b[out, 1] = seg_b[e, 0], seg_b[e, 1]
+        seg_p[out], seg_w[out] = seg_p[e], seg_w[e]
+        out += 1
+    return out
 
 
 @njit(cache=True)
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
-                 poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0,
-                 act_v1, p0, p1):
+                 poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state, box_head, box_next, box_list,
+                 hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0,
+                 p1):
     """Form factor from (x, n_i) to the visible part of J past the occluder polygons ``sel``
-    (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring)."""
+    (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring), and ``brk``
+    (grown if it had to). The faces of a closed convex box x is outside of (``poly_box``,
+    :func:`_outside`) are replaced by the convex hull of their projection."""
     hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
     if hx <= 0:
-        return 0.0
+        return 0.0, brk
     n_hull = hull.shape[0]
     # pyramid planes through x and the hull's edges, oriented inwards
     planes = np.empty((n_hull, 3))
@@ -236,10 +393,20 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             seg_p[n_seg] = 0
             seg_w[n_seg] = 1
             n_seg += 1
-    # occluders: clipped to the pyramid, projected through x
+    # occluders: clipped to the pyramid, projected through x; the faces of a closed box
+    # that x is outside of are gathered first (one convex polygon per box, below)
     n_poly = poly_normal.shape[0]
+    n_box = 0
     for r in range(sel.shape[0]):
         pid = sel[r]
+        b = poly_box[pid]
+        if _outside(x, b, box_state, box_ptr, box_planes, tiny):
+            if box_head[b] < 0:
+                box_list[n_box] = b
+                n_box += 1
+            box_next[pid] = box_head[b]
+            box_head[b] = pid
+            continue
         for L in range(poly_loop[pid], poly_loop[pid + 1]):
             lo, hi = occ_loop[L], occ_loop[L + 1]
             side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
@@ -250,27 +417,58 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             n_in = _clip_to_frustum(occ, lo, hi, x, planes, n_hull, buf_a, buf_b)
             if n_in < 3:
                 continue
-            # project
+            _project(buf_a, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, seg_a, n_seg)
             first = n_seg
-            for q in range(n_in):
-                h = n_j[0] * buf_a[q, 0] + n_j[1] * buf_a[q, 1] + n_j[2] * buf_a[q, 2] - c_j
-                den = hx - h
-                if den <= 0:
-                    den = tiny  # only x itself (the apex) projects to infinity
-                t = hx / den
-                zx = x[0] + (buf_a[q, 0] - x[0]) * t - origin[0]
-                zy = x[1] + (buf_a[q, 1] - x[1]) * t - origin[1]
-                zz = x[2] + (buf_a[q, 2] - x[2]) * t - origin[2]
-                seg_a[first + q, 0] = zx * eu[0] + zy * eu[1] + zz * eu[2]
-                seg_a[first + q, 1] = zx * ev[0] + zy * ev[1] + zz * ev[2]
             for q in range(n_in):
                 k = first + q + 1 if q + 1 < n_in else first
                 seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
                 seg_p[first + q] = pid + 1
                 seg_w[first + q] = sgn
             n_seg += n_in
+    # a closed convex box x is outside of hides the central projection of its part inside
+    # the pyramid: a convex set (the box cut by the pyramid's planes and the half-spaces the
+    # occluders were clipped to), the convex hull of the projected vertices of its faces
+    # clipped to the pyramid. Those of the faces listed suffice: a ray from x that meets the
+    # box enters it through a face x is in front of, at a point of the ray's segment to J,
+    # inside the shaft, so that face meets the shaft and is listed. One convex polygon
+    # instead of two or three faces (no shared edges, no back faces).
+    n_hulls = 0
+    for k in range(n_box):
+        b = box_list[k]
+        n_pts = 0
+        pid = box_head[b]
+        head = pid
+        while pid >= 0:
+            for L in range(poly_loop[pid], poly_loop[pid + 1]):
+                n_in = _clip_to_frustum(occ, occ_loop[L], occ_loop[L + 1], x, planes, n_hull, buf_a, buf_b)
+                if n_in >= 3:
+                    _project(buf_a, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, hull_pts, n_pts)
+                    n_pts += n_in
+            pid = box_next[pid]
+        box_head[b] = -1
+        box_state[b] = 0
+        m = _convex_hull(hull_pts, n_pts, hull_idx)
+        if m < 3:
+            continue
+        box_list[n_hulls] = n_seg  # (box_list[:k + 1] is done with: the hulls' first edges)
+        n_hulls += 1
+        for q in range(m):
+            a, c = hull_idx[q], hull_idx[q + 1 if q + 1 < m else 0]
+            seg_a[n_seg, 0], seg_a[n_seg, 1] = hull_pts[a, 0], hull_pts[a, 1]
+            seg_b[n_seg, 0], seg_b[n_seg, 1] = hull_pts[c, 0], hull_pts[c, 1]
+            seg_p[n_seg] = head + 1
+            seg_w[n_seg] = 1  # counter-clockwise
+            n_seg += 1
+    for r in range(sel.shape[0]):
+        b = poly_box[sel[r]]
+        if b >= 0:
+            box_state[b] = 0
+    if n_hulls and j_loop.shape[0] > 2:
+        n_seg = _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, box_list, n_hulls)
     # winding weights: an edge running right to left adds its polygon's sign below it
     n_brk = 0
+    lo_u = np.empty(n_seg)
+    hi_u = np.empty(n_seg)
     for e in range(n_seg):
         if seg_a[e, 0] > seg_b[e, 0]:
             pass
@@ -278,36 +476,46 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             seg_w[e] = -seg_w[e]
         else:
             seg_w[e] = 0
+        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
+        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
+        brk = _grow(brk, n_brk)
         brk[n_brk] = seg_a[e, 0]
         n_brk += 1
-    # crossings of edges of different polygons
-    for e in range(n_seg):
+    # crossings of edges of different polygons: edges by their left ends, each against the
+    # ones starting before it ends (each pair once, its crossing computed from the lower id)
+    by_lo = np.argsort(lo_u, kind="mergesort")  # stable: ties by edge id
+    for r in range(n_seg):
+        e = by_lo[r]
         if seg_w[e] == 0:
             continue
-        ax, bx = seg_a[e, 0], seg_b[e, 0]
-        for f in range(e + 1, n_seg):
+        for r2 in range(r + 1, n_seg):
+            f = by_lo[r2]
+            if lo_u[f] > hi_u[e]:
+                break
             if seg_p[f] == seg_p[e] or seg_w[f] == 0:
                 continue
-            cx, dx = seg_a[f, 0], seg_b[f, 0]
-            if max(ax, bx) < min(cx, dx) or max(cx, dx) < min(ax, bx):
-                continue
-            u = _crossing_u(seg_a, seg_b, e, f)
+            u = _crossing_u(seg_a, seg_b, min(e, f), max(e, f))
             if u == u:
+                brk = _grow(brk, n_brk)
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
     runs = np.zeros((n_seg, 3))  # per edge: direction (0 none), run start u, run end u
     # sweep: edges by their left end, an active list updated slab by slab
-    lo_u = np.empty(n_seg)
     act_e = np.empty(n_seg, np.int64)  # the slab's edges by height
+    entry = np.empty(n_seg, np.int64)  # the order in which each edge entered the sweep
     n_live = 0
     for e in range(n_seg):
         if seg_w[e] != 0:
-            lo_u[n_live] = min(seg_a[e, 0], seg_b[e, 0])
+            act_v[n_live] = lo_u[e]
             act[n_live] = e
             n_live += 1
-    by_lo = np.argsort(lo_u[:n_live])
+    by_live = np.argsort(act_v[:n_live])  # (ties broken as this sort does: the order of entry)
+    for r in range(n_live):
+        act_e[r] = act[by_live[r]]
+    for r in range(n_live):
+        act[r] = act_e[r]
     nxt = 0
     n_on = 0
     on = np.empty(n_live, np.int64)
@@ -317,12 +525,13 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         if not u1 > u0:
             continue
         um = 0.5 * (u0 + u1)
-        while nxt < n_live and lo_u[by_lo[nxt]] < um:
-            on[n_on] = act[by_lo[nxt]]
+        while nxt < n_live and lo_u[act[nxt]] < um:
+            on[n_on] = act[nxt]
+            entry[act[nxt]] = nxt
             n_on += 1
             nxt += 1
         # drop edges that ended, the others by height (descending)
-        n_on, n_act = _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act_e, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act_e, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -376,7 +585,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             if runs[e, 0] != 0:
                 total += _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
     # counter-clockwise seen from x: Σ Γ points back at x, against n_i
-    return -total / TWO_PI
+    return -total / TWO_PI, brk
 
 
 @njit(cache=True)
@@ -401,13 +610,14 @@ def _buffers(j2, hull, occ_loop, n_poly):
     kmax += n_hull + 2
     emax = j2.shape[0] + n_loops * kmax + 1
     return (np.empty((emax, 2)), np.empty((emax, 2)), np.empty(emax, np.int64), np.empty(emax, np.int64),
-            np.empty((kmax, 3)), np.empty((kmax, 3)), np.empty(emax + emax * emax // 2 + 1), np.zeros(n_poly + 1, np.int64),
-            np.empty(emax, np.int64), np.empty(emax), np.empty(emax), np.empty(emax), np.empty(3), np.empty(3))
+            np.empty((kmax, 3)), np.empty((kmax, 3)), np.empty(4 * emax), np.zeros(n_poly + 1, np.int64),
+            np.empty(emax, np.int64), np.empty(emax), np.empty(emax), np.empty(emax), np.empty(3), np.empty(3),
+            np.empty((emax, 2)), np.empty(emax + 1, np.int64))
 
 
 @njit(cache=True)
 def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly, poly_normal,
-                         poly_point, tiny):
+                         poly_point, tiny, poly_box, box_ptr, box_planes):
     """Form factors from differential areas (points, common normal n_i) to the part of J
     each point sees past the occluders.
 
@@ -432,6 +642,11 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         Plane of each occluder polygon (loops counter-clockwise about the normal, holes clockwise).
     tiny : float
         Distance below which a point counts as in an occluder's plane.
+    poly_box : (P,) int64
+        The closed convex box each occluder is a face of (-1 none; its normal outward),
+        ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 4) float64 the boxes' planes
+        (:func:`viscx.queries.formfactor.closed_boxes`): a point outside a box skips its
+        faces as one convex polygon (:func:`_visible_one`).
 
     Returns
     -------
@@ -440,19 +655,23 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     n_poly = poly_normal.shape[0]
     poly_loop = _loops_of_polygons(occ_poly, n_poly)
     sel = np.arange(n_poly)
-    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+    box_state = np.zeros(box_ptr.shape[0], np.int64)
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1, hull_pts, hull_idx = _buffers(
         j2, hull, occ_loop, n_poly)
+    box_head = np.full(box_ptr.shape[0], -1, np.int64)
+    box_next = np.empty(n_poly, np.int64)
+    box_list = np.empty(box_ptr.shape[0], np.int64)
     out = np.empty(points.shape[0])
     for i in range(points.shape[0]):
-        out[i] = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
-                              poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
-                              act_v, act_v0, act_v1, p0, p1)
+        out[i], brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
+                                   poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
+                                   box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
     return out
 
 
 @njit(cache=True)
 def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ,
-                         occ_loop, occ_poly, poly_normal, poly_point, tiny):
+                         occ_loop, occ_poly, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes):
     """The part of F(x → J) that the occluders hide, ``F(x → J) − F(x → visible part of J)``,
     each point seeing past its own group's occluders only.
 
@@ -463,7 +682,7 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
         The group of each point (a cell of the emitter whose shaft to J meets few occluders).
     group_ptr, group_occ : (g + 1,), (k,) int64
         The occluder polygons of group g: ``group_occ[group_ptr[g]:group_ptr[g + 1]]``.
-    n_i, ... tiny :
+    n_i, ... box_planes :
         As :func:`visible_form_factors`.
 
     Returns
@@ -474,20 +693,24 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
     n_poly = poly_normal.shape[0]
     poly_loop = _loops_of_polygons(occ_poly, n_poly)
     none = np.zeros(0, np.int64)
-    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1 = _buffers(
+    box_state = np.zeros(box_ptr.shape[0], np.int64)
+    seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1, hull_pts, hull_idx = _buffers(
         j2, hull, occ_loop, n_poly)
+    box_head = np.full(box_ptr.shape[0], -1, np.int64)
+    box_next = np.empty(n_poly, np.int64)
+    box_list = np.empty(box_ptr.shape[0], np.int64)
     out = np.zeros(points.shape[0])
     for i in range(points.shape[0]):
         g = point_group[i]
         sel = group_occ[group_ptr[g]:group_ptr[g + 1]]
         if sel.shape[0] == 0:
             continue
-        whole = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
-                             poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
-                             act_v, act_v0, act_v1, p0, p1)
-        seen = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
-                            poly_normal, poly_point, tiny, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act,
-                            act_v, act_v0, act_v1, p0, p1)
+        whole, brk = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
+                                  poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
+                                  box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+        seen, brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
+                                 poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
+                                 box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
         out[i] = whole - seen
     return out
 
@@ -781,6 +1004,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             live[n_live] = by_lo[r]
             n_live += 1
     on = np.empty(n_live, np.int64)
+    entry = np.empty(n_seg, np.int64)  # the order in which each edge entered the sweep
     act = np.empty(n_live, np.int64)
     act_v = np.empty(n_live)
     act_v0 = np.empty(n_live)
@@ -795,9 +1019,10 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         um = 0.5 * (u0 + u1)
         while nxt < n_live and lo_u[live[nxt]] < um:
             on[n_on] = live[nxt]
+            entry[live[nxt]] = nxt
             n_on += 1
             nxt += 1
-        n_on, n_act = _slab_edges(on, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
         n_cover = 0
@@ -869,7 +1094,8 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
 
 
 @njit(cache=True)
-def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny):
+def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
+                box_planes):
     """What each point of an emitter sees of every polygon side, and what is hidden of it:
     a from-point hidden-surface computation over the whole scene at once, so that a matrix
     row costs one evaluation per point, not one per receiver.
@@ -912,6 +1138,11 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         The emitter's polygon (never seen).
     tiny : float
         Distance below which x counts as in a polygon's plane.
+    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 4) float64
+        The closed convex box of each polygon (-1 none) and the boxes' planes
+        (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
+        outside of are not swept (:func:`_outside`; their front faces hide them: what x
+        sees of them is 0, all of their unoccluded F is hidden).
     """
     P = poly_normal.shape[0]
     n_loops = loop_lo.shape[0]
@@ -935,6 +1166,8 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     col = np.empty(P, np.int64)
     side = np.empty(P)
     use = np.zeros(P, np.bool_)
+    sweep = np.zeros(P, np.bool_)
+    box_state = np.zeros(box_ptr.shape[0], np.int64)
     seen = np.zeros(2 * P)
     p0, p1 = np.empty(3), np.empty(3)
     # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
@@ -1012,10 +1245,13 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         if contact >= 0:
             hidden[i, contact] = -1.0  # it sees that side only: all else it would see is hidden
             continue
+        for p in range(P):
+            sweep[p] = use[p] and not (side[p] < 0 and _outside(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
+        box_state[:] = 0
         for k in range(5):
             brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,
-                                 loop_poly, poly_normal, poly_c, rank, side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a,
-                                 buf_b, brk, wind, cover, p0, p1)
+                                 loop_poly, poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w,
+                                 buf_a, buf_b, brk, wind, cover, p0, p1)
         sky = 1.0
         for p in range(P):
             if use[p]:

@@ -182,14 +182,14 @@ def shaft_occluders(pts, occluders, tol):
     Parameters
     ----------
     pts : (k, 3) float64
-    occluders : list of (loops, normal)
-        Planar polygons, outer loop first.
+    occluders : list of (loops, normal, face)
+        Planar polygons, outer loop first (face: the scene's face they are part of, -1 none).
     tol : float
         Overlap below which a polygon only touching the hull is left out.
 
     Returns
     -------
-    list of (loops, normal)
+    list of (loops, normal, face)
         The ones kept, in their order; ``[]`` when the hull is flat (nothing passes).
     """
     from scipy.spatial import ConvexHull, QhullError
@@ -204,12 +204,12 @@ def shaft_occluders(pts, occluders, tol):
     hp = pts[hull.vertices]
     lo, hi = hp.min(axis=0) - tol, hp.max(axis=0) + tol
     out = []
-    for loops, nk in occluders:
-        outer = loops[0]
+    for occ in occluders:
+        outer = occ[0][0]
         if np.any(outer.min(axis=0) > hi) or np.any(outer.max(axis=0) < lo):
             continue
-        if not _separated(hp, edges, hnormals, outer, nk, tol):
-            out.append((loops, nk))
+        if not _separated(hp, edges, hnormals, outer, occ[1], tol):
+            out.append(occ)
     return out
 
 
@@ -232,6 +232,150 @@ def face_outlines(scene):
             scene.loop_offsets[first + 1].astype(np.int64))
 
 
+def closed_boxes(scene):
+    """The closed convex polyhedra made of faces of the scene (a box: a cabinet, a desk's
+    top, a panel), for culling their back faces (:func:`viscx.geometry.occlusion.blocked_form_factors`,
+    :func:`viscx.geometry.occlusion.point_views`).
+
+    Two faces without holes are linked when they share an edge, traversed in opposite
+    directions (loops counter-clockwise about the normals), are not coplanar, and each
+    lies behind or on the other's plane (a convex dihedral). A connected set of linked
+    faces is a box when every directed edge of its faces has its reverse among them
+    (closed, normals outward) and every vertex of its faces lies behind or on every one of
+    their planes (convex). Faces flush with a face of another box (a desk's panel under
+    its top) are coplanar or reflex with it, so boxes that touch are never merged.
+
+    Returns
+    -------
+    face_box : (f,) int64
+        The box of each face, -1 if none.
+    box_ptr : (b + 1,) int64
+    box_planes : (k, 4) float64
+        The planes ``n · y = c`` (n outward) of box b: ``box_planes[box_ptr[b]:box_ptr[b + 1]]``.
+    """
+
+    def build(scene):
+        n = scene.n_faces
+        tol = 1e-9 * scene.diagonal
+        normal = scene.face_normal.astype(np.float64)
+        flo = scene.face_loop_offsets
+        ids = []
+        for f in range(n):
+            if flo[f + 1] - flo[f] != 1:
+                ids.append(None)  # a face with holes bounds no box
+                continue
+            loop = scene.loop_vertices[scene.loop_offsets[flo[f]]:scene.loop_offsets[flo[f] + 1]]
+            if newell_normal(scene.vertices[loop]) @ normal[f] < 0:
+                loop = loop[::-1]
+            ids.append([int(v) for v in loop])
+        edges = {}
+        for f, loop in enumerate(ids):
+            if loop is None:
+                continue
+            for a, b in zip(loop, loop[1:] + loop[:1]):
+                edges.setdefault((a, b), []).append(f)
+        offset = scene.face_offset.astype(np.float64)
+
+        def behind(f, g):  # every vertex of g behind or on f's plane
+            return float(np.max(scene.vertices[ids[g]] @ normal[f])) - offset[f] <= tol
+
+        parent = list(range(n))
+
+        def root(f):
+            while parent[f] != f:
+                parent[f] = parent[parent[f]]
+                f = parent[f]
+            return f
+
+        for (a, b), fs in edges.items():
+            for f in fs:
+                for g in edges.get((b, a), ()):
+                    if g != f and abs(normal[f] @ normal[g]) < 1 - 1e-9 and behind(f, g) and behind(g, f):
+                        parent[root(f)] = root(g)
+        comps = {}
+        for f in range(n):
+            if ids[f] is not None:
+                comps.setdefault(root(f), []).append(f)
+        face_box = np.full(n, -1, np.int64)
+        ptr, planes = [0], []
+        for faces in comps.values():
+            if len(faces) < 4:
+                continue
+            directed = [(a, b) for f in faces for a, b in zip(ids[f], ids[f][1:] + ids[f][:1])]
+            count = {}
+            for e in directed:
+                count[e] = count.get(e, 0) + 1
+            if any(count.get((b, a), 0) != k for (a, b), k in count.items()):
+                continue
+            verts = scene.vertices[np.unique(np.concatenate([ids[f] for f in faces]))]
+            if np.any(verts @ normal[faces].T - offset[faces] > tol):
+                continue
+            face_box[faces] = len(ptr) - 1
+            planes.extend(np.concatenate([normal[f], [offset[f]]]) for f in faces)
+            ptr.append(len(planes))
+        return face_box, np.asarray(ptr, np.int64), np.asarray(planes, np.float64).reshape(-1, 4)
+
+    return scene.cached("closed_boxes", build)
+
+
+def _box_plane_table(scene):
+    """The planes of each :func:`closed_boxes` box as one padded (b, k, 4) float64 array
+    (padding: the plane 0 · y = 1, behind every point), cached."""
+
+    def build(scene):
+        _, ptr, planes = closed_boxes(scene)
+        k = int(np.diff(ptr).max(initial=1))
+        out = np.zeros((len(ptr) - 1, k, 4))
+        out[:, :, 3] = 1.0
+        for b in range(len(ptr) - 1):
+            out[b, :ptr[b + 1] - ptr[b]] = planes[ptr[b]:ptr[b + 1]]
+        return out
+
+    return scene.cached("box_plane_table", build)
+
+
+def back_faces(scene, tri, cell, faces, tiny):
+    """(c,) bool: for each pair (triangle ``tri[cell[c]]``, face ``faces[c]``), whether the
+    face is a back face of a closed convex box (:func:`closed_boxes`) for every point of the
+    triangle, each of which is outside the box: all three vertices behind the face's plane
+    (by more than tiny), and for each plane of the box either all three on or behind it or
+    all three more than 2 tiny in front, the latter for at least one (a convex combination
+    keeps each, so every point of the triangle is outside the box and not within 2 tiny in
+    front of one of its planes, as :func:`viscx.geometry.occlusion._outside_box` asks). Such
+    a face hides nothing from the triangle that the box's front faces do not
+    (:func:`viscx.geometry.occlusion._outside`): it can be dropped from its occluders.
+
+    Parameters
+    ----------
+    tri : (g, 3, 3) float64
+    cell, faces : (c,) int64
+        ``faces`` -1 for an occluder that is no face of the scene.
+    """
+    out = np.zeros(len(cell), bool)
+    face_box = closed_boxes(scene)[0]
+    boxed = np.flatnonzero(faces >= 0)
+    boxed = boxed[face_box[faces[boxed]] >= 0]
+    if not len(boxed):
+        return out
+    f = faces[boxed]
+    v = tri[cell[boxed]]  # (k, 3, 3)
+    own = np.einsum("kvj,kj->kv", v, scene.face_normal[f]) - scene.face_offset[f][:, None]
+    behind = np.all(own < -tiny, axis=1)
+    boxed, f, v = boxed[behind], f[behind], v[behind]
+    planes = _box_plane_table(scene)[face_box[f]]  # (k, m, 4)
+    h = np.einsum("kvj,kmj->kmv", v, planes[:, :, :3]) - planes[:, :, 3][:, :, None]
+    front = np.all(h > 2 * tiny, axis=2)
+    ok = np.all(front | np.all(h <= 0, axis=2), axis=1) & np.any(front, axis=1)
+    out[boxed[ok]] = True
+    return out
+
+
+def no_boxes(n):
+    """The box arrays of :func:`closed_boxes` for n polygons none of which is culled (a
+    subset of the faces: a box's front faces may be missing from it)."""
+    return np.full(n, -1, np.int64), np.zeros(1, np.int64), np.zeros((0, 4))
+
+
 def convex_outline(loops, normal):
     """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``."""
     from scipy.spatial import ConvexHull, QhullError
@@ -245,13 +389,13 @@ def convex_outline(loops, normal):
 
 
 def _polygon_arrays(polygons):
-    """Outer loops of ``(loops, normal)`` polygons as :func:`shaft_meets` wants them:
+    """Outer loops of ``(loops, normal, face)`` polygons as :func:`shaft_meets` wants them:
     ``(points, lo, hi, normals)``."""
-    outer = [np.asarray(loops[0], dtype=np.float64) for loops, _ in polygons]
+    outer = [np.asarray(p[0][0], dtype=np.float64) for p in polygons]
     sizes = np.array([len(o) for o in outer], np.int64)
     hi = np.cumsum(sizes)
     pts = np.concatenate(outer) if outer else np.zeros((0, 3))
-    normals = np.asarray([n for _, n in polygons], np.float64).reshape(-1, 3)
+    normals = np.asarray([p[1] for p in polygons], np.float64).reshape(-1, 3)
     return np.ascontiguousarray(pts), (hi - sizes).astype(np.int64), hi.astype(np.int64), normals
 
 
@@ -264,7 +408,7 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
 
     Returns
     -------
-    list of (loops, normal)
+    list of (loops, normal, face)
         Clipped loops (outer counter-clockwise about the face normal, holes clockwise).
     """
     tol = 1e-9 * scene.diagonal
@@ -284,7 +428,7 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
         nk = scene.face_normal[k]
         loops = clip_loops(clip_loops(oriented_loops(scene.face_loops(k), nk), n_i, c_i), n_t, c_t)
         if loops and abs(loops_area(loops, nk)) > tol * tol:
-            clipped.append((loops, nk))
+            clipped.append((loops, nk, int(k)))
     return clipped
 
 
@@ -918,7 +1062,9 @@ class PairSetup:
         occluders (the pair's, or a subset that is known to be enough for some points)."""
         origin, eu, ev, allj, j_loop, _, hull3 = self.frame
         occ, occ_loop, occ_poly, pn, pp = [], [0], [], [], []
-        for k, (loops, nk) in enumerate(occluders):
+        face_box, box_ptr, box_planes = closed_boxes(self.scene)
+        boxes = np.asarray([face_box[o[2]] if len(o) > 2 and o[2] >= 0 else -1 for o in occluders], np.int64)
+        for k, (loops, nk, *_) in enumerate(occluders):
             for loop in loops:
                 occ.append(loop)
                 occ_loop.append(occ_loop[-1] + len(loop))
@@ -929,7 +1075,8 @@ class PairSetup:
             n_i=self.n_i, j2=allj, j_loop=j_loop, origin=origin, eu=eu, ev=ev, n_j=self.n_t, c_j=self.c_t, hull=hull3,
             occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=np.asarray(occ_loop, np.int64),
             occ_poly=np.asarray(occ_poly, np.int64), poly_normal=np.asarray(pn, np.float64).reshape(-1, 3),
-            poly_point=np.asarray(pp, np.float64).reshape(-1, 3), tiny=self.tiny,
+            poly_point=np.asarray(pp, np.float64).reshape(-1, 3), tiny=self.tiny, poly_box=boxes, box_ptr=box_ptr,
+            box_planes=box_planes,
         )
 
     @functools.cached_property
@@ -943,7 +1090,7 @@ class PairSetup:
         k = self.kernel if kernel is None else kernel
         return visible_form_factors(np.ascontiguousarray(points), k["n_i"], k["j2"], k["j_loop"], k["origin"], k["eu"], k["ev"],
                                     k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"], k["poly_normal"],
-                                    k["poly_point"], k["tiny"])
+                                    k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"])
 
     def blocked(self, points, group, ptr, ids):
         """F(x → J') − F(x → visible part of J') at ``points``, each past its group's occluders
@@ -951,7 +1098,7 @@ class PairSetup:
         k = self.kernel
         return blocked_form_factors(points, np.asarray(group, np.int64), ptr, ids, k["n_i"], k["j2"], k["j_loop"], k["origin"],
                                     k["eu"], k["ev"], k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"],
-                                    k["poly_normal"], k["poly_point"], k["tiny"])
+                                    k["poly_normal"], k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"])
 
     # -- the cubature's domain ----------------------------------------------------------
     def triangles(self):
@@ -974,9 +1121,13 @@ class PairSetup:
 
     def shaft_cull(self, tri, ptr, ids):
         """Each triangle's occluders (CSR ``ptr, ids`` into :attr:`occluders`) reduced to the
-        ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`)."""
+        ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`) that are
+        not back faces of a closed box outside of which the whole triangle lies
+        (:func:`back_faces`)."""
         pts, lo, hi, normals = self._outlines
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
+        keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
+        cell, ids = cell[keep], ids[keep]
         meets = shaft_meets(np.ascontiguousarray(tri), np.ascontiguousarray(np.broadcast_to(self.n_i, (len(tri), 3))),
                             self.frame[6], np.asarray(self.n_t, np.float64), cell, ids, pts, lo, hi, normals, self.tiny)
         counts = np.bincount(cell[meets], minlength=len(tri))
@@ -985,6 +1136,11 @@ class PairSetup:
     @functools.cached_property
     def _outlines(self):
         return _polygon_arrays(self.occluders)
+
+    @functools.cached_property
+    def _occluder_faces(self):
+        """(P,) int64: the scene's face of each occluder (-1 none)."""
+        return np.asarray([o[2] if len(o) > 2 else -1 for o in self.occluders], np.int64).reshape(-1)
 
     @functools.cached_property
     def _heights(self):
@@ -1153,7 +1309,7 @@ def contact_sides(scene, face, side, cells):
     eu, ev = plane_basis(n_i)
     centroids = np.ascontiguousarray([c.mean(axis=0) for c in cells])  # convex cells: inside
     h = point_views(centroids, n_i, eu, ev, *polygon_subset(scene, keep), int(np.searchsorted(keep, face)),
-                    1e-9 * scene.diagonal)
+                    1e-9 * scene.diagonal, *no_boxes(len(keep)))
     rows, col = np.nonzero(h[:, :-1] == -1.0)
     out[rows] = 2 * keep[col // 2] + col % 2
     return out
@@ -1644,10 +1800,11 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
     polygons = scene_polygons(scene)
+    boxes = closed_boxes(scene)
     tiny = 1e-9 * scene.diagonal
 
     def hidden(points):
-        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny)
+        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny, *boxes)
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area
     cub = cubature(hidden)

@@ -1,0 +1,214 @@
+"""Closed convex boxes in the form-factor kernels (viscx.queries.formfactor.closed_boxes):
+the pair kernel projects the faces of a box a point is outside of as one convex polygon,
+``point_views`` does not sweep the box's back faces, and the cubature's triangles drop the
+back faces of boxes they lie wholly outside of. Each is exact; the reference is the same
+kernels with every face swept on its own (``no_boxes``), which tests/test_formfactor_rows.py
+and tests/test_formfactor_queries.py check against the V-cells and each other."""
+
+import sys
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from random_scenes import random_boxes
+
+from viscx.geometry.occlusion import point_views
+from viscx.geometry.polygon import plane_basis
+from viscx.queries import formfactor as ff
+from viscx.scene import build_scene
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from buildings import office  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def office60():
+    return build_scene(office(60, seed=0))
+
+
+@pytest.fixture(scope="module")
+def boxes_on_floor():
+    return build_scene(random_boxes(np.random.default_rng(5), 8, axis_aligned=False, on_floor=True))
+
+
+def face_points(scene, face, k, rng):
+    tri = scene.vertices[scene.triangles[scene.triangle_face == face]]
+    w = rng.dirichlet([1, 1, 1], k)
+    return np.ascontiguousarray(np.einsum("gk,gkd->gd", w, tri[rng.integers(0, len(tri), k)]))
+
+
+def test_closed_boxes_of_the_office(office60):
+    """Every cabinet and divider is one box of six faces, every desk three (its top and two
+    panels: flush with the top's ends and under it, never merged with it); the room (facing
+    in) and the lights (single quads) are none."""
+    face_box, ptr, planes = ff.closed_boxes(office60)
+    names = office60.group_names
+    group = office60.face_group
+    for g, name in enumerate(names):
+        faces = np.flatnonzero(group == g)
+        boxes = set(face_box[faces].tolist())
+        if name.startswith(("cabinet", "divider")):
+            assert len(boxes) == 1 and -1 not in boxes and len(faces) == 6, name
+        elif name.startswith("desk"):
+            assert len(boxes) == 3 and -1 not in boxes, name
+        else:
+            assert boxes == {-1}, name
+    assert np.all(np.diff(ptr) == 6) and len(planes) == ptr[-1]
+    # every box vertex on or behind every plane of its box (outward normals)
+    for b in range(len(ptr) - 1):
+        verts = np.concatenate([np.concatenate(office60.face_loops(f)) for f in np.flatnonzero(face_box == b)])
+        assert np.all(verts @ planes[ptr[b]:ptr[b + 1], :3].T - planes[ptr[b]:ptr[b + 1], 3] <= 1e-9)
+
+
+def test_rotated_boxes_are_found(boxes_on_floor):
+    face_box = ff.closed_boxes(boxes_on_floor)[0]
+    assert len(set(face_box.tolist()) - {-1}) == 8
+    assert face_box[boxes_on_floor.face_group == 0].tolist() == [-1]  # the floor
+
+
+def _pair_values(scene, i, j, points, boxes, holes=False):
+    """The pair kernel's hidden part at the points, all the pair's occluders, with the box
+    rules (boxes) or every face on its own; ``holes``: J's covered cells as holes, as the
+    pair cubature has them."""
+    target = ff.face_target(scene, j)
+    if holes:
+        target = ff.Target(target.loops + ff.covered_cells(scene, j, 1), target.normal, j)
+    setup = ff.PairSetup(scene, i, 1, target, 1)
+    assert setup.occluders
+    if not boxes:
+        setup.kernel_for = lambda occ, s=setup: ff.PairSetup.kernel_for(s, [o[:2] for o in occ])
+    ids = np.arange(len(setup.occluders), dtype=np.int64)
+    return setup, setup.blocked(points, np.zeros(len(points), np.int64), np.array([0, len(ids)], np.int64), ids)
+
+
+@pytest.mark.parametrize("pair", [("floor", "ceiling"), ("wall_west", "wall_east"), ("floor", "light1"),
+                                  ("light1", "floor"), ("wall_south", "wall_north")])
+def test_pair_kernel_with_boxes_equals_faces_one_by_one(office60, pair, rng):
+    """The box hulls change what is swept, not the visible part: equal to 1e-12 at 1,500
+    points of the emitter (rounding only: other slab breaks)."""
+    s = office60
+    i = int(s.group_faces(pair[0])[0])
+    j = int(s.group_faces(pair[1])[-1])
+    pts = face_points(s, i, 1500, rng)
+    setup, with_boxes = _pair_values(s, i, j, pts, True)
+    assert np.any(setup.kernel["poly_box"] >= 0)  # the rule is used
+    _, one_by_one = _pair_values(s, i, j, pts, False)
+    assert np.abs(with_boxes - one_by_one).max() <= 1e-12
+    assert np.any(one_by_one > 1e-3)  # something is hidden
+
+
+def test_pair_kernel_drops_holes_in_a_box_shadow(office60, rng):
+    """Ceiling → floor with the floor's covered cells (under cabinets and desk panels) as
+    holes: inside a box's shadow they are left out of the visible part (on its boundary
+    within 1e-12 of its size); equal to every face and hole swept on its own to 1e-12."""
+    s = office60
+    i, j = int(s.group_faces("ceiling")[0]), int(s.group_faces("floor")[0])
+    assert len(ff.covered_cells(s, j, 1)) >= 6
+    pts = face_points(s, i, 1500, rng)
+    _, a = _pair_values(s, i, j, pts, True, holes=True)
+    _, b = _pair_values(s, i, j, pts, False, holes=True)
+    assert np.abs(a - b).max() <= 1e-12
+
+
+def test_pair_kernel_boxes_on_a_floor(boxes_on_floor, rng):
+    """Rotated boxes standing on a floor: floor → every face of two boxes (their back faces
+    included, seen through the box: all hidden), 1,000 points each."""
+    s = boxes_on_floor
+    face_box = ff.closed_boxes(s)[0]
+    for j in np.flatnonzero(face_box == face_box[1])[:6].tolist() + [int(np.flatnonzero(face_box == face_box[7])[0])]:
+        pts = face_points(s, 0, 1000, rng)
+        setup = ff.PairSetup(s, 0, 1, ff.face_target(s, j), 1)
+        if setup.empty or not setup.occluders:
+            continue
+        _, a = _pair_values(s, 0, j, pts, True)
+        _, b = _pair_values(s, 0, j, pts, False)
+        assert np.abs(a - b).max() <= 1e-12
+
+
+def _views(scene, face, points, boxes):
+    n_i = scene.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    extra = ff.closed_boxes(scene) if boxes else ff.no_boxes(scene.n_faces)
+    return point_views(points, n_i, eu, ev, *ff.scene_polygons(scene), face, 1e-9 * scene.diagonal, *extra)
+
+
+@pytest.mark.parametrize("group", ["floor", "wall_north", "ceiling"])
+def test_point_views_without_back_faces_equal(office60, group, rng):
+    """point_views not sweeping back faces of boxes: every column (their own included: all of
+    their F hidden) and the sky equal to 1e-12 at 1,000 points."""
+    face = int(office60.group_faces(group)[0])
+    pts = face_points(office60, face, 1000, rng)
+    a, b = _views(office60, face, pts, True), _views(office60, face, pts, False)
+    assert np.abs(a - b).max() <= 1e-12
+
+
+def test_point_views_from_a_box_face(boxes_on_floor, rng):
+    """From a box's own faces, outside and inside (its back side, into the box): the box is
+    never culled from a point on it (not strictly outside), other boxes are."""
+    s = boxes_on_floor
+    face_box = ff.closed_boxes(s)[0]
+    for face in np.flatnonzero(face_box == face_box[1])[:3]:
+        pts = face_points(s, int(face), 500, rng)
+        for side in (1, -1):
+            n_i = side * s.face_normal[face]
+            eu, ev = plane_basis(n_i)
+            args = (pts, n_i, eu, ev, *ff.scene_polygons(s), int(face), 1e-9 * s.diagonal)
+            a = point_views(*args, *ff.closed_boxes(s))
+            b = point_views(*args, *ff.no_boxes(s.n_faces))
+            assert np.abs(a - b).max() <= 1e-12
+
+
+def test_back_faces_rule(office60):
+    """back_faces drops (triangle, face) pairs only where every point of the triangle is
+    outside the face's box and behind the face, and drops some on the floor's triangles
+    (the far sides of desks and cabinets); a triangle under a box (on its bottom's plane,
+    inside its outline) or straddling one of its planes drops nothing of that box."""
+    s = office60
+    tiny = 1e-9 * s.diagonal
+    floor = int(s.group_faces("floor")[0])
+    face_box, ptr, planes = ff.closed_boxes(s)
+    boxed = np.flatnonzero(face_box >= 0)
+    rng = np.random.default_rng(0)
+    centers = face_points(s, floor, 400, rng)
+    tri = centers[:, None, :] + 0.05 * rng.normal(size=(400, 3, 3)) * np.array([1, 0, 1])
+    cell = np.repeat(np.arange(len(tri)), len(boxed))
+    faces = np.tile(boxed, len(tri))
+    drop = ff.back_faces(s, tri, cell, faces, tiny)
+    assert drop.sum() > 0.2 * len(tri) * len(set(face_box[boxed].tolist()))
+    # brute force on the triangles' points: each dropped face is behind, its box in front
+    w = rng.dirichlet([1, 1, 1], 50)
+    for c in np.flatnonzero(drop)[::7]:
+        pts = w @ tri[cell[c]]
+        f, b = faces[c], face_box[faces[c]]
+        assert np.all(pts @ s.face_normal[f] - s.face_offset[f] < 0)
+        h = pts @ planes[ptr[b]:ptr[b + 1], :3].T - planes[ptr[b]:ptr[b + 1], 3]
+        assert np.all(np.any(h > 2 * tiny, axis=1)) and not np.any((h > 0) & (h <= 2 * tiny))
+    # a triangle under a cabinet (inside its footprint): nothing of it
+    cab = np.flatnonzero(s.face_group == s.group_names.index("cabinet0"))
+    bottom = cab[np.argmin(s.face_normal[cab, 1])]
+    c0 = s.face_loops(bottom)[0].mean(axis=0)
+    under = (c0 + 0.01 * np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]))[None]
+    assert not ff.back_faces(s, under, np.zeros(len(cab), np.int64), cab, tiny).any()
+
+
+def test_cubature_with_back_face_culling_equals_without(office60, monkeypatch):
+    """The pair cubature with the triangles' back faces dropped gives the same F (the
+    integrand is the same at every point) and needs shorter lists."""
+    s = office60
+    i, j = int(s.group_faces("desk0")[0]), int(s.group_faces("floor")[0])
+    lengths = []
+    real = ff.PairSetup.blocked
+
+    def blocked(self, points, group, ptr, ids):
+        lengths.append(len(ids))
+        return real(self, points, group, ptr, ids)
+
+    monkeypatch.setattr(ff.PairSetup, "blocked", blocked)
+    with_rule = ff.pair_form_factor(s, i, 1, ff.face_target(s, j), 1, tol=1e-3)
+    culled = sum(lengths)
+    lengths.clear()
+    monkeypatch.setattr(ff, "back_faces", lambda scene, tri, cell, faces, tiny: np.zeros(len(cell), bool))
+    without = ff.pair_form_factor(s, i, 1, ff.face_target(s, j), 1, tol=1e-3)
+    assert with_rule.method == "quadrature"
+    assert abs(with_rule.F - without.F) <= 1e-12
+    assert culled < sum(lengths)

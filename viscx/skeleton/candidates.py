@@ -1458,7 +1458,7 @@ def _crosses_solid(points, owner, t, stamp_id, stamp, margin, plane_offsets, pla
     return False
 
 
-def fast_candidates(scene, progress=None, workers=None, stats=None):
+def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     """Candidate lines that include every node's, in the reference's form.
 
     Parameters
@@ -1471,6 +1471,9 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
         Threads for the hull scans (default: the CPU count).
     stats : dict, optional
         Filled with the counts of each stage (pairs, tuples, candidates per kind).
+    scope : viscx.skeleton.scope.Scope, optional
+        Only the tuples with a generator in scope (:meth:`~viscx.skeleton.scope.Scope.nodes`),
+        dropped before their lines are solved: the others' candidates are unchanged.
 
     Returns
     -------
@@ -1509,6 +1512,8 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     joined = np.zeros((len(gv), len(gv)), dtype=bool)
     joined[ev[:, 0], ev[:, 1]] = joined[ev[:, 1], ev[:, 0]] = True
     keep &= ~joined[i, j]
+    if scope is not None:
+        keep &= scope.node_vertices[gv[i]] | scope.node_vertices[gv[j]]
     i, j = i[keep], j[keep]
     u, v = gv[i], gv[j]
     origin, direction = scene.vertices[u], scene.vertices[v] - scene.vertices[u]
@@ -1585,6 +1590,8 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
     vee = unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))[0]
+    if scope is not None:
+        vee = vee[scope.nodes(np.full(len(vee), VEE), np.c_[vee, np.full(len(vee), -1)])]
     out.append(_lines_in_chunks(_vee_lines, vee, (scene, line_of, line_solids), workers))
     stats["VEE triples"] = int(len(vee))
     stats["VEE candidates"] = int(len(out[-1][0]))
@@ -1595,6 +1602,8 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     stats["E4 tuples"] = int(len(quads))
     quads = np.sort(ge[quads], axis=1)
     quads = unique_rows(quads)[0]
+    if scope is not None:
+        quads = quads[scope.nodes(np.full(len(quads), E4), quads)]
     stats["E4 quadruples"] = int(len(quads))
     out.append(_lines_in_chunks(_e4_lines, quads, (scene, line_of, line_solids), workers))
     stats["E4 candidates"] = int(len(out[-1][0]))
@@ -1656,7 +1665,7 @@ def validate_in_chunks(scene, kind, generators, origins, directions, chunk=VALID
     return sort_nodes(merged)
 
 
-def build_nodes(scene, quiet=True, workers=None):
+def build_nodes(scene, quiet=True, workers=None, scope=None):
     """The nodes (V0) of a scene by the output-sensitive candidates.
 
     Parameters
@@ -1666,11 +1675,15 @@ def build_nodes(scene, quiet=True, workers=None):
         No progress bars.
     workers : int, optional
         Threads for the hull scans.
+    scope : viscx.skeleton.scope.Scope, optional
+        Only the nodes with a generator in scope: the full build's nodes of those tuples,
+        in its order (tests/test_scoped_mesh.py).
 
     Returns
     -------
     Nodes
         Equal to :func:`viscx.skeleton.reference.reference_nodes` (tests/test_fast_nodes.py).
     """
-    kind, gens, origins, dirs = fast_candidates(scene, progress=lambda desc, total: bar(total, desc, quiet=quiet), workers=workers)
+    kind, gens, origins, dirs = fast_candidates(scene, progress=lambda desc, total: bar(total, desc, quiet=quiet),
+                                                workers=workers, scope=scope)
     return validate_in_chunks(scene, kind, gens, origins, dirs)

@@ -20,7 +20,7 @@ from test_discontinuities import contact_scene_obj, crossing_scene_obj, light_sc
 
 from viscx.pipeline import build_complex, light_scope, open_complex
 from viscx.queries.discontinuities import light_mesh, mesh_result, open_discontinuities, open_light_query
-from viscx.skeleton.arcs.kinds import END_NODE
+from viscx.skeleton.arcs.kinds import END_NODE, END_PLANAR
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 
@@ -54,14 +54,21 @@ def assert_scoped_levels(full, scoped, **light):
     renumber = np.full(len(N), -1)
     renumber[keep] = np.arange(len(n))
     A, a = full.arcs, scoped.arcs
+    P, p = A.planar, a.planar
+    planar = scope.nodes(P.kind, P.generators)
+    for f in NODE_FIELDS:
+        assert _equal(getattr(P, f)[planar], getattr(p, f)), f
+    renumber_planar = np.full(len(P), -1)
+    renumber_planar[planar] = np.arange(len(p))
     mine = scope.families(A.kind, A.generators)
     assert len(a) == np.count_nonzero(mine) > 0
     for f in ARC_FIELDS:
         assert _equal(getattr(A, f)[mine], getattr(a, f)), f
     ends = A.end_node[mine].copy()
-    at_node = A.end_type[mine] == END_NODE
-    assert (renumber[ends[at_node]] >= 0).all()  # every node an arc in scope ends at is in scope
-    ends[at_node] = renumber[ends[at_node]]
+    for code, ids in ((END_NODE, renumber), (END_PLANAR, renumber_planar)):
+        at = A.end_type[mine] == code
+        assert (ids[ends[at]] >= 0).all()  # every node an arc in scope ends at is in scope
+        ends[at] = ids[ends[at]]
     assert _equal(ends, a.end_node)
     # VE half-cells: one per VE arc, in the arcs' order
     H, h = A.half_cells, a.half_cells
@@ -72,10 +79,10 @@ def assert_scoped_levels(full, scoped, **light):
         assert _equal(getattr(H, f)[hm], getattr(h, f)), f
     for side, kind in (("start", "start_type"), ("end", "end_type")):
         x = getattr(H, side)[hm].copy()
-        node = getattr(H, kind)[hm] == END_NODE
-        x[node] = renumber[x[node]]
+        for code, ids in ((END_NODE, renumber), (END_PLANAR, renumber_planar)):
+            at = getattr(H, kind)[hm] == code
+            x[at] = ids[x[at]]
         assert _equal(x, getattr(h, side)), side
-    assert _equal(A.planar.generators, a.planar.generators)
 
 
 def comparable(result, arcs):

@@ -64,8 +64,9 @@ def build_arcs(scene, nodes, quiet=True, workers=None, scope=None):
         Threads building the chunks (default: the CPU count); the arcs do not depend on it.
     scope : viscx.skeleton.scope.Scope, optional
         Only the families with a generator in scope (:mod:`viscx.skeleton.scope`; ``nodes``
-        then need only hold the nodes in scope): the full build's arcs of those families,
-        in its order (their ``end_node`` ids refer to ``nodes``).
+        then need only hold the nodes in scope) and the planar events with an edge in
+        it: the full build's arcs of those families, in its order (their ``end_node`` ids
+        refer to ``nodes`` and to the scoped ``planar``).
 
     Returns
     -------
@@ -73,7 +74,7 @@ def build_arcs(scene, nodes, quiet=True, workers=None, scope=None):
     """
     with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
         progress.set_postfix_str("planar events")
-        planar = planar_events(scene)
+        planar = planar_events(scene, scope)
         progress.update()
 
         progress.set_postfix_str("families")

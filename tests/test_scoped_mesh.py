@@ -194,6 +194,9 @@ def tetra_light_file(tmp_path_factory):
     (["build", "{obj}", "--light-face", "0", "--point", "1,2,3", "-o", "{tmp}/x.h5"], "cannot be combined"),
     (["render", "{obj}", "--camera", "0,0,9", "--look-at", "0,0,0", "--light-group", "nope", "--size", "8", "8",
       "-o", "{tmp}/x.png"], "no group named 'nope'"),
+    # (said before anything is built)
+    (["render", "{obj}", "--camera", "0,0,9", "--look-at", "0,0,0", "--light-face", "0", "--size", "8", "8",
+      "-o", "{tmp}/x.png"], "emits nothing"),
 ])
 def test_cli_scoped_errors(tmp_path, tetra_light_file, args, message):
     args = [a.format(obj=SAMPLES / "tetrahedra.obj", h5=GOLDEN / "tetrahedra.h5", scoped=tetra_light_file, tmp=tmp_path)

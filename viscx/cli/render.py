@@ -67,6 +67,7 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     from viscx.formats.images import write_npy, write_pfm, write_png
     from viscx.memory import memory_budget
     from viscx.queries.discontinuities import open_light_query
+    from viscx.render.direct import emitter
     from viscx.progress import bar
     from viscx.render.image import picture
 
@@ -77,7 +78,8 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     if need > memory_budget():
         raise ViscxError(f"--size {size[0]} {size[1]} needs about {need / 2**30:.0f} GiB, over the memory budget "
                          f"({memory_budget() / 2**30:.1f} GiB; VISCX_MEMORY_BUDGET)")
-    cx = open_light_query(file, light_face, light_group, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
+    cx = open_light_query(file, light_face, light_group, check=lambda scene, light: emitter(scene, light, radiance),
+                          epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
     with bar(total=size[0] * size[1], desc="monte carlo", quiet=quiet(ctx) or reference is None, unit="px") as b:
         result = render_light(cx, eye, look_at, up, fov, size, light_face=light_face, light_group=light_group,
                               radiance=radiance, samples=samples, reference=reference, seed=seed, progress=b.update)

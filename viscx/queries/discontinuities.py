@@ -1093,7 +1093,7 @@ def light_mesh(query, light_face=None, light_group=None, faces=()):
     return discontinuity_mesh(scene, query.arcs, light, faces)
 
 
-def open_light_query(path, light_face=None, light_group=None, **scene_options):
+def open_light_query(path, light_face=None, light_group=None, check=None, **scene_options):
     """The complex a light's queries (discontinuity mesh, render) read: a viscx file's V1
     (a full build, which must hold V2, or a build scoped to this light: ``viscx build
     --light-group``), or for a scene file (OBJ, PLY, …) the *scoped* build of the light
@@ -1105,6 +1105,9 @@ def open_light_query(path, light_face=None, light_group=None, **scene_options):
     path : str or Path
     light_face : int, optional
     light_group : str, optional
+    check : callable, optional
+        ``check(scene, light)`` raises for a query that cannot be answered (a light that
+        emits nothing), called before anything is built.
     **scene_options
         ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file; a viscx file keeps
         the ones it was built with.
@@ -1121,19 +1124,23 @@ def open_light_query(path, light_face=None, light_group=None, **scene_options):
     import h5py
 
     from viscx.errors import ParameterError, ViscxError, literal
-    from viscx.pipeline import build_complex, light_option, open_complex
+    from viscx.pipeline import build_complex, light_option, open_complex, scene_of
 
     if (light_face is None) == (light_group is None):
         raise ParameterError("give exactly one of {light_face} and {light_group}")
+    check = check or (lambda scene, light: None)
     given = {k: v for k, v in scene_options.items() if v is not None}
     if not (Path(path).is_file() and h5py.is_hdf5(path)):
-        return build_complex(path, quiet=True, light_face=light_face, light_group=light_group, **given)
+        scene = scene_of(path, **given)
+        check(scene, light_of(scene, light_face, light_group))
+        return build_complex(scene, quiet=True, light_face=light_face, light_group=light_group)
     if given:
         names = ", ".join("{" + k + "}" for k in sorted(given))
         raise ParameterError(f"{literal(path)} is a viscx file, built with its own scene options: {names} apply to "
                              "scene files only")
     cx = open_complex(path)
     scoped = light_option(cx.options)
+    check(cx.scene, light_of(cx.scene, light_face, light_group))
     if scoped is None:
         return open_complex(path, need="V2", hint=", or query the scene file itself")
     asked = {"light_face": int(light_face)} if light_face is not None else {"light_group": light_group}

@@ -293,7 +293,7 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         A *scoped* build for one area light (a face, or the faces of a group): only the
         nodes and arcs of the families with one of the light's outline vertices or edges
         (:mod:`viscx.skeleton.scope`), what its discontinuity mesh and renders need; levels
-        up to V1 (``levels`` is capped at :data:`SCOPED_LEVEL`). Stored as the option ``light``.
+        up to V1 (:data:`SCOPED_LEVEL`; more is refused). Stored as the option ``light``.
 
     Returns
     -------

@@ -80,7 +80,7 @@ def run_capped(args):
 def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0):
     """The scoped discontinuity mesh and the 512² render of group ``light`` from the OBJ,
     timed, then checked: the mesh by the discontinuity oracle on the room's six faces
-    (2 points per region, every trace crossed), the image against a 16-sample Monte Carlo
+    (2 points per region, every trace crossed), the image against a 64-sample Monte Carlo
     reference of the same pixels (``noise_check``)."""
     from discontinuity_oracle import check_mesh
     from render_oracle import noise_check
@@ -116,7 +116,7 @@ def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0):
     row["mesh_oracle"] = {k: (len(v) if isinstance(v, list) else v) for k, v in res.items()}
     whole = light_mesh(cx, light_group="light")
     exact = np.load(png.with_suffix(".npy")).astype(np.float64)
-    mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, 512, 512), radiance=radiance, reference=16, seed=seed)
+    mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, 512, 512), radiance=radiance, reference=64, seed=seed)
     ok, details = noise_check(exact.reshape(-1, 3), mc.radiance.reshape(-1, 3), mc.stderr.reshape(-1, 3))
     row["render_oracle"] = {"ok": bool(ok), **details}
     print(json.dumps(row), flush=True)

@@ -19,8 +19,10 @@ def spheres_in_room(n_spheres=6, subdivisions=5, seed=0):
 SPHERES_LIGHT = (0.0, 4.5, 0.0)
 
 
-def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0):
-    """The polygons of :func:`spheres_in_room` (a PolygonSoup, e.g. for :func:`write_obj`)."""
+def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0, quad_light=False):
+    """The polygons of :func:`spheres_in_room` (a PolygonSoup, e.g. for :func:`write_obj`);
+    ``quad_light``: plus a 2 × 2 square light (group ``light``, facing down) centred at
+    :data:`SPHERES_LIGHT`, 0.5 under the ceiling."""
     rng = np.random.default_rng(seed)
     room = trimesh.creation.box(extents=(20, 10, 20))
     room.invert()  # faces look inward
@@ -29,6 +31,12 @@ def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0):
         sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0 + rng.random())
         sphere.apply_translation(rng.uniform([-7, -2, -7], [7, 2, 7]))
         meshes.append(sphere)
+    names = ["room"] + [f"sphere{i}" for i in range(n_spheres)]
+    if quad_light:  # two triangles wound to face -y
+        x, y, z = SPHERES_LIGHT
+        meshes.append(trimesh.Trimesh([[x - 1, y, z - 1], [x + 1, y, z - 1], [x + 1, y, z + 1], [x - 1, y, z + 1]],
+                                      [[0, 1, 2], [0, 2, 3]], process=False))
+        names.append("light")
     vertices = np.concatenate([m.vertices for m in meshes])
     offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
     faces = np.concatenate([m.faces + o for m, o in zip(meshes, offsets)])
@@ -38,7 +46,7 @@ def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0):
         polygon_offsets=np.arange(0, 3 * len(faces) + 1, 3),
         polygon_vertices=faces.reshape(-1),
         polygon_group=groups,
-        group_names=["room"] + [f"sphere{i}" for i in range(n_spheres)],
+        group_names=names,
     )
     return soup
 

@@ -1,20 +1,29 @@
-"""Scoped point queries on large meshes: ``viscx query shadows SCENE.obj --light …`` timed as a
-user runs it (a fresh process: reading the OBJ, cleaning the scene, the light's V-cells, the
-answer written as JSON), then the answer checked by the ray oracle of the tests
-(tests/query_oracle.py: area-uniform samples, lit per the answer's loops versus a shadow ray).
+"""Scoped queries on large meshes, timed as a user runs them (a fresh process from the OBJ):
+
+* ``viscx query shadows SCENE.obj --light …`` (the light's V-cells, the answer as JSON),
+  checked by the ray oracle of the tests (tests/query_oracle.py: area-uniform samples, lit
+  per the answer's loops versus a shadow ray);
+* with ``--area``: ``viscx query discontinuities SCENE.obj --light-group light`` and
+  ``viscx render SCENE.obj … --light-group light`` at 512² (the nodes and arcs of the
+  light's families only, viscx/skeleton/scope.py), each under ``prlimit --as=7000000000``;
+  the mesh checked by the discontinuity oracle (tests/discontinuity_oracle.py) on the
+  room's faces, the image against a Monte Carlo reference (tests/render_oracle.py,
+  ``noise_check``) rendered in-process on the same mesh.
 
 Scenes: the spheres in a room of benchmarks/scenes.py (122,892 triangles at subdivisions 5)
 and, given ``--bunny PATH`` (the ``index.js`` of ``npm pack bunny``, not shipped with viscx),
 the npm bunny standing on the floor of a room under a quad light.
 
     python benchmarks/scoped_queries.py --bunny /tmp/package/index.js [--subdivisions 5]
+    python benchmarks/scoped_queries.py --area --bunny /tmp/package/index.js [--subdivisions 5]
 
-Writes benchmarks/scoped_results.json. CPU and peak resident memory are the child process's
-(wall time is noisy on a shared machine).
+Writes benchmarks/scoped_results.json (``--area``: scoped_light_results.json). CPU and peak
+resident memory are the child process's (wall time is noisy on a shared machine).
 """
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -29,6 +38,12 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from scenes import BUNNY_LIGHT, SPHERES_LIGHT, bunny_in_room, spheres_in_room_soup, write_obj  # noqa: E402
+
+#: The memory cap of the area-light runs (bytes of address space).
+ADDRESS_SPACE = 7_000_000_000
+#: Camera of the 512² renders: (eye, look-at, vertical fov) per scene.
+CAMERAS = {"bunny_in_room": ((0.0, 9.0, 14.0), (0.0, 4.0, 0.0), 60.0),
+           "spheres_in_room": ((0.0, 2.0, 9.5), (0.0, -1.0, 0.0), 70.0)}
 
 #: Samples closer than this fraction of the diagonal to a loop are not judged (as the tests).
 BAND = 1e-5
@@ -46,6 +61,66 @@ def run_shadows(obj, light, out):
         raise SystemExit(f"{' '.join(cmd)} failed: {r.stderr}")
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return wall, cpu, after.ru_maxrss / 1e6  # the largest child so far: run the scenes smallest first
+
+
+def run_capped(args):
+    """Run ``viscx ARGS`` in a fresh process under ``prlimit --as``: (wall s, CPU s, peak
+    resident GB, exit status, standard error) of that process alone (``wait4``)."""
+    cmd = ["prlimit", f"--as={ADDRESS_SPACE}", sys.executable, "-m", "viscx", *map(str, args)]
+    t = time.perf_counter()
+    with tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+        err.seek(0)
+        text = err.read().decode(errors="replace")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1e6, os.waitstatus_to_exitcode(status), text
+
+
+def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0):
+    """The scoped discontinuity mesh and the 512² render of group ``light`` from the OBJ,
+    timed, then checked: the mesh by the discontinuity oracle on the room's six faces
+    (2 points per region, every trace crossed), the image against a 64-sample Monte Carlo
+    reference of the same pixels (``noise_check``)."""
+    from discontinuity_oracle import check_mesh
+    from render_oracle import noise_check
+
+    from viscx.queries.discontinuities import light_mesh, open_light_query
+    from viscx.render.camera import Camera
+    from viscx.render.image import render
+
+    row = {"scene": name}
+    out = Path(tmp) / "mesh.json"
+    wall, cpu, peak, code, err = run_capped(["query", "discontinuities", obj, "--light-group", "light", "-o", out])
+    row["discontinuities"] = {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "peak_gb": round(peak, 2), "exit": code,
+                              **({"error": err.strip()[-300:]} if code else {})}
+    if code == 0:
+        answer = json.loads(out.read_text())
+        row["discontinuities"].update(events=answer["events"], regions=sum(len(f["regions"]) for f in answer["faces"]))
+    eye, at, fov = CAMERAS[name.split("(")[0]]
+    png = Path(tmp) / "image.png"
+    wall, cpu, peak, code, err = run_capped(["render", obj, "--camera", ",".join(map(repr, eye)), "--look-at",
+                                             ",".join(map(repr, at)), "--fov", fov, "--light-group", "light",
+                                             "--radiance", ",".join(map(repr, radiance)), "--size", 512, 512, "-o", png])
+    row["render_512"] = {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "peak_gb": round(peak, 2), "exit": code,
+                         **({"error": err.strip()[-300:]} if code else {})}
+    print(json.dumps(row), flush=True)
+    if row["discontinuities"]["exit"] or row["render_512"]["exit"]:
+        return row
+    cx = open_light_query(obj, light_group="light")
+    scene = cx.scene
+    room = [f for f in range(scene.n_faces) if scene.group_names[scene.face_group[f]] in
+            ("floor", "ceiling", "wall_x0", "wall_x1", "wall_z0", "wall_z1", "room")]
+    mesh = light_mesh(cx, light_group="light", faces=room)
+    res = check_mesh(scene, mesh, np.random.default_rng(seed), 1e-4 * scene.diagonal, samples=2)
+    row["mesh_oracle"] = {k: (len(v) if isinstance(v, list) else v) for k, v in res.items()}
+    whole = light_mesh(cx, light_group="light")
+    exact = np.load(png.with_suffix(".npy")).astype(np.float64)
+    mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, 512, 512), radiance=radiance, reference=64, seed=seed)
+    ok, details = noise_check(exact.reshape(-1, 3), mc.radiance.reshape(-1, 3), mc.stderr.reshape(-1, 3))
+    row["render_oracle"] = {"ok": bool(ok), **details}
+    print(json.dumps(row), flush=True)
+    return row
 
 
 def oracle(obj, light, answer, samples, seed):
@@ -73,8 +148,12 @@ def main():
     ap.add_argument("--bunny", help="index.js of the npm package bunny (npm pack bunny)")
     ap.add_argument("--subdivisions", type=int, default=5)
     ap.add_argument("--samples", type=int, default=200_000)
-    ap.add_argument("--out", default=str(HERE / "scoped_results.json"))
+    ap.add_argument("--area", action="store_true", help="discontinuities and render of the group light")
+    ap.add_argument("--out", default=None)
     args = ap.parse_args()
+    if args.area:
+        return main_area(args)
+    args.out = args.out or str(HERE / "scoped_results.json")
     scenes = []
     if args.bunny:
         scenes.append(("bunny_in_room", lambda: bunny_in_room(args.bunny), BUNNY_LIGHT))
@@ -97,6 +176,22 @@ def main():
             print(json.dumps(row), flush=True)
             rows.append(row)
     Path(args.out).write_text(json.dumps(rows, indent=1) + "\n")
+
+
+def main_area(args):
+    """The area-light queries (``--area``) on the bunny (given) and the spheres with a quad light."""
+    scenes = []
+    if args.bunny:
+        scenes.append(("bunny_in_room", lambda: bunny_in_room(args.bunny)))
+    scenes.append((f"spheres_in_room(subdivisions={args.subdivisions})",
+                   lambda: spheres_in_room_soup(subdivisions=args.subdivisions, quad_light=True)))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, (name, make) in enumerate(scenes):
+            obj = Path(tmp) / f"scene{k}.obj"
+            write_obj(obj, make())
+            rows.append(area_light(name, obj, tmp, seed=k))
+    Path(args.out or HERE / "scoped_light_results.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 
 if __name__ == "__main__":

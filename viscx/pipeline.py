@@ -33,16 +33,17 @@ def check_output(scene_path, output):
 
 # The skeleton levels in build order: name, builder(scene, previous levels, quiet) and the
 # writer that fills the level's HDF5 group. Level k needs the levels before it.
-def _nodes(scene, built, quiet):
+# A scoped build (:mod:`viscx.skeleton.scope`) passes its scope to V0 and V1 (it has no V2).
+def _nodes(scene, built, quiet, scope=None):
     from viscx.skeleton.candidates import build_nodes
 
-    return build_nodes(scene, quiet=quiet)
+    return build_nodes(scene, quiet=quiet, scope=scope)
 
 
-def _arcs(scene, built, quiet):
+def _arcs(scene, built, quiet, scope=None):
     from viscx.skeleton.arcs import build_arcs
 
-    return build_arcs(scene, built["V0"], quiet=quiet)
+    return build_arcs(scene, built["V0"], quiet=quiet, scope=scope)
 
 
 @dataclass
@@ -253,8 +254,19 @@ def scene_of(source, epsilon=None, relative_epsilon=None, weld=None):
     return build_scene(soup, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
 
 
-def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels=MAX_LEVEL, quiet=False,
-                  points=None, output=None, compression=DEFAULT_COMPRESSION):
+#: The last level a scoped build holds (V0 and V1 of the light's families).
+SCOPED_LEVEL = 1
+
+
+def light_option(options):
+    """The light a viscx file was scoped to, from its build options: ``{"light_face": I}``,
+    ``{"light_group": NAME}``, or None for a full build."""
+    light = options.get("light")
+    return dict(light) if isinstance(light, dict) else None
+
+
+def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels=None, quiet=False,
+                  points=None, output=None, compression=DEFAULT_COMPRESSION, light_face=None, light_group=None):
     """Build the visibility complex of a scene and, given ``output``, write it there.
 
     Parameters
@@ -264,9 +276,10 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         a cleaned scene (:func:`scene_of`).
     epsilon, relative_epsilon, weld
         See :func:`viscx.scene.build_scene` (``weld`` None: ``DEFAULT_WELD``).
-    levels : int
+    levels : int, optional
         The last skeleton level to build: -1 the scene only, 0 the nodes (V0),
-        1 also the arcs (V1), 2 also the V-cells and EE-cells (V2).
+        1 also the arcs (V1), 2 also the V-cells and EE-cells (V2). Default: every level
+        the build can hold.
     quiet : bool
         No progress bars.
     points : (k, 3) float64, optional
@@ -276,13 +289,28 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         The viscx file to write (:meth:`BuiltComplex.save`).
     compression : str
         The HDF5 filter of the large datasets (:data:`viscx.formats.hdf5.COMPRESSIONS`).
+    light_face, light_group : int or str, optional
+        A *scoped* build for one area light (a face, or the faces of a group): only the
+        nodes and arcs of the families with one of the light's outline vertices or edges
+        (:mod:`viscx.skeleton.scope`), what its discontinuity mesh and renders need; levels
+        up to V1 (:data:`SCOPED_LEVEL`; more is refused). Stored as the option ``light``.
 
     Returns
     -------
     BuiltComplex
     """
+    scoped = light_face is not None or light_group is not None
+    if levels is None:
+        levels = SCOPED_LEVEL if scoped else MAX_LEVEL
     if not -1 <= levels <= MAX_LEVEL:
         raise ParameterError(f"{{levels}} must be between -1 (scene only) and {MAX_LEVEL}")
+    if scoped:
+        if levels > SCOPED_LEVEL:
+            raise ParameterError(f"a build for one light ({{light_group}}/{{light_face}}) holds levels up to "
+                                 f"{SCOPED_LEVEL} (V0 and V1 of the light's families); {{levels}} {levels} needs a full build")
+        if points is not None and len(points):
+            raise ParameterError("{points} and a light ({light_group}/{light_face}) cannot be combined: build one or "
+                                 "the other")
     if output is not None and isinstance(source, (str, Path)):
         check_output(source, output)
     built = {}
@@ -294,10 +322,11 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         try:
             with stages.stage("scene"):
                 scene = scene_of(source, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
+                scope = light_scope(scene, light_face, light_group) if scoped else None
 
             for name, builder in LEVELS[: levels + 1]:
                 with stages.stage(name):
-                    built[name] = builder(scene, built, quiet)
+                    built[name] = builder(scene, built, quiet, **({"scope": scope} if scoped else {}))
                 stages.timings.update(getattr(built[name], "timings", {}))
 
             if has_points:
@@ -313,6 +342,8 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
                        "levels": levels}
             if has_points:
                 options["points"] = len(points)
+            if scoped:
+                options["light"] = {"light_face": int(light_face)} if light_face is not None else {"light_group": light_group}
             cx = BuiltComplex(scene, built, points if has_points else np.zeros((0, 3)), options, stages.timings)
             if output is not None:
                 with stages.stage("write"):
@@ -320,6 +351,16 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         except MemoryError:
             raise ViscxError(out_of_memory(stages.current)) from None
     return cx
+
+
+def light_scope(scene, light_face=None, light_group=None):
+    """The :class:`viscx.skeleton.scope.Scope` of an area light's outline (its vertices and
+    edges, :func:`viscx.queries.discontinuities.light_of`; ViscxError for an unknown face or group)."""
+    from viscx.queries.discontinuities import light_of
+    from viscx.skeleton.scope import Scope
+
+    light = light_of(scene, light_face, light_group)
+    return Scope.of(scene, light.vertices, light.edges)
 
 
 def build_file(scene_path, output, epsilon=None, relative_epsilon=None, weld=DEFAULT_WELD, levels=MAX_LEVEL,

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from viscx.cli.options import epsilon_option, output_option, point_option, quiet, relative_epsilon_option
+from viscx.cli.options import epsilon_option, light_options, output_option, point_option, quiet, relative_epsilon_option
 from viscx.formats.hdf5 import COMPRESSIONS, DEFAULT_COMPRESSION
 from viscx.scene import DEFAULT_WELD
 
@@ -42,8 +42,9 @@ from viscx.scene import DEFAULT_WELD
 @point_option("--point", "points", multiple=True,
               help_text="Add a free point (e.g. a light) as a generator: its nodes, VE arcs and V-cells are "
               "built like a vertex's. Repeatable.")
+@light_options
 @click.pass_context
-def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, compression, points):
+def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, compression, points, light_face, light_group):
     """Load SCENE (OBJ, PLY, or any mesh trimesh reads), clean it into polygon
     faces with a half-edge structure and generators, and write the result.
 
@@ -52,13 +53,19 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, comp
     viscx build scene.ply --relative-epsilon 1e-5 -o scene.h5
     viscx build sample_scenes/tetrahedra.obj --levels 0 -o nodes_only.h5
     viscx build sample_scenes/cornell_box.obj --point 278,540,280 -o cornell_light.h5
+    viscx build sample_scenes/cornell_box.obj --light-group light -o cornell_mesh.h5
+
+    With --light-group NAME (or --light-face I) the build is scoped to that area light:
+    only the nodes (V0) and arcs (V1) of the families with one of its outline vertices or
+    edges, what `viscx query discontinuities` and `viscx render` need for that light
+    (docs/format.md, "Builds for one light").
 
     The output is written to a temporary file and renamed when complete, so a
     failed or interrupted build leaves nothing behind.
     """
     from viscx.errors import ViscxError
     from viscx.formats.atomic import check_output, is_stream
-    from viscx.pipeline import MAX_LEVEL, NOUNS, build_complex
+    from viscx.pipeline import NOUNS, build_complex
 
     output = Path(output) if output else Path(Path(scene_file).stem + ".h5")
     check_output(output, [scene_file])  # also the default name
@@ -68,8 +75,8 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, comp
     start = time.perf_counter()
     cx = build_complex(
         scene_file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
-        levels=MAX_LEVEL if levels is None else levels, quiet=quiet(ctx), points=list(points) or None,
-        output=output, compression=compression,
+        levels=levels, quiet=quiet(ctx), points=list(points) or None,
+        output=output, compression=compression, light_face=light_face, light_group=light_group,
     )
     scene = cx.scene
     if not quiet(ctx):

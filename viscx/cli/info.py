@@ -102,7 +102,10 @@ def info(path, as_json):
         return
     click.echo(f"{summary['file']}: viscx format {summary['format_version']} (written by viscx {summary['viscx_version']})")
     click.echo(f"  scene   {summary['scene']}  sha256 {summary['scene_sha256'][:16]}…")
-    click.echo(f"  epsilon {summary['epsilon']:.6g}   levels: {', '.join(summary['levels'])}")
+    light = summary["options"].get("light")
+    scoped = "" if not isinstance(light, dict) else "   built for one light: " + ", ".join(
+        f"{k.replace('_', ' ')} {v}" for k, v in light.items())
+    click.echo(f"  epsilon {summary['epsilon']:.6g}   levels: {', '.join(summary['levels'])}{scoped}")
     for level, counts in summary["counts"].items():
         click.echo(f"  [{level}]")
         for name, value in counts.items():

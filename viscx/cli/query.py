@@ -12,7 +12,8 @@ def query():
     for a point stored by `viscx build --point`, its V-cells; any other point's V-cells
     are computed on demand) and never rebuilds the whole complex. `visible` and `shadows`
     also take a scene file (OBJ, PLY, …): a scoped query that builds the point's V-cells
-    only, the same cells the full build would have.
+    only, the same cells the full build would have; `discontinuities` likewise builds
+    the nodes and arcs of the light's families only.
 
     \b
     viscx query visible cornell.h5 --from 278,273,-800
@@ -122,8 +123,9 @@ def shadows(ctx, file, light, output, fmt, faces, epsilon, relative_epsilon, wel
                "regions, a region id and colour per triangle). Default: JSON on standard output.", required=False)
 @format_option
 @face_option
+@scene_options
 @click.pass_context
-def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
+def discontinuities(ctx, file, light_face, light_group, output, fmt, faces, epsilon, relative_epsilon, weld):
     """The discontinuity mesh cast by an area light (Hoberock et al. §7.5): on every receiver
     face, the traces of the VE and EEE events involving the light's vertices and edges
     (segments; EEE traces are conic arcs written as polylines), the receiver-plane events
@@ -135,12 +137,19 @@ def discontinuities(ctx, file, light_face, light_group, output, fmt, faces):
     viscx build sample_scenes/cornell_box.obj -o cornell.h5
     viscx query discontinuities cornell.h5 --light-group light -o mesh.json
     viscx query discontinuities cornell.h5 --light-face 15 -o mesh.ply
+    viscx query discontinuities sample_scenes/cornell_box.obj --light-group light -o mesh.json
+
+    FILE is a viscx file (a full build, or one built for this light with `viscx build
+    --light-group`) or a scene file: then only the nodes and arcs of the light's families
+    are built (the full build's), with --epsilon/--relative-epsilon/--weld as `viscx build`
+    would use them.
     """
     from viscx.formats.queries import output_format, write_regions_ply, write_result
     from viscx.queries.discontinuities import light_plane_count, mesh_result, open_discontinuities
 
     fmt = output_format(output, fmt, geometry=True)
-    scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group, faces=faces)
+    scene, mesh = open_discontinuities(file, light_face=light_face, light_group=light_group, faces=faces,
+                                       epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
     planes = light_plane_count(scene, mesh.light)
     if planes > 1 and not quiet(ctx):
         click.echo(f"viscx: warning: the light's faces lie in {planes} planes; the mesh is exact for a planar light "

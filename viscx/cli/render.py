@@ -4,7 +4,7 @@ from pathlib import Path
 
 import click
 
-from viscx.cli.options import POINT, at_least, file_argument, light_options, output_option, positive, quiet
+from viscx.cli.options import POINT, at_least, file_argument, light_options, output_option, positive, quiet, scene_options
 
 #: what one pixel costs while rendering: radiance and its tone-mapped copies, the primary
 #: rays and hits, the region ids (float64 and int64 arrays of a few columns each)
@@ -33,9 +33,10 @@ BYTES_PER_PIXEL = 256
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed of --reference.")
 @output_option("The PNG to write; the linear radiance goes beside it as .npy (float32, h×w×3) and .pfm "
                "(and, with --reference, its standard error as .stderr.npy).")
+@scene_options
 @click.pass_context
 def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radiance, samples, reference, show_regions,
-           exposure, seed, output):
+           exposure, seed, output, epsilon, relative_epsilon, weld):
     """Render the direct illumination of the scene in FILE (built by `viscx build`) from an
     area light (Hoberock et al. §7.4–7.5). Primary visibility is ray cast; each pixel's radiance is
     exact: the part of the light its point sees (polygon clipping against the occluders
@@ -50,6 +51,12 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
         --samples 500 --show-regions -o cornell_sparse.png
     viscx render cornell.h5 --camera 278,273,-800 --look-at 278,273,0 --light-group light \\
         --reference 256 -o cornell_mc.png
+    viscx render sample_scenes/cornell_box.obj --camera 278,273,-800 --look-at 278,273,0 \\
+        --light-group light -o cornell.png
+
+    FILE is a viscx file (a full build, or one built for this light with `viscx build
+    --light-group`) or a scene file: then only the nodes and arcs of the light's families
+    are built (the full build's; --epsilon/--relative-epsilon/--weld as `viscx build`).
     """
     import json
 
@@ -59,7 +66,8 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     from viscx.errors import ViscxError
     from viscx.formats.images import write_npy, write_pfm, write_png
     from viscx.memory import memory_budget
-    from viscx.pipeline import open_complex
+    from viscx.queries.discontinuities import open_light_query
+    from viscx.render.direct import emitter
     from viscx.progress import bar
     from viscx.render.image import picture
 
@@ -70,7 +78,8 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     if need > memory_budget():
         raise ViscxError(f"--size {size[0]} {size[1]} needs about {need / 2**30:.0f} GiB, over the memory budget "
                          f"({memory_budget() / 2**30:.1f} GiB; VISCX_MEMORY_BUDGET)")
-    cx = open_complex(file, need="V2")
+    cx = open_light_query(file, light_face, light_group, check=lambda scene, light: emitter(scene, light, radiance),
+                          epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
     with bar(total=size[0] * size[1], desc="monte carlo", quiet=quiet(ctx) or reference is None, unit="px") as b:
         result = render_light(cx, eye, look_at, up, fov, size, light_face=light_face, light_group=light_group,
                               radiance=radiance, samples=samples, reference=reference, seed=seed, progress=b.update)

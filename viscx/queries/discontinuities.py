@@ -1093,18 +1093,74 @@ def light_mesh(query, light_face=None, light_group=None, faces=()):
     return discontinuity_mesh(scene, query.arcs, light, faces)
 
 
-def open_discontinuities(path, light_face=None, light_group=None, faces=()):
-    """Read a viscx file (scene and V1; the file must hold V2) and compute the mesh
-    (:func:`light_mesh`).
+def open_light_query(path, light_face=None, light_group=None, check=None, **scene_options):
+    """The complex a light's queries (discontinuity mesh, render) read: a viscx file's V1
+    (a full build, which must hold V2, or a build scoped to this light: ``viscx build
+    --light-group``), or for a scene file (OBJ, PLY, …) the *scoped* build of the light
+    (:func:`viscx.pipeline.build_complex` with the light: the nodes and arcs of its
+    families only, the full build's, nothing written).
+
+    Parameters
+    ----------
+    path : str or Path
+    light_face : int, optional
+    light_group : str, optional
+    check : callable, optional
+        ``check(scene, light)`` raises for a query that cannot be answered (a light that
+        emits nothing), called before anything is built.
+    **scene_options
+        ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file; a viscx file keeps
+        the ones it was built with.
+
+    Returns
+    -------
+    viscx.pipeline.BuiltComplex
+
+    Raises ViscxError (one line) for a viscx file without what the query needs, a file
+    scoped to another light, scene options with a viscx file, or an unknown light.
+    """
+    from pathlib import Path
+
+    import h5py
+
+    from viscx.errors import ParameterError, ViscxError, literal
+    from viscx.pipeline import build_complex, light_option, open_complex, scene_of
+
+    if (light_face is None) == (light_group is None):
+        raise ParameterError("give exactly one of {light_face} and {light_group}")
+    check = check or (lambda scene, light: None)
+    given = {k: v for k, v in scene_options.items() if v is not None}
+    if not (Path(path).is_file() and h5py.is_hdf5(path)):
+        scene = scene_of(path, **given)
+        check(scene, light_of(scene, light_face, light_group))
+        return build_complex(scene, quiet=True, light_face=light_face, light_group=light_group)
+    if given:
+        names = ", ".join("{" + k + "}" for k in sorted(given))
+        raise ParameterError(f"{literal(path)} is a viscx file, built with its own scene options: {names} apply to "
+                             "scene files only")
+    cx = open_complex(path)
+    scoped = light_option(cx.options)
+    check(cx.scene, light_of(cx.scene, light_face, light_group))
+    if scoped is None:
+        return open_complex(path, need="V2", hint=", or query the scene file itself")
+    asked = {"light_face": int(light_face)} if light_face is not None else {"light_group": light_group}
+    if scoped != asked:
+        (key, value), = scoped.items()
+        raise ViscxError(f"{path} was built for one light ({key.replace('_', ' ')} {value}) only; query that light, "
+                         "or the scene file itself")
+    return open_complex(path, need="V1")
+
+
+def open_discontinuities(path, light_face=None, light_group=None, faces=(), **scene_options):
+    """The mesh (:func:`light_mesh`) from a viscx file or, scoped, from a scene file
+    (:func:`open_light_query`).
 
     Returns
     -------
     scene : Scene
     mesh : DiscontinuityMesh
     """
-    from viscx.pipeline import open_complex
-
-    cx = open_complex(path, need="V2")
+    cx = open_light_query(path, light_face, light_group, **scene_options)
     return cx.scene, light_mesh(cx, light_face, light_group, faces)
 
 

@@ -785,6 +785,17 @@ def _hull_vertices(edges, n_edges, ev, vx, P, k, tol, axes, n_axes, hmin, hmax, 
 
 
 @njit(cache=True, nogil=True)
+def _scope_in_hull(scope_a, scope_b, axes, n_axes, hmin, hmax, tol):
+    """Whether a scope generator (segments ``scope_a[i]``–``scope_b[i]``; a vertex as a
+    segment of length 0) passes :func:`_meets_hull`, the test of :func:`_query` and
+    :func:`_hull_vertices`: when none does, no generator the query finds is in scope."""
+    for i in range(scope_a.shape[0]):
+        if _meets_hull(_row(scope_a, i), _row(scope_b, i), axes, n_axes, hmin, hmax, tol):
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
 def _edges_blocked(table, a0, a1, b0, b1):
     t = table[a0, b0]
     return t >= 0 and table[a0, b1] == t and table[a1, b0] == t and table[a1, b1] == t
@@ -1071,7 +1082,8 @@ def _no_vee_line(p, lines, e1, e2):
 
 @njit(cache=True, nogil=True)
 def _scan_edge_pairs(
-    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps,
+    scope_e, scope_v, scope_a, scope_b, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
@@ -1132,13 +1144,16 @@ def _scan_edge_pairs(
             _set_row(P, 3, _row(vx, d1))
             query += 1
             n_axes = _hull_setup(P, 4, axes, hmin, hmax)
+            ad_in = scope_e[a] or scope_e[d]
+            if not ad_in and not _scope_in_hull(scope_a, scope_b, axes, n_axes, hmin, hmax, tol):
+                continue
             ne = _query(P, 4, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, n_axes, hmin, hmax)
             nv = _hull_vertices(e_out, ne, ev, vx, P, 4, tol, axes, n_axes, hmin, hmax, v_stamp, query, v_out)
             if v_items.shape[0]:  # vertices without a generator edge
                 nv += _query(P, 4, tol, vx, vx, lo, cell, dims, v_off, v_items, v_stamp, query, v_out[nv:], axes, n_axes, hmin, hmax)
             for r in range(nv):
                 v = v_out[r]
-                if v == a0 or v == a1 or v == d0 or v == d1:
+                if v == a0 or v == a1 or v == d0 or v == d1 or not (ad_in or scope_v[v]):
                     continue
                 if _vertex_edge_blocked(table, v, a0, a1) or _vertex_edge_blocked(table, v, d0, d1):
                     continue
@@ -1200,7 +1215,7 @@ def _scan_edge_pairs(
                     if box[j, 0] > box[i, 1] or box[i, 0] > box[j, 1] or box[j, 2] > box[i, 3] or box[i, 2] > box[j, 3]:
                         continue
                     c = inner[j]
-                    if _adjacent(ev, b, c):
+                    if _adjacent(ev, b, c) or not (ad_in or scope_e[b] or scope_e[c]):
                         continue
                     if _blocked(blocked, b, c):
                         continue
@@ -1233,12 +1248,13 @@ def _scan_edge_pairs(
 
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
-    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, tol, eps, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, tol, eps,
+    scope_e, scope_v, scope_a, scope_b, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
     through v, them and e (exact filter, with slack).
-    Returns rows (v, e1, e2) by position, e1 the inner edge."""
+    Returns rows (v, e1, e2) by position, e1 the inner edge. Scope as :func:`_scan_edge_pairs`."""
     n_e = ev.shape[0]
     e_stamp = np.full(n_e, -1, dtype=np.int64)
     e_out = np.empty(n_e, dtype=np.int64)
@@ -1272,11 +1288,14 @@ def _scan_vertex_edges(
             _set_row(P, 2, _row(vx, e1))
             query += 1
             n_axes = _hull_setup(P, 3, axes, hmin, hmax)
+            ve_in = scope_v[v] or scope_e[e]
+            if not ve_in and not _scope_in_hull(scope_a, scope_b, axes, n_axes, hmin, hmax, tol):
+                continue
             ne = _query(P, 3, tol, ea, eb, lo, cell, dims, e_off, e_items, e_stamp, query, e_out, axes, n_axes, hmin, hmax)
             for r in range(ne):
                 b = e_out[r]
                 b0, b1 = ev[b, 0], ev[b, 1]
-                if b == e or b0 == v or b1 == v or _adjacent(ev, b, e):
+                if b == e or b0 == v or b1 == v or _adjacent(ev, b, e) or not (ve_in or scope_e[b]):
                     continue
                 if _vertex_edge_blocked(table, v, b0, b1) or _blocked(blocked, b, e):
                     continue
@@ -1458,7 +1477,7 @@ def _crosses_solid(points, owner, t, stamp_id, stamp, margin, plane_offsets, pla
     return False
 
 
-def fast_candidates(scene, progress=None, workers=None, stats=None):
+def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     """Candidate lines that include every node's, in the reference's form.
 
     Parameters
@@ -1471,6 +1490,9 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
         Threads for the hull scans (default: the CPU count).
     stats : dict, optional
         Filled with the counts of each stage (pairs, tuples, candidates per kind).
+    scope : viscx.skeleton.scope.Scope, optional
+        Only the tuples with a generator in scope (:meth:`~viscx.skeleton.scope.Scope.nodes`),
+        dropped before their lines are solved: the others' candidates are unchanged.
 
     Returns
     -------
@@ -1509,6 +1531,8 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     joined = np.zeros((len(gv), len(gv)), dtype=bool)
     joined[ev[:, 0], ev[:, 1]] = joined[ev[:, 1], ev[:, 0]] = True
     keep &= ~joined[i, j]
+    if scope is not None:
+        keep &= scope.node_vertices[gv[i]] | scope.node_vertices[gv[j]]
     i, j = i[keep], j[keep]
     u, v = gv[i], gv[j]
     origin, direction = scene.vertices[u], scene.vertices[v] - scene.vertices[u]
@@ -1546,6 +1570,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     v_off, v_items = grid.fill(vx[lone], vx[lone])
     v_items = lone[v_items]
     tol = HULL_TOL * eps + 1e-12 * scene.diagonal
+    scoping = _scope_arrays(scope, gv, ge, ev, vx)
 
     # VEE with the vertex at an end: (v, e) pairs and the edges in their triangle
     clock = time.perf_counter()
@@ -1553,7 +1578,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_vertex_edges,
         np.arange(len(gv)),
-        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + scoping + solid_grid,
         max(1, min(64, len(gv) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1568,7 +1593,8 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     parts = _parallel(
         _scan_edge_pairs,
         np.arange(len(ge)),
-        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps) + solid_grid,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps)
+        + scoping + solid_grid,
         max(1, min(64, len(ge) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1585,6 +1611,8 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     v_id = gv[vee[:, 0]]
     e_lo, e_hi = ge[np.minimum(vee[:, 1], vee[:, 2])], ge[np.maximum(vee[:, 1], vee[:, 2])]
     vee = unique_rows(np.stack([v_id, e_lo, e_hi], axis=1))[0]
+    if scope is not None:
+        vee = vee[scope.nodes(np.full(len(vee), VEE), np.c_[vee, np.full(len(vee), -1)])]
     out.append(_lines_in_chunks(_vee_lines, vee, (scene, line_of, line_solids), workers))
     stats["VEE triples"] = int(len(vee))
     stats["VEE candidates"] = int(len(out[-1][0]))
@@ -1595,11 +1623,28 @@ def fast_candidates(scene, progress=None, workers=None, stats=None):
     stats["E4 tuples"] = int(len(quads))
     quads = np.sort(ge[quads], axis=1)
     quads = unique_rows(quads)[0]
+    if scope is not None:
+        quads = quads[scope.nodes(np.full(len(quads), E4), quads)]
     stats["E4 quadruples"] = int(len(quads))
     out.append(_lines_in_chunks(_e4_lines, quads, (scene, line_of, line_solids), workers))
     stats["E4 candidates"] = int(len(out[-1][0]))
     stats["seconds E4 lines"] = time.perf_counter() - clock
     return _pack(out)
+
+
+def _scope_arrays(scope, gv, ge, ev, vx):
+    """The scans' scope arguments (:func:`_scan_edge_pairs`): which generator edges and
+    vertices (by position) are in scope, and the scope generators as segments (vertices
+    without a scope edge through them as points). Without a scope every row is kept."""
+    if scope is None:
+        return (np.ones(len(ge), bool), np.ones(len(gv), bool), np.zeros((0, 3)), np.zeros((0, 3)))
+    se, sv = scope.edges[ge], scope.node_vertices[gv]
+    # (the vertices inside a scope edge lie on its segment)
+    alone = scope.vertices[gv].copy()
+    alone[ev[se].ravel()] = False
+    a = np.concatenate([vx[ev[se, 0]], vx[alone]])
+    b = np.concatenate([vx[ev[se, 1]], vx[alone]])
+    return se, sv, np.ascontiguousarray(a), np.ascontiguousarray(b)
 
 
 def _vee_lines(vee, scene, line_of, solids):
@@ -1656,7 +1701,7 @@ def validate_in_chunks(scene, kind, generators, origins, directions, chunk=VALID
     return sort_nodes(merged)
 
 
-def build_nodes(scene, quiet=True, workers=None):
+def build_nodes(scene, quiet=True, workers=None, scope=None):
     """The nodes (V0) of a scene by the output-sensitive candidates.
 
     Parameters
@@ -1666,11 +1711,15 @@ def build_nodes(scene, quiet=True, workers=None):
         No progress bars.
     workers : int, optional
         Threads for the hull scans.
+    scope : viscx.skeleton.scope.Scope, optional
+        Only the nodes with a generator in scope: the full build's nodes of those tuples,
+        in its order (tests/test_scoped_mesh.py).
 
     Returns
     -------
     Nodes
         Equal to :func:`viscx.skeleton.reference.reference_nodes` (tests/test_fast_nodes.py).
     """
-    kind, gens, origins, dirs = fast_candidates(scene, progress=lambda desc, total: bar(total, desc, quiet=quiet), workers=workers)
+    kind, gens, origins, dirs = fast_candidates(scene, progress=lambda desc, total: bar(total, desc, quiet=quiet),
+                                                workers=workers, scope=scope)
     return validate_in_chunks(scene, kind, gens, origins, dirs)

@@ -40,7 +40,7 @@ from viscx.skeleton.nodes import Nodes
 from viscx.tolerances import PARAMETER_SLACK
 
 
-def build_arcs(scene, nodes, quiet=True, workers=None):
+def build_arcs(scene, nodes, quiet=True, workers=None, scope=None):
     """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
 
     The families are found once for the whole scene (:func:`_families`). Their events,
@@ -62,6 +62,11 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         No progress bar.
     workers : int, optional
         Threads building the chunks (default: the CPU count); the arcs do not depend on it.
+    scope : viscx.skeleton.scope.Scope, optional
+        Only the families with a generator in scope (:mod:`viscx.skeleton.scope`; ``nodes``
+        then need only hold the nodes in scope) and the planar events with an edge in
+        it: the full build's arcs of those families, in its order (their ``end_node`` ids
+        refer to ``nodes`` and to the scoped ``planar``).
 
     Returns
     -------
@@ -69,11 +74,11 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
     """
     with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
         progress.set_postfix_str("planar events")
-        planar = planar_events(scene)
+        planar = planar_events(scene, scope)
         progress.update()
 
         progress.set_postfix_str("families")
-        families = _families(scene, nodes, planar, workers)
+        families = _families(scene, nodes, planar, workers, scope)
         progress.update()
 
         chunks = _family_chunks(families)
@@ -105,7 +110,7 @@ def build_arcs(scene, nodes, quiet=True, workers=None):
         progress.update()
 
         progress.set_postfix_str("crossing junctions")
-        xe = crossing_arcs(scene, workers)
+        xe = crossing_arcs(scene, workers, scope)
         if xe is not None:  # after the VE arcs: the other arcs' ids do not change
             arcs = {k: np.concatenate([v, xe[k]]) for k, v in arcs.items()}
         progress.update()
@@ -152,16 +157,20 @@ class _Families:
         return len(self.kind)
 
 
-def _families(scene, nodes, planar, workers=None):
+def _families(scene, nodes, planar, workers=None, scope=None):
     """The families through the nodes and the planar events, every same-plane VE family
     and every pencil at a corner of a touched face (which may hold no node), with their
-    node and planar events (:class:`_Families`)."""
+    node and planar events (:class:`_Families`); with a ``scope``, those in it only."""
     def incidences(chunk):
         code, events, rows = chunk
         part = Nodes(**{k: getattr(events, k)[rows] for k in Nodes.__dataclass_fields__})
         k, g, at, through = family_incidences(scene, part)
         seeds = g[through]
         k, g, at = k[~through], g[~through], at[~through]
+        if scope is not None:
+            seeds = seeds[scope.families(np.where(seeds[:, 2] < 0, VE, EEE), seeds)]
+            mine = scope.families(k, g)
+            k, g, at = k[mine], g[mine], at[mine]
         return (k.astype(np.int8), g, np.full(len(at), code, np.int8), at + rows.start, event_parameters(scene, k, g, part, at),
                 seeds)
 
@@ -176,10 +185,16 @@ def _families(scene, nodes, planar, workers=None):
     fam_gens.append(seeds)
     # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
     plane_ve, plane_of, vp, ep = same_plane_ve(scene)
+    planes = np.unique(plane_of)  # (the points of every plane, as the full build's)
+    if scope is not None:
+        mine = scope.families(np.full(len(plane_ve), VE), np.c_[plane_ve, np.full(len(plane_ve), -1)])
+        plane_ve, plane_of = plane_ve[mine], plane_of[mine]
     fam_kind.append(np.full(len(plane_ve), VE, np.int8))
     fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))
     # so may the pencils at the corners of faces in contact
     pencils = contact_pencils(scene)
+    if scope is not None:
+        pencils = pencils[scope.families(np.full(len(pencils), EEE), pencils)]
     fam_kind.append(np.full(len(pencils), EEE, np.int8))
     fam_gens.append(pencils)
     keys = np.concatenate([np.concatenate(fam_kind).astype(np.int64)[:, None], np.concatenate(fam_gens)], axis=1)
@@ -194,7 +209,7 @@ def _families(scene, nodes, planar, workers=None):
     order = np.argsort(fam_of, kind="stable")
     nf = len(families)
     count = np.bincount(fam_of, minlength=nf)
-    points = points_of_planes(scene, np.unique(plane_of), vp, ep, junctions=edge_junctions(scene))
+    points = points_of_planes(scene, planes, vp, ep, junctions=edge_junctions(scene))
     weight = count + np.where(families[:, 0] == EEE, 8, 2)
     for rows in row_chunks(len(plane_ve), CHUNK):
         fam, first, last = coplanar_candidates(scene, plane_ve[rows], plane_of[rows], points)

@@ -21,9 +21,10 @@ from viscx.tolerances import ANGLE_MARGIN, ANGLE_TOLERANCE
 
 
 
-def planar_events(scene):
+def planar_events(scene, scope=None):
     """The planar E4 events: lines in the plane of two generator edges sharing a vertex
-    that meet two more generator edges, validated as nodes.
+    that meet two more generator edges, validated as nodes (with a ``scope``, those with
+    an edge in it: :meth:`viscx.skeleton.scope.Scope.nodes`).
 
     V0 leaves them out (two of the four edges share an endpoint); they end EEE
     arcs where the line turns into a face's plane at one of its edges (Durand's
@@ -74,6 +75,8 @@ def planar_events(scene):
     ci, cj, pair, origin, direction = ci[fine], cj[fine], pair[fine], origin[fine], direction[fine]
     gens = np.sort(np.stack([pa[pair], pb[pair], ce[ci], ce[cj]], axis=1), axis=1)
     distinct = np.all(np.diff(gens, axis=1) > 0, axis=1)
+    if scope is not None:  # (a quadruple's rows are all kept or all dropped: the same first line)
+        distinct &= scope.nodes(np.full(len(gens), E4), gens)
     gens, origin, direction = gens[distinct], origin[distinct], direction[distinct]
     # one line per quadruple (two adjacent pairs can propose it)
     first = first_of_rows(gens)

@@ -13,7 +13,7 @@ from viscx.skeleton.point_nodes import point_node_incidences, point_nodes
 from viscx.tolerances import PARAMETER_SLACK
 
 
-def crossing_arcs(scene, workers=None):
+def crossing_arcs(scene, workers=None, scope=None):
     """The XE arcs: for each X-junction (generator edges a < b crossing at X) and each
     generator edge e skew to a or b, the lines through X meeting e (a VE family whose
     vertex is the junction point), cut at events and sampled by the VE stages.
@@ -22,6 +22,9 @@ def crossing_arcs(scene, workers=None):
     and a generator vertex (VV) or meeting two more generator edges (VEE), validated as
     nodes on :func:`crossing_scene`. V0 drops those (X is a point of two of their
     generators); an arc ending there has end type END_TRANSITION, end_node -1.
+
+    With a ``scope`` (:class:`viscx.skeleton.scope.Scope`), only the families with a, e or
+    b in it (each family's arcs are decided within it).
 
     Returns
     -------
@@ -40,6 +43,8 @@ def crossing_arcs(scene, workers=None):
     a, b = cr.edges[j, 0], cr.edges[j, 1]
     keep = (e != a) & (e != b)
     keep[keep] = skew_edges(scene, e[keep], a[keep]) | skew_edges(scene, e[keep], b[keep])
+    if scope is not None:
+        keep &= scope.families(np.full(len(e), XE), np.stack([a, e, b], axis=1))
     families = np.stack([ids[j[keep]], e[keep], np.full(np.count_nonzero(keep), -1)], axis=1)  # sorted by (X, e)
     fkind = np.full(len(families), VE)
     nf = len(families)

@@ -879,14 +879,72 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
         cut_row.append(rows[across])
         cut_pos.append(segments.value[at[across]])
     piece_row, piece_interval = _cut_intervals(interval[ve], tol[ve], np.concatenate(cut_row), np.concatenate(cut_pos))
-    rows = np.concatenate([eee, ve[piece_row]])
-    ivl = np.concatenate([interval[eee], piece_interval])
+    cut = ve[piece_row]
+    if segments is not None:
+        # in the squares built again, EEE arcs too are cut where another arc ends on them
+        eee_row, eee_interval = _eee_cuts(scene, arcs, eee, pair_key, start, end, curves[3], tol, interval)
+        whole = eee[np.bincount(eee_row, minlength=len(eee)) == 1]
+        split = np.bincount(eee_row, minlength=len(eee))[eee_row] > 1
+        cut = np.concatenate([eee[eee_row[split]], cut])
+        piece_interval = np.concatenate([eee_interval[split], piece_interval])
+    else:
+        whole = eee
+    rows = np.concatenate([whole, cut])
+    ivl = np.concatenate([interval[whole], piece_interval])
     order = np.lexsort([ivl[:, 0], arc[rows], e2[rows], e1[rows]])
     rows, ivl = rows[order], ivl[order]
-    cut = ve[piece_row]
     piece_curves = _curves(scene, arcs, arc[cut], e1[cut], e2[cut], piece_interval)
-    curves = tuple(np.concatenate([c[eee], p])[order] for c, p in zip(curves, piece_curves))
+    curves = tuple(np.concatenate([c[whole], p])[order] for c, p in zip(curves, piece_curves))
     return arc[rows], e1[rows], e2[rows], ivl, curves
+
+
+def _eee_cuts(scene, arcs, eee, pair_key, start, end, weight, tol, interval):
+    """The pieces of EEE arcs cut where another arc of their square ends on them (rule 11 of
+    docs/skeleton.md "Furnished buildings"): an end lying within the join tolerance of the
+    curve, farther than it from the curve's ends. V1 merges events 4 epsilon apart along
+    a family's edge, so an EEE arc may run on past a node at which the cell beside it ends
+    (office(300), pair (3, 41): the arc EEE (3, 41, 238) runs 1.2e-4 of the square past the
+    corner where the arcs bounding a thin cell beside it end).
+
+    Returns
+    -------
+    piece_row : (p,) int
+        Index into ``eee`` of each piece, ascending.
+    piece_interval : (p, 2) float
+    """
+    ends = np.concatenate([start, end])
+    owner = np.tile(np.arange(len(start)), 2)
+    order = np.argsort(pair_key[owner], kind="stable")
+    ends, owner = ends[order], owner[order]
+    rows, at = _same_square(pair_key[owner], pair_key[eee])
+    keep = owner[at] != eee[rows]
+    rows, at = rows[keep], at[keep]
+    r = eee[rows]
+    span = end[r] - start[r]
+    k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)  # the coordinate varying more
+    # per coordinate: SQUARE_JOIN_EPSILONS epsilon along its own edge (rule 8's reason: the
+    # join tolerance, epsilon along the shorter edge, is 64 epsilon along a 12-long one)
+    length = scene.cached("edge_lengths", _edge_lengths)
+    key = pair_key[eee]
+    tol_axis = SQUARE_JOIN_EPSILONS * scene.epsilon / np.stack([length[key >> 32], length[key & ((1 << 32) - 1)]], axis=1)
+    c0, c1, q = start[r, k], end[r, k], ends[at, k]
+    t_k = tol_axis[rows, k]
+    inside = (q - np.minimum(c0, c1) > t_k) & (np.maximum(c0, c1) - q > t_k)
+    rows, at, r, k, c0, c1, q = rows[inside], at[inside], r[inside], k[inside], c0[inside], c1[inside], q[inside]
+    w = weight[r, k]
+    a, b = (1 - w) * (q - c0), w * (c1 - q)  # _bezier_inverse
+    u = a / (a + b)
+    wo = weight[r, 1 - k]
+    p, m = (1 - u) * (1 - wo), u * wo  # _bezier
+    other = (p * start[r, 1 - k] + m * end[r, 1 - k]) / (p + m)
+    # on the curve: within one epsilon across it (rule 10: lines farther apart are two)
+    on = np.abs(other - ends[at, 1 - k]) <= tol_axis[rows, 1 - k] * (SEGMENT_MERGE_EPSILONS / SQUARE_JOIN_EPSILONS)
+    rows, u, r, k = rows[on], u[on], r[on], k[on]
+    s0, s1 = interval[eee, 0], interval[eee, 1]
+    # the tolerance in s: the join tolerance over the coordinate's change along the arc
+    change = np.abs(end[eee] - start[eee]).max(axis=1)
+    tol_s = tol[eee] * (s1 - s0) / np.maximum(change, 1e-300)
+    return _cut_intervals(interval[eee], tol_s, rows, s0[rows] + u * (s1[rows] - s0[rows]))
 
 
 def _same_square(sorted_key, key):

@@ -836,8 +836,10 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     pencil of a face of e1 at w (tangency at e1 flips across it) ends on the side at
     the line through w in that face's plane, which only touches the surface at w, so
     the lines through w see nothing there. Only the side's pieces between such ends
-    have one pair beside them. EEE arcs need no cut: their crossings with other arcs
-    of the square are V0 nodes or planar events (arcs end there).
+    have one pair beside them. EEE arcs need no cut in general position: their crossings
+    with other arcs of the square are V0 nodes or planar events (arcs end there). In the
+    squares built again (``segments`` given) they are cut where another arc ends on them
+    too (:func:`_eee_cuts`): V1's merged events let one run past such an end.
 
     Parameters
     ----------

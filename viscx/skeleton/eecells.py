@@ -900,6 +900,10 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     return arc[rows], e1[rows], e2[rows], ivl, curves
 
 
+#: (EEE arc, end) candidates judged at once by :func:`_eee_cuts`.
+EEE_CUT_CHUNK = 1 << 20
+
+
 def _eee_cuts(scene, arcs, eee, pair_key, start, end, weight, tol, interval):
     """The pieces of EEE arcs cut where another arc of their square ends on them (rule 11 of
     docs/skeleton.md "Furnished buildings"): an end lying within the join tolerance of the
@@ -918,30 +922,41 @@ def _eee_cuts(scene, arcs, eee, pair_key, start, end, weight, tol, interval):
     owner = np.tile(np.arange(len(start)), 2)
     order = np.argsort(pair_key[owner], kind="stable")
     ends, owner = ends[order], owner[order]
-    rows, at = _same_square(pair_key[owner], pair_key[eee])
-    keep = owner[at] != eee[rows]
-    rows, at = rows[keep], at[keep]
-    r = eee[rows]
-    span = end[r] - start[r]
-    k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)  # the coordinate varying more
+    sorted_key = pair_key[owner]
     # per coordinate: SQUARE_JOIN_EPSILONS epsilon along its own edge (rule 8's reason: the
     # join tolerance, epsilon along the shorter edge, is 64 epsilon along a 12-long one)
     length = scene.cached("edge_lengths", _edge_lengths)
     key = pair_key[eee]
     tol_axis = SQUARE_JOIN_EPSILONS * scene.epsilon / np.stack([length[key >> 32], length[key & ((1 << 32) - 1)]], axis=1)
-    c0, c1, q = start[r, k], end[r, k], ends[at, k]
-    t_k = tol_axis[rows, k]
-    inside = (q - np.minimum(c0, c1) > t_k) & (np.maximum(c0, c1) - q > t_k)
-    rows, at, r, k, c0, c1, q = rows[inside], at[inside], r[inside], k[inside], c0[inside], c1[inside], q[inside]
-    w = weight[r, k]
-    a, b = (1 - w) * (q - c0), w * (c1 - q)  # _bezier_inverse
-    u = a / (a + b)
-    wo = weight[r, 1 - k]
-    p, m = (1 - u) * (1 - wo), u * wo  # _bezier
-    other = (p * start[r, 1 - k] + m * end[r, 1 - k]) / (p + m)
-    # on the curve: within one epsilon across it (rule 10: lines farther apart are two)
-    on = np.abs(other - ends[at, 1 - k]) <= tol_axis[rows, 1 - k] * (SEGMENT_MERGE_EPSILONS / SQUARE_JOIN_EPSILONS)
-    rows, u, r, k = rows[on], u[on], r[on], k[on]
+    # every (arc, end) of a square at once costs arcs x ends of the largest squares: in chunks
+    count = np.searchsorted(sorted_key, key, "right") - np.searchsorted(sorted_key, key, "left")
+    bounds = np.searchsorted(np.cumsum(count), np.arange(EEE_CUT_CHUNK, count.sum() + EEE_CUT_CHUNK, EEE_CUT_CHUNK))
+    bounds = unique_sorted(np.r_[0, np.minimum(bounds + 1, len(eee)), len(eee)])
+    cut_rows, cut_u = [np.zeros(0, np.int64)], [np.zeros(0)]
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        part = np.arange(lo, hi)
+        rows, at = _same_square(sorted_key, key[part])
+        rows = part[rows]
+        keep = owner[at] != eee[rows]
+        rows, at = rows[keep], at[keep]
+        r = eee[rows]
+        span = end[r] - start[r]
+        k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)  # the coordinate varying more
+        c0, c1, q = start[r, k], end[r, k], ends[at, k]
+        t_k = tol_axis[rows, k]
+        inside = (q - np.minimum(c0, c1) > t_k) & (np.maximum(c0, c1) - q > t_k)
+        rows, at, r, k, c0, c1, q = rows[inside], at[inside], r[inside], k[inside], c0[inside], c1[inside], q[inside]
+        w = weight[r, k]
+        a, b = (1 - w) * (q - c0), w * (c1 - q)  # _bezier_inverse
+        u = a / (a + b)
+        wo = weight[r, 1 - k]
+        p, m = (1 - u) * (1 - wo), u * wo  # _bezier
+        other = (p * start[r, 1 - k] + m * end[r, 1 - k]) / (p + m)
+        # on the curve: within one epsilon across it (rule 10: lines farther apart are two)
+        on = np.abs(other - ends[at, 1 - k]) <= tol_axis[rows, 1 - k] * (SEGMENT_MERGE_EPSILONS / SQUARE_JOIN_EPSILONS)
+        cut_rows.append(rows[on])
+        cut_u.append(u[on])
+    rows, u = np.concatenate(cut_rows), np.concatenate(cut_u)
     s0, s1 = interval[eee, 0], interval[eee, 1]
     # the tolerance in s: the join tolerance over the coordinate's change along the arc
     change = np.abs(end[eee] - start[eee]).max(axis=1)

@@ -185,26 +185,85 @@ def test_info_prints_the_fraction_complete(tmp_path, capsys):
 
 
 def test_ee_cells_of_a_desk():
-    """EE-cells of the desk scene, measured: 361 of 364 pairs complete; on the complete
-    pairs the ray caster agrees on 36 059 of 36 068 judged points (100 per pair): the
-    9 others lie 2e-4 from a square's side x2 = 0 or 1 of pairs (0, 13), (2, 16), in a
-    sliver the cells do not have (an open EE gap of these scenes, docs/skeleton.md)."""
+    """EE-cells of the desk scene: every pair complete, and on them the ray caster agrees on
+    every judged point (100 per pair). The 10 points the oracle once counted as hidden
+    slivers along a square's side lie within epsilon of a 0.03-long edge's end, where the
+    caster judges no line (below)."""
     scene, arcs, _ = built("desk", desk)
     ee = build_eecells(scene, arcs)
     counts = ee.counts()
-    assert counts["complete_pairs"] >= 361 and counts["pairs"] == 364, counts
+    assert counts["complete_pairs"] == counts["pairs"] == 364, counts
     pairs = np.unique(np.stack([ee.edge1, ee.edge2], axis=1)[ee.complete], axis=0)
     judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, pairs, n=100)
-    assert judged >= 0.95 * 100 * len(pairs) and agreed >= 0.9995 * judged, wrong[:5]
+    assert judged >= 0.95 * 100 * len(pairs) and agreed == judged, wrong[:5]
+
+
+def test_lines_within_epsilon_of_an_edge_end_are_not_hidden():
+    """The "hidden slivers along a square's side" were the oracle's (docs/skeleton.md,
+    "EE-cells", ray oracle). Desk pair (0, 13): e1 the floor's west edge, e2 the top's
+    0.03-long vertical corner edge, epsilon 1.5e-5 = 5.1e-4 of e2. At x2 = 1.9e-4 (5.7e-6
+    from e2's end) the caster returns no segment although the piece between the two points
+    is free (float64 freeness): node condition 5 rejects a line meeting an edge within
+    epsilon of its end. Moved 1.5 epsilon from the end, the same line is valid with the
+    cell's pair (edge 0 -> face 4), as everywhere up to the side. The oracle counted the
+    first as hidden while the cell is there; it now leaves such points unjudged
+    (``judged_by_caster``), and judges those just beyond."""
+    from test_eecells import judged_by_caster
+
+    from viscx.skeleton.eecells import _edge_lengths, ee_blockers, ee_points, locate
+    from viscx.skeleton.nodes import BLOCK_EDGE, BLOCK_FACE, free_pieces
+
+    scene, arcs, _ = built("desk", desk)
+    ee = build_eecells(scene, arcs)
+    e1, e2, eps = 0, 13, scene.epsilon
+    length = _edge_lengths(scene)[e2]
+    assert abs(length - 0.03) < 1e-12
+    x = np.array([[0.856572, 0.37 * eps / length], [0.856572, 1.5 * eps / length], [0.856572, 0.3]])
+    state = ee_blockers(scene, np.full(3, e1), np.full(3, e2), x[:, 0], x[:, 1])
+    p, q = ee_points(scene, np.full(3, e1), np.full(3, e2), x[:, 0], x[:, 1])
+    assert free_pieces(scene, p, q).all()  # nothing lies between the points
+    cell, holders = locate(scene, arcs, ee, e1, e2, x)
+    assert (cell[:2] >= 0).all() and cell[0] == cell[1]
+    mine = [ee.back_kind[cell[0]], ee.back[cell[0]], ee.front_kind[cell[0]], ee.front[cell[0]]]
+    assert mine == [BLOCK_EDGE, e1, BLOCK_FACE, 4]
+    assert state[0].tolist() == [0, -1, -1, -1, -1]  # condition 5, not hidden
+    assert state[1].tolist() == [1, *mine]
+    assert judged_by_caster(scene, e1, e2, x).tolist() == [False, True, True]
+    assert x[0, 1] > 1e-4  # the band alone judged it
+
+
+@pytest.mark.slow
+def test_ee_cells_of_office300_agree_with_the_caster(monkeypatch):
+    """office(300): every 10th complete pair (3 003 of 30 030), 100 points each: the ray
+    caster agrees on every judged point. Measured over all complete pairs (3 000 918 points
+    judged the old way): 865 disagreed, every one within epsilon of a 0.03-long edge's end
+    with a free segment between the points, none elsewhere (docs/skeleton.md, "no hidden
+    slivers along a side"). With the oracle's old rule (the band alone) this subset
+    disagrees too."""
+    import test_eecells
+
+    scene, arcs, _ = built("office300", lambda: office(300))
+    ee = build_eecells(scene, arcs)
+    pairs = np.unique(np.stack([ee.edge1, ee.edge2], axis=1)[ee.complete], axis=0)[::10]
+    assert len(pairs) >= 3000
+    judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, pairs, n=100)
+    assert judged >= 0.95 * 100 * len(pairs) and agreed == judged, wrong[:5]
+    monkeypatch.setattr(test_eecells, "END_MARGIN", 0.0)
+    judged_old, agreed_old, _, _ = ee_ray_oracle(scene, arcs, ee, pairs, n=100)
+    assert judged_old > judged and agreed_old < judged_old
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(20))
-def test_furnished_rooms(seed):
+def test_furnished_rooms(seed, capsys):
     """20 random offices of 50 to 300 polygons (touching furniture): the ray caster agrees on
-    every judged direction of every complete vertex. Not every vertex is complete yet
-    (measured on the first 10: 1 862 of 1 888; docs/skeleton.md "Furnished buildings" lists
-    the kinds left open, all at desk panels' T-corners), so completeness is held at 97 %."""
+    every judged direction of every complete vertex, and on every judged point of 200
+    complete edge pairs (100 points each); the fractions of vertices and pairs complete are
+    printed. Not every cell is complete yet (docs/skeleton.md "Furnished buildings" lists
+    the kinds left open). Measured over the 20 (EE rules 9 to 11): 4 411 of 4 524 vertices
+    (97.5 %; 94.8 % at worst, office(271, 113)), 310 163 of 311 043 pairs (99.72 %; 99.58 % at
+    worst), the caster agreeing on 2 203 756 of 2 203 756 directions and 399 615 of 399 615
+    points; so completeness is held at 94 % of vertices and 99 % of pairs."""
     n = int(np.random.default_rng(2026 + seed).integers(50, 301))
     scene = build_scene(office(n, seed=100 + seed))
     arcs = build_arcs(scene, build_nodes(scene))
@@ -212,7 +271,18 @@ def test_furnished_rooms(seed):
     done = complete_vertices(vc)
     judged, agreed, wrong = ray_oracle(scene, arcs, vc, done, n=500)
     assert agreed == judged, wrong[:5]
-    assert len(done) >= 0.97 * len(vertices_of(vc)), vc.counts()
+    ee = build_eecells(scene, arcs)
+    counts = ee.counts()
+    pairs = np.unique(np.stack([ee.edge1, ee.edge2], axis=1)[ee.complete], axis=0)
+    sample = pairs[np.random.default_rng(seed).choice(len(pairs), min(200, len(pairs)), replace=False)]
+    ee_judged, ee_agreed, _, ee_wrong = ee_ray_oracle(scene, arcs, ee, sample, n=100)
+    with capsys.disabled():
+        print(f"\noffice({n}, {100 + seed}): vertices {len(done)} of {len(vertices_of(vc))}, EE pairs "
+              f"{counts['complete_pairs']} of {counts['pairs']} ({counts['complete_pairs'] / counts['pairs']:.4f}); "
+              f"oracle {agreed}/{judged} directions, {ee_agreed}/{ee_judged} points")
+    assert ee_agreed == ee_judged and ee_judged >= 0.95 * 100 * len(sample), ee_wrong[:5]
+    assert len(done) >= 0.94 * len(vertices_of(vc)), vc.counts()
+    assert counts["complete_pairs"] >= 0.99 * counts["pairs"], counts
 
 
 def test_pencil_kernels_equal_their_plain_numpy_definitions():
@@ -457,8 +527,8 @@ def test_pencils_one_line_within_epsilon_along_their_own_edge(monkeypatch):
     the long one) and the chain stayed open. Within ``eecells.segment_tolerance`` (epsilon
     along the edge the value runs on) both are kept and the pair closes; over office(300)
     29 951 -> 30 030 of 30 179 pairs complete, the ray caster agreeing on 7 887 of 7 893
-    judged points of the 79 pairs completed (the 6 others in hidden slivers along a
-    square's side, as on 42 of 99 927 points of 1 000 pairs complete before)."""
+    judged points of the 79 pairs completed (the 6 others within epsilon of an edge's end,
+    where the caster judges no line: the oracle's, ``test_lines_within_epsilon_of_an_edge_end_are_not_hidden``)."""
     import viscx.skeleton.eecells as eecells
 
     scene, arcs, _ = built("office300", lambda: office(300))
@@ -472,3 +542,88 @@ def test_pencils_one_line_within_epsilon_along_their_own_edge(monkeypatch):
     monkeypatch.setattr(eecells, "segment_tolerance", lambda scene, e1, e2, axis: eecells.join_tolerance(scene, e1, e2))
     before = eecells._squares_cells(scene, arcs, square)[0]
     assert not before.complete.any() and len(before.open_edge1) > 0
+
+
+def test_probe_room_stops_short_of_the_next_boundary():
+    """``eecells.probe_room``: a probe moves its whole step where no other piece of its square
+    lies within it, half the distance to the first piece it would cross otherwise (a steep
+    piece beside a line x1 = c, as the top's edge beside a panel's pencil in office(300)
+    pair (0, 571)), never less than PROBE_ROOM_FLOOR of the step, and skips its own piece
+    and the pieces of other squares."""
+    from viscx.skeleton import eecells
+
+    # obstacles of square 7: the line x1 = 0.5 + 4e-6 (x2 in [0, 1]) and the probe's own piece;
+    # of square 8: lines x1 = 0.5 + 3e-6 and x1 = 0.5 - 1e-7
+    start = np.array([[0.5 + 4e-6, 0.0], [0.5, 0.4], [0.5 + 3e-6, 0.0], [0.5 - 1e-7, 0.0]])
+    end = np.array([[0.5 + 4e-6, 1.0], [0.5, 0.6], [0.5 + 3e-6, 1.0], [0.5 - 1e-7, 1.0]])
+    middle = (start + end) / 2
+    key = np.array([7, 7, 8, 8])
+    at = np.array([[0.5, 0.5]] * 5)
+    direction = np.array([[1.0, 0.0], [-1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [-1.0, 0.0]])
+    step = np.array([1e-5, 1e-5, 1e-6, 1e-5, 1e-5])
+    own = np.array([1, 1, 1, -1, -1])
+    at_key = np.array([7, 7, 7, 8, 8])
+    got = eecells.probe_room(key, start, middle, end, at_key, at, direction, step, own)
+    # towards the line 4e-6 away: 2e-6; away from it: the whole step; a step shorter than
+    # the room: whole; square 8's line 3e-6 away: the floor (1.5e-6 is below it); its line
+    # 1e-7 behind: closer than the floor, passed
+    floor = eecells.PROBE_ROOM_FLOOR * 1e-5
+    assert 1.5e-6 < floor < 3e-6
+    np.testing.assert_allclose(got, [2e-6, 1e-5, 1e-6, floor, 1e-5], rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_probes_stay_beside_their_piece(monkeypatch):
+    """office(300): lines from the floor's edge 0 through a cabinet's vertical edge 571 graze a
+    desk's front plane (0.5 degrees), so its panels are strips 9e-6 of the square wide along
+    x1 between pencils x1 = c, and the 5-epsilon probe off the top's bottom edge above a
+    panel landed beyond the pencil, on the far wall: the pair (0, 571) stayed open.
+    Stopping each fine probe halfway to the next piece (``probe_room``) closes it, and
+    keeping V2's pencils of planes more than one epsilon apart (``SEGMENT_MERGE_EPSILONS``;
+    pair (97, 304): the cell ends at x1 = 0.429974, the plane y = 0.69, and the pencil of
+    another desk's plane 3 epsilon below it, kept first by value, closed its loop a little
+    off) keeps every pair complete that was. office(300): 30 030 -> 30 066 of 30 179 pairs,
+    the ray caster agreeing on all judged points of the pairs completed (8 588 at 200 per
+    pair). Knocked out, (0, 571) is open again."""
+    import viscx.skeleton.eecells as eecells
+
+    scene, arcs, _ = built("office300", lambda: office(300))
+    arc, e1, e2 = eecells.arc_squares(scene, arcs)
+    for pair in ((0, 571), (97, 304)):
+        mine = (e1 == pair[0]) & (e2 == pair[1])
+        ee = eecells._squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
+        assert ee.complete.all() and len(ee.open_edge1) == 0, pair
+        judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array([pair]), n=1000)
+        assert judged >= 900 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(eecells, "probe_room", lambda key, s, m, e, at_key, at, d, step, own: step)
+    mine = (e1 == 0) & (e2 == 571)
+    knocked = eecells._squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
+    assert not knocked.complete.any() and len(knocked.open_edge1) > 0
+
+
+@pytest.mark.slow
+def test_eee_arcs_cut_where_another_arc_ends_on_them(monkeypatch):
+    """Rule 11 (docs/skeleton.md "Furnished buildings"): in the squares built again with V2's
+    segments, an EEE arc is cut where another arc of the square ends on it (within one
+    epsilon across it along its edge). V1 merges events 4 epsilon apart along a family's
+    edge, so an EEE arc can run on past the corner of a thin cell beside it, and that cell's
+    loop finds no end to turn at. office(300): 30 066 -> 30 115 of 30 179 pairs, none lost;
+    here (3, 245) and (46, 103), complete with the rule and agreeing with the ray caster,
+    open without it."""
+    import viscx.skeleton.eecells as eecells
+
+    scene, arcs, _ = built("office300", lambda: office(300))
+    arc, e1, e2 = eecells.arc_squares(scene, arcs)
+    pairs = ((3, 245), (46, 103))
+    mine = np.zeros(len(arc), bool)
+    for a, b in pairs:
+        mine |= (e1 == a) & (e2 == b)
+    square = (arc[mine], e1[mine], e2[mine])
+    ee = eecells._squares_cells(scene, arcs, square)[0]
+    assert ee.complete.all() and len(ee.open_edge1) == 0
+    judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array(pairs), n=1000)
+    assert judged >= 1800 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(eecells, "_eee_cuts", lambda scene, arcs, eee, key, start, end, weight, tol, interval:
+                        (np.arange(len(eee)), interval[eee]))
+    knocked = eecells._squares_cells(scene, arcs, square)[0]
+    assert not knocked.complete.any() and len(knocked.open_edge1) > 0

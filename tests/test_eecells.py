@@ -22,6 +22,9 @@ POINTS = 400
 #: Points closer than this (square units) to a cell boundary are not judged: the ray
 #: caster and the 50-epsilon probes decide them within rounding.
 BAND = 1e-4
+#: Points whose lines meet an edge closer than this many epsilon (in length) to its end are
+#: not judged: the caster's condition 5 rejects them at epsilon; the rest is its rounding.
+END_MARGIN = 1.01
 #: Required agreement with the ray caster outside the band.
 AGREEMENT = 0.999
 #: Samples per boundary element when measuring distances to it.
@@ -143,6 +146,19 @@ def blocker_name(kind, index):
     return {BLOCK_FACE: f"face {index}", BLOCK_SKY: "sky", BLOCK_EDGE: f"edge {index}"}.get(int(kind), f"{kind}:{index}")
 
 
+def judged_by_caster(scene, e1, e2, x):
+    """Whether the caster judges each point ((n, 2) float) of the square of (e1, e2): its
+    lines meet both edges farther than epsilon (in length, times ``END_MARGIN``) from their
+    ends, and farther than ``BAND`` of the square. Closer, node condition 5 makes every line
+    invalid (``ee_blockers`` returns no segment), which is no hidden piece: on a 0.03-long
+    desk panel edge epsilon is 5e-4 of the square, and the band alone judged those lines
+    hidden (docs/skeleton.md, "EE-cells", ray oracle)."""
+    ev = scene.half_edges.edge_vertices[[e1, e2]]
+    length = np.linalg.norm(scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]], axis=1)
+    end = np.maximum(BAND, END_MARGIN * scene.epsilon / length)
+    return np.all((x > end) & (x < 1 - end), axis=1)
+
+
 def ray_oracle(scene, arcs, ee, pairs, n=POINTS, seed=0):
     """Locate random points of each pair's square among its cells and compare the cell's
     blocker pair with the ray caster's (the EE segment judged by maximal_free_segments).
@@ -166,9 +182,7 @@ def ray_oracle(scene, arcs, ee, pairs, n=POINTS, seed=0):
                          points[..., 1].reshape(-1)).reshape(len(pairs), n, 5)
     for (e1, e2), x, state in zip(pairs, points, states):
         cell, holders = locate(scene, arcs, ee, e1, e2, x)
-        away = ~near_polylines(x, pair_boundaries(scene, arcs, ee, e1, e2), BAND)
-        # within epsilon of an edge's end the caster judges nothing (node condition 5)
-        away &= np.all((x > BAND) & (x < 1 - BAND), axis=1)
+        away = ~near_polylines(x, pair_boundaries(scene, arcs, ee, e1, e2), BAND) & judged_by_caster(scene, e1, e2, x)
         c = np.maximum(cell, 0)
         mine = np.stack([ee.back_kind[c], ee.back[c], ee.front_kind[c], ee.front[c]], axis=1)
         valid = state[:, 0] == 1

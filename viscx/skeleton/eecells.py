@@ -690,7 +690,7 @@ def element_geometry(scene, arcs, arc, side, e1, e2, pair, interval, kind=None, 
     )
 
 
-def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curves=None):
+def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curves=None, obstacles=None):
     """Blocker pairs of the cells on both sides of each arc in its square, by probes.
 
     The arc's middle point is moved across it, to each side along the curve's normal,
@@ -707,6 +707,9 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
         How many epsilon the probes move.
     curves : tuple, optional
         The pieces' :func:`_curves`, if known.
+    obstacles : tuple, optional
+        (key, start, middle, end, own) of the square's boundary pieces (:func:`probe_room`):
+        each probe then stops halfway to the first of them it would cross.
 
     Returns
     -------
@@ -728,7 +731,12 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
     length = np.stack([np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1)], axis=1)
     # move by PROBE epsilon along the edge that moves most
     step = probe * scene.epsilon / np.max(np.abs(left) * length, axis=1)
-    raw = np.concatenate([middle + step[:, None] * left, middle - step[:, None] * left])
+    steps = np.stack([step, step])
+    if obstacles is not None:
+        key, o_start, o_middle, o_end, own = obstacles
+        for k, sign in enumerate((1.0, -1.0)):
+            steps[k] = probe_room(key, o_start, o_middle, o_end, e1 * (1 << 32) + e2, middle, sign * left, step, own)
+    raw = np.concatenate([middle + steps[0][:, None] * left, middle - steps[1][:, None] * left])
     probes = np.clip(raw, 0.0, 1.0)
     k = len(arc)
     state = ee_blockers(scene, np.tile(e1, 2), np.tile(e2, 2), probes[:, 0], probes[:, 1]).reshape(2, k, 5)
@@ -741,6 +749,83 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
     return pairs, bounds
 
 
+#: A probe stopped by another boundary piece moves at least this fraction of its step (a
+#: piece closer than that to the middle is the same curve given twice, or crosses there).
+PROBE_ROOM_FLOOR = 0.2
+#: V2 segments of one square closer than this many epsilon along their edge are one line.
+SEGMENT_MERGE_EPSILONS = 1
+
+
+def probe_room(key, start, middle, end, at_key, at, direction, step, own):
+    """How far each probe may move from its piece's middle before it crosses another boundary
+    piece of its square: half the distance to the first crossing, within [step ·
+    PROBE_ROOM_FLOOR, step].
+
+    A probe that crosses a boundary judges the cell beyond it. The probes move a fixed
+    number of epsilon along the edge that moves most; a cell thinner than that across its
+    boundary is jumped over. office(300), pair (0, 571): lines from the floor's edge through
+    a cabinet's vertical edge graze a desk's front plane (0.5 degrees), so the desk's
+    panels, 3 cm wide, are strips 9e-6 wide along x1 between pencils x1 = c (the planes of
+    the panel's vertical edges and the cabinet's edge), and the 5-epsilon probe off the
+    piece of the top's bottom edge above a panel (steep in the square, its normal along
+    x1) landed beyond the pencil, on the far wall: the pair beside the piece was wrong and
+    the loops stayed open. The other pieces are taken as their two chords (start to middle
+    to end).
+
+    Parameters
+    ----------
+    key : (m,) int
+        Square (e1 << 32 | e2) of each obstacle piece, ascending.
+    start, middle, end : (m, 2) float
+    at_key : (k,) int
+        Square of each probe.
+    at, direction : (k, 2) float
+        The piece's middle and the probe's unit direction.
+    step : (k,) float
+    own : (k,) int
+        Each probe's own piece among the obstacles (skipped), -1 for none.
+
+    Returns
+    -------
+    (k,) float
+    """
+    lo = np.searchsorted(key, at_key, "left")
+    hi = np.searchsorted(key, at_key, "right")
+    return _probe_room(np.ascontiguousarray(start), np.ascontiguousarray(middle), np.ascontiguousarray(end),
+                       lo, hi, np.ascontiguousarray(at), np.ascontiguousarray(direction),
+                       np.ascontiguousarray(step, dtype=np.float64), np.ascontiguousarray(own, dtype=np.int64),
+                       PROBE_ROOM_FLOOR)
+
+
+@njit(cache=True)
+def _probe_room(start, middle, end, lo, hi, at, direction, step, own, floor):
+    out = step.copy()
+    for i in range(len(at)):
+        px, py = at[i, 0], at[i, 1]
+        dx, dy = direction[i, 0], direction[i, 1]
+        near = 2.0 * step[i]  # no crossing within the step: the whole step
+        for j in range(lo[i], hi[i]):
+            if j == own[i]:
+                continue
+            for c in range(2):
+                if c == 0:
+                    ax, ay, bx, by = start[j, 0], start[j, 1], middle[j, 0], middle[j, 1]
+                else:
+                    ax, ay, bx, by = middle[j, 0], middle[j, 1], end[j, 0], end[j, 1]
+                ex, ey = bx - ax, by - ay
+                den = dx * ey - dy * ex  # cross(direction, chord)
+                if den == 0.0:
+                    continue
+                # at + t direction = a + u (b - a)
+                wx, wy = ax - px, ay - py
+                t = (wx * ey - wy * ex) / den
+                u = (wx * dy - wy * dx) / den
+                if u >= 0.0 and u <= 1.0 and t > floor * step[i] and t < near:
+                    near = t
+        out[i] = max(min(step[i], 0.5 * near), floor * step[i])
+    return out
+
+
 def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     """The arc pieces of each square: every arc whole, but VE arcs (the square's sides,
     and the segments x' = s_w of a junction vertex w) and XE arcs (the segments x' = s_X
@@ -751,8 +836,10 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
     pencil of a face of e1 at w (tangency at e1 flips across it) ends on the side at
     the line through w in that face's plane, which only touches the surface at w, so
     the lines through w see nothing there. Only the side's pieces between such ends
-    have one pair beside them. EEE arcs need no cut: their crossings with other arcs
-    of the square are V0 nodes or planar events (arcs end there).
+    have one pair beside them. EEE arcs need no cut in general position: their crossings
+    with other arcs of the square are V0 nodes or planar events (arcs end there). In the
+    squares built again (``segments`` given) they are cut where another arc ends on them
+    too (:func:`_eee_cuts`): V1's merged events let one run past such an end.
 
     Parameters
     ----------
@@ -794,14 +881,87 @@ def side_pieces(scene, arcs, arc, e1, e2, segments=None):
         cut_row.append(rows[across])
         cut_pos.append(segments.value[at[across]])
     piece_row, piece_interval = _cut_intervals(interval[ve], tol[ve], np.concatenate(cut_row), np.concatenate(cut_pos))
-    rows = np.concatenate([eee, ve[piece_row]])
-    ivl = np.concatenate([interval[eee], piece_interval])
+    cut = ve[piece_row]
+    if segments is not None:
+        # in the squares built again, EEE arcs too are cut where another arc ends on them
+        eee_row, eee_interval = _eee_cuts(scene, arcs, eee, pair_key, start, end, curves[3], tol, interval)
+        whole = eee[np.bincount(eee_row, minlength=len(eee)) == 1]
+        split = np.bincount(eee_row, minlength=len(eee))[eee_row] > 1
+        cut = np.concatenate([eee[eee_row[split]], cut])
+        piece_interval = np.concatenate([eee_interval[split], piece_interval])
+    else:
+        whole = eee
+    rows = np.concatenate([whole, cut])
+    ivl = np.concatenate([interval[whole], piece_interval])
     order = np.lexsort([ivl[:, 0], arc[rows], e2[rows], e1[rows]])
     rows, ivl = rows[order], ivl[order]
-    cut = ve[piece_row]
     piece_curves = _curves(scene, arcs, arc[cut], e1[cut], e2[cut], piece_interval)
-    curves = tuple(np.concatenate([c[eee], p])[order] for c, p in zip(curves, piece_curves))
+    curves = tuple(np.concatenate([c[whole], p])[order] for c, p in zip(curves, piece_curves))
     return arc[rows], e1[rows], e2[rows], ivl, curves
+
+
+#: (EEE arc, end) candidates judged at once by :func:`_eee_cuts`.
+EEE_CUT_CHUNK = 1 << 20
+
+
+def _eee_cuts(scene, arcs, eee, pair_key, start, end, weight, tol, interval):
+    """The pieces of EEE arcs cut where another arc of their square ends on them (rule 11 of
+    docs/skeleton.md "Furnished buildings"): an end lying within the join tolerance of the
+    curve, farther than it from the curve's ends. V1 merges events 4 epsilon apart along
+    a family's edge, so an EEE arc may run on past a node at which the cell beside it ends
+    (office(300), pair (3, 41): the arc EEE (3, 41, 238) runs 1.2e-4 of the square past the
+    corner where the arcs bounding a thin cell beside it end).
+
+    Returns
+    -------
+    piece_row : (p,) int
+        Index into ``eee`` of each piece, ascending.
+    piece_interval : (p, 2) float
+    """
+    ends = np.concatenate([start, end])
+    owner = np.tile(np.arange(len(start)), 2)
+    order = np.argsort(pair_key[owner], kind="stable")
+    ends, owner = ends[order], owner[order]
+    sorted_key = pair_key[owner]
+    # per coordinate: SQUARE_JOIN_EPSILONS epsilon along its own edge (rule 8's reason: the
+    # join tolerance, epsilon along the shorter edge, is 64 epsilon along a 12-long one)
+    length = scene.cached("edge_lengths", _edge_lengths)
+    key = pair_key[eee]
+    tol_axis = SQUARE_JOIN_EPSILONS * scene.epsilon / np.stack([length[key >> 32], length[key & ((1 << 32) - 1)]], axis=1)
+    # every (arc, end) of a square at once costs arcs x ends of the largest squares: in chunks
+    count = np.searchsorted(sorted_key, key, "right") - np.searchsorted(sorted_key, key, "left")
+    bounds = np.searchsorted(np.cumsum(count), np.arange(EEE_CUT_CHUNK, count.sum() + EEE_CUT_CHUNK, EEE_CUT_CHUNK))
+    bounds = unique_sorted(np.r_[0, np.minimum(bounds + 1, len(eee)), len(eee)])
+    cut_rows, cut_u = [np.zeros(0, np.int64)], [np.zeros(0)]
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        part = np.arange(lo, hi)
+        rows, at = _same_square(sorted_key, key[part])
+        rows = part[rows]
+        keep = owner[at] != eee[rows]
+        rows, at = rows[keep], at[keep]
+        r = eee[rows]
+        span = end[r] - start[r]
+        k = (np.abs(span[:, 1]) > np.abs(span[:, 0])).astype(np.int64)  # the coordinate varying more
+        c0, c1, q = start[r, k], end[r, k], ends[at, k]
+        t_k = tol_axis[rows, k]
+        inside = (q - np.minimum(c0, c1) > t_k) & (np.maximum(c0, c1) - q > t_k)
+        rows, at, r, k, c0, c1, q = rows[inside], at[inside], r[inside], k[inside], c0[inside], c1[inside], q[inside]
+        w = weight[r, k]
+        a, b = (1 - w) * (q - c0), w * (c1 - q)  # _bezier_inverse
+        u = a / (a + b)
+        wo = weight[r, 1 - k]
+        p, m = (1 - u) * (1 - wo), u * wo  # _bezier
+        other = (p * start[r, 1 - k] + m * end[r, 1 - k]) / (p + m)
+        # on the curve: within one epsilon across it (rule 10: lines farther apart are two)
+        on = np.abs(other - ends[at, 1 - k]) <= tol_axis[rows, 1 - k] * (SEGMENT_MERGE_EPSILONS / SQUARE_JOIN_EPSILONS)
+        cut_rows.append(rows[on])
+        cut_u.append(u[on])
+    rows, u = np.concatenate(cut_rows), np.concatenate(cut_u)
+    s0, s1 = interval[eee, 0], interval[eee, 1]
+    # the tolerance in s: the join tolerance over the coordinate's change along the arc
+    change = np.abs(end[eee] - start[eee]).max(axis=1)
+    tol_s = tol[eee] * (s1 - s0) / np.maximum(change, 1e-300)
+    return _cut_intervals(interval[eee], tol_s, rows, s0[rows] + u * (s1[rows] - s0[rows]))
 
 
 def _same_square(sorted_key, key):
@@ -1122,7 +1282,7 @@ def segment_tolerance(scene, e1, e2, axis):
     e1, e2, axis : (k,) int
     """
     length = scene.cached("edge_lengths", _edge_lengths)
-    return SQUARE_JOIN_EPSILONS * scene.epsilon / length[np.where(axis == 0, e1, e2)]
+    return SEGMENT_MERGE_EPSILONS * scene.epsilon / length[np.where(axis == 0, e1, e2)]
 
 
 def segment_pieces(scene, arcs, segments, pieces, el, curves=None):
@@ -1268,8 +1428,21 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
     kind = np.full(len(pieces[0]), ARC, np.int8)
     if segments is None:
         return _unique(scene, _bounding_elements(scene, arcs, *pieces, kind, PROBE, curves))
-    el = _bounding_elements(scene, arcs, *pieces, kind, FINE_PROBE, curves)
-    more = _bounding_elements(scene, arcs, *segment_pieces(scene, arcs, segments, pieces, el, curves), FINE_PROBE)
+    # the fine probes stop short of the square's other pieces (:func:`probe_room`): first the
+    # arcs' pieces among themselves, then V2's segment pieces among all of them
+    key = pieces[1] * (1 << 32) + pieces[2]
+    start, middle, end, _ = curves
+    el = _bounding_elements(scene, arcs, *pieces, kind, FINE_PROBE, curves,
+                            (key, start, middle, end, np.arange(len(key))))
+    seg = segment_pieces(scene, arcs, segments, pieces, el, curves)
+    seg_curves = _curves(scene, arcs, *seg)
+    all_key = np.concatenate([key, seg[1] * (1 << 32) + seg[2]])
+    by_square = np.argsort(all_key, kind="stable")
+    where = np.empty(len(all_key), np.int64)
+    where[by_square] = np.arange(len(all_key))
+    both = tuple(np.concatenate([c, s])[by_square] for c, s in zip(curves[:3], seg_curves[:3]))
+    more = _bounding_elements(scene, arcs, *seg, FINE_PROBE, seg_curves,
+                              (all_key[by_square], *both, where[len(key):]))
     el = Elements.concatenate([el, more])
     return _unique(scene, el.take(_element_order(el)))
 
@@ -1367,13 +1540,13 @@ def _element_order(el):
     return np.lexsort([el.side, el.interval[:, 0], el.arc, el.kind, el.e2, el.e1])
 
 
-def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe, curves=None):
+def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe, curves=None, obstacles=None):
     """The elements of the given pieces (arcs or segments): their sides that bound a cell,
     by the probes of :func:`side_pairs`, in the order of the pieces, left side first
-    (``curves``: their :func:`_curves`, if known)."""
+    (``curves``: their :func:`_curves`, if known; ``obstacles``: as :func:`side_pairs`)."""
     if curves is None:
         curves = _curves(scene, arcs, arc, e1, e2, interval, kind)
-    pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval, kind, probe, curves)
+    pairs, bounds = side_pairs(scene, arcs, arc, e1, e2, interval, kind, probe, curves, obstacles)
     row, side = np.nonzero(bounds)
     return element_geometry(scene, arcs, arc[row], side, e1[row], e2[row], pairs[row, side], interval[row], kind[row],
                             tuple(c[row] for c in curves))

@@ -355,8 +355,8 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
 
 def light_scope(scene, light_face=None, light_group=None):
     """The :class:`viscx.skeleton.scope.Scope` of an area light's outline (its vertices and
-    edges, :func:`viscx.queries.discontinuities.light_of`; ViscxError for an unknown face or group)."""
-    from viscx.queries.discontinuities import light_of
+    edges, :func:`viscx.scene.light.light_of`; ViscxError for an unknown face or group)."""
+    from viscx.scene.light import light_of
     from viscx.skeleton.scope import Scope
 
     light = light_of(scene, light_face, light_group)

@@ -158,7 +158,7 @@ format_option = click.option(
 
 def light_options(command):
     """``--light-face I`` / ``--light-group NAME``: an area light (exactly one is needed;
-    :func:`viscx.queries.discontinuities.light_of` says so in one line otherwise)."""
+    :func:`viscx.scene.light.light_of` says so in one line otherwise)."""
     command = click.option("--light-group", "light_group", default=None, metavar="NAME",
                            help="The light is the faces of group NAME.")(command)
     return click.option("--light-face", "light_face", type=int, default=None, metavar="I",

@@ -80,6 +80,7 @@ from viscx.geometry.polygon import plane_basis
 from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
+from viscx.scene.light import Light, light_of
 from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
 from viscx.skeleton.nodes import BLOCK_FACE, face_planes
 from viscx.tolerances import CHORD_TOLERANCE, PARALLEL_TOLERANCE, SPLIT_SNAP
@@ -93,52 +94,10 @@ LIGHT_VERTEX, LIGHT_EDGE, LIGHT_FACE = 0, 1, 2
 EVENT_KINDS = {**KIND_NAMES, RP_EDGE: "RPE", RP_VERTEX: "RPV", LIGHT_PLANE: "LP"}
 
 
-@dataclass
-class Light:
-    """An area light: faces, outline vertices and edges.
-
-    Attributes
-    ----------
-    faces : (k,) int64
-    vertices : (a,) int64
-        Vertex ids on the light's outline.
-    edges : (b,) int64
-        Edge ids of the outline (edges of one light face only).
-    name : str
-        ``group NAME`` or ``face I``.
-    """
-
-    faces: np.ndarray
-    vertices: np.ndarray
-    edges: np.ndarray
-    name: str
-
-
 def light_plane_count(scene, light):
     """The number of planes the light's faces lie in (:func:`viscx.skeleton.nodes.face_planes`):
     the mesh is exact for one (docs/queries.md, "What the mesh leaves out" (3))."""
     return len(np.unique(face_planes(scene)[np.asarray(light.faces)]))
-
-
-def light_of(scene, face=None, group=None):
-    """The :class:`Light` of one face or of the faces of a group (ViscxError when unknown)."""
-    from viscx.errors import ParameterError
-
-    if (face is None) == (group is None):
-        raise ParameterError("give exactly one of {light_face} and {light_group}")
-    if face is not None:
-        faces, name = scene.face_ids(face, "light_face"), f"face {face}"
-    else:
-        faces, name = scene.group_faces(group).astype(np.int64), f"group {group}"
-    he = scene.half_edges
-    in_light = np.zeros(scene.n_faces + 1, bool)
-    in_light[faces] = True
-    mine = in_light[he.face]
-    other = np.where(he.opp >= 0, he.face[np.maximum(he.opp, 0)], -1)
-    outline = mine & ~(in_light[other] & (he.opp >= 0))
-    edges = np.unique(he.edge[outline])
-    vertices = np.unique(scene.half_edges.edge_vertices[edges])
-    return Light(faces, vertices.astype(np.int64), edges.astype(np.int64), name)
 
 
 @dataclass

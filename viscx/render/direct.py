@@ -49,7 +49,7 @@ class Emitter:
 
     Attributes
     ----------
-    light : viscx.queries.discontinuities.Light
+    light : viscx.scene.light.Light
     radiance : (k, 3) float64
         Emitted radiance (RGB) of each light face, from its front side.
     """

@@ -48,9 +48,11 @@ images: demo
 # (the tests keep Python's bytecode cache even where PYTHONDONTWRITEBYTECODE is set: without it
 # each worker and each of the tests' subprocesses compiles viscx and the tests from source again,
 # about 15 s of the suite's wall on 2 cores)
+# (PYTEST_ARGS: more pytest options, e.g. `make test PYTEST_ARGS=--durations=50`)
 JOBS ?= 2
+PYTEST_ARGS ?=
 test: venv
-	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder
+	env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder $(PYTEST_ARGS)
 
 # Rebuild the golden files that tests/test_golden.py diffs against; run it only
 # when a change of output is intended, and commit the result.

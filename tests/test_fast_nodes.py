@@ -108,12 +108,12 @@ def _check(seed, kind):
 
 
 def test_random_scenes_hypothesis():
-    """50 random small scenes (tetrahedra, rotated and aligned boxes, boxes on a floor);
+    """20 random small scenes (tetrahedra, rotated and aligned boxes, boxes on a floor);
     `-m slow` runs 750 more."""
     from hypothesis import given, settings
     from hypothesis import strategies as st
 
-    @settings(max_examples=50, deadline=None, derandomize=True)
+    @settings(max_examples=20, deadline=None, derandomize=True)
     @given(st.integers(0, 2**31 - 1), st.sampled_from(KINDS))
     def run(seed, kind):
         _check(seed, kind)

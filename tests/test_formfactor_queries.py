@@ -51,7 +51,8 @@ def monte_carlo(scene, i, side_i, j, side_j=None, k=1_000_000, seed=0):
 # the integrand: visible part of J from a point, by clipping
 
 
-@pytest.mark.parametrize("pair", [(15, 0), (0, 15), (1, 0), (2, 3), (11, 4)])
+# (two of the five pairs under slow: ~2.5 s of make test)
+@pytest.mark.parametrize("pair", [(15, 0), (0, 15), (2, 3), *(pytest.param(p, marks=pytest.mark.slow) for p in [(1, 0), (11, 4)])])
 def test_clipping_kernel_equals_vcells(cornell, pair, rng):
     """F(x → visible part of J) by polygon clipping equals Lambert over the V-cells' visible part."""
     i, j = pair
@@ -221,7 +222,8 @@ print(r.occluders, r.F, r.error)
 # occluded pairs: Monte Carlo and reciprocity
 
 
-@pytest.mark.parametrize("pair", [(15, 1, 0, 1), (2, 1, 3, 1)])
+# (the wall pair under slow, beside test_occluded_against_monte_carlo_slow's: ~4.5 s of make test)
+@pytest.mark.parametrize("pair", [(15, 1, 0, 1), pytest.param((2, 1, 3, 1), marks=pytest.mark.slow)])
 def test_occluded_against_monte_carlo(cornell, pair):
     i, si, j, sj = pair
     r = ff.pair_form_factor(cornell, i, si, ff.face_target(cornell, j), sj, tol=1e-7)

@@ -93,7 +93,7 @@ def test_exact_image_agrees_with_monte_carlo_to_its_noise(cornell_64):
     assert black.sum() > 1000 and np.all(mc[black] == 0.0)
 
 
-@pytest.mark.parametrize("seed", [3, 11])
+@pytest.mark.parametrize("seed", [3, pytest.param(11, marks=pytest.mark.slow)])
 def test_exact_image_of_random_scenes_agrees_with_monte_carlo(tmp_path, seed):
     """Held-back scenes (a floor, a tilted square light, random tetrahedra in between),
     seen from above at an angle, 1024 light samples per pixel: the same test."""

@@ -41,7 +41,8 @@ def check_sums(cx):
     assert np.max(np.abs(LF - LF.T)) < 1e-9
 
 
-@pytest.mark.parametrize("n, rows", [(3, None), (10, [0, 5, 10])])
+# (n = 10 under slow, beside test_uniform_rows_large_exact's 100 and 1000: ~5 s of make test)
+@pytest.mark.parametrize("n, rows", [(3, None), pytest.param(10, [0, 5, 10], marks=pytest.mark.slow)])
 def test_uniform_rows_exact(n, rows):
     scene = panel_rows(n)
     cx = build(scene)

@@ -1521,6 +1521,24 @@ def _degree2_weights(a):
 NULL_RULE = RULE_WEIGHTS - _degree2_weights(_C)
 
 
+def row_rules(cubature, tri, width, weights):
+    """Rules on Radon's 7 nodes of each triangle for a vector integrand, in chunks that bound
+    the memory of one integrand call: ``(len(weights), g, R)`` float64, each ``weights``
+    (7,) summed over the nodes and scaled by the area (``cubature.integrand`` is called,
+    ``cubature.evaluations`` counts the points)."""
+    out = np.zeros((len(weights), len(tri), width))
+    area = triangle_areas(tri)
+    chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
+    for lo in range(0, len(tri), chunk):
+        part = tri[lo:lo + chunk]
+        pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
+        values = cubature.integrand(np.ascontiguousarray(pts)).reshape(len(part), 7, -1)
+        cubature.evaluations += len(pts)
+        for k, w in enumerate(weights):
+            out[k, lo:lo + chunk] = np.einsum("grc,r->gc", values, w) * area[lo:lo + chunk, None]
+    return out
+
+
 class RowCubature:
     """Adaptive cubature of a vector integrand (one value per receiver column at each point,
     each column with its own budget) over triangles on which every column is C1: the
@@ -1566,18 +1584,8 @@ class RowCubature:
 
     def rule(self, tri, width):
         """Radon's rule on each triangle and its null-rule estimate: ``q, e`` (g, R) float64."""
-        q, e = np.zeros((len(tri), width)), np.zeros((len(tri), width))
-        area = triangle_areas(tri)
-        chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
-        for lo in range(0, len(tri), chunk):
-            part = tri[lo:lo + chunk]
-            pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-            values = self.integrand(np.ascontiguousarray(pts)).reshape(len(part), 7, -1)
-            self.evaluations += len(pts)
-            a = area[lo:lo + chunk, None]
-            q[lo:lo + chunk] = np.einsum("grc,r->gc", values, RULE_WEIGHTS) * a
-            e[lo:lo + chunk] = np.abs(np.einsum("grc,r->gc", values, NULL_RULE)) * a
-        return q, e
+        q, e = row_rules(self, tri, width, (RULE_WEIGHTS, NULL_RULE))
+        return q, np.abs(e)
 
     def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
@@ -1664,35 +1672,19 @@ class ThreeLevelRowCubature:
     ----------
     integrand : callable
         ``integrand(points (m, 3)) -> (m, R) float64``.
-    unresolved : callable, optional
-        ``unresolved(tri (g, 3, 3)) -> (g,) float64``, added to every column's estimate.
     """
 
-    def __init__(self, integrand, unresolved=None):
+    def __init__(self, integrand):
         self.integrand = integrand
-        self.unresolved = unresolved
         self.evaluations = 0
 
     def rule(self, tri, width):
         """(g, R) float64: Radon's rule on each triangle."""
-        out = np.zeros((len(tri), width))
-        area = triangle_areas(tri)
-        chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
-        for lo in range(0, len(tri), chunk):
-            part = tri[lo:lo + chunk]
-            pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-            values = self.integrand(np.ascontiguousarray(pts))
-            self.evaluations += len(pts)
-            out[lo:lo + chunk] = np.einsum("grc,r->gc", values.reshape(len(part), 7, -1), RULE_WEIGHTS) * area[lo:lo + chunk, None]
-        return out
+        return row_rules(self, tri, width, (RULE_WEIGHTS,))[0]
 
     def estimates(self, tri, q, kq, gq):
         """(g, R): :meth:`Cubature.estimates` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
-        err, g_sum = three_level_error(q, kq, gq)
-        if self.unresolved is not None and len(tri):
-            extra = np.minimum(self.unresolved(tri), triangle_areas(tri))
-            err = np.maximum(err, extra[:, None] * (np.abs(g_sum) > 0))
-        return err
+        return three_level_error(q, kq, gq)[0]
 
     def integrate(self, tri, budget):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);

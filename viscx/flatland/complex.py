@@ -200,15 +200,21 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     nrm = np.stack([-np.sin(cand["theta"]), np.cos(cand["theta"])], 1)
     idx = np.nonzero(todo)[0]
     group = np.full(N, -1, np.int64)
-    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), line_tol(scene))
+    rep = np.zeros(N, bool)
+    obj = np.stack([cand["a"], cand["b"]], 1)[idx]
+    side = np.stack([cand["side_a"], cand["side_b"]], 1)[idx].astype(np.int64)
+    sup = np.stack([cand["va"], cand["vb"]], 1)[idx]
+    group[idx], rep[idx], joined = degenerate_lines(scene, cand["theta"][idx], p[idx], q[idx], obj, side, sup,
+                                                    line_tol(scene))
     size = np.bincount(group[idx]) if idx.size else np.zeros(0, np.int64)
     on_line = np.zeros(N, bool)
-    on_line[idx] = size[group[idx]] >= 3
+    # a line with joined members is scanned whole too: they take its tail and head
+    on_line[idx] = (size[group[idx]] >= 3) | (joined & (size[group[idx]] >= 2))
     out = K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
                                 cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, *grid,
                                 scene.kind, scene.vert_start, scene.verts, scene.radius)
     if np.any(on_line):
-        _classify_lines(scene, cand, p, q, group, np.nonzero(on_line)[0], eps, out)
+        _classify_lines(scene, cand, p, q, group, rep, np.nonzero(on_line)[0], eps, out)
     return out
 
 
@@ -242,43 +248,150 @@ def line_groups(theta, u, tol):
     return g
 
 
-def _classify_lines(scene, cand, p, q, group, idx, eps, out, chunk=1 << 22):
+def touches(scene, obj, side, sup, theta, u, tol):
+    """(N,) bool: object ``obj`` lies on side ``side`` (R = 1: n·x ≤ u, L = 0: n·x ≥ u) of
+    the line (θ, u) and touches it within ``tol`` at its support point ``sup`` — the
+    rule by which :func:`contacts` takes an entry to be on a degenerate line.  A circle:
+    its support value n·c ± r within tol of u; a polygon or segment: corner ``sup``
+    within tol of the line and neither neighbouring corner beyond it by more than tol
+    (by convexity the corner is then the object's extreme point in n)."""
+    nrm = np.stack([-np.sin(theta), np.cos(theta)], -1)
+    sg = 2.0 * side - 1.0  # +1: the object is on the right, its support is max n·x
+    off = np.einsum("ij,ij->i", nrm, scene.verts[sup]) + sg * scene.radius[obj] - u
+    ok = np.abs(off) <= tol
+    s, cnt = scene.vert_start[obj], scene.vert_start[obj + 1] - scene.vert_start[obj]
+    for step in (-1, 1):
+        nb = s + np.mod(sup - s + step, np.maximum(cnt, 1))
+        ok &= sg * (np.einsum("ij,ij->i", nrm, scene.verts[nb]) + sg * scene.radius[obj] - u) <= tol
+    return ok
+
+
+def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, chunk=1 << 21):
+    """Group candidate lines into degenerate lines, one test for every line.
+
+    theta (N,) canonical directions, p, q (N, 2) tangent points, obj, side, sup (N, 2)
+    the two objects, their sides and support points.  Returns (group (N,) int64,
+    rep (N,) bool: one member per group, the one with the longest baseline |pq|, whose
+    line (θ, u) stands for the group's; joined (N,) bool: the group holds lines that
+    are not copies of one another).
+
+    First the copies of one line computed from different pairs (:func:`line_groups`:
+    θ within ``TOL_THETA``, u within ``tol``).  A group with two members or more, or one
+    running along a polygon edge, is a degenerate line ℓ; then every other candidate
+    whose two objects both touch ℓ within ``tol`` on its sides (:func:`touches`) is on ℓ
+    too, whatever its own θ: an object lifted by a gap g ≤ tol off ℓ (a box beside the
+    ground line, a circle near a common tangent of two others) touches ℓ like the others,
+    but its tangents to their corners at distance L along ℓ tilt by g / L, which can be
+    far above ``TOL_THETA`` (near a contact, L = 2γ).  Grouping those by θ alone split
+    one degenerate line into a resolved half and a simple half.  Both tangent points
+    within tol of ℓ bound the tilt: |sin Δθ| ≤ 2 tol / |pq| (circles: within a factor
+    2), which prunes the pairs tested.  Candidates that join one line's group merge
+    their groups (the line's with theirs)."""
+    N = theta.shape[0]
+    nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
+    u = np.einsum("ij,ij->i", nrm, p)
+    chain = line_groups(theta, u, tol)
+    base = np.hypot(*(q - p).T)
+    if N == 0:
+        return chain, np.zeros(0, bool), np.zeros(0, bool)
+    G = int(chain.max()) + 1
+    size = np.bincount(chain, minlength=G)
+    along = _on_edge(scene, obj[:, 0], sup[:, 0], nrm, tol) | _on_edge(scene, obj[:, 1], sup[:, 1], nrm, tol)
+    # each chain group's line: its longest-baseline member (the best-determined direction)
+    best = np.lexsort((np.arange(N), -base, chain))
+    head = best[np.concatenate([[True], np.diff(chain[best]) != 0])]  # (G,) in group order
+    is_line = (size >= 2) | (np.bincount(chain, weights=along, minlength=G) > 0)
+    lines = head[is_line[chain[head]]]
+    ua, ub = [], []
+    if lines.size:
+        # candidates that may join: those in no line of their own of 3 or more copies
+        cand = np.nonzero(size[chain] <= 2)[0]
+        lt = theta[lines]
+        o = np.argsort(lt)
+        ext_t = np.concatenate([lt[o] - math.pi, lt[o], lt[o] + math.pi])
+        ext_i = np.concatenate([lines[o]] * 3)
+        w = np.arcsin(np.minimum(1.0, 4.0 * tol / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
+        lo = np.searchsorted(ext_t, theta[cand] - w, "left")
+        hi = np.searchsorted(ext_t, theta[cand] + w, "right")
+        cnt = hi - lo
+        step = max(1, chunk // max(1, int(cnt.max(initial=1))))
+        for c0 in range(0, cand.size, step):
+            cc, lc, nc = cand[c0:c0 + step], lo[c0:c0 + step], cnt[c0:c0 + step]
+            ci = np.repeat(cc, nc)
+            li = ext_i[np.repeat(lc - (np.cumsum(nc) - nc), nc) + np.arange(nc.sum())]
+            keep = chain[ci] != chain[li]
+            ci, li = ci[keep], li[keep]
+            # the candidate's sides in the line's orientation
+            flip = np.cos(theta[ci] - theta[li]) < 0
+            on = np.ones(ci.size, bool)
+            for e in (0, 1):
+                s_ = np.where(flip, 1 - side[ci, e], side[ci, e])
+                on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], tol)
+            ua.append(chain[ci[on]])
+            ub.append(chain[li[on]])
+    if ua and sum(a.size for a in ua):
+        ua, ub = np.concatenate(ua), np.concatenate(ub)
+        g = coo_matrix((np.ones(ua.size), (ua, ub)), shape=(G, G))
+        comp = connected_components(g, directed=False)[1]
+        group = comp[chain].astype(np.int64)
+        best = np.lexsort((np.arange(N), -base, group))
+        head = best[np.concatenate([[True], np.diff(group[best]) != 0])]
+    else:
+        group = chain
+    rep = np.zeros(N, bool)
+    rep[head] = True
+    pairs = np.unique(group * G + chain)
+    joined = np.bincount(pairs // G, minlength=int(group.max()) + 1)[group] >= 2
+    return group, rep, joined
+
+
+def _classify_lines(scene, cand, p, q, group, rep, idx, eps, out, chunk=1 << 22):
     """Classify the candidates ``idx`` line by line, into ``out`` (the arrays of
     :func:`kernels.classify_bitangents`), with the same rules as the grid walk: blocked
     by an object cut deeper than eps between the tangent points, tail / head the nearest
-    such objects behind / beyond them."""
-    free, a_first, tail, head, tail_t, head_t, blocker = out
-    order = idx[np.argsort(group[idx], kind="stable")]
+    such objects behind / beyond them.  Each line is its representative's (``rep``,
+    :func:`degenerate_lines`)."""
+    order = idx[np.lexsort((~rep[idx], group[idx]))]
     bounds = np.nonzero(np.diff(group[order]))[0] + 1
-    for mem in np.split(order, bounds):
-        th = cand["theta"][mem[0]]
+    for line in np.split(order, bounds):
+        th = cand["theta"][line[0]]
         d = np.array([math.cos(th), math.sin(th)])
-        o = p[mem[0]]
+        o = p[line[0]]
         hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
-        tp, tq = (p[mem] - o) @ d, (q[mem] - o) @ d
-        af = tq >= tp
-        s, e = np.minimum(tp, tq), np.maximum(tp, tq)
-        a_first[mem] = af
-        step = max(1, chunk // max(1, hk.size))
-        for c0 in range(0, mem.size, step):
-            c = slice(c0, c0 + step)
-            own = (hk[None, :] == cand["a"][mem[c], None]) | (hk[None, :] == cand["b"][mem[c], None])
-            ahead = ~own & (to[None, :] > s[c, None] + eps)
-            tin = np.where(ahead, ti[None, :], np.inf)
-            j = np.argmin(tin, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
-            first = tin[np.arange(tin.shape[0]), j] if hk.size else np.full(mem[c].size, np.inf)
-            blocked = first < e[c] - eps
-            behind = ~own & (ti[None, :] < s[c, None] - eps)
-            tout = np.where(behind, to[None, :], -np.inf)
-            jt = np.argmax(tout, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
-            last = tout[np.arange(tout.shape[0]), jt] if hk.size else np.full(mem[c].size, -np.inf)
-            m_ = mem[c]
-            free[m_] = ~blocked
-            blocker[m_] = np.where(blocked, hk[j] if hk.size else -1, -1)
-            head[m_] = np.where(blocked, -2, np.where(np.isfinite(first), hk[j] if hk.size else -1, -1))
-            head_t[m_] = np.where(np.isfinite(first), first - e[c], np.inf)
-            tail[m_] = np.where(blocked, -2, np.where(np.isfinite(last), hk[jt] if hk.size else -1, -1))
-            tail_t[m_] = np.where(np.isfinite(last), s[c] - last, np.inf)
+        # members joined reversed (θ + π, :func:`degenerate_lines`) read the line backwards
+        rev = np.cos(cand["theta"][line] - th) < 0
+        for mem, sg, t_in, t_out in ((line[~rev], 1.0, ti, to), (line[rev], -1.0, -to, -ti)):
+            if mem.size:
+                _classify_on_line(cand, mem, sg * ((p[mem] - o) @ d), sg * ((q[mem] - o) @ d), hk, t_in, t_out, eps,
+                                  out, max(1, chunk // max(1, hk.size)))
+
+
+def _classify_on_line(cand, mem, tp, tq, hk, ti, to, eps, out, step):
+    """:func:`_classify_lines` for the members ``mem`` of one line: tp, tq their tangent
+    points' and ti, to the blockers' entry / exit parameters along the members' direction."""
+    free, a_first, tail, head, tail_t, head_t, blocker = out
+    af = tq >= tp
+    s, e = np.minimum(tp, tq), np.maximum(tp, tq)
+    a_first[mem] = af
+    for c0 in range(0, mem.size, step):
+        c = slice(c0, c0 + step)
+        own = (hk[None, :] == cand["a"][mem[c], None]) | (hk[None, :] == cand["b"][mem[c], None])
+        ahead = ~own & (to[None, :] > s[c, None] + eps)
+        tin = np.where(ahead, ti[None, :], np.inf)
+        j = np.argmin(tin, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
+        first = tin[np.arange(tin.shape[0]), j] if hk.size else np.full(mem[c].size, np.inf)
+        blocked = first < e[c] - eps
+        behind = ~own & (ti[None, :] < s[c, None] - eps)
+        tout = np.where(behind, to[None, :], -np.inf)
+        jt = np.argmax(tout, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
+        last = tout[np.arange(tout.shape[0]), jt] if hk.size else np.full(mem[c].size, -np.inf)
+        m_ = mem[c]
+        free[m_] = ~blocked
+        blocker[m_] = np.where(blocked, hk[j] if hk.size else -1, -1)
+        head[m_] = np.where(blocked, -2, np.where(np.isfinite(first), hk[j] if hk.size else -1, -1))
+        head_t[m_] = np.where(np.isfinite(first), first - e[c], np.inf)
+        tail[m_] = np.where(blocked, -2, np.where(np.isfinite(last), hk[jt] if hk.size else -1, -1))
+        tail_t[m_] = np.where(np.isfinite(last), s[c] - last, np.inf)
 
 
 def vertices_from(scene: Scene, cand: dict, cls) -> dict:
@@ -345,9 +458,16 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     u = np.einsum("ij,ij->i", nrm, V["v_p"])
     tol = line_tol(scene)
     # -- group by line, then by (tail, head): one maximal free segment each
-    gline = line_groups(th, u, tol)
+    gline, rep, _ = degenerate_lines(scene, th, V["v_p"], V["v_q"], V["v_obj"], V["v_side"].astype(np.int64),
+                                     V["v_support"], tol)
+    line_th = np.empty(int(gline.max()) + 1)
+    line_th[gline[rep]] = th[rep]
+    line_th = line_th[gline]
+    # a member joined reversed (θ ≈ the line's θ + π) has its tail and head swapped
+    rev = np.cos(th - line_th) < 0
+    tail, head = np.where(rev, V["v_head"], V["v_tail"]), np.where(rev, V["v_tail"], V["v_head"])
     n1 = scene.n + 1
-    _, group = np.unique((gline * n1 + V["v_tail"] + 1) * n1 + V["v_head"] + 1, return_inverse=True)
+    _, group = np.unique((gline * n1 + tail + 1) * n1 + head + 1, return_inverse=True)
     group = group.ravel()
     size = np.bincount(group)
     need = size[group] >= 2
@@ -355,11 +475,13 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     need |= _on_edge(scene, V["v_obj"][:, 1], V["v_support"][:, 1], nrm, tol)
     keep = np.ones(m, bool)
     gids = np.unique(group[need])
-    members_of = np.split(np.argsort(group, kind="stable"), np.cumsum(size)[:-1])
+    # members of each segment, the longest baseline first: its line stands for the segment's
+    order = np.lexsort((np.arange(m), -np.abs(V["v_length"]), group))
+    members_of = np.split(order, np.cumsum(size)[:-1])
     for g in gids:
         idx = members_of[g]
         keep[idx] = False
-        at, fields = _resolve_line(scene, V, idx, tol)
+        at, fields = _resolve_line(scene, V, idx, line_th[idx[0]], rev, tol)
         keep[at] = True
         for name, val in fields.items():
             V[name][at] = val
@@ -402,14 +524,16 @@ def contacts(scene, codes, d, n, tol):
     return pos[ia], pos[ib], vid[ia], vid[ib], pts[ia], pts[ib]
 
 
-def _resolve_line(scene, V, idx, tol):
+def _resolve_line(scene, V, idx, th, rev, tol):
     """Rows (vertex index, {field: value}) of the perturbed vertices of one degenerate
-    line (see :func:`resolve_degenerate`): its members ``idx`` (vertex indices, the first
-    one giving θ, tail, head and the segment's ends)."""
-    th = float(V["v_theta"][idx[0]])
-    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
+    line of direction θ (see :func:`resolve_degenerate`): its members ``idx`` (vertex
+    indices, the first one giving the tail, head and the segment's ends), ``rev`` (m,)
+    bool the vertices that run the other way (θ + π: their ends and sides swap)."""
+    r = rev[idx]
+    obj, sd = V["v_obj"][idx], V["v_side"][idx].astype(np.int64)
+    ends = np.where(r[:, None], 2 * obj[:, ::-1] + 1 - sd[:, ::-1], 2 * obj + sd)
+    ent = np.unique(ends.ravel())
     n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
-    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
     mkey = ends[:, 0] * n2 + ends[:, 1]
     mo = np.argsort(mkey)
     mkey, midx = mkey[mo], idx[mo]
@@ -419,8 +543,10 @@ def _resolve_line(scene, V, idx, tol):
         at = np.minimum(np.searchsorted(mkey, key), mkey.size - 1)
         return np.where(mkey[at] == key, midx[at], -1)
 
-    return resolve_entries(scene, ent, th, int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]]),
-                           V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:], tol, member)
+    i0 = idx[0]
+    T, H = (V["v_head"][i0], V["v_tail"][i0]) if r[0] else (V["v_tail"][i0], V["v_head"][i0])
+    seg0, seg1 = (V["v_seg"][i0, 2:], V["v_seg"][i0, :2]) if r[0] else (V["v_seg"][i0, :2], V["v_seg"][i0, 2:])
+    return resolve_entries(scene, ent, float(th), int(T), int(H), seg0, seg1, tol, member)
 
 
 def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
@@ -472,7 +598,8 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     # the scene box changes (the first member's, within the line tolerance of the line,
     # gave ends 1e-8 apart)
     seg = clip_sky_ends(scene, np.full(pi.size, th), p, q, tail, head, np.concatenate([start, end], 1))
-    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=tail, v_head=head,
+    fields = dict(v_obj=np.stack([obj[pi], obj[pj]], 1), v_side=np.stack([ent[pi] % 2, ent[pj] % 2], 1).astype(np.int8),
+                  v_theta=np.full(pi.size, th), v_tau=tau, v_tail=tail, v_head=head,
                   v_support=np.stack([np.where(ib, jb[pi], ja[pi]), np.where(jb_, jb[pj], ja[pj])], 1), v_p=p, v_q=q,
                   v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1], v_seg=seg)
     # the offsets order the vertices along each curve: they must differ on one curve

@@ -58,6 +58,12 @@ L, R = 0, 1
 # one line (rounding of the closed forms is ~1e-13 at 1e4 objects)
 TOL_THETA = 1e-9
 TOL_U = 1e-9
+# a candidate joins a degenerate line when its two objects touch it within JOIN × the line
+# tolerance (degenerate_lines): above the tolerance that makes lines degenerate, so that an
+# object found within it is never half in (hysteresis); below the contact tolerance
+# (scene.CONTACT_TOL = 4 × it), so that two entries of one line on its two sides that
+# overlap along it are a contact (opened), never two disjoint objects on one line
+JOIN = 2.0
 # the gaps that open the contacts of touching objects (Scene.opened), relative to the scene
 # diagonal, tried in this order: the direction of a line between the two sides of an
 # opened contact is known to ~1e-16 |x| / γ, so γ stays well above TOL_THETA × |x|, and far
@@ -197,25 +203,39 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     N = cand["theta"].shape[0]
     todo = np.ones(N, bool) if todo is None else todo
     p, q = tangent_points(scene, cand)
-    nrm = np.stack([-np.sin(cand["theta"]), np.cos(cand["theta"])], 1)
     idx = np.nonzero(todo)[0]
-    group = np.full(N, -1, np.int64)
-    rep = np.zeros(N, bool)
-    obj = np.stack([cand["a"], cand["b"]], 1)[idx]
-    side = np.stack([cand["side_a"], cand["side_b"]], 1)[idx].astype(np.int64)
-    sup = np.stack([cand["va"], cand["vb"]], 1)[idx]
-    group[idx], rep[idx], joined = degenerate_lines(scene, cand["theta"][idx], p[idx], q[idx], obj, side, sup,
-                                                    line_tol(scene))
-    size = np.bincount(group[idx]) if idx.size else np.zeros(0, np.int64)
+    tol = line_tol(scene)
+    args = (cand["theta"][idx], p[idx], q[idx], np.stack([cand["a"], cand["b"]], 1)[idx],
+            np.stack([cand["side_a"], cand["side_b"]], 1)[idx].astype(np.int64),
+            np.stack([cand["va"], cand["vb"]], 1)[idx], tol)
     on_line = np.zeros(N, bool)
-    # a line with joined members is scanned whole too: they take its tail and head
-    on_line[idx] = (size[group[idx]] >= 3) | (joined & (size[group[idx]] >= 2))
+    group, rep, on_line[idx], joined = _scanned_lines(scene, *args)
     out = K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
-                                cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, *grid,
-                                scene.kind, scene.vert_start, scene.verts, scene.radius)
+                                cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, tol,
+                                *grid, scene.kind, scene.vert_start, scene.verts, scene.radius)
     if np.any(on_line):
-        _classify_lines(scene, cand, p, q, group, rep, np.nonzero(on_line)[0], eps, out)
+        _classify_lines(scene, cand, p, q, group, rep, idx, on_line[idx], eps, out)
+    # a free line passing within tol of a third object is a degenerate line too (the walk
+    # finds it): its members, joined by the candidates of that object, are scanned whole
+    seed = out[7][idx] & out[0][idx] & ~on_line[idx]
+    if np.any(seed):
+        group, rep, again, joined = _scanned_lines(scene, *args, seed=seed)
+        redo = np.isin(group, np.unique(group[again & ~on_line[idx]]))
+        _classify_lines(scene, cand, p, q, group, rep, idx, redo, eps, out)
+        on_line[idx] |= again
+    # the members of a line that joined others are seeds of it again among the vertices
+    # (resolve_degenerate regroups the free ones)
+    out[7][idx] |= on_line[idx] & joined
     return out
+
+
+def _scanned_lines(scene, theta, p, q, obj, side, sup, tol, seed=None):
+    """:func:`degenerate_lines` and which candidates are classified by a scan of their line:
+    those on a line with at least two others, or joined to one (they take its tail and
+    head).  Returns (group, rep, scanned, joined), each like theta."""
+    group, rep, joined = degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed)
+    size = np.bincount(group) if group.size else np.zeros(0, np.int64)
+    return group, rep, (size[group] >= 3) | (joined & (size[group] >= 2)), joined
 
 
 def line_tol(scene):
@@ -266,7 +286,7 @@ def touches(scene, obj, side, sup, theta, u, tol):
     return ok
 
 
-def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, chunk=1 << 21):
+def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, chunk=1 << 21):
     """Group candidate lines into degenerate lines, one test for every line.
 
     theta (N,) canonical directions, p, q (N, 2) tangent points, obj, side, sup (N, 2)
@@ -300,6 +320,8 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, chunk=1 << 21):
     # each chain group's line: its longest-baseline member (the best-determined direction)
     best = np.lexsort((np.arange(N), -base, chain))
     head = best[np.concatenate([[True], np.diff(chain[best]) != 0])]  # (G,) in group order
+    if seed is not None:
+        along = along | seed
     is_line = (size >= 2) | (np.bincount(chain, weights=along, minlength=G) > 0)
     lines = head[is_line[chain[head]]]
     ua, ub = [], []
@@ -310,7 +332,8 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, chunk=1 << 21):
         o = np.argsort(lt)
         ext_t = np.concatenate([lt[o] - math.pi, lt[o], lt[o] + math.pi])
         ext_i = np.concatenate([lines[o]] * 3)
-        w = np.arcsin(np.minimum(1.0, 4.0 * tol / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
+        join = JOIN * tol
+        w = np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
         lo = np.searchsorted(ext_t, theta[cand] - w, "left")
         hi = np.searchsorted(ext_t, theta[cand] + w, "right")
         cnt = hi - lo
@@ -326,14 +349,14 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, chunk=1 << 21):
             on = np.ones(ci.size, bool)
             for e in (0, 1):
                 s_ = np.where(flip, 1 - side[ci, e], side[ci, e])
-                on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], tol)
+                on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], join)
             ua.append(chain[ci[on]])
             ub.append(chain[li[on]])
     if ua and sum(a.size for a in ua):
         ua, ub = np.concatenate(ua), np.concatenate(ub)
         g = coo_matrix((np.ones(ua.size), (ua, ub)), shape=(G, G))
         comp = connected_components(g, directed=False)[1]
-        group = comp[chain].astype(np.int64)
+        group = _close_lines(scene, theta, obj, side, base, chain, comp[chain].astype(np.int64), join)
         best = np.lexsort((np.arange(N), -base, group))
         head = best[np.concatenate([[True], np.diff(group[best]) != 0])]
     else:
@@ -345,19 +368,70 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, chunk=1 << 21):
     return group, rep, joined
 
 
-def _classify_lines(scene, cand, p, q, group, rep, idx, eps, out, chunk=1 << 22):
+def _close_lines(scene, theta, obj, side, base, chain, group, join):
+    """Groups of :func:`degenerate_lines` closed under their entries: a line that joined
+    others (rare: only near-degenerate scenes) also takes every candidate of two of its
+    entries (objects and sides, in its representative's orientation) whose direction is
+    within the window of its tangent points, with that candidate's group.  The join
+    test is not transitive — an object 2.5 tol off a line ℓ may touch, within 2 tol,
+    a line through it and an entry of ℓ that a third entry grazes — so the entries a
+    line collects through its joined members bring all their common tangents along
+    (the perturbation resolves them all as one line)."""
+    G = int(group.max()) + 1
+    nchain = np.bincount(np.unique(group * (chain.max() + 1) + chain) // (chain.max() + 1), minlength=G)
+    multi = np.nonzero(nchain >= 2)[0]
+    if multi.size == 0:
+        return group
+    n = scene.n
+    pid = np.minimum(obj[:, 0], obj[:, 1]) * n + np.maximum(obj[:, 0], obj[:, 1])
+    order = np.argsort(pid, kind="stable")
+    spid = pid[order]
+    group = group.copy()
+    for g in multi:
+        while True:
+            mem = np.nonzero(group == g)[0]
+            if mem.size == 0:
+                break
+            r = mem[np.lexsort((mem, -base[mem]))[0]]
+            flip = np.cos(theta[mem] - theta[r]) < 0
+            codes = np.unique(2 * obj[mem] + (side[mem] ^ flip[:, None]))
+            ob = np.unique(codes // 2)
+            i, j = np.triu_indices(ob.size, 1)
+            want = ob[i] * n + ob[j]
+            lo, hi = np.searchsorted(spid, want, "left"), np.searchsorted(spid, want, "right")
+            cnt = hi - lo
+            c = order[np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(cnt.sum())]
+            c = c[group[c] != g]
+            fl = np.cos(theta[c] - theta[r]) < 0
+            ok = np.isin(2 * obj[c] + (side[c] ^ fl[:, None]), codes).all(axis=1)
+            ok &= np.abs(np.sin(theta[c] - theta[r])) <= 4.0 * join / np.maximum(base[c], 1e-300) + 2.0 * TOL_THETA
+            if not np.any(ok):
+                break
+            group[np.isin(group, group[c[ok]])] = g
+    return np.unique(group, return_inverse=True)[1].ravel().astype(np.int64)
+
+
+def _classify_lines(scene, cand, p, q, group, rep, idx, mask, eps, out, chunk=1 << 22):
     """Classify the candidates ``idx`` line by line, into ``out`` (the arrays of
     :func:`kernels.classify_bitangents`), with the same rules as the grid walk: blocked
     by an object cut deeper than eps between the tangent points, tail / head the nearest
     such objects behind / beyond them.  Each line is its representative's (``rep``,
-    :func:`degenerate_lines`)."""
-    order = idx[np.lexsort((~rep[idx], group[idx]))]
+    :func:`degenerate_lines`; ``group``, ``rep`` and ``mask`` are given for the candidates
+    ``idx``, the candidates classified are ``idx[mask]``)."""
+    sel = np.nonzero(mask)[0]
+    if sel.size == 0:
+        return
+    order = sel[np.lexsort((~rep[sel], group[sel]))]
     bounds = np.nonzero(np.diff(group[order]))[0] + 1
-    for line in np.split(order, bounds):
+    # the objects touching the line within the join tolerance are its entries (perturbed
+    # off it by resolve_degenerate), never its blockers
+    eps_line = max(eps, JOIN * line_tol(scene))
+    for line in np.split(idx[order], bounds):
         th = cand["theta"][line[0]]
         d = np.array([math.cos(th), math.sin(th)])
         o = p[line[0]]
-        hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
+        hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps_line, scene.kind, scene.vert_start, scene.verts,
+                                 scene.radius)
         # members joined reversed (θ + π, :func:`degenerate_lines`) read the line backwards
         rev = np.cos(cand["theta"][line] - th) < 0
         for mem, sg, t_in, t_out in ((line[~rev], 1.0, ti, to), (line[rev], -1.0, -to, -ti)):
@@ -369,7 +443,7 @@ def _classify_lines(scene, cand, p, q, group, rep, idx, eps, out, chunk=1 << 22)
 def _classify_on_line(cand, mem, tp, tq, hk, ti, to, eps, out, step):
     """:func:`_classify_lines` for the members ``mem`` of one line: tp, tq their tangent
     points' and ti, to the blockers' entry / exit parameters along the members' direction."""
-    free, a_first, tail, head, tail_t, head_t, blocker = out
+    free, a_first, tail, head, tail_t, head_t, blocker = out[:7]
     af = tq >= tp
     s, e = np.minimum(tp, tq), np.maximum(tp, tq)
     a_first[mem] = af
@@ -420,9 +494,12 @@ def vertices_from(scene: Scene, cand: dict, cls) -> dict:
     seg = np.concatenate([p - tt[:, None] * d, q + ht[:, None] * d], axis=1)
     seg = clip_sky_ends(scene, theta, p, q, tail[idx], head[idx], seg)
     sup = np.stack([np.where(af, va, vb), np.where(af, vb, va)], 1).astype(np.int64)
-    return dict(v_key=cand["key"][idx], v_obj=np.stack([k1, k2], 1).astype(np.int64), v_support=sup,
-                v_side=np.stack([s1, s2], 1).astype(np.int8), v_tail=tail[idx].astype(np.int64),
-                v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
+    V = dict(v_key=cand["key"][idx], v_obj=np.stack([k1, k2], 1).astype(np.int64), v_support=sup,
+             v_side=np.stack([s1, s2], 1).astype(np.int8), v_tail=tail[idx].astype(np.int64),
+             v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
+    if len(cls) > 7:  # lines found grazing a third object (resolve_degenerate consumes it)
+        V["v_graze"] = cls[7][idx]
+    return V
 
 
 def resolve_degenerate(scene: Scene, V: dict) -> dict:
@@ -449,6 +526,7 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     edge's end that the perturbed line touches)."""
     m = V["v_key"].shape[0]
     V = dict(V)
+    seed = V.pop("v_graze", None)
     V["v_tau"] = np.zeros(m)
     if m == 0:
         return V
@@ -459,7 +537,7 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     tol = line_tol(scene)
     # -- group by line, then by (tail, head): one maximal free segment each
     gline, rep, _ = degenerate_lines(scene, th, V["v_p"], V["v_q"], V["v_obj"], V["v_side"].astype(np.int64),
-                                     V["v_support"], tol)
+                                     V["v_support"], tol, seed)
     line_th = np.empty(int(gline.max()) + 1)
     line_th[gline[rep]] = th[rep]
     line_th = line_th[gline]

@@ -66,9 +66,14 @@ def check_gap(kind, rel):
             assert abs(cx.F_area[i, j] - want) < 1e-9, (kind, rel, i, j, cx.F_area[i, j], want)
 
 
-@settings(max_examples=6, derandomize=True, database=None, deadline=None,
+#: log10 of g / diagonal: uniform in −14 … −3, half of the draws in the band around the line
+#: tolerance (1e-9) where the tests of a near-degenerate line disagree if they can
+EXPONENTS = st.one_of(st.floats(-14.0, -3.0), st.floats(-10.5, -8.0))
+
+
+@settings(max_examples=8, derandomize=True, database=None, deadline=None,
           suppress_health_check=[HealthCheck.too_slow])
-@given(kind=st.sampled_from(sorted(SCENES)), exponent=st.floats(-14.0, -3.0))
+@given(kind=st.sampled_from(sorted(SCENES)), exponent=EXPONENTS)
 def test_gap_of_about_epsilon(kind, exponent):
     """g log-uniform in 1e-14 … 1e-3 of the diagonal (fixed examples by default)."""
     check_gap(kind, 10.0 ** exponent)
@@ -76,7 +81,7 @@ def test_gap_of_about_epsilon(kind, exponent):
 
 @pytest.mark.slow
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(kind=st.sampled_from(sorted(SCENES)), exponent=st.floats(-14.0, -3.0))
+@given(kind=st.sampled_from(sorted(SCENES)), exponent=EXPONENTS)
 def test_many_gaps_of_about_epsilon(kind, exponent):
     check_gap(kind, 10.0 ** exponent)
 

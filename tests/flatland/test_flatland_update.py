@@ -406,3 +406,13 @@ def test_damaged_update_group_is_a_one_line_error(tmp_path):
             f["update"].create_dataset(name, data=data)
         with pytest.raises(ViscxError, match=f"/update/{name}"):
             read_any(path)
+
+
+@pytest.mark.slow
+@settings(max_examples=60, **QUICK)
+@given(k=st.integers(1, 4), exponent=st.one_of(st.floats(-14.0, -3.0), st.floats(-10.5, -8.0)))
+def test_many_gaps_of_about_epsilon_with_contacts(k, exponent):
+    """A box or the ball of the yard lifted by g (log-uniform, half the draws around the line
+    tolerance; a contact up to 4e-9 of the diagonal, a gap above): the move equals a rebuild
+    (rebuilt when the zone holds a near-degenerate line), rows sum to 1, methods agree."""
+    check_contact_move(k, 0.0, 10.0 ** exponent * yard_cx().scene.diagonal(), "")

@@ -356,8 +356,10 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, chunk=1
         ua, ub = np.concatenate(ua), np.concatenate(ub)
         g = coo_matrix((np.ones(ua.size), (ua, ub)), shape=(G, G))
         comp = connected_components(g, directed=False)[1]
-        group = _close_lines(scene, theta, obj, side, base, chain, comp[chain].astype(np.int64), join)
-        best = np.lexsort((np.arange(N), -base, group))
+        group = _close_lines(scene, theta, obj, side, base, chain, size[chain], comp[chain].astype(np.int64), join)
+        # the line of a joined group: its largest set of copies' (a member with a far end
+        # off the line, the lifted object's, would tilt it), then the longest baseline
+        best = np.lexsort((np.arange(N), -base, -size[chain], group))
         head = best[np.concatenate([[True], np.diff(group[best]) != 0])]
     else:
         group = chain
@@ -368,10 +370,26 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, chunk=1
     return group, rep, joined
 
 
-def _close_lines(scene, theta, obj, side, base, chain, group, join):
+def near_degenerate(scene, theta, u, tol):
+    """(L,) bool: the lines (θ, u) that some object touches neither exactly (to 1e-3 tol:
+    rounding) nor clearly not (beyond 4 tol, the contact tolerance): a near-degenerate
+    line, grouped by :func:`degenerate_lines` with candidates that a re-scan of the line
+    alone would not see (the dynamic update rebuilds a zone holding one)."""
+    out = np.zeros(np.shape(theta), bool)
+    starts = scene.vert_start[:-1]
+    for i, (t_, u_) in enumerate(zip(np.atleast_1d(theta), np.atleast_1d(u))):
+        proj = scene.verts @ np.array([-math.sin(t_), math.cos(t_)])
+        off = np.minimum(np.abs(np.maximum.reduceat(proj, starts) + scene.radius - u_),
+                         np.abs(np.minimum.reduceat(proj, starts) - scene.radius - u_))
+        out[i] = np.any((off > 1e-3 * tol) & (off <= 4.0 * JOIN * tol))
+    return out
+
+
+def _close_lines(scene, theta, obj, side, base, chain, size, group, join):
     """Groups of :func:`degenerate_lines` closed under their entries: a line that joined
     others (rare: only near-degenerate scenes) also takes every candidate of two of its
-    entries (objects and sides, in its representative's orientation) whose direction is
+    entries (objects and sides, in the orientation of its line: its largest set of copies,
+    then the longest baseline; ``size`` (N,) the size of each member's set) whose direction is
     within the window of its tangent points, with that candidate's group.  The join
     test is not transitive — an object 2.5 tol off a line ℓ may touch, within 2 tol,
     a line through it and an entry of ℓ that a third entry grazes — so the entries a
@@ -392,7 +410,7 @@ def _close_lines(scene, theta, obj, side, base, chain, group, join):
             mem = np.nonzero(group == g)[0]
             if mem.size == 0:
                 break
-            r = mem[np.lexsort((mem, -base[mem]))[0]]
+            r = mem[np.lexsort((mem, -base[mem], -size[mem]))[0]]
             flip = np.cos(theta[mem] - theta[r]) < 0
             codes = np.unique(2 * obj[mem] + (side[mem] ^ flip[:, None]))
             ob = np.unique(codes // 2)

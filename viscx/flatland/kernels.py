@@ -204,8 +204,9 @@ def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
     """First object crossed by the ray o + t d, t > 0 (objects skip1, skip2 ignored).
 
     ``graze`` (1,) float64: lowered to the parameter t > 0 of every object visited that
-    the ray passes without blocking within ``tol`` of touching it (depth in [−tol, eps]:
-    a third object on the line, up to the tolerance).
+    the ray passes without blocking within ``tol`` of touching it, but not touching it to
+    rounding (depth in [−tol, eps], |depth| > 1e-3 tol: a third object near the line;
+    one on it makes the pairs' candidates copies of the line, grouped as such).
 
     Walks the grid cells along the ray (Amanatides–Woo).  An object counts when the line
     cuts deeper than ``eps`` into it (:func:`depth`; grazing contacts are not hits) and it
@@ -262,7 +263,7 @@ def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
             stamp[k] = stamp_id
             dep = depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
             if dep <= eps:  # a line touching k (a corner, an edge, a tangent circle) passes it
-                if dep >= -tol:
+                if dep >= -tol and abs(dep) > 1e-3 * tol:  # (touching to rounding: a copy of the line)
                     tg = touch_param(k, ox, oy, dx, dy, vert_start, verts)
                     if 0.0 < tg < graze[0]:
                         graze[0] = tg

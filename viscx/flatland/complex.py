@@ -209,7 +209,8 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
             np.stack([cand["side_a"], cand["side_b"]], 1)[idx].astype(np.int64),
             np.stack([cand["va"], cand["vb"]], 1)[idx], tol)
     on_line = np.zeros(N, bool)
-    group, rep, on_line[idx], joined = _scanned_lines(scene, *args)
+    pre = _copies(scene, *args[:4], args[5], tol)
+    group, rep, on_line[idx], joined = _scanned_lines(scene, *args, pre=pre)
     out = K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
                                 cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, tol,
                                 *grid, scene.kind, scene.vert_start, scene.verts, scene.radius)
@@ -219,7 +220,7 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     # finds it): its members, joined by the candidates of that object, are scanned whole
     seed = out[7][idx] & out[0][idx] & ~on_line[idx]
     if np.any(seed):
-        group, rep, again, joined = _scanned_lines(scene, *args, seed=seed)
+        group, rep, again, joined = _scanned_lines(scene, *args, seed=seed, pre=pre)
         redo = np.isin(group, np.unique(group[again & ~on_line[idx]]))
         _classify_lines(scene, cand, p, q, group, rep, idx, redo, eps, out)
         on_line[idx] |= again
@@ -229,11 +230,11 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     return out
 
 
-def _scanned_lines(scene, theta, p, q, obj, side, sup, tol, seed=None):
+def _scanned_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=None):
     """:func:`degenerate_lines` and which candidates are classified by a scan of their line:
     those on a line with at least two others, or joined to one (they take its tail and
     head).  Returns (group, rep, scanned, joined), each like theta."""
-    group, rep, joined = degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed)
+    group, rep, joined = degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed, pre)
     size = np.bincount(group) if group.size else np.zeros(0, np.int64)
     return group, rep, (size[group] >= 3) | (joined & (size[group] >= 2)), joined
 
@@ -255,9 +256,14 @@ def tangent_points(scene, cand):
 def line_groups(theta, u, tol):
     """(N,) int64 group ids of lines (θ, u): chains of θ gaps ≤ TOL_THETA, then of u gaps
     ≤ tol, i.e. the copies of one line computed from different pairs."""
+    return _line_chains(theta, u, tol)[0]
+
+
+def _line_chains(theta, u, tol):
+    """:func:`line_groups` and the order that sorts them (group ids ascend along it)."""
     N = theta.shape[0]
     if N == 0:
-        return np.zeros(0, np.int64)
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     o = np.argsort(theta, kind="stable")
     gth = np.empty(N, np.int64)
     gth[o] = np.concatenate([[0], np.cumsum(np.diff(theta[o]) > TOL_THETA)])
@@ -265,7 +271,7 @@ def line_groups(theta, u, tol):
     brk = np.concatenate([[True], (np.diff(gth[o]) != 0) | (np.diff(u[o]) > tol)])
     g = np.empty(N, np.int64)
     g[o] = np.cumsum(brk) - 1
-    return g
+    return g, o
 
 
 def touches(scene, obj, side, sup, theta, u, tol):
@@ -286,45 +292,42 @@ def touches(scene, obj, side, sup, theta, u, tol):
     return ok
 
 
-def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, chunk=1 << 21):
+def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=None, chunk=1 << 21):
     """Group candidate lines into degenerate lines, one test for every line.
 
     theta (N,) canonical directions, p, q (N, 2) tangent points, obj, side, sup (N, 2)
-    the two objects, their sides and support points.  Returns (group (N,) int64,
-    rep (N,) bool: one member per group, the one with the longest baseline |pq|, whose
-    line (θ, u) stands for the group's; joined (N,) bool: the group holds lines that
-    are not copies of one another).
+    the two objects, their sides and support points; ``seed`` (N,) bool candidates known
+    to lie on a degenerate line (the walk's ``graze``); ``pre`` the copies computed by an
+    earlier call on the same candidates (:func:`_copies`).  Returns (group (N,) int64,
+    rep (N,) bool: one member per group whose line (θ, u) stands for the group's,
+    joined (N,) bool: the group holds lines that are not copies of one another).
 
     First the copies of one line computed from different pairs (:func:`line_groups`:
-    θ within ``TOL_THETA``, u within ``tol``).  A group with two members or more, or one
-    running along a polygon edge, is a degenerate line ℓ; then every other candidate
-    whose two objects both touch ℓ within ``tol`` on its sides (:func:`touches`) is on ℓ
-    too, whatever its own θ: an object lifted by a gap g ≤ tol off ℓ (a box beside the
-    ground line, a circle near a common tangent of two others) touches ℓ like the others,
-    but its tangents to their corners at distance L along ℓ tilt by g / L, which can be
-    far above ``TOL_THETA`` (near a contact, L = 2γ).  Grouping those by θ alone split
-    one degenerate line into a resolved half and a simple half.  Both tangent points
-    within tol of ℓ bound the tilt: |sin Δθ| ≤ 2 tol / |pq| (circles: within a factor
-    2), which prunes the pairs tested.  Candidates that join one line's group merge
-    their groups (the line's with theirs)."""
+    θ within ``TOL_THETA``, u within ``tol``).  A set of two copies or more, one running
+    along a polygon edge, or a seed, is a degenerate line ℓ; then every other candidate
+    whose two objects both touch ℓ within JOIN × ``tol`` on its sides (:func:`touches`)
+    is on ℓ too, whatever its own θ: an object lifted by a gap g ≤ tol off ℓ (a box
+    beside the ground line, a circle near a common tangent of two others) touches ℓ like
+    the others, but its tangents to their corners at distance L along ℓ tilt by g / L,
+    which can be far above ``TOL_THETA`` (near a contact, L = 2γ).  Grouping those by θ
+    alone split one degenerate line into a resolved half and a simple half.  Both tangent
+    points within JOIN × tol of ℓ bound the tilt: |sin Δθ| ≤ 2 JOIN tol / |pq|
+    (circles: within a factor 2), which prunes the pairs tested.  Candidates that join
+    one line's group merge their groups (the line's with theirs), closed under their
+    entries (:func:`_close_lines`).  A line is its largest set of copies' member with
+    the longest baseline |pq| (the best-determined direction)."""
     N = theta.shape[0]
-    nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
-    u = np.einsum("ij,ij->i", nrm, p)
-    chain = line_groups(theta, u, tol)
-    base = np.hypot(*(q - p).T)
     if N == 0:
-        return chain, np.zeros(0, bool), np.zeros(0, bool)
-    G = int(chain.max()) + 1
-    size = np.bincount(chain, minlength=G)
-    along = _on_edge(scene, obj[:, 0], sup[:, 0], nrm, tol) | _on_edge(scene, obj[:, 1], sup[:, 1], nrm, tol)
-    # each chain group's line: its longest-baseline member (the best-determined direction)
-    best = np.lexsort((np.arange(N), -base, chain))
-    head = best[np.concatenate([[True], np.diff(chain[best]) != 0])]  # (G,) in group order
-    if seed is not None:
-        along = along | seed
+        return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
+    pre = _copies(scene, theta, p, q, obj, sup, tol) if pre is None else pre
+    chain, order, start, u, base, head = pre["chain"], pre["order"], pre["start"], pre["u"], pre["base"], pre["head"]
+    G = head.size
+    size = np.diff(start)
+    along = pre["along"] if seed is None else pre["along"] | seed
     is_line = (size >= 2) | (np.bincount(chain, weights=along, minlength=G) > 0)
-    lines = head[is_line[chain[head]]]
+    lines = head[is_line]
     ua, ub = [], []
+    join = JOIN * tol
     if lines.size:
         # candidates that may join: those in no line of their own of 3 or more copies
         cand = np.nonzero(size[chain] <= 2)[0]
@@ -332,11 +335,11 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, chunk=1
         o = np.argsort(lt)
         ext_t = np.concatenate([lt[o] - math.pi, lt[o], lt[o] + math.pi])
         ext_i = np.concatenate([lines[o]] * 3)
-        join = JOIN * tol
         w = np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
         lo = np.searchsorted(ext_t, theta[cand] - w, "left")
-        hi = np.searchsorted(ext_t, theta[cand] + w, "right")
-        cnt = hi - lo
+        cnt = np.searchsorted(ext_t, theta[cand] + w, "right") - lo
+        near = cnt > 0
+        cand, lo, cnt = cand[near], lo[near], cnt[near]
         step = max(1, chunk // max(1, int(cnt.max(initial=1))))
         for c0 in range(0, cand.size, step):
             cc, lc, nc = cand[c0:c0 + step], lo[c0:c0 + step], cnt[c0:c0 + step]
@@ -352,22 +355,44 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, chunk=1
                 on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], join)
             ua.append(chain[ci[on]])
             ub.append(chain[li[on]])
-    if ua and sum(a.size for a in ua):
-        ua, ub = np.concatenate(ua), np.concatenate(ub)
-        g = coo_matrix((np.ones(ua.size), (ua, ub)), shape=(G, G))
-        comp = connected_components(g, directed=False)[1]
-        group = _close_lines(scene, theta, obj, side, base, chain, size[chain], comp[chain].astype(np.int64), join)
-        # the line of a joined group: its largest set of copies' (a member with a far end
-        # off the line, the lifted object's, would tilt it), then the longest baseline
-        best = np.lexsort((np.arange(N), -base, -size[chain], group))
-        head = best[np.concatenate([[True], np.diff(group[best]) != 0])]
-    else:
-        group = chain
     rep = np.zeros(N, bool)
-    rep[head] = True
-    pairs = np.unique(group * G + chain)
-    joined = np.bincount(pairs // G, minlength=int(group.max()) + 1)[group] >= 2
+    if not ua or not sum(a.size for a in ua):
+        rep[head] = True
+        return chain, rep, np.zeros(N, bool)
+    ua, ub = np.concatenate(ua), np.concatenate(ub)
+    comp = connected_components(coo_matrix((np.ones(ua.size), (ua, ub)), shape=(G, G)), directed=False)[1]
+    comp = _close_lines(scene, theta, obj, side, base, pre, comp.astype(np.int64), join)
+    group = comp[chain]
+    nchain = np.bincount(comp, minlength=G)
+    joined = nchain[group] >= 2
+    # the line of a joined group: its largest set of copies' (a member with a far end off
+    # the line, the lifted object's, would tilt it), then the longest baseline
+    rep[head[nchain[comp] == 1]] = True
+    mem = np.nonzero(joined)[0]
+    best = mem[np.lexsort((mem, -base[mem], -size[chain[mem]], group[mem]))]
+    rep[best[np.concatenate([[True], np.diff(group[best]) != 0])]] = True
     return group, rep, joined
+
+
+def _copies(scene, theta, p, q, obj, sup, tol):
+    """The copies of lines among candidates (:func:`degenerate_lines`): chain (N,) their
+    set, order / start the sets' members (CSR), u, base |pq|, head (G,) each set's
+    longest-baseline member, along (N,) bool a candidate running along a polygon edge."""
+    nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
+    u = np.einsum("ij,ij->i", nrm, p)
+    chain, order = _line_chains(theta, u, tol)
+    G = int(chain.max()) + 1
+    start = np.searchsorted(chain[order], np.arange(G + 1))
+    base = np.hypot(*(q - p).T)
+    top = np.maximum.reduceat(base[order], start[:-1])
+    is_top = base[order] == top[chain[order]]
+    first = np.nonzero(is_top & np.concatenate([[True], ~is_top[:-1] | (np.diff(chain[order]) != 0)]))[0]
+    head = order[first[np.concatenate([[True], np.diff(chain[order][first]) != 0])]]
+    along = np.zeros(theta.shape[0], bool)
+    for e in (0, 1):
+        poly = np.nonzero(np.diff(scene.vert_start)[obj[:, e]] >= 2)[0]
+        along[poly] |= _on_edge(scene, obj[poly, e], sup[poly, e], nrm[poly], tol)
+    return dict(chain=chain, order=order, start=start, u=u, base=base, head=head, along=along)
 
 
 def near_degenerate(scene, theta, u, tol):
@@ -385,32 +410,45 @@ def near_degenerate(scene, theta, u, tol):
     return out
 
 
-def _close_lines(scene, theta, obj, side, base, chain, size, group, join):
-    """Groups of :func:`degenerate_lines` closed under their entries: a line that joined
-    others (rare: only near-degenerate scenes) also takes every candidate of two of its
-    entries (objects and sides, in the orientation of its line: its largest set of copies,
-    then the longest baseline; ``size`` (N,) the size of each member's set) whose direction is
-    within the window of its tangent points, with that candidate's group.  The join
-    test is not transitive — an object 2.5 tol off a line ℓ may touch, within 2 tol,
-    a line through it and an entry of ℓ that a third entry grazes — so the entries a
-    line collects through its joined members bring all their common tangents along
-    (the perturbation resolves them all as one line)."""
-    G = int(group.max()) + 1
-    nchain = np.bincount(np.unique(group * (chain.max() + 1) + chain) // (chain.max() + 1), minlength=G)
-    multi = np.nonzero(nchain >= 2)[0]
+def _close_lines(scene, theta, obj, side, base, pre, comp, join):
+    """Labels (G,) of the sets of copies after :func:`degenerate_lines` joined them
+    (``comp``), closed under their entries: a line that joined others (rare: only
+    near-degenerate scenes) also takes every candidate of two of its entries (objects and
+    sides, in the orientation of its line) whose direction is within the window of its
+    tangent points, with that candidate's set.  The join test is not transitive — an
+    object 2.5 tol off a line ℓ may touch, within 2 tol, the line through it and an
+    entry of ℓ that a third entry grazes — so the entries a line collects through its
+    joined members bring all their common tangents along (the perturbation resolves them
+    all as one line)."""
+    chain, order, start = pre["chain"], pre["order"], pre["start"]
+    size = np.diff(start)
+    multi = np.nonzero(np.bincount(comp) >= 2)[0]
     if multi.size == 0:
-        return group
+        return comp
     n = scene.n
     pid = np.minimum(obj[:, 0], obj[:, 1]) * n + np.maximum(obj[:, 0], obj[:, 1])
-    order = np.argsort(pid, kind="stable")
-    spid = pid[order]
-    group = group.copy()
+    porder = np.argsort(pid, kind="stable")
+    spid = pid[porder]
+    by_label = np.argsort(comp, kind="stable")  # the sets of copies of each label
+    lstart = np.searchsorted(comp[by_label], np.arange(comp.max() + 2))
+    parent = np.arange(lstart.size - 1)
+
+    def root(x):
+        while parent[x] != x:
+            x = parent[x]
+        return x
+
+    def members(labels):
+        sets = np.concatenate([by_label[lstart[h]:lstart[h + 1]] for h in labels])
+        return np.concatenate([order[start[c]:start[c + 1]] for c in sets])
+
     for g in multi:
+        if root(g) != g:
+            continue
+        labels = [g]
         while True:
-            mem = np.nonzero(group == g)[0]
-            if mem.size == 0:
-                break
-            r = mem[np.lexsort((mem, -base[mem], -size[mem]))[0]]
+            mem = members(labels)
+            r = mem[np.lexsort((mem, -base[mem], -size[chain[mem]]))[0]]
             flip = np.cos(theta[mem] - theta[r]) < 0
             codes = np.unique(2 * obj[mem] + (side[mem] ^ flip[:, None]))
             ob = np.unique(codes // 2)
@@ -418,15 +456,20 @@ def _close_lines(scene, theta, obj, side, base, chain, size, group, join):
             want = ob[i] * n + ob[j]
             lo, hi = np.searchsorted(spid, want, "left"), np.searchsorted(spid, want, "right")
             cnt = hi - lo
-            c = order[np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(cnt.sum())]
-            c = c[group[c] != g]
+            c = porder[np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(cnt.sum())]
             fl = np.cos(theta[c] - theta[r]) < 0
             ok = np.isin(2 * obj[c] + (side[c] ^ fl[:, None]), codes).all(axis=1)
             ok &= np.abs(np.sin(theta[c] - theta[r])) <= 4.0 * join / np.maximum(base[c], 1e-300) + 2.0 * TOL_THETA
-            if not np.any(ok):
+            new = {root(h) for h in np.unique(comp[chain[c[ok]]])} - {g}
+            if not new:
                 break
-            group[np.isin(group, group[c[ok]])] = g
-    return np.unique(group, return_inverse=True)[1].ravel().astype(np.int64)
+            for h in new:
+                parent[h] = g
+                labels.append(h)
+    roots = parent.copy()
+    while np.any(roots[roots] != roots):
+        roots = roots[roots]
+    return roots[comp]
 
 
 def _classify_lines(scene, cand, p, q, group, rep, idx, mask, eps, out, chunk=1 << 22):

@@ -381,13 +381,13 @@ def _copies(scene, theta, p, q, obj, sup, tol):
     nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
     u = np.einsum("ij,ij->i", nrm, p)
     chain, order = _line_chains(theta, u, tol)
-    G = int(chain.max()) + 1
+    N, G = theta.shape[0], int(chain.max(initial=-1)) + 1
     start = np.searchsorted(chain[order], np.arange(G + 1))
     base = np.hypot(*(q - p).T)
-    top = np.maximum.reduceat(base[order], start[:-1])
+    top = np.maximum.reduceat(base[order], start[:-1]) if G else np.zeros(0)
     is_top = base[order] == top[chain[order]]
-    first = np.nonzero(is_top & np.concatenate([[True], ~is_top[:-1] | (np.diff(chain[order]) != 0)]))[0]
-    head = order[first[np.concatenate([[True], np.diff(chain[order][first]) != 0])]]
+    first = np.nonzero(is_top & np.concatenate([[True], ~is_top[:-1] | (np.diff(chain[order]) != 0)])[:N])[0]
+    head = order[first[np.diff(chain[order][first], prepend=-1) != 0]]
     along = np.zeros(theta.shape[0], bool)
     for e in (0, 1):
         poly = np.nonzero(np.diff(scene.vert_start)[obj[:, e]] >= 2)[0]

@@ -597,11 +597,11 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     u = np.einsum("ij,ij->i", nrm, V["v_p"])
     tol = line_tol(scene)
     # -- group by line, then by (tail, head): one maximal free segment each
-    gline, rep, _ = degenerate_lines(scene, th, V["v_p"], V["v_q"], V["v_obj"], V["v_side"].astype(np.int64),
-                                     V["v_support"], tol, seed)
+    gline, rep, joined = degenerate_lines(scene, th, V["v_p"], V["v_q"], V["v_obj"],
+                                          V["v_side"].astype(np.int64), V["v_support"], tol, seed)
     line_th = np.empty(int(gline.max()) + 1)
     line_th[gline[rep]] = th[rep]
-    line_th = line_th[gline]
+    line_th = np.where(joined, line_th[gline], th)
     # a member joined reversed (θ ≈ the line's θ + π) has its tail and head swapped
     rev = np.cos(th - line_th) < 0
     tail, head = np.where(rev, V["v_head"], V["v_tail"]), np.where(rev, V["v_tail"], V["v_head"])
@@ -614,8 +614,10 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     need |= _on_edge(scene, V["v_obj"][:, 1], V["v_support"][:, 1], nrm, tol)
     keep = np.ones(m, bool)
     gids = np.unique(group[need])
-    # members of each segment, the longest baseline first: its line stands for the segment's
-    order = np.lexsort((np.arange(m), -np.abs(V["v_length"]), group))
+    # members of each segment, the first giving its θ, tail, head and ends: of a set of
+    # copies the lowest key (as an update's re-scan of the line takes it), of a line that
+    # joined others the longest baseline, in the direction of its representative
+    order = np.lexsort((np.arange(m), np.where(joined, -np.abs(V["v_length"]), 0.0), group))
     members_of = np.split(order, np.cumsum(size)[:-1])
     for g in gids:
         idx = members_of[g]

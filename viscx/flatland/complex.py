@@ -397,7 +397,8 @@ def _copies(scene, theta, p, q, obj, sup, tol):
 
 def near_degenerate(scene, theta, u, tol):
     """(L,) bool: the lines (θ, u) that some object touches neither exactly (to 1e-3 tol:
-    rounding) nor clearly not (beyond 4 tol, the contact tolerance): a near-degenerate
+    rounding) nor clearly not (beyond 8 tol: twice the contact tolerance, as the closure
+    of a joined line reaches past the join tolerance): a near-degenerate
     line, grouped by :func:`degenerate_lines` with candidates that a re-scan of the line
     alone would not see (the dynamic update rebuilds a zone holding one)."""
     out = np.zeros(np.shape(theta), bool)

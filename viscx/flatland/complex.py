@@ -58,6 +58,12 @@ L, R = 0, 1
 # one line (rounding of the closed forms is ~1e-13 at 1e4 objects)
 TOL_THETA = 1e-9
 TOL_U = 1e-9
+# a candidate joins a degenerate line when its two objects touch it within JOIN × the line
+# tolerance (degenerate_lines): above the tolerance that makes lines degenerate, so that an
+# object found within it is never half in (hysteresis); below the contact tolerance
+# (scene.CONTACT_TOL = 4 × it), so that two entries of one line on its two sides that
+# overlap along it are a contact (opened), never two disjoint objects on one line
+JOIN = 2.0
 # the gaps that open the contacts of touching objects (Scene.opened), relative to the scene
 # diagonal, tried in this order: the direction of a line between the two sides of an
 # opened contact is known to ~1e-16 |x| / γ, so γ stays well above TOL_THETA × |x|, and far
@@ -197,19 +203,40 @@ def classify(scene: Scene, cand: dict, eps: float, todo=None, grid=None):
     N = cand["theta"].shape[0]
     todo = np.ones(N, bool) if todo is None else todo
     p, q = tangent_points(scene, cand)
-    nrm = np.stack([-np.sin(cand["theta"]), np.cos(cand["theta"])], 1)
     idx = np.nonzero(todo)[0]
-    group = np.full(N, -1, np.int64)
-    group[idx] = line_groups(cand["theta"][idx], np.einsum("ij,ij->i", nrm[idx], p[idx]), line_tol(scene))
-    size = np.bincount(group[idx]) if idx.size else np.zeros(0, np.int64)
+    tol = line_tol(scene)
+    args = (cand["theta"][idx], p[idx], q[idx], np.stack([cand["a"], cand["b"]], 1)[idx],
+            np.stack([cand["side_a"], cand["side_b"]], 1)[idx].astype(np.int64),
+            np.stack([cand["va"], cand["vb"]], 1)[idx], tol)
     on_line = np.zeros(N, bool)
-    on_line[idx] = size[group[idx]] >= 3
+    pre = _copies(scene, *args[:4], args[5], tol)
+    group, rep, on_line[idx], joined = _scanned_lines(scene, *args, pre=pre)
     out = K.classify_bitangents(cand["theta"], cand["a"], cand["b"], cand["side_a"].astype(np.int64),
-                                cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, *grid,
-                                scene.kind, scene.vert_start, scene.verts, scene.radius)
+                                cand["side_b"].astype(np.int64), cand["va"], cand["vb"], todo & ~on_line, eps, tol,
+                                *grid, scene.kind, scene.vert_start, scene.verts, scene.radius)
     if np.any(on_line):
-        _classify_lines(scene, cand, p, q, group, np.nonzero(on_line)[0], eps, out)
+        _classify_lines(scene, cand, p, q, group, rep, idx, on_line[idx], eps, out)
+    # a free line passing within tol of a third object is a degenerate line too (the walk
+    # finds it): its members, joined by the candidates of that object, are scanned whole
+    seed = out[7][idx] & out[0][idx] & ~on_line[idx]
+    if np.any(seed):
+        group, rep, again, joined = _scanned_lines(scene, *args, seed=seed, pre=pre)
+        redo = np.isin(group, np.unique(group[again & ~on_line[idx]]))
+        _classify_lines(scene, cand, p, q, group, rep, idx, redo, eps, out)
+        on_line[idx] |= again
+    # the members of a line that joined others are seeds of it again among the vertices
+    # (resolve_degenerate regroups the free ones)
+    out[7][idx] |= on_line[idx] & joined
     return out
+
+
+def _scanned_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=None):
+    """:func:`degenerate_lines` and which candidates are classified by a scan of their line:
+    those on a line with at least two others, or joined to one (they take its tail and
+    head).  Returns (group, rep, scanned, joined), each like theta."""
+    group, rep, joined = degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed, pre)
+    size = np.bincount(group) if group.size else np.zeros(0, np.int64)
+    return group, rep, (size[group] >= 3) | (joined & (size[group] >= 2)), joined
 
 
 def line_tol(scene):
@@ -229,9 +256,14 @@ def tangent_points(scene, cand):
 def line_groups(theta, u, tol):
     """(N,) int64 group ids of lines (θ, u): chains of θ gaps ≤ TOL_THETA, then of u gaps
     ≤ tol, i.e. the copies of one line computed from different pairs."""
+    return _line_chains(theta, u, tol)[0]
+
+
+def _line_chains(theta, u, tol):
+    """:func:`line_groups` and the order that sorts them (group ids ascend along it)."""
     N = theta.shape[0]
     if N == 0:
-        return np.zeros(0, np.int64)
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     o = np.argsort(theta, kind="stable")
     gth = np.empty(N, np.int64)
     gth[o] = np.concatenate([[0], np.cumsum(np.diff(theta[o]) > TOL_THETA)])
@@ -239,46 +271,263 @@ def line_groups(theta, u, tol):
     brk = np.concatenate([[True], (np.diff(gth[o]) != 0) | (np.diff(u[o]) > tol)])
     g = np.empty(N, np.int64)
     g[o] = np.cumsum(brk) - 1
-    return g
+    return g, o
 
 
-def _classify_lines(scene, cand, p, q, group, idx, eps, out, chunk=1 << 22):
+def touches(scene, obj, side, sup, theta, u, tol):
+    """(N,) bool: object ``obj`` lies on side ``side`` (R = 1: n·x ≤ u, L = 0: n·x ≥ u) of
+    the line (θ, u) and touches it within ``tol`` at its support point ``sup`` — the
+    rule by which :func:`contacts` takes an entry to be on a degenerate line.  A circle:
+    its support value n·c ± r within tol of u; a polygon or segment: corner ``sup``
+    within tol of the line and neither neighbouring corner beyond it by more than tol
+    (by convexity the corner is then the object's extreme point in n)."""
+    nrm = np.stack([-np.sin(theta), np.cos(theta)], -1)
+    sg = 2.0 * side - 1.0  # +1: the object is on the right, its support is max n·x
+    off = np.einsum("ij,ij->i", nrm, scene.verts[sup]) + sg * scene.radius[obj] - u
+    ok = np.abs(off) <= tol
+    s, cnt = scene.vert_start[obj], scene.vert_start[obj + 1] - scene.vert_start[obj]
+    for step in (-1, 1):
+        nb = s + np.mod(sup - s + step, np.maximum(cnt, 1))
+        ok &= sg * (np.einsum("ij,ij->i", nrm, scene.verts[nb]) + sg * scene.radius[obj] - u) <= tol
+    return ok
+
+
+def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=None, chunk=1 << 21):
+    """Group candidate lines into degenerate lines, one test for every line.
+
+    theta (N,) canonical directions, p, q (N, 2) tangent points, obj, side, sup (N, 2)
+    the two objects, their sides and support points; ``seed`` (N,) bool candidates known
+    to lie on a degenerate line (the walk's ``graze``); ``pre`` the copies computed by an
+    earlier call on the same candidates (:func:`_copies`).  Returns (group (N,) int64,
+    rep (N,) bool: one member per group whose line (θ, u) stands for the group's,
+    joined (N,) bool: the group holds lines that are not copies of one another).
+
+    First the copies of one line computed from different pairs (:func:`line_groups`:
+    θ within ``TOL_THETA``, u within ``tol``).  A set of two copies or more, one running
+    along a polygon edge, or a seed, is a degenerate line ℓ; then every other candidate
+    whose two objects both touch ℓ within JOIN × ``tol`` on its sides (:func:`touches`)
+    is on ℓ too, whatever its own θ: an object lifted by a gap g ≤ tol off ℓ (a box
+    beside the ground line, a circle near a common tangent of two others) touches ℓ like
+    the others, but its tangents to their corners at distance L along ℓ tilt by g / L,
+    which can be far above ``TOL_THETA`` (near a contact, L = 2γ).  Grouping those by θ
+    alone split one degenerate line into a resolved half and a simple half.  Both tangent
+    points within JOIN × tol of ℓ bound the tilt: |sin Δθ| ≤ 2 JOIN tol / |pq|
+    (circles: within a factor 2), which prunes the pairs tested.  Candidates that join
+    one line's group merge their groups (the line's with theirs), closed under their
+    entries (:func:`_close_lines`).  A line is its largest set of copies' member with
+    the longest baseline |pq| (the best-determined direction)."""
+    N = theta.shape[0]
+    if N == 0:
+        return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
+    pre = _copies(scene, theta, p, q, obj, sup, tol) if pre is None else pre
+    chain, order, start, u, base, head = pre["chain"], pre["order"], pre["start"], pre["u"], pre["base"], pre["head"]
+    G = head.size
+    size = np.diff(start)
+    along = pre["along"] if seed is None else pre["along"] | seed
+    is_line = (size >= 2) | (np.bincount(chain, weights=along, minlength=G) > 0)
+    lines = head[is_line]
+    ua, ub = [], []
+    join = JOIN * tol
+    if lines.size:
+        # candidates that may join: those in no line of their own of 3 or more copies
+        cand = np.nonzero(size[chain] <= 2)[0]
+        lt = theta[lines]
+        o = np.argsort(lt)
+        ext_t = np.concatenate([lt[o] - math.pi, lt[o], lt[o] + math.pi])
+        ext_i = np.concatenate([lines[o]] * 3)
+        w = np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
+        lo = np.searchsorted(ext_t, theta[cand] - w, "left")
+        cnt = np.searchsorted(ext_t, theta[cand] + w, "right") - lo
+        near = cnt > 0
+        cand, lo, cnt = cand[near], lo[near], cnt[near]
+        step = max(1, chunk // max(1, int(cnt.max(initial=1))))
+        for c0 in range(0, cand.size, step):
+            cc, lc, nc = cand[c0:c0 + step], lo[c0:c0 + step], cnt[c0:c0 + step]
+            ci = np.repeat(cc, nc)
+            li = ext_i[np.repeat(lc - (np.cumsum(nc) - nc), nc) + np.arange(nc.sum())]
+            keep = chain[ci] != chain[li]
+            ci, li = ci[keep], li[keep]
+            # the candidate's sides in the line's orientation
+            flip = np.cos(theta[ci] - theta[li]) < 0
+            on = np.ones(ci.size, bool)
+            for e in (0, 1):
+                s_ = np.where(flip, 1 - side[ci, e], side[ci, e])
+                on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], join)
+            ua.append(chain[ci[on]])
+            ub.append(chain[li[on]])
+    rep = np.zeros(N, bool)
+    if not ua or not sum(a.size for a in ua):
+        rep[head] = True
+        return chain, rep, np.zeros(N, bool)
+    ua, ub = np.concatenate(ua), np.concatenate(ub)
+    comp = connected_components(coo_matrix((np.ones(ua.size), (ua, ub)), shape=(G, G)), directed=False)[1]
+    comp = _close_lines(scene, theta, obj, side, base, pre, comp.astype(np.int64), join)
+    group = comp[chain]
+    nchain = np.bincount(comp, minlength=G)
+    joined = nchain[group] >= 2
+    # the line of a joined group: its largest set of copies' (a member with a far end off
+    # the line, the lifted object's, would tilt it), then the longest baseline
+    rep[head[nchain[comp] == 1]] = True
+    mem = np.nonzero(joined)[0]
+    best = mem[np.lexsort((mem, -base[mem], -size[chain[mem]], group[mem]))]
+    rep[best[np.concatenate([[True], np.diff(group[best]) != 0])]] = True
+    return group, rep, joined
+
+
+def _copies(scene, theta, p, q, obj, sup, tol):
+    """The copies of lines among candidates (:func:`degenerate_lines`): chain (N,) their
+    set, order / start the sets' members (CSR), u, base |pq|, head (G,) each set's
+    longest-baseline member, along (N,) bool a candidate running along a polygon edge."""
+    nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
+    u = np.einsum("ij,ij->i", nrm, p)
+    chain, order = _line_chains(theta, u, tol)
+    N, G = theta.shape[0], int(chain.max(initial=-1)) + 1
+    start = np.searchsorted(chain[order], np.arange(G + 1))
+    base = np.hypot(*(q - p).T)
+    top = np.maximum.reduceat(base[order], start[:-1]) if G else np.zeros(0)
+    is_top = base[order] == top[chain[order]]
+    first = np.nonzero(is_top & np.concatenate([[True], ~is_top[:-1] | (np.diff(chain[order]) != 0)])[:N])[0]
+    head = order[first[np.diff(chain[order][first], prepend=-1) != 0]]
+    along = np.zeros(theta.shape[0], bool)
+    for e in (0, 1):
+        poly = np.nonzero(np.diff(scene.vert_start)[obj[:, e]] >= 2)[0]
+        along[poly] |= _on_edge(scene, obj[poly, e], sup[poly, e], nrm[poly], tol)
+    return dict(chain=chain, order=order, start=start, u=u, base=base, head=head, along=along)
+
+
+def near_degenerate(scene, theta, u, tol):
+    """(L,) bool: the lines (θ, u) that some object touches neither exactly (to 1e-3 tol:
+    rounding) nor clearly not (beyond 8 tol: twice the contact tolerance, as the closure
+    of a joined line reaches past the join tolerance): a near-degenerate
+    line, grouped by :func:`degenerate_lines` with candidates that a re-scan of the line
+    alone would not see (the dynamic update rebuilds a zone holding one)."""
+    out = np.zeros(np.shape(theta), bool)
+    starts = scene.vert_start[:-1]
+    for i, (t_, u_) in enumerate(zip(np.atleast_1d(theta), np.atleast_1d(u))):
+        proj = scene.verts @ np.array([-math.sin(t_), math.cos(t_)])
+        off = np.minimum(np.abs(np.maximum.reduceat(proj, starts) + scene.radius - u_),
+                         np.abs(np.minimum.reduceat(proj, starts) - scene.radius - u_))
+        out[i] = np.any((off > 1e-3 * tol) & (off <= 4.0 * JOIN * tol))
+    return out
+
+
+def _close_lines(scene, theta, obj, side, base, pre, comp, join):
+    """Labels (G,) of the sets of copies after :func:`degenerate_lines` joined them
+    (``comp``), closed under their entries: a line that joined others (rare: only
+    near-degenerate scenes) also takes every candidate of two of its entries (objects and
+    sides, in the orientation of its line) whose direction is within the window of its
+    tangent points, with that candidate's set.  The join test is not transitive — an
+    object 2.5 tol off a line ℓ may touch, within 2 tol, the line through it and an
+    entry of ℓ that a third entry grazes — so the entries a line collects through its
+    joined members bring all their common tangents along (the perturbation resolves them
+    all as one line)."""
+    chain, order, start = pre["chain"], pre["order"], pre["start"]
+    size = np.diff(start)
+    multi = np.nonzero(np.bincount(comp) >= 2)[0]
+    if multi.size == 0:
+        return comp
+    n = scene.n
+    pid = np.minimum(obj[:, 0], obj[:, 1]) * n + np.maximum(obj[:, 0], obj[:, 1])
+    porder = np.argsort(pid, kind="stable")
+    spid = pid[porder]
+    by_label = np.argsort(comp, kind="stable")  # the sets of copies of each label
+    lstart = np.searchsorted(comp[by_label], np.arange(comp.max() + 2))
+    parent = np.arange(lstart.size - 1)
+
+    def root(x):
+        while parent[x] != x:
+            x = parent[x]
+        return x
+
+    def members(labels):
+        sets = np.concatenate([by_label[lstart[h]:lstart[h + 1]] for h in labels])
+        return np.concatenate([order[start[c]:start[c + 1]] for c in sets])
+
+    for g in multi:
+        if root(g) != g:
+            continue
+        labels = [g]
+        while True:
+            mem = members(labels)
+            r = mem[np.lexsort((mem, -base[mem], -size[chain[mem]]))[0]]
+            flip = np.cos(theta[mem] - theta[r]) < 0
+            codes = np.unique(2 * obj[mem] + (side[mem] ^ flip[:, None]))
+            ob = np.unique(codes // 2)
+            i, j = np.triu_indices(ob.size, 1)
+            want = ob[i] * n + ob[j]
+            lo, hi = np.searchsorted(spid, want, "left"), np.searchsorted(spid, want, "right")
+            cnt = hi - lo
+            c = porder[np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(cnt.sum())]
+            fl = np.cos(theta[c] - theta[r]) < 0
+            ok = np.isin(2 * obj[c] + (side[c] ^ fl[:, None]), codes).all(axis=1)
+            ok &= np.abs(np.sin(theta[c] - theta[r])) <= 4.0 * join / np.maximum(base[c], 1e-300) + 2.0 * TOL_THETA
+            new = {root(h) for h in np.unique(comp[chain[c[ok]]])} - {g}
+            if not new:
+                break
+            for h in new:
+                parent[h] = g
+                labels.append(h)
+    roots = parent.copy()
+    while np.any(roots[roots] != roots):
+        roots = roots[roots]
+    return roots[comp]
+
+
+def _classify_lines(scene, cand, p, q, group, rep, idx, mask, eps, out, chunk=1 << 22):
     """Classify the candidates ``idx`` line by line, into ``out`` (the arrays of
     :func:`kernels.classify_bitangents`), with the same rules as the grid walk: blocked
     by an object cut deeper than eps between the tangent points, tail / head the nearest
-    such objects behind / beyond them."""
-    free, a_first, tail, head, tail_t, head_t, blocker = out
-    order = idx[np.argsort(group[idx], kind="stable")]
+    such objects behind / beyond them.  Each line is its representative's (``rep``,
+    :func:`degenerate_lines`; ``group``, ``rep`` and ``mask`` are given for the candidates
+    ``idx``, the candidates classified are ``idx[mask]``)."""
+    sel = np.nonzero(mask)[0]
+    if sel.size == 0:
+        return
+    order = sel[np.lexsort((~rep[sel], group[sel]))]
     bounds = np.nonzero(np.diff(group[order]))[0] + 1
-    for mem in np.split(order, bounds):
-        th = cand["theta"][mem[0]]
+    # the objects touching the line within the join tolerance are its entries (perturbed
+    # off it by resolve_degenerate), never its blockers
+    eps_line = max(eps, JOIN * line_tol(scene))
+    for line in np.split(idx[order], bounds):
+        th = cand["theta"][line[0]]
         d = np.array([math.cos(th), math.sin(th)])
-        o = p[mem[0]]
-        hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps, scene.kind, scene.vert_start, scene.verts, scene.radius)
-        tp, tq = (p[mem] - o) @ d, (q[mem] - o) @ d
-        af = tq >= tp
-        s, e = np.minimum(tp, tq), np.maximum(tp, tq)
-        a_first[mem] = af
-        step = max(1, chunk // max(1, hk.size))
-        for c0 in range(0, mem.size, step):
-            c = slice(c0, c0 + step)
-            own = (hk[None, :] == cand["a"][mem[c], None]) | (hk[None, :] == cand["b"][mem[c], None])
-            ahead = ~own & (to[None, :] > s[c, None] + eps)
-            tin = np.where(ahead, ti[None, :], np.inf)
-            j = np.argmin(tin, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
-            first = tin[np.arange(tin.shape[0]), j] if hk.size else np.full(mem[c].size, np.inf)
-            blocked = first < e[c] - eps
-            behind = ~own & (ti[None, :] < s[c, None] - eps)
-            tout = np.where(behind, to[None, :], -np.inf)
-            jt = np.argmax(tout, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
-            last = tout[np.arange(tout.shape[0]), jt] if hk.size else np.full(mem[c].size, -np.inf)
-            m_ = mem[c]
-            free[m_] = ~blocked
-            blocker[m_] = np.where(blocked, hk[j] if hk.size else -1, -1)
-            head[m_] = np.where(blocked, -2, np.where(np.isfinite(first), hk[j] if hk.size else -1, -1))
-            head_t[m_] = np.where(np.isfinite(first), first - e[c], np.inf)
-            tail[m_] = np.where(blocked, -2, np.where(np.isfinite(last), hk[jt] if hk.size else -1, -1))
-            tail_t[m_] = np.where(np.isfinite(last), s[c] - last, np.inf)
+        o = p[line[0]]
+        hk, ti, to = K.line_hits(o[0], o[1], d[0], d[1], eps_line, scene.kind, scene.vert_start, scene.verts,
+                                 scene.radius)
+        # members joined reversed (θ + π, :func:`degenerate_lines`) read the line backwards
+        rev = np.cos(cand["theta"][line] - th) < 0
+        for mem, sg, t_in, t_out in ((line[~rev], 1.0, ti, to), (line[rev], -1.0, -to, -ti)):
+            if mem.size:
+                _classify_on_line(cand, mem, sg * ((p[mem] - o) @ d), sg * ((q[mem] - o) @ d), hk, t_in, t_out, eps,
+                                  out, max(1, chunk // max(1, hk.size)))
+
+
+def _classify_on_line(cand, mem, tp, tq, hk, ti, to, eps, out, step):
+    """:func:`_classify_lines` for the members ``mem`` of one line: tp, tq their tangent
+    points' and ti, to the blockers' entry / exit parameters along the members' direction."""
+    free, a_first, tail, head, tail_t, head_t, blocker = out[:7]
+    af = tq >= tp
+    s, e = np.minimum(tp, tq), np.maximum(tp, tq)
+    a_first[mem] = af
+    for c0 in range(0, mem.size, step):
+        c = slice(c0, c0 + step)
+        own = (hk[None, :] == cand["a"][mem[c], None]) | (hk[None, :] == cand["b"][mem[c], None])
+        ahead = ~own & (to[None, :] > s[c, None] + eps)
+        tin = np.where(ahead, ti[None, :], np.inf)
+        j = np.argmin(tin, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
+        first = tin[np.arange(tin.shape[0]), j] if hk.size else np.full(mem[c].size, np.inf)
+        blocked = first < e[c] - eps
+        behind = ~own & (ti[None, :] < s[c, None] - eps)
+        tout = np.where(behind, to[None, :], -np.inf)
+        jt = np.argmax(tout, axis=1) if hk.size else np.zeros(mem[c].size, np.int64)
+        last = tout[np.arange(tout.shape[0]), jt] if hk.size else np.full(mem[c].size, -np.inf)
+        m_ = mem[c]
+        free[m_] = ~blocked
+        blocker[m_] = np.where(blocked, hk[j] if hk.size else -1, -1)
+        head[m_] = np.where(blocked, -2, np.where(np.isfinite(first), hk[j] if hk.size else -1, -1))
+        head_t[m_] = np.where(np.isfinite(first), first - e[c], np.inf)
+        tail[m_] = np.where(blocked, -2, np.where(np.isfinite(last), hk[jt] if hk.size else -1, -1))
+        tail_t[m_] = np.where(np.isfinite(last), s[c] - last, np.inf)
 
 
 def vertices_from(scene: Scene, cand: dict, cls) -> dict:
@@ -307,9 +556,12 @@ def vertices_from(scene: Scene, cand: dict, cls) -> dict:
     seg = np.concatenate([p - tt[:, None] * d, q + ht[:, None] * d], axis=1)
     seg = clip_sky_ends(scene, theta, p, q, tail[idx], head[idx], seg)
     sup = np.stack([np.where(af, va, vb), np.where(af, vb, va)], 1).astype(np.int64)
-    return dict(v_key=cand["key"][idx], v_obj=np.stack([k1, k2], 1).astype(np.int64), v_support=sup,
-                v_side=np.stack([s1, s2], 1).astype(np.int8), v_tail=tail[idx].astype(np.int64),
-                v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
+    V = dict(v_key=cand["key"][idx], v_obj=np.stack([k1, k2], 1).astype(np.int64), v_support=sup,
+             v_side=np.stack([s1, s2], 1).astype(np.int8), v_tail=tail[idx].astype(np.int64),
+             v_head=head[idx].astype(np.int64), v_theta=theta, v_p=p, v_q=q, v_length=length, v_seg=seg)
+    if len(cls) > 7:  # lines found grazing a third object (resolve_degenerate consumes it)
+        V["v_graze"] = cls[7][idx]
+    return V
 
 
 def resolve_degenerate(scene: Scene, V: dict) -> dict:
@@ -336,6 +588,7 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     edge's end that the perturbed line touches)."""
     m = V["v_key"].shape[0]
     V = dict(V)
+    seed = V.pop("v_graze", None)
     V["v_tau"] = np.zeros(m)
     if m == 0:
         return V
@@ -345,9 +598,16 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     u = np.einsum("ij,ij->i", nrm, V["v_p"])
     tol = line_tol(scene)
     # -- group by line, then by (tail, head): one maximal free segment each
-    gline = line_groups(th, u, tol)
+    gline, rep, joined = degenerate_lines(scene, th, V["v_p"], V["v_q"], V["v_obj"],
+                                          V["v_side"].astype(np.int64), V["v_support"], tol, seed)
+    line_th = np.empty(int(gline.max()) + 1)
+    line_th[gline[rep]] = th[rep]
+    line_th = np.where(joined, line_th[gline], th)
+    # a member joined reversed (θ ≈ the line's θ + π) has its tail and head swapped
+    rev = np.cos(th - line_th) < 0
+    tail, head = np.where(rev, V["v_head"], V["v_tail"]), np.where(rev, V["v_tail"], V["v_head"])
     n1 = scene.n + 1
-    _, group = np.unique((gline * n1 + V["v_tail"] + 1) * n1 + V["v_head"] + 1, return_inverse=True)
+    _, group = np.unique((gline * n1 + tail + 1) * n1 + head + 1, return_inverse=True)
     group = group.ravel()
     size = np.bincount(group)
     need = size[group] >= 2
@@ -355,11 +615,15 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     need |= _on_edge(scene, V["v_obj"][:, 1], V["v_support"][:, 1], nrm, tol)
     keep = np.ones(m, bool)
     gids = np.unique(group[need])
-    members_of = np.split(np.argsort(group, kind="stable"), np.cumsum(size)[:-1])
+    # members of each segment, the first giving its θ, tail, head and ends: of a set of
+    # copies the lowest key (as an update's re-scan of the line takes it), of a line that
+    # joined others the longest baseline, in the direction of its representative
+    order = np.lexsort((np.arange(m), np.where(joined, -np.abs(V["v_length"]), 0.0), group))
+    members_of = np.split(order, np.cumsum(size)[:-1])
     for g in gids:
         idx = members_of[g]
         keep[idx] = False
-        at, fields = _resolve_line(scene, V, idx, tol)
+        at, fields = _resolve_line(scene, V, idx, line_th[idx[0]], rev, tol)
         keep[at] = True
         for name, val in fields.items():
             V[name][at] = val
@@ -402,14 +666,16 @@ def contacts(scene, codes, d, n, tol):
     return pos[ia], pos[ib], vid[ia], vid[ib], pts[ia], pts[ib]
 
 
-def _resolve_line(scene, V, idx, tol):
+def _resolve_line(scene, V, idx, th, rev, tol):
     """Rows (vertex index, {field: value}) of the perturbed vertices of one degenerate
-    line (see :func:`resolve_degenerate`): its members ``idx`` (vertex indices, the first
-    one giving θ, tail, head and the segment's ends)."""
-    th = float(V["v_theta"][idx[0]])
-    ent = np.unique(np.concatenate([V["v_obj"][idx] * 2 + V["v_side"][idx]]).ravel())
+    line of direction θ (see :func:`resolve_degenerate`): its members ``idx`` (vertex
+    indices, the first one giving the tail, head and the segment's ends), ``rev`` (m,)
+    bool the vertices that run the other way (θ + π: their ends and sides swap)."""
+    r = rev[idx]
+    obj, sd = V["v_obj"][idx], V["v_side"][idx].astype(np.int64)
+    ends = np.where(r[:, None], 2 * obj[:, ::-1] + 1 - sd[:, ::-1], 2 * obj + sd)
+    ent = np.unique(ends.ravel())
     n2 = 2 * scene.n  # members by objects and sides (four per pair along a segment)
-    ends = V["v_obj"][idx] * 2 + V["v_side"][idx]
     mkey = ends[:, 0] * n2 + ends[:, 1]
     mo = np.argsort(mkey)
     mkey, midx = mkey[mo], idx[mo]
@@ -419,8 +685,10 @@ def _resolve_line(scene, V, idx, tol):
         at = np.minimum(np.searchsorted(mkey, key), mkey.size - 1)
         return np.where(mkey[at] == key, midx[at], -1)
 
-    return resolve_entries(scene, ent, th, int(V["v_tail"][idx[0]]), int(V["v_head"][idx[0]]),
-                           V["v_seg"][idx[0], :2], V["v_seg"][idx[0], 2:], tol, member)
+    i0 = idx[0]
+    T, H = (V["v_head"][i0], V["v_tail"][i0]) if r[0] else (V["v_tail"][i0], V["v_head"][i0])
+    seg0, seg1 = (V["v_seg"][i0, 2:], V["v_seg"][i0, :2]) if r[0] else (V["v_seg"][i0, :2], V["v_seg"][i0, 2:])
+    return resolve_entries(scene, ent, float(th), int(T), int(H), seg0, seg1, tol, member)
 
 
 def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
@@ -472,7 +740,8 @@ def resolve_entries(scene, ent, th, T, H, seg0, seg1, tol, member):
     # the scene box changes (the first member's, within the line tolerance of the line,
     # gave ends 1e-8 apart)
     seg = clip_sky_ends(scene, np.full(pi.size, th), p, q, tail, head, np.concatenate([start, end], 1))
-    fields = dict(v_theta=np.full(pi.size, th), v_tau=tau, v_tail=tail, v_head=head,
+    fields = dict(v_obj=np.stack([obj[pi], obj[pj]], 1), v_side=np.stack([ent[pi] % 2, ent[pj] % 2], 1).astype(np.int8),
+                  v_theta=np.full(pi.size, th), v_tau=tau, v_tail=tail, v_head=head,
                   v_support=np.stack([np.where(ib, jb[pi], ja[pi]), np.where(jb_, jb[pj], ja[pj])], 1), v_p=p, v_q=q,
                   v_length=(q[:, 0] - p[:, 0]) * d[0] + (q[:, 1] - p[:, 1]) * d[1], v_seg=seg)
     # the offsets order the vertices along each curve: they must differ on one curve

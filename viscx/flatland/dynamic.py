@@ -299,6 +299,8 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
     deg = (retest_v | own_v) & (V_old["v_tau"] != 0.0)
     lines_th, lines_u = _distinct_lines(np.concatenate([th[deg], reg_th[reg_near]]),
                                         np.concatenate([u[deg], reg_u[reg_near]]), tol)
+    if np.any(C.near_degenerate(work_new, lines_th, lines_u, tol)):  # issue #25: grouped beyond the line alone
+        raise ViscxError("a near-degenerate line in the zone (an object within the tolerance of it)")
     on_line = _on_lines(th, u, lines_th, lines_u, tol)
     retest_v |= on_line & ~own_v
     if cx.blockers is not None:
@@ -327,6 +329,8 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
     todo = np.isin(cand["a"], came) | np.isin(cand["b"], came) | np.isin(cand["key"], redo)
     grid = K.build_grid(work_new.bounding_boxes())
     cls = C.classify(work_new, cand, cx.eps, todo=todo, grid=grid)
+    if np.any(cls[7] & cls[0] & todo):  # a near-degenerate line: its group reaches beyond the zone
+        raise ViscxError("a near-degenerate line in the zone (a line within the tolerance of a third object)")
     fresh = C.vertices_from(work_new, cand, cls)
     if lines_th.size:  # the degenerate lines are re-scanned whole, not from their candidates
         fth = fresh["v_theta"]

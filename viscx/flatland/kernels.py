@@ -140,6 +140,20 @@ def depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius):
     return min(u - (lo - r), (hi + r) - u)
 
 
+@nb.njit(cache=True)
+def touch_param(k, ox, oy, dx, dy, vert_start, verts):
+    """Parameter t along the line o + t d of the support point of object k nearest the
+    line (a circle: its centre's foot), where a line grazing k touches it."""
+    nx, ny = -dy, dx
+    u = nx * ox + ny * oy
+    best, t = np.inf, 0.0
+    for i in range(vert_start[k], vert_start[k + 1]):
+        off = abs(nx * verts[i, 0] + ny * verts[i, 1] - u)
+        if off < best:
+            best, t = off, dx * (verts[i, 0] - ox) + dy * (verts[i, 1] - oy)
+    return t
+
+
 # ----------------------------------------------------------------------------- grid
 def build_grid(bboxes, target_per_cell=2.0):
     """A uniform grid over the objects' bounding boxes (CSR cell → objects).
@@ -157,6 +171,9 @@ def build_grid(bboxes, target_per_cell=2.0):
     lo = bboxes[:, :2].min(axis=0)
     hi = bboxes[:, 2:].max(axis=0)
     ext = np.maximum(hi - lo, 1e-12)
+    # every box padded by 1e-8 of the extent (above the 1e-9 line tolerance): a line passing
+    # within the tolerance of an object visits one of its cells (first_hit's grazing test)
+    bboxes = bboxes + 1e-8 * ext.max() * np.array([-1.0, -1.0, 1.0, 1.0])
     lo = lo - 1e-6 * ext.max()
     ext = ext + 2e-6 * ext.max()
     ncell = max(1.0, n / target_per_cell)
@@ -183,8 +200,13 @@ def build_grid(bboxes, target_per_cell=2.0):
 
 @nb.njit(cache=True)
 def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
-              origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius):
+              origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius, tol, graze):
     """First object crossed by the ray o + t d, t > 0 (objects skip1, skip2 ignored).
+
+    ``graze`` (1,) float64: lowered to the parameter t > 0 of every object visited that
+    the ray passes without blocking within ``tol`` of touching it, but not touching it to
+    rounding (depth in [−tol, eps], |depth| > 1e-3 tol: a third object near the line;
+    one on it makes the pairs' candidates copies of the line, grouped as such).
 
     Walks the grid cells along the ray (Amanatides–Woo).  An object counts when the line
     cuts deeper than ``eps`` into it (:func:`depth`; grazing contacts are not hits) and it
@@ -239,8 +261,13 @@ def first_hit(ox, oy, dx, dy, skip1, skip2, limit, eps, stamp, stamp_id,
             if k == skip1 or k == skip2 or stamp[k] == stamp_id:
                 continue
             stamp[k] = stamp_id
-            if depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius) <= eps:
-                continue  # a line touching k (a corner, an edge, a tangent circle) passes it
+            dep = depth(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
+            if dep <= eps:  # a line touching k (a corner, an edge, a tangent circle) passes it
+                if dep >= -tol and abs(dep) > 1e-3 * tol:  # (touching to rounding: a copy of the line)
+                    tg = touch_param(k, ox, oy, dx, dy, vert_start, verts)
+                    if 0.0 < tg < graze[0]:
+                        graze[0] = tg
+                continue
             tin, tout = chord(k, ox, oy, dx, dy, kind, vert_start, verts, radius)
             if tout > eps:
                 if tin < best_t:
@@ -399,7 +426,7 @@ def all_bitangents(pa, pb, vert_start, verts, radius, A, tol):
 
 
 @nb.njit(cache=True)
-def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, shape, cell_start,
+def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, tol, origin, cell, shape, cell_start,
                         cell_items, kind, vert_start, verts, radius):
     """For each candidate i with todo[i]: is the bitangent segment free, and which objects
     end its maximal free segment?
@@ -412,8 +439,12 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
     Returns free (bool), first (which of a/b is first along d: 0 → a), tail, head,
     tail_t, head_t (distance from the first/second tangent point to the blocker), blocker
     (an object cutting the segment of a blocked candidate, −1 if free: the dynamic update
-    re-tests a blocked candidate only when its blocker moves)."""
+    re-tests a blocked candidate only when its blocker moves), graze (a free candidate
+    whose maximal free segment passes within ``tol`` of touching a third object: a
+    degenerate line up to the tolerance, see complex.degenerate_lines)."""
     N = theta.shape[0]
+    graze = np.zeros(N, np.bool_)
+    g = np.empty(1)
     free = np.zeros(N, np.bool_)
     a_first = np.zeros(N, np.bool_)
     tail = np.full(N, -2, np.int64)
@@ -443,20 +474,24 @@ def classify_bitangents(theta, oa, ob, sa, sb, va, vb, todo, eps, origin, cell, 
         else:
             a_first[i] = True
         sid += 1
+        g[0] = np.inf
         k, t = first_hit(px, py, dx, dy, oa[i], ob[i], L - eps, eps, stamp, sid,
-                         origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
+                         origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius, tol, g)
         if k >= 0 and t < L - eps:
             blocker[i] = k
             continue
         free[i] = True
         head[i] = k
         head_t[i] = t - L if k >= 0 else np.inf
+        graze[i] = g[0] < (t if k >= 0 else np.inf)
         sid += 1
+        g[0] = np.inf
         k2, t2 = first_hit(px, py, -dx, -dy, oa[i], ob[i], -np.inf, eps, stamp, sid,
-                           origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius)
+                           origin, cell, shape, cell_start, cell_items, kind, vert_start, verts, radius, tol, g)
         tail[i] = k2
         tail_t[i] = t2 if k2 >= 0 else np.inf
-    return free, a_first, tail, head, tail_t, head_t, blocker
+        graze[i] |= g[0] < (t2 if k2 >= 0 else np.inf)
+    return free, a_first, tail, head, tail_t, head_t, blocker, graze
 
 
 @nb.njit(cache=True)

@@ -38,6 +38,11 @@ CIRCLE, POLYGON, SEGMENT = 0, 1, 2
 # 1e-9 line tolerance of the complex, far below any feature of a real layout (the build
 # tries complex.OPEN_RELS in turn)
 OPEN_REL = 1e-6
+# two objects closer than this (× the scene diagonal) touch (check_disjoint): 4 × the line
+# tolerance of the complex (complex.TOL_U, complex.JOIN), so that objects that touch one
+# degenerate line within the tolerance on its two sides, overlapping along it, are a
+# contact (opened by a gap γ), never two entries of one line at one point
+CONTACT_TOL = 4e-9
 TWO_PI = 2.0 * math.pi
 
 
@@ -487,9 +492,7 @@ def _convex_ccw(p, name, eps=1e-12):
 
 
 def _sat_eps(scene, eps):
-    bb = scene.bounding_boxes()
-    scale = max(np.ptp(bb[:, [0, 2]]), np.ptp(bb[:, [1, 3]]), 1e-300)
-    return 1e-9 * scale if eps is None else eps
+    return CONTACT_TOL * max(scene.diagonal(), 1e-300) if eps is None else eps
 
 
 def check_disjoint(scene: Scene, eps=None) -> np.ndarray:

@@ -82,3 +82,31 @@ def viscx_in_process(*args, text=True):
             code = exc.code
     out, err = out.buffer.getvalue(), err.buffer.getvalue()
     return subprocess.CompletedProcess(args, code, out.decode() if text else out, err.decode() if text else err)
+
+
+#: ``VISCX_TEST_CPU=path``: write the CPU seconds (user + system, of the test process and the
+#: subprocesses it waited for) of each test's set-up, call and tear-down to ``path`` as
+#: tab-separated lines ``nodeid  seconds`` (one file per pytest-xdist worker: ``path.gw0``, …).
+#: Wall-clock ``--durations`` mislead on a shared machine; this is what a test costs the suite.
+CPU_LOG = os.environ.get("VISCX_TEST_CPU")
+
+
+def _cpu_seconds():
+    import resource
+
+    return sum(r.ru_utime + r.ru_stime for r in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)))
+
+
+if CPU_LOG:
+    _CPU = {}
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        start = _cpu_seconds()
+        yield
+        _CPU[item.nodeid] = _CPU.get(item.nodeid, 0.0) + _cpu_seconds() - start
+
+    def pytest_sessionfinish(session):
+        worker = os.environ.get("PYTEST_XDIST_WORKER")
+        with open(f"{CPU_LOG}.{worker}" if worker else CPU_LOG, "w") as log:
+            log.writelines(f"{nodeid}\t{seconds:.3f}\n" for nodeid, seconds in _CPU.items())

@@ -102,6 +102,36 @@ def test_build_levels_out_of_range(tmp_path, capsys):
     assert not (tmp_path / "t.h5").exists()
 
 
+def test_main_restores_what_it_installs(capsys):
+    """``main`` turns signals into exceptions, hides their swallowed exceptions and ignores
+    RuntimeWarnings while a command runs, and gives the caller (a notebook, a test) its own
+    back afterwards, also when the command fails."""
+    import signal
+    import warnings
+
+    def hook(info):
+        pass
+
+    def handler(signum, frame):
+        pass
+
+    before = {signal.SIGINT: signal.getsignal(signal.SIGINT)}
+    unraisablehook = sys.unraisablehook
+    try:
+        sys.unraisablehook = hook
+        signal.signal(signal.SIGTERM, handler)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            filters = list(warnings.filters)
+            for argv in (["--help"], ["build"], ["info", "/nonexistent/x.h5"]):
+                run(argv, capsys)
+                assert signal.getsignal(signal.SIGTERM) is handler and signal.getsignal(signal.SIGINT) is before[signal.SIGINT]
+                assert sys.unraisablehook is hook and warnings.filters == filters, argv
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        sys.unraisablehook = unraisablehook
+
+
 def test_help_imports_no_numeric_library():
     """``viscx --help`` and ``viscx build --help`` list the commands and options without
     importing numpy, numba, scipy, h5py, trimesh or embree (0.8 -> 0.1 CPU s for --help)."""

@@ -12,6 +12,7 @@ import importlib
 import os
 import signal
 import sys
+import threading
 import warnings
 
 import click
@@ -102,14 +103,35 @@ def _fail(message, code):
 
 
 def main(argv=None):
-    """Entry point of the ``viscx`` console script; returns via ``sys.exit``."""
+    """Entry point of the ``viscx`` console script; returns via ``sys.exit``.
+
+    While it runs, SIGTERM and SIGINT become exceptions (so that a command's clean-up runs),
+    a signal's exception swallowed in a ``__del__`` is not reported, and RuntimeWarnings are
+    ignored; all three are restored on the way out, so that a process that calls it (a
+    notebook, a test through click's runner) keeps its own. Signal handlers can only be set
+    from the main thread: elsewhere the command runs with the caller's.
+    """
     received_signals.clear()
     clear_inputs()
-    signal.signal(signal.SIGTERM, _on_signal)
-    signal.signal(signal.SIGINT, _on_signal)
-    sys.unraisablehook = _unraisable
-    # numeric warnings are not messages for a person: errors are reported as such
-    warnings.simplefilter("ignore", RuntimeWarning)
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        handlers = {signum: signal.signal(signum, _on_signal) for signum in (signal.SIGTERM, signal.SIGINT)}
+    unraisablehook, sys.unraisablehook = sys.unraisablehook, _unraisable
+    try:
+        with warnings.catch_warnings():
+            # numeric warnings are not messages for a person: errors are reported as such
+            warnings.simplefilter("ignore", RuntimeWarning)
+            code = _run(argv)
+    finally:
+        sys.unraisablehook = unraisablehook
+        for signum, handler in handlers.items():
+            if handler is not None:  # None: set outside Python, cannot be set back from it
+                signal.signal(signum, handler)
+    sys.exit(code)
+
+
+def _run(argv):
+    """Run the command line ``argv``; its exit status (reporting an error on stderr)."""
     try:
         # without standalone mode click returns ctx.exit()'s code instead of raising
         returned = cli.main(args=argv, prog_name="viscx", standalone_mode=False)
@@ -141,4 +163,4 @@ def main(argv=None):
         code = 143 if received_signals[0] == signal.SIGTERM else 130
     if code in (130, 143):
         _fail("terminated" if code == 143 else "interrupted", code)
-    sys.exit(code)
+    return code

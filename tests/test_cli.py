@@ -141,3 +141,15 @@ def test_help_imports_no_numeric_library():
                  f"print([m for m in {heavy!r} if m in sys.modules])"
         done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
         assert done.stdout.splitlines()[-1] == "[]", (argv, done.stdout[-300:], done.stderr)
+
+
+def test_commands_run_with_one_blas_thread_unless_told():
+    """The console script sets OPENBLAS_NUM_THREADS=1 before numpy loads (its threads spin
+    on viscx's small products), and keeps a value the user set."""
+    import os
+
+    script = "import sys, os, viscx.__main__; print(os.environ['OPENBLAS_NUM_THREADS'], 'numpy' in sys.modules)"
+    for given, expected in ((None, "1 False"), ("3", "3 False")):
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | ({"OPENBLAS_NUM_THREADS": given} if given else {})
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
+        assert done.stdout.strip() == expected, done.stderr

@@ -21,6 +21,14 @@ from viscx import __version__
 from viscx.errors import ViscxError
 from viscx.formats.atomic import clear_inputs, received_signals
 
+# One BLAS thread for a command unless the user chose otherwise (read when numpy is first
+# imported: by the commands, after this). viscx's BLAS calls are small products (points times a
+# direction, `points @ u`), which gain nothing from threads; OpenBLAS's threads spin while they
+# wait for the next one: `viscx render --samples 500` of the Cornell box (256 x 256) took
+# 3.4-10.8 CPU s with them and 1.9 without (shared machine), and they take a busy machine's
+# cores from other work. Its dense algebra is batches of 3 x 4 SVDs, one thread each anyway.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 # name -> "module:attribute", in the order `viscx --help` lists them.
 COMMANDS = {
     "build": "viscx.cli.build:build",

@@ -153,3 +153,31 @@ def test_commands_run_with_one_blas_thread_unless_told():
         env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | ({"OPENBLAS_NUM_THREADS": given} if given else {})
         done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
         assert done.stdout.strip() == expected, done.stderr
+
+
+def test_a_signal_waits_for_numba_to_let_go_of_its_compiler_lock():
+    """A signal that arrives while numba compiles or loads a kernel (it holds its compiler
+    lock) is raised when numba releases the lock, not inside it, where it would leave the
+    kernel half loaded (a crash later, seen under load); elsewhere it is raised at once."""
+    import signal
+
+    from numba.core.compiler_lock import global_compiler_lock
+
+    from viscx.cli import Terminated, _on_signal
+    from viscx.formats.atomic import received_signals
+
+    try:
+        for signum, exception in ((signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, Terminated)):
+            with pytest.raises(exception):
+                _on_signal(signum, None)
+            reached = False
+            with pytest.raises(exception):
+                with global_compiler_lock:
+                    with global_compiler_lock:  # re-entrant: only the outermost release raises
+                        _on_signal(signum, None)
+                    reached = True
+            assert reached and not global_compiler_lock.is_locked()
+            with global_compiler_lock:  # nothing left pending
+                pass
+    finally:
+        received_signals.clear()

@@ -95,7 +95,50 @@ class Terminated(BaseException):
 
 def _on_signal(signum, frame):
     received_signals.append(signum)
-    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    if _numba_busy():
+        _defer(signum)
+    else:
+        raise _exception(signum)
+
+
+def _exception(signum):
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _numba_busy():
+    """Whether this thread holds numba's compiler lock: it is compiling a kernel or loading
+    one from its cache. An exception raised in there can leave a kernel half loaded, and
+    the process then crashes when it calls the kernel, not at the signal (seen under load:
+    SIGINT while the scene stage's kernels loaded, a segfault in a kernel after SIGTERM)."""
+    lock = sys.modules.get("numba.core.compiler_lock")  # not imported: no kernel yet
+    return lock is not None and lock.global_compiler_lock.is_locked()
+
+
+#: signals received while numba held its compiler lock, raised when it lets go of it;
+#: and the listener that does so, registered with numba once
+_deferred = []
+_release_listener = []
+
+
+def _defer(signum):
+    """Raise ``signum``'s exception when numba releases its compiler lock (the release
+    announces the end of a ``numba:compiler_lock`` event): the kernel is then whole."""
+    from numba.core import event
+
+    class Release(event.Listener):
+        def on_start(self, ev):
+            pass
+
+        def on_end(self, ev):
+            if _deferred and not _numba_busy():  # the outermost release (the lock is re-entrant)
+                signum = _deferred[0]
+                _deferred.clear()
+                raise _exception(signum)
+
+    if not _release_listener:
+        _release_listener.append(Release())
+        event.register("numba:compiler_lock", _release_listener[0])
+    _deferred.append(signum)
 
 
 def _unraisable(info):
@@ -120,6 +163,7 @@ def main(argv=None):
     from the main thread: elsewhere the command runs with the caller's.
     """
     received_signals.clear()
+    _deferred.clear()
     clear_inputs()
     handlers = {}
     if threading.current_thread() is threading.main_thread():

@@ -47,9 +47,13 @@ def test_usage_error_is_one_line_exit_2(capsys):
 
 
 def test_console_script_end_to_end(tmp_path):
+    """The console script's entry point in a process of its own: its arguments from sys.argv,
+    a build written, its summary printed, exit 0 (the scene level: the levels above it are
+    built in-process by tests/test_golden.py, and by a real process there too)."""
     out = tmp_path / "t.h5"
     done = subprocess.run(
-        [sys.executable, "-c", "from viscx.cli import main; main()", "build", str(SAMPLES / "tetrahedra.obj"), "-o", str(out)],
+        [sys.executable, "-c", "from viscx.cli import main; main()", "build", str(SAMPLES / "tetrahedra.obj"),
+         "--levels", "-1", "-o", str(out)],
         capture_output=True,
         text=True,
     )

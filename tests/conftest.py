@@ -10,6 +10,11 @@ from pathlib import Path
 # beside make test's other worker they only took its CPU (shared machine: test_render.py 22.8
 # -> 13.1 CPU s, the 512 x 512 sparse render 2.7-8.8 -> 0.6 s; V0-V2 builds unchanged).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# Idle OpenMP threads (numba's threading layer here, for its parallel kernels) sleep instead of
+# spinning: spinning only took the other worker's core (shared machine: test_buildings' door and
+# T-junction tests 15.8 -> 12.7 CPU s, test_vcells' random scenes 12.4 -> 11.6; the results
+# do not depend on it).
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numpy as np  # noqa: E402
 import pytest
@@ -82,3 +87,31 @@ def viscx_in_process(*args, text=True):
             code = exc.code
     out, err = out.buffer.getvalue(), err.buffer.getvalue()
     return subprocess.CompletedProcess(args, code, out.decode() if text else out, err.decode() if text else err)
+
+
+#: ``VISCX_TEST_CPU=path``: write the CPU seconds (user + system, of the test process and the
+#: subprocesses it waited for) of each test's set-up, call and tear-down to ``path`` as
+#: tab-separated lines ``nodeid  seconds`` (one file per pytest-xdist worker: ``path.gw0``, …).
+#: Wall-clock ``--durations`` mislead on a shared machine; this is what a test costs the suite.
+CPU_LOG = os.environ.get("VISCX_TEST_CPU")
+
+
+def _cpu_seconds():
+    import resource
+
+    return sum(r.ru_utime + r.ru_stime for r in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)))
+
+
+if CPU_LOG:
+    _CPU = {}
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        start = _cpu_seconds()
+        yield
+        _CPU[item.nodeid] = _CPU.get(item.nodeid, 0.0) + _cpu_seconds() - start
+
+    def pytest_sessionfinish(session):
+        worker = os.environ.get("PYTEST_XDIST_WORKER")
+        with open(f"{CPU_LOG}.{worker}" if worker else CPU_LOG, "w") as log:
+            log.writelines(f"{nodeid}\t{seconds:.3f}\n" for nodeid, seconds in _CPU.items())

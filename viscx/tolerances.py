@@ -167,3 +167,13 @@ SQUARE_COVER_TOLERANCE = 1e-6
 CHORD_TOLERANCE = 10.0
 #: Split points of one receiver closer than this many epsilons are one vertex.
 SPLIT_SNAP = 10.0
+
+# --------------------------------------------------------------------------------------
+# files (viscx.formats.diff, ``viscx diff``)
+
+#: Default relative tolerance of ``viscx diff`` for float values.
+DEFAULT_RTOL = 1e-9
+#: Default absolute tolerance of ``viscx diff`` for float values: a floor for values that
+#: should be zero (normal components, offsets of planes through the origin) and come out as
+#: ±1e-17 on another machine. Use 0 for scenes in tiny units.
+DEFAULT_ATOL = 1e-12

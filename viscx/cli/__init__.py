@@ -12,6 +12,7 @@ import importlib
 import os
 import signal
 import sys
+import threading
 import warnings
 
 import click
@@ -19,6 +20,14 @@ import click
 from viscx import __version__
 from viscx.errors import ViscxError
 from viscx.formats.atomic import clear_inputs, received_signals
+
+# One BLAS thread for a command unless the user chose otherwise (read when numpy is first
+# imported: by the commands, after this). viscx's BLAS calls are small products (points times a
+# direction, `points @ u`), which gain nothing from threads; OpenBLAS's threads spin while they
+# wait for the next one: `viscx render --samples 500` of the Cornell box (256 x 256) took
+# 3.4-10.8 CPU s with them and 1.9 without (shared machine), and they take a busy machine's
+# cores from other work. Its dense algebra is batches of 3 x 4 SVDs, one thread each anyway.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 # name -> "module:attribute", in the order `viscx --help` lists them.
 COMMANDS = {
@@ -32,6 +41,8 @@ COMMANDS = {
     "flatland": "viscx.cli.flatland:flatland",
 }
 
+HELP_OPTIONS = ["-h", "--help"]
+
 
 class LazyGroup(click.Group):
     """A click group whose subcommands are imported on first use."""
@@ -43,6 +54,10 @@ class LazyGroup(click.Group):
     def list_commands(self, ctx):
         return list(self.lazy_commands) + sorted(self.commands)
 
+    def parse_args(self, ctx, args):
+        ctx.meta["viscx.help"] = bool(set(args) & set(HELP_OPTIONS))  # a command's --help: nothing runs
+        return super().parse_args(ctx, args)
+
     def get_command(self, ctx, name):
         if name in self.lazy_commands:
             from viscx.cli.options import guard_outputs
@@ -52,7 +67,7 @@ class LazyGroup(click.Group):
         return super().get_command(ctx, name)
 
 
-@click.group(cls=LazyGroup, lazy_commands=COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, lazy_commands=COMMANDS, context_settings={"help_option_names": HELP_OPTIONS})
 @click.version_option(__version__, prog_name="viscx")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars and no chatter; results and errors only.")
 @click.pass_context
@@ -65,7 +80,9 @@ def cli(ctx, quiet):
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
-    if ctx.invoked_subcommand is not None:  # a command that may compile numba kernels: say so when it does
+    # a command that may compile numba kernels: say so when it does (not for its --help, which
+    # then needs no numba import: 0.8 -> 0.1 CPU s)
+    if ctx.invoked_subcommand is not None and not ctx.meta["viscx.help"]:
         from viscx.progress import report_compilation
 
         report_compilation(not quiet)
@@ -78,7 +95,50 @@ class Terminated(BaseException):
 
 def _on_signal(signum, frame):
     received_signals.append(signum)
-    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    if _numba_busy():
+        _defer(signum)
+    else:
+        raise _exception(signum)
+
+
+def _exception(signum):
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _numba_busy():
+    """Whether this thread holds numba's compiler lock: it is compiling a kernel or loading
+    one from its cache. An exception raised in there can leave a kernel half loaded, and
+    the process then crashes when it calls the kernel, not at the signal (seen under load:
+    SIGINT while the scene stage's kernels loaded, a segfault in a kernel after SIGTERM)."""
+    lock = sys.modules.get("numba.core.compiler_lock")  # not imported: no kernel yet
+    return lock is not None and lock.global_compiler_lock.is_locked()
+
+
+#: signals received while numba held its compiler lock, raised when it lets go of it;
+#: and the listener that does so, registered with numba once
+_deferred = []
+_release_listener = []
+
+
+def _defer(signum):
+    """Raise ``signum``'s exception when numba releases its compiler lock (the release
+    announces the end of a ``numba:compiler_lock`` event): the kernel is then whole."""
+    from numba.core import event
+
+    class Release(event.Listener):
+        def on_start(self, ev):
+            pass
+
+        def on_end(self, ev):
+            if _deferred and not _numba_busy():  # the outermost release (the lock is re-entrant)
+                signum = _deferred[0]
+                _deferred.clear()
+                raise _exception(signum)
+
+    if not _release_listener:
+        _release_listener.append(Release())
+        event.register("numba:compiler_lock", _release_listener[0])
+    _deferred.append(signum)
 
 
 def _unraisable(info):
@@ -94,14 +154,36 @@ def _fail(message, code):
 
 
 def main(argv=None):
-    """Entry point of the ``viscx`` console script; returns via ``sys.exit``."""
+    """Entry point of the ``viscx`` console script; returns via ``sys.exit``.
+
+    While it runs, SIGTERM and SIGINT become exceptions (so that a command's clean-up runs),
+    a signal's exception swallowed in a ``__del__`` is not reported, and RuntimeWarnings are
+    ignored; all three are restored on the way out, so that a process that calls it (a
+    notebook, a test through click's runner) keeps its own. Signal handlers can only be set
+    from the main thread: elsewhere the command runs with the caller's.
+    """
     received_signals.clear()
+    _deferred.clear()
     clear_inputs()
-    signal.signal(signal.SIGTERM, _on_signal)
-    signal.signal(signal.SIGINT, _on_signal)
-    sys.unraisablehook = _unraisable
-    # numeric warnings are not messages for a person: errors are reported as such
-    warnings.simplefilter("ignore", RuntimeWarning)
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        handlers = {signum: signal.signal(signum, _on_signal) for signum in (signal.SIGTERM, signal.SIGINT)}
+    unraisablehook, sys.unraisablehook = sys.unraisablehook, _unraisable
+    try:
+        with warnings.catch_warnings():
+            # numeric warnings are not messages for a person: errors are reported as such
+            warnings.simplefilter("ignore", RuntimeWarning)
+            code = _run(argv)
+    finally:
+        sys.unraisablehook = unraisablehook
+        for signum, handler in handlers.items():
+            if handler is not None:  # None: set outside Python, cannot be set back from it
+                signal.signal(signum, handler)
+    sys.exit(code)
+
+
+def _run(argv):
+    """Run the command line ``argv``; its exit status (reporting an error on stderr)."""
     try:
         # without standalone mode click returns ctx.exit()'s code instead of raising
         returned = cli.main(args=argv, prog_name="viscx", standalone_mode=False)
@@ -133,4 +215,4 @@ def main(argv=None):
         code = 143 if received_signals[0] == signal.SIGTERM else 130
     if code in (130, 143):
         _fail("terminated" if code == 143 else "interrupted", code)
-    sys.exit(code)
+    return code

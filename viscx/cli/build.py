@@ -6,8 +6,8 @@ from pathlib import Path
 import click
 
 from viscx.cli.options import epsilon_option, light_options, output_option, point_option, quiet, relative_epsilon_option
-from viscx.formats.hdf5 import COMPRESSIONS, DEFAULT_COMPRESSION
-from viscx.scene import DEFAULT_WELD
+from viscx.formats.compression import COMPRESSIONS, DEFAULT_COMPRESSION
+from viscx.tolerances import DEFAULT_WELD
 
 
 @click.command(short_help="Build the visibility complex of a scene into an HDF5 file.")

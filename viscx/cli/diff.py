@@ -2,7 +2,7 @@
 
 import click
 
-from viscx.formats.diff import DEFAULT_ATOL, DEFAULT_RTOL
+from viscx.tolerances import DEFAULT_ATOL, DEFAULT_RTOL
 
 
 @click.command(short_help="Compare two viscx files level by level (exit 1 when they differ).")

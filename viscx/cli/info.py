@@ -3,11 +3,12 @@
 import json
 
 import click
-import numpy as np
 
 
 def file_summary(path):
     """Counts per level, options and timings of a viscx file, as a dict."""
+    import numpy as np  # here, not at the top: `viscx --help` lists this command without numpy
+
     from viscx.formats.hdf5 import ViscxFile
 
     with ViscxFile(path) as f:
@@ -54,6 +55,7 @@ def completeness(counts):
 
 def scene_counts(scene):
     """Counts of the scene level."""
+    import numpy as np
     return {
         "vertices": scene.n_vertices,
         "faces": scene.n_faces,
@@ -70,6 +72,7 @@ def level_counts(group, epsilon):
     """Counts of a skeleton level: those it stores (attribute ``counts``), by kind where the
     level says its kinds, else rows per dataset; for V0 also its *sites*, the nodes merged
     within epsilon (:mod:`viscx.skeleton.sites`)."""
+    import numpy as np
     if "counts" in group.attrs:
         return {name: int(value) for name, value in json.loads(group.attrs["counts"]).items()}
     if "kind" in group and "kinds" in group.attrs:

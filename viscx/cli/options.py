@@ -4,7 +4,7 @@ import functools
 
 import click
 
-from viscx.scene import DEFAULT_WELD
+from viscx.tolerances import DEFAULT_WELD
 
 #: the names commands give their input files' arguments
 INPUT_ARGUMENTS = ("file", "scene_file", "file_a", "file_b")

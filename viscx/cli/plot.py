@@ -1,7 +1,6 @@
 """``viscx plot``: pictures of a viscx file (needs the ``plot`` extra: matplotlib)."""
 
 import click
-import numpy as np
 
 from viscx.cli.options import output_option
 from viscx.errors import ViscxError
@@ -70,6 +69,8 @@ def eecell(file, edges, output, size):
     viscx build sample_scenes/tetrahedra.obj -o tetra.h5
     viscx plot eecell tetra.h5 --edges 2 7 -o tetra_2_7.png
     """
+    import numpy as np  # here, not at the top: `viscx --help` lists this command without numpy
+
     from viscx.formats.hdf5 import ViscxFile, read_arcs, read_eecells
     from viscx.plot.eecell_square import plot_eecells
     from viscx.skeleton.eecells import skew_pairs

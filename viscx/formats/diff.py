@@ -24,14 +24,10 @@ from dataclasses import dataclass, field
 import h5py
 import numpy as np
 
+from viscx.tolerances import DEFAULT_ATOL, DEFAULT_RTOL
+
 __all__ = ["Difference", "DiffResult", "diff_files", "diff_groups", "DEFAULT_RTOL", "DEFAULT_ATOL", "IGNORED"]
 
-#: Default relative tolerance for float values.
-DEFAULT_RTOL = 1e-9
-#: Default absolute tolerance for float values: a floor for values that should be
-#: zero (normal components, offsets of planes through the origin) and come out as
-#: ±1e-17 on another machine. Use 0 for scenes in tiny units.
-DEFAULT_ATOL = 1e-12
 #: Paths left out of the comparison; ``@`` names an attribute of the object before it.
 IGNORED = ("/provenance", "/@viscx_version")
 

@@ -26,6 +26,7 @@ from viscx import __version__
 from viscx.errors import ViscxError
 from viscx.formats import validate
 from viscx.formats.atomic import atomic_path, register_input
+from viscx.formats.compression import COMPRESSIONS, DEFAULT_COMPRESSION
 from viscx.scene import Scene
 from viscx.scene.halfedge import HalfEdges
 
@@ -52,15 +53,6 @@ _REQUIRED_ATTRS = ["levels", "options", "epsilon", "weld_tolerance"]
 _STRINGS = h5py.string_dtype(encoding="utf-8")
 
 
-#: The coders of ``viscx build --compression`` for the large datasets: (filter, level).
-#: Integer arrays are byte-shuffled first (the high bytes of ids, all zero, line up into
-#: runs); float arrays are not, as their repeats are whole values (a vertex's coordinates
-#: in every generator point on it) that shuffling would cut apart. Measured on the
-#: 301-polygon city (98 MB raw): gzip level 1 3.0x smaller for 1.3 s of CPU to write
-#: (the build: 30 s), lzf 2.4x for 0.8 s; shuffling the floats too: 2.35x and 1.9x.
-#: gzip is the default: any HDF5 library reads it (lzf needs h5py's own plugin).
-COMPRESSIONS = {"none": None, "gzip": ("gzip", 1), "lzf": ("lzf", None)}
-DEFAULT_COMPRESSION = "gzip"
 #: Datasets with fewer values are stored contiguous, unfiltered.
 COMPRESS_MIN_SIZE = 4096
 #: Bytes per chunk: whole rows (a chunk never splits a node's or an arc's row, which

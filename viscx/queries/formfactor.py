@@ -745,6 +745,35 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
+def cubature_cells(scene, face, side, min_size=None):
+    """The cells every cubature of side ``side`` of a face integrates over (the row's and
+    each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
+    C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
+    that makes more than :data:`MAX_KINK_CELLS` cells or more start triangles than three
+    levels (21 triangles each) on the uncut ones; then the uncut cells (three levels:
+    :class:`Cubature`, :class:`ThreeLevelRowCubature`).
+
+    Returns
+    -------
+    cells : list of (k, 3) float64
+    tri : (g, 3, 3) float64
+        Their :func:`start_triangles` at ``min_size`` (default: 1 / :data:`MIN_SPLIT` of
+        the face's box, where its pairs' cubatures start at the least).
+    kinked : bool
+    """
+    if min_size is None:
+        box_lo, box_hi = face_boxes(scene)
+        min_size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
+    cells = emitter_cells(scene, face, side)
+    tri = start_triangles(cells, min_size)
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
+    if kinked is not None:
+        kinked_tri = start_triangles(kinked, min_size)
+        if len(kinked_tri) <= 21 * len(tri):
+            return kinked, kinked_tri, True
+    return cells, tri, False
+
+
 # --------------------------------------------------------------------------------------
 # adaptive cubature over triangles
 
@@ -771,12 +800,18 @@ def split4(tri):
 
 
 def start_triangles(cells, min_size):
-    """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), those larger than
-    ``min_size`` (the side of a square of twice their area) split by midpoints until none
-    is: a rule on a large triangle may miss a small shadow entirely. (Area, not length: the
-    thin cells graded along a hovering outline are as thin as the integrand's scale across
-    them and smooth along them; halving them in both directions would only multiply them.)"""
-    tri = np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1) for c in cells])
+    """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), split by
+    :func:`split_large`."""
+    return split_large(np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1)
+                                       for c in cells]), min_size)
+
+
+def split_large(tri, min_size):
+    """Triangles (g, 3, 3) larger than ``min_size`` (the side of a square of twice their
+    area) split by midpoints until none is: a rule on a large triangle may miss a small
+    shadow entirely. (Area, not length: the thin cells graded along a hovering outline are
+    as thin as the integrand's scale across them and smooth along them; halving them in
+    both directions would only multiply them.)"""
     while len(tri) and min_size > 0:
         long = np.sqrt(2 * triangle_areas(tri)) > min_size
         if not np.any(long):
@@ -1010,11 +1045,12 @@ class PairSetup:
     """Everything x-independent of a pair (I side s, J side t) for the cubature.
 
     ``cells``: :func:`emitter_cells` of (face_i, side_i) when the caller has them (they
-    depend on the emitter only), else computed when needed."""
+    depend on the emitter only), else computed when needed; ``kinked``: they are cut along
+    the kink lines (:func:`cubature_cells`), so the cubature needs two levels only."""
 
-    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True):
+    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True, kinked=False):
         self.scene = scene
-        self.face_i, self.side_i, self._cells = int(face_i), int(side_i), cells
+        self.face_i, self.side_i, self._cells, self.kinked = int(face_i), int(side_i), cells, bool(kinked)
         self.area_i = float(scene.face_area[face_i])
         n_i = side_i * scene.face_normal[face_i]
         loops_i = oriented_loops(scene.face_loops(face_i), n_i)
@@ -1190,8 +1226,11 @@ class PairSetup:
         return out
 
     def blocked_integral(self, budget):
-        """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature (:class:`Cubature`),
-        error estimate ≤ ``budget`` where :data:`MAX_CELLS` allows.
+        """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature, error estimate ≤
+        ``budget`` where :data:`MAX_CELLS` allows: on cells cut along the kink lines the
+        two-level :class:`RowCubature` (one column) over the triangles whose shafts meet an
+        occluder (elsewhere the integrand is zero, exactly), else the three-level
+        :class:`Cubature`.
 
         Returns
         -------
@@ -1201,12 +1240,26 @@ class PairSetup:
         tri = self.triangles()
         pts = np.concatenate(self.I + self.J)
         min_size = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / MIN_SPLIT
+        if self.kinked:
+            tri = split_large(tri, min_size)
+            k = len(self.occluders)
+            ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+            tri = tri[np.diff(ptr) > 0]
+            everything = (np.array([0, k], np.int64), np.arange(k, dtype=np.int64))
+
+            def column(points):
+                return self.blocked(points, np.zeros(len(points), np.int64), *everything)[:, None]
+
+            cub = RowCubature(column)
+            value, error, cells = cub.integrate(tri, np.array([budget]), np.ones((len(tri), 1), bool))
+            return float(value[0]), float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return value, error, cub.evaluations, cells
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1)):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1),
+                     kinked=False):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -1225,8 +1278,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     tol : float
         Target on the error estimate (absolute, in F).
     cells, contact : list, (c,) int64, optional
-        :func:`emitter_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
-        by the pairs of one emitter.
+        :func:`cubature_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
+        by the pairs of one emitter (default: computed here).
+    kinked : bool
+        ``cells`` are cut along the kink lines (:func:`cubature_cells`).
     part : (k, K)
         Only part k of K of the pair (for K processes): the cubature over every K-th free
         cell from the k-th, to ``tol / K``, and the exact terms in part 0; the K parts'
@@ -1238,7 +1293,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     """
     t0 = time.perf_counter()
     if cells is None:
-        cells = emitter_cells(scene, face_i, side_i)
+        cells, _, kinked = cubature_cells(scene, face_i, side_i)
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
     if target.face >= 0:
@@ -1254,7 +1309,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     if exact and target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
         touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
-    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free)
+    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, 0.0
@@ -1352,7 +1407,7 @@ SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
 SINGLE_PARTS = 2
 
 
-def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=None):
+def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
     """F from one side of face i to face j (both of its sides).
 
     Returns
@@ -1361,12 +1416,11 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=No
         ``F``, ``error``, per-side ``sides`` (front/back of j: F, error, method, ...).
     """
     target = face_target(scene, target_face)
-    if cells is None:
-        cells = emitter_cells(scene, face_i, side_i)
+    cells, _, kinked = cubature_cells(scene, face_i, side_i)
     contact = contact_sides(scene, face_i, side_i, cells)
     parts = {}
     for name, t in (("front", 1), ("back", -1)):
-        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact)
+        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact, kinked=kinked)
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -1438,7 +1492,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
         Pairs per method.
     sky, sky_error : float
     """
-    cells = emitter_cells(scene, face, side)
+    cells, _, kinked = cubature_cells(scene, face, side)
     contact = contact_sides(scene, face, side, cells)
     cols, vals, errs, counts = [], [], [], {}
     fj, sj = facing_sides(scene, face, side, np.asarray(faces, np.int64))
@@ -1449,7 +1503,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
     for j, t in zip(fj, sj):
         r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact,
-                             part=part)
+                             part=part, kinked=kinked)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -1458,7 +1512,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part)
+            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part, kinked=kinked)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -1764,16 +1818,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
-    # cut along the kink lines (two levels, 7 points a first triangle) unless that costs
-    # more points at the start than three levels (147 a triangle) on the uncut cells
-    cells = emitter_cells(scene, face, side)
-    tri = start_triangles(cells, extent / MIN_SPLIT)
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
-    cubature = ThreeLevelRowCubature
-    if kinked is not None:
-        kinked_tri = start_triangles(kinked, extent / MIN_SPLIT)
-        if len(kinked_tri) <= 21 * len(tri):
-            cells, tri, cubature = kinked, kinked_tri, RowCubature
+    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
+    cubature = RowCubature if kinked else ThreeLevelRowCubature
     width = 2 * n + 1  # the sides of the faces, then the sky
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]

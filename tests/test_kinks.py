@@ -131,7 +131,7 @@ def test_kink_cuts_make_the_row_estimate_honest(cornell):
     setup = ff.PairSetup(cornell, 15, 1, ff.face_target(cornell, 0), 1)
     p = len(setup.occluders)
 
-    def floor(points):
+    def floor(points, tri=None):
         return setup.blocked(points, np.zeros(len(points), np.int64), np.array([0, p]), np.arange(p))[:, None]
 
     cub = ff.RowCubature(floor)

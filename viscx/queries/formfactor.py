@@ -758,12 +758,14 @@ def cubature_cells(scene, face, side, min_size=None):
     cells : list of (k, 3) float64
     tri : (g, 3, 3) float64
         Their :func:`start_triangles` at ``min_size`` (default: 1 / :data:`MIN_SPLIT` of
-        the face's box, where its pairs' cubatures start at the least).
+        the face's box, where its pairs' cubatures start at the least; cached per side:
+        the kink lines are quadratic in the edges near the face).
     kinked : bool
     """
     if min_size is None:
         box_lo, box_hi = face_boxes(scene)
-        min_size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
+        size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
+        return scene.cached(f"cubature_cells {int(face)} {int(side)}", lambda s: cubature_cells(s, face, side, size))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
     kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
@@ -1245,10 +1247,11 @@ class PairSetup:
             k = len(self.occluders)
             ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
             tri = tri[np.diff(ptr) > 0]
-            everything = (np.array([0, k], np.int64), np.arange(k, dtype=np.int64))
 
-            def column(points):
-                return self.blocked(points, np.zeros(len(points), np.int64), *everything)[:, None]
+            def column(points, tri):
+                # each triangle past the occluders that meet its shaft (as Cubature's lists)
+                ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
             cub = RowCubature(column)
             value, error, cells = cub.integrate(tri, np.array([budget]), np.ones((len(tri), 1), bool))
@@ -1296,6 +1299,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         cells, _, kinked = cubature_cells(scene, face_i, side_i)
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
+    lying = contact_cells(scene, face_i, side_i)  # the exact terms: uncut, fewer contour integrals
     if target.face >= 0:
         # the cells covered from side t are holes of the target (they are cells of J, so
         # they lie inside it and do not overlap its holes or each other: non-zero winding
@@ -1308,15 +1312,14 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     touching = 0.0
     if exact and target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
-        touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
+        touching = sum(abs(_cell_area(c)) for c, k in zip(*lying) if k == element) / float(scene.face_area[face_i])
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, 0.0
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else
-    parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c, k in zip(cells, contact)
-                                if k >= 0]
+    parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c in lying[0]]
     for loops, sign in parts if exact else []:
         a = loops_area(loops, setup.n_i) / setup.area_i
         if not loops or a * setup.area_i <= setup.tiny ** 2:
@@ -1370,24 +1373,38 @@ def contact_sides(scene, face, side, cells):
     return out
 
 
+def contact_cells(scene, face, side):
+    """The cells of side ``side`` of a face that lie against another face's side, and that
+    side's element (:func:`contact_sides` of the uncut :func:`emitter_cells`: their exact
+    terms need no kink cuts). Cached per face side.
+
+    Returns
+    -------
+    cells : list of (k, 3) float64
+    elements : (c,) int64
+    """
+
+    def build(scene):
+        if not len(coplanar_faces(scene, face)):
+            return [], np.zeros(0, np.int64)
+        cells = emitter_cells(scene, face, side)
+        contact = contact_sides(scene, face, side, cells)
+        return [c for c, k in zip(cells, contact) if k >= 0], contact[contact >= 0]
+
+    return scene.cached(f"contact_cells {int(face)} {int(side)}", build)
+
+
 def covered_cells(scene, face, side):
     """The cells of side ``side`` of a face that another face covers from that side (a
-    cabinet's back on the wall's front, the wall on the back's side against it): the cells
-    of the side in contact (:func:`contact_sides`; seen from side t, the point of J lies
-    against K exactly where, emitting from side t, it would). Cached per face side.
+    cabinet's back on the wall's front, the wall on the back's side against it): the
+    :func:`contact_cells` of the side (seen from side t, the point of J lies against K
+    exactly where, emitting from side t, it would).
 
     Returns
     -------
     list of (k, 3) float64
     """
-
-    def build(scene):
-        if not len(coplanar_faces(scene, face)):
-            return []
-        cells = emitter_cells(scene, face, side)
-        return [c for c, k in zip(cells, contact_sides(scene, face, side, cells)) if k >= 0]
-
-    return scene.cached(f"covered_cells {int(face)} {int(side)}", build)
+    return contact_cells(scene, face, side)[0]
 
 
 def contour_form_factor(loops_i, n_i, loops_j, n_j):
@@ -1578,7 +1595,8 @@ NULL_RULE = RULE_WEIGHTS - _degree2_weights(_C)
 def row_rules(cubature, tri, width, weights):
     """Rules on Radon's 7 nodes of each triangle for a vector integrand, in chunks that bound
     the memory of one integrand call: ``(len(weights), g, R)`` float64, each ``weights``
-    (7,) summed over the nodes and scaled by the area (``cubature.integrand`` is called,
+    (7,) summed over the nodes and scaled by the area (``cubature.integrand(points, tri)``
+    is called with the chunk's triangles, points 7 k … 7 k + 6 in triangle k;
     ``cubature.evaluations`` counts the points)."""
     out = np.zeros((len(weights), len(tri), width))
     area = triangle_areas(tri)
@@ -1586,7 +1604,7 @@ def row_rules(cubature, tri, width, weights):
     for lo in range(0, len(tri), chunk):
         part = tri[lo:lo + chunk]
         pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-        values = cubature.integrand(np.ascontiguousarray(pts)).reshape(len(part), 7, -1)
+        values = cubature.integrand(np.ascontiguousarray(pts), part).reshape(len(part), 7, -1)
         cubature.evaluations += len(pts)
         for k, w in enumerate(weights):
             out[k, lo:lo + chunk] = np.einsum("grc,r->gc", values, w) * area[lo:lo + chunk, None]
@@ -1629,7 +1647,8 @@ class RowCubature:
     Parameters
     ----------
     integrand : callable
-        ``integrand(points (m, 3)) -> (m, R) float64``.
+        ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64``, the points the nodes of
+        the triangles (:func:`row_rules`).
     """
 
     def __init__(self, integrand):
@@ -1725,7 +1744,7 @@ class ThreeLevelRowCubature:
     Parameters
     ----------
     integrand : callable
-        ``integrand(points (m, 3)) -> (m, R) float64``.
+        ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64`` (:func:`row_rules`).
     """
 
     def __init__(self, integrand):
@@ -1841,7 +1860,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     boxes = closed_boxes(scene)
     tiny = 1e-9 * scene.diagonal
 
-    def hidden(points):
+    def hidden(points, tri=None):
         return point_views(points, n_i, eu, ev, *polygons, int(face), tiny, *boxes)
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area

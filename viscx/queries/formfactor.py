@@ -45,6 +45,10 @@ and the second term what the occluders hide, by adaptive cubature over triangles
   integrand is continuous, with kinks along the discontinuity mesh that refinement follows;
 * a triangle's error estimate is |Q(T) − Σ Q(children)| of Radon's degree-5 rule, and the
   triangles with the largest estimates are split until their sum meets the tolerance.
+* where the emitter's cells can be cut along its kink lines too (:func:`cubature_cells`,
+  as the matrix row's), the integrand is C1 on every cell and the row's two-level
+  :class:`RowCubature` integrates the pair (one column); else the three levels of
+  :class:`Cubature`.
 
 The reported ``error`` is the contour integral's estimate (two node sets) plus the sum of
 the triangles' estimates: the estimate of the coarser of two rules for the finer one's

@@ -640,6 +640,22 @@ def _padded(pieces):
     return flat[start[:, None] + idx], nxt
 
 
+def _meets_box(seg, lo, hi, eps):
+    """(s,) bool: the 2-D segments (s, 2, 2) with more than ``eps`` of their length inside
+    the box [lo, hi] (Liang–Barsky clipping, all at once): the others cut no piece inside
+    it (a kink line of a cluttered room mostly runs far from a small face)."""
+    a, d = seg[:, 0], seg[:, 1] - seg[:, 0]
+    t0, t1 = np.zeros(len(seg)), np.ones(len(seg))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(2):
+            flat = d[:, k] == 0
+            ta, tb = (lo[k] - a[:, k]) / d[:, k], (hi[k] - a[:, k]) / d[:, k]
+            t0 = np.where(flat, t0, np.maximum(t0, np.minimum(ta, tb)))
+            t1 = np.where(flat, t1, np.minimum(t1, np.maximum(ta, tb)))
+            t1 = np.where(flat & ((a[:, k] < lo[k]) | (a[:, k] > hi[k])), -1.0, t1)
+    return (t1 - t0) * np.linalg.norm(d, axis=1) > eps
+
+
 def cut_along(pieces, seg, eps, limit=None):
     """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
     a piece is cut by the line of a segment when the line crosses its interior (more than
@@ -654,6 +670,8 @@ def cut_along(pieces, seg, eps, limit=None):
     pieces = list(pieces)
     if not len(seg) or not pieces:
         return pieces
+    seg = seg[_meets_box(seg, np.min([p.min(axis=0) for p in pieces], axis=0) - eps,
+                         np.max([p.max(axis=0) for p in pieces], axis=0) + eps, eps)]
     v, nxt = _padded(pieces)
     rows = np.arange(len(pieces))[:, None]
     for a, b in seg:

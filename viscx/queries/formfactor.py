@@ -45,6 +45,10 @@ and the second term what the occluders hide, by adaptive cubature over triangles
   integrand is continuous, with kinks along the discontinuity mesh that refinement follows;
 * a triangle's error estimate is |Q(T) − Σ Q(children)| of Radon's degree-5 rule, and the
   triangles with the largest estimates are split until their sum meets the tolerance.
+* where the emitter's cells can be cut along its kink lines too (:func:`cubature_cells`,
+  as the matrix row's), the integrand is C1 on every cell and the row's two-level
+  :class:`RowCubature` integrates the pair (one column); else the three levels of
+  :class:`Cubature`.
 
 The reported ``error`` is the contour integral's estimate (two node sets) plus the sum of
 the triangles' estimates: the estimate of the coarser of two rules for the finer one's
@@ -636,6 +640,22 @@ def _padded(pieces):
     return flat[start[:, None] + idx], nxt
 
 
+def _meets_box(seg, lo, hi, eps):
+    """(s,) bool: the 2-D segments (s, 2, 2) with more than ``eps`` of their length inside
+    the box [lo, hi] (Liang–Barsky clipping, all at once): the others cut no piece inside
+    it (a kink line of a cluttered room mostly runs far from a small face)."""
+    a, d = seg[:, 0], seg[:, 1] - seg[:, 0]
+    t0, t1 = np.zeros(len(seg)), np.ones(len(seg))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(2):
+            flat = d[:, k] == 0
+            ta, tb = (lo[k] - a[:, k]) / d[:, k], (hi[k] - a[:, k]) / d[:, k]
+            t0 = np.where(flat, t0, np.maximum(t0, np.minimum(ta, tb)))
+            t1 = np.where(flat, t1, np.minimum(t1, np.maximum(ta, tb)))
+            t1 = np.where(flat & ((a[:, k] < lo[k]) | (a[:, k] > hi[k])), -1.0, t1)
+    return (t1 - t0) * np.linalg.norm(d, axis=1) > eps
+
+
 def cut_along(pieces, seg, eps, limit=None):
     """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
     a piece is cut by the line of a segment when the line crosses its interior (more than
@@ -650,6 +670,8 @@ def cut_along(pieces, seg, eps, limit=None):
     pieces = list(pieces)
     if not len(seg) or not pieces:
         return pieces
+    seg = seg[_meets_box(seg, np.min([p.min(axis=0) for p in pieces], axis=0) - eps,
+                         np.max([p.max(axis=0) for p in pieces], axis=0) + eps, eps)]
     v, nxt = _padded(pieces)
     rows = np.arange(len(pieces))[:, None]
     for a, b in seg:
@@ -745,6 +767,37 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
+def cubature_cells(scene, face, side, min_size=None):
+    """The cells every cubature of side ``side`` of a face integrates over (the row's and
+    each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
+    C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
+    that makes more than :data:`MAX_KINK_CELLS` cells or more start triangles than three
+    levels (21 triangles each) on the uncut ones; then the uncut cells (three levels:
+    :class:`Cubature`, :class:`ThreeLevelRowCubature`).
+
+    Returns
+    -------
+    cells : list of (k, 3) float64
+    tri : (g, 3, 3) float64
+        Their :func:`start_triangles` at ``min_size`` (default: 1 / :data:`MIN_SPLIT` of
+        the face's box, where its pairs' cubatures start at the least; cached per side:
+        the kink lines are quadratic in the edges near the face).
+    kinked : bool
+    """
+    if min_size is None:
+        box_lo, box_hi = face_boxes(scene)
+        size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
+        return scene.cached(f"cubature_cells {int(face)} {int(side)}", lambda s: cubature_cells(s, face, side, size))
+    cells = emitter_cells(scene, face, side)
+    tri = start_triangles(cells, min_size)
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
+    if kinked is not None:
+        kinked_tri = start_triangles(kinked, min_size)
+        if len(kinked_tri) <= 21 * len(tri):
+            return kinked, kinked_tri, True
+    return cells, tri, False
+
+
 # --------------------------------------------------------------------------------------
 # adaptive cubature over triangles
 
@@ -771,12 +824,18 @@ def split4(tri):
 
 
 def start_triangles(cells, min_size):
-    """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), those larger than
-    ``min_size`` (the side of a square of twice their area) split by midpoints until none
-    is: a rule on a large triangle may miss a small shadow entirely. (Area, not length: the
-    thin cells graded along a hovering outline are as thin as the integrand's scale across
-    them and smooth along them; halving them in both directions would only multiply them.)"""
-    tri = np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1) for c in cells])
+    """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), split by
+    :func:`split_large`."""
+    return split_large(np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1)
+                                       for c in cells]), min_size)
+
+
+def split_large(tri, min_size):
+    """Triangles (g, 3, 3) larger than ``min_size`` (the side of a square of twice their
+    area) split by midpoints until none is: a rule on a large triangle may miss a small
+    shadow entirely. (Area, not length: the thin cells graded along a hovering outline are
+    as thin as the integrand's scale across them and smooth along them; halving them in
+    both directions would only multiply them.)"""
     while len(tri) and min_size > 0:
         long = np.sqrt(2 * triangle_areas(tri)) > min_size
         if not np.any(long):
@@ -1010,11 +1069,12 @@ class PairSetup:
     """Everything x-independent of a pair (I side s, J side t) for the cubature.
 
     ``cells``: :func:`emitter_cells` of (face_i, side_i) when the caller has them (they
-    depend on the emitter only), else computed when needed."""
+    depend on the emitter only), else computed when needed; ``kinked``: they are cut along
+    the kink lines (:func:`cubature_cells`), so the cubature needs two levels only."""
 
-    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True):
+    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True, kinked=False):
         self.scene = scene
-        self.face_i, self.side_i, self._cells = int(face_i), int(side_i), cells
+        self.face_i, self.side_i, self._cells, self.kinked = int(face_i), int(side_i), cells, bool(kinked)
         self.area_i = float(scene.face_area[face_i])
         n_i = side_i * scene.face_normal[face_i]
         loops_i = oriented_loops(scene.face_loops(face_i), n_i)
@@ -1190,8 +1250,11 @@ class PairSetup:
         return out
 
     def blocked_integral(self, budget):
-        """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature (:class:`Cubature`),
-        error estimate ≤ ``budget`` where :data:`MAX_CELLS` allows.
+        """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature, error estimate ≤
+        ``budget`` where :data:`MAX_CELLS` allows: on cells cut along the kink lines the
+        two-level :class:`RowCubature` (one column) over the triangles whose shafts meet an
+        occluder (elsewhere the integrand is zero, exactly), else the three-level
+        :class:`Cubature`.
 
         Returns
         -------
@@ -1201,12 +1264,27 @@ class PairSetup:
         tri = self.triangles()
         pts = np.concatenate(self.I + self.J)
         min_size = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / MIN_SPLIT
+        if self.kinked:
+            tri = split_large(tri, min_size)
+            k = len(self.occluders)
+            ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+            tri = tri[np.diff(ptr) > 0]
+
+            def column(points, tri):
+                # each triangle past the occluders that meet its shaft (as Cubature's lists)
+                ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
+
+            cub = RowCubature(column)
+            value, error, cells = cub.integrate(tri, np.array([budget]), np.ones((len(tri), 1), bool))
+            return float(value[0]), float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return value, error, cub.evaluations, cells
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1)):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1),
+                     kinked=False):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -1225,8 +1303,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     tol : float
         Target on the error estimate (absolute, in F).
     cells, contact : list, (c,) int64, optional
-        :func:`emitter_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
-        by the pairs of one emitter.
+        :func:`cubature_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
+        by the pairs of one emitter (default: computed here).
+    kinked : bool
+        ``cells`` are cut along the kink lines (:func:`cubature_cells`).
     part : (k, K)
         Only part k of K of the pair (for K processes): the cubature over every K-th free
         cell from the k-th, to ``tol / K``, and the exact terms in part 0; the K parts'
@@ -1238,9 +1318,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     """
     t0 = time.perf_counter()
     if cells is None:
-        cells = emitter_cells(scene, face_i, side_i)
+        cells, _, kinked = cubature_cells(scene, face_i, side_i)
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
+    lying = contact_cells(scene, face_i, side_i)  # the exact terms: uncut, fewer contour integrals
     if target.face >= 0:
         # the cells covered from side t are holes of the target (they are cells of J, so
         # they lie inside it and do not overlap its holes or each other: non-zero winding
@@ -1253,15 +1334,14 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     touching = 0.0
     if exact and target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
-        touching = sum(abs(_cell_area(c)) for c, k in zip(cells, contact) if k == element) / float(scene.face_area[face_i])
-    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free)
+        touching = sum(abs(_cell_area(c)) for c, k in zip(*lying) if k == element) / float(scene.face_area[face_i])
+    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, 0.0
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else
-    parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c, k in zip(cells, contact)
-                                if k >= 0]
+    parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c in lying[0]]
     for loops, sign in parts if exact else []:
         a = loops_area(loops, setup.n_i) / setup.area_i
         if not loops or a * setup.area_i <= setup.tiny ** 2:
@@ -1315,24 +1395,38 @@ def contact_sides(scene, face, side, cells):
     return out
 
 
+def contact_cells(scene, face, side):
+    """The cells of side ``side`` of a face that lie against another face's side, and that
+    side's element (:func:`contact_sides` of the uncut :func:`emitter_cells`: their exact
+    terms need no kink cuts). Cached per face side.
+
+    Returns
+    -------
+    cells : list of (k, 3) float64
+    elements : (c,) int64
+    """
+
+    def build(scene):
+        if not len(coplanar_faces(scene, face)):
+            return [], np.zeros(0, np.int64)
+        cells = emitter_cells(scene, face, side)
+        contact = contact_sides(scene, face, side, cells)
+        return [c for c, k in zip(cells, contact) if k >= 0], contact[contact >= 0]
+
+    return scene.cached(f"contact_cells {int(face)} {int(side)}", build)
+
+
 def covered_cells(scene, face, side):
     """The cells of side ``side`` of a face that another face covers from that side (a
-    cabinet's back on the wall's front, the wall on the back's side against it): the cells
-    of the side in contact (:func:`contact_sides`; seen from side t, the point of J lies
-    against K exactly where, emitting from side t, it would). Cached per face side.
+    cabinet's back on the wall's front, the wall on the back's side against it): the
+    :func:`contact_cells` of the side (seen from side t, the point of J lies against K
+    exactly where, emitting from side t, it would).
 
     Returns
     -------
     list of (k, 3) float64
     """
-
-    def build(scene):
-        if not len(coplanar_faces(scene, face)):
-            return []
-        cells = emitter_cells(scene, face, side)
-        return [c for c, k in zip(cells, contact_sides(scene, face, side, cells)) if k >= 0]
-
-    return scene.cached(f"covered_cells {int(face)} {int(side)}", build)
+    return contact_cells(scene, face, side)[0]
 
 
 def contour_form_factor(loops_i, n_i, loops_j, n_j):
@@ -1352,7 +1446,7 @@ SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
 SINGLE_PARTS = 2
 
 
-def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=None):
+def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
     """F from one side of face i to face j (both of its sides).
 
     Returns
@@ -1361,12 +1455,11 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, cells=No
         ``F``, ``error``, per-side ``sides`` (front/back of j: F, error, method, ...).
     """
     target = face_target(scene, target_face)
-    if cells is None:
-        cells = emitter_cells(scene, face_i, side_i)
+    cells, _, kinked = cubature_cells(scene, face_i, side_i)
     contact = contact_sides(scene, face_i, side_i, cells)
     parts = {}
     for name, t in (("front", 1), ("back", -1)):
-        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact)
+        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact, kinked=kinked)
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -1438,7 +1531,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
         Pairs per method.
     sky, sky_error : float
     """
-    cells = emitter_cells(scene, face, side)
+    cells, _, kinked = cubature_cells(scene, face, side)
     contact = contact_sides(scene, face, side, cells)
     cols, vals, errs, counts = [], [], [], {}
     fj, sj = facing_sides(scene, face, side, np.asarray(faces, np.int64))
@@ -1449,7 +1542,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
     for j, t in zip(fj, sj):
         r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact,
-                             part=part)
+                             part=part, kinked=kinked)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -1458,7 +1551,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part)
+            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part, kinked=kinked)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -1524,7 +1617,8 @@ NULL_RULE = RULE_WEIGHTS - _degree2_weights(_C)
 def row_rules(cubature, tri, width, weights):
     """Rules on Radon's 7 nodes of each triangle for a vector integrand, in chunks that bound
     the memory of one integrand call: ``(len(weights), g, R)`` float64, each ``weights``
-    (7,) summed over the nodes and scaled by the area (``cubature.integrand`` is called,
+    (7,) summed over the nodes and scaled by the area (``cubature.integrand(points, tri)``
+    is called with the chunk's triangles, points 7 k … 7 k + 6 in triangle k;
     ``cubature.evaluations`` counts the points)."""
     out = np.zeros((len(weights), len(tri), width))
     area = triangle_areas(tri)
@@ -1532,7 +1626,7 @@ def row_rules(cubature, tri, width, weights):
     for lo in range(0, len(tri), chunk):
         part = tri[lo:lo + chunk]
         pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-        values = cubature.integrand(np.ascontiguousarray(pts)).reshape(len(part), 7, -1)
+        values = cubature.integrand(np.ascontiguousarray(pts), part).reshape(len(part), 7, -1)
         cubature.evaluations += len(pts)
         for k, w in enumerate(weights):
             out[k, lo:lo + chunk] = np.einsum("grc,r->gc", values, w) * area[lo:lo + chunk, None]
@@ -1575,7 +1669,8 @@ class RowCubature:
     Parameters
     ----------
     integrand : callable
-        ``integrand(points (m, 3)) -> (m, R) float64``.
+        ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64``, the points the nodes of
+        the triangles (:func:`row_rules`).
     """
 
     def __init__(self, integrand):
@@ -1671,7 +1766,7 @@ class ThreeLevelRowCubature:
     Parameters
     ----------
     integrand : callable
-        ``integrand(points (m, 3)) -> (m, R) float64``.
+        ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64`` (:func:`row_rules`).
     """
 
     def __init__(self, integrand):
@@ -1764,16 +1859,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
-    # cut along the kink lines (two levels, 7 points a first triangle) unless that costs
-    # more points at the start than three levels (147 a triangle) on the uncut cells
-    cells = emitter_cells(scene, face, side)
-    tri = start_triangles(cells, extent / MIN_SPLIT)
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
-    cubature = ThreeLevelRowCubature
-    if kinked is not None:
-        kinked_tri = start_triangles(kinked, extent / MIN_SPLIT)
-        if len(kinked_tri) <= 21 * len(tri):
-            cells, tri, cubature = kinked, kinked_tri, RowCubature
+    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
+    cubature = RowCubature if kinked else ThreeLevelRowCubature
     width = 2 * n + 1  # the sides of the faces, then the sky
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
@@ -1795,7 +1882,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     boxes = closed_boxes(scene)
     tiny = 1e-9 * scene.diagonal
 
-    def hidden(points):
+    def hidden(points, tri=None):
         return point_views(points, n_i, eu, ev, *polygons, int(face), tiny, *boxes)
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area

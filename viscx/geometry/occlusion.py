@@ -953,7 +953,10 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     frustum and projected centrally on the face's plane, the slab sweep of
     :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
     nearest along the ray through its centre (polygons do not cross: the front-most one of
-    those covering a trapezoid is the same all over it)."""
+    those covering a trapezoid is the same all over it). That polygon is searched once per
+    region, not once per slab: a region with the same two edges and covering polygons as in
+    the previous slab keeps its owner (thin slivers between coincident edges excepted,
+    ``MEMO_GAP``)."""
     n_seg = 0
     for L in range(loop_lo.shape[0]):
         p = loop_poly[L]

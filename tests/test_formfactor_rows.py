@@ -31,6 +31,23 @@ def views(scene, face, side, points):
                        *ff.closed_boxes(scene))
 
 
+def assert_columns_equal_pairs(scene, face, pts, h, side=1):
+    """Every face-side column of ``point_views`` from a side of ``face`` at ``pts`` equals
+    the pair kernel (:func:`blocked_form_factors`: per pair, its own occluders clipped and
+    swept in J's plane, another sweep than the hemicube's) within 1e-12."""
+    group = np.zeros(len(pts), np.int64)
+    for j in range(scene.n_faces):
+        for t in (1, -1):
+            col = h[:, 2 * j + (t < 0)]
+            st = ff.PairSetup(scene, face, side, ff.face_target(scene, j), t)
+            if st.empty or j == face:
+                assert np.abs(col).max() < 1e-12
+                continue
+            k = len(st.occluders)
+            ref = st.blocked(pts, group, np.array([0, k]), np.arange(k)) if k else np.zeros(len(pts))
+            assert np.abs(col - ref).max() < 1e-12, (j, t)
+
+
 @pytest.mark.parametrize("face", [0, 1, 2, 15])  # floor, ceiling (light 0.1 mm under it), back wall, light
 def test_point_views_equal_the_pair_kernel(cornell, face, rng):
     """Every column of the row kernel (hidden part of each face side) equals the pair kernel
@@ -38,17 +55,7 @@ def test_point_views_equal_the_pair_kernel(cornell, face, rng):
     what the pair kernel sees of the six sky boxes."""
     pts = emitter_points(cornell, face, 12, rng)
     h = views(cornell, face, 1, pts)
-    group = np.zeros(len(pts), np.int64)
-    for j in range(cornell.n_faces):
-        for t in (1, -1):
-            col = h[:, 2 * j + (t < 0)]
-            st = ff.PairSetup(cornell, face, 1, ff.face_target(cornell, j), t)
-            if st.empty or j == face:
-                assert np.abs(col).max() < 1e-12
-                continue
-            k = len(st.occluders)
-            ref = st.blocked(pts, group, np.array([0, k]), np.arange(k)) if k else np.zeros(len(pts))
-            assert np.abs(col - ref).max() < 1e-12, (j, t)
+    assert_columns_equal_pairs(cornell, face, pts, h)
     sky = np.zeros(len(pts))
     for box in ff.sky_targets(cornell):
         st = ff.PairSetup(cornell, face, 1, box, 1)
@@ -99,3 +106,45 @@ def test_faces_lying_on_faces():
     assert F[13, 0] == 0.0 and F[0, 13] == 0.0  # the tile's upper side does not see the floor
     assert np.abs(m.row_sums() - 1).max() < 1e-6
     assert m.reciprocity_error() < 1e-6
+
+
+def touching_boxes(rng):
+    """A 10 × 10 floor (face 0, normal +y) with, on it, a row of two to four axis-aligned
+    closed boxes each touching the next along a whole face, a box stacked on the first
+    (its bottom lying on the first's top, smaller: faces lying on faces), and a tile lying
+    on the floor: shared edges, coincident edges seen from every point, coplanar faces."""
+    quads = [[[0, 0, 0], [0, 0, 10], [10, 0, 10], [10, 0, 0]]]
+
+    def box(lo, hi):
+        c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        for q in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
+            quads.append(c[list(q)].tolist())
+
+    x = float(rng.uniform(1, 3))
+    z0, z1 = float(rng.uniform(2, 4)), float(rng.uniform(6, 8))
+    first = None
+    for _ in range(int(rng.integers(2, 5))):
+        w, hgt = float(rng.uniform(0.8, 1.6)), float(rng.uniform(0.5, 2.5))
+        box((x, 0, z0), (x + w, hgt, z1))
+        first = first or (x, w, hgt)
+        x += w
+    x, w, hgt = first
+    box((x + 0.2 * w, hgt, z0 + 0.5), (x + 0.8 * w, hgt + 1.0, z1 - 0.5))
+    t = float(rng.uniform(7, 8.5))
+    quads.append([[t, 0, 1], [t, 0, 2], [t + 1, 0, 2], [t + 1, 0, 1]])  # a tile facing up, lying on the floor
+    return scene_of([np.asarray(q, float) for q in quads])
+
+
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow)])
+def test_point_views_among_touching_boxes(seed):
+    """The row kernel's sweep (its owners reused from slab to slab where a region keeps its
+    two edges and covering polygons, searched again in slivers between coincident edges)
+    against the pair kernel, from the floor (where no face lies on it), on boxes touching
+    along faces and faces lying on faces."""
+    rng = np.random.default_rng(seed)
+    scene = touching_boxes(rng)
+    pts = emitter_points(scene, 0, 12, rng)
+    h = views(scene, 0, 1, pts)
+    free = ~np.any(h[:, :-1] == -1.0, axis=1)  # not under a box or the tile (contact: that side only)
+    assert free.sum() >= 4
+    assert_columns_equal_pairs(scene, 0, pts[free], h[free])

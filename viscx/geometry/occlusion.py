@@ -37,6 +37,9 @@ from numba import njit
 TWO_PI = 2.0 * np.pi
 #: Rotation (radians) of each hemicube face's 2-D basis in :func:`point_views`.
 GENERIC_TURN = 0.4127319
+#: Height (in the hemicube face's plane, at unit distance from the point) below which a
+#: region of the sweep does not reuse its owner from the previous slab (:func:`_hemicube_face`).
+MEMO_GAP = 1e-7
 
 
 @njit(cache=True)
@@ -112,13 +115,12 @@ def _to3(origin, eu, ev, u, v, out):
 
 
 @njit(cache=True)
-def _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
+def _flush(runs, e, seg_a, slope, origin, eu, ev, x, n_i, p0, p1):
     """Γ · n of edge e's current run of boundary pieces (then cleared)."""
     d, ua, ub = runs[e, 0], runs[e, 1], runs[e, 2]
     runs[e, 0] = 0
-    slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
-    va = seg_a[e, 1] + (ua - seg_a[e, 0]) * slope
-    vb = seg_a[e, 1] + (ub - seg_a[e, 0]) * slope
+    va = seg_a[e, 1] + (ua - seg_a[e, 0]) * slope[e]
+    vb = seg_a[e, 1] + (ub - seg_a[e, 0]) * slope[e]
     _to3(origin, eu, ev, ua, va, p0)
     _to3(origin, eu, ev, ub, vb, p1)
     if d > 0:
@@ -127,7 +129,7 @@ def _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
 
 
 @njit(cache=True)
-def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
+def _run(runs, e, d, u0, u1, seg_a, slope, origin, eu, ev, x, n_i, p0, p1):
     """Add the piece [u0, u1] of edge e (d = 1 bottom side, -1 top side) to its run; a run
     that cannot be extended is flushed first. Returns what was flushed."""
     out = 0.0
@@ -135,7 +137,7 @@ def _run(runs, e, d, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1):
         runs[e, 2] = u1
         return 0.0
     if runs[e, 0] != 0:
-        out = _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+        out = _flush(runs, e, seg_a, slope, origin, eu, ev, x, n_i, p0, p1)
     runs[e, 0] = d
     runs[e, 1] = u0
     runs[e, 2] = u1
@@ -174,12 +176,22 @@ def _has_vertical(seg_a, seg_b, seg_w, n_seg):
 
 
 @njit(cache=True)
-def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1):
+def _slopes(seg_a, seg_b, n_seg, slope):
+    """dv/du of every non-vertical edge into ``slope[:n_seg]`` (0 for a vertical one), once
+    per sweep instead of once per slab (the same quotient, so the same heights)."""
+    for e in range(n_seg):
+        du = seg_b[e, 0] - seg_a[e, 0]
+        slope[e] = (seg_b[e, 1] - seg_a[e, 1]) / du if du != 0.0 else 0.0
+
+
+@njit(cache=True)
+def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1):
     """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
     middle are dropped, the others sorted by height at the middle, highest first (ties by
     ``entry``, the order in which they entered the sweep), into ``act`` (edge ids) with
     their heights at the middle, u0 and u1; ``on`` is left in that order. Returns
-    ``(n_on, n_act)``, equal.
+    ``(n_on, n_act)``, equal. ``hi_u`` (n,) and ``slope`` (n,) float64: each edge's right end
+    and dv/du (:func:`_slopes`).
 
     The order is kept from slab to slab: edges do not cross inside a slab, so the previous
     slab's order differs from this one's only by the crossings at their common side and by
@@ -189,10 +201,9 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v
     n_act = 0
     for r in range(n_on):
         e = on[r]
-        if max(seg_a[e, 0], seg_b[e, 0]) <= um:
+        if hi_u[e] <= um:
             continue
-        slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
-        vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope
+        vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope[e]
         j = n_act
         while j > 0 and (act_v[j - 1] < vm or (act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
             act_v[j] = act_v[j - 1]
@@ -201,8 +212,8 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v
             act[j] = act[j - 1]
             j -= 1
         act_v[j] = vm
-        act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope
-        act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope
+        act_v0[j] = seg_a[e, 1] + (u0 - seg_a[e, 0]) * slope[e]
+        act_v1[j] = seg_a[e, 1] + (u1 - seg_a[e, 0]) * slope[e]
         act[j] = e
         n_act += 1
     for r in range(n_act):
@@ -501,6 +512,8 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
+    slope = np.empty(n_seg)
+    _slopes(seg_a, seg_b, n_seg, slope)
     runs = np.zeros((n_seg, 3))  # per edge: direction (0 none), run start u, run end u
     # sweep: edges by their left end, an active list updated slab by slab
     act_e = np.empty(n_seg, np.int64)  # the slab's edges by height
@@ -531,7 +544,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             n_on += 1
             nxt += 1
         # drop edges that ended, the others by height (descending)
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act_e, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act_e, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -561,12 +574,12 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
                     if runs[e, 0] == 1 and runs[e, 2] == u0:
                         runs[e, 2] = u1
                     else:
-                        total += _run(runs, e, 1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                        total += _run(runs, e, 1, u0, u1, seg_a, slope, origin, eu, ev, x, n_i, p0, p1)
                     e = act_e[top]
                     if runs[e, 0] == -1 and runs[e, 2] == u0:
                         runs[e, 2] = u1
                     else:
-                        total += _run(runs, e, -1, u0, u1, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                        total += _run(runs, e, -1, u0, u1, seg_a, slope, origin, eu, ev, x, n_i, p0, p1)
                     visible = now
                     continue
                 # trapezoid (u0, vb0) -> (u1, vb1) -> (u1, vt1) -> (u0, vt0), counter-clockwise
@@ -583,7 +596,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     if not has_vertical:
         for e in range(n_seg):
             if runs[e, 0] != 0:
-                total += _flush(runs, e, seg_a, seg_b, origin, eu, ev, x, n_i, p0, p1)
+                total += _flush(runs, e, seg_a, slope, origin, eu, ev, x, n_i, p0, p1)
     # counter-clockwise seen from x: Σ Γ points back at x, against n_i
     return -total / TWO_PI, brk
 
@@ -894,13 +907,12 @@ def _grow(a, n):
 
 
 @njit(cache=True)
-def _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1):
+def _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
     """Γ · n of edge e's current run on side k (0: the owner's region lies above it, run left
     to right; 1: below it, right to left) added to its owner's column (then cleared)."""
     ua, ub = runs[e, k, 0], runs[e, k, 1]
-    slope = (seg_b[e, 1] - seg_a[e, 1]) / (seg_b[e, 0] - seg_a[e, 0])
-    va = seg_a[e, 1] + (ua - seg_a[e, 0]) * slope
-    vb = seg_a[e, 1] + (ub - seg_a[e, 0]) * slope
+    va = seg_a[e, 1] + (ua - seg_a[e, 0]) * slope[e]
+    vb = seg_a[e, 1] + (ub - seg_a[e, 0]) * slope[e]
     for c in range(3):
         p0[c] = x[c] + fc[c] + ua * fa[c] + va * fb[c]
         p1[c] = x[c] + fc[c] + ub * fa[c] + vb * fb[c]
@@ -910,17 +922,27 @@ def _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen,
 
 
 @njit(cache=True)
-def _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1):
+def _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
     """Add the piece [u0, u1] of edge e's side k, owned by ``owner``, to its run (flushing
     a run it cannot extend)."""
     if run_o[e, k] == owner and runs[e, k, 1] == u0:
         runs[e, k, 1] = u1
         return
     if run_o[e, k] >= 0:
-        _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1)
+        _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
     run_o[e, k] = owner
     runs[e, k, 0] = u0
     runs[e, k, 1] = u1
+
+
+@njit(cache=True)
+def _cover_key(p):
+    """A 64-bit key of polygon p (splitmix64 of p): the XOR of the keys of a set of covering
+    polygons tells, but for a 2^-64 chance, whether two sets are equal."""
+    z = np.uint64(p + 1) * np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
 
 
 @njit(cache=True)
@@ -931,7 +953,10 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     frustum and projected centrally on the face's plane, the slab sweep of
     :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
     nearest along the ray through its centre (polygons do not cross: the front-most one of
-    those covering a trapezoid is the same all over it)."""
+    those covering a trapezoid is the same all over it). That polygon is searched once per
+    region, not once per slab: a region with the same two edges and covering polygons as in
+    the previous slab keeps its owner (thin slivers between coincident edges excepted,
+    ``MEMO_GAP``)."""
     n_seg = 0
     for L in range(loop_lo.shape[0]):
         p = loop_poly[L]
@@ -972,31 +997,51 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         brk[n_brk] = seg_a[e, 0]
         n_brk += 1
     # crossings of edges of different polygons: edges by their left ends, each against the
-    # ones starting before it ends
+    # ones starting before it ends (their u and v ranges, polygon and weight copied in that
+    # order first: the inner loop reads consecutive memory)
     by_lo = np.argsort(lo_u)
+    s_lo, s_hi = np.empty(n_seg), np.empty(n_seg)
+    s_vlo, s_vhi = np.empty(n_seg), np.empty(n_seg)
+    s_p = np.empty(n_seg, np.int64)  # -1: a vertical edge (no crossing counted)
     for r in range(n_seg):
         e = by_lo[r]
-        if seg_w[e] == 0:
+        s_lo[r], s_hi[r] = lo_u[e], hi_u[e]
+        s_vlo[r], s_vhi[r] = min(seg_a[e, 1], seg_b[e, 1]), max(seg_a[e, 1], seg_b[e, 1])
+        s_p[r] = seg_p[e] if seg_w[e] != 0 else -1
+    for r in range(n_seg):
+        pe = s_p[r]
+        if pe < 0:
             continue
+        he, vlo, vhi = s_hi[r], s_vlo[r], s_vhi[r]
         for r2 in range(r + 1, n_seg):
-            f = by_lo[r2]
-            if lo_u[f] > hi_u[e]:
+            if s_lo[r2] > he:
                 break
-            if seg_p[f] == seg_p[e] or seg_w[f] == 0:
+            pf = s_p[r2]
+            if pf == pe or pf < 0:
                 continue
             # v ranges apart: no crossing (the common case, tested before the call)
-            if (max(seg_a[e, 1], seg_b[e, 1]) < min(seg_a[f, 1], seg_b[f, 1])
-                    or max(seg_a[f, 1], seg_b[f, 1]) < min(seg_a[e, 1], seg_b[e, 1])):
+            if vhi < s_vlo[r2] or s_vhi[r2] < vlo:
                 continue
-            u = _crossing_u(seg_a, seg_b, e, f)
+            u = _crossing_u(seg_a, seg_b, by_lo[r], by_lo[r2])
             if u == u:
                 brk = _grow(brk, n_brk)
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
+    slope = np.empty(n_seg)
+    _slopes(seg_a, seg_b, n_seg, slope)
     runs = np.empty((n_seg, 2, 2))  # per edge, bottom/top side: the current run's u range
     run_o = np.full((n_seg, 2), -1, np.int64)  # ... and its owner (-1 none)
+    # the owner of the region below each edge in the last slab, with the edge below it and
+    # the covering polygons' signature (:func:`_cover_key`): a region bounded by the same two
+    # edges in the next slab, covered by the same polygons, is the same open region (no edge
+    # ends between them at the common side; not so across a vertical edge, which bounds no
+    # slab), so its nearest polygon is too and is not searched again
+    memo_below = np.empty(n_seg, np.int64)
+    memo_key = np.empty(n_seg, np.uint64)
+    memo_owner = np.empty(n_seg, np.int64)
+    memo_slab = np.full(n_seg, -2, np.int64)
     live = np.empty(n_seg, np.int64)
     n_live = 0
     for r in range(n_seg):
@@ -1012,6 +1057,8 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     nxt = 0
     n_on = 0
     d = np.empty(3)
+    slab = 0  # slabs swept so far
+    last_u1 = np.nan  # the right side of the last one
     for k in range(n_brk - 1):
         u0, u1 = us[k], us[k + 1]
         if not u1 > u0:
@@ -1022,10 +1069,12 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             entry[live[nxt]] = nxt
             n_on += 1
             nxt += 1
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, act, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
+        memo_ok = last_u1 == u0 and not has_vertical
         n_cover = 0
+        key = np.uint64(0)
         owner, top = -1, -1
         for q in range(n_act):
             p = seg_p[act[q]]
@@ -1034,7 +1083,9 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             if before == 0 and wind[p] != 0:
                 cover[n_cover] = p
                 n_cover += 1
+                key ^= _cover_key(p)
             elif before != 0 and wind[p] == 0:
+                key ^= _cover_key(p)
                 for r in range(n_cover):
                     if cover[r] == p:
                         cover[r] = cover[n_cover - 1]
@@ -1045,26 +1096,39 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             if n_cover == 1 and q + 1 < n_act:
                 now = cover[0]
             elif n_cover > 1 and q + 1 < n_act:
-                vm = 0.5 * (act_v[q] + act_v[q + 1])
-                for c in range(3):
-                    d[c] = fc[c] + um * fa[c] + vm * fb[c]
-                best = np.inf
-                for r in range(n_cover):
-                    pr = cover[r]
-                    dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
-                    if dn == 0.0:
-                        continue
-                    t = -side[pr] / dn
-                    if t <= 0:
-                        continue
-                    # a tie (two faces in one plane, one lying on the other): the smaller lies
-                    # on the larger's front (docs/queries.md, "Faces lying on faces")
-                    if abs(t - best) <= 1e-9 * t:
-                        big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
-                        now = small if side[big] > 0 else big
-                    elif t < best:
-                        best = t
-                        now = pr
+                e = act[q]
+                # a region thinner than MEMO_GAP at a side may be a sliver between coincident
+                # edges (polygons clipped by the same frustum plane, faces sharing an edge),
+                # whose covering set is rounding: searched in every slab, never reused
+                solid = min(act_v0[q] - act_v0[q + 1], act_v1[q] - act_v1[q + 1]) > MEMO_GAP
+                if (solid and memo_ok and memo_slab[e] == slab - 1 and memo_below[e] == act[q + 1]
+                        and memo_key[e] == key):
+                    now = memo_owner[e]
+                else:
+                    vm = 0.5 * (act_v[q] + act_v[q + 1])
+                    for c in range(3):
+                        d[c] = fc[c] + um * fa[c] + vm * fb[c]
+                    best = np.inf
+                    for r in range(n_cover):
+                        pr = cover[r]
+                        dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
+                        if dn == 0.0:
+                            continue
+                        t = -side[pr] / dn
+                        if t <= 0:
+                            continue
+                        # a tie (two faces in one plane, one lying on the other): the smaller lies
+                        # on the larger's front (docs/queries.md, "Faces lying on faces")
+                        if abs(t - best) <= 1e-9 * t:
+                            big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
+                            now = small if side[big] > 0 else big
+                        elif t < best:
+                            best = t
+                            now = pr
+                memo_slab[e] = slab if solid else -2
+                memo_below[e] = act[q + 1]
+                memo_key[e] = key
+                memo_owner[e] = now
             if now != owner:
                 if owner >= 0:
                     if has_vertical:
@@ -1079,17 +1143,19 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                             if run_o[e, k] == owner and runs[e, k, 1] == u0:
                                 runs[e, k, 1] = u1
                             else:
-                                _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, seg_b, x, n_i, fa, fb, fc, col,
+                                _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, slope, x, n_i, fa, fb, fc, col,
                                            seen, p0, p1)
                 owner = now
                 top = q
         for q in range(n_act):
             wind[seg_p[act[q]]] = 0
+        slab += 1
+        last_u1 = u1
     if not has_vertical:
         for e in range(n_seg):
             for k in range(2):
                 if run_o[e, k] >= 0:
-                    _flush_owner(runs, run_o, e, k, seg_a, seg_b, x, n_i, fa, fb, fc, col, seen, p0, p1)
+                    _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
     return brk
 
 

@@ -582,6 +582,15 @@ def _rebuilt(cx, new_scene, total, why="a file written before degenerate lines w
     return new, stats
 
 
+def _as_rows(a):
+    """(m,) view of a C-contiguous (m, ...) array with one opaque item per row: numpy's
+    fancy indexing of 2-D rows is about ten times slower than of 1-D items."""
+    if a.ndim == 1:
+        return a
+    a = np.ascontiguousarray(a)  # the array itself when it is (written through by the callers)
+    return a.reshape(a.shape[0], -1).view(np.dtype((np.void, a.itemsize * int(np.prod(a.shape[1:]))))).reshape(-1)
+
+
 def _merge_vertices(V_old, fresh, redone):
     """The vertices after the move: the old ones not re-done and the fresh ones, by key.
 
@@ -598,8 +607,9 @@ def _merge_vertices(V_old, fresh, redone):
     for name in fields:
         old = V_old[name]
         arr = np.empty((m,) + old.shape[1:], old.dtype)
-        arr[kidx] = old[keep]
-        arr[fidx] = fresh[name]
+        out = _as_rows(arr)
+        out[kidx] = np.take(_as_rows(old), keep)
+        out[fidx] = _as_rows(np.ascontiguousarray(fresh[name], old.dtype))
         V[name] = arr
     vmap = np.full(V_old["v_key"].shape[0], -1, np.int64)
     vmap[keep] = kidx
@@ -674,8 +684,7 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     in_zone[np.take(old["comp"].reshape(-1, 3), np.nonzero(dead)[0], axis=0)] = True
     comp = np.full((N, 3), L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
     in_zone[L_old] = True
-    rows = np.dtype((np.void, 3 * comp.itemsize))  # a slot triple as one item: fast row gathers
-    comp.reshape(-1).view(rows)[surv] = old["comp"].view(rows)[surv_old]
+    _as_rows(comp)[surv] = np.take(_as_rows(old["comp"].reshape(-1, 3)), surv_old)
     comp = comp.ravel()
     zslots = np.nonzero(in_zone[comp])[0]
     zedges = zslots // 3
@@ -724,11 +733,7 @@ def _splice_topology(scene, old, V, vmap, added, curves):
 
 def _csr_keep(start, vals, keep):
     """CSR lists restricted to the rows ``keep`` (bool): (start, values)."""
-    length = np.diff(start)[keep]
-    new_start = np.zeros(length.size + 1, np.int64)
-    np.cumsum(length, out=new_start[1:])
-    src = start[:-1][keep]
-    return new_start, vals[np.repeat(src - new_start[:-1], length) + np.arange(new_start[-1])]
+    return K.csr_rows(start, vals, np.nonzero(keep)[0])
 
 
 def _compact(st):

@@ -792,10 +792,11 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     # -- edges: canonical ones start at an o = 0 occurrence
     e_canon = st["s_occ"] < m
     ce = np.nonzero(e_canon)[0]
-    e_new = np.full(N, -1, np.int64)
+    # the others are the twins (twin_slots) of the canonical ones: position of occurrence
+    # (occ + m, 1 − role), numbered like them
+    e_new = np.empty(N, np.int64)
     e_new[ce] = np.arange(ce.size)
-    nc = np.nonzero(~e_canon)[0]
-    e_new[nc] = e_new[twin_slots(O, st, 3 * nc) // 3]
+    e_new[st["posof"][st["s_occ"][ce] + m + (1 - st["s_role"][ce]) * 2 * m]] = np.arange(ce.size)
     comp = st["comp"]
     out = {}
     out["e_obj"] = (st["s_cur"][ce] // 2).astype(np.int64)

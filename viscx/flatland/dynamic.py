@@ -282,12 +282,11 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
     V_old = cx.arrays
     # -- 1. the candidates to re-test (in the old numbering)
     own_v = np.isin(V_old["v_obj"], gone).any(axis=1)
-    th, u = _working_lines(work_old, V_old, rel)
-    nrm = np.stack([-np.sin(th), np.cos(th)], axis=1)
+    th, u, sin, cos = _working_lines(work_old, V_old, rel)
     disks = [_bounding_disk(work_old, j) for j in gone] + [_bounding_disk(work_new, j) for j in came]
     near = np.zeros(th.shape[0], bool)
     for c, r in disks:
-        near |= np.abs(nrm @ c - u) <= r + 10 * cx.eps
+        near |= np.abs(-sin * c[0] + cos * c[1] - u) <= r + 10 * cx.eps
     retest_v = near & ~own_v
     # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
     # by earlier moves (their blocked members are not in the blocker table) that it meets
@@ -368,16 +367,18 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
 
 
 def _working_lines(work, V, rel):
-    """(θ, u) of every vertex's line in the scene the zone is re-tested in: the stored
+    """(θ, u, sin θ, cos θ) of every vertex's line in the scene the zone is re-tested in: the stored
     line, or with touching objects the opened scene's (θ of the opened scene, u from its
     first support disk: n·v_j + σ r, σ = +1 for an object on the right)."""
     if not rel:
         th = V["v_theta"]
-        return th, -np.sin(th) * V["v_p"][:, 0] + np.cos(th) * V["v_p"][:, 1]
+        sin, cos = np.sin(th), np.cos(th)
+        return th, -sin * V["v_p"][:, 0] + cos * V["v_p"][:, 1], sin, cos
     th = V["v_theta_sort"]
+    sin, cos = np.sin(th), np.cos(th)
     j1, k1 = V["v_support"][:, 0], V["v_obj"][:, 0]
     v = work.verts[j1]
-    return th, -np.sin(th) * v[:, 0] + np.cos(th) * v[:, 1] + (2.0 * V["v_side"][:, 0] - 1.0) * work.radius[k1]
+    return th, -sin * v[:, 0] + cos * v[:, 1] + (2.0 * V["v_side"][:, 0] - 1.0) * work.radius[k1], sin, cos
 
 
 def _new_keys(keys, objmap, n_old, n):
@@ -411,7 +412,13 @@ def _renumbered(cx, new_scene, objmap):
                 tab[objmap[ri[0]]:objmap[ri[-1]] + 1, objmap[rj[0]]:objmap[rj[-1]] + 1] = \
                     old[ri[0]:ri[-1] + 1, rj[0]:rj[-1] + 1]
         if kept.size < n_old:  # a removal: blockers renumbered (those it blocked are re-tested)
-            tab = lut[tab]
+            # lut[tab] by int32 arithmetic in place (the gather would copy the 4n² table as intp)
+            gone_objs = np.nonzero(objmap < 0)[0]
+            was = tab.copy()
+            for r in gone_objs:
+                tab -= (was > r).view(np.int8)
+            for r in gone_objs:
+                tab[was == r] = -2
         blockers = tab.reshape(-1).astype(np.int32, copy=False)
     if np.array_equal(objmap, np.arange(n_old)):
         return V, st, blockers
@@ -692,9 +699,12 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     zocc = np.unique(np.concatenate([st["s_occ"][zedges], st["s_occ"][st["nxt"][zedges]]]))
     X, Y, Z, W, _ = C.vertex_edges(O, st, zocc)
     ua, ub = C.glue_pairs(X, Y, Z, W)
-    ia = np.minimum(np.searchsorted(zslots, ua), zslots.size - 1)
-    ib = np.minimum(np.searchsorted(zslots, ub), zslots.size - 1)
-    ina, inb = zslots[ia] == ua, zslots[ib] == ub
+    # a slot is in the zone iff its component is; its index among zslots from a table
+    # left uninitialised elsewhere (read only at zone slots: no O(slots) fill)
+    ina, inb = in_zone[comp[ua]], in_zone[comp[ub]]
+    at = np.empty(comp.size, np.int64)
+    at[zslots] = np.arange(zslots.size)
+    ia, ib = np.where(ina, at[ua], 0), np.where(inb, at[ub], 0)
     if np.any(ina != inb):  # cannot happen (see the module docstring): a bug, not an input error
         raise RuntimeError("flatland move: the zone of the update is not closed under the vertex gluing")
     g = coo_matrix((np.ones(int(ina.sum())), (ia[ina], ib[ina])), shape=(zslots.size, zslots.size))

@@ -871,7 +871,7 @@ def _splice_lists(is_new, old_start, old_vals, new_face, new_vals):
     rows[~is_new] = np.arange(F_old)
     rows[fid] = F_old + np.arange(fid.size)
     pool = np.concatenate([old_vals[:old_start[-1]], new_vals]).astype(np.int64)
-    return K.csr_rows(pool_start, pool, rows)
+    return K.csr_rows(pool_start, pool, rows, np.zeros(0, np.int64), 0)
 
 
 def _derive_lone(scene):

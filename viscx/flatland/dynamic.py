@@ -727,10 +727,9 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     # -- the kept faces' boundary lists, renumbered
     kf = keep_lab[old["face_label"]]
     st["face_label"] = old["face_label"][kf]
-    st["fe_start"], fe = _csr_keep(old["fe_start"], old["fe_packed"], kf)
-    st["fe_packed"] = newpos[fe >> 2] << 2 | fe & 3
-    st["fv_start"], fv = _csr_keep(old["fv_start"], old["fv_packed"], kf)
-    st["fv_packed"] = vmap[fv >> 3] << 3 | fv & 7
+    kf_rows = np.nonzero(kf)[0]
+    st["fe_start"], st["fe_packed"] = K.csr_rows(old["fe_start"], old["fe_packed"], kf_rows, newpos, 2)
+    st["fv_start"], st["fv_packed"] = K.csr_rows(old["fv_start"], old["fv_packed"], kf_rows, vmap, 3)
     out = C.canonical(scene, V, O, st, L_old + np.arange(nlab), zslots, zocc)
     faces = st["face_label"] >= L_old
     if st["c_tail"].shape[0] > 2 * st["face_label"].shape[0] + 2 * nlab:
@@ -739,11 +738,6 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     lost = old["face_label"][~kf]
     lost = np.stack([old["c_tail"][lost], old["c_head"][lost]], 1)
     return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size), lost=lost)
-
-
-def _csr_keep(start, vals, keep):
-    """CSR lists restricted to the rows ``keep`` (bool): (start, values)."""
-    return K.csr_rows(start, vals, np.nonzero(keep)[0])
 
 
 def _compact(st):

@@ -753,10 +753,12 @@ def vertex_incidences(posof, prv, x_after, z_after, comp, e_new, f_new, m):
 
 
 @nb.njit(cache=True)
-def csr_rows(start, vals, rows):
+def csr_rows(start, vals, rows, lut, shift):
     """The CSR lists of ``rows`` (R,) int64, in that order: (start (R + 1,), values); a
-    row's list is vals[start[r]:start[r + 1]].  One pass of slice copies (a gather of the
-    lists by np.repeat costs a few temporaries of the total length)."""
+    row's list is vals[start[r]:start[r + 1]].  With a non-empty ``lut``, every value v
+    (packed as id << shift | flags) is renumbered on the way: lut[v >> shift] << shift |
+    the flags.  One pass of slice copies (a gather of the lists by np.repeat, then the
+    renumbering, cost a few temporaries of the total length)."""
     R = rows.shape[0]
     new_start = np.empty(R + 1, np.int64)
     new_start[0] = 0
@@ -764,7 +766,14 @@ def csr_rows(start, vals, rows):
         r = rows[i]
         new_start[i + 1] = new_start[i] + start[r + 1] - start[r]
     out = np.empty(new_start[R], vals.dtype)
+    remap = lut.shape[0] > 0
+    low = (1 << shift) - 1
     for i in range(R):
         s = start[rows[i]]
-        out[new_start[i]:new_start[i + 1]] = vals[s:s + new_start[i + 1] - new_start[i]]
+        if remap:
+            for j in range(new_start[i], new_start[i + 1]):
+                v = vals[s + j - new_start[i]]
+                out[j] = lut[v >> shift] << shift | (v & low)
+        else:
+            out[new_start[i]:new_start[i + 1]] = vals[s:s + new_start[i + 1] - new_start[i]]
     return new_start, out

@@ -589,13 +589,13 @@ def _rebuilt(cx, new_scene, total, why="a file written before degenerate lines w
     return new, stats
 
 
-def _as_rows(a):
-    """(m,) view of a C-contiguous (m, ...) array with one opaque item per row: numpy's
-    fancy indexing of 2-D rows is about ten times slower than of 1-D items."""
-    if a.ndim == 1:
-        return a
-    a = np.ascontiguousarray(a)  # the array itself when it is (written through by the callers)
-    return a.reshape(a.shape[0], -1).view(np.dtype((np.void, a.itemsize * int(np.prod(a.shape[1:]))))).reshape(-1)
+def _spliced(old, keep, ins, new):
+    """:func:`kernels.splice_rows` of (N, ...) arrays: the rows of ``old`` where ``keep``,
+    with the rows of ``new`` placed after the first ``ins`` kept ones."""
+    w = int(np.prod(old.shape[1:]))
+    out = K.splice_rows(np.ascontiguousarray(old).reshape(-1, w), keep,
+                        np.asarray(ins, np.int64), np.ascontiguousarray(new, old.dtype).reshape(-1, w))
+    return out.reshape((-1,) + old.shape[1:])
 
 
 def _merge_vertices(V_old, fresh, redone):
@@ -612,12 +612,7 @@ def _merge_vertices(V_old, fresh, redone):
     m = keep.size + fk.size
     kidx = np.arange(keep.size) + np.searchsorted(fidx - np.arange(fk.size), np.arange(keep.size), side="right")
     for name in fields:
-        old = V_old[name]
-        arr = np.empty((m,) + old.shape[1:], old.dtype)
-        out = _as_rows(arr)
-        out[kidx] = np.take(_as_rows(old), keep)
-        out[fidx] = _as_rows(np.ascontiguousarray(fresh[name], old.dtype))
-        V[name] = arr
+        V[name] = _spliced(V_old[name], ~redone, fidx - np.arange(fk.size), fresh[name])
     vmap = np.full(V_old["v_key"].shape[0], -1, np.int64)
     vmap[keep] = kidx
     # a re-done vertex found again, unchanged
@@ -643,7 +638,8 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     N_old = old["s_occ"].shape[0]
     # -- incidences: the kept ones in order, renumbered; the new ones merged in
     v_old, o_old = old["s_occ"] % m_old, old["s_occ"] >= m_old
-    kpos = np.nonzero(vmap[v_old] >= 0)[0]
+    kept_inc = vmap[v_old] >= 0
+    kpos = np.nonzero(kept_inc)[0]
     k_occ = vmap[v_old[kpos]] + o_old[kpos] * m
     cur, th, tau, occ, role = C.incidences(O, np.concatenate([added, added + m]))
     ths = O["THS"][occ]  # the order along the curves (the opened scene's θ at contacts)
@@ -652,18 +648,14 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     old_ths = old.get("s_ths", old["s_th"])
     ins = K.merge_ranks(old["s_cur"][kpos], old_ths[kpos], old["s_tau"][kpos], k_occ, cur, ths, tau, occ)
     N = kpos.size + cur.size
-    at_new = ins + np.arange(cur.size)
     at_kept = np.arange(kpos.size) + np.cumsum(np.bincount(ins, minlength=kpos.size + 1))[:kpos.size]
     st = {}
-    parts = [("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role), ("s_cur", old["s_cur"][kpos], cur),
-             ("s_th", old["s_th"][kpos], th), ("s_tau", old["s_tau"][kpos], tau)]
+    parts = [("s_occ", vmap[v_old] + o_old * m, occ), ("s_role", old["s_role"], role), ("s_cur", old["s_cur"], cur),
+             ("s_th", old["s_th"], th), ("s_tau", old["s_tau"], tau)]
     if "s_ths" in old:
-        parts.append(("s_ths", old_ths[kpos], ths))
-    for name, kept_vals, new_vals in parts:
-        arr = np.empty(N, kept_vals.dtype)
-        arr[at_kept] = kept_vals
-        arr[at_new] = new_vals
-        st[name] = arr
+        parts.append(("s_ths", old_ths, ths))
+    for name, old_vals, new_vals in parts:
+        st[name] = _spliced(old_vals, kept_inc, ins, new_vals)
     C.link(st, 2 * m)
     newpos = np.full(N_old, -1, np.int64)
     newpos[kpos] = at_kept
@@ -678,9 +670,8 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     pe = np.nonzero(fresh_e)[0]
     tmp = {}
     C.edge_attributes(scene, O, st, pe, tmp)
-    for name in ("tail", "head", "th0", "th1", "I", "arc"):
-        arr = np.empty(N, old[name].dtype)
-        arr[surv] = old[name][surv_old]
+    for name in ("tail", "head", "th0", "th1", "I", "arc"):  # the kept incidences' edges, the fresh ones redone
+        arr = _spliced(old[name], kept_inc, ins, np.zeros(cur.size, old[name].dtype))
         arr[pe] = tmp[name]
         st[name] = arr
     # -- faces: the old components holding a slot of a vanished edge form the zone
@@ -689,9 +680,10 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     L_old = old["c_tail"].shape[0]
     in_zone = np.zeros(L_old + 1, bool)
     in_zone[np.take(old["comp"].reshape(-1, 3), np.nonzero(dead)[0], axis=0)] = True
-    comp = np.full((N, 3), L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
+    # L_old: 'to label' (the sentinel is in the zone), for the slots of the fresh edges
+    comp = _spliced(old["comp"].reshape(-1, 3), kept_inc, ins, np.full((cur.size, 3), L_old, np.int64))
+    comp[pe] = L_old
     in_zone[L_old] = True
-    _as_rows(comp)[surv] = np.take(_as_rows(old["comp"].reshape(-1, 3)), surv_old)
     comp = comp.ravel()
     zslots = np.nonzero(in_zone[comp])[0]
     zedges = zslots // 3

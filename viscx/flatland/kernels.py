@@ -777,3 +777,33 @@ def csr_rows(start, vals, rows, lut, shift):
         else:
             out[new_start[i]:new_start[i + 1]] = vals[s:s + new_start[i + 1] - new_start[i]]
     return new_start, out
+
+
+@nb.njit(cache=True)
+def splice_rows(old, keep, ins, new):
+    """The rows of ``old`` (N, w) where ``keep`` (N,) bool, in order, with row t of ``new``
+    (M, w) placed after the first ins[t] kept rows (``ins`` ascending, as from
+    :func:`merge_ranks`): a sorted array after a local change, by row copies (numpy's
+    gathers and scatters by index cost several times more per row)."""
+    N, M, w = old.shape[0], new.shape[0], old.shape[1]
+    kept = 0
+    for i in range(N):
+        if keep[i]:
+            kept += 1
+    out = np.empty((kept + M, w), old.dtype)
+    j = r = t = 0  # rows written, kept rows written, new rows written
+    for i in range(N):
+        if not keep[i]:
+            continue
+        while t < M and ins[t] == r:
+            out[j, :] = new[t, :]
+            j += 1
+            t += 1
+        out[j, :] = old[i, :]
+        j += 1
+        r += 1
+    while t < M:
+        out[j, :] = new[t, :]
+        j += 1
+        t += 1
+    return out

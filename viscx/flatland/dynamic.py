@@ -30,8 +30,9 @@ topology is spliced where they are — the *zone*:
 4. the stored arrays are renumbered by gathers (vertices by key, edges and faces in the
    order of a rebuild), the kept faces' boundary lists spliced with the new ones.
 
-Python work is per changed element; what is O(scene) is numpy gathers and copies over the
-complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
+Python work is per changed element; what is O(scene) is row copies (the sorted arrays
+spliced by :func:`kernels.splice_rows`, the kept faces' lists by :func:`kernels.csr_rows`)
+and numpy gathers over the complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
 scratch, array by array (tests/flatland/test_flatland_dynamic.py).
 
 A degenerate line in the zone (vertices resolved by a symbolic perturbation, ``v_tau``,

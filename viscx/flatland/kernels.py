@@ -796,14 +796,17 @@ def splice_rows(old, keep, ins, new):
         if not keep[i]:
             continue
         while t < M and ins[t] == r:
-            out[j, :] = new[t, :]
+            for c in range(w):  # element loops: a row slice per row costs more than the copy
+                out[j, c] = new[t, c]
             j += 1
             t += 1
-        out[j, :] = old[i, :]
+        for c in range(w):
+            out[j, c] = old[i, c]
         j += 1
         r += 1
     while t < M:
-        out[j, :] = new[t, :]
+        for c in range(w):
+            out[j, c] = new[t, c]
         j += 1
         t += 1
     return out

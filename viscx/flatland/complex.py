@@ -1061,10 +1061,11 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     # -- edges: canonical ones start at an o = 0 occurrence
     e_canon = st["s_occ"] < m
     ce = np.nonzero(e_canon)[0]
-    e_new = np.full(N, -1, np.int64)
+    # the others are the twins (twin_slots) of the canonical ones: position of occurrence
+    # (occ + m, 1 − role), numbered like them
+    e_new = np.empty(N, np.int64)
     e_new[ce] = np.arange(ce.size)
-    nc = np.nonzero(~e_canon)[0]
-    e_new[nc] = e_new[twin_slots(O, st, 3 * nc) // 3]
+    e_new[st["posof"][st["s_occ"][ce] + m + (1 - st["s_role"][ce]) * 2 * m]] = np.arange(ce.size)
     comp = st["comp"]
     out = {}
     out["e_obj"] = (st["s_cur"][ce] // 2).astype(np.int64)
@@ -1078,10 +1079,8 @@ def canonical(scene, V, O, st, fresh, new_slots, new_occ):
     out["e_arclength"] = st["arc"][ce]
     out["e_faces"] = f_new[np.take(comp.reshape(-1, 3), ce, axis=0)]
     # -- vertex incidences (occurrence o = 0)
-    o0 = np.arange(m)
-    X, Y, Z, W, (e1b, e1a, e2b, e2a) = vertex_edges(O, st, o0)
-    out["v_edges"] = np.stack([e_new[e1b], e_new[e1a], e_new[e2b], e_new[e2a]], 1)
-    out["v_faces"] = f_new[six_faces(O, comp, o0, X, Y, Z, signs=False)[0]]
+    out["v_edges"], out["v_faces"] = K.vertex_incidences(st["posof"], st["prv"], O["X_AFTER"], O["Z_AFTER"], comp,
+                                                         e_new, f_new, m)
     # -- faces
     out["f_pair"] = np.stack([ct[rep], ch[rep]], 1)
     out["f_area"] = st["c_area"][rep]
@@ -1132,17 +1131,16 @@ def _splice_lists(is_new, old_start, old_vals, new_face, new_vals):
     F = is_new.shape[0]
     old_start = np.zeros(1, np.int64) if old_start is None else old_start
     old_vals = np.zeros(0, np.int64) if old_vals is None else old_vals
-    length = np.empty(F, np.int64)
-    length[~is_new] = np.diff(old_start)
+    F_old = old_start.shape[0] - 1
     fid = np.nonzero(is_new)[0]
-    length[fid] = np.bincount(new_face, minlength=F)[fid]
-    start = np.zeros(F + 1, np.int64)
-    np.cumsum(length, out=start[1:])
-    src = np.empty(F, np.int64)
-    src[~is_new] = old_start[:-1]
-    src[fid] = old_vals.size + np.searchsorted(new_face, fid)
-    pool = np.concatenate([old_vals, new_vals]).astype(np.int64)
-    return start, pool[np.repeat(src - start[:-1], length) + np.arange(start[-1])]
+    # one CSR of the kept lists (rows 0..F_old − 1) then the new ones (rows F_old + i)
+    length = np.bincount(new_face, minlength=F)[fid]
+    pool_start = np.concatenate([old_start, old_start[-1] + np.cumsum(length)]).astype(np.int64)
+    rows = np.empty(F, np.int64)
+    rows[~is_new] = np.arange(F_old)
+    rows[fid] = F_old + np.arange(fid.size)
+    pool = np.concatenate([old_vals[:old_start[-1]], new_vals]).astype(np.int64)
+    return K.csr_rows(pool_start, pool, rows, np.zeros(0, np.int64), 0)
 
 
 def _derive_lone(scene):

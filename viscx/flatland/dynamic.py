@@ -30,8 +30,9 @@ topology is spliced where they are — the *zone*:
 4. the stored arrays are renumbered by gathers (vertices by key, edges and faces in the
    order of a rebuild), the kept faces' boundary lists spliced with the new ones.
 
-Python work is per changed element; what is O(scene) is numpy gathers and copies over the
-complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
+Python work is per changed element; what is O(scene) is row copies (the sorted arrays
+spliced by :func:`kernels.splice_rows`, the kept faces' lists by :func:`kernels.csr_rows`)
+and numpy gathers over the complex's arrays (and one scan of the blocker table).  The result equals a rebuild from
 scratch, array by array (tests/flatland/test_flatland_dynamic.py).
 
 A degenerate line in the zone (vertices resolved by a symbolic perturbation, ``v_tau``,
@@ -282,12 +283,11 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
     V_old = cx.arrays
     # -- 1. the candidates to re-test (in the old numbering)
     own_v = np.isin(V_old["v_obj"], gone).any(axis=1)
-    th, u = _working_lines(work_old, V_old, rel)
-    nrm = np.stack([-np.sin(th), np.cos(th)], axis=1)
+    th, u, sin, cos = _working_lines(work_old, V_old, rel)
     disks = [_bounding_disk(work_old, j) for j in gone] + [_bounding_disk(work_new, j) for j in came]
     near = np.zeros(th.shape[0], bool)
     for c, r in disks:
-        near |= np.abs(nrm @ c - u) <= r + 10 * cx.eps
+        near |= np.abs(-sin * c[0] + cos * c[1] - u) <= r + 10 * cx.eps
     retest_v = near & ~own_v
     # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
     # by earlier moves (their blocked members are not in the blocker table) that it meets
@@ -372,16 +372,18 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
 
 
 def _working_lines(work, V, rel):
-    """(θ, u) of every vertex's line in the scene the zone is re-tested in: the stored
+    """(θ, u, sin θ, cos θ) of every vertex's line in the scene the zone is re-tested in: the stored
     line, or with touching objects the opened scene's (θ of the opened scene, u from its
     first support disk: n·v_j + σ r, σ = +1 for an object on the right)."""
     if not rel:
         th = V["v_theta"]
-        return th, -np.sin(th) * V["v_p"][:, 0] + np.cos(th) * V["v_p"][:, 1]
+        sin, cos = np.sin(th), np.cos(th)
+        return th, -sin * V["v_p"][:, 0] + cos * V["v_p"][:, 1], sin, cos
     th = V["v_theta_sort"]
+    sin, cos = np.sin(th), np.cos(th)
     j1, k1 = V["v_support"][:, 0], V["v_obj"][:, 0]
     v = work.verts[j1]
-    return th, -np.sin(th) * v[:, 0] + np.cos(th) * v[:, 1] + (2.0 * V["v_side"][:, 0] - 1.0) * work.radius[k1]
+    return th, -sin * v[:, 0] + cos * v[:, 1] + (2.0 * V["v_side"][:, 0] - 1.0) * work.radius[k1], sin, cos
 
 
 def _new_keys(keys, objmap, n_old, n):
@@ -415,7 +417,13 @@ def _renumbered(cx, new_scene, objmap):
                 tab[objmap[ri[0]]:objmap[ri[-1]] + 1, objmap[rj[0]]:objmap[rj[-1]] + 1] = \
                     old[ri[0]:ri[-1] + 1, rj[0]:rj[-1] + 1]
         if kept.size < n_old:  # a removal: blockers renumbered (those it blocked are re-tested)
-            tab = lut[tab]
+            # lut[tab] by int32 arithmetic in place (the gather would copy the 4n² table as intp)
+            gone_objs = np.nonzero(objmap < 0)[0]
+            was = tab.copy()
+            for r in gone_objs:
+                tab -= (was > r).view(np.int8)
+            for r in gone_objs:
+                tab[was == r] = -2
         blockers = tab.reshape(-1).astype(np.int32, copy=False)
     if np.array_equal(objmap, np.arange(n_old)):
         return V, st, blockers
@@ -586,6 +594,15 @@ def _rebuilt(cx, new_scene, total, why="a file written before degenerate lines w
     return new, stats
 
 
+def _spliced(old, keep, ins, new):
+    """:func:`kernels.splice_rows` of (N, ...) arrays: the rows of ``old`` where ``keep``,
+    with the rows of ``new`` placed after the first ``ins`` kept ones."""
+    w = int(np.prod(old.shape[1:]))
+    out = K.splice_rows(np.ascontiguousarray(old).reshape(-1, w), keep,
+                        np.asarray(ins, np.int64), np.ascontiguousarray(new, old.dtype).reshape(-1, w))
+    return out.reshape((-1,) + old.shape[1:])
+
+
 def _merge_vertices(V_old, fresh, redone):
     """The vertices after the move: the old ones not re-done and the fresh ones, by key.
 
@@ -600,11 +617,7 @@ def _merge_vertices(V_old, fresh, redone):
     m = keep.size + fk.size
     kidx = np.arange(keep.size) + np.searchsorted(fidx - np.arange(fk.size), np.arange(keep.size), side="right")
     for name in fields:
-        old = V_old[name]
-        arr = np.empty((m,) + old.shape[1:], old.dtype)
-        arr[kidx] = old[keep]
-        arr[fidx] = fresh[name]
-        V[name] = arr
+        V[name] = _spliced(V_old[name], ~redone, fidx - np.arange(fk.size), fresh[name])
     vmap = np.full(V_old["v_key"].shape[0], -1, np.int64)
     vmap[keep] = kidx
     # a re-done vertex found again, unchanged
@@ -630,7 +643,8 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     N_old = old["s_occ"].shape[0]
     # -- incidences: the kept ones in order, renumbered; the new ones merged in
     v_old, o_old = old["s_occ"] % m_old, old["s_occ"] >= m_old
-    kpos = np.nonzero(vmap[v_old] >= 0)[0]
+    kept_inc = vmap[v_old] >= 0
+    kpos = np.nonzero(kept_inc)[0]
     k_occ = vmap[v_old[kpos]] + o_old[kpos] * m
     cur, th, tau, occ, role = C.incidences(O, np.concatenate([added, added + m]))
     ths = O["THS"][occ]  # the order along the curves (the opened scene's θ at contacts)
@@ -639,18 +653,14 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     old_ths = old.get("s_ths", old["s_th"])
     ins = K.merge_ranks(old["s_cur"][kpos], old_ths[kpos], old["s_tau"][kpos], k_occ, cur, ths, tau, occ)
     N = kpos.size + cur.size
-    at_new = ins + np.arange(cur.size)
     at_kept = np.arange(kpos.size) + np.cumsum(np.bincount(ins, minlength=kpos.size + 1))[:kpos.size]
     st = {}
-    parts = [("s_occ", k_occ, occ), ("s_role", old["s_role"][kpos], role), ("s_cur", old["s_cur"][kpos], cur),
-             ("s_th", old["s_th"][kpos], th), ("s_tau", old["s_tau"][kpos], tau)]
+    parts = [("s_occ", vmap[v_old] + o_old * m, occ), ("s_role", old["s_role"], role), ("s_cur", old["s_cur"], cur),
+             ("s_th", old["s_th"], th), ("s_tau", old["s_tau"], tau)]
     if "s_ths" in old:
-        parts.append(("s_ths", old_ths[kpos], ths))
-    for name, kept_vals, new_vals in parts:
-        arr = np.empty(N, kept_vals.dtype)
-        arr[at_kept] = kept_vals
-        arr[at_new] = new_vals
-        st[name] = arr
+        parts.append(("s_ths", old_ths, ths))
+    for name, old_vals, new_vals in parts:
+        st[name] = _spliced(old_vals, kept_inc, ins, new_vals)
     C.link(st, 2 * m)
     newpos = np.full(N_old, -1, np.int64)
     newpos[kpos] = at_kept
@@ -665,9 +675,8 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     pe = np.nonzero(fresh_e)[0]
     tmp = {}
     C.edge_attributes(scene, O, st, pe, tmp)
-    for name in ("tail", "head", "th0", "th1", "I", "arc"):
-        arr = np.empty(N, old[name].dtype)
-        arr[surv] = old[name][surv_old]
+    for name in ("tail", "head", "th0", "th1", "I", "arc"):  # the kept incidences' edges, the fresh ones redone
+        arr = _spliced(old[name], kept_inc, ins, np.zeros(cur.size, old[name].dtype))
         arr[pe] = tmp[name]
         st[name] = arr
     # -- faces: the old components holding a slot of a vanished edge form the zone
@@ -676,10 +685,10 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     L_old = old["c_tail"].shape[0]
     in_zone = np.zeros(L_old + 1, bool)
     in_zone[np.take(old["comp"].reshape(-1, 3), np.nonzero(dead)[0], axis=0)] = True
-    comp = np.full((N, 3), L_old, np.int64)  # L_old: 'to label' (the sentinel is in the zone)
+    # L_old: 'to label' (the sentinel is in the zone), for the slots of the fresh edges
+    comp = _spliced(old["comp"].reshape(-1, 3), kept_inc, ins, np.full((cur.size, 3), L_old, np.int64))
+    comp[pe] = L_old
     in_zone[L_old] = True
-    rows = np.dtype((np.void, 3 * comp.itemsize))  # a slot triple as one item: fast row gathers
-    comp.reshape(-1).view(rows)[surv] = old["comp"].view(rows)[surv_old]
     comp = comp.ravel()
     zslots = np.nonzero(in_zone[comp])[0]
     zedges = zslots // 3
@@ -687,9 +696,12 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     zocc = np.unique(np.concatenate([st["s_occ"][zedges], st["s_occ"][st["nxt"][zedges]]]))
     X, Y, Z, W, _ = C.vertex_edges(O, st, zocc)
     ua, ub = C.glue_pairs(X, Y, Z, W)
-    ia = np.minimum(np.searchsorted(zslots, ua), zslots.size - 1)
-    ib = np.minimum(np.searchsorted(zslots, ub), zslots.size - 1)
-    ina, inb = zslots[ia] == ua, zslots[ib] == ub
+    # a slot is in the zone iff its component is; its index among zslots from a table
+    # left uninitialised elsewhere (read only at zone slots: no O(slots) fill)
+    ina, inb = in_zone[comp[ua]], in_zone[comp[ub]]
+    at = np.empty(comp.size, np.int64)
+    at[zslots] = np.arange(zslots.size)
+    ia, ib = np.where(ina, at[ua], 0), np.where(inb, at[ub], 0)
     if np.any(ina != inb):  # cannot happen (see the module docstring): a bug, not an input error
         raise RuntimeError("flatland move: the zone of the update is not closed under the vertex gluing")
     g = coo_matrix((np.ones(int(ina.sum())), (ia[ina], ib[ina])), shape=(zslots.size, zslots.size))
@@ -712,10 +724,9 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     # -- the kept faces' boundary lists, renumbered
     kf = keep_lab[old["face_label"]]
     st["face_label"] = old["face_label"][kf]
-    st["fe_start"], fe = _csr_keep(old["fe_start"], old["fe_packed"], kf)
-    st["fe_packed"] = newpos[fe >> 2] << 2 | fe & 3
-    st["fv_start"], fv = _csr_keep(old["fv_start"], old["fv_packed"], kf)
-    st["fv_packed"] = vmap[fv >> 3] << 3 | fv & 7
+    kf_rows = np.nonzero(kf)[0]
+    st["fe_start"], st["fe_packed"] = K.csr_rows(old["fe_start"], old["fe_packed"], kf_rows, newpos, 2)
+    st["fv_start"], st["fv_packed"] = K.csr_rows(old["fv_start"], old["fv_packed"], kf_rows, vmap, 3)
     out = C.canonical(scene, V, O, st, L_old + np.arange(nlab), zslots, zocc)
     faces = st["face_label"] >= L_old
     if st["c_tail"].shape[0] > 2 * st["face_label"].shape[0] + 2 * nlab:
@@ -724,15 +735,6 @@ def _splice_topology(scene, old, V, vmap, added, curves):
     lost = old["face_label"][~kf]
     lost = np.stack([old["c_tail"][lost], old["c_head"][lost]], 1)
     return out, st, dict(faces=faces, edges=int(pe.size), slots=int(zslots.size), lost=lost)
-
-
-def _csr_keep(start, vals, keep):
-    """CSR lists restricted to the rows ``keep`` (bool): (start, values)."""
-    length = np.diff(start)[keep]
-    new_start = np.zeros(length.size + 1, np.int64)
-    np.cumsum(length, out=new_start[1:])
-    src = start[:-1][keep]
-    return new_start, vals[np.repeat(src - new_start[:-1], length) + np.arange(new_start[-1])]
 
 
 def _compact(st):

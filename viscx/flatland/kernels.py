@@ -745,3 +745,103 @@ def curve_links(cur, inc):
             prv[s] = p
             s = p + 1
     return nxt, prv, posof
+
+
+# ----------------------------------------------------------------------------- topology arrays
+@nb.njit(cache=True)
+def vertex_incidences(posof, prv, x_after, z_after, comp, e_new, f_new, m):
+    """The stored edges and faces of the m vertices (occurrence o = 0) in one pass (the
+    arithmetic of :func:`complex.vertex_edges` and :func:`complex.six_faces`, without
+    their (m, ·) temporaries).
+
+    Parameters
+    ----------
+    posof : (2N,) int64  sorted position of every incidence (occ + role · 2m)
+    prv : (N,) int64  previous position on the same curve
+    x_after, z_after : (2m,) bool  per occurrence (:func:`complex.occurrences`)
+    comp : (3N,) int64  face component of every slot (3 · position + slot)
+    e_new : (N,) int64  stored edge of every position; f_new : (C,) int64 face of every component
+
+    Returns v_edges (m, 4) int64 (k1 before, k1 after, k2 before, k2 after), v_faces (m, 6)
+    int64 ((t,k1), (k1,k2), (t,k2), (k1,h), (t,h), (k2,h))."""
+    n_occ = 2 * m
+    v_edges = np.empty((m, 4), np.int64)
+    v_faces = np.empty((m, 6), np.int64)
+    for v in range(m):
+        e1a = posof[v]
+        e1b = prv[e1a]
+        e2a = posof[v + n_occ]
+        e2b = prv[e2a]
+        X, Y = (e1a, e1b) if x_after[v] else (e1b, e1a)
+        Z = e2a if z_after[v] else e2b
+        v_edges[v, 0] = e_new[e1b]
+        v_edges[v, 1] = e_new[e1a]
+        v_edges[v, 2] = e_new[e2b]
+        v_edges[v, 3] = e_new[e2a]
+        v_faces[v, 0] = f_new[comp[3 * X]]
+        v_faces[v, 1] = f_new[comp[3 * X + 1]]
+        v_faces[v, 2] = f_new[comp[3 * X + 2]]
+        v_faces[v, 3] = f_new[comp[3 * Y + 1]]
+        v_faces[v, 4] = f_new[comp[3 * Y + 2]]
+        v_faces[v, 5] = f_new[comp[3 * Z + 1]]
+    return v_edges, v_faces
+
+
+@nb.njit(cache=True)
+def csr_rows(start, vals, rows, lut, shift):
+    """The CSR lists of ``rows`` (R,) int64, in that order: (start (R + 1,), values); a
+    row's list is vals[start[r]:start[r + 1]].  With a non-empty ``lut``, every value v
+    (packed as id << shift | flags) is renumbered on the way: lut[v >> shift] << shift |
+    the flags.  One pass of slice copies (a gather of the lists by np.repeat, then the
+    renumbering, cost a few temporaries of the total length)."""
+    R = rows.shape[0]
+    new_start = np.empty(R + 1, np.int64)
+    new_start[0] = 0
+    for i in range(R):
+        r = rows[i]
+        new_start[i + 1] = new_start[i] + start[r + 1] - start[r]
+    out = np.empty(new_start[R], vals.dtype)
+    remap = lut.shape[0] > 0
+    low = (1 << shift) - 1
+    for i in range(R):
+        s = start[rows[i]]
+        if remap:
+            for j in range(new_start[i], new_start[i + 1]):
+                v = vals[s + j - new_start[i]]
+                out[j] = lut[v >> shift] << shift | (v & low)
+        else:
+            out[new_start[i]:new_start[i + 1]] = vals[s:s + new_start[i + 1] - new_start[i]]
+    return new_start, out
+
+
+@nb.njit(cache=True)
+def splice_rows(old, keep, ins, new):
+    """The rows of ``old`` (N, w) where ``keep`` (N,) bool, in order, with row t of ``new``
+    (M, w) placed after the first ins[t] kept rows (``ins`` ascending, as from
+    :func:`merge_ranks`): a sorted array after a local change, by row copies (numpy's
+    gathers and scatters by index cost several times more per row)."""
+    N, M, w = old.shape[0], new.shape[0], old.shape[1]
+    kept = 0
+    for i in range(N):
+        if keep[i]:
+            kept += 1
+    out = np.empty((kept + M, w), old.dtype)
+    j = r = t = 0  # rows written, kept rows written, new rows written
+    for i in range(N):
+        if not keep[i]:
+            continue
+        while t < M and ins[t] == r:
+            for c in range(w):  # element loops: a row slice per row costs more than the copy
+                out[j, c] = new[t, c]
+            j += 1
+            t += 1
+        for c in range(w):
+            out[j, c] = old[i, c]
+        j += 1
+        r += 1
+    while t < M:
+        for c in range(w):
+            out[j, c] = new[t, c]
+        j += 1
+        t += 1
+    return out

@@ -118,6 +118,30 @@ def test_a_joined_loop_that_is_a_point_bounds_nothing(monkeypatch):
     assert np.isclose(knocked.solid_angle[knocked.vertex == 87].sum(), -FOUR_PI)
 
 
+@pytest.mark.slow
+def test_chains_lying_on_closed_loops_of_their_group_bound_nothing(monkeypatch):
+    """office(120, 103), vertices 93 and 110 (desk panels' top corners, under the tops):
+    every edge in the plane of the tops' undersides is seen from the vertex along one
+    great circle, and several VE families give partly overlapping pieces of that one
+    boundary, each cut at its own coplanar events. The loops follow one family's pieces;
+    the other's dangle as open chains lying on those closed loops
+    (``vcells.covered_chains``). They bound nothing: the vertices are complete and the ray
+    caster agrees on their directions. Knocked out, they are not complete."""
+    import viscx.skeleton.vcells as vcells
+
+    scene, arcs, vc = built("office120", lambda: office(120, seed=103))
+    done = complete_vertices(vc)
+    assert {93, 110} <= set(done.tolist())
+    for v in (93, 110):
+        assert np.isclose(vc.solid_angle[vc.vertex == v].sum(), FOUR_PI)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([93, 110]), n=2000)
+    assert judged >= 3800 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(vcells, "covered_chains", lambda walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
+    knocked = complete_vertices(build_vcells(scene, arcs))
+    assert not {93, 110} & set(knocked.tolist())
+    assert len(knocked) == len(done) - 2
+
+
 def test_families_through_a_t_junction_of_a_node():
     """floor_plan((1, 1)): a window's lintel corner w lies inside the wall piece's outer
     vertical edge E (a T-junction). The lines from the other window's corner u through E

@@ -118,6 +118,30 @@ def test_a_joined_loop_that_is_a_point_bounds_nothing(monkeypatch):
     assert np.isclose(knocked.solid_angle[knocked.vertex == 87].sum(), -FOUR_PI)
 
 
+@pytest.mark.slow
+def test_chains_lying_on_closed_loops_of_their_group_bound_nothing(monkeypatch):
+    """office(120, 103), vertices 93 and 110 (desk panels' top corners, under the tops):
+    every edge in the plane of the tops' undersides is seen from the vertex along one
+    great circle, and several VE families give partly overlapping pieces of that one
+    boundary, each cut at its own coplanar events. The loops follow one family's pieces;
+    the other's dangle as open chains lying on those closed loops
+    (``vcells.covered_chains``). They bound nothing: the vertices are complete and the ray
+    caster agrees on their directions. Knocked out, they are not complete."""
+    import viscx.skeleton.vcells as vcells
+
+    scene, arcs, vc = built("office120", lambda: office(120, seed=103))
+    done = complete_vertices(vc)
+    assert {93, 110} <= set(done.tolist())
+    for v in (93, 110):
+        assert np.isclose(vc.solid_angle[vc.vertex == v].sum(), FOUR_PI)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([93, 110]), n=2000)
+    assert judged >= 3800 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(vcells, "covered_chains", lambda walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
+    knocked = complete_vertices(build_vcells(scene, arcs))
+    assert not {93, 110} & set(knocked.tolist())
+    assert len(knocked) == len(done) - 2
+
+
 def test_families_through_a_t_junction_of_a_node():
     """floor_plan((1, 1)): a window's lintel corner w lies inside the wall piece's outer
     vertical edge E (a T-junction). The lines from the other window's corner u through E
@@ -263,7 +287,9 @@ def test_furnished_rooms(seed, capsys):
     the kinds left open). Measured over the 20 (EE rules 9 to 11): 4 411 of 4 524 vertices
     (97.5 %; 94.8 % at worst, office(271, 113)), 310 163 of 311 043 pairs (99.72 %; 99.58 % at
     worst), the caster agreeing on 2 203 756 of 2 203 756 directions and 399 615 of 399 615
-    points; so completeness is held at 94 % of vertices and 99 % of pairs."""
+    points; with V-cell rule 12 and V1 rule 13: 4 456 of 4 524 vertices (98.5 %; 96.25 % at
+    worst, office(260, 111)), 310 594 of 311 043 pairs (99.86 %; 99.70 % at worst,
+    office(120, 103)); so completeness is held at 96 % of vertices and 99.7 % of pairs."""
     n = int(np.random.default_rng(2026 + seed).integers(50, 301))
     scene = build_scene(office(n, seed=100 + seed))
     arcs = build_arcs(scene, build_nodes(scene))
@@ -281,8 +307,8 @@ def test_furnished_rooms(seed, capsys):
               f"{counts['complete_pairs']} of {counts['pairs']} ({counts['complete_pairs'] / counts['pairs']:.4f}); "
               f"oracle {agreed}/{judged} directions, {ee_agreed}/{ee_judged} points")
     assert ee_agreed == ee_judged and ee_judged >= 0.95 * 100 * len(sample), ee_wrong[:5]
-    assert len(done) >= 0.94 * len(vertices_of(vc)), vc.counts()
-    assert counts["complete_pairs"] >= 0.99 * counts["pairs"], counts
+    assert len(done) >= 0.96 * len(vertices_of(vc)), vc.counts()
+    assert counts["complete_pairs"] >= 0.997 * counts["pairs"], counts
 
 
 def test_pencil_kernels_equal_their_plain_numpy_definitions():
@@ -627,3 +653,38 @@ def test_eee_arcs_cut_where_another_arc_ends_on_them(monkeypatch):
                         (np.arange(len(eee)), interval[eee]))
     knocked = eecells._squares_cells(scene, arcs, square)[0]
     assert not knocked.complete.any() and len(knocked.open_edge1) > 0
+
+
+@pytest.mark.slow
+def test_events_apart_along_another_edge_are_not_merged(monkeypatch):
+    """Rule 13 (docs/skeleton.md "Furnished buildings"): V1 merges a family's events closer
+    than 4 epsilon along its parameter edge, but two events of an EEE family close along a
+    long edge can be far apart along its other edges. office(300): the family (3, 41, 242)
+    of the floor's 12-long edge 3, a divider's vertical edge 41 and the 3 cm edge 242 under a
+    desk top runs between the VEE nodes 15 880 and 15 180, 1.4e-6 apart along edge 3 (1.1
+    epsilon) but 1.8e-4 apart along edge 41 and the whole of edge 242: merged, it had no arc,
+    and the squares (41, 242) and (3, 242), where it is a boundary across the square, stayed
+    open. Kept apart, the arc is there, the squares are complete and the ray caster agrees;
+    knocked out, neither."""
+    import viscx.skeleton.arcs.stages as stages
+    import viscx.skeleton.eecells as eecells
+    from viscx.skeleton.arcs import EEE
+
+    def family(arcs):
+        return np.flatnonzero((arcs.kind == EEE) & np.all(arcs.generators == [3, 41, 242], axis=1))
+
+    def squares(scene, arcs):
+        arc, e1, e2 = eecells.arc_squares(scene, arcs)
+        mine = ((e1 == 41) & (e2 == 242)) | ((e1 == 3) & (e2 == 242))
+        return eecells._squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
+
+    scene, arcs, _ = built("office300", lambda: office(300))
+    assert len(family(arcs)) == 1
+    ee = squares(scene, arcs)
+    assert ee.complete.all() and len(ee.open_edge1) == 0
+    judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array([[41, 242], [3, 242]]), n=1000)
+    assert judged >= 1900 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(stages, "_apart_along_edges", lambda scene, gens, s0, s1, tol: np.zeros(len(gens), bool))
+    knocked = build_arcs(scene, build_nodes(scene))
+    assert len(family(knocked)) == 0
+    assert not squares(scene, knocked).complete.all()

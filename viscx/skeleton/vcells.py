@@ -775,7 +775,7 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         progress.set_postfix_str("cells")
         loop_group = group[order[loop_offsets[:-1]]]
         cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside_loops)
-        points = point_chains(scene, walk, chain_offsets)
+        points = point_chains(scene, walk, chain_offsets) | covered_chains(walk, group[order], loop_offsets, chain_offsets)
         result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el, vertices),
                            points)
         progress.update()
@@ -837,6 +837,69 @@ def point_chains(scene, walk, chain_offsets):
     reach = line_reach(scene, walk.vertex[last], walk.end[last], walk.end_reach[last])
     tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
     return chain_extents(walk, chain_offsets) <= tolerance
+
+
+#: Points at which an open chain's elements are tested against its group's loops
+#: (:func:`covered_chains`): both ends and inner points at these fractions of the chord.
+COVER_SAMPLES = (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+def covered_chains(walk, group, loop_offsets, chain_offsets):
+    """Open chains lying on loops of their own group: every element runs, at its ends and
+    inner points (COVER_SAMPLES), along an element of a closed loop of its group (same
+    great circle and direction, within JOIN_CHORD).
+
+    From a vertex v every edge lying in a plane P through v (a desk top's underside under
+    which v sits, the floor) is seen along one great circle, and the cells just above
+    and just below P change along it only where something off P changes. Several VE
+    families of v then give pieces of that one boundary, each family cut at its own
+    coplanar events (the points of P its lines pass): partial overlaps, which the
+    duplicates' rule of FormLoops (one boundary given twice between the same two points)
+    does not see. The loop follows one family's pieces; another's dangle, open chains of
+    one element on a cell boundary already closed. They bound nothing new, and do not
+    keep their vertex from being complete (office(300): 9 of its 13 incomplete vertices,
+    docs/skeleton.md "Furnished buildings", rule 12).
+
+    Parameters
+    ----------
+    walk : Elements
+        Loops then chains, contiguous (as :func:`point_chains`).
+    group : (n,) int
+        The group (vertex, pair) of each element of ``walk``.
+    loop_offsets, chain_offsets : (l + 1,) int, (o + 1,) int
+
+    Returns
+    -------
+    (o,) bool
+    """
+    n_chains = len(chain_offsets) - 1
+    n_loop = loop_offsets[-1]
+    if n_chains == 0 or n_loop == 0:
+        return np.zeros(n_chains, bool)
+    # the loops' elements by group, and their circles (unit normal: start x end)
+    by_group = np.argsort(group[:n_loop], kind="stable")
+    normal = np.cross(walk.start[by_group], walk.end[by_group])
+    size = np.linalg.norm(normal, axis=1)
+    normal /= np.maximum(size, 1e-300)[:, None]
+    chained = np.arange(n_loop, len(walk))
+    chain_of = np.repeat(np.arange(n_chains), np.diff(chain_offsets))
+    # sample points of every chain element, and its own circle's normal
+    t = np.asarray(COVER_SAMPLES)
+    pts = (1 - t)[None, :, None] * walk.start[chained, None] + t[None, :, None] * walk.end[chained, None]
+    pts /= np.linalg.norm(pts, axis=2, keepdims=True)
+    own = np.cross(walk.start[chained], walk.end[chained])
+    own /= np.maximum(np.linalg.norm(own, axis=1), 1e-300)[:, None]
+    first = np.searchsorted(group[by_group], group[chained], "left")
+    rows, cand = expand_ranges(first, np.searchsorted(group[by_group], group[chained], "right") - first)
+    p = pts[rows]  # (pairs, samples, 3)
+    n, a, b = normal[cand], walk.start[by_group][cand], walk.end[by_group][cand]
+    on = (np.abs(np.einsum("psk,pk->ps", p, n)) <= JOIN_CHORD)
+    on &= np.einsum("psk,pk->ps", np.cross(a[:, None], p), n) >= -JOIN_CHORD
+    on &= np.einsum("psk,pk->ps", np.cross(p, b[:, None]), n) >= -JOIN_CHORD
+    on &= (size[cand] > JOIN_CHORD)[:, None] & (np.einsum("pk,pk->p", n, own[rows]) > 0)[:, None]
+    covered = np.zeros((len(chained), len(t)), bool)
+    np.logical_or.at(covered, rows, on)
+    return np.bincount(chain_of, weights=~covered.all(axis=1), minlength=n_chains) == 0
 
 
 def _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole, points):

@@ -13,7 +13,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.memory import release_free_memory
 from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_CROSSING, END_EDGE, END_ENDPOINT, END_RANK, END_TRANSITION, VE
-from viscx.skeleton.arcs.lines import judge_samples
+from viscx.skeleton.arcs.lines import family_lines, judge_samples
 from viscx.skeleton.arcs.pencils import pencil_planes
 from viscx.skeleton.generators import edge_geometry, edge_junctions
 from viscx.tolerances import END_SAMPLE_EPSILONS, MERGE_EPSILONS, SNAP
@@ -73,14 +73,21 @@ def _param_scale(scene, fkind, fgens):
 def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=None):
     """Merge each family's events closer than 4 epsilon along its edge (by END_RANK: a node
     beats a planar event beats a domain end beats a junction beats a coplanar event),
-    leave out the groups of hidden events alone (:func:`hidden_events`) and return the
-    intervals between consecutive ones (:class:`Intervals`)."""
+    except two events of an EEE family whose lines meet one of its other two edges farther
+    than 4 epsilon apart (:func:`_apart_along_edges`: they are two lines, docs/skeleton.md
+    "Furnished buildings" rule 13), leave out the groups of hidden events alone
+    (:func:`hidden_events`) and return the intervals between consecutive ones
+    (:class:`Intervals`)."""
     # by (family, s) only: events at one (family, s) fall in one group whatever their order
     order = by_family_and_s(fam_of, ev_s)
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
     tol = MERGE_EPSILONS * scene.epsilon / _param_scale(scene, fkind, fgens)[f]
     new_group = np.ones(len(f), dtype=bool)
     new_group[1:] = (f[1:] != f[:-1]) | (s[1:] - s[:-1] > tol[1:])
+    # two events close along the parameter edge of an EEE family can be far apart along its
+    # other edges (lines on a long floor edge sweeping a 3 cm edge of a desk): two events
+    pair = np.flatnonzero(~new_group[1:] & (fkind[f[1:]] == EEE))
+    new_group[1 + pair[_apart_along_edges(scene, fgens[f[pair]], s[pair], s[pair + 1], MERGE_EPSILONS * scene.epsilon)]] = True
     group = np.cumsum(new_group) - 1
     hidden = np.zeros(len(f), bool) if ev_hidden is None else ev_hidden[order]
     seen = np.bincount(group, weights=~hidden) > 0
@@ -97,6 +104,36 @@ def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hi
     gf, gs, gk, gi = f[first], s[first], k[first], i[first]
     nxt = np.flatnonzero(gf[1:] == gf[:-1])
     return Intervals(gf[nxt], gs[nxt], gk[nxt], gi[nxt], gs[nxt + 1], gk[nxt + 1], gi[nxt + 1])
+
+
+def _apart_along_edges(scene, gens, s0, s1, tol):
+    """Whether the lines of EEE families (``gens`` (m, 3)) at s0 and s1 meet one of their
+    two other edges (q, r) farther than ``tol`` (length) apart: the points where each
+    line passes closest to the edge's line, compared along the edge."""
+    if len(gens) == 0:
+        return np.zeros(0, bool)
+    kind = np.full(len(gens), EEE)
+    o0, d0 = family_lines(scene, kind, gens, s0)
+    o1, d1 = family_lines(scene, kind, gens, s1)
+    # (where p's point lies on the line of q or r the line is undefined, its direction zero:
+    # at a domain's end; not apart)
+    defined = (np.linalg.norm(d0, axis=1) > 0) & (np.linalg.norm(d1, axis=1) > 0)
+    apart = np.zeros(len(gens), bool)
+    for slot in (1, 2):
+        a, b = edge_geometry(scene, gens[:, slot])
+        u = b - a
+        t0, t1 = (_closest_parameter(o, d, a, u) for o, d in ((o0, d0), (o1, d1)))
+        apart |= np.abs(t1 - t0) * np.linalg.norm(u, axis=1) > tol
+    return apart & defined
+
+
+def _closest_parameter(o, d, a, u):
+    """Parameter t of the point a + t u of each line (a, u) closest to the line (o, d)."""
+    w = o - a
+    dd, du, uu = (np.einsum("ij,ij->i", x, y) for x, y in ((d, d), (d, u), (u, u)))
+    dw, uw = np.einsum("ij,ij->i", d, w), np.einsum("ij,ij->i", u, w)
+    den = dd * uu - du * du
+    return np.where(den > 0, (dd * uw - du * dw) / np.where(den > 0, den, 1.0), 0.0)
 
 
 def by_family_and_s(family, s):

@@ -193,15 +193,15 @@ def light_between_obj(path):
 
 
 def test_scoped_light_between_generators(tmp_path, monkeypatch):
-    """With generators beyond the light the scoped V0 and V1 are still the full build's;
-    knock-out: visiting only the outer pairs with an item at the light (a light edge or
-    vertex, or anything reaching its box) loses nodes of the full build in scope, those
-    whose light generator lies strictly between the outer pair."""
+    """Knock-out of the light-centred pairs with generators beyond the light: visiting only
+    the outer pairs with an item at the light (a light edge or vertex, or anything reaching
+    its box) loses nodes of the scoped V0 (which is the full build's in scope:
+    :func:`test_scoped_light_between_generators_levels`), those whose light generator lies
+    strictly between the outer pair."""
     import viscx.skeleton.scope as scope_module
 
     obj = light_between_obj(tmp_path / "between.obj")
-    full = build_complex(obj, quiet=True, levels=1)
-    assert_scoped_levels(full, build_complex(obj, quiet=True, levels=1, light_group="light"), light_group="light")
+    scoped = build_complex(obj, quiet=True, levels=0, light_group="light")
 
     real = scope_module.pairs_near
 
@@ -216,8 +216,17 @@ def test_scoped_light_between_generators(tmp_path, monkeypatch):
 
     monkeypatch.setattr(scope_module, "pairs_near", at_the_light)
     knocked = build_complex(obj, quiet=True, levels=0, light_group="light")
-    in_scope = np.count_nonzero(light_scope(full.scene, light_group="light").nodes(full.nodes.kind, full.nodes.generators))
-    assert len(knocked.nodes) < in_scope
+    rows = {tuple(g) for g in scoped.nodes.generators.tolist()}
+    assert {tuple(g) for g in knocked.nodes.generators.tolist()} < rows
+
+
+@pytest.mark.slow
+def test_scoped_light_between_generators_levels(tmp_path):
+    """The same scene: the scoped V0 and V1 and the mesh are the full build's."""
+    obj = light_between_obj(tmp_path / "between.obj")
+    full = build_complex(obj, quiet=True, output=tmp_path / "full.h5")
+    assert_scoped_levels(full, build_complex(obj, quiet=True, light_group="light"), light_group="light")
+    assert assert_same_mesh(tmp_path / "full.h5", obj, light_group="light")["events"] > 0
 
 
 # --------------------------------------------------------------------------------------

@@ -87,7 +87,7 @@ def _timed(args):
             **({"error": err.strip()[-300:]} if code else {})}
 
 
-def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0, rays=4_000_000):
+def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0, rays=4_000_000, size=512):
     """The scoped build of group ``light`` (``viscx build --light-group``), then from that file
     the discontinuity mesh and the 512² render, and from the OBJ the form factor floor →
     light, each timed; then checked: the mesh by the discontinuity oracle on the room's
@@ -119,7 +119,7 @@ def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0, rays=4_000_0
     eye, at, fov = CAMERAS[name.split("(")[0]]
     row["render_512"] = _timed(["render", built, "--camera", ",".join(map(repr, eye)), "--look-at", ",".join(map(repr, at)),
                                 "--fov", fov, "--light-group", "light", "--radiance", ",".join(map(repr, radiance)),
-                                "--size", 512, 512, "-o", png])
+                                "--size", size, size, "-o", png])
     for query in ("discontinuities", "render_512"):
         row[f"{query}_from_obj"] = {"cpu_s": round(row["build"]["cpu_s"] + row[query]["cpu_s"], 1),
                                     "wall_s": round(row["build"]["wall_s"] + row[query]["wall_s"], 1),
@@ -138,13 +138,13 @@ def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0, rays=4_000_0
         row["formfactor"].update(F=exact, monte_carlo=p, sigma=sigma, ok=bool(abs(exact - p) <= 4 * sigma))
     if row["discontinuities"]["exit"] == 0:
         room = np.flatnonzero(np.isin(group, ["floor", "ceiling", "wall_x0", "wall_x1", "wall_z0", "wall_z1", "walls"]))
-        mesh = light_mesh(cx, light_group="light", faces=room)
+        mesh = light_mesh(cx, light_group="light", faces=room.tolist())
         res = check_mesh(scene, mesh, np.random.default_rng(seed), 1e-4 * scene.diagonal, samples=2)
         row["mesh_oracle"] = {k: (len(v) if isinstance(v, list) else v) for k, v in res.items()}
     if row["render_512"]["exit"] == 0:
         whole = light_mesh(cx, light_group="light")
         exact = np.load(png.with_suffix(".npy")).astype(np.float64)
-        mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, 512, 512), radiance=radiance, reference=64,
+        mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, size, size), radiance=radiance, reference=64,
                     seed=seed)
         ok, details = noise_check(exact.reshape(-1, 3), mc.radiance.reshape(-1, 3), mc.stderr.reshape(-1, 3))
         row["render_oracle"] = {"ok": bool(ok), **details}
@@ -178,6 +178,7 @@ def main():
     ap.add_argument("--subdivisions", type=int, default=5)
     ap.add_argument("--samples", type=int, default=200_000)
     ap.add_argument("--area", action="store_true", help="discontinuities and render of the group light")
+    ap.add_argument("--size", type=int, default=512, help="--area: the render's width and height")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     if args.area:
@@ -219,7 +220,7 @@ def main_area(args):
         for k, (name, make) in enumerate(scenes):
             obj = Path(tmp) / f"scene{k}.obj"
             write_obj(obj, make())
-            rows.append(area_light(name, obj, tmp, seed=k))
+            rows.append(area_light(name, obj, tmp, seed=k, size=args.size))
     Path(args.out or HERE / "scoped_light_results.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 

@@ -22,7 +22,8 @@ SPHERES_LIGHT = (0.0, 4.5, 0.0)
 def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0, quad_light=False):
     """The polygons of :func:`spheres_in_room` (a PolygonSoup, e.g. for :func:`write_obj`);
     ``quad_light``: plus a 2 × 2 square light (group ``light``, facing down) centred at
-    :data:`SPHERES_LIGHT`, 0.5 under the ceiling."""
+    :data:`SPHERES_LIGHT`, 0.5 under the ceiling, and the room's faces in groups floor,
+    ceiling and walls (group ``room`` otherwise)."""
     rng = np.random.default_rng(seed)
     room = trimesh.creation.box(extents=(20, 10, 20))
     room.invert()  # faces look inward
@@ -41,6 +42,10 @@ def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0, quad_light=False):
     offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
     faces = np.concatenate([m.faces + o for m, o in zip(meshes, offsets)])
     groups = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
+    if quad_light:  # the room's triangles by their inward normal: floor (+y), ceiling (-y), walls
+        up = room.face_normals[:, 1]
+        groups[: len(room.faces)] = np.where(up > 0.5, 0, np.where(up < -0.5, len(names), len(names) + 1))
+        names = ["floor"] + names[1:] + ["ceiling", "walls"]
     soup = PolygonSoup(
         vertices=vertices,
         polygon_offsets=np.arange(0, 3 * len(faces) + 1, 3),

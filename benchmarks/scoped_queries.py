@@ -3,12 +3,15 @@
 * ``viscx query shadows SCENE.obj --light …`` (the light's V-cells, the answer as JSON),
   checked by the ray oracle of the tests (tests/query_oracle.py: area-uniform samples, lit
   per the answer's loops versus a shadow ray);
-* with ``--area``: ``viscx query discontinuities SCENE.obj --light-group light`` and
-  ``viscx render SCENE.obj … --light-group light`` at 512² (the nodes and arcs of the
-  light's families only, viscx/skeleton/scope.py), each under ``prlimit --as=7000000000``;
-  the mesh checked by the discontinuity oracle (tests/discontinuity_oracle.py) on the
-  room's faces, the image against a Monte Carlo reference (tests/render_oracle.py,
-  ``noise_check``) rendered in-process on the same mesh.
+* with ``--area``: ``viscx build SCENE.obj --light-group light`` (the nodes and arcs of the
+  light's families only, viscx/skeleton/scope.py, its nodes enumerated light-centred),
+  then from that file ``viscx query discontinuities`` and ``viscx render`` at 512² (from
+  the OBJ they run the same build in-process first: the sums are reported), and
+  ``viscx formfactor groups SCENE.obj --from-group floor --to-group light``, each under
+  ``prlimit --as=8000000000``; the mesh checked by the discontinuity oracle
+  (tests/discontinuity_oracle.py) on the room's faces, the image against a Monte Carlo
+  reference (tests/render_oracle.py, ``noise_check``) rendered in-process on the same
+  mesh, the form factor against cosine-distributed rays (tests/oracles.py).
 
 Scenes: the spheres in a room of benchmarks/scenes.py (122,892 triangles at subdivisions 5)
 and, given ``--bunny PATH`` (the ``index.js`` of ``npm pack bunny``, not shipped with viscx),
@@ -40,7 +43,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 from scenes import BUNNY_LIGHT, SPHERES_LIGHT, bunny_in_room, spheres_in_room_soup, write_obj  # noqa: E402
 
 #: The memory cap of the area-light runs (bytes of address space).
-ADDRESS_SPACE = 7_000_000_000
+ADDRESS_SPACE = 8_000_000_000
 #: Camera of the 512² renders: (eye, look-at, vertical fov) per scene.
 CAMERAS = {"bunny_in_room": ((0.0, 9.0, 14.0), (0.0, 4.0, 0.0), 60.0),
            "spheres_in_room": ((0.0, 2.0, 9.5), (0.0, -1.0, 0.0), 70.0)}
@@ -77,12 +80,26 @@ def run_capped(args):
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1e6, os.waitstatus_to_exitcode(status), text
 
 
-def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0):
-    """The scoped discontinuity mesh and the 512² render of group ``light`` from the OBJ,
-    timed, then checked: the mesh by the discontinuity oracle on the room's six faces
-    (2 points per region, every trace crossed), the image against a 64-sample Monte Carlo
-    reference of the same pixels (``noise_check``)."""
+def _timed(args):
+    """``viscx ARGS`` under the memory cap: its row (wall, CPU, peak GB, exit, error)."""
+    wall, cpu, peak, code, err = run_capped(args)
+    return {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "peak_gb": round(peak, 2), "exit": code,
+            **({"error": err.strip()[-300:]} if code else {})}
+
+
+def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0, rays=4_000_000, size=512):
+    """The scoped build of group ``light`` (``viscx build --light-group``), then from that file
+    the discontinuity mesh and the 512² render, and from the OBJ the form factor floor →
+    light, each timed; then checked: the mesh by the discontinuity oracle on the room's
+    faces (2 points per region, every trace crossed), the image against a 64-sample Monte
+    Carlo reference of the same pixels (``noise_check``), the form factor against
+    ``rays`` cosine-distributed rays from the floor (within 4 sigma).
+
+    ``viscx query discontinuities SCENE.obj`` and ``viscx render SCENE.obj`` run the same
+    scoped build in-process (nothing written) before the same query: their cost from the
+    OBJ is the build's plus the query's (``*_from_obj``)."""
     from discontinuity_oracle import check_mesh
+    from oracles import form_factor_monte_carlo
     from render_oracle import noise_check
 
     from viscx.queries.discontinuities import light_mesh, open_light_query
@@ -90,35 +107,47 @@ def area_light(name, obj, tmp, radiance=(10.0, 10.0, 10.0), seed=0):
     from viscx.render.image import render
 
     row = {"scene": name}
-    out = Path(tmp) / "mesh.json"
-    wall, cpu, peak, code, err = run_capped(["query", "discontinuities", obj, "--light-group", "light", "-o", out])
-    row["discontinuities"] = {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "peak_gb": round(peak, 2), "exit": code,
-                              **({"error": err.strip()[-300:]} if code else {})}
-    if code == 0:
+    built, out, png, ff = (Path(tmp) / f for f in ("light.h5", "mesh.json", "image.png", "ff.json"))
+    row["build"] = _timed(["build", obj, "--light-group", "light", "-o", built])
+    print(json.dumps(row), flush=True)
+    if row["build"]["exit"]:
+        return row
+    row["discontinuities"] = _timed(["query", "discontinuities", built, "--light-group", "light", "-o", out])
+    if row["discontinuities"]["exit"] == 0:
         answer = json.loads(out.read_text())
         row["discontinuities"].update(events=answer["events"], regions=sum(len(f["regions"]) for f in answer["faces"]))
     eye, at, fov = CAMERAS[name.split("(")[0]]
-    png = Path(tmp) / "image.png"
-    wall, cpu, peak, code, err = run_capped(["render", obj, "--camera", ",".join(map(repr, eye)), "--look-at",
-                                             ",".join(map(repr, at)), "--fov", fov, "--light-group", "light",
-                                             "--radiance", ",".join(map(repr, radiance)), "--size", 512, 512, "-o", png])
-    row["render_512"] = {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "peak_gb": round(peak, 2), "exit": code,
-                         **({"error": err.strip()[-300:]} if code else {})}
+    row["render_512"] = _timed(["render", built, "--camera", ",".join(map(repr, eye)), "--look-at", ",".join(map(repr, at)),
+                                "--fov", fov, "--light-group", "light", "--radiance", ",".join(map(repr, radiance)),
+                                "--size", size, size, "-o", png])
+    for query in ("discontinuities", "render_512"):
+        row[f"{query}_from_obj"] = {"cpu_s": round(row["build"]["cpu_s"] + row[query]["cpu_s"], 1),
+                                    "wall_s": round(row["build"]["wall_s"] + row[query]["wall_s"], 1),
+                                    "peak_gb": max(row["build"]["peak_gb"], row[query]["peak_gb"])}
+    row["formfactor"] = _timed(["formfactor", "groups", obj, "--from-group", "floor", "--to-group", "light", "-o", ff])
     print(json.dumps(row), flush=True)
-    if row["discontinuities"]["exit"] or row["render_512"]["exit"]:
-        return row
-    cx = open_light_query(obj, light_group="light")
+    cx = open_light_query(built, light_group="light")
     scene = cx.scene
-    room = [f for f in range(scene.n_faces) if scene.group_names[scene.face_group[f]] in
-            ("floor", "ceiling", "wall_x0", "wall_x1", "wall_z0", "wall_z1", "room")]
-    mesh = light_mesh(cx, light_group="light", faces=room)
-    res = check_mesh(scene, mesh, np.random.default_rng(seed), 1e-4 * scene.diagonal, samples=2)
-    row["mesh_oracle"] = {k: (len(v) if isinstance(v, list) else v) for k, v in res.items()}
-    whole = light_mesh(cx, light_group="light")
-    exact = np.load(png.with_suffix(".npy")).astype(np.float64)
-    mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, 512, 512), radiance=radiance, reference=64, seed=seed)
-    ok, details = noise_check(exact.reshape(-1, 3), mc.radiance.reshape(-1, 3), mc.stderr.reshape(-1, 3))
-    row["render_oracle"] = {"ok": bool(ok), **details}
+    group = np.asarray(scene.group_names)[scene.face_group]
+    if row["formfactor"]["exit"] == 0:
+        exact = json.loads(ff.read_text())["F"]
+        light = np.flatnonzero(group == "light")
+        F, _ = form_factor_monte_carlo(scene, np.flatnonzero(group == "floor"), 1, rays, seed=seed)
+        p = F[2 * light].sum() + F[2 * light + 1].sum()
+        sigma = np.sqrt(p * (1 - p) / rays)
+        row["formfactor"].update(F=exact, monte_carlo=p, sigma=sigma, ok=bool(abs(exact - p) <= 4 * sigma))
+    if row["discontinuities"]["exit"] == 0:
+        room = np.flatnonzero(np.isin(group, ["floor", "ceiling", "wall_x0", "wall_x1", "wall_z0", "wall_z1", "walls"]))
+        mesh = light_mesh(cx, light_group="light", faces=room.tolist())
+        res = check_mesh(scene, mesh, np.random.default_rng(seed), 1e-4 * scene.diagonal, samples=2)
+        row["mesh_oracle"] = {k: (len(v) if isinstance(v, list) else v) for k, v in res.items()}
+    if row["render_512"]["exit"] == 0:
+        whole = light_mesh(cx, light_group="light")
+        exact = np.load(png.with_suffix(".npy")).astype(np.float64)
+        mc = render(scene, whole, Camera(eye, at, (0.0, 1.0, 0.0), fov, size, size), radiance=radiance, reference=64,
+                    seed=seed)
+        ok, details = noise_check(exact.reshape(-1, 3), mc.radiance.reshape(-1, 3), mc.stderr.reshape(-1, 3))
+        row["render_oracle"] = {"ok": bool(ok), **details}
     print(json.dumps(row), flush=True)
     return row
 
@@ -149,6 +178,7 @@ def main():
     ap.add_argument("--subdivisions", type=int, default=5)
     ap.add_argument("--samples", type=int, default=200_000)
     ap.add_argument("--area", action="store_true", help="discontinuities and render of the group light")
+    ap.add_argument("--size", type=int, default=512, help="--area: the render's width and height")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     if args.area:
@@ -190,7 +220,7 @@ def main_area(args):
         for k, (name, make) in enumerate(scenes):
             obj = Path(tmp) / f"scene{k}.obj"
             write_obj(obj, make())
-            rows.append(area_light(name, obj, tmp, seed=k))
+            rows.append(area_light(name, obj, tmp, seed=k, size=args.size))
     Path(args.out or HERE / "scoped_light_results.json").write_text(json.dumps(rows, indent=1) + "\n")
 
 

@@ -20,6 +20,7 @@ from test_discontinuities import contact_scene_obj, crossing_scene_obj, light_sc
 
 from viscx.pipeline import build_complex, light_scope, open_complex
 from viscx.queries.discontinuities import light_mesh, mesh_result, open_discontinuities, open_light_query
+from viscx.skeleton.scope import pairs_near
 from viscx.skeleton.arcs.kinds import END_NODE, END_PLANAR
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
@@ -149,6 +150,83 @@ def test_scoped_equals_full_build_random_slow(tmp_path, kind, seed):
     """The discontinuity tests' random scenes (seeds 20–39), touching boxes whose contact
     faces overlap in part (pencils of touched planes, cracks), a folded panel."""
     _check_random(tmp_path, kind, seed)
+
+
+# --------------------------------------------------------------------------------------
+# the light-centred outer pairs of the scoped node scans
+
+
+def test_pairs_near_equals_brute_force():
+    """pairs_near (per scope box, by side codes) gives exactly the pairs whose joint box
+    meets a scope box, as checking every pair does; one set: i < j."""
+    rng = np.random.default_rng(0)
+    lo1 = rng.uniform(0, 10, (60, 3))
+    hi1 = lo1 + rng.uniform(0, 3, (60, 3))
+    lo2 = rng.uniform(0, 10, (50, 3))
+    hi2 = lo2 + rng.uniform(0, 3, (50, 3))
+    s_lo = rng.uniform(2, 8, (3, 3))
+    s_hi = s_lo + rng.uniform(0, 1, (3, 3))
+    for same, (l2, h2) in ((False, (lo2, hi2)), (True, (lo1, hi1))):
+        first, (off, partners) = pairs_near(s_lo, s_hi, lo1, hi1, l2, h2, same=same)
+        got = {(i, int(j)) for i in range(len(lo1)) for j in partners[off[i] : off[i + 1]]}
+        lo = np.minimum(lo1[:, None], l2[None])
+        hi = np.maximum(hi1[:, None], h2[None])
+        meets = ((lo[:, :, None] <= s_hi[None, None]) & (hi[:, :, None] >= s_lo[None, None])).all(axis=3).any(axis=2)
+        if same:
+            meets &= np.arange(len(lo1))[:, None] < np.arange(len(lo1))[None]
+        want = set(zip(*map(lambda x: x.tolist(), np.nonzero(meets))))
+        assert got == want and 0 < len(want) < meets.size // 2
+        assert first.tolist() == sorted({i for i, _ in want})
+
+
+def light_between_obj(path):
+    """The tests' light scene (seed 3, two tetrahedra between the floor and the light) with
+    a third tetrahedron above the light: node lines run from the tetrahedra below past a
+    light edge to the one above, the light edge between their outer generators."""
+    light_scene_obj(path, 3)
+    pts = np.array([[4.2, 11.0, 4.3], [6.1, 11.2, 4.6], [5.0, 11.1, 6.2], [5.1, 12.4, 5.0]])
+    n = sum(1 for line in path.read_text().splitlines() if line.startswith("v "))
+    lines = ["o above"] + [f"v {p[0]!r} {p[1]!r} {p[2]!r}" for p in pts.tolist()]
+    lines += ["f " + " ".join(str(n + 1 + i) for i in tri) for tri in ((0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3))]
+    path.write_text(path.read_text() + "\n".join(lines) + "\n")
+    return path
+
+
+def test_scoped_light_between_generators(tmp_path, monkeypatch):
+    """Knock-out of the light-centred pairs with generators beyond the light: visiting only
+    the outer pairs with an item at the light (a light edge or vertex, or anything reaching
+    its box) loses nodes of the scoped V0 (which is the full build's in scope:
+    :func:`test_scoped_light_between_generators_levels`), those whose light generator lies
+    strictly between the outer pair."""
+    import viscx.skeleton.scope as scope_module
+
+    obj = light_between_obj(tmp_path / "between.obj")
+    scoped = build_complex(obj, quiet=True, levels=0, light_group="light")
+
+    real = scope_module.pairs_near
+
+    def at_the_light(s_lo, s_hi, lo1, hi1, lo2, hi2, same=False):
+        first, (off, partners) = real(s_lo, s_hi, lo1, hi1, lo2, hi2, same)
+        i = np.repeat(np.arange(len(lo1)), np.diff(off))
+        near1 = ((lo1[:, None] <= s_hi[None]) & (hi1[:, None] >= s_lo[None])).all(axis=2).any(axis=1)
+        near2 = ((lo2[:, None] <= s_hi[None]) & (hi2[:, None] >= s_lo[None])).all(axis=2).any(axis=1)
+        keep = near1[i] | near2[partners]
+        i, partners = i[keep], partners[keep]
+        return np.unique(i), (np.searchsorted(i, np.arange(len(lo1) + 1)), partners)
+
+    monkeypatch.setattr(scope_module, "pairs_near", at_the_light)
+    knocked = build_complex(obj, quiet=True, levels=0, light_group="light")
+    rows = {tuple(g) for g in scoped.nodes.generators.tolist()}
+    assert {tuple(g) for g in knocked.nodes.generators.tolist()} < rows
+
+
+@pytest.mark.slow
+def test_scoped_light_between_generators_levels(tmp_path):
+    """The same scene: the scoped V0 and V1 and the mesh are the full build's."""
+    obj = light_between_obj(tmp_path / "between.obj")
+    full = build_complex(obj, quiet=True, output=tmp_path / "full.h5")
+    assert_scoped_levels(full, build_complex(obj, quiet=True, light_group="light"), light_group="light")
+    assert assert_same_mesh(tmp_path / "full.h5", obj, light_group="light")["events"] > 0
 
 
 # --------------------------------------------------------------------------------------

@@ -163,60 +163,6 @@ def sky_targets(scene):
 # occluders of a pair
 
 
-def _separated(hull_pts, hull_edges, hull_normals, poly, poly_normal, tol):
-    """Separating-axis test of a convex polytope (points, edges, facet normals) and the
-    convex hull of a planar polygon; touching (overlap below tol) counts as separated."""
-    pe = np.roll(poly, -1, axis=0) - poly
-    axes = [hull_normals, poly_normal[None], np.cross(poly_normal[None], pe)]
-    cross = np.cross(hull_edges[:, None, :], pe[None, :, :]).reshape(-1, 3)
-    axes.append(cross)
-    axes = np.concatenate(axes)
-    size = np.linalg.norm(axes, axis=1)
-    keep = size > 1e-12 * size.max()
-    axes = axes[keep] / size[keep, None]
-    pa = hull_pts @ axes.T
-    pb = poly @ axes.T
-    return bool(np.any((pb.max(axis=0) <= pa.min(axis=0) + tol) | (pa.max(axis=0) <= pb.min(axis=0) + tol)))
-
-
-def shaft_occluders(pts, occluders, tol):
-    """The occluders that meet the interior of the convex hull of ``pts`` (the shaft of
-    every segment between two point sets whose hull points these are).
-
-    Parameters
-    ----------
-    pts : (k, 3) float64
-    occluders : list of (loops, normal, face)
-        Planar polygons, outer loop first (face: the scene's face they are part of, -1 none).
-    tol : float
-        Overlap below which a polygon only touching the hull is left out.
-
-    Returns
-    -------
-    list of (loops, normal, face)
-        The ones kept, in their order; ``[]`` when the hull is flat (nothing passes).
-    """
-    from scipy.spatial import ConvexHull, QhullError
-
-    try:
-        hull = ConvexHull(pts)
-    except (QhullError, ValueError):
-        return []  # flat: the two sets are coplanar, nothing passes between them
-    simp = hull.simplices
-    edges = np.concatenate([pts[simp[:, 1]] - pts[simp[:, 0]], pts[simp[:, 2]] - pts[simp[:, 1]], pts[simp[:, 0]] - pts[simp[:, 2]]])
-    hnormals = hull.equations[:, :3]
-    hp = pts[hull.vertices]
-    lo, hi = hp.min(axis=0) - tol, hp.max(axis=0) + tol
-    out = []
-    for occ in occluders:
-        outer = occ[0][0]
-        if np.any(outer.min(axis=0) > hi) or np.any(outer.max(axis=0) < lo):
-            continue
-        if not _separated(hp, edges, hnormals, outer, occ[1], tol):
-            out.append(occ)
-    return out
-
-
 def face_boxes(scene):
     """Bounding boxes of the faces' outer loops, ``(lo, hi)`` (f, 3) float64 each (cached)."""
 
@@ -1184,7 +1130,7 @@ class PairSetup:
         ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`) that are
         not back faces of a closed box outside of which the whole triangle lies
         (:func:`back_faces`)."""
-        pts, lo, hi, normals = self._outlines
+        pts, lo, hi, normals = self.occluder_outlines
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
         keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
         cell, ids = cell[keep], ids[keep]
@@ -1194,7 +1140,9 @@ class PairSetup:
         return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), ids[meets]
 
     @functools.cached_property
-    def _outlines(self):
+    def occluder_outlines(self):
+        """The occluders' outer loops as :func:`viscx.geometry.occlusion.shaft_meets` wants
+        them: ``(points, lo, hi, normals)``."""
         return _polygon_arrays(self.occluders)
 
     @functools.cached_property
@@ -1207,7 +1155,7 @@ class PairSetup:
         """Per occluder: the least height above I of its vertices not on I (inf if none),
         and its outline's edges projected on I's plane ``(a, b)`` (P, k, 3) (padded by
         repeating the last edge)."""
-        pts, lo, hi, _ = self._outlines
+        pts, lo, hi, _ = self.occluder_outlines
         h = pts @ self.n_i - self.c_i
         k = int((hi - lo).max()) if len(lo) else 1
         idx = np.minimum(lo[:, None] + np.arange(k), hi[:, None] - 1)

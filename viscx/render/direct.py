@@ -22,8 +22,9 @@ discontinuity mesh of the light (:mod:`viscx.queries.discontinuities`, traced fr
 cuts every receiver into regions in which the visible part of the light keeps its
 combinatorial structure. Per region R and light face l, the occluders that matter are
 the faces meeting the interior of the convex hull of R ∪ l (every segment from a point of
-R to the light lies in it): computed once per region, from the receiver's own shaft
-occluders, and every pixel of R is evaluated in one batch with only those. A fully lit
+R to the light lies in it): for all the regions of a receiver at once (one exact
+separating-axis pass in numba, :func:`viscx.geometry.occlusion.shaft_meets`, over the
+receiver's own shaft occluders whose boxes meet the region's shaft), and every pixel of R is evaluated in one batch with only those. A fully lit
 region has none (Lambert's formula on the whole light); an umbra or penumbra region has
 the few that bound its shadow. This is exact whatever the mesh: a region's shaft contains
 every segment from its points to the light, so culling never drops a real occluder; a
@@ -37,7 +38,8 @@ import numpy as np
 from numba import njit
 
 from viscx.errors import ParameterError, ViscxError, literal
-from viscx.queries.formfactor import PairSetup, face_target, shaft_occluders
+from viscx.geometry.occlusion import shaft_meets
+from viscx.queries.formfactor import PairSetup, convex_outline, face_target
 
 #: Reflectance of faces without a material (Kd).
 DEFAULT_KD = 0.75
@@ -170,6 +172,7 @@ class DirectLighting:
         self._locators = {}
         self._setups = {}
         self._kernels = {}
+        self._culled = {}
         self.stats = {"regions": 0, "points": 0, "unlocated": 0, "occluders": 0}
 
     # -- where a point is --------------------------------------------------------------
@@ -203,14 +206,46 @@ class DirectLighting:
             self._setups[key] = out
         return self._setups[key]
 
+    def _region_occluders(self, face, side, k, setup):
+        """Per region of the receiver: the pair's occluders meeting the interior of its shaft
+        to light face k (the convex hull of the region and J', so of their convex outlines),
+        as CSR ``(ptr, ids)`` into ``setup.occluders``: every region at once, one numba call
+        (:func:`viscx.geometry.occlusion.shaft_meets`) over the (region, occluder) pairs
+        whose boxes meet."""
+        key = (int(face), int(side), k)
+        if key not in self._culled:
+            rec = self.receivers[int(face)]
+            hulls = [convex_outline([rec.to3(g.outer)], setup.n_i) for g in rec.regions]
+            kc = max(len(h) for h in hulls)
+            # (padded by repeating the last vertex: a zero edge gives no axis)
+            cells = np.stack([np.concatenate([h, np.repeat(h[-1:], kc - len(h), axis=0)]) for h in hulls])
+            target = convex_outline(setup.J, setup.n_t)
+            pts, lo, hi, normals = setup.occluder_outlines
+            tol = setup.tiny
+            o_lo, o_hi = np.minimum.reduceat(pts, lo, axis=0), np.maximum.reduceat(pts, lo, axis=0)
+            s_lo = np.minimum(cells.min(axis=1), target.min(axis=0)) - tol
+            s_hi = np.maximum(cells.max(axis=1), target.max(axis=0)) + tol
+            cell, ids = [], []
+            for c0 in range(0, len(cells), 256):  # box test in blocks of regions
+                near = (o_lo[None] <= s_hi[c0 : c0 + 256, None]).all(axis=2) & (o_hi[None] >= s_lo[c0 : c0 + 256, None]).all(axis=2)
+                r, o = np.nonzero(near)
+                cell.append(r + c0)
+                ids.append(o)
+            cell, ids = np.concatenate(cell).astype(np.int64), np.concatenate(ids).astype(np.int64)
+            meets = shaft_meets(cells, np.ascontiguousarray(np.broadcast_to(setup.n_i, (len(cells), 3))), target,
+                                np.asarray(setup.n_t, np.float64), cell, ids, pts, lo, hi, normals, tol)
+            ptr = np.r_[0, np.cumsum(np.bincount(cell[meets], minlength=len(cells)))].astype(np.int64)
+            self._culled[key] = (ptr, ids[meets])
+        return self._culled[key]
+
     def _kernel(self, face, side, region, k, setup):
         """The kernel of light face k for points of one region (-1: all the pair's occluders)."""
         key = (int(face), int(side), int(region), k)
         if key not in self._kernels:
             occ = setup.occluders
             if region >= 0 and occ:
-                pts = np.concatenate(self.region_loops(face, region)[:1] + setup.J)
-                occ = shaft_occluders(pts, occ, setup.tiny)
+                ptr, ids = self._region_occluders(face, side, k, setup)
+                occ = [occ[i] for i in ids[ptr[region] : ptr[region + 1]]]
             self.stats["occluders"] += len(occ)
             self._kernels[key] = setup.kernel_for(occ)
         return self._kernels[key]

@@ -820,12 +820,17 @@ def _edge_pairs_blocked(table, ev):
 
 @njit(cache=True, nogil=True)
 def _blocked(bits, a, b):
-    """Whether edges a and b are blocked (:func:`_edge_pairs_blocked`)."""
+    """Whether edges a and b are blocked (:func:`_edge_pairs_blocked`); never without
+    the table (an empty one: the scoped scans, which have no table over all pairs)."""
+    if bits.shape[0] == 0:
+        return False
     return (bits[a, b >> 6] >> np.uint64(b & 63)) & np.uint64(1) != 0
 
 
 @njit(cache=True, nogil=True)
 def _vertex_edge_blocked(table, v, b0, b1):
+    if table.shape[0] == 0:  # no table: nothing known blocked (:func:`_blocked`)
+        return False
     t = table[v, b0]
     return t >= 0 and table[v, b1] == t
 
@@ -1083,9 +1088,10 @@ def _no_vee_line(p, lines, e1, e2):
 @njit(cache=True, nogil=True)
 def _scan_edge_pairs(
     first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps,
-    scope_e, scope_v, scope_a, scope_b, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    scope_e, scope_v, scope_a, scope_b, partner_off, partners, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
-    """Outer edge pairs (a, d), a in ``first``, d > a: the vertices and edge pairs in
+    """Outer edge pairs (a, d), a in ``first``, d > a (or, with ``partner_off`` non-empty,
+    d in ``partners[partner_off[a]:partner_off[a + 1]]``): the vertices and edge pairs in
     their inflated hull with every pair of generators unblocked and a line through
     all of them (exact filters, with slack).
 
@@ -1126,7 +1132,10 @@ def _scan_edge_pairs(
         a0, a1 = ev[a, 0], ev[a, 1]
         pa, qa, da = _row(ea, a), _row(eb, a), _row(ed, a)
         len_a = np.sqrt(_dot(da, da))
-        for d in range(a + 1, n_e):
+        listed = partner_off.shape[0] > 0
+        n_d = partner_off[a + 1] - partner_off[a] if listed else n_e - a - 1
+        for k in range(n_d):
+            d = partners[partner_off[a] + k] if listed else a + 1 + k
             if _adjacent(ev, a, d):
                 continue
             d0, d1 = ev[d, 0], ev[d, 1]
@@ -1249,9 +1258,10 @@ def _scan_edge_pairs(
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
     first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, tol, eps,
-    scope_e, scope_v, scope_a, scope_b, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    scope_e, scope_v, scope_a, scope_b, partner_off, partners, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
 ):
-    """Vertex v (positions in ``first``) at an end, the far edge e: the edges in the
+    """Vertex v (positions in ``first``) at an end, the far edge e (every edge, or those
+    listed for v as in :func:`_scan_edge_pairs`): the edges in the
     inflated triangle conv(v ∪ e) with every pair of generators unblocked and a line
     through v, them and e (exact filter, with slack).
     Returns rows (v, e1, e2) by position, e1 the inner edge. Scope as :func:`_scan_edge_pairs`."""
@@ -1274,7 +1284,10 @@ def _scan_vertex_edges(
     query = 0
     for v in first:
         pv = _row(vx, v)
-        for e in range(n_e):
+        listed = partner_off.shape[0] > 0
+        n_f = partner_off[v + 1] - partner_off[v] if listed else n_e
+        for k in range(n_f):
+            e = partners[partner_off[v] + k] if listed else k
             e0, e1 = ev[e, 0], ev[e, 1]
             if e0 == v or e1 == v or _vertex_edge_blocked(table, v, e0, e1):
                 continue
@@ -1516,7 +1529,10 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     pos = np.full(scene.n_vertices, -1, dtype=np.int64)
     pos[gv] = np.arange(len(gv))
     solids = blocking_solids(scene)
-    table, sov = blocked_table(scene, gv, solids)
+    if scope is None:
+        table, sov = blocked_table(scene, gv, solids)
+    else:  # light-centred: no table over all pairs of generators (g² of them)
+        table, sov = np.full((0, 0), -1, np.int32), solids[0][gv]
     solid_grid = _SolidGrid(*solids[1:]).args()
     line_solids = (solids[0],) + solid_grid
     stats["seconds solids"] = time.perf_counter() - clock
@@ -1526,13 +1542,18 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     # VV: unblocked pairs not joined by an edge, free as validation will test them
     clock = time.perf_counter()
     pb = progress("VV", len(gv))
-    i, j = np.triu_indices(len(gv), 1)
-    keep = table[i, j] < 0
-    joined = np.zeros((len(gv), len(gv)), dtype=bool)
-    joined[ev[:, 0], ev[:, 1]] = joined[ev[:, 1], ev[:, 0]] = True
-    keep &= ~joined[i, j]
-    if scope is not None:
-        keep &= scope.node_vertices[gv[i]] | scope.node_vertices[gv[j]]
+    if scope is None:
+        i, j = np.triu_indices(len(gv), 1)
+        keep = table[i, j] < 0
+        joined = np.zeros((len(gv), len(gv)), dtype=bool)
+        joined[ev[:, 0], ev[:, 1]] = joined[ev[:, 1], ev[:, 0]] = True
+        keep &= ~joined[i, j]
+    else:  # the pairs with a scope vertex, i < j, not joined by an edge
+        s = np.flatnonzero(scope.node_vertices[gv])
+        i, j = np.repeat(s, len(gv)), np.tile(np.arange(len(gv)), len(s))
+        i, j = np.minimum(i, j), np.maximum(i, j)
+        i, j = unique_rows(np.stack([i, j], axis=1)[i < j])[0].T
+        keep = ~np.isin(i * len(gv) + j, np.sort(ev, axis=1) @ np.array([len(gv), 1]))
     i, j = i[keep], j[keep]
     u, v = gv[i], gv[j]
     origin, direction = scene.vertices[u], scene.vertices[v] - scene.vertices[u]
@@ -1557,7 +1578,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     hi = vx.max(axis=0) + HULL_TOL * eps
     ea, eb = np.ascontiguousarray(vx[ev[:, 0]]), np.ascontiguousarray(vx[ev[:, 1]])
     ed = eb - ea
-    blocked = _edge_pairs_blocked(table, ev)
+    blocked = _edge_pairs_blocked(table, ev) if scope is None else np.zeros((0, 1), np.uint64)
     # Plücker lines of the generator edges, once (the same floats as per tuple)
     lines = edge_lines(scene, ge)
     line_of = np.zeros((len(ev_all), 6))
@@ -1571,15 +1592,30 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     v_items = lone[v_items]
     tol = HULL_TOL * eps + 1e-12 * scene.diagonal
     scoping = _scope_arrays(scope, gv, ge, ev, vx)
+    # the outer pairs the scans visit: all, or (scoped) those whose joint box meets a
+    # scope generator's (light-centred: :func:`viscx.skeleton.scope.pairs_near`)
+    if scope is None:
+        ve_first, ve_pairs = np.arange(len(gv)), (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        ee_first, ee_pairs = np.arange(len(ge)), ve_pairs
+    else:
+        from viscx.skeleton.scope import pairs_near
+
+        pad = 4 * tol + 4 * eps
+        s_lo, s_hi = np.minimum(scoping[2], scoping[3]) - pad, np.maximum(scoping[2], scoping[3]) + pad
+        e_lo, e_hi = np.minimum(ea, eb), np.maximum(ea, eb)
+        ve_first, ve_pairs = pairs_near(s_lo, s_hi, vx, vx, e_lo, e_hi)
+        ee_first, ee_pairs = pairs_near(s_lo, s_hi, e_lo, e_hi, e_lo, e_hi, same=True)
+        stats["VEE outer pairs"], stats["E4 outer pairs"] = len(ve_pairs[1]), len(ee_pairs[1])
 
     # VEE with the vertex at an end: (v, e) pairs and the edges in their triangle
     clock = time.perf_counter()
-    pb = progress("VEE", len(gv))
+    pb = progress("VEE", len(ve_first))
     parts = _parallel(
         _scan_vertex_edges,
-        np.arange(len(gv)),
-        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps) + scoping + solid_grid,
-        max(1, min(64, len(gv) // (8 * workers) + 1)),
+        ve_first,
+        (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps)
+        + scoping + ve_pairs + solid_grid,
+        max(1, min(64, len(ve_first) // (8 * workers) + 1)),
         pb,
         workers,
     )
@@ -1589,13 +1625,13 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     clock = time.perf_counter()
 
     # E4 and VEE with the vertex inside: outer edge pairs (a, d) and what their tetrahedron holds
-    pb = progress("E4", len(ge))
+    pb = progress("E4", len(ee_first))
     parts = _parallel(
         _scan_edge_pairs,
-        np.arange(len(ge)),
+        ee_first,
         (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps)
-        + scoping + solid_grid,
-        max(1, min(64, len(ge) // (8 * workers) + 1)),
+        + scoping + ee_pairs + solid_grid,
+        max(1, min(64, len(ee_first) // (8 * workers) + 1)),
         pb,
         workers,
     )

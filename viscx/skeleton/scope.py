@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viscx.arrays import unique_rows
 from viscx.skeleton.generators import edges_through_vertices
 
 
@@ -94,3 +95,71 @@ class Scope:
         ve = np.asarray(kind) == VE
         first = np.where(ve, self._vertex(g[:, 0], self.vertices), self._edge(g[:, 0]))
         return first | self._edge(g[:, 1]) | self._edge(g[:, 2])
+
+
+def _side_codes(lo, hi, x_lo, x_hi):
+    """(n,) int: per axis 0 when a box (lo, hi (n, 3)) lies below [x_lo, x_hi], 2 above,
+    1 across, as the base-3 digits of one code (0..26)."""
+    side = np.where(hi < x_lo, 0, np.where(lo > x_hi, 2, 1))
+    return side @ np.array([9, 3, 1])
+
+
+def _compatible_codes():
+    """(27, 27) bool: two side codes whose joint box meets the box on every axis (not
+    both below, not both above)."""
+    digits = np.array([[c // 9, c // 3 % 3, c % 3] for c in range(27)])
+    a, b = digits[:, None, :], digits[None, :, :]
+    return (~(((a == 0) & (b == 0)) | ((a == 2) & (b == 2)))).all(axis=2)
+
+
+def pairs_near(s_lo, s_hi, lo1, hi1, lo2, hi2, same=False):
+    """The outer pairs a scoped scan visits (:func:`viscx.skeleton.candidates.fast_candidates`):
+    pairs (i, j) of an item of set 1 and one of set 2 whose joint bounding box meets the
+    box of a scope generator.
+
+    A node in scope has a scope generator on its line between (or at) its two outer
+    generators, so inside their hull and so inside their joint box. The pairs are found
+    light-centred, per scope generator, by the side of its box each item lies on along
+    each axis (below, across, above): a joint box misses it only when both items lie
+    below, or both above, on some axis. So items far from the light pair only with the
+    few reaching it (the light's own edges, a wall across its height), and no pair of
+    the scene's generators is visited otherwise.
+
+    Parameters
+    ----------
+    s_lo, s_hi : (k, 3) float
+        Boxes of the scope generators (padded by the scans' tolerance).
+    lo1, hi1 : (n1, 3) float
+    lo2, hi2 : (n2, 3) float
+        Boxes of the items.
+    same : bool
+        One set (set 2 is set 1): pairs i < j.
+
+    Returns
+    -------
+    first : (m,) int64
+        The items of set 1 with a pair, increasing.
+    (offsets, partners) : (n1 + 1,) int64, (p,) int64
+        Item i's partners, increasing, at ``partners[offsets[i]:offsets[i + 1]]``.
+    """
+    ok = _compatible_codes()
+    parts_i, parts_j = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for x_lo, x_hi in zip(s_lo, s_hi):
+        groups = []
+        for lo, hi in ((lo1, hi1), (lo2, hi2)):
+            code = _side_codes(lo, hi, x_lo, x_hi)
+            order = np.argsort(code, kind="stable")
+            groups.append((order, np.searchsorted(code[order], np.arange(28))))
+        (o1, b1), (o2, b2) = groups
+        for p, q in zip(*np.nonzero(ok)):
+            g1, g2 = o1[b1[p] : b1[p + 1]], o2[b2[q] : b2[q + 1]]
+            if len(g1) and len(g2):
+                parts_i.append(np.repeat(g1, len(g2)))
+                parts_j.append(np.tile(g2, len(g1)))
+    i, j = np.concatenate(parts_i), np.concatenate(parts_j)
+    if same:
+        i, j = np.minimum(i, j), np.maximum(i, j)
+        i, j = i[i < j], j[i < j]
+    pairs = unique_rows(np.stack([i, j], axis=1).astype(np.int64))[0].reshape(-1, 2)
+    offsets = np.searchsorted(pairs[:, 0], np.arange(len(lo1) + 1)).astype(np.int64)
+    return np.unique(pairs[:, 0]), (offsets, np.ascontiguousarray(pairs[:, 1]))

@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -184,4 +185,35 @@ def test_a_signal_waits_for_numba_to_let_go_of_its_compiler_lock():
             with global_compiler_lock:  # nothing left pending
                 pass
     finally:
+        received_signals.clear()
+
+
+def test_a_signal_inside_numbas_code_is_raised_again_outside_it():
+    """A signal whose handler interrupts numba's own Python code (run inside a kernel call:
+    an exception there left a returned tuple with an empty slot, and a segfault) is not
+    raised there but delivered again moments later, and raised in viscx's code."""
+    import signal
+    import time
+
+    import numba
+
+    from viscx.cli import Terminated, _on_signal
+    from viscx.formats.atomic import received_signals
+
+    # a frame as numba's code would have: the handler's argument when it interrupts numba
+    where = compile("import sys\nframe = sys._getframe()", str(Path(numba.__file__).parent / "core" / "x.py"), "exec")
+    scope = {}
+    exec(where, scope)
+    previous = signal.signal(signal.SIGTERM, _on_signal)
+    try:
+        _on_signal(signal.SIGTERM, scope["frame"])  # deferred: no exception here
+        assert received_signals == [signal.SIGTERM]
+        with pytest.raises(Terminated):
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:
+                time.sleep(0.001)  # delivered again, raised here (this file is not numba's)
+        with pytest.raises(Terminated):
+            _on_signal(signal.SIGTERM, sys._getframe())
+    finally:
+        signal.signal(signal.SIGTERM, previous)
         received_signals.clear()

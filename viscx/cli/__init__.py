@@ -97,6 +97,8 @@ def _on_signal(signum, frame):
     received_signals.append(signum)
     if _numba_busy():
         _defer(signum)
+    elif _in_numba(frame):
+        _deliver_again(signum)
     else:
         raise _exception(signum)
 
@@ -112,6 +114,33 @@ def _numba_busy():
     SIGINT while the scene stage's kernels loaded, a segfault in a kernel after SIGTERM)."""
     lock = sys.modules.get("numba.core.compiler_lock")  # not imported: no kernel yet
     return lock is not None and lock.global_compiler_lock.is_locked()
+
+
+#: numba's and llvmlite's Python code, by file
+_NUMBA_FILES = tuple(os.sep + name + os.sep for name in ("numba", "llvmlite"))
+
+
+def _in_numba(frame):
+    """Whether the signal's handler interrupted numba's (or llvmlite's) own Python code: a
+    kernel call runs some (type dispatch, finalizers of its objects during the call's
+    allocations), and an exception raised there can leave the call half done: a kernel that
+    returns a tuple of arrays then hands back a tuple with an empty slot, and the caller's
+    unpacking crashes (segfault in ``face_loops``' call of ``_cycles`` after SIGTERM, 3 of
+    170 interrupted builds, seen in a core dump: the returned tuple's first item NULL)."""
+    return frame is not None and frame.f_code.co_filename.endswith(".py") and any(
+        name in frame.f_code.co_filename for name in _NUMBA_FILES)
+
+
+def _deliver_again(signum):
+    """Send ``signum`` to this process again in 5 ms (while viscx's handler is still the
+    signal's): its exception is then raised outside numba's code."""
+    def again():
+        if signal.getsignal(signum) is _on_signal:
+            os.kill(os.getpid(), signum)
+
+    timer = threading.Timer(0.005, again)
+    timer.daemon = True
+    timer.start()
 
 
 #: signals received while numba held its compiler lock, raised when it lets go of it;

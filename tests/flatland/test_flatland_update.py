@@ -13,6 +13,7 @@ from test_flatland_dynamic import assert_same_complex, base
 from test_flatland_touching import GROUND, box
 
 from viscx.errors import ViscxError
+from viscx.flatland import kernels as K
 from viscx.flatland.complex import build
 from viscx.flatland.dynamic import insert, move, remove
 from viscx.flatland.scene import check_disjoint, make_scene
@@ -209,6 +210,39 @@ def test_local_moves_with_contacts_equal_rebuild(k, dx, dy, snap):
 @given(**CONTACT_MOVES)
 def test_many_local_moves_with_contacts(k, dx, dy, snap):
     check_contact_move(k, dx, dy, snap)
+
+
+@pytest.mark.parametrize("dy", [0.125, 0.25])
+def test_gap_of_one_ulp(dy):
+    """Found by hypothesis in ``test_many_local_moves_with_contacts``: box 'a' moved an ulp
+    away from box 'b' (dx = −2⁻⁵², lifted by dy) — a silent wrong answer, rows summing to
+    1.0875 and 0.475, a rebuild the same.  A vertex of the contact along x = −0.5 got
+    θ = π/2 − 4e-16, so 'b''s right tangency curve was integrated to φ = π − 4e-16, an ulp
+    below its first piece's start A_s = π: φ − (−1)·2π rounded up to A_s + 2π, read as
+    piece s with the turn before, and G_k, S_k were a whole perimeter (4.2) low
+    (kernels.piece_at).  Rows sum to 1 and both methods agree."""
+    check_contact_move(1, -2.220446049250313e-16, dy, "")
+
+
+def test_support_antiderivatives_continuous_at_the_turn():
+    """G_k and S_k (kernels.antideriv_h, contact_length) an ulp below the start of an
+    object's first piece (+ 2nπ) equal their values at it (S, which jumps there by the
+    last edge's length, either side of the jump), never a whole perimeter apart: the
+    turn and the piece are decided together."""
+    sc = yard()
+    A, cumG, cumS, per = sc.pieces()
+    args = sc.vert_start, sc.verts, sc.radius, A
+    for k in range(sc.n):
+        s, e = sc.vert_start[k], sc.vert_start[k + 1]
+        if e - s == 1:
+            continue
+        for n in (0, 1, -1):
+            at = A[s] + n * 2 * np.pi
+            below = np.nextafter(at, -np.inf)
+            assert abs(K.antideriv_h(k, below, *args, cumG, per) - K.antideriv_h(k, at, *args, cumG, per)) < 1e-12
+            jump = K.contact_length(k, at, *args, cumS, per) - K.contact_length(k, below, *args, cumS, per)
+            # S jumps by the last edge at A_s: an ulp below it may round to either side
+            assert min(abs(jump), abs(jump - np.hypot(*(sc.verts[s] - sc.verts[e - 1])))) < 1e-12, (k, n, jump)
 
 
 @pytest.mark.parametrize("k, dx", [(4, 0.0), (1, 0.0), (4, -1.5)])

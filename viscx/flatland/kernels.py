@@ -30,20 +30,36 @@ R_SIDE, L_SIDE = 1, 0
 
 # ----------------------------------------------------------------------------- support
 @nb.njit(cache=True)
-def support_index(k, phi, vert_start, A):
-    """Global index of the support point of object k active in direction φ."""
+def piece_at(k, phi, vert_start, A):
+    """(turns, p, j): φ = p + turns·2π with p in [A_s, A_s + 2π) up to rounding, and j the
+    global index of object k's support piece holding p (a circle: (0, φ, s)).
+
+    The turns and the piece are decided together: φ an ulp below A_s + 2nπ gives
+    p = φ − (n − 1)·2π, which may round up to A_s + 2π — that p is counted as the next
+    turn's start (piece s), never as piece s with the turn before, which put G_k and
+    S_k (:func:`antideriv_h`, :func:`contact_length`) off by a whole perimeter."""
     s, e = vert_start[k], vert_start[k + 1]
     if e - s == 1:
-        return s
+        return 0, phi, s
     a0 = A[s]
-    p = a0 + (phi - a0) % TWO_PI
+    turns = math.floor((phi - a0) / TWO_PI)
+    p = phi - turns * TWO_PI
+    if p >= a0 + TWO_PI:
+        turns += 1
+        p -= TWO_PI
     j = s
     for i in range(s + 1, e):
         if A[i] <= p:
             j = i
         else:
             break
-    return j
+    return turns, p, j
+
+
+@nb.njit(cache=True)
+def support_index(k, phi, vert_start, A):
+    """Global index of the support point of object k active in direction φ."""
+    return piece_at(k, phi, vert_start, A)[2]
 
 
 @nb.njit(cache=True)
@@ -57,10 +73,7 @@ def antideriv_h(k, phi, vert_start, verts, radius, A, cumG, perimeter):
     if e - s == 1:
         c = verts[s]
         return c[0] * math.sin(phi) - c[1] * math.cos(phi) + radius[k] * phi
-    a0 = A[s]
-    turns = math.floor((phi - a0) / TWO_PI)
-    p = phi - turns * TWO_PI
-    j = support_index(k, p, vert_start, A)
+    turns, p, j = piece_at(k, phi, vert_start, A)
     v = verts[j]
     aj = A[j]
     return (turns * perimeter[k] + cumG[j]
@@ -75,10 +88,7 @@ def contact_length(k, phi, vert_start, verts, radius, A, cumS, perimeter):
     s, e = vert_start[k], vert_start[k + 1]
     if e - s == 1:
         return radius[k] * phi
-    a0 = A[s]
-    turns = math.floor((phi - a0) / TWO_PI)
-    p = phi - turns * TWO_PI
-    j = support_index(k, p, vert_start, A)
+    turns, p, j = piece_at(k, phi, vert_start, A)
     return turns * perimeter[k] + cumS[j]
 
 
@@ -297,13 +307,11 @@ def _piece_bounds(k, side, theta, vert_start, A):
     """Active support point of tangency curve (k, side) at θ and the θ where its piece ends."""
     shift = HALF_PI if side == 1 else -HALF_PI
     phi = theta + shift
-    j = support_index(k, phi, vert_start, A)
+    _, p, j = piece_at(k, phi, vert_start, A)
     s, e = vert_start[k], vert_start[k + 1]
     if e - s == 1:
         return j, np.inf
-    a0 = A[s]
-    p = a0 + (phi - a0) % TWO_PI
-    end = A[j + 1] if j + 1 < e else a0 + TWO_PI
+    end = A[j + 1] if j + 1 < e else A[s] + TWO_PI
     return j, theta + (end - p)
 
 
@@ -504,14 +512,11 @@ def contact_length_at(k, phi, j_forced, vert_start, verts, radius, A, cumS, peri
     s, e = vert_start[k], vert_start[k + 1]
     if e - s == 1 or j_forced < 0:
         return contact_length(k, phi, vert_start, verts, radius, A, cumS, perimeter)
-    a0 = A[s]
-    turns = math.floor((phi - a0) / TWO_PI)
-    p = phi - turns * TWO_PI
-    j = support_index(k, p, vert_start, A)
+    turns, p, j = piece_at(k, phi, vert_start, A)
     if j_forced != j:
         # the forced corner is the piece after j (φ at j's end) or before it (at its
         # start): decided by the nearer end, since a segment's two pieces meet at both
-        end = A[j + 1] if j + 1 < e else a0 + TWO_PI
+        end = A[j + 1] if j + 1 < e else A[s] + TWO_PI
         if end - p < p - A[j]:
             if j == e - 1:
                 turns += 1

@@ -267,7 +267,14 @@ def _line_chains(theta, u, tol):
     o = np.argsort(theta, kind="stable")
     gth = np.empty(N, np.int64)
     gth[o] = np.concatenate([[0], np.cumsum(np.diff(theta[o]) > TOL_THETA)])
-    o = np.lexsort((u, gth))
+    # the order of (θ chain, u, index): o already has it but within the θ chains of two
+    # or more lines (few), which are sorted again alone
+    gs = gth[o]
+    multi = np.zeros(N, bool)
+    multi[:-1] = gs[1:] == gs[:-1]
+    multi[1:] |= multi[:-1].copy()
+    sub = np.sort(o[multi])
+    o[multi] = sub[np.lexsort((u[sub], gth[sub]))]
     brk = np.concatenate([[True], (np.diff(gth[o]) != 0) | (np.diff(u[o]) > tol)])
     g = np.empty(N, np.int64)
     g[o] = np.cumsum(brk) - 1
@@ -325,21 +332,31 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
     size = np.diff(start)
     along = pre["along"] if seed is None else pre["along"] | seed
     is_line = (size >= 2) | (np.bincount(chain, weights=along, minlength=G) > 0)
-    lines = head[is_line]
-    ua, ub = [], []
+    # the joins found by an earlier call on the same copies are kept: a call with seeds
+    # only adds lines, so it tests the candidates against its new lines alone
+    done, ua, ub = pre.get("joins", (np.zeros(G, bool), [], []))
+    if np.any(done & ~is_line):  # not a call that adds lines: test them all again
+        done, ua, ub = np.zeros(G, bool), [], []
+    lines = head[is_line & ~done]
+    ua, ub = list(ua), list(ub)
     join = JOIN * tol
     if lines.size:
-        # candidates that may join: those in no line of their own of 3 or more copies
-        cand = np.nonzero(size[chain] <= 2)[0]
+        if "window" not in pre:
+            # candidates that may join: those in no line of their own of 3 or more copies
+            cand = np.nonzero(size[chain] <= 2)[0]
+            pre["window"] = cand, np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
+        cand, w = pre["window"]
         lt = theta[lines]
         o = np.argsort(lt)
         ext_t = np.concatenate([lt[o] - math.pi, lt[o], lt[o] + math.pi])
         ext_i = np.concatenate([lines[o]] * 3)
-        w = np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
-        lo = np.searchsorted(ext_t, theta[cand] - w, "left")
-        cnt = np.searchsorted(ext_t, theta[cand] + w, "right") - lo
-        near = cnt > 0
-        cand, lo, cnt = cand[near], lo[near], cnt[near]
+        tc = theta[cand]
+        lo = np.searchsorted(ext_t, tc - w, "left")
+        # a non-empty window: its first line within it (the second search only for those)
+        near = np.nonzero(ext_t[np.minimum(lo, ext_t.size - 1)] <= tc + w)[0]
+        near = near[lo[near] < ext_t.size]
+        cand, lo = cand[near], lo[near]
+        cnt = np.searchsorted(ext_t, tc[near] + w[near], "right") - lo
         step = max(1, chunk // max(1, int(cnt.max(initial=1))))
         for c0 in range(0, cand.size, step):
             cc, lc, nc = cand[c0:c0 + step], lo[c0:c0 + step], cnt[c0:c0 + step]
@@ -355,6 +372,7 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
                 on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], join)
             ua.append(chain[ci[on]])
             ub.append(chain[li[on]])
+    pre["joins"] = (is_line, ua, ub)
     rep = np.zeros(N, bool)
     if not ua or not sum(a.size for a in ua):
         rep[head] = True
@@ -382,7 +400,7 @@ def _copies(scene, theta, p, q, obj, sup, tol):
     u = np.einsum("ij,ij->i", nrm, p)
     chain, order = _line_chains(theta, u, tol)
     N, G = theta.shape[0], int(chain.max(initial=-1)) + 1
-    start = np.searchsorted(chain[order], np.arange(G + 1))
+    start = np.concatenate([[0], np.cumsum(np.bincount(chain, minlength=G))])  # chain[order] ascends
     base = np.hypot(*(q - p).T)
     top = np.maximum.reduceat(base[order], start[:-1]) if G else np.zeros(0)
     is_top = base[order] == top[chain[order]]
@@ -401,14 +419,17 @@ def near_degenerate(scene, theta, u, tol):
     of a joined line reaches past the join tolerance): a near-degenerate
     line, grouped by :func:`degenerate_lines` with candidates that a re-scan of the line
     alone would not see (the dynamic update rebuilds a zone holding one)."""
-    out = np.zeros(np.shape(theta), bool)
+    th, u = np.atleast_1d(theta), np.atleast_1d(u)
+    out = np.zeros(th.shape, bool)
     starts = scene.vert_start[:-1]
-    for i, (t_, u_) in enumerate(zip(np.atleast_1d(theta), np.atleast_1d(u))):
-        proj = scene.verts @ np.array([-math.sin(t_), math.cos(t_)])
-        off = np.minimum(np.abs(np.maximum.reduceat(proj, starts) + scene.radius - u_),
-                         np.abs(np.minimum.reduceat(proj, starts) - scene.radius - u_))
-        out[i] = np.any((off > 1e-3 * tol) & (off <= 4.0 * JOIN * tol))
-    return out
+    step = max(1, (1 << 22) // max(1, scene.verts.shape[0]))  # (corners × lines) blocks
+    for l0 in range(0, th.size, step):
+        t_, u_ = th[l0:l0 + step], u[l0:l0 + step]
+        proj = scene.verts @ np.stack([-np.sin(t_), np.cos(t_)])  # (V, l) support values
+        off = np.minimum(np.abs(np.maximum.reduceat(proj, starts) + scene.radius[:, None] - u_),
+                         np.abs(np.minimum.reduceat(proj, starts) - scene.radius[:, None] - u_))
+        out[l0:l0 + step] = np.any((off > 1e-3 * tol) & (off <= 4.0 * JOIN * tol), axis=0)
+    return out.reshape(np.shape(theta))
 
 
 def _close_lines(scene, theta, obj, side, base, pre, comp, join):

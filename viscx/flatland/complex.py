@@ -654,13 +654,17 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
 def _on_edge(scene, obj, sup, nrm, tol):
     """(m,) bool: the line (normal nrm) through support point sup of object obj also passes
     through a neighbouring corner (it runs along a polygon edge)."""
-    s, e = scene.vert_start[obj], scene.vert_start[obj + 1]
-    cnt = e - s
+    vs = scene.vert_start
+    cnt = np.diff(vs)
     out = np.zeros(obj.shape[0], bool)
-    poly = cnt >= 2
+    poly = cnt[obj] >= 2
+    # each corner's neighbours, once per scene corner rather than once per line
+    s = np.repeat(vs[:-1], cnt)
+    c = np.repeat(np.maximum(cnt, 1), cnt)
+    v = np.arange(s.size)
     for step in (-1, 1):
-        nb_ = s + np.mod(sup - s + step, np.maximum(cnt, 1))
-        gap = np.einsum("ij,ij->i", nrm, scene.verts[nb_] - scene.verts[sup])
+        edge = scene.verts[s + np.mod(v - s + step, c)] - scene.verts
+        gap = np.einsum("ij,ij->i", nrm, edge[sup])
         out |= poly & (np.abs(gap) <= tol)
     return out
 

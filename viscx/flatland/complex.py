@@ -640,9 +640,9 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     # copies the lowest key (as an update's re-scan of the line takes it), of a line that
     # joined others the longest baseline, in the direction of its representative
     order = np.lexsort((np.arange(m), np.where(joined, -np.abs(V["v_length"]), 0.0), group))
-    members_of = np.split(order, np.cumsum(size)[:-1])
+    end = np.cumsum(size)  # members of segment g: order[end[g] - size[g]:end[g]]
     for g in gids:
-        idx = members_of[g]
+        idx = order[end[g] - size[g]:end[g]]
         keep[idx] = False
         at, fields = _resolve_line(scene, V, idx, line_th[idx[0]], rev, tol)
         keep[at] = True

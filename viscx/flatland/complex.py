@@ -408,8 +408,12 @@ def _copies(scene, theta, p, q, obj, sup, tol):
     head = order[first[np.diff(chain[order][first], prepend=-1) != 0]]
     along = np.zeros(theta.shape[0], bool)
     for e in (0, 1):
-        poly = np.nonzero(np.diff(scene.vert_start)[obj[:, e]] >= 2)[0]
-        along[poly] |= _on_edge(scene, obj[poly, e], sup[poly, e], nrm[poly], tol)
+        poly = np.diff(scene.vert_start)[obj[:, e]] >= 2
+        if poly.all():  # (segments and polygons only: no gathers)
+            along |= _on_edge(scene, obj[:, e], sup[:, e], nrm, tol)
+        elif poly.any():
+            poly = np.nonzero(poly)[0]
+            along[poly] |= _on_edge(scene, obj[poly, e], sup[poly, e], nrm[poly], tol)
     return dict(chain=chain, order=order, start=start, u=u, base=base, head=head, along=along)
 
 

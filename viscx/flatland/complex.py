@@ -305,7 +305,8 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
     theta (N,) canonical directions, p, q (N, 2) tangent points, obj, side, sup (N, 2)
     the two objects, their sides and support points; ``seed`` (N,) bool candidates known
     to lie on a degenerate line (the walk's ``graze``); ``pre`` the copies computed by an
-    earlier call on the same candidates (:func:`_copies`).  Returns (group (N,) int64,
+    earlier call on the same candidates (:func:`_copies`), where the call also keeps its
+    join window and the joins it found (a later call with seeds tests its new lines only).  Returns (group (N,) int64,
     rep (N,) bool: one member per group whose line (θ, u) stands for the group's,
     joined (N,) bool: the group holds lines that are not copies of one another).
 
@@ -423,17 +424,14 @@ def near_degenerate(scene, theta, u, tol):
     of a joined line reaches past the join tolerance): a near-degenerate
     line, grouped by :func:`degenerate_lines` with candidates that a re-scan of the line
     alone would not see (the dynamic update rebuilds a zone holding one)."""
-    th, u = np.atleast_1d(theta), np.atleast_1d(u)
-    out = np.zeros(th.shape, bool)
+    out = np.zeros(np.shape(theta), bool)
     starts = scene.vert_start[:-1]
-    step = max(1, (1 << 22) // max(1, scene.verts.shape[0]))  # (corners × lines) blocks
-    for l0 in range(0, th.size, step):
-        t_, u_ = th[l0:l0 + step], u[l0:l0 + step]
-        proj = scene.verts @ np.stack([-np.sin(t_), np.cos(t_)])  # (V, l) support values
-        off = np.minimum(np.abs(np.maximum.reduceat(proj, starts) + scene.radius[:, None] - u_),
-                         np.abs(np.minimum.reduceat(proj, starts) - scene.radius[:, None] - u_))
-        out[l0:l0 + step] = np.any((off > 1e-3 * tol) & (off <= 4.0 * JOIN * tol), axis=0)
-    return out.reshape(np.shape(theta))
+    for i, (t_, u_) in enumerate(zip(np.atleast_1d(theta), np.atleast_1d(u))):
+        proj = scene.verts @ np.array([-math.sin(t_), math.cos(t_)])
+        off = np.minimum(np.abs(np.maximum.reduceat(proj, starts) + scene.radius - u_),
+                         np.abs(np.minimum.reduceat(proj, starts) - scene.radius - u_))
+        out[i] = np.any((off > 1e-3 * tol) & (off <= 4.0 * JOIN * tol))
+    return out
 
 
 def _close_lines(scene, theta, obj, side, base, pre, comp, join):

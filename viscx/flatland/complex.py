@@ -396,7 +396,8 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
 def _copies(scene, theta, p, q, obj, sup, tol):
     """The copies of lines among candidates (:func:`degenerate_lines`): chain (N,) their
     set, order / start the sets' members (CSR), u, base |pq|, head (G,) each set's
-    longest-baseline member, along (N,) bool a candidate running along a polygon edge."""
+    longest-baseline member, along (N,) bool a candidate alone in its set running along a
+    polygon edge."""
     nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
     u = np.einsum("ij,ij->i", nrm, p)
     chain, order = _line_chains(theta, u, tol)
@@ -408,8 +409,11 @@ def _copies(scene, theta, p, q, obj, sup, tol):
     first = np.nonzero(is_top & np.concatenate([[True], ~is_top[:-1] | (np.diff(chain[order]) != 0)])[:N])[0]
     head = order[first[np.diff(chain[order][first], prepend=-1) != 0]]
     along = np.zeros(theta.shape[0], bool)
+    # (tested only for the candidates alone in their set: a set of two copies or more is a
+    # degenerate line whatever its members run along)
+    lone = np.diff(start)[chain] == 1
     for e in (0, 1):
-        poly = np.diff(scene.vert_start)[obj[:, e]] >= 2
+        poly = lone & (np.diff(scene.vert_start)[obj[:, e]] >= 2)
         if poly.all():  # (segments and polygons only: no gathers)
             along |= _on_edge(scene, obj[:, e], sup[:, e], nrm, tol)
         elif poly.any():

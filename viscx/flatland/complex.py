@@ -267,7 +267,14 @@ def _line_chains(theta, u, tol):
     o = np.argsort(theta, kind="stable")
     gth = np.empty(N, np.int64)
     gth[o] = np.concatenate([[0], np.cumsum(np.diff(theta[o]) > TOL_THETA)])
-    o = np.lexsort((u, gth))
+    # the order of (θ chain, u, index): o already has it but within the θ chains of two
+    # or more lines (few), which are sorted again alone
+    gs = gth[o]
+    multi = np.zeros(N, bool)
+    multi[:-1] = gs[1:] == gs[:-1]
+    multi[1:] |= multi[:-1].copy()
+    sub = np.sort(o[multi])
+    o[multi] = sub[np.lexsort((u[sub], gth[sub]))]
     brk = np.concatenate([[True], (np.diff(gth[o]) != 0) | (np.diff(u[o]) > tol)])
     g = np.empty(N, np.int64)
     g[o] = np.cumsum(brk) - 1
@@ -298,7 +305,8 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
     theta (N,) canonical directions, p, q (N, 2) tangent points, obj, side, sup (N, 2)
     the two objects, their sides and support points; ``seed`` (N,) bool candidates known
     to lie on a degenerate line (the walk's ``graze``); ``pre`` the copies computed by an
-    earlier call on the same candidates (:func:`_copies`).  Returns (group (N,) int64,
+    earlier call on the same candidates (:func:`_copies`), where the call also keeps its
+    join window and the joins it found (a later call with seeds tests its new lines only).  Returns (group (N,) int64,
     rep (N,) bool: one member per group whose line (θ, u) stands for the group's,
     joined (N,) bool: the group holds lines that are not copies of one another).
 
@@ -325,21 +333,31 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
     size = np.diff(start)
     along = pre["along"] if seed is None else pre["along"] | seed
     is_line = (size >= 2) | (np.bincount(chain, weights=along, minlength=G) > 0)
-    lines = head[is_line]
-    ua, ub = [], []
+    # the joins found by an earlier call on the same copies are kept: a call with seeds
+    # only adds lines, so it tests the candidates against its new lines alone
+    done, ua, ub = pre.get("joins", (np.zeros(G, bool), [], []))
+    if np.any(done & ~is_line):  # not a call that adds lines: test them all again
+        done, ua, ub = np.zeros(G, bool), [], []
+    lines = head[is_line & ~done]
+    ua, ub = list(ua), list(ub)
     join = JOIN * tol
     if lines.size:
-        # candidates that may join: those in no line of their own of 3 or more copies
-        cand = np.nonzero(size[chain] <= 2)[0]
+        if "window" not in pre:
+            # candidates that may join: those in no line of their own of 3 or more copies
+            cand = np.nonzero(size[chain] <= 2)[0]
+            pre["window"] = cand, np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
+        cand, w = pre["window"]
         lt = theta[lines]
         o = np.argsort(lt)
         ext_t = np.concatenate([lt[o] - math.pi, lt[o], lt[o] + math.pi])
         ext_i = np.concatenate([lines[o]] * 3)
-        w = np.arcsin(np.minimum(1.0, 4.0 * join / np.maximum(base[cand], 1e-300))) + 2.0 * TOL_THETA
-        lo = np.searchsorted(ext_t, theta[cand] - w, "left")
-        cnt = np.searchsorted(ext_t, theta[cand] + w, "right") - lo
-        near = cnt > 0
-        cand, lo, cnt = cand[near], lo[near], cnt[near]
+        tc = theta[cand]
+        lo = np.searchsorted(ext_t, tc - w, "left")
+        # a non-empty window: its first line within it (the second search only for those)
+        near = np.nonzero(ext_t[np.minimum(lo, ext_t.size - 1)] <= tc + w)[0]
+        near = near[lo[near] < ext_t.size]
+        cand, lo = cand[near], lo[near]
+        cnt = np.searchsorted(ext_t, tc[near] + w[near], "right") - lo
         step = max(1, chunk // max(1, int(cnt.max(initial=1))))
         for c0 in range(0, cand.size, step):
             cc, lc, nc = cand[c0:c0 + step], lo[c0:c0 + step], cnt[c0:c0 + step]
@@ -355,6 +373,7 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
                 on &= touches(scene, obj[ci, e], s_, sup[ci, e], theta[li], u[li], join)
             ua.append(chain[ci[on]])
             ub.append(chain[li[on]])
+    pre["joins"] = (is_line, ua, ub)
     rep = np.zeros(N, bool)
     if not ua or not sum(a.size for a in ua):
         rep[head] = True
@@ -377,21 +396,29 @@ def degenerate_lines(scene, theta, p, q, obj, side, sup, tol, seed=None, pre=Non
 def _copies(scene, theta, p, q, obj, sup, tol):
     """The copies of lines among candidates (:func:`degenerate_lines`): chain (N,) their
     set, order / start the sets' members (CSR), u, base |pq|, head (G,) each set's
-    longest-baseline member, along (N,) bool a candidate running along a polygon edge."""
+    longest-baseline member, along (N,) bool a candidate alone in its set running along a
+    polygon edge."""
     nrm = np.stack([-np.sin(theta), np.cos(theta)], 1)
     u = np.einsum("ij,ij->i", nrm, p)
     chain, order = _line_chains(theta, u, tol)
     N, G = theta.shape[0], int(chain.max(initial=-1)) + 1
-    start = np.searchsorted(chain[order], np.arange(G + 1))
+    start = np.concatenate([[0], np.cumsum(np.bincount(chain, minlength=G))])  # chain[order] ascends
     base = np.hypot(*(q - p).T)
     top = np.maximum.reduceat(base[order], start[:-1]) if G else np.zeros(0)
     is_top = base[order] == top[chain[order]]
     first = np.nonzero(is_top & np.concatenate([[True], ~is_top[:-1] | (np.diff(chain[order]) != 0)])[:N])[0]
     head = order[first[np.diff(chain[order][first], prepend=-1) != 0]]
     along = np.zeros(theta.shape[0], bool)
+    # (tested only for the candidates alone in their set: a set of two copies or more is a
+    # degenerate line whatever its members run along)
+    lone = np.diff(start)[chain] == 1
     for e in (0, 1):
-        poly = np.nonzero(np.diff(scene.vert_start)[obj[:, e]] >= 2)[0]
-        along[poly] |= _on_edge(scene, obj[poly, e], sup[poly, e], nrm[poly], tol)
+        poly = lone & (np.diff(scene.vert_start)[obj[:, e]] >= 2)
+        if poly.all():  # (segments and polygons only: no gathers)
+            along |= _on_edge(scene, obj[:, e], sup[:, e], nrm, tol)
+        elif poly.any():
+            poly = np.nonzero(poly)[0]
+            along[poly] |= _on_edge(scene, obj[poly, e], sup[poly, e], nrm[poly], tol)
     return dict(chain=chain, order=order, start=start, u=u, base=base, head=head, along=along)
 
 
@@ -428,7 +455,8 @@ def _close_lines(scene, theta, obj, side, base, pre, comp, join):
         return comp
     n = scene.n
     pid = np.minimum(obj[:, 0], obj[:, 1]) * n + np.maximum(obj[:, 0], obj[:, 1])
-    porder = np.argsort(pid, kind="stable")
+    # candidates come by pair (key order): then no sort is needed
+    porder = np.arange(pid.size) if np.all(pid[1:] >= pid[:-1]) else np.argsort(pid, kind="stable")
     spid = pid[porder]
     by_label = np.argsort(comp, kind="stable")  # the sets of copies of each label
     lstart = np.searchsorted(comp[by_label], np.arange(comp.max() + 2))
@@ -619,9 +647,9 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
     # copies the lowest key (as an update's re-scan of the line takes it), of a line that
     # joined others the longest baseline, in the direction of its representative
     order = np.lexsort((np.arange(m), np.where(joined, -np.abs(V["v_length"]), 0.0), group))
-    members_of = np.split(order, np.cumsum(size)[:-1])
+    end = np.cumsum(size)  # members of segment g: order[end[g] - size[g]:end[g]]
     for g in gids:
-        idx = members_of[g]
+        idx = order[end[g] - size[g]:end[g]]
         keep[idx] = False
         at, fields = _resolve_line(scene, V, idx, line_th[idx[0]], rev, tol)
         keep[at] = True
@@ -633,13 +661,17 @@ def resolve_degenerate(scene: Scene, V: dict) -> dict:
 def _on_edge(scene, obj, sup, nrm, tol):
     """(m,) bool: the line (normal nrm) through support point sup of object obj also passes
     through a neighbouring corner (it runs along a polygon edge)."""
-    s, e = scene.vert_start[obj], scene.vert_start[obj + 1]
-    cnt = e - s
+    vs = scene.vert_start
+    cnt = np.diff(vs)
     out = np.zeros(obj.shape[0], bool)
-    poly = cnt >= 2
+    poly = cnt[obj] >= 2
+    # each corner's neighbours, once per scene corner rather than once per line
+    s = np.repeat(vs[:-1], cnt)
+    c = np.repeat(np.maximum(cnt, 1), cnt)
+    v = np.arange(s.size)
     for step in (-1, 1):
-        nb_ = s + np.mod(sup - s + step, np.maximum(cnt, 1))
-        gap = np.einsum("ij,ij->i", nrm, scene.verts[nb_] - scene.verts[sup])
+        edge = scene.verts[s + np.mod(v - s + step, c)] - scene.verts
+        gap = np.einsum("ij,ij->i", nrm, edge[sup])
         out |= poly & (np.abs(gap) <= tol)
     return out
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from flatland_oracles import circle_on_edge_measure, exact_F_graded, exact_F_touching, exact_F_touching_part
 from flatland_scenes import corners_of
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from test_flatland_dynamic import assert_same_complex
 
@@ -193,11 +193,14 @@ def _side_by_side():
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(k=st.integers(1, 3), dx=st.floats(-1.5, 1.5), dy=st.floats(-0.5, 1.0), snap=st.sampled_from(["", "ground", "box"]))
+@example(k=2, dx=0.0, dy=1.1258002201831469e-11, snap="")  # lifted 1e-11 off box 'a': near-degenerate
 def test_moves_with_contacts_equal_rebuild(k, dx, dy, snap):
     """Moves in a scene with contacts, and moves that make or break one (snapped onto the
     ground, or against box 'a'), equal a rebuild array by array; the contact list is kept
     up to date incrementally.  A move is local in the opened scene unless the diagonal
-    (so the gap γ) changes: then it is rebuilt and says why."""
+    (so the gap γ) changes, or it leaves an object within the tolerance of a line of two
+    others (a near-degenerate line, grouped by the whole-scene pass only): then it is rebuilt
+    and says why."""
     cx = _side_by_side()
     v = cx.scene.verts[cx.scene.vert_start[k]:cx.scene.vert_start[k + 1]]
     if snap == "ground":
@@ -210,9 +213,10 @@ def test_moves_with_contacts_equal_rebuild(k, dx, dy, snap):
         assert "overlap" in str(e)
         assume(False)
     box_same = moved.scene.diagonal() == cx.scene.diagonal()
-    assert stats.local == box_same, stats.why
+    near_degenerate = "near-degenerate" in stats.why
+    assert stats.local == (box_same and not near_degenerate), stats.why
     if not stats.local:
-        assert "diagonal" in stats.summary()
+        assert "diagonal" in stats.summary() or near_degenerate
     assert np.array_equal(moved.scene.contacts(), check_disjoint(moved.scene))
     assert_same_complex(moved, build(moved.scene, eps=cx.eps))
     assert np.max(np.abs(moved.F_area.sum(axis=1) - 1.0)) < 1e-9

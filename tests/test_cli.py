@@ -217,3 +217,28 @@ def test_a_signal_inside_numbas_code_is_raised_again_outside_it():
     finally:
         signal.signal(signal.SIGTERM, previous)
         received_signals.clear()
+
+
+def test_a_signal_while_the_handler_arranges_its_delivery_is_delivered_again(monkeypatch):
+    """On a loaded machine the 5 ms re-delivery can arrive before ``_deliver_again`` returns,
+    while the first handler (called in numba's code) is still on the stack: raising then would
+    unwind through numba's frame, so it is delivered again too."""
+    import signal
+
+    import numba
+
+    from viscx import cli
+    from viscx.formats.atomic import received_signals
+
+    where = compile("import sys\nframe = sys._getframe()", str(Path(numba.__file__).parent / "core" / "x.py"), "exec")
+    scope = {}
+    exec(where, scope)
+    inside = []
+    monkeypatch.setattr(cli, "_deliver_again", lambda signum: inside.append(sys._getframe().f_back))
+    try:
+        cli._on_signal(signal.SIGTERM, scope["frame"])
+    finally:
+        received_signals.clear()
+    assert inside[0].f_code is cli._on_signal.__code__
+    assert cli._in_numba(inside[0])  # a stack holding the handler: not raised there
+    assert not cli._in_numba(sys._getframe())

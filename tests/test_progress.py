@@ -58,7 +58,9 @@ def test_a_silent_stage_still_writes_lines(tmp_path):
     start = messages.index("build: V0 started")
     end = next(i for i, m in enumerate(messages) if m.startswith("build: V0 done in"))
     assert sum("V0 still running" in m for m in messages[start:end]) >= 4
-    assert max(b - a for a, b in zip(stamps[start:end + 1], stamps[start + 1:end + 1])) <= 0.4 + 0.25
+    # a missed heartbeat would leave a gap of 0.8 s or more, a silent stage one of 2.5 s; the
+    # slack is for a loaded machine (0.70 s seen at load 14)
+    assert max(b - a for a, b in zip(stamps[start:end + 1], stamps[start + 1:end + 1])) <= 0.4 + 0.35
     assert messages[-1].startswith("build: write done in")
 
 

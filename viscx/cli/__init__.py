@@ -127,8 +127,16 @@ def _in_numba(frame):
     returns a tuple of arrays then hands back a tuple with an empty slot, and the caller's
     unpacking crashes (segfault in ``face_loops``' call of ``_cycles`` after SIGTERM, 3 of
     170 interrupted builds, seen in a core dump: the returned tuple's first item NULL)."""
-    return frame is not None and frame.f_code.co_filename.endswith(".py") and any(
-        name in frame.f_code.co_filename for name in _NUMBA_FILES)
+    while frame is not None:
+        # the whole stack: an exception raised here unwinds through every frame below; and a
+        # handler interrupted while it arranged the delivery (a loaded machine runs the 5 ms
+        # timer before ``Timer.start`` returns) would raise through the numba frame it left
+        code = frame.f_code
+        if code is _on_signal.__code__ or (code.co_filename.endswith(".py") and any(
+                name in code.co_filename for name in _NUMBA_FILES)):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _deliver_again(signum):

@@ -13,6 +13,10 @@ version of the code on the very same inputs (reports, never asserts).
 - ``office300``, ``office1000``: ``--points`` random points (default 300) on each of a few
   emitters of the office (benchmarks/buildings.py): the floor, a wall, a desk top, a light.
 
+``matrix`` (with ``record``/``check`` as ``--matrix``): the Cornell box's whole matrix at
+``--tol`` instead (one process), its dense F (sides and sky) saved or compared, and its CPU
+seconds.
+
 ``check`` runs the current kernel on the saved inputs and prints per case the CPU µs per
 point of both versions and the largest difference of the outputs (absolute: a point's
 row, what it sees of every side and of the sky, sums to 1, so this is relative to it).
@@ -143,6 +147,37 @@ def check(folder, cases):
               flush=True)
 
 
+def cornell_matrix(tol):
+    """(dense (2n, 2n + 1) F with the sky last, CPU seconds) of the Cornell box's matrix."""
+    from viscx.queries import formfactor as ff
+    from viscx.scene import load_scene
+
+    scene = load_scene(str(ROOT / "sample_scenes" / "cornell_box.obj"))
+    ff.form_factor_matrix(scene, tol=1e-2, workers=1)  # compiled or loaded
+    c0 = time.process_time()
+    m = ff.form_factor_matrix(scene, tol=tol, workers=1)
+    sec = time.process_time() - c0
+    n = len(m.sky)
+    dense = np.zeros((n, n + 1))
+    for r in range(n):
+        dense[r, m.indices[m.indptr[r]:m.indptr[r + 1]]] = m.data[m.indptr[r]:m.indptr[r + 1]]
+    dense[:, n] = m.sky
+    return dense, sec
+
+
+def matrix(mode, folder, tol):
+    path = folder / f"matrix_{tol:g}.npz"
+    dense, sec = cornell_matrix(tol)
+    if mode == "record":
+        folder.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, F=dense, sec=sec)
+        print(json.dumps({"case": f"cornell matrix tol {tol:g}", "cpu": round(sec, 2)}), flush=True)
+        return
+    ref = np.load(path)
+    print(json.dumps({"case": f"cornell matrix tol {tol:g}", "cpu_ref": round(float(ref["sec"]), 2), "cpu": round(sec, 2),
+                      "max_abs_diff": float(np.abs(dense - ref["F"]).max())}), flush=True)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("mode", choices=["record", "check"])
@@ -150,8 +185,11 @@ def main(argv=None):
     parser.add_argument("--tol", type=float, default=1e-4)
     parser.add_argument("--points", type=int, default=300)
     parser.add_argument("--cases", nargs="*", default=["cornell", "office300", "office1000"])
+    parser.add_argument("--matrix", action="store_true", help="the Cornell matrix instead of the kernel's points")
     args = parser.parse_args(argv)
-    if args.mode == "record":
+    if args.matrix:
+        matrix(args.mode, args.folder, args.tol)
+    elif args.mode == "record":
         record(args.folder, args.tol, args.points, args.cases)
     else:
         check(args.folder, args.cases)

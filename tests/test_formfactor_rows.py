@@ -8,7 +8,7 @@ from conftest import SAMPLES
 from oracles import cosine_directions, first_face_reference
 from test_formfactor_queries import scene_of
 
-from viscx.geometry.occlusion import point_views
+from viscx.geometry.occlusion import SNAP, _collinear, _snap_breaks, point_views
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
 from viscx.scene import load_scene
@@ -197,3 +197,18 @@ def test_point_views_see_the_floor_minus_the_tile_by_rays():
         hits += int(np.sum(tied[:, floor] & ~tied[:, tile] & (d @ scene.face_normal[floor] < 0)))
     est = hits / k
     assert abs(seen - est) < 4 * np.sqrt(est * (1 - est) / k), (seen, est)
+
+
+def test_sweep_breaks_and_crossings_within_snap_are_rounding():
+    """The row kernel's sweep takes breaks within SNAP of the last one kept for one (the
+    last break kept where the sweep ends), and two edges whose ends lie within SNAP of
+    each other's line for collinear (no crossing); a real offset or crossing stays."""
+    us = np.array([0.0, 1e-16, 0.5, 0.5 + 5e-15, 0.7, 1.0 - 1e-15, 1.0])
+    n = _snap_breaks(us, len(us), SNAP)
+    assert us[:n].tolist() == [0.0, 0.5, 0.7, 1.0]
+    assert _snap_breaks(np.array([0.0, 1e-13]), 2, SNAP) == 2
+    # e on a line, f on it up to rounding, g 1e-12 off it, h crossing it
+    a = np.array([[0.1, 0.2], [0.3, 0.3 + 1e-16], [0.3, 0.3 + 1e-12], [0.3, 0.0]])
+    b = np.array([[0.9, 0.6], [1.1, 0.7 - 1e-16], [1.1, 0.7 + 1e-12], [0.5, 0.9]])
+    assert _collinear(a, b, 0, 1, SNAP) and _collinear(a, b, 1, 0, SNAP)
+    assert not _collinear(a, b, 0, 2, SNAP) and not _collinear(a, b, 0, 3, SNAP)

@@ -40,6 +40,14 @@ GENERIC_TURN = 0.4127319
 #: Height (in the hemicube face's plane, at unit distance from the point) below which a
 #: region of the sweep does not reuse its owner from the previous slab (:func:`_hemicube_face`).
 MEMO_GAP = 1e-7
+#: Distance (in the hemicube face's plane, at unit distance from the point: the frustum's
+#: coordinates are within ±1.5) below which :func:`_hemicube_face` takes two breaks of its
+#: sweep for one and two edges for collinear: rounding, not geometry. Polygons clipped by the
+#: same frustum plane, or sharing a clipped edge, give edges on one line up to ~1e-16 whose
+#: "crossings" fall anywhere along it and whose breaks a few ulps apart make slabs of no
+#: width (a third of the Cornell box's slabs); what either can change of F is below
+#: SNAP × the slab's length / π per piece.
+SNAP = 1e-14
 
 
 @njit(cache=True)
@@ -946,6 +954,33 @@ def _cover_key(p):
 
 
 @njit(cache=True)
+def _collinear(seg_a, seg_b, e, f, tol):
+    """Whether both ends of segment f lie within ``tol`` of segment e's line (a "crossing"
+    of the two is rounding: :data:`SNAP`)."""
+    rx, ry = seg_b[e, 0] - seg_a[e, 0], seg_b[e, 1] - seg_a[e, 1]
+    size = tol * np.sqrt(rx * rx + ry * ry)
+    h0 = rx * (seg_a[f, 1] - seg_a[e, 1]) - ry * (seg_a[f, 0] - seg_a[e, 0])
+    h1 = rx * (seg_b[f, 1] - seg_a[e, 1]) - ry * (seg_b[f, 0] - seg_a[e, 0])
+    return abs(h0) <= size and abs(h1) <= size
+
+
+@njit(cache=True)
+def _snap_breaks(us, n, tol):
+    """The sorted breaks ``us[:n]`` without those within ``tol`` of the last one kept (in
+    place, the first and the last kept); returns how many are left."""
+    if n < 2:
+        return n
+    m = 1
+    for k in range(1, n):
+        if us[k] - us[m - 1] > tol:
+            us[m] = us[k]
+            m += 1
+    if us[n - 1] > us[m - 1]:
+        us[m - 1] = us[n - 1]  # the sweep still ends at the last break
+    return m
+
+
+@njit(cache=True)
 def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
                    side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1):
     """Add to ``seen`` the visible part of every polygon through one face of the hemicube
@@ -1022,12 +1057,15 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             # v ranges apart: no crossing (the common case, tested before the call)
             if vhi < s_vlo[r2] or s_vhi[r2] < vlo:
                 continue
+            if _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
+                continue
             u = _crossing_u(seg_a, seg_b, by_lo[r], by_lo[r2])
             if u == u:
                 brk = _grow(brk, n_brk)
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
+    n_brk = _snap_breaks(us, n_brk, SNAP)
     has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
     slope = np.empty(n_seg)
     _slopes(seg_a, seg_b, n_seg, slope)

@@ -10,8 +10,9 @@ Changing object K can only change
 - the bitangents that K blocked before the move (a blocked candidate stays blocked unless
   its blocker moves: :func:`viscx.flatland.complex.blocker_table` keeps one blocker per
   candidate), and
-- the vertices whose line meets K before or after the move (K may start blocking them, or
-  become / stop being the first object at one of their ends).
+- the vertices whose maximal free segment K meets before or after the move (K may start
+  blocking them, or become / stop being the first object at one of their ends), and those
+  whose line K touches (a rebuild may group it into a degenerate line: :func:`_meets_vertex`).
 
 Only these candidates are re-tested (closed-form lines of their pairs, bit-identical to a
 rebuild's; grid walks).  A re-tested vertex that comes back with the same line, objects,

@@ -224,6 +224,22 @@ def test_rescanned_line_is_rescanned_again():
     assert ((np.sort(back.v_obj, axis=1) == [0, 2]).all(axis=1) & (back.v_tau != 0)).sum() == 1
 
 
+def test_move_retests_the_vertices_whose_free_segment_it_meets():
+    """A panel raised above a row of 20 re-tests its own pairs and the candidates it blocked,
+    and only the few vertices whose maximal free segment it reaches across (2 here) — not
+    every vertex whose line passes near it beyond its free segment (the lines under the
+    panels to the ground's corner: 29 more with the whole line's test)."""
+    from flatland_scenes import panel_rows
+
+    cx = build(panel_rows(20, thick=0.0))
+    n, k = cx.scene.n, 14
+    blocked = cx.blockers.reshape(n, n, 4) == k
+    blocked[k, :] = blocked[:, k] = False
+    moved, stats = move_as_rebuild(cx, k, 0.0, 0.1)
+    assert stats.local
+    assert stats.candidates_tested - (4 * (n - 1) + blocked.sum()) <= 4
+
+
 @pytest.mark.parametrize("scene", ["mixed", "rows"])
 def test_move_of_a_complex_read_from_a_file(tmp_path, scene):
     """A complex read from a file without its update group (written before it existed) has

@@ -10,8 +10,9 @@ Changing object K can only change
 - the bitangents that K blocked before the move (a blocked candidate stays blocked unless
   its blocker moves: :func:`viscx.flatland.complex.blocker_table` keeps one blocker per
   candidate), and
-- the vertices whose line meets K before or after the move (K may start blocking them, or
-  become / stop being the first object at one of their ends).
+- the vertices whose maximal free segment K meets before or after the move (K may start
+  blocking them, or become / stop being the first object at one of their ends), and those
+  whose line K touches (a rebuild may group it into a degenerate line: :func:`_meets_vertex`).
 
 Only these candidates are re-tested (closed-form lines of their pairs, bit-identical to a
 rebuild's; grid walks).  A re-tested vertex that comes back with the same line, objects,
@@ -289,6 +290,29 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
     for c, r in disks:
         near |= np.abs(-sin * c[0] + cos * c[1] - u) <= r + 10 * cx.eps
     retest_v = near & ~own_v
+    if not rel:  # a simple vertex changes only where a changed object meets its free segment or touches its line
+        simple = np.nonzero(retest_v & (V_old["v_tau"] == 0.0))[0]
+        stays = ~_meets_vertex(V_old, simple, th, u, sin, cos, [(work_old, j) for j in gone] +
+                               [(work_new, j) for j in came], 10 * cx.eps, C.line_tol(work_new))
+        retest_v[simple[stays]] = False
+    if cx.blockers is not None:
+        hit = np.zeros(cx.blockers.shape[0], bool)
+        for j in gone:  # (compared as int32: np.isin would convert the 4n² table to int64 first)
+            hit |= cx.blockers == np.int32(j)
+        blocked = np.flatnonzero(hit)
+    else:  # no blocker table (read from a file): every candidate whose segment meets a gone object
+        blocked = [np.zeros(0, np.int64)]
+        for c, r in disks[:gone.size]:
+            some = C.candidates(work_old, _pairs_near(work_old, c, r + 10 * cx.eps))
+            p_, q_ = C.tangent_points(work_old, some)
+            blocked.append(some["key"][_segment_distance(p_, q_, c) <= r + 10 * cx.eps])
+        blocked = np.unique(np.concatenate(blocked))
+    b_pair = blocked // 4
+    blocked = blocked[~np.isin(b_pair // n_old, gone) & ~np.isin(b_pair % n_old, gone)]
+    # a vertex among the candidates re-tested as blocked ones (without a blocker table: those
+    # whose segment meets a gone object) is re-done with them
+    at = np.minimum(np.searchsorted(V_old["v_key"], blocked), V_old["v_key"].shape[0] - 1)
+    retest_v[at[V_old["v_key"][at] == blocked]] = True
     # degenerate lines in the zone: those of its resolved vertices, and the lines re-scanned
     # by earlier moves (their blocked members are not in the blocker table) that it meets
     tol = C.line_tol(work_new)
@@ -303,17 +327,6 @@ def _update(cx, new_scene, work_old, work_new, gone, came, objmap, total, rel, c
         raise ViscxError("a near-degenerate line in the zone (an object within the tolerance of it)")
     on_line = _on_lines(th, u, lines_th, lines_u, tol)
     retest_v |= on_line & ~own_v
-    if cx.blockers is not None:
-        blocked = np.nonzero(np.isin(cx.blockers, gone))[0]
-    else:  # no blocker table (read from a file): every candidate whose segment meets a gone object
-        blocked = [np.zeros(0, np.int64)]
-        for c, r in disks[:gone.size]:
-            some = C.candidates(work_old, _pairs_near(work_old, c, r + 10 * cx.eps))
-            p_, q_ = C.tangent_points(work_old, some)
-            blocked.append(some["key"][_segment_distance(p_, q_, c) <= r + 10 * cx.eps])
-        blocked = np.unique(np.concatenate(blocked))
-    b_pair = blocked // 4
-    blocked = blocked[~np.isin(b_pair // n_old, gone) & ~np.isin(b_pair % n_old, gone)]
     # -- the old complex in the new numbering
     V_old, state, blockers = _renumbered(cx, new_scene, objmap)
     blocked = _new_keys(blocked, objmap, n_old, n)
@@ -384,6 +397,49 @@ def _working_lines(work, V, rel):
     j1, k1 = V["v_support"][:, 0], V["v_obj"][:, 0]
     v = work.verts[j1]
     return th, -sin * v[:, 0] + cos * v[:, 1] + (2.0 * V["v_side"][:, 0] - 1.0) * work.radius[k1], sin, cos
+
+
+def _meets_vertex(V, idx, th, u, sin, cos, objects, pad, tol):
+    """(len(idx),) bool: the simple vertices ``idx`` that one of ``objects`` ((scene, k)
+    pairs: the changed objects before and after) may change.  A vertex is the bitangent
+    of its two objects with its maximal free segment (``v_seg``, a ray at a sky end); an
+    object that neither comes within ``pad`` of that segment nor touches the vertex's line
+    leaves it as it is: the segment stays free, its tail and head stay the first objects
+    beyond its ends.  Touching is tested to a margin that covers the degenerate-line
+    grouping of a rebuild (:func:`complex.degenerate_lines`: a line joins another whose
+    objects touch it within JOIN × tol at its two tangent points, so the two lines part by
+    at most about JOIN tol (1 + 2 D / |pq|) at a distance D along it), four times over.
+    The vertex's line (θ, u) is the stored one (no touching objects).
+
+    Replaces the test of the whole line against the object's disk, which re-tested every
+    vertex whose line, far beyond its free segment, passes near the object (in a row of
+    panels, the lines under the panels to the ground's corner: half of a move's walks)."""
+    if idx.size == 0:
+        return np.zeros(0, bool)
+    d = np.stack([cos[idx], sin[idx]], 1)
+    nrm = np.stack([-sin[idx], cos[idx]], 1)
+    p = V["v_p"][idx]
+    seg = V["v_seg"][idx]
+    L = np.abs(V["v_length"][idx])
+    t0 = np.where(V["v_tail"][idx] < 0, -np.inf, np.einsum("ij,ij->i", seg[:, :2] - p, d))
+    t1 = np.where(V["v_head"][idx] < 0, np.inf, np.einsum("ij,ij->i", seg[:, 2:] - p, d))
+    out = np.zeros(idx.size, bool)
+    for scene, k in objects:
+        v, r = scene.verts[scene.vert_start[k]:scene.vert_start[k + 1]], scene.radius[k]
+        c, rad = _bounding_disk(scene, k)
+        tc = np.einsum("ij,ij->i", c - p, d)
+        w = nrm @ c - u[idx]
+        gap = np.maximum(np.maximum(t0 - tc, tc - t1), 0.0)
+        # meeting the segment: the object reaches across the line (its support values
+        # along the normal on both sides of u) and its bounding disk reaches the segment
+        proj = nrm @ v.T
+        lo, hi = proj.min(axis=1) - r, proj.max(axis=1) + r
+        out |= (np.hypot(w, gap) <= rad + pad) & (lo - pad <= u[idx]) & (u[idx] <= hi + pad)
+        # touching the line anywhere
+        far = np.maximum(np.abs(tc), np.abs(tc - L)) + rad
+        margin = 4.0 * C.JOIN * tol * (1.0 + 2.0 * far / np.maximum(L, 1e-300)) + pad
+        out |= (np.abs(u[idx] - lo) <= margin) | (np.abs(u[idx] - hi) <= margin)
+    return out
 
 
 def _new_keys(keys, objmap, n_old, n):

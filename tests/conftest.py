@@ -37,13 +37,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 #: workers (``--dist loadscope``: a file's module fixtures built once; with
 #: ``--no-loadscope-reorder``, in this order, not by their number of tests), so a long file
 #: started last would leave one worker idle at the end. Measured (per cent of the summed test
-#: time of make test, 317 s, quiet machine): 10.4, 9.6, 7.2, 6.5, 5.3, 4.3, 3.9, 3.4, 3.0, 2.8,
-#: 2.4, 2.3, 2.2, 2.1, 2.0, 2.0, 1.9, 1.9 (the rest 1.8 or less).
-LONGEST_FIRST = ["test_discontinuities.py", "test_formfactor_queries.py", "test_buildings.py", "test_eecells.py",
-                 "test_vcells.py", "test_interrupt.py", "test_render.py", "test_arcs.py",
-                 "test_flatland_degenerate.py", "test_golden.py", "test_fuzz.py", "test_readme.py",
-                 "test_bad_inputs.py", "test_formfactor_rows.py", "test_fast_nodes.py", "test_kinks.py",
-                 "test_queries.py", "test_scoped_mesh.py"]
+#: time of make test, 296 CPU s, shared machine, VISCX_TEST_CPU): 7.7, 7.4, 7.2, 6.6, 6.2, 3.2,
+#: 3.1, 2.9, 2.9, 2.8, 2.8, 2.8, 2.5, 2.3, 2.3, 2.2, 2.1, 2.1 (the rest 2.0 or less).
+LONGEST_FIRST = ["test_formfactor_queries.py", "test_discontinuities.py", "test_eecells.py", "test_vcells.py",
+                 "test_buildings.py", "test_interrupt.py", "test_render.py", "test_fast_nodes.py",
+                 "test_bad_inputs.py", "test_readme.py", "test_arcs.py", "test_fuzz.py", "test_golden.py",
+                 "test_flatland_update.py", "test_queries.py", "test_kinks.py", "test_nodes.py",
+                 "test_flatland_dynamic.py"]
 
 
 def pytest_collection_modifyitems(items):

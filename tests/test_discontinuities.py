@@ -10,8 +10,8 @@ import pytest
 from conftest import SAMPLES
 from discontinuity_oracle import _seg_dist, check_mesh, labels_at, oracle_setup
 
-from viscx.pipeline import build_file
-from viscx.queries.discontinuities import open_discontinuities
+from viscx.pipeline import BuiltComplex, build_complex, build_file
+from viscx.queries.discontinuities import light_mesh, open_discontinuities
 from viscx.scene import load_scene
 
 #: Margin (of the diagonal) between judged points and mesh lines; the EEE traces' chordal
@@ -53,8 +53,23 @@ def light_scene_obj(path, seed, count=2):
     return path
 
 
-def _check(path, group, seed, samples=4):
-    scene, mesh = open_discontinuities(path, light_group=group)
+def build_v1(obj):
+    """The full build of a scene file up to its arcs (V1), in memory: the mesh is traced from
+    V1 alone, and a file would need V2 too (0.5-1.2 CPU s of cells these tests do not read;
+    the mesh of a file: :func:`test_small_scene_oracle`, the command line's tests)."""
+    return build_complex(obj, levels=1, quiet=True)
+
+
+def open_mesh(source, light_group="light", faces=()):
+    """(scene, mesh) of a light group's discontinuity mesh, from a viscx file or a complex
+    built in memory (:func:`build_v1`; its mesh traced again on each call)."""
+    if isinstance(source, BuiltComplex):
+        return source.scene, light_mesh(source, light_group=light_group, faces=faces)
+    return open_discontinuities(source, light_group=light_group, faces=faces)
+
+
+def _check(source, group, seed, samples=4):
+    scene, mesh = open_mesh(source, light_group=group)
     res = check_mesh(scene, mesh, np.random.default_rng(seed), MARGIN * scene.diagonal, samples=samples)
     return scene, mesh, res
 
@@ -186,9 +201,8 @@ def test_receiver_plane_events(tmp_path, seed, vertex_in_plane, kind):
     (or its vertex in that plane's) image crosses the side's horizon on a light edge, the
     labels change, and the mesh has those lines (RPE, RPV events, not arcs of V1), every
     one in the side's plane."""
-    obj = box_side_scene_obj(tmp_path / "b.obj", seed, vertex_in_plane)
-    build_file(obj, tmp_path / "b.h5", quiet=True)
-    scene, mesh, res = _check(tmp_path / "b.h5", "light", seed, samples=12)
+    cx = build_v1(box_side_scene_obj(tmp_path / "b.obj", seed, vertex_in_plane))
+    scene, mesh, res = _check(cx, "light", seed, samples=12)
     ev = mesh.events
     names = np.array([mesh_kind(mesh, k) for k in range(len(ev.arc))])
     rp = np.flatnonzero((names == "RPE") | (names == "RPV"))
@@ -255,9 +269,8 @@ def test_clip_to_front():
 @pytest.mark.parametrize("seed, count", [(11, 2), (12, 2), (13, 2)] + [(s, 2 + s % 2) for s in range(20, 40)])
 def test_random_scenes_oracle(tmp_path, seed, count):
     """The random scenes of docs/queries.md's table (seeds 20-39) and three more."""
-    obj = light_scene_obj(tmp_path / f"s{seed}.obj", seed, count=count)
-    build_file(obj, tmp_path / "s.h5", quiet=True)
-    scene, mesh, res = _check(tmp_path / "s.h5", "light", seed)
+    cx = build_v1(light_scene_obj(tmp_path / f"s{seed}.obj", seed, count=count))
+    scene, mesh, res = _check(cx, "light", seed)
     print({k: (len(v) if isinstance(v, list) else v) for k, v in res.items()})
     _assert_oracle(res, 30)
 
@@ -271,16 +284,12 @@ def test_transition_end_continued(tmp_path, monkeypatch):
     from viscx.queries import discontinuities as dm
     from viscx.skeleton.arcs import END_TRANSITION
 
-    obj = light_scene_obj(tmp_path / "s29.obj", 29, count=3)
-    build_file(obj, tmp_path / "s29.h5", quiet=True)
-    scene, mesh = open_discontinuities(tmp_path / "s29.h5", light_group="light")
+    cx = build_v1(light_scene_obj(tmp_path / "s29.obj", 29, count=3))
+    scene, mesh = open_mesh(cx)
     res = check_mesh(scene, mesh, np.random.default_rng(29), MARGIN * scene.diagonal)
     _assert_oracle(res, 300)
     # a transition end was moved past the arc's interval, onto another trace
-    from viscx.formats.hdf5 import ViscxFile, read_arcs
-
-    with ViscxFile(tmp_path / "s29.h5") as f:
-        arcs = read_arcs(f.h5["V1"])
+    arcs = cx.arcs
     ev = mesh.events
     floor = mesh.receivers[0]
     u, v, _ = floor.frame
@@ -298,7 +307,7 @@ def test_transition_end_continued(tmp_path, monkeypatch):
     assert moved == 1
     # without the continuation the trace dangles (the oracle sees it)
     monkeypatch.setattr(dm, "continue_transitions", lambda scene, arcs, events, offsets, points, *a: (offsets, points))
-    scene, mesh = open_discontinuities(tmp_path / "s29.h5", light_group="light")
+    scene, mesh = open_mesh(cx)
     res = check_mesh(scene, mesh, np.random.default_rng(29), MARGIN * scene.diagonal)
     assert res["dangling"] and res["cross_same_region"] == 1
 
@@ -323,7 +332,7 @@ def panel_scene_obj(path, tilt=0.0, fold=False):
 
 
 @pytest.mark.parametrize("tilt, fold", [(0.0, False), (0.3, True)])
-def test_lone_panel(tmp_path, monkeypatch, tilt, fold):
+def test_lone_panel(tmp_path, monkeypatch, request, tilt, fold):
     """A panel whose plane cuts the light: its planar EEE families (two of its edges and a
     light edge) trace its line on the floor beyond it, where nothing changes (both edges
     bound the panel's thin hidden interval from either side). They are dropped; the
@@ -332,9 +341,9 @@ def test_lone_panel(tmp_path, monkeypatch, tilt, fold):
     (the folded panel's own quads too: :func:`test_hinged_receivers`)."""
     from viscx.queries import discontinuities as dm
 
-    obj = panel_scene_obj(tmp_path / "p.obj", tilt, fold)
-    build_file(obj, tmp_path / "p.h5", quiet=True)
-    scene, mesh = open_discontinuities(tmp_path / "p.h5", light_group="light")
+    # (folded: the scene of test_hinged_receivers, built once)
+    cx = request.getfixturevalue("folded_panel") if fold else build_v1(panel_scene_obj(tmp_path / "p.obj", tilt, fold))
+    scene, mesh = open_mesh(cx)
     res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
     _assert_oracle(res, 60)
     assert res["cross_pairs"] == sum(len(r.events) for r in mesh.receivers)
@@ -343,22 +352,20 @@ def test_lone_panel(tmp_path, monkeypatch, tilt, fold):
     assert planar.any() == fold  # the hinge's families
     # without the rule the panel's families are traced, and crossing them changes nothing
     monkeypatch.setattr(dm, "panel_pencils", lambda scene, kind, *a: np.zeros(len(kind), bool))
-    scene, mesh = open_discontinuities(tmp_path / "p.h5", light_group="light")
+    scene, mesh = open_mesh(cx)
     res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
     assert len(res["cross_fail"]) >= 2
 
 
 @pytest.fixture(scope="module")
 def folded_panel(tmp_path_factory):
-    d = tmp_path_factory.mktemp("fold")
-    build_file(panel_scene_obj(d / "p.obj", 0.3, fold=True), d / "p.h5", quiet=True)
-    return d / "p.h5"
+    return build_v1(panel_scene_obj(tmp_path_factory.mktemp("fold") / "p.obj", 0.3, fold=True))
 
 
-def _oracle_failures(path, faces, seeds, samples):
+def _oracle_failures(cx, faces, seeds, samples):
     """Same-region failures summed over oracle seeds (every check of :func:`_assert_oracle`
     but the failures themselves asserted), and the mesh."""
-    scene, mesh = open_discontinuities(path, light_group="light", faces=faces)
+    scene, mesh = open_mesh(cx, faces=faces)
     same = cross = pairs = 0
     for seed in seeds:
         res = check_mesh(scene, mesh, np.random.default_rng(seed), MARGIN * scene.diagonal, samples=samples)
@@ -442,15 +449,14 @@ def test_vertex_in_lone_receiver_plane(tmp_path, monkeypatch, seed, crossing):
     holding both labels."""
     from viscx.queries import plane_events as pe
 
-    obj = panel_vertex_scene_obj(tmp_path / "v.obj", seed, crossing)
-    build_file(obj, tmp_path / "v.h5", quiet=True)
-    scene, mesh, same, cross, pairs = _oracle_failures(tmp_path / "v.h5", [2], (1, 2, 3), 12)
+    cx = build_v1(panel_vertex_scene_obj(tmp_path / "v.obj", seed, crossing))
+    scene, mesh, same, cross, pairs = _oracle_failures(cx, [2], (1, 2, 3), 12)
     assert (same, cross) == (0, 0) and pairs >= 100
     ev = mesh.events
     rp = np.flatnonzero(ev.kind == pe.RP_VERTEX)
     assert len(rp) == 1 and ev.generators[rp[0], 0] == 12
     monkeypatch.setattr(pe, "front_decides", lambda kind, *a: np.zeros(len(kind), bool))
-    _, mesh, same, cross, _ = _oracle_failures(tmp_path / "v.h5", [2], (1, 2, 3), 12)
+    _, mesh, same, cross, _ = _oracle_failures(cx, [2], (1, 2, 3), 12)
     assert not (mesh.events.kind == pe.RP_VERTEX).any() and same >= 1
 
 
@@ -484,7 +490,13 @@ def floor_light_boxes_obj(path, angle, centre, boxes):
     return path
 
 
-def test_crossing_junction_events(tmp_path, monkeypatch):
+@pytest.fixture(scope="module")
+def crossing_built(tmp_path_factory):
+    """:func:`crossing_scene_obj` built (every level)."""
+    return build_v1(crossing_scene_obj(tmp_path_factory.mktemp("crossing") / "x.obj"))
+
+
+def test_crossing_junction_events(crossing_built, monkeypatch):
     """Touching boxes whose edges a and b cross at X: where X's image (a corner of the
     boxes' outline) crosses a light edge e, the occluder edge bounding e's hidden part
     turns from a to b. Those are the XE arcs (X, e) of V1; traced like an occluder
@@ -494,11 +506,8 @@ def test_crossing_junction_events(tmp_path, monkeypatch):
     from viscx.queries import discontinuities as dm
     from viscx.skeleton.arcs import XE, edge_crossings
 
-    obj = crossing_scene_obj(tmp_path / "x.obj")
-    build_file(obj, tmp_path / "x.h5", quiet=True)
-
     def failures():
-        scene, mesh = open_discontinuities(tmp_path / "x.h5", light_group="light", faces=[0])
+        scene, mesh = open_mesh(crossing_built, faces=[0])
         cr = edge_crossings(scene)
         assert len(cr.point) == 1 and np.allclose(cr.point[0], [4.6, 2.0, 4.4])
         crossing = set(cr.edges[0].tolist())
@@ -518,17 +527,13 @@ def test_crossing_junction_events(tmp_path, monkeypatch):
     assert not xe and at_x >= 5
 
 
-def _touching_failures(tmp_path, name):
+def _touching_failures(cx):
     """(same-region failures, crossing failures, crack traces dropped) of the floor of
-    :func:`crossing_scene_obj`, oracle seeds 1 and 2."""
-    from viscx.formats.hdf5 import ViscxFile, read_arcs
+    :func:`crossing_scene_obj` built (:func:`build_v1`), oracle seeds 1 and 2."""
     from viscx.queries.cracks import through_cracks
 
-    obj = crossing_scene_obj(tmp_path / "x.obj")
-    build_file(obj, tmp_path / f"{name}.h5", quiet=True)
-    scene, mesh = open_discontinuities(tmp_path / f"{name}.h5", light_group="light", faces=[0])
-    with ViscxFile(tmp_path / f"{name}.h5") as f:
-        arcs = read_arcs(f.h5["V1"])
+    scene, mesh = open_mesh(cx, faces=[0])
+    arcs = cx.arcs
     cracks = int(through_cracks(scene, arcs.ends[:, 0], arcs.ends[:, 1]).sum())
     same = cross = 0
     for seed in (1, 2):
@@ -539,7 +544,7 @@ def _touching_failures(tmp_path, name):
     return same, cross, cracks
 
 
-def test_touching_blocks(tmp_path, monkeypatch):
+def test_touching_blocks(crossing_built, tmp_path, monkeypatch):
     """Two blocks touching face to face on the plane x = 4.6 (:func:`crossing_scene_obj`).
     (1) The pencils of lines in that plane through a light edge's crossing H, across the
     tall block's face: in front of the face the hidden part of that light edge ends at the
@@ -554,10 +559,10 @@ def test_touching_blocks(tmp_path, monkeypatch):
     Every same-region pair and every crossing agrees with the oracle."""
     from viscx.skeleton.arcs import builder
 
-    same, cross, cracks = _touching_failures(tmp_path, "all")
+    same, cross, cracks = _touching_failures(crossing_built)
     assert same == 0 and cross == 0 and cracks >= 2
     monkeypatch.setattr(builder, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
-    assert _touching_failures(tmp_path, "no_pencils")[0] >= 5
+    assert _touching_failures(build_v1(crossing_scene_obj(tmp_path / "x.obj")))[0] >= 5
 
 
 @pytest.mark.parametrize("seed", [0, pytest.param(11, marks=pytest.mark.slow)])
@@ -569,9 +574,7 @@ def test_pencil_of_a_face_with_a_vertex_in_its_plane(tmp_path, monkeypatch, seed
     from viscx.skeleton.arcs import builder
 
     def failures(name):
-        obj = box_side_scene_obj(tmp_path / f"{name}.obj", seed, vertex_in_plane=True)
-        build_file(obj, tmp_path / f"{name}.h5", quiet=True)
-        scene, mesh = open_discontinuities(tmp_path / f"{name}.h5", light_group="light")
+        scene, mesh = open_mesh(build_v1(box_side_scene_obj(tmp_path / f"{name}.obj", seed, vertex_in_plane=True)))
         fails = 0
         for oracle_seed in (1, 2, 3):
             res = check_mesh(scene, mesh, np.random.default_rng(oracle_seed), MARGIN * scene.diagonal, samples=8)
@@ -601,12 +604,10 @@ def contact_scene_obj(path, seed):
                                                        "box2": (xc, xc + 0.8 + 1.2 * u[2], 1 + 4 * u[3], *depth[1])})
 
 
-def _contact_failures(tmp_path, seed, name):
+def _contact_failures(cx):
     """(same-region failures, crossing failures, dangling ends) on the floor of
-    :func:`contact_scene_obj`, oracle seed 1, 4 points per region."""
-    obj = contact_scene_obj(tmp_path / f"{name}.obj", seed)
-    build_file(obj, tmp_path / f"{name}.h5", quiet=True)
-    scene, mesh = open_discontinuities(tmp_path / f"{name}.h5", light_group="light", faces=[0])
+    :func:`contact_scene_obj` built (:func:`build_v1`), oracle seed 1, 4 points per region."""
+    scene, mesh = open_mesh(cx, faces=[0])
     res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=4)
     assert res["same_pairs"] >= 200 and res["cross_pairs"] >= 60
     return len(res["same_fail"]), len(res["cross_fail"]) + len(res["cross_skipped"]), len(res["dangling"])
@@ -642,11 +643,15 @@ def test_partly_overlapping_contacts(tmp_path, monkeypatch, seed):
     dangled."""
     import importlib
 
-    assert _contact_failures(tmp_path, seed, "all") == (0, 0, 0)
+    cx = build_v1(contact_scene_obj(tmp_path / "c.obj", seed))
+    assert _contact_failures(cx) == (0, 0, 0)
     modules, name, stub = _CONTACT_PARTS[seed]
     for module in modules:  # every module that calls it
         monkeypatch.setattr(importlib.import_module(module), name, stub)
-    assert sum(_contact_failures(tmp_path, seed, "without")) >= 1
+    # a part of V1 knocked out needs a new build; a part of the mesh (viscx.queries) is traced again
+    if not all(module.startswith("viscx.queries.") for module in modules):
+        cx = build_v1(contact_scene_obj(tmp_path / "c.obj", seed))
+    assert sum(_contact_failures(cx)) >= 1
 
 
 def terrace_scene_obj(path, seed):
@@ -671,8 +676,7 @@ def test_terrace_of_touching_blocks(tmp_path, monkeypatch):
     from viscx.skeleton.arcs import lines, pencils
 
     def failures(name):
-        build_file(terrace_scene_obj(tmp_path / f"{name}.obj", 0), tmp_path / f"{name}.h5", quiet=True)
-        scene, mesh = open_discontinuities(tmp_path / f"{name}.h5", light_group="light", faces=[0])
+        scene, mesh = open_mesh(build_v1(terrace_scene_obj(tmp_path / f"{name}.obj", 0)), faces=[0])
         res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=4)
         assert res["same_pairs"] >= 700 and res["cross_pairs"] >= 200
         return len(res["same_fail"]), len(res["cross_fail"]) + len(res["cross_skipped"]), len(res["dangling"])
@@ -727,8 +731,7 @@ def test_pencil_across_a_face_split_in_two_groups(tmp_path):
     assert family in arcs_module.contact_pencils(scene).tolist()
     s = np.linspace(0.02, 0.98, 49)
     assert arcs_module.judge_samples(scene, np.zeros(49, np.int64), np.tile(family, (49, 1)), s).valid.all()
-    build_file(obj, tmp_path / "split.h5", quiet=True)
-    scene, mesh = open_discontinuities(tmp_path / "split.h5", light_group="light", faces=[0])
+    scene, mesh = open_mesh(build_v1(obj), faces=[0])
     res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
     assert res["same_pairs"] >= 600 and res["cross_pairs"] >= 80
     assert not res["same_fail"] and not res["cross_fail"] and not res["cross_skipped"] and not res["dangling"]

@@ -236,10 +236,14 @@ def test_ray_oracle_on_every_pair(name):
     covered_fraction_matches(ee, pairs, covered)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", DEGENERATE)
 def test_ray_oracle_on_complete_pairs_of_degenerate_samples(name):
     """Degenerate samples: pairs whose loops all close pass the oracle (40 of them here,
-    all with -m slow); the others are V1's gaps (docs/skeleton.md, "EE-cells")."""
+    all with ``test_ray_oracle_on_all_complete_pairs_of_degenerate_samples``); the others
+    are V1's gaps (docs/skeleton.md, "EE-cells"). Under slow while every pair of the three
+    is complete (``test_measured_gaps_of_degenerate_samples``): then
+    ``test_ray_oracle_on_every_pair_of_degenerate_samples`` judges all of them."""
     scene, arcs, ee = built(name)
     assert_oracle(scene, arcs, ee, complete_pairs(ee)[::max(1, len(complete_pairs(ee)) // 40)])
 

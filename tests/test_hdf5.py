@@ -117,14 +117,16 @@ def test_nodes_round_trip(tmp_path):
 
 @pytest.fixture(scope="module")
 def coded(tmp_path_factory):
-    """The Cornell box built with each coder: {coder: path}."""
-    from viscx.pipeline import build_file
+    """The Cornell box built once and written with each coder (``BuiltComplex.save``, what
+    ``viscx build --compression`` calls; the command itself: the README's blocks): {coder: path}."""
+    from viscx.pipeline import build_complex
 
     folder = tmp_path_factory.mktemp("coded")
+    cx = build_complex(SAMPLES / "cornell_box.obj", quiet=True)
     paths = {}
     for compression in ("none", "gzip", "lzf"):
         paths[compression] = folder / f"{compression}.h5"
-        build_file(SAMPLES / "cornell_box.obj", paths[compression], quiet=True, compression=compression)
+        cx.save(paths[compression], compression=compression)
     return paths
 
 

@@ -65,7 +65,11 @@ def assert_clean_exit(process, signum, folder):
     assert sorted(p.name for p in folder.iterdir()) == [], "left behind after the signal"
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+# Each signal in one stage by default (SIGTERM while writing, SIGINT in the scene stage: both
+# exit statuses, both stages), the other two pairs under slow: a build of the big scene is
+# 2-4 CPU s.
+@pytest.mark.parametrize("signum", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)],
+                         ids=["SIGTERM", "SIGINT"])
 def test_signal_while_writing(signum, big_scene, tmp_path):
     """Signalled while the temporary output file exists: the temporary file is removed."""
     out = tmp_path / "sphere.h5"
@@ -76,7 +80,8 @@ def test_signal_while_writing(signum, big_scene, tmp_path):
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc for CPU times")
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("signum", [pytest.param(signal.SIGTERM, marks=pytest.mark.slow), signal.SIGINT],
+                         ids=["SIGTERM", "SIGINT"])
 def test_signal_while_building_the_scene(signum, big_scene, tmp_path, startup_cpu):
     """Signalled in the scene stage, before anything is written: nothing appears."""
     out = tmp_path / "sphere.h5"

@@ -170,16 +170,26 @@ def box_room():
     return scene_of([floor, back, left] + _box(0.3, 0.6, 0.4, 0.7, 0.4))
 
 
+_ROWS = {}
+
+
+def floor_row(box_room, tol):
+    """The box room's floor row (front side, every face) at ``tol``, computed once for the
+    tests below."""
+    if tol not in _ROWS:
+        _ROWS[tol] = ff.row_form_factors(box_room, 0, 1, np.arange(box_room.n_faces), tol)
+    return _ROWS[tol]
+
+
 def test_row_within_its_estimates_of_a_tight_row(box_room):
     """The box room's floor row and sky at tol 1e-3 and 1e-4 are within their estimates of
     the row at 1e-7 (plus its estimate)."""
     scene = box_room
-    faces = np.arange(scene.n_faces)
     assert len(kink_segments(scene, 0, 1)) > 10
-    ref = ff.row_form_factors(scene, 0, 1, faces, 1e-7)
+    ref = floor_row(scene, 1e-7)
     tight = dict(zip(ref[0], zip(ref[1], ref[2])))
     for tol in (1e-3, 1e-4):
-        cols, F, E, _, sky, sky_e = ff.row_form_factors(scene, 0, 1, faces, tol)
+        cols, F, E, _, sky, sky_e = floor_row(scene, tol)
         assert set(cols) == set(tight) and E.max() <= tol
         for c, f, e in zip(cols, F, E):
             assert abs(f - tight[c][0]) <= e + tight[c][1], (tol, c)
@@ -191,7 +201,7 @@ def test_rows_with_too_many_kink_cells_use_three_levels(box_room, monkeypatch):
     cluttered scene: :data:`MAX_KINK_CELLS`), the row falls back to the three-level
     cubature; both agree within their estimates."""
     faces = np.arange(box_room.n_faces)
-    kinked = ff.row_form_factors(box_room, 0, 1, faces, 1e-4)
+    kinked = floor_row(box_room, 1e-4)
     calls = []
     monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
     monkeypatch.setattr(ff.ThreeLevelRowCubature, "rule", lambda self, *a, _r=ff.ThreeLevelRowCubature.rule:

@@ -97,11 +97,9 @@ def test_exact_image_agrees_with_monte_carlo_to_its_noise(cornell_64):
 def test_exact_image_of_random_scenes_agrees_with_monte_carlo(tmp_path, seed):
     """Held-back scenes (a floor, a tilted square light, random tetrahedra in between),
     seen from above at an angle, 1024 light samples per pixel: the same test."""
-    from test_discontinuities import light_scene_obj
+    from test_discontinuities import build_v1, light_scene_obj, open_mesh
 
-    obj = light_scene_obj(tmp_path / "s.obj", seed, count=3)
-    build_file(obj, tmp_path / "s.h5", quiet=True)
-    scene, mesh = open_discontinuities(tmp_path / "s.h5", light_group="light")
+    scene, mesh = open_mesh(build_v1(light_scene_obj(tmp_path / "s.obj", seed, count=3)))
     lighting = DirectLighting(scene, mesh, emitter(scene, mesh.light, radiance=(1.0, 1.0, 1.0)))
     hits = primary_hits(scene, Camera([5, 12, -9], [5, 0, 5], [0, 1, 0], 50.0, 40, 40))
     exact, region = shade(lighting, hits.face, hits.side, hits.point)

@@ -219,7 +219,13 @@ def open_complex(path, need=None, hint=""):
         stored = [name for name in f.levels if name in f.h5 and name in dict(LEVELS)]
         cx = BuiltComplex(f.read_scene(), points=f.read_points(), options=f.options, timings=f.timings,
                           path=Path(path), stored=stored)
-    if need is not None and need not in stored:
+    return cx if need is None else require_level(cx, need, path, hint)
+
+
+def require_level(cx, need, path, hint=""):
+    """``cx`` (opened from the viscx file ``path`` by :func:`open_complex`) when it stores
+    the level ``need``, else the ViscxError of :func:`open_complex` (``hint`` appended)."""
+    if need not in cx.stored:
         raise ViscxError(f"{path} has no {LONG_NOUNS[need]} ({need}); build it with `viscx build` (all levels){hint}")
     return cx
 

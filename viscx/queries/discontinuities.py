@@ -1083,7 +1083,7 @@ def open_light_query(path, light_face=None, light_group=None, check=None, **scen
     import h5py
 
     from viscx.errors import ParameterError, ViscxError, literal
-    from viscx.pipeline import build_complex, light_option, open_complex, scene_of
+    from viscx.pipeline import build_complex, light_option, open_complex, require_level, scene_of
 
     if (light_face is None) == (light_group is None):
         raise ParameterError("give exactly one of {light_face} and {light_group}")
@@ -1100,14 +1100,14 @@ def open_light_query(path, light_face=None, light_group=None, check=None, **scen
     cx = open_complex(path)
     scoped = light_option(cx.options)
     check(cx.scene, light_of(cx.scene, light_face, light_group))
-    if scoped is None:
-        return open_complex(path, need="V2", hint=", or query the scene file itself")
+    if scoped is None:  # (the file opened once: its scene read and its structure checked once)
+        return require_level(cx, "V2", path, hint=", or query the scene file itself")
     asked = {"light_face": int(light_face)} if light_face is not None else {"light_group": light_group}
     if scoped != asked:
         (key, value), = scoped.items()
         raise ViscxError(f"{path} was built for one light ({key.replace('_', ' ')} {value}) only; query that light, "
                          "or the scene file itself")
-    return open_complex(path, need="V1")
+    return require_level(cx, "V1", path)
 
 
 def open_discontinuities(path, light_face=None, light_group=None, faces=(), **scene_options):

@@ -240,16 +240,55 @@ def form_loops(el, group, tolerance):
 def _closable_links(n, i, j):
     """Links between elements that may lie on a loop: elements without a candidate before
     or after them (dangling ends, e.g. a VE arc ending at a transition nothing else meets)
-    are set aside, repeatedly, so that they cannot take a closing element's successor."""
-    alive = np.ones(n, bool)
-    while True:
-        keep = alive[i] & alive[j]
-        has_out = np.bincount(i[keep], minlength=n) > 0
-        has_in = np.bincount(j[keep], minlength=n) > 0
-        still = alive & has_out & has_in
-        if np.array_equal(still, alive):
-            return keep
-        alive = still
+    are set aside, repeatedly, so that they cannot take a closing element's successor.
+
+    The elements kept are the largest set in which each has a link in from it and a link
+    out to it (unique: a union of such sets is one), peeled in one pass (:func:`_peel`):
+    each element set aside takes one link from the counts of its neighbours."""
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    by_i = np.argsort(i, kind="stable")
+    by_j = np.argsort(j, kind="stable")
+    alive = _peel(n, i, j, by_i, np.searchsorted(i[by_i], np.arange(n + 1)), by_j,
+                  np.searchsorted(j[by_j], np.arange(n + 1)))
+    return alive[i] & alive[j]
+
+
+@njit(cache=True)
+def _peel(n, i, j, by_i, i_off, by_j, j_off):
+    """(n,) bool: the elements left when every element with no link out (count of links
+    (x, ·) to living elements) or no link in is removed, until none is (queue order: the
+    fixed point does not depend on it). ``by_i``/``i_off`` list the links of each i (CSR),
+    ``by_j``/``j_off`` those of each j."""
+    out_count = i_off[1:] - i_off[:-1]
+    in_count = j_off[1:] - j_off[:-1]
+    alive = np.ones(n, np.bool_)
+    queue = np.empty(n, np.int64)
+    q = 0
+    for x in range(n):
+        if out_count[x] == 0 or in_count[x] == 0:
+            alive[x] = False
+            queue[q] = x
+            q += 1
+    h = 0
+    while h < q:
+        x = queue[h]
+        h += 1
+        for k in range(i_off[x], i_off[x + 1]):  # links x -> y: y loses one in
+            y = j[by_i[k]]
+            in_count[y] -= 1
+            if in_count[y] == 0 and alive[y]:
+                alive[y] = False
+                queue[q] = y
+                q += 1
+        for k in range(j_off[x], j_off[x + 1]):  # links y -> x: y loses one out
+            y = i[by_j[k]]
+            out_count[y] -= 1
+            if out_count[y] == 0 and alive[y]:
+                alive[y] = False
+                queue[q] = y
+                q += 1
+    return alive
 
 
 @njit(cache=True)

@@ -126,7 +126,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, row_norms, unique_rows, unique_sorted
 from viscx.parallel import row_chunks
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
@@ -317,7 +317,7 @@ def ee_blockers(scene, e1, e2, x1, x2):
     gens = np.full((n, 4), -1, np.int64)
     gens[:, 0], gens[:, 1] = e1, e2
     seg = maximal_free_segments(scene, np.broadcast_to(_EE_SLOTS, (n, 4)), np.full(n, 2), gens, p1,
-                                np.where(np.linalg.norm(d, axis=1)[:, None] > 0, d, 1.0))
+                                np.where(row_norms(d)[:, None] > 0, d, 1.0))
     # maximal_free_segments orients canonically: turn each to run from e1's point to e2's
     flip = np.einsum("ij,ij->i", seg.direction, d) < 0
     kind = np.where(flip[:, None], seg.blocker_kind[:, ::-1], seg.blocker_kind).astype(np.int64)
@@ -464,7 +464,7 @@ def _coordinate(scene, arcs, arc, edge, s):
         ev_p = scene.half_edges.edge_vertices[gr[:, 0]]
         w = ev_p[np.arange(len(rest)), np.maximum(at_end, 0)]
         shared = (at_end >= 0) & np.any(scene.half_edges.edge_vertices[gr[:, 1:]] == w[:, None, None], axis=(1, 2))
-        defined[rest] = (np.linalg.norm(d, axis=1) > 0) & ~shared
+        defined[rest] = (row_norms(d) > 0) & ~shared
         x[rest], _ = segment_parameter(o, np.where(defined[rest, None], d, 1.0), a, b)
     return x, defined
 
@@ -636,7 +636,7 @@ def _bezier_tangents(start, end, weight):
 
 def _unit3(t):
     out = np.zeros((len(t), 3))
-    size = np.linalg.norm(t, axis=1)
+    size = row_norms(t)
     ok = size > 0
     out[ok, :2] = t[ok] / size[ok, None]
     out[~ok, 0] = 1.0
@@ -723,12 +723,12 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
     t0, t1 = _bezier_tangents(start, end, w)
     # tangent at u = 1/2 of the Bézier curve: w0 w1 (c1 - c0) / (1/2)^2 up to a positive factor
     tangent = (end - start) * w * (1 - w)
-    tangent = np.where(np.linalg.norm(tangent, axis=1)[:, None] > 0, tangent, t0 + t1)
-    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    tangent = np.where(row_norms(tangent)[:, None] > 0, tangent, t0 + t1)
+    tangent /= np.maximum(row_norms(tangent), 1e-300)[:, None]
     left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
     a1, b1 = _edge_ends(scene, e1)
     a2, b2 = _edge_ends(scene, e2)
-    length = np.stack([np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1)], axis=1)
+    length = np.stack([row_norms(b1 - a1), row_norms(b2 - a2)], axis=1)
     # move by PROBE epsilon along the edge that moves most
     step = probe * scene.epsilon / np.max(np.abs(left) * length, axis=1)
     steps = np.stack([step, step])
@@ -1095,10 +1095,10 @@ def pencil_value(scene, crossed, held, third):
     at, bt = _edge_ends(scene, third)
     dh, dt = bh - ah, bt - at
     n = np.cross(dh, dt)
-    parallel = np.linalg.norm(n, axis=1) <= ANGLE_TOLERANCE * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
+    parallel = row_norms(n) <= ANGLE_TOLERANCE * row_norms(dh) * row_norms(dt)
     n = np.where(parallel[:, None], np.cross(dh, at - ah), n)
     den = np.einsum("ij,ij->i", n, b - a)
-    ok = np.abs(den) > PARALLEL_TOLERANCE * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
+    ok = np.abs(den) > PARALLEL_TOLERANCE * row_norms(n) * row_norms(b - a)
     return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
 
 
@@ -1133,11 +1133,11 @@ def _pencils_through(scene, crossed, held, x, tol):
     a, b = _edge_ends(scene, crossed)
     q = a + x[:, None] * (b - a)
     ah, bh = _edge_ends(scene, held)
-    unit = (bh - ah) / np.linalg.norm(bh - ah, axis=1, keepdims=True)
+    unit = (bh - ah) / row_norms(bh - ah)[:, None]
     normal = np.cross(unit, q - ah)
-    r_q = np.linalg.norm(normal, axis=1)
+    r_q = row_norms(normal)
     normal /= np.maximum(r_q, 1e-300)[:, None]
-    turn = 4 * tol * np.linalg.norm(b - a, axis=1) / np.maximum(r_q, 1e-300)
+    turn = 4 * tol * row_norms(b - a) / np.maximum(r_q, 1e-300)
     ta, tb = _edge_ends(scene, ge)
     ev = scene.half_edges.edge_vertices
     # x contiguous: a column of the caller's points is strided unless it holds one point, and
@@ -1658,7 +1658,7 @@ def reference_points(el, loop_offsets):
     (l, 3) float
     """
     n = loop_offsets[-1]
-    chord = np.linalg.norm(el.end[:n, :2] - el.start[:n, :2], axis=1)
+    chord = row_norms(el.end[:n, :2] - el.start[:n, :2])
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
     pick = np.lexsort([-chord, loop_of])
     best = pick[np.searchsorted(loop_of[pick], np.arange(len(loop_offsets) - 1))]
@@ -1668,7 +1668,7 @@ def reference_points(el, loop_offsets):
     point = ((1 - u) * (1 - w) * s + u * w * e) / den
     # d/du of each coordinate: w0 w1 (c1 - c0) / den² (w0 = 1 - w, w1 = w)
     tangent = (e - s) * w * (1 - w) / den**2
-    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    tangent /= np.maximum(row_norms(tangent), 1e-300)[:, None]
     left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
     ref = point + np.minimum(SQUARE_REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
     return _lift(ref)
@@ -1910,7 +1910,7 @@ def join_tolerance(scene, e1, e2):
 def _edge_lengths(scene):
     """(e,) float: the length of every edge (the scene's cache ``edge_lengths``)."""
     a, b = _edge_ends(scene, np.arange(len(scene.half_edges.edge_vertices)))
-    return np.linalg.norm(b - a, axis=1)
+    return row_norms(b - a)
 
 
 def point_chains(scene, walk, chain_offsets):

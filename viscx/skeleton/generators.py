@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from viscx.arrays import row_norms
 from viscx.grid import bin_boxes
 from viscx.tolerances import ANGLE_TOLERANCE
 
@@ -44,10 +45,10 @@ def skew_edges(scene, e1, e2):
     share = (ev[e1][:, :, None] == ev[e2][:, None, :]).any(axis=(1, 2))
     a1, b1 = edge_geometry(scene, e1)
     a2, b2 = edge_geometry(scene, e2)
-    u1 = (b1 - a1) / np.linalg.norm(b1 - a1, axis=1, keepdims=True)
-    u2 = (b2 - a2) / np.linalg.norm(b2 - a2, axis=1, keepdims=True)
+    u1 = (b1 - a1) / row_norms(b1 - a1)[:, None]
+    u2 = (b2 - a2) / row_norms(b2 - a2)[:, None]
     c = np.cross(u1, u2)
-    size = np.linalg.norm(c, axis=1)
+    size = row_norms(c)
     with np.errstate(invalid="ignore", divide="ignore"):
         gap = np.abs(np.einsum("ij,ij->i", a2 - a1, c)) / size
     return ~share & (size > ANGLE_TOLERANCE) & (gap > scene.epsilon)

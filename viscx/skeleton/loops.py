@@ -12,7 +12,7 @@ EE-cells embed their square as the plane z = 1).
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows, walk_cycle
+from viscx.arrays import expand_ranges, row_norms, unique_rows, walk_cycle
 
 #: Decimals to which turning sums are compared when choosing a cell's outer loop.
 TURNING_DECIMALS = 9
@@ -130,7 +130,7 @@ def near_pairs(a, b, group, tolerance):
             ii.append(by_a[i])
             kk.append(k)
     i, j = np.concatenate(ii), order[np.concatenate(kk)]
-    near = np.linalg.norm(a[i] - b[j], axis=1) <= tolerance[i]
+    near = row_norms(a[i] - b[j]) <= tolerance[i]
     i, j = i[near], j[near]
     pick = np.lexsort([j, i])
     return i[pick], j[pick]
@@ -170,7 +170,7 @@ def unique_elements(el, group, tolerance, same_curve=None):
     i, j = near_pairs(el.start, el.start, group, tolerance)
     later = j > i
     i, j = i[later], j[later]
-    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= tolerance[i]
+    same = row_norms(el.end[i] - el.end[j]) <= tolerance[i]
     i, j = i[same], j[same]
     if same_curve is not None and len(i):
         keep = same_curve(i, j)
@@ -192,7 +192,7 @@ def chain_extents(walk, chain_offsets):
     k = np.arange(chain_offsets[0], chain_offsets[-1])
     chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
     origin = walk.start[first][chain_of]
-    far = np.maximum(np.linalg.norm(walk.start[k] - origin, axis=1), np.linalg.norm(walk.end[k] - origin, axis=1))
+    far = np.maximum(row_norms(walk.start[k] - origin), row_norms(walk.end[k] - origin))
     extent = np.zeros(n)
     np.maximum.at(extent, chain_of, far)
     return extent

@@ -274,21 +274,23 @@ def _peel(n, i, j, by_i, i_off, by_j, j_off):
     while h < q:
         x = queue[h]
         h += 1
-        for k in range(i_off[x], i_off[x + 1]):  # links x -> y: y loses one in
-            y = j[by_i[k]]
-            in_count[y] -= 1
-            if in_count[y] == 0 and alive[y]:
-                alive[y] = False
-                queue[q] = y
-                q += 1
-        for k in range(j_off[x], j_off[x + 1]):  # links y -> x: y loses one out
-            y = i[by_j[k]]
-            out_count[y] -= 1
-            if out_count[y] == 0 and alive[y]:
-                alive[y] = False
-                queue[q] = y
-                q += 1
+        q = _unlink(x, i_off, by_i, j, in_count, alive, queue, q)  # links x -> y: y loses one in
+        q = _unlink(x, j_off, by_j, i, out_count, alive, queue, q)  # links y -> x: y loses one out
     return alive
+
+
+@njit(cache=True, inline="always")
+def _unlink(x, off, by, other, count, alive, queue, q):
+    """Take the links of x (CSR ``off``/``by``) from the counts of their ``other`` ends,
+    queueing the ends left with none; the new queue length."""
+    for k in range(off[x], off[x + 1]):
+        y = other[by[k]]
+        count[y] -= 1
+        if count[y] == 0 and alive[y]:
+            alive[y] = False
+            queue[q] = y
+            q += 1
+    return q
 
 
 @njit(cache=True)

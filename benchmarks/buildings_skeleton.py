@@ -14,8 +14,13 @@ written to ``benchmarks/buildings_results.json``.
 import argparse
 import json
 import multiprocessing
+import os
 import sys
 from pathlib import Path
+
+# as `viscx build` runs (viscx/cli; before numpy loads): their spinning is not the builders' CPU
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

@@ -25,7 +25,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# as `viscx build` runs (viscx/cli): one BLAS thread, idle OpenMP threads asleep (set before
+# numpy loads; spawned children inherit them): their spinning is not the builders' CPU time
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent

@@ -149,13 +149,17 @@ def test_help_imports_no_numeric_library():
 
 
 def test_commands_run_with_one_blas_thread_unless_told():
-    """The console script sets OPENBLAS_NUM_THREADS=1 before numpy loads (its threads spin
-    on viscx's small products), and keeps a value the user set."""
+    """The console script sets OPENBLAS_NUM_THREADS=1 (its threads spin on viscx's small
+    products) and OMP_WAIT_POLICY=PASSIVE (numba's idle OpenMP threads sleep between kernels)
+    before numpy loads, and keeps a value the user set."""
     import os
 
-    script = "import sys, os, viscx.__main__; print(os.environ['OPENBLAS_NUM_THREADS'], 'numpy' in sys.modules)"
-    for given, expected in ((None, "1 False"), ("3", "3 False")):
-        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | ({"OPENBLAS_NUM_THREADS": given} if given else {})
+    names = ("OPENBLAS_NUM_THREADS", "OMP_WAIT_POLICY")
+    script = ("import sys, os, viscx.__main__; "
+              "print(os.environ['OPENBLAS_NUM_THREADS'], os.environ['OMP_WAIT_POLICY'], 'numpy' in sys.modules)")
+    for given, expected in (((None, None), "1 PASSIVE False"), (("3", "ACTIVE"), "3 ACTIVE False")):
+        env = {k: v for k, v in os.environ.items() if k not in names}
+        env |= {k: v for k, v in zip(names, given) if v is not None}
         done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
         assert done.stdout.strip() == expected, done.stderr
 

@@ -5,6 +5,8 @@ the measured V1 gaps of the degenerate samples, HDF5, determinism and the plot c
 import h5py
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from conftest import SAMPLES, soup
 from random_scenes import general_position_scene
 
@@ -881,3 +883,31 @@ def test_every_vertex_of_the_1000_polygon_city_is_complete(monkeypatch):
     assert judged >= 0.99 * 2000 * len(special) and agreed == judged, wrong[:5]
     monkeypatch.setattr(vcells, "JOIN_EPSILONS", 5)
     assert set(np.setdiff1d(scene.generator_vertices, complete_vertices(build_vcells(scene, arcs)))) == {151, 623}
+
+
+def _closable_links_by_rounds(n, i, j):
+    """The plain definition of loops._closable_links: drop elements with no living link in or
+    out, round after round, until none is dropped."""
+    alive = np.ones(n, bool)
+    while True:
+        keep = alive[i] & alive[j]
+        still = alive & (np.bincount(i[keep], minlength=n) > 0) & (np.bincount(j[keep], minlength=n) > 0)
+        if np.array_equal(still, alive):
+            return keep
+        alive = still
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 30).flatmap(lambda n: st.tuples(
+    st.just(n), st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=3 * n),
+    st.permutations(range(n)))))
+def test_closable_links_peeled_in_one_pass_equal_the_rounds(case):
+    """FormLoops' pruning of dangling elements (one queue pass in numba) keeps exactly the
+    links the round-by-round definition keeps: random links plus a chain through every
+    element (long dangling chains take one round per element there)."""
+    from viscx.skeleton.loops import _closable_links
+
+    n, links, perm = case
+    i = np.array([a for a, _ in links] + list(perm[:-1]), dtype=np.int64)
+    j = np.array([b for _, b in links] + list(perm[1:]), dtype=np.int64)
+    assert np.array_equal(_closable_links(n, i, j), _closable_links_by_rounds(n, i, j))

@@ -140,3 +140,34 @@ def bounding_diagonal(vertices):
         return 0.0
     with np.errstate(over="ignore", invalid="ignore"):
         return float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+
+
+def row_norms(x):
+    """``np.linalg.norm(x, axis=1)`` of (n, k) float64 rows, bit for bit, about four times
+    faster: numpy sums the squares of a row in order, ((x0² + x1²) + x2²), with a reduction
+    whose inner loop of 2 or 3 items costs more than the arithmetic; here one numba pass.
+    Other shapes and dtypes (float32 rows are summed in float32 by numpy) go to numpy.
+
+    Parameters
+    ----------
+    x : (n, k) float
+
+    Returns
+    -------
+    (n,) float
+    """
+    x = np.asarray(x)
+    if x.ndim != 2 or x.dtype != np.float64 or x.shape[1] > 3:
+        return np.linalg.norm(x, axis=1)
+    return _row_norms(x)
+
+
+@njit(cache=True, nogil=True)
+def _row_norms(x):
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        s = 0.0
+        for k in range(x.shape[1]):
+            s += x[i, k] * x[i, k]  # (0 + a) is a: the same sums as numpy's
+        out[i] = np.sqrt(s)
+    return out

@@ -34,6 +34,7 @@ import numpy as np
 from embreex import rtcore_scene
 from numba import njit
 
+from viscx.arrays import row_norms
 from viscx.grid import TriangleGrid, moller_trumbore
 from viscx.tolerances import CLEAR_COSINE, CLEAR_MARGIN, SKY_MARGIN
 from embreex.mesh_construction import TriangleMesh
@@ -92,7 +93,7 @@ def _unit(directions):
     if np.any(big == 0) or not np.all(np.isfinite(d)):
         raise ValueError("directions must be finite and non-zero")
     d = d / big
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
+    return d / row_norms(d)[:, None]
 
 
 class RayCaster:
@@ -214,7 +215,7 @@ class RayCaster:
         ends = np.asarray(ends, dtype=np.float64).reshape(-1, 3)
         trim = self.epsilon if trim is None else float(trim)
         vec = ends - starts
-        length = np.linalg.norm(vec, axis=1)
+        length = row_norms(vec)
         free = length <= 2 * trim
         rays = np.flatnonzero(~free)
         if len(rays):

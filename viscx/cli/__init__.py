@@ -28,6 +28,12 @@ from viscx.formats.atomic import clear_inputs, received_signals
 # 3.4-10.8 CPU s with them and 1.9 without (shared machine), and they take a busy machine's
 # cores from other work. Its dense algebra is batches of 3 x 4 SVDs, one thread each anyway.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# Idle OpenMP threads (numba's threading layer, for its parallel kernels) sleep instead of
+# spinning until the next kernel (read when the layer starts, on the first parallel kernel).
+# A build calls such kernels tens of thousands of times between numpy steps; the spinning
+# threads only burn CPU, on a busy machine taken from the threads doing the work. The results
+# do not depend on it (tests/conftest.py sets it for the suite too).
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 # name -> "module:attribute", in the order `viscx --help` lists them.
 COMMANDS = {

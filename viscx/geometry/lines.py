@@ -29,6 +29,7 @@ All functions are vectorised over a leading axis and work in float64.
 import numpy as np
 from numba import njit
 
+from viscx.arrays import row_norms
 from viscx.tolerances import PARALLEL_TOLERANCE
 
 
@@ -262,8 +263,8 @@ def line_through_point_and_two_lines(points, lines1, lines2):
     n1 = lines1[:, 3:] - np.cross(v, lines1[:, :3])
     n2 = lines2[:, 3:] - np.cross(v, lines2[:, :3])
     d = np.cross(n1, n2)
-    size = np.linalg.norm(d, axis=1)
-    scale = np.linalg.norm(n1, axis=1) * np.linalg.norm(n2, axis=1)
+    size = row_norms(d)
+    scale = row_norms(n1) * row_norms(n2)
     ok = size > PARALLEL_TOLERANCE * scale
     out = np.zeros_like(d)
     out[ok] = d[ok] / size[ok, None]
@@ -298,7 +299,7 @@ def segment_parameter(line_points, line_dirs, seg_a, seg_b):
     x = np.where(ok, (b * d - a * f) / np.where(ok, den, 1.0), np.nan)
     s = np.where(ok, (d + b * x) / a, np.nan)
     gap = w + x[:, None] * e - s[:, None] * line_dirs
-    return x, np.linalg.norm(gap, axis=1)
+    return x, row_norms(gap)
 
 
 def eee_line(e1a, e1b, line2, line3, x1):
@@ -350,7 +351,7 @@ def eee_map(e1, e2, e3):
     system = np.stack(rows, axis=1)  # (n, 3, 4)
     _, _, vt = np.linalg.svd(system)
     coeffs = vt[:, -1]
-    coeffs = coeffs / np.linalg.norm(coeffs, axis=1, keepdims=True)
+    coeffs = coeffs / row_norms(coeffs)[:, None]
     a, b, c, d = coeffs.T
     return coeffs, np.sign(a * d - b * c).astype(np.int64)
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
+from viscx.arrays import row_norms
 from viscx.geometry.tangency import tangent_in_wedges
 from viscx.tolerances import ANGLE_TOLERANCE
 
@@ -280,7 +281,7 @@ def generator_contacts(scene):
     shrink = scene.epsilon
     ev = he.edge_vertices
     p, q = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
-    length = np.linalg.norm(q - p, axis=1)
+    length = row_norms(q - p)
     u = (q - p) / np.maximum(length, 1e-300)[:, None]
     clean = length > 2 * shrink
     own_key = he.edge[h] * scene.n_faces + he.face[h]
@@ -321,12 +322,12 @@ def generator_wedges(scene, is_vertex, generator, points):
     a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
     # distance of the point from both ends, along the edge
     along = np.einsum("ij,ij->i", points[ie] - a, _unit(b - a))
-    inner = (along >= c.shrink) & (along <= np.linalg.norm(b - a, axis=1) - c.shrink)
+    inner = (along >= c.shrink) & (along <= row_norms(b - a) - c.shrink)
     cached = inner & c.edge_clean[generator[ie]]
     # a point within the weld tolerance of its edge touches only faces near the edge
-    off_edge = np.linalg.norm(points[ie] - a - along[:, None] * _unit(b - a), axis=1)
+    off_edge = row_norms(points[ie] - a - along[:, None] * _unit(b - a))
     listed = ~cached & (off_edge <= scene.weld_tolerance) & (along >= -scene.weld_tolerance) & (
-        along <= np.linalg.norm(b - a, axis=1) + scene.weld_tolerance)
+        along <= row_norms(b - a) + scene.weld_tolerance)
     ic, il, ig = ie[cached], ie[listed], ie[~cached & ~listed]
     parts = [(iv, take_wedges(c.vertex, generator[iv])), (ic, take_wedges(c.edge, generator[ic]))]
     if len(il):

@@ -171,7 +171,7 @@ import time
 import numpy as np
 from numba import njit
 
-from viscx.arrays import unique_rows
+from viscx.arrays import row_norms, unique_rows
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines
 from viscx.grid import bin_boxes, cell_of
 from viscx.parallel import map_chunks
@@ -370,7 +370,7 @@ def blocked_table(scene, gv, solids=None):
     for lo in range(0, len(i_all), RAY_CHUNK):
         i, j = i_all[lo : lo + RAY_CHUNK], j_all[lo : lo + RAY_CHUNK]
         vec = x[j] - x[i]
-        length = np.linalg.norm(vec, axis=1)
+        length = row_norms(vec)
         solid, _ = caster.first_hit(x[i], vec, tmin=0.0, tmax=length)
         # the first solid met may hold an end (a segment into its own solid): look from the other end
         own = (solid >= 0) & ((solid == sov[i]) | (solid == sov[j]))
@@ -400,7 +400,7 @@ class _SolidGrid:
         # oriented outwards: the centroid of a convex polytope is inside
         a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
         normal = np.cross(b - a, c - a)
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        normal /= row_norms(normal)[:, None]
         centroid = np.zeros((n_solids, 3))
         np.add.at(centroid, tri_solid, (a + b + c) / 3)
         centroid /= np.maximum(np.bincount(tri_solid, minlength=n_solids), 1)[:, None]
@@ -1689,7 +1689,7 @@ def _vee_lines(vee, scene, line_of, solids):
     Returns kind (m,), generators (m, 4) int, origins and directions (m, 3) float."""
     v, e1, e2 = vee[:, 0], vee[:, 1], vee[:, 2]
     d = line_through_point_and_two_lines(scene.vertices[v], line_of[e1], line_of[e2])
-    fine = np.linalg.norm(d, axis=1) > 0
+    fine = row_norms(d) > 0
     origin = scene.vertices[v]
     fine[fine] = _met_loosely(scene, origin[fine], d[fine], v[fine, None], vee[fine, 1:], solids)
     gens = np.stack([v, e1, e2, np.full_like(v, -1)], axis=1)[fine]

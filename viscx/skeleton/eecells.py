@@ -126,12 +126,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, row_norms, unique_rows, unique_sorted
 from viscx.parallel import row_chunks
 from viscx.geometry.lines import segment_parameter
 from viscx.progress import bar
 from viscx.skeleton.arcs import EEE, VE, XE, edge_crossings, edge_junctions, family_lines
-from viscx.skeleton.generators import skew_edges
+from viscx.skeleton.generators import edge_geometry, skew_edges
 from viscx.skeleton.nodes import maximal_free_segments
 from viscx.skeleton.loops import (
     TURNING_DECIMALS,
@@ -268,11 +268,6 @@ class EECells:
 # lines of the square
 
 
-def _edge_ends(scene, edges):
-    ev = scene.half_edges.edge_vertices[edges]
-    return scene.vertices[ev[..., 0]], scene.vertices[ev[..., 1]]
-
-
 def ee_points(scene, e1, e2, x1, x2):
     """The points e1(x1) and e2(x2).
 
@@ -285,8 +280,8 @@ def ee_points(scene, e1, e2, x1, x2):
     -------
     p1, p2 : (n, 3) float
     """
-    a1, b1 = _edge_ends(scene, np.asarray(e1, np.int64))
-    a2, b2 = _edge_ends(scene, np.asarray(e2, np.int64))
+    a1, b1 = edge_geometry(scene, np.asarray(e1, np.int64))
+    a2, b2 = edge_geometry(scene, np.asarray(e2, np.int64))
     return a1 + np.asarray(x1)[:, None] * (b1 - a1), a2 + np.asarray(x2)[:, None] * (b2 - a2)
 
 
@@ -317,7 +312,7 @@ def ee_blockers(scene, e1, e2, x1, x2):
     gens = np.full((n, 4), -1, np.int64)
     gens[:, 0], gens[:, 1] = e1, e2
     seg = maximal_free_segments(scene, np.broadcast_to(_EE_SLOTS, (n, 4)), np.full(n, 2), gens, p1,
-                                np.where(np.linalg.norm(d, axis=1)[:, None] > 0, d, 1.0))
+                                np.where(row_norms(d)[:, None] > 0, d, 1.0))
     # maximal_free_segments orients canonically: turn each to run from e1's point to e2's
     flip = np.einsum("ij,ij->i", seg.direction, d) < 0
     kind = np.where(flip[:, None], seg.blocker_kind[:, ::-1], seg.blocker_kind).astype(np.int64)
@@ -449,14 +444,14 @@ def _coordinate(scene, arcs, arc, edge, s):
     ev = scene.half_edges.edge_vertices[edge]
     at_vertex = (kind == VE) & ~param
     w = g[at_vertex, 0]
-    a, b = _edge_ends(scene, edge[at_vertex])
+    a, b = edge_geometry(scene, edge[at_vertex])
     # a junction's parameter, by the formula of arcs.edge_junctions (its events on the sides)
     inside = np.einsum("ij,ij->i", scene.vertices[w] - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
     x[at_vertex] = np.where(ev[at_vertex, 0] == w, 0.0, np.where(ev[at_vertex, 1] == w, 1.0, inside))
     rest = np.flatnonzero(~param & ~at_vertex & (kind != XE))
     if len(rest):
         o, d = family_lines(scene, kind[rest], g[rest], s[rest])
-        a, b = _edge_ends(scene, edge[rest])
+        a, b = edge_geometry(scene, edge[rest])
         # p's point at a vertex p shares with q or r: the line through it meeting both is
         # undefined (its direction there is rounding noise, not always exactly zero)
         gr = g[rest]
@@ -464,7 +459,7 @@ def _coordinate(scene, arcs, arc, edge, s):
         ev_p = scene.half_edges.edge_vertices[gr[:, 0]]
         w = ev_p[np.arange(len(rest)), np.maximum(at_end, 0)]
         shared = (at_end >= 0) & np.any(scene.half_edges.edge_vertices[gr[:, 1:]] == w[:, None, None], axis=(1, 2))
-        defined[rest] = (np.linalg.norm(d, axis=1) > 0) & ~shared
+        defined[rest] = (row_norms(d) > 0) & ~shared
         x[rest], _ = segment_parameter(o, np.where(defined[rest, None], d, 1.0), a, b)
     return x, defined
 
@@ -636,7 +631,7 @@ def _bezier_tangents(start, end, weight):
 
 def _unit3(t):
     out = np.zeros((len(t), 3))
-    size = np.linalg.norm(t, axis=1)
+    size = row_norms(t)
     ok = size > 0
     out[ok, :2] = t[ok] / size[ok, None]
     out[~ok, 0] = 1.0
@@ -723,12 +718,12 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
     t0, t1 = _bezier_tangents(start, end, w)
     # tangent at u = 1/2 of the Bézier curve: w0 w1 (c1 - c0) / (1/2)^2 up to a positive factor
     tangent = (end - start) * w * (1 - w)
-    tangent = np.where(np.linalg.norm(tangent, axis=1)[:, None] > 0, tangent, t0 + t1)
-    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    tangent = np.where(row_norms(tangent)[:, None] > 0, tangent, t0 + t1)
+    tangent /= np.maximum(row_norms(tangent), 1e-300)[:, None]
     left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
-    a1, b1 = _edge_ends(scene, e1)
-    a2, b2 = _edge_ends(scene, e2)
-    length = np.stack([np.linalg.norm(b1 - a1, axis=1), np.linalg.norm(b2 - a2, axis=1)], axis=1)
+    a1, b1 = edge_geometry(scene, e1)
+    a2, b2 = edge_geometry(scene, e2)
+    length = np.stack([row_norms(b1 - a1), row_norms(b2 - a2)], axis=1)
     # move by PROBE epsilon along the edge that moves most
     step = probe * scene.epsilon / np.max(np.abs(left) * length, axis=1)
     steps = np.stack([step, step])
@@ -1090,15 +1085,15 @@ def pencil_value(scene, crossed, held, third):
     (k,) float
         NaN where the line runs parallel to the plane or the two edges are collinear.
     """
-    a, b = _edge_ends(scene, crossed)
-    ah, bh = _edge_ends(scene, held)
-    at, bt = _edge_ends(scene, third)
+    a, b = edge_geometry(scene, crossed)
+    ah, bh = edge_geometry(scene, held)
+    at, bt = edge_geometry(scene, third)
     dh, dt = bh - ah, bt - at
     n = np.cross(dh, dt)
-    parallel = np.linalg.norm(n, axis=1) <= ANGLE_TOLERANCE * np.linalg.norm(dh, axis=1) * np.linalg.norm(dt, axis=1)
+    parallel = row_norms(n) <= ANGLE_TOLERANCE * row_norms(dh) * row_norms(dt)
     n = np.where(parallel[:, None], np.cross(dh, at - ah), n)
     den = np.einsum("ij,ij->i", n, b - a)
-    ok = np.abs(den) > PARALLEL_TOLERANCE * np.linalg.norm(n, axis=1) * np.linalg.norm(b - a, axis=1)
+    ok = np.abs(den) > PARALLEL_TOLERANCE * row_norms(n) * row_norms(b - a)
     return np.where(ok, np.einsum("ij,ij->i", n, ah - a) / np.where(ok, den, 1.0), np.nan)
 
 
@@ -1130,15 +1125,15 @@ def _pencils_through(scene, crossed, held, x, tol):
         The pencil's parameter on ``crossed``.
     """
     ge = scene.generator_edges
-    a, b = _edge_ends(scene, crossed)
+    a, b = edge_geometry(scene, crossed)
     q = a + x[:, None] * (b - a)
-    ah, bh = _edge_ends(scene, held)
-    unit = (bh - ah) / np.linalg.norm(bh - ah, axis=1, keepdims=True)
+    ah, bh = edge_geometry(scene, held)
+    unit = (bh - ah) / row_norms(bh - ah)[:, None]
     normal = np.cross(unit, q - ah)
-    r_q = np.linalg.norm(normal, axis=1)
+    r_q = row_norms(normal)
     normal /= np.maximum(r_q, 1e-300)[:, None]
-    turn = 4 * tol * np.linalg.norm(b - a, axis=1) / np.maximum(r_q, 1e-300)
-    ta, tb = _edge_ends(scene, ge)
+    turn = 4 * tol * row_norms(b - a) / np.maximum(r_q, 1e-300)
+    ta, tb = edge_geometry(scene, ge)
     ev = scene.half_edges.edge_vertices
     # x contiguous: a column of the caller's points is strided unless it holds one point, and
     # each layout is a signature of its own (compiled mid-build if the warm-up had the other)
@@ -1354,10 +1349,10 @@ def segment_pieces(scene, arcs, segments, pieces, el, curves=None):
     pencil = np.flatnonzero(segments.kind != SIDE)
     held = np.where(axis[pencil] == 0, segments.e2[pencil], segments.e1[pencil])
     crossed = np.where(axis[pencil] == 0, segments.e1[pencil], segments.e2[pencil])
-    a, b = _edge_ends(scene, crossed)
+    a, b = edge_geometry(scene, crossed)
     p = a + value[pencil, None] * (b - a)
-    ah, bh = _edge_ends(scene, held)
-    for t in _edge_ends(scene, segments.ident[pencil]):
+    ah, bh = edge_geometry(scene, held)
+    for t in edge_geometry(scene, segments.ident[pencil]):
         x, _ = segment_parameter(p, t - p, ah, bh)
         ok = np.isfinite(x)
         cut_seg.append(pencil[ok])
@@ -1658,7 +1653,7 @@ def reference_points(el, loop_offsets):
     (l, 3) float
     """
     n = loop_offsets[-1]
-    chord = np.linalg.norm(el.end[:n, :2] - el.start[:n, :2], axis=1)
+    chord = row_norms(el.end[:n, :2] - el.start[:n, :2])
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
     pick = np.lexsort([-chord, loop_of])
     best = pick[np.searchsorted(loop_of[pick], np.arange(len(loop_offsets) - 1))]
@@ -1668,7 +1663,7 @@ def reference_points(el, loop_offsets):
     point = ((1 - u) * (1 - w) * s + u * w * e) / den
     # d/du of each coordinate: w0 w1 (c1 - c0) / den² (w0 = 1 - w, w1 = w)
     tangent = (e - s) * w * (1 - w) / den**2
-    tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+    tangent /= np.maximum(row_norms(tangent), 1e-300)[:, None]
     left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
     ref = point + np.minimum(SQUARE_REFERENCE_OFFSET, 1e-3 * chord[best])[:, None] * left
     return _lift(ref)
@@ -1909,8 +1904,8 @@ def join_tolerance(scene, e1, e2):
 
 def _edge_lengths(scene):
     """(e,) float: the length of every edge (the scene's cache ``edge_lengths``)."""
-    a, b = _edge_ends(scene, np.arange(len(scene.half_edges.edge_vertices)))
-    return np.linalg.norm(b - a, axis=1)
+    a, b = edge_geometry(scene, np.arange(len(scene.half_edges.edge_vertices)))
+    return row_norms(b - a)
 
 
 def point_chains(scene, walk, chain_offsets):

@@ -12,7 +12,7 @@ EE-cells embed their square as the plane z = 1).
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows, walk_cycle
+from viscx.arrays import expand_ranges, row_norms, unique_rows, walk_cycle
 
 #: Decimals to which turning sums are compared when choosing a cell's outer loop.
 TURNING_DECIMALS = 9
@@ -130,7 +130,7 @@ def near_pairs(a, b, group, tolerance):
             ii.append(by_a[i])
             kk.append(k)
     i, j = np.concatenate(ii), order[np.concatenate(kk)]
-    near = np.linalg.norm(a[i] - b[j], axis=1) <= tolerance[i]
+    near = row_norms(a[i] - b[j]) <= tolerance[i]
     i, j = i[near], j[near]
     pick = np.lexsort([j, i])
     return i[pick], j[pick]
@@ -170,7 +170,7 @@ def unique_elements(el, group, tolerance, same_curve=None):
     i, j = near_pairs(el.start, el.start, group, tolerance)
     later = j > i
     i, j = i[later], j[later]
-    same = np.linalg.norm(el.end[i] - el.end[j], axis=1) <= tolerance[i]
+    same = row_norms(el.end[i] - el.end[j]) <= tolerance[i]
     i, j = i[same], j[same]
     if same_curve is not None and len(i):
         keep = same_curve(i, j)
@@ -192,7 +192,7 @@ def chain_extents(walk, chain_offsets):
     k = np.arange(chain_offsets[0], chain_offsets[-1])
     chain_of = np.repeat(np.arange(n), np.diff(chain_offsets))
     origin = walk.start[first][chain_of]
-    far = np.maximum(np.linalg.norm(walk.start[k] - origin, axis=1), np.linalg.norm(walk.end[k] - origin, axis=1))
+    far = np.maximum(row_norms(walk.start[k] - origin), row_norms(walk.end[k] - origin))
     extent = np.zeros(n)
     np.maximum.at(extent, chain_of, far)
     return extent
@@ -240,16 +240,57 @@ def form_loops(el, group, tolerance):
 def _closable_links(n, i, j):
     """Links between elements that may lie on a loop: elements without a candidate before
     or after them (dangling ends, e.g. a VE arc ending at a transition nothing else meets)
-    are set aside, repeatedly, so that they cannot take a closing element's successor."""
-    alive = np.ones(n, bool)
-    while True:
-        keep = alive[i] & alive[j]
-        has_out = np.bincount(i[keep], minlength=n) > 0
-        has_in = np.bincount(j[keep], minlength=n) > 0
-        still = alive & has_out & has_in
-        if np.array_equal(still, alive):
-            return keep
-        alive = still
+    are set aside, repeatedly, so that they cannot take a closing element's successor.
+
+    The elements kept are the largest set in which each has a link in from it and a link
+    out to it (unique: a union of such sets is one), peeled in one pass (:func:`_peel`):
+    each element set aside takes one link from the counts of its neighbours."""
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    by_i = np.argsort(i, kind="stable")
+    by_j = np.argsort(j, kind="stable")
+    alive = _peel(n, i, j, by_i, np.searchsorted(i[by_i], np.arange(n + 1)), by_j,
+                  np.searchsorted(j[by_j], np.arange(n + 1)))
+    return alive[i] & alive[j]
+
+
+@njit(cache=True)
+def _peel(n, i, j, by_i, i_off, by_j, j_off):
+    """(n,) bool: the elements left when every element with no link out (count of links
+    (x, ·) to living elements) or no link in is removed, until none is (queue order: the
+    fixed point does not depend on it). ``by_i``/``i_off`` list the links of each i (CSR),
+    ``by_j``/``j_off`` those of each j."""
+    out_count = i_off[1:] - i_off[:-1]
+    in_count = j_off[1:] - j_off[:-1]
+    alive = np.ones(n, np.bool_)
+    queue = np.empty(n, np.int64)
+    q = 0
+    for x in range(n):
+        if out_count[x] == 0 or in_count[x] == 0:
+            alive[x] = False
+            queue[q] = x
+            q += 1
+    h = 0
+    while h < q:
+        x = queue[h]
+        h += 1
+        q = _unlink(x, i_off, by_i, j, in_count, alive, queue, q)  # links x -> y: y loses one in
+        q = _unlink(x, j_off, by_j, i, out_count, alive, queue, q)  # links y -> x: y loses one out
+    return alive
+
+
+@njit(cache=True, inline="always")
+def _unlink(x, off, by, other, count, alive, queue, q):
+    """Take the links of x (CSR ``off``/``by``) from the counts of their ``other`` ends,
+    queueing the ends left with none; the new queue length."""
+    for k in range(off[x], off[x + 1]):
+        y = other[by[k]]
+        count[y] -= 1
+        if count[y] == 0 and alive[y]:
+            alive[y] = False
+            queue[q] = y
+            q += 1
+    return q
 
 
 @njit(cache=True)

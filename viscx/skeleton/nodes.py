@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viscx.arrays import expand_ranges, unique_sorted
+from viscx.arrays import expand_ranges, row_norms, unique_sorted
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
@@ -72,7 +72,7 @@ class Nodes:
 def canonical_directions(directions):
     """Unit directions, flipped so that d · (1, 1e-3, 1e-6) > 0 (a fixed orientation)."""
     d = np.asarray(directions, dtype=np.float64)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    d = d / row_norms(d)[:, None]
     flip = d @ np.array([1.0, 1e-3, 1e-6]) < 0
     d[flip] *= -1
     return d
@@ -220,14 +220,14 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
 
     iv = np.flatnonzero(is_vertex)
     x_v = scene.vertices[gid[iv]]
-    ok[iv] = np.linalg.norm(np.cross(x_v - oc[iv], dc[iv]), axis=1) <= eps
+    ok[iv] = row_norms(np.cross(x_v - oc[iv], dc[iv])) <= eps
     point[iv] = x_v
 
     ie = np.flatnonzero(~is_vertex)
     ev = scene.half_edges.edge_vertices[gid[ie]]
     a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
     x, dist = segment_parameter(oc[ie], dc[ie], a, b)
-    length = np.linalg.norm(b - a, axis=1)
+    length = row_norms(b - a)
     # the line meets the edge strictly inside: at an endpoint the event is the vertex's
     with np.errstate(invalid="ignore"):
         ok[ie] = (dist <= eps) & (x * length > eps) & ((1 - x) * length > eps)
@@ -345,7 +345,7 @@ def vertex_ray_blockers(scene, vertices, directions):
     """
     vertices = np.asarray(vertices, dtype=np.int64)
     d = np.asarray(directions, dtype=np.float64)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    d = d / row_norms(d)[:, None]
     x = scene.vertices[vertices]
     tangent, degenerate = tangent_at_vertices(scene, vertices, d)
     # the ray back along -d matters only where the line passes the vertex
@@ -403,7 +403,7 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
     """
     o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True))
+    d = np.ascontiguousarray(d / row_norms(d)[:, None])
     tri, t = first_triangles(scene, o, d, tmin, tmax, plane_face)
     margin = np.full(len(o), np.inf)
     hit = np.flatnonzero(tri >= 0)
@@ -549,7 +549,7 @@ def free_pieces(scene, starts, ends, plane_face=None):
     """
     starts = np.asarray(starts, dtype=np.float64).reshape(-1, 3)
     vec = np.asarray(ends, dtype=np.float64).reshape(-1, 3) - starts
-    length = np.linalg.norm(vec, axis=1)
+    length = row_norms(vec)
     eps = scene.epsilon
     free = length <= 2 * eps
     rays = np.flatnonzero(~free)

@@ -81,7 +81,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, row_norms, unique_rows, unique_sorted
 from viscx.progress import bar
 from viscx.skeleton.arcs import VE, family_lines, vertex_side_backs
 from viscx.skeleton.loops import (
@@ -359,12 +359,12 @@ def _image_point(scene, vertex, edge, s):
     moves as s grows (unit, tangent to the sphere), and the point's distance."""
     gens = np.stack([vertex, edge, np.full(len(vertex), -1)], axis=1)
     _, d = family_lines(scene, np.full(len(vertex), VE), gens, s)
-    r = np.linalg.norm(d, axis=1)
+    r = row_norms(d)
     d /= r[:, None]
     ev = scene.half_edges.edge_vertices[edge]
     along = scene.vertices[ev[:, 1]] - scene.vertices[ev[:, 0]]
     t = along - np.einsum("ij,ij->i", along, d)[:, None] * d
-    return d, t / np.linalg.norm(t, axis=1, keepdims=True), r
+    return d, t / row_norms(t)[:, None], r
 
 
 # --------------------------------------------------------------------------------------
@@ -572,7 +572,7 @@ def sphere_turning_sums(el, loop_offsets):
     nxt, loop_of = loop_successors(loop_offsets)
     turn = corner_turns(el, loop_offsets)
     p, q = el.end[:n], el.start[nxt]
-    chord = np.linalg.norm(q - p, axis=1)
+    chord = row_norms(q - p)
     # at a cusp (the loop turns back, e.g. the base of a sliver triangle whose base is
     # below JOIN_CHORD) the turn is π plus the apex angle: one turn between the
     # tangents, in (-π, π], wraps it to -π plus that angle; the gap's side decides
@@ -592,16 +592,16 @@ def sphere_turning_sums(el, loop_offsets):
     # rounding decides). Elsewhere the gap is a side V1 lost, and the loop runs along it.
     spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
     meet = np.cross(np.cross(el.start[gap], p), np.cross(q, el.end[nxt[gap]]))
-    size = np.linalg.norm(meet, axis=1)
+    size = row_norms(meet)
     ok = size > PARALLEL_TOLERANCE  # circles crossing at more than ~1e-12 rad
     meet[ok] /= size[ok, None]
     meet *= np.where(np.einsum("ij,ij->i", meet, p) < 0, -1.0, 1.0)[:, None]
-    from_p, from_q = np.linalg.norm(meet - p, axis=1), np.linalg.norm(meet - q, axis=1)
+    from_p, from_q = row_norms(meet - p), row_norms(meet - q)
     # ... next to the gap, and not at the elements' other ends (a loop of two elements
     # and a gap, all about as long: their circles meet at its third corner)
     near = (ok & (np.maximum(from_p, from_q) <= CORNER_REACH * chord[gap])
-            & (2 * from_p < np.linalg.norm(el.start[gap] - p, axis=1))
-            & (2 * from_q < np.linalg.norm(el.end[nxt[gap]] - q, axis=1)))
+            & (2 * from_p < row_norms(el.start[gap] - p))
+            & (2 * from_q < row_norms(el.end[nxt[gap]] - q)))
     turn[gap] = np.where(spike | near, turn[gap], at_p + at_q)
     return np.bincount(loop_of, weights=turn, minlength=len(loop_offsets) - 1)
 
@@ -620,11 +620,11 @@ def reference_points(el, loop_offsets):
     pick = np.lexsort([-length, loop_of])
     best = pick[np.searchsorted(loop_of[pick], np.arange(len(loop_offsets) - 1))]
     mid = el.start[best] + el.end[best]
-    mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+    mid /= row_norms(mid)[:, None]
     left = np.cross(mid, el.end[best] - el.start[best])
-    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    left /= row_norms(left)[:, None]
     ref = mid + np.minimum(SPHERE_REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
-    return ref / np.linalg.norm(ref, axis=1, keepdims=True)
+    return ref / row_norms(ref)[:, None]
 
 
 @njit(cache=True, inline="always")
@@ -722,7 +722,7 @@ def loop_segments(el, loop_offsets):
     n = loop_offsets[-1]
     nxt = np.arange(1, n + 1)
     nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
-    gap = np.flatnonzero(np.linalg.norm(el.start[nxt] - el.end[:n], axis=1) > JOIN_CHORD)
+    gap = np.flatnonzero(row_norms(el.start[nxt] - el.end[:n]) > JOIN_CHORD)
     if len(gap) == 0:
         return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
@@ -879,7 +879,7 @@ def covered_chains(walk, group, loop_offsets, chain_offsets):
     # the loops' elements by group, and their circles (unit normal: start x end)
     by_group = np.argsort(group[:n_loop], kind="stable")
     normal = np.cross(walk.start[by_group], walk.end[by_group])
-    size = np.linalg.norm(normal, axis=1)
+    size = row_norms(normal)
     normal /= np.maximum(size, 1e-300)[:, None]
     chained = np.arange(n_loop, len(walk))
     chain_of = np.repeat(np.arange(n_chains), np.diff(chain_offsets))
@@ -888,7 +888,7 @@ def covered_chains(walk, group, loop_offsets, chain_offsets):
     pts = (1 - t)[None, :, None] * walk.start[chained, None] + t[None, :, None] * walk.end[chained, None]
     pts /= np.linalg.norm(pts, axis=2, keepdims=True)
     own = np.cross(walk.start[chained], walk.end[chained])
-    own /= np.maximum(np.linalg.norm(own, axis=1), 1e-300)[:, None]
+    own /= np.maximum(row_norms(own), 1e-300)[:, None]
     first = np.searchsorted(group[by_group], group[chained], "left")
     rows, cand = expand_ranges(first, np.searchsorted(group[by_group], group[chained], "right") - first)
     p = pts[rows]  # (pairs, samples, 3)
@@ -1009,7 +1009,7 @@ def locate(scene, arcs, vcells, vertex, directions):
         How many cells hold it (1 where the cells tile the sphere).
     """
     d = np.asarray(directions, dtype=np.float64)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    d = d / row_norms(d)[:, None]
     cells = np.flatnonzero(vcells.vertex == vertex)
     if len(cells) == 0:
         return np.full(len(d), -1), np.zeros(len(d), np.int64)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, first_of_rows, row_norms, unique_rows, unique_sorted
 from viscx.geometry.lines import segment_parameter
 from viscx.parallel import map_chunks, row_chunks
 from viscx.scene.neighbourhood import faces_near
@@ -47,8 +47,8 @@ def planar_events(scene, scope=None):
     other = lambda e: np.where(scene.half_edges.edge_vertices[e, 0] == pw, scene.half_edges.edge_vertices[e, 1], scene.half_edges.edge_vertices[e, 0])  # noqa: E731
     ua, ub = scene.vertices[other(pa)] - w, scene.vertices[other(pb)] - w
     normal = np.cross(ua, ub)
-    size = np.linalg.norm(normal, axis=1)
-    keep = size > ANGLE_TOLERANCE * np.linalg.norm(ua, axis=1) * np.linalg.norm(ub, axis=1)
+    size = row_norms(normal)
+    keep = size > ANGLE_TOLERANCE * row_norms(ua) * row_norms(ub)
     pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
 
     # generator edges crossing each pair's plane strictly inside
@@ -65,7 +65,7 @@ def planar_events(scene, scope=None):
         return _no_events(scene)
     pair = cp[ci]
     origin, direction = cq[ci], cq[cj] - cq[ci]
-    fine = np.linalg.norm(direction, axis=1) > eps
+    fine = row_norms(direction) > eps
     # the line must cross both edges of the pair (cut the corner at w) before it is worth judging
     for e in (pa, pb):
         a, b = edge_geometry(scene, e[pair])
@@ -227,7 +227,7 @@ def _incidences(scene, events, vo, ve, is_gen_vertex, through=False):
     a1, b1 = edge_geometry(scene, ea)
     a2, b2 = edge_geometry(scene, eb)
     normal = np.cross(b1 - a1, b2 - a2)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    normal /= np.maximum(row_norms(normal)[:, None], 1e-300)
     in_plane = np.abs(np.einsum("ij,ij->i", normal, events.direction[vee[r]])) <= ANGLE_TOLERANCE
     in_plane &= not through
     for held, free in ((1, 2), (2, 1)):
@@ -246,7 +246,7 @@ def _incidences(scene, events, vo, ve, is_gen_vertex, through=False):
         e = ve[k]
         if through:  # not along an edge through both vertices: its lines all lie on that edge
             a, b = edge_geometry(scene, e)
-            off = np.linalg.norm(np.cross(b - a, scene.vertices[g[r, own]] - a), axis=1) / np.linalg.norm(b - a, axis=1)
+            off = row_norms(np.cross(b - a, scene.vertices[g[r, own]] - a)) / row_norms(b - a)
             r, e = r[off > scene.weld_tolerance], e[off > scene.weld_tolerance]
         kinds.append(np.full(len(r), VE))
         gens.append(np.stack([g[r, own], e, np.full(len(r), -1)], axis=1))
@@ -298,8 +298,8 @@ def same_plane_ve(scene):
     v, e = vp[r, 0], ep[k, 0]
     ends = he.edge_vertices[e]
     x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
-    u = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
-    off_line = np.linalg.norm(np.cross(x - a, u), axis=1) > tol
+    u = (b - a) / row_norms(b - a)[:, None]
+    off_line = row_norms(np.cross(x - a, u)) > tol
     ok = (ends != v[:, None]).all(axis=1) & off_line
     fam = np.unique(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1), axis=0).reshape(-1, 3)
     return fam[:, :2], fam[:, 2], vp, ep
@@ -381,7 +381,7 @@ def points_of_planes(scene, planes, vp, ep, junctions):
         w = order[k]
         x = scene.vertices[vp[r, 0]]
         direction = pts[w] - x
-        far = np.linalg.norm(direction, axis=1) > tol  # the family's own vertex
+        far = row_norms(direction) > tol  # the family's own vertex
         r, w, direction = r[far], w[far], direction[far]
         eu, ev = _plane_bases(scene, vp[r, 1])
         angle = np.mod(np.arctan2(np.einsum("ij,ij->i", direction, ev), np.einsum("ij,ij->i", direction, eu)), np.pi)
@@ -525,7 +525,7 @@ def _hidden_events_chunk(scene, ve, s):
     x = scene.vertices[ve[:, 0]]
     a, b = edge_geometry(scene, ve[:, 1])
     vec = a + s[:, None] * (b - a) - x
-    length = np.linalg.norm(vec, axis=1)
+    length = row_norms(vec)
     long = np.flatnonzero(length > 4 * eps)
     tri, t = first_triangles(scene, x[long], vec[long] / length[long, None], 2 * eps, length[long] - 2 * eps)
     rows = long[tri >= 0]
@@ -572,7 +572,7 @@ def _plane_bases(scene, planes):
     n = scene.face_normal[face_of[planes]]
     helper = np.eye(3)[np.argmin(np.abs(n), axis=1)]
     u = np.cross(helper, n)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    u /= row_norms(u)[:, None]
     return u, np.cross(n, u)
 
 
@@ -617,7 +617,7 @@ def domain_ends(scene, fam_kind, fam_gens, junctions):
     o, d = family_lines(scene, np.full(3 * len(e), EEE), np.repeat(fam_gens[e], 3, axis=0), np.tile(probes, len(e)))
     for slot in (1, 2):
         a, b = edge_geometry(scene, np.repeat(fam_gens[e, slot], 3))
-        x, _ = segment_parameter(o, np.where(np.linalg.norm(d, axis=1)[:, None] > 0, d, 1.0), a, b)
+        x, _ = segment_parameter(o, np.where(row_norms(d)[:, None] > 0, d, 1.0), a, b)
         x = x.reshape(-1, 3)
         s = np.broadcast_to(probes, x.shape)
         # x = (α s + β) / (γ s + δ): (α, β, γ, δ) is the null vector of [s, 1, -x s, -x]

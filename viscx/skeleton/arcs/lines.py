@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viscx.arrays import row_norms
 from viscx.geometry.lines import line_through_point_and_two_lines, plucker
 from viscx.skeleton.arcs.kinds import EEE, VE, XE
 from viscx.skeleton.arcs.pencils import first_pencil_pair, pencil_plane_of
@@ -83,9 +84,9 @@ def _probe_directions(scene, vertex, edge, s):
     x = scene.vertices[vertex]
     a, b = edge_geometry(scene, edge)
     d0 = a + np.asarray(s, dtype=np.float64)[:, None] * (b - a) - x
-    d0 /= np.linalg.norm(d0, axis=1, keepdims=True)
+    d0 /= row_norms(d0)[:, None]
     n = np.cross(b - a, x - a)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n /= row_norms(n)[:, None]
     return np.concatenate([d0 + PROBE_ANGLE * n, d0 - PROBE_ANGLE * n])
 
 
@@ -204,7 +205,7 @@ def judge_samples(scene, kind, generators, s, sides=False):
         blocked_at_crossings(out.state[:, [1, 3]], out.state[:, [2, 4]], generators[:, 0] - first, x, cr, out.state)
         return out
     o, d = family_lines(scene, kind, generators, s)
-    undefined = np.linalg.norm(d, axis=1) == 0
+    undefined = row_norms(d) == 0
     d[undefined] = (1.0, 0.0, 0.0)
     gens = np.concatenate([generators, np.full((len(kind), 1), -1)], axis=1)
     plane = pencil_plane_of(scene, kind, generators)

@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from viscx.arrays import row_norms
 from viscx.geometry.lines import segment_parameter
 from viscx.memory import release_free_memory
 from viscx.parallel import default_workers, map_chunks, row_chunks
@@ -67,7 +68,7 @@ class Intervals(NamedTuple):
 def _param_scale(scene, fkind, fgens):
     """Length of each family's parameter edge."""
     a, b = edge_geometry(scene, np.where(fkind == EEE, fgens[:, 0], fgens[:, 1]))
-    return np.linalg.norm(b - a, axis=1)
+    return row_norms(b - a)
 
 
 def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=None):
@@ -117,13 +118,13 @@ def _apart_along_edges(scene, gens, s0, s1, tol):
     o1, d1 = family_lines(scene, kind, gens, s1)
     # (where p's point lies on the line of q or r the line is undefined, its direction zero:
     # at a domain's end; not apart)
-    defined = (np.linalg.norm(d0, axis=1) > 0) & (np.linalg.norm(d1, axis=1) > 0)
+    defined = (row_norms(d0) > 0) & (row_norms(d1) > 0)
     apart = np.zeros(len(gens), bool)
     for slot in (1, 2):
         a, b = edge_geometry(scene, gens[:, slot])
         u = b - a
         t0, t1 = (_closest_parameter(o, d, a, u) for o, d in ((o0, d0), (o1, d1)))
-        apart |= np.abs(t1 - t0) * np.linalg.norm(u, axis=1) > tol
+        apart |= np.abs(t1 - t0) * row_norms(u) > tol
     return apart & defined
 
 
@@ -420,8 +421,8 @@ def _snap_cuts(scene, kind, gens, cut, lo, hi):
     x = scene.vertices[v]
     a, b = edge_geometry(scene, e)
     n = np.cross(b - a, x - a)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    length = np.linalg.norm(b - a, axis=1)
+    n /= row_norms(n)[:, None]
+    length = row_norms(b - a)
     # candidate points: generator vertices, junctions, points of generator edges
     junctions = edge_junctions(scene)
     ja, jb = edge_geometry(scene, junctions.edge)
@@ -445,7 +446,7 @@ def _snap_cuts(scene, kind, gens, cut, lo, hi):
         cand_p.append(ga[gi] + fr[:, None] * (gb[gi] - ga[gi]))
         cr, cp = np.concatenate(cand_r), np.concatenate(cand_p)
         direction = cp - x[cr]
-        fine = np.linalg.norm(direction, axis=1) > tol
+        fine = row_norms(direction) > tol
         cr, direction = cr[fine], direction[fine]
         s, _ = segment_parameter(x[cr], direction, a[cr], b[cr])
         k = rows[cr]

@@ -1276,7 +1276,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         # and the contour integral take J minus them)
         target = Target(target.loops + covered_cells(scene, target.face, side_t), target.normal, target.face)
     k_part, n_parts = part
-    free = [c for c, k in zip(cells, contact) if k < 0][k_part::n_parts]
+    free = [c for c, k in zip(cells, contact) if k < 0]
+    if n_parts > 1:
+        free = part_pieces(scene, face_i, free)
+    free = free[k_part::n_parts]
     exact = k_part == 0  # the exact terms once, in part 0
     tol = tol / n_parts
     touching = 0.0
@@ -1302,6 +1305,20 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
                       evals, n_cells, time.perf_counter() - t0)
+
+
+def part_pieces(scene, face, cells):
+    """The free cells of a face side as the pieces its parts are dealt (:func:`pair_form_factor`
+    with ``part``): their :func:`start_triangles` at 1 / :data:`MIN_SPLIT` of the face's
+    box, as (3, 3) float64 each, so that the parts get similar work where the cells are
+    few and unequal (the office's south wall has 4 free cells of 0.5–18 m²: of 6 parts
+    dealt cells, two got none and one did 36 % of the work). They are pieces the cubature
+    would cut anyway (the same start size as :func:`cubature_cells`'), and cells cut
+    further (kink cells stay C1 on their pieces)."""
+    if not cells:
+        return []
+    box_lo, box_hi = face_boxes(scene)
+    return list(start_triangles(cells, float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT))
 
 
 def _cell_area(cell):

@@ -86,3 +86,35 @@ def test_single_emitter_group_runs_in_parts(tile_cube):
     pair = sum(ff.face_to_face(scene, 0, j, tol=TOL)["F"] for j in (1, 2))
     assert abs(one["F"] - pair) <= one["error"] + 4 * TOL
     assert abs(one["F"] - sum(rows[0].get(c, (0.0, 0.0))[0] for c in (2, 3, 4, 5))) <= one["error"] + 2 * TOL
+
+
+def test_single_emitter_parts_share_the_parents_work(monkeypatch):
+    """The parts of one emitter use the cells, their contacts and the receivers' covered
+    cells that the parent computed before forking them (``shared_emitter_work``): no part
+    computes them again (each did, and loaded their kernels, on its own)."""
+    scene = cube_with_a_tile()  # caches of its own
+    receivers = np.array([1, 2, 6], np.int64)
+    ff.shared_emitter_work(scene, 0, 1, receivers)
+
+    def again(*args, **kwargs):
+        raise AssertionError("computed again in a part")
+
+    monkeypatch.setattr(ff, "emitter_cells", again)
+    monkeypatch.setattr(ff, "contact_sides", again)
+    cols, F, *_ = ff.emitter_row(scene, 0, 1, receivers, 1e-3, False, (0, ff.SINGLE_PARTS))
+    assert len(cols)
+
+
+def test_parts_are_dealt_pieces_of_the_cells():
+    """A single emitter's parts are dealt the start triangles of its free cells
+    (``part_pieces``), not the cells: more pieces than cells, none larger than the
+    start size (1 / MIN_SPLIT of the face), tiling the free cells (equal area)."""
+    scene = cube_with_a_tile()
+    cells, _, _ = ff.cubature_cells(scene, 0, 1)
+    free = [c for c, k in zip(cells, ff.cell_contacts(scene, 0, 1)) if k < 0]
+    pieces = ff.part_pieces(scene, 0, free)
+    assert len(free) < len(pieces) and ff.SINGLE_PARTS <= len(pieces)
+    lo, hi = ff.face_boxes(scene)
+    assert max(np.sqrt(2 * ff._cell_area(p)) for p in pieces) <= np.linalg.norm(hi[0] - lo[0]) / ff.MIN_SPLIT
+    area = sum(ff._cell_area(c) for c in free)
+    assert abs(sum(ff._cell_area(p) for p in pieces) - area) < 1e-9 * area

@@ -1752,20 +1752,36 @@ def build_eecells(scene, arcs, quiet=True):
     -------
     EECells
     """
+    chunks = square_chunks(scene, arcs)
+    parts = []
+    with bar(total=sum(len(c[0]) for c in chunks), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
+        for squares in chunks:
+            parts.append(_squares_cells(scene, arcs, squares))
+            progress.update(len(squares[0]))
+    return _concatenate_cells(parts)
+
+
+def square_chunks(scene, arcs, size=None):
+    """The arc-square incidences (:func:`arc_squares`) in chunks of about ``size``
+    (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order: what
+    :func:`build_eecells` builds one at a time (:func:`_squares_cells`) and joins
+    (:func:`_concatenate_cells`); one chunk, maybe empty, at least.
+
+    Returns
+    -------
+    list of ((k,) int, (k,) int, (k,) int)
+        Each chunk's (arc, e1, e2).
+    """
+    size = size or SQUARE_CHUNK
     arc, e1, e2 = arc_squares(scene, arcs)
     key = e1 * (1 << 32) + e2
     by_square = np.argsort(key, kind="stable")  # a square's incidences keep their order
     arc, e1, e2, key = arc[by_square], e1[by_square], e2[by_square], key[by_square]
     square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    # cut at the start of the square holding every SQUARE_CHUNK-th incidence
-    cuts = square_start[np.searchsorted(square_start, np.arange(SQUARE_CHUNK, len(key), SQUARE_CHUNK), "right") - 1]
-    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]  # one chunk, maybe empty, at least
-    parts = []
-    with bar(total=len(key), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
-        for lo, hi in zip(bounds[:-1], bounds[1:]):
-            parts.append(_squares_cells(scene, arcs, (arc[lo:hi], e1[lo:hi], e2[lo:hi])))
-            progress.update(hi - lo)
-    return _concatenate_cells(parts)
+    # cut at the start of the square holding every size-th incidence
+    cuts = square_start[np.searchsorted(square_start, np.arange(size, len(key), size), "right") - 1]
+    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
+    return [(arc[lo:hi], e1[lo:hi], e2[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 
 #: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).

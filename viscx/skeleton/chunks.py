@@ -30,15 +30,28 @@ _ARC_ARRAYS = ("kind", "generators", "interval", "end_type", "end_node", "blocke
                "ends", "generator_points")
 
 
-def arcs_subset(arcs, ids, half_rows=slice(0, 0)):
-    """The arcs ``ids`` ((k,) int, ascending) as an Arcs of their own, arc i of it being
-    ``ids[i]``: what a chunk needs of V1 (its planar events shared, its half-cells the rows
-    ``half_rows`` of ``arcs.half_cells``, whose arcs must be among ``ids``). Ids ascend, so
-    every order of arc ids the builders use is the same in the subset."""
+#: What V2 reads of the arcs (besides their half-cells and planar events): V-cells the
+#: VE arcs' generators, intervals and sample parameters, EE-cells every arc's kind,
+#: generators and interval (about 50 of the 230 bytes of an arc).
+V2_ARC_ARRAYS = ("kind", "generators", "interval", "parameter")
+
+
+def v2_arcs(arcs, ids=slice(None), half_rows=slice(None)):
+    """The arcs ``ids`` (default all; else (k,) int, ascending) with only what V2 reads
+    (V2_ARC_ARRAYS; the other per-arc arrays and the planar events empty), arc i of them
+    being ``ids[i]``, their half-cells the rows ``half_rows`` of ``arcs.half_cells`` (whose
+    arcs must be among ``ids``, renumbered so). What a streamed build keeps of V1 once it
+    is written, and what a chunk's task gets of it. Ids ascend, so every order of arc ids
+    the builders use is the same in the subset."""
     hc = arcs.half_cells
     half = {name: getattr(hc, name)[half_rows] for name in HalfCells.__dataclass_fields__}
-    half["arc"] = np.searchsorted(ids, half["arc"])
-    return Arcs(**{name: getattr(arcs, name)[ids] for name in _ARC_ARRAYS}, planar=arcs.planar, half_cells=HalfCells(**half))
+    if not isinstance(ids, slice):
+        half["arc"] = np.searchsorted(ids, half["arc"])
+    planar = arcs.planar
+    return Arcs(**{name: getattr(arcs, name)[ids] if name in V2_ARC_ARRAYS else getattr(arcs, name)[:0]
+                   for name in _ARC_ARRAYS},
+                planar=type(planar)(**{name: getattr(planar, name)[:0] for name in planar.__dataclass_fields__}),
+                half_cells=HalfCells(**half))
 
 
 def vcell_parts(scene, arcs, size=None):
@@ -50,7 +63,7 @@ def vcell_parts(scene, arcs, size=None):
     Yields
     ------
     part : Arcs
-        The VE arcs of the chunk's vertices (:func:`arcs_subset`), with their half-cells.
+        The VE arcs of the chunk's vertices (:func:`v2_arcs`), with their half-cells.
     vertices : (v,) int
         The chunk's generator vertices.
     shift : int
@@ -70,7 +83,7 @@ def vcell_parts(scene, arcs, size=None):
     bounds = np.unique(np.r_[0, cuts[cuts > 0], n])
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         rows = slice(int(first[lo]), int(first[hi]))
-        yield (arcs_subset(arcs, hc.arc[rows], rows), generators[(generators >= lo) & (generators < hi)], rows.start)
+        yield (v2_arcs(arcs, hc.arc[rows], rows), generators[(generators >= lo) & (generators < hi)], rows.start)
 
 
 def vcells_of_part(scene, part, vertices, shift):
@@ -94,7 +107,7 @@ def eecell_parts(scene, arcs, size=None):
     Yields
     ------
     part : Arcs
-        The arcs bounding the chunk's squares (:func:`arcs_subset`).
+        The arcs bounding the chunk's squares (:func:`v2_arcs`).
     squares : ((k,) int, (k,) int, (k,) int)
         The chunk's (arc, e1, e2) incidences, arcs numbered in ``part``.
     ids : (a,) int
@@ -102,7 +115,7 @@ def eecell_parts(scene, arcs, size=None):
     """
     for arc, e1, e2 in square_chunks(scene, arcs, size):
         ids = unique_sorted(arc)
-        yield arcs_subset(arcs, ids), (np.searchsorted(ids, arc), e1, e2), ids
+        yield v2_arcs(arcs, ids, slice(0, 0)), (np.searchsorted(ids, arc), e1, e2), ids
 
 
 def eecells_of_part(scene, part, squares, ids):

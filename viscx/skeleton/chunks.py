@@ -18,7 +18,7 @@ import numpy as np
 
 from viscx.arrays import unique_sorted
 from viscx.skeleton.arcs import Arcs, HalfCells
-from viscx.skeleton.eecells import ARC, _squares_cells, square_chunks
+from viscx.skeleton.eecells import ARC, squares_cells, square_chunks
 from viscx.skeleton.vcells import build_vcells
 
 #: Half-cells (VE arcs) per chunk of vertices of :func:`vcell_parts`: about 1 kB each
@@ -127,7 +127,7 @@ def eecells_of_part(scene, part, squares, ids):
     -------
     (EECells, int)
     """
-    cells, demoted = _squares_cells(scene, part, squares)
+    cells, demoted = squares_cells(scene, part, squares)
 
     def whole(element, kind):
         """Signed arc ids ±(a + 1) of the chunk's arcs as the whole build's (other kinds kept)."""

@@ -153,7 +153,7 @@ from viscx.tolerances import (
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
-#: ... and this many in the squares whose loops stayed open with PROBE (:func:`_squares_cells`).
+#: ... and this many in the squares whose loops stayed open with PROBE (:func:`squares_cells`).
 FINE_PROBE = 5
 #: Where along its element (Bézier u) a loop's reference point lies: the golden section.
 REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
@@ -1756,7 +1756,7 @@ def build_eecells(scene, arcs, quiet=True):
     parts = []
     with bar(total=sum(len(c[0]) for c in chunks), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
         for squares in chunks:
-            parts.append(_squares_cells(scene, arcs, squares))
+            parts.append(squares_cells(scene, arcs, squares))
             progress.update(len(squares[0]))
     return _concatenate_cells(parts)
 
@@ -1764,7 +1764,7 @@ def build_eecells(scene, arcs, quiet=True):
 def square_chunks(scene, arcs, size=None):
     """The arc-square incidences (:func:`arc_squares`) in chunks of about ``size``
     (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order: what
-    :func:`build_eecells` builds one at a time (:func:`_squares_cells`) and joins
+    :func:`build_eecells` builds one at a time (:func:`squares_cells`) and joins
     (:func:`_concatenate_cells`); one chunk, maybe empty, at least.
 
     Returns
@@ -1788,7 +1788,7 @@ def square_chunks(scene, arcs, size=None):
 SQUARE_CHUNK = 1 << 20
 
 
-def _squares_cells(scene, arcs, squares):
+def squares_cells(scene, arcs, squares):
     """The EE-cells of some squares ((arc, e1, e2) incidences, every square whole) and the
     number of their open chains that are demoted loops (listed first)."""
     el = boundary_elements(scene, arcs, squares)

@@ -9,7 +9,8 @@ the city written as OBJ: ``whole`` is the build as it was before V2 was streamed
 level built in memory, then written: ``build_complex(...).save``), ``streamed`` and
 ``dask`` are ``viscx build`` (``--scheduler local --workers N``). Reports per build the
 wall time, the CPU seconds of the process and of its children (the dask workers), the
-peak resident memory of the building process and of each dask worker, and whether the
+peak resident memory of the building process (at the end of each stage, from the build's
+log) and of each dask worker, and whether the
 files are equal (``viscx diff`` against the first mode's). Prints JSON lines and writes
 ``benchmarks/dask_results.json``.
 """
@@ -31,7 +32,7 @@ from viscx.cli import main
 mode, scene, out, workers = sys.argv[1:5]
 if mode == "whole":
     from viscx.pipeline import build_complex
-    build_complex(scene, quiet=True).save(out)
+    build_complex(scene).save(out)
 else:
     args = ["build", scene, "-o", out] + (["--scheduler", "local", "--workers", workers] if mode == "dask" else [])
     try:
@@ -69,6 +70,10 @@ def run_build(mode, scene, out, workers, cap_gb):
     row = {"mode": mode, "wall": time.perf_counter() - start}
     if done.returncode:
         return {**row, "error": done.stderr.strip().splitlines()[-1:] or [f"exit {done.returncode}"]}
+    for line in done.stderr.splitlines():  # "[  64.7 s, peak 0.58 GB] build: V1 done in 30.8 s"
+        if "] build: " in line and " done in " in line:
+            stage = line.split("] build: ")[1].split(" done in ")[0]
+            row.setdefault("stage_peak_gb", {})[stage] = float(line.split("peak ")[1].split(" GB")[0])
     for line in done.stdout.splitlines():
         if line.startswith("RESULT "):
             row.update(json.loads(line[len("RESULT "):]))

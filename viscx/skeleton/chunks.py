@@ -76,7 +76,7 @@ def vcell_parts(scene, arcs, size=None):
     if np.any(np.diff(vertex) < 0):  # (not built by build_arcs, e.g. points merged in): one chunk
         yield arcs, None, 0
         return
-    n = max(scene.n_vertices, int(vertex[-1]) + 1 if len(vertex) else 0)
+    n = max(scene.n_vertices, int(vertex[-1]) + 1 if len(vertex) else 0, 1)
     # the first half-cell of every vertex 0..n, and cuts at the vertex holding every size-th one
     first = np.searchsorted(vertex, np.arange(n + 1))
     cuts = np.searchsorted(first, np.arange(size, len(vertex), size), "right") - 1

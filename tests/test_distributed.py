@@ -13,7 +13,7 @@ from viscx.formats import hdf5
 from viscx.formats.diff import diff_files
 from viscx.formats.hdf5 import complex_writer
 from viscx.pipeline import build_complex, level_writers, stream_two_cells
-from viscx.skeleton import chunks, eecells
+from viscx.skeleton import chunks
 
 # scenes with open chains, demoted loops, whole-sphere vertices and T-junctions between them
 SCENES = ["boxes_on_floor.obj", "room_with_door.obj", "cornell_box.obj", "occluder_over_plane.ply"]
@@ -45,7 +45,7 @@ def tiny_chunks(monkeypatch):
     """Chunks of a few half-cells and squares, datasets written every few rows: every
     scene is many chunks and every large array many appends."""
     monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
-    monkeypatch.setattr(eecells, "SQUARE_CHUNK", 40)
+    monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
     monkeypatch.setattr(hdf5, "APPEND_BYTES", 512)
 
 

@@ -21,9 +21,13 @@ from viscx.skeleton.arcs import Arcs, HalfCells
 from viscx.skeleton.eecells import ARC, squares_cells, square_chunks
 from viscx.skeleton.vcells import build_vcells
 
-#: Half-cells (VE arcs) per chunk of vertices of :func:`vcell_parts`: about 1 kB each
-#: of boundary elements and loops in flight (random_boxes(997): 1.3 M half-cells).
-VCELL_CHUNK = 1 << 18
+#: Half-cells (VE arcs) per chunk of vertices of :func:`vcell_parts`, and arc-square
+#: incidences per chunk of squares of :func:`eecell_parts`: a chunk's boundary elements
+#: and loops are what a streamed V2 holds (random_boxes(301), one process: V2's peak
+#: 1.17 GB in chunks of 2^18 and 2^20, one chunk each, 0.76 GB in chunks of 2^15 and
+#: 2^17, as V1's 0.59 GB; the same CPU time).
+VCELL_CHUNK = 1 << 15
+EECELL_CHUNK = 1 << 17
 
 # the per-arc arrays of Arcs
 _ARC_ARRAYS = ("kind", "generators", "interval", "end_type", "end_node", "blocker_kind", "blocker", "parameter", "direction",
@@ -101,7 +105,7 @@ def vcells_of_part(scene, part, vertices, shift):
 
 def eecell_parts(scene, arcs, size=None):
     """The EE-cells' chunks (:func:`viscx.skeleton.eecells.square_chunks`: about ``size``
-    arc-square incidences, every square whole), each as the arguments of
+    (default EECELL_CHUNK) arc-square incidences, every square whole), each as the arguments of
     :func:`eecells_of_part` after the scene, made one at a time.
 
     Yields
@@ -113,7 +117,7 @@ def eecell_parts(scene, arcs, size=None):
     ids : (a,) int
         Arc i of ``part`` is arc ``ids[i]`` of the whole build.
     """
-    for arc, e1, e2 in square_chunks(scene, arcs, size):
+    for arc, e1, e2 in square_chunks(scene, arcs, size or EECELL_CHUNK):
         ids = unique_sorted(arc)
         yield v2_arcs(arcs, ids, slice(0, 0)), (np.searchsorted(ids, arc), e1, e2), ids
 

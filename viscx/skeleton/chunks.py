@@ -25,7 +25,7 @@ from viscx.skeleton.vcells import build_vcells
 #: incidences per chunk of squares of :func:`eecell_parts`: a chunk's boundary elements
 #: and loops are what a streamed V2 holds (random_boxes(301), one process: V2's peak
 #: 1.17 GB in chunks of 2^18 and 2^20, one chunk each, 0.76 GB in chunks of 2^15 and
-#: 2^17, as V1's 0.59 GB; the same CPU time).
+#: 2^17, as V1's 0.59 GB; CPU 32.2 -> 34.6 s, the machine shared).
 VCELL_CHUNK = 1 << 15
 EECELL_CHUNK = 1 << 17
 

@@ -16,7 +16,9 @@ from viscx.pipeline import build_complex, level_writers, stream_two_cells
 from viscx.skeleton import chunks
 
 # scenes with open chains, demoted loops, whole-sphere vertices and T-junctions between them
-SCENES = ["boxes_on_floor.obj", "room_with_door.obj", "cornell_box.obj", "occluder_over_plane.ply"]
+# (the default suite the first two: 3.8 of 7.3 CPU s)
+SCENES = ["boxes_on_floor.obj", "room_with_door.obj", pytest.param("cornell_box.obj", marks=pytest.mark.slow),
+          pytest.param("occluder_over_plane.ply", marks=pytest.mark.slow)]
 
 
 @pytest.fixture(scope="module")

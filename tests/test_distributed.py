@@ -119,9 +119,17 @@ def cluster():
     runner.close()
 
 
+@pytest.fixture
+def some_chunks(monkeypatch):
+    """A few chunks a scene (one task each: the tiny chunks above would be thousands of
+    round trips to the workers)."""
+    monkeypatch.setattr(chunks, "VCELL_CHUNK", 100)
+    monkeypatch.setattr(chunks, "EECELL_CHUNK", 2000)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("scene", SCENES)
-def test_dask_chunks_give_the_same_file(scene, built, cluster, tiny_chunks, tmp_path):
+def test_dask_chunks_give_the_same_file(scene, built, cluster, some_chunks, tmp_path):
     cx = built(scene)
     cx.save(tmp_path / "whole.h5")
     streamed(cx, tmp_path / "dask.h5", cluster)

@@ -13,8 +13,9 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 # Re-install when the package metadata changes.
+# (the dask extra: the tests of `viscx build --scheduler`; about 6 CPU s more to install)
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e '.[test,plot]'
+	$(BIN)/python -m pip install --quiet -e '.[test,plot,dask]'
 	touch $@
 
 # Compile and cache the numba kernels (about a minute of CPU, once) so that the first build is

@@ -573,12 +573,12 @@ def test_pencils_one_line_within_epsilon_along_their_own_edge(monkeypatch):
     arc, e1, e2 = eecells.arc_squares(scene, arcs)
     mine = (e1 == 1) & (e2 == 242)
     square = (arc[mine], e1[mine], e2[mine])
-    ee = eecells._squares_cells(scene, arcs, square)[0]
+    ee = eecells.squares_cells(scene, arcs, square)[0]
     assert ee.complete.all() and len(ee.open_edge1) == 0
     judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array([[1, 242]]), n=400)
     assert judged >= 0.95 * 400 and agreed == judged, wrong[:5]
     monkeypatch.setattr(eecells, "segment_tolerance", lambda scene, e1, e2, axis: eecells.join_tolerance(scene, e1, e2))
-    before = eecells._squares_cells(scene, arcs, square)[0]
+    before = eecells.squares_cells(scene, arcs, square)[0]
     assert not before.complete.any() and len(before.open_edge1) > 0
 
 
@@ -629,13 +629,13 @@ def test_probes_stay_beside_their_piece(monkeypatch):
     arc, e1, e2 = eecells.arc_squares(scene, arcs)
     for pair in ((0, 571), (97, 304)):
         mine = (e1 == pair[0]) & (e2 == pair[1])
-        ee = eecells._squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
+        ee = eecells.squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
         assert ee.complete.all() and len(ee.open_edge1) == 0, pair
         judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array([pair]), n=1000)
         assert judged >= 900 and agreed == judged, wrong[:5]
     monkeypatch.setattr(eecells, "probe_room", lambda key, s, m, e, at_key, at, d, step, own: step)
     mine = (e1 == 0) & (e2 == 571)
-    knocked = eecells._squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
+    knocked = eecells.squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
     assert not knocked.complete.any() and len(knocked.open_edge1) > 0
 
 
@@ -657,13 +657,13 @@ def test_eee_arcs_cut_where_another_arc_ends_on_them(monkeypatch):
     for a, b in pairs:
         mine |= (e1 == a) & (e2 == b)
     square = (arc[mine], e1[mine], e2[mine])
-    ee = eecells._squares_cells(scene, arcs, square)[0]
+    ee = eecells.squares_cells(scene, arcs, square)[0]
     assert ee.complete.all() and len(ee.open_edge1) == 0
     judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array(pairs), n=1000)
     assert judged >= 1800 and agreed == judged, wrong[:5]
     monkeypatch.setattr(eecells, "_eee_cuts", lambda scene, arcs, eee, key, start, end, weight, tol, interval:
                         (np.arange(len(eee)), interval[eee]))
-    knocked = eecells._squares_cells(scene, arcs, square)[0]
+    knocked = eecells.squares_cells(scene, arcs, square)[0]
     assert not knocked.complete.any() and len(knocked.open_edge1) > 0
 
 
@@ -688,7 +688,7 @@ def test_events_apart_along_another_edge_are_not_merged(monkeypatch):
     def squares(scene, arcs):
         arc, e1, e2 = eecells.arc_squares(scene, arcs)
         mine = ((e1 == 41) & (e2 == 242)) | ((e1 == 3) & (e2 == 242))
-        return eecells._squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
+        return eecells.squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
 
     scene, arcs, _ = built("office300", lambda: office(300))
     assert len(family(arcs)) == 1

@@ -5,6 +5,7 @@ chains them, times each stage and keeps the result as a :class:`BuiltComplex`,
 which writes itself to a viscx file and reads one back (its levels on first use).
 """
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -67,6 +68,59 @@ def _two_cells(scene, built, quiet):
     t1 = time.perf_counter()
     eecells = build_eecells(scene, built["V1"], quiet=quiet)
     return TwoCells(vcells, eecells, {"V2 V-cells": t1 - t0, "V2 EE-cells": time.perf_counter() - t1})
+
+
+def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
+    """Build V2 chunk by chunk into ``group`` (the file's ``V2``): the V-cells of ranges of
+    vertices, then the EE-cells of chunks of squares (:mod:`viscx.skeleton.chunks`), each
+    chunk written (:class:`viscx.formats.hdf5.CellsAppender`) before the next is taken, so
+    that no more than a few chunks' cells are in memory; the content is
+    :func:`_write_two_cells`'s of the whole level.
+
+    Parameters
+    ----------
+    scene : Scene
+    arcs : Arcs
+    group : h5py.Group
+    runner : viscx.distributed.InProcess or viscx.distributed.Dask, optional
+        What runs the chunks (default: this process).
+    timings : dict, optional
+        Gets the seconds of the V-cells and of the EE-cells.
+    quiet : bool
+        No progress bars.
+
+    Returns
+    -------
+    dict
+        ``{"vcells": count, "eecells": count}``.
+    """
+    from viscx.distributed import InProcess
+    from viscx.formats.hdf5 import CellsAppender
+    from viscx.progress import bar
+    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, vcell_parts, vcells_of_part
+
+    runner = runner or InProcess()
+    timings = {} if timings is None else timings
+    shared = (scene,)
+    t0 = time.perf_counter()
+    vcells = CellsAppender(group)
+    with bar(desc="V-cells", quiet=quiet, unit="chunk") as progress:
+        for cells in runner.map(vcells_of_part, vcell_parts(scene, arcs), shared):
+            vcells.append(cells)
+            progress.update()
+    vcells.close()
+    t1 = time.perf_counter()
+    eecells = CellsAppender(group, ee=True)
+    with bar(desc="EE-cells", quiet=quiet, unit="chunk") as progress:
+        for cells, demoted in runner.map(eecells_of_part, eecell_parts(scene, arcs), shared):
+            # the demoted loops of every chunk first, then the other chains (as build_eecells)
+            n = len(cells.open_offsets) - 1
+            eecells.append(cells, slice(0, demoted))
+            eecells.hold_chains(cells, slice(demoted, n))
+            progress.update()
+    eecells.close()
+    timings.update({"V2 V-cells": t1 - t0, "V2 EE-cells": time.perf_counter() - t1})
+    return {"vcells": vcells.counts.get("cells", 0), "eecells": eecells.counts.get("cells", 0)}
 
 
 def _write_two_cells(group, cells):
@@ -143,6 +197,17 @@ class BuiltComplex:
             else:
                 self.built[name] = self._read(name, {"V0": read_nodes, "V1": read_arcs}[name])
         return self.built[name]
+
+    def size(self, name):
+        """The number of elements of level ``name`` (nodes, arcs, V- and EE-cells) without
+        reading a level not in memory (its stored counts)."""
+        if name in self.built:
+            return len(self.built[name])
+        with ViscxFile(self.path) as f:
+            if name != "V2":
+                return len(f.h5[name]["kind"])
+            counts = json.loads(f.h5[name].attrs.get("counts", "{}"))
+        return counts.get("cells", 0) + counts.get("ee_cells", 0)
 
     @property
     def nodes(self):
@@ -272,7 +337,8 @@ def light_option(options):
 
 
 def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels=None, quiet=False,
-                  points=None, output=None, compression=DEFAULT_COMPRESSION, light_face=None, light_group=None):
+                  points=None, output=None, compression=DEFAULT_COMPRESSION, light_face=None, light_group=None,
+                  runner=None):
     """Build the visibility complex of a scene and, given ``output``, write it there.
 
     Parameters
@@ -300,6 +366,11 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         nodes and arcs of the families with one of the light's outline vertices or edges
         (:mod:`viscx.skeleton.scope`), what its discontinuity mesh and renders need; levels
         up to V1 (:data:`SCOPED_LEVEL`; more is refused). Stored as the option ``light``.
+    runner : viscx.distributed.InProcess or viscx.distributed.Dask, optional
+        What runs V2's chunks (:func:`viscx.distributed.runner`; default this process).
+        With an ``output`` and no ``points``, V2 is built chunk by chunk into the file
+        (:func:`stream_two_cells`) and never held whole: the complex returned then reads
+        it from the file on first use. The file is the same either way.
 
     Returns
     -------
@@ -322,6 +393,8 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
     built = {}
     points = None if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
     has_points = points is not None and len(points) > 0
+    # V2 built into the file chunk by chunk, after the levels before it are written
+    stream = output is not None and levels >= 2 and not has_points
     names = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []),
              *(["write"] if output is not None else [])]
     with Stages(names, "build", quiet=quiet) as stages:
@@ -330,7 +403,7 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
                 scene = scene_of(source, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
                 scope = light_scope(scene, light_face, light_group) if scoped else None
 
-            for name, builder in LEVELS[: levels + 1]:
+            for name, builder in LEVELS[: levels + 1 - stream]:
                 with stages.stage(name):
                     built[name] = builder(scene, built, quiet, **({"scope": scope} if scoped else {}))
                 stages.timings.update(getattr(built[name], "timings", {}))
@@ -351,12 +424,38 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
             if scoped:
                 options["light"] = {"light_face": int(light_face)} if light_face is not None else {"light_group": light_group}
             cx = BuiltComplex(scene, built, points if has_points else np.zeros((0, 3)), options, stages.timings)
-            if output is not None:
+            if stream:
+                _write_streamed(cx, output, compression, stages, runner, quiet)
+            elif output is not None:
                 with stages.stage("write"):
                     cx.save(output, compression=compression)
         except MemoryError:
             raise ViscxError(out_of_memory(stages.current)) from None
     return cx
+
+
+def _write_streamed(cx, output, compression, stages, runner, quiet):
+    """Write ``cx`` (its levels before V2 built) to ``output``, V2 built into the file
+    chunk by chunk (:func:`stream_two_cells`); ``cx`` then reads V2 from the file."""
+    from viscx.formats.atomic import release_input
+    from viscx.formats.hdf5 import complex_writer
+    from viscx.memory import release_free_memory
+    from viscx.skeleton.chunks import v2_arcs
+
+    check_output(cx.scene.source, output)
+    release_input(output)  # as BuiltComplex.save
+    names = [*cx.built, "V2"]
+    with complex_writer(output, cx.scene, names, cx.options, stages.timings, compression=compression) as f:
+        with stages.stage("write"):
+            for name, writer in level_writers(cx.built).items():
+                writer(f.create_group(name, track_order=True))
+        with stages.stage("V2"):
+            # V2 reads a fifth of V1 and nothing of V0: the rest is read from the file if asked for
+            arcs = v2_arcs(cx.built.pop("V1"))
+            cx.built.pop("V0", None)
+            release_free_memory()
+            stream_two_cells(cx.scene, arcs, f.create_group("V2", track_order=True), runner, stages.timings, quiet)
+    cx.path, cx.stored = Path(output), names
 
 
 def light_scope(scene, light_face=None, light_group=None):

@@ -43,8 +43,15 @@ from viscx.tolerances import DEFAULT_WELD
               help_text="Add a free point (e.g. a light) as a generator: its nodes, VE arcs and V-cells are "
               "built like a vertex's. Repeatable.")
 @light_options
+@click.option("--scheduler", metavar="ADDRESS", default=None,
+              help="Build V2's chunks as tasks of a dask cluster (needs `pip install 'viscx[dask]'`): `local` "
+              "starts one on this machine, else the address of a running dask scheduler (tcp://host:8786). "
+              "The file is the same as without it.")
+@click.option("--workers", type=click.IntRange(1, None), default=None, metavar="N",
+              help="Worker processes of --scheduler local. Default: the CPU count.")
 @click.pass_context
-def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, compression, points, light_face, light_group):
+def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, compression, points, light_face, light_group,
+          scheduler, workers):
     """Load SCENE (OBJ, PLY, or any mesh trimesh reads), clean it into polygon
     faces with a half-edge structure and generators, and write the result.
 
@@ -65,6 +72,7 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, comp
     """
     from viscx.errors import ViscxError
     from viscx.formats.atomic import check_output, is_stream
+    from viscx.distributed import runner
     from viscx.pipeline import NOUNS, build_complex
 
     output = Path(output) if output else Path(Path(scene_file).stem + ".h5")
@@ -73,15 +81,23 @@ def build(ctx, scene_file, output, epsilon, relative_epsilon, weld, levels, comp
         raise ViscxError(f"-o {output}: an HDF5 file needs a regular file (it is written with seeks), "
                          "not a pipe, a device or standard output")
     start = time.perf_counter()
-    cx = build_complex(
-        scene_file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
-        levels=levels, quiet=quiet(ctx), points=list(points) or None,
-        output=output, compression=compression, light_face=light_face, light_group=light_group,
-    )
+    run = runner(scheduler, workers)
+    try:
+        cx = build_complex(
+            scene_file, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld,
+            levels=levels, quiet=quiet(ctx), points=list(points) or None,
+            output=output, compression=compression, light_face=light_face, light_group=light_group, runner=run,
+        )
+        peaks = run.peaks()
+    finally:
+        run.close()
     scene = cx.scene
     if not quiet(ctx):
         total = time.perf_counter() - start  # the stages' timings nest (V2 holds its V- and EE-cells)
-        counts = "".join(f", {len(level)} {NOUNS[name]}" for name, level in cx.built.items())
+        counts = "".join(f", {cx.size(name)} {NOUNS[name]}" for name in cx.levels)
+        if peaks:
+            click.echo(f"dask: {len(peaks)} workers, peak memory "
+                       + ", ".join(f"{gb:.2f}" for _, gb in sorted(peaks.items())) + " GB")
         click.echo(
             f"{output}: {scene.n_faces} faces, {len(scene.generator_edges)} generator edges, "
             f"{len(scene.generator_vertices)} generator vertices{counts}"

@@ -15,6 +15,7 @@ Files are written through a temporary file renamed on success
 the same scene and options give the same content.
 """
 
+import contextlib
 import contextvars
 import json
 from pathlib import Path
@@ -121,37 +122,119 @@ def write_complex(path, scene, levels=None, options=None, timings=None, points=N
         The filter of the large datasets (a key of COMPRESSIONS). Not stored as content:
         files that differ only in it are equal for ``viscx diff``.
     """
+    levels = levels or {}
+    with complex_writer(path, scene, list(levels), options, timings, points, compression) as f:
+        for name, writer in levels.items():
+            writer(f.create_group(name, track_order=True))
+
+
+@contextlib.contextmanager
+def complex_writer(path, scene, level_names, options=None, timings=None, points=None, compression=DEFAULT_COMPRESSION):
+    """The open ``h5py.File`` of a viscx file being written, its header and scene written;
+    the caller creates the groups of ``level_names`` (list of str, as the ``levels``
+    attribute lists them) and fills them, e.g. chunk by chunk as a level is built
+    (:class:`Appender`). On exit ``/provenance`` gets ``timings`` (a dict, read then: a
+    build's stages may still add to it while the levels are written) and the file is
+    renamed into place; an exception leaves nothing behind (:func:`atomic_path`).
+    Arguments as :func:`write_complex`."""
     if compression not in COMPRESSIONS:
         raise ViscxError(f"unknown compression {compression!r} (one of {', '.join(COMPRESSIONS)})")
-    levels = levels or {}
     token = _compression.set(compression)
     try:
-        _write_file(path, scene, levels, options, timings, points)
+        with atomic_path(path) as tmp:
+            with h5py.File(tmp, "w", track_order=True) as f:
+                _write_header(f, scene, level_names, options, points)
+                yield f
+                prov = f.create_group("provenance")
+                prov.attrs["timings"] = json.dumps(timings or {}, sort_keys=True)
     finally:
         _compression.reset(token)
 
 
-def _write_file(path, scene, levels, options, timings, points):
-    """The body of :func:`write_complex`, its filter set."""
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["format_version"] = FORMAT_VERSION
-            f.attrs["viscx_version"] = __version__
-            f.attrs["epsilon"] = scene.epsilon
-            f.attrs["weld_tolerance"] = scene.weld_tolerance
-            f.attrs["scene_sha256"] = scene.sha256
-            f.attrs["scene_name"] = Path(scene.source).name if scene.source else ""
-            f.attrs["options"] = json.dumps(options or {}, sort_keys=True)
-            f.attrs["levels"] = json.dumps(["scene", *levels])
-            _write_scene(f.create_group("scene", track_order=True), scene)
-            if points is not None and len(points):
-                dset = write_dataset(f["scene"], "points", np.asarray(points, dtype=np.float64).reshape(-1, 3))
-                dset.attrs["first_id"] = scene.n_vertices
-            for name, writer in levels.items():
-                writer(f.create_group(name, track_order=True))
-            prov = f.create_group("provenance")
-            prov.attrs["timings"] = json.dumps(timings or {}, sort_keys=True)
+def _write_header(f, scene, level_names, options, points):
+    """The root attributes and ``/scene`` (with ``points``) of a new viscx file."""
+    f.attrs["format"] = FORMAT
+    f.attrs["format_version"] = FORMAT_VERSION
+    f.attrs["viscx_version"] = __version__
+    f.attrs["epsilon"] = scene.epsilon
+    f.attrs["weld_tolerance"] = scene.weld_tolerance
+    f.attrs["scene_sha256"] = scene.sha256
+    f.attrs["scene_name"] = Path(scene.source).name if scene.source else ""
+    f.attrs["options"] = json.dumps(options or {}, sort_keys=True)
+    f.attrs["levels"] = json.dumps(["scene", *level_names])
+    _write_scene(f.create_group("scene", track_order=True), scene)
+    if points is not None and len(points):
+        dset = write_dataset(f["scene"], "points", np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        dset.attrs["first_id"] = scene.n_vertices
+
+
+#: Bytes of one dataset an :class:`Appender` holds before it writes them out.
+APPEND_BYTES = 4 * CHUNK_BYTES
+
+
+class Appender:
+    """The datasets of one group, filled by appending rows chunk by chunk (a level built
+    in chunks, written as they come: no process holds the whole level).
+
+    Each dataset's rows are held until APPEND_BYTES of them are waiting, then written to
+    a resizable dataset (chunked and compressed as :func:`write_dataset` does a large
+    one); a dataset that never reaches that size is written whole on :meth:`close` by
+    :func:`write_dataset`, as it would have been from memory. The content is the rows in
+    the order they were appended: the same as writing their concatenation.
+
+    Parameters
+    ----------
+    group : h5py.Group
+    names : list of str
+        The datasets, created (if still waiting) in this order on close.
+    """
+
+    def __init__(self, group, names):
+        self.group, self.names = group, list(names)
+        self.waiting = {name: [] for name in self.names}
+        self.counts = dict.fromkeys(self.names, 0)
+
+    def rows(self, name):
+        """Rows appended so far to ``name`` (written or waiting): int."""
+        return self.counts[name]
+
+    def append(self, name, values):
+        """Append the rows ``values`` (array; its trailing shape and dtype kind those of
+        every other append to ``name``)."""
+        values = np.asarray(values)
+        self.waiting[name].append(values)
+        self.counts[name] += len(values)
+        if sum(v.nbytes for v in self.waiting[name]) >= APPEND_BYTES:
+            self._flush(name)
+
+    def _joined(self, name):
+        parts = self.waiting[name]
+        self.waiting[name] = []
+        filled = [p for p in parts if len(p)]  # (an empty part may carry another dtype)
+        return np.concatenate(filled) if filled else (parts[0] if parts else np.zeros(0))
+
+    def _flush(self, name):
+        data = self._joined(name)
+        if name not in self.group:
+            kwargs = {"track_times": False, "maxshape": (None, *data.shape[1:]), "chunks": _row_chunks(data)}
+            coder = COMPRESSIONS[_compression.get()]
+            if coder:
+                kwargs.update(compression=coder[0], compression_opts=coder[1], shuffle=data.dtype.kind != "f")
+            self.group.create_dataset(name, data=data, **kwargs)
+            return
+        dset = self.group[name]
+        n = len(dset)
+        dset.resize(n + len(data), axis=0)
+        dset[n:] = data
+
+    def close(self):
+        """Write every waiting row."""
+        for name in self.names:
+            if name in self.group:
+                if self.waiting[name]:
+                    self._flush(name)
+            else:
+                write_dataset(self.group, name, self._joined(name))
 
 
 _NODE_ARRAYS = ["kind", "generators", "direction", "ends", "blocker_kind", "blocker", "generator_points"]
@@ -280,6 +363,107 @@ def read_eecells(group):
     if "ee" not in group:
         raise ViscxError("this file has no EE-cells (V2/ee); rebuild it with `viscx build --levels 2`")
     return EECells(**validate.eecell_arrays(group["ee"], group.file.filename, validate.scene_sizes(group.file)))
+
+
+# the CSR offsets and cell references of the 2-cells' arrays, each shifted by the rows
+# of the array it points into already written when a chunk is appended
+_VCELL_SHIFTS = {"twin": "vertex", "loop_offsets": "turning", "element_offsets": "element"}
+_EECELL_SHIFTS = {"loop_offsets": "turning", "element_offsets": "element"}
+_OPEN_SHIFTS = {"offsets": "element"}
+# the open chains' arrays with one row per element (the others: one per chain)
+_OPEN_ELEMENT_ARRAYS = {"element", "antipodal", "element_kind", "interval"}
+
+
+class CellsAppender:
+    """2-cells (V-cells, or EE-cells) written chunk by chunk into their group, as
+    :func:`write_vcells` / :func:`write_eecells` write them whole: each chunk's cells, loops
+    and elements after the previous chunks', their CSR offsets and cell ids (``twin``)
+    shifted by what is already written, the open chains likewise, and the ``counts``
+    attribute summed over the chunks (chunks of whole vertices, or whole edge pairs, so
+    that every count adds up). Chains may be held back (:meth:`hold_chains`) to be written
+    after every chunk's others, the order :func:`viscx.skeleton.eecells._concatenate_cells`
+    gives them.
+
+    Parameters
+    ----------
+    group : h5py.Group
+        ``V2`` for V-cells; for EE-cells ``V2``, whose ``ee`` group is made here.
+    ee : bool
+        EE-cells.
+    """
+
+    def __init__(self, group, ee=False):
+        from viscx.skeleton.eecells import ARC, PENCIL1, PENCIL2, SIDE
+
+        self.parent, self.ee = group, ee
+        if ee:
+            group = group.create_group("ee", track_order=True)
+            group.attrs["element_kinds"] = json.dumps({"arc": ARC, "side": SIDE, "pencil1": PENCIL1, "pencil2": PENCIL2})
+        self.group = group
+        arrays, self.open_names = (_EECELL_ARRAYS, _EE_OPEN_ARRAYS) if ee else (_VCELL_ARRAYS, _OPEN_ARRAYS)
+        self.shifts = _EECELL_SHIFTS if ee else _VCELL_SHIFTS
+        group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2} if ee else {"face": 0, "sky": 1, "vertex": 3})
+        self.cells = Appender(group, arrays)
+        self.chains = Appender(group.create_group("open", track_order=True), self.open_names)
+        for app, shifts in ((self.cells, self.shifts), (self.chains, _OPEN_SHIFTS)):
+            for name in shifts:
+                if name.endswith("offsets"):
+                    app.append(name, np.zeros(1, np.int64))
+        self.counts, self.held = {}, []
+
+    def append(self, cells, chains=None):
+        """Append a chunk's cells (VCells or EECells) and its open chains ``chains`` (a
+        slice of them; default all)."""
+        for name, value in cells.counts().items():
+            self.counts[name] = self.counts.get(name, 0) + value
+        _append_shifted(self.cells, {name: getattr(cells, name) for name in self.cells.names}, self.shifts)
+        self._append_chains(cells, chains if chains is not None else slice(0, len(cells.open_offsets) - 1))
+
+    def hold_chains(self, cells, chains):
+        """Keep the open chains ``chains`` (a slice) of a chunk appended before, to be
+        written on :meth:`close` after every chunk's other chains."""
+        self.held.append(_chain_slice(cells, self.open_names, chains))
+
+    def _append_chains(self, cells, chains):
+        _append_shifted(self.chains, _chain_slice(cells, self.open_names, chains), _OPEN_SHIFTS)
+
+    def close(self):
+        """Write the held chains, everything waiting and the counts."""
+        for arrays in self.held:
+            _append_shifted(self.chains, arrays, _OPEN_SHIFTS)
+        self.held = []
+        self.cells.close()
+        self.chains.close()
+        self.group.attrs["counts"] = json.dumps(self.counts)
+        if self.ee:  # the level's counts (what `viscx info` prints) gain the EE-cells'
+            counts = json.loads(self.parent.attrs.get("counts", "{}"))
+            counts.update({f"ee_{k}": v for k, v in self.counts.items()})
+            self.parent.attrs["counts"] = json.dumps(counts)
+
+
+def _chain_slice(cells, names, chains):
+    """``{name: values}`` of the open chains ``chains`` (a slice) of 2-cells: their
+    offsets from 0, their elements' arrays and their own."""
+    offsets = cells.open_offsets[chains.start: chains.stop + 1]
+    elements = slice(int(offsets[0]), int(offsets[-1]))
+    out = {}
+    for name in names:
+        if name == "offsets":
+            out[name] = offsets - offsets[0]
+        else:
+            out[name] = getattr(cells, f"open_{name}")[elements if name in _OPEN_ELEMENT_ARRAYS else chains]
+    return out
+
+
+def _append_shifted(app, arrays, shifts):
+    """Append a chunk's ``arrays`` ({name: values}) to ``app``; the names in ``shifts``
+    (name: the dataset it points into) shifted by that dataset's rows before this chunk:
+    CSR offsets lose their leading 0, ids (>= 0) are moved."""
+    base = {name: app.rows(into) for name, into in shifts.items()}
+    for name, values in arrays.items():
+        if name in base:
+            values = values[1:] + base[name] if name.endswith("offsets") else np.where(values >= 0, values + base[name], values)
+        app.append(name, values)
 
 
 class ViscxFile:

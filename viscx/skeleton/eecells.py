@@ -153,7 +153,7 @@ from viscx.tolerances import (
 
 #: Probes move the line this many epsilon along the edges off an arc (as the half-cells').
 PROBE = 50
-#: ... and this many in the squares whose loops stayed open with PROBE (:func:`_squares_cells`).
+#: ... and this many in the squares whose loops stayed open with PROBE (:func:`squares_cells`).
 FINE_PROBE = 5
 #: Where along its element (Bézier u) a loop's reference point lies: the golden section.
 REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
@@ -1747,27 +1747,43 @@ def build_eecells(scene, arcs, quiet=True):
     -------
     EECells
     """
+    chunks = square_chunks(scene, arcs)
+    parts = []
+    with bar(total=sum(len(c[0]) for c in chunks), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
+        for squares in chunks:
+            parts.append(squares_cells(scene, arcs, squares))
+            progress.update(len(squares[0]))
+    return _concatenate_cells(parts)
+
+
+def square_chunks(scene, arcs, size=None):
+    """The arc-square incidences (:func:`arc_squares`) in chunks of about ``size``
+    (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order: what
+    :func:`build_eecells` builds one at a time (:func:`squares_cells`) and joins
+    (:func:`_concatenate_cells`); one chunk, maybe empty, at least.
+
+    Returns
+    -------
+    list of ((k,) int, (k,) int, (k,) int)
+        Each chunk's (arc, e1, e2).
+    """
+    size = size or SQUARE_CHUNK
     arc, e1, e2 = arc_squares(scene, arcs)
     key = e1 * (1 << 32) + e2
     by_square = np.argsort(key, kind="stable")  # a square's incidences keep their order
     arc, e1, e2, key = arc[by_square], e1[by_square], e2[by_square], key[by_square]
     square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    # cut at the start of the square holding every SQUARE_CHUNK-th incidence
-    cuts = square_start[np.searchsorted(square_start, np.arange(SQUARE_CHUNK, len(key), SQUARE_CHUNK), "right") - 1]
-    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]  # one chunk, maybe empty, at least
-    parts = []
-    with bar(total=len(key), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
-        for lo, hi in zip(bounds[:-1], bounds[1:]):
-            parts.append(_squares_cells(scene, arcs, (arc[lo:hi], e1[lo:hi], e2[lo:hi])))
-            progress.update(hi - lo)
-    return _concatenate_cells(parts)
+    # cut at the start of the square holding every size-th incidence
+    cuts = square_start[np.searchsorted(square_start, np.arange(size, len(key), size), "right") - 1]
+    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
+    return [(arc[lo:hi], e1[lo:hi], e2[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 
 #: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).
 SQUARE_CHUNK = 1 << 20
 
 
-def _squares_cells(scene, arcs, squares):
+def squares_cells(scene, arcs, squares):
     """The EE-cells of some squares ((arc, e1, e2) incidences, every square whole) and the
     number of their open chains that are demoted loops (listed first)."""
     el = boundary_elements(scene, arcs, squares)

@@ -1,0 +1,165 @@
+"""V2 built chunk by chunk into the file (:mod:`viscx.skeleton.chunks`,
+:class:`viscx.formats.hdf5.CellsAppender`), in this process or as dask tasks
+(``viscx build --scheduler``): the same file as the whole level built and written at once."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SAMPLES, viscx_in_process
+
+from viscx.formats import hdf5
+from viscx.formats.diff import diff_files
+from viscx.formats.hdf5 import complex_writer
+from viscx.pipeline import build_complex, level_writers, stream_two_cells
+from viscx.skeleton import chunks
+
+# scenes with open chains, demoted loops, whole-sphere vertices and T-junctions between them
+# (the default suite the first two: 3.8 of 7.3 CPU s)
+SCENES = ["boxes_on_floor.obj", "room_with_door.obj", pytest.param("cornell_box.obj", marks=pytest.mark.slow),
+          pytest.param("occluder_over_plane.ply", marks=pytest.mark.slow)]
+
+
+@pytest.fixture(scope="module")
+def built():
+    """``built(scene)``: the complex of a sample scene, every level in memory (built once)."""
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            cache[name] = build_complex(SAMPLES / name, quiet=True)
+        return cache[name]
+
+    return get
+
+
+def streamed(cx, path, runner=None):
+    """Write ``cx``'s V0 and V1 from memory and its V2 built again chunk by chunk."""
+    with complex_writer(path, cx.scene, ["V0", "V1", "V2"], cx.options) as f:
+        for name, writer in level_writers({k: cx.built[k] for k in ("V0", "V1")}).items():
+            writer(f.create_group(name, track_order=True))
+        return stream_two_cells(cx.scene, cx.arcs, f.create_group("V2", track_order=True), runner)
+
+
+@pytest.fixture
+def tiny_chunks(monkeypatch):
+    """Chunks of a few half-cells and squares, datasets written every few rows: every
+    scene is many chunks and every large array many appends."""
+    monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
+    monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
+    monkeypatch.setattr(hdf5, "APPEND_BYTES", 512)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_streamed_v2_is_the_whole_level(scene, built, tiny_chunks, tmp_path):
+    cx = built(scene)
+    assert len(list(chunks.vcell_parts(cx.scene, cx.arcs))) > 2
+    assert len(list(chunks.eecell_parts(cx.scene, cx.arcs))) > 1
+    cx.save(tmp_path / "whole.h5")
+    counts = streamed(cx, tmp_path / "chunks.h5")
+    assert counts == {"vcells": len(cx.vcells), "eecells": len(cx.eecells)}
+    result = diff_files(tmp_path / "chunks.h5", tmp_path / "whole.h5", rtol=0, atol=0)
+    assert result.equal, [d.describe() for d in result.differences[:5]]
+
+
+def test_chunk_cuts_keep_vertices_and_squares_whole(built, tiny_chunks):
+    cx = built("boxes_on_floor.obj")
+    hc = cx.arcs.half_cells
+    seen = []
+    for part, vertices, shift in chunks.vcell_parts(cx.scene, cx.arcs):
+        # the chunk's half-cells are the whole build's from `shift` on, of its vertices only
+        n = len(part.half_cells)
+        assert np.array_equal(part.half_cells.vertex, hc.vertex[shift: shift + n])
+        assert np.array_equal(part.kind, cx.arcs.kind[hc.arc[shift: shift + n]])
+        assert np.isin(part.half_cells.vertex, vertices).all()
+        seen.append(vertices)
+    seen = np.concatenate(seen)
+    assert np.array_equal(seen, cx.scene.generator_vertices)  # each vertex in one chunk, in order
+    squares = [np.unique(e1 * (1 << 32) + e2) for _, (_, e1, e2), _ in chunks.eecell_parts(cx.scene, cx.arcs)]
+    assert len(np.unique(np.concatenate(squares))) == sum(map(len, squares))  # no square split
+
+
+def test_build_streams_v2_into_the_file(tmp_path):
+    """`viscx build` writes V2 chunk by chunk: the file equals the golden one, and the
+    summary counts V2 from the file."""
+    out = tmp_path / "t.h5"
+    run = viscx_in_process("build", SAMPLES / "tetrahedra.obj", "-o", out)
+    assert run.returncode == 0, run.stderr
+    golden = Path(__file__).resolve().parent / "golden" / "tetrahedra.h5"
+    assert diff_files(out, golden).equal
+    cx = build_complex(SAMPLES / "tetrahedra.obj", quiet=True)
+    assert f"{len(cx.vcells) + len(cx.eecells)} V- and EE-cells" in run.stdout
+
+
+def test_workers_without_scheduler_is_refused(tmp_path):
+    run = viscx_in_process("build", SAMPLES / "two_triangles.obj", "-o", tmp_path / "t.h5", "--workers", "2")
+    assert run.returncode == 2 and "--workers" in run.stderr and "--scheduler" in run.stderr
+    assert "Traceback" not in run.stderr and not (tmp_path / "t.h5").exists()
+
+
+def test_scheduler_without_dask_is_one_line(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)  # import fails as if not installed
+    run = viscx_in_process("build", SAMPLES / "two_triangles.obj", "-o", tmp_path / "t.h5", "--scheduler", "local")
+    assert run.returncode == 2 and "pip install 'viscx[dask]'" in run.stderr
+    assert "Traceback" not in run.stderr and not (tmp_path / "t.h5").exists()
+
+
+# ---------------------------------------------------------------------------------------
+# dask (optional): a local cluster of two worker processes
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    pytest.importorskip("dask.distributed")
+    from viscx.distributed import Dask
+
+    runner = Dask("local", workers=2)
+    yield runner
+    runner.close()
+
+
+@pytest.fixture
+def some_chunks(monkeypatch):
+    """A few chunks a scene (one task each: the tiny chunks above would be thousands of
+    round trips to the workers)."""
+    monkeypatch.setattr(chunks, "VCELL_CHUNK", 100)
+    monkeypatch.setattr(chunks, "EECELL_CHUNK", 2000)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", SCENES)
+def test_dask_chunks_give_the_same_file(scene, built, cluster, some_chunks, tmp_path):
+    cx = built(scene)
+    cx.save(tmp_path / "whole.h5")
+    streamed(cx, tmp_path / "dask.h5", cluster)
+    result = diff_files(tmp_path / "dask.h5", tmp_path / "whole.h5", rtol=0, atol=0)
+    assert result.equal, [d.describe() for d in result.differences[:5]]
+    assert len(cluster.peaks()) == 2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", sorted(p.name for p in SAMPLES.glob("*") if p.suffix in (".obj", ".ply")))
+def test_build_on_a_local_cluster_equals_the_single_process_build(scene, tmp_path):
+    pytest.importorskip("dask.distributed")
+    one, two = tmp_path / "one.h5", tmp_path / "dask.h5"
+    assert viscx_in_process("-q", "build", SAMPLES / scene, "-o", one).returncode == 0
+    run = viscx_in_process("build", SAMPLES / scene, "-o", two, "--scheduler", "local", "--workers", "2")
+    assert run.returncode == 0, run.stderr
+    assert "dask: 2 workers" in run.stdout
+    assert viscx_in_process("diff", one, two).returncode == 0
+
+
+@pytest.mark.slow
+def test_city_on_a_local_cluster_equals_the_single_process_build(tmp_path):
+    """The 300-polygon city: `viscx build --scheduler local --workers 2` against one process."""
+    pytest.importorskip("dask.distributed")
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from dask_ladder import write_city
+
+    city = write_city(300, tmp_path / "city300.obj")
+    one, two = tmp_path / "one.h5", tmp_path / "dask.h5"
+    assert viscx_in_process("-q", "build", city, "-o", one).returncode == 0
+    assert viscx_in_process("-q", "build", city, "-o", two, "--scheduler", "local", "--workers", "2").returncode == 0
+    run = viscx_in_process("diff", one, two)
+    assert run.returncode == 0, run.stdout

@@ -241,10 +241,15 @@ def planar_crossings(scene, scope, whole, normal, point, ua, ub):
     both = np.minimum(ba, bb), np.maximum(ba, bb)
     box_lo = np.minimum.reduceat(both[0], starts[:-1], axis=0) if len(ge) else np.zeros((0, 3))
     box_hi = np.maximum.reduceat(both[1], starts[:-1], axis=0) if len(ge) else np.zeros((0, 3))
+    # and boxes of _BOX_EDGES boxes: a plane skips most of the scene at once
+    groups = np.arange(0, len(box_lo) + _BOX_EDGES, _BOX_EDGES).clip(max=len(box_lo))
+    groups = np.unique(groups)
+    group_lo = np.minimum.reduceat(box_lo, groups[:-1], axis=0) if len(box_lo) else np.zeros((0, 3))
+    group_hi = np.maximum.reduceat(box_hi, groups[:-1], axis=0) if len(box_lo) else np.zeros((0, 3))
     is_scope = scope.edges[ge]
     scope_pos = np.flatnonzero(is_scope)
     args = (np.ascontiguousarray(normal), np.ascontiguousarray(point), np.ascontiguousarray(ua), np.ascontiguousarray(ub),
-            whole.astype(np.bool_), ba, bb, by_box, starts, box_lo, box_hi, ga[scope_pos], gb[scope_pos], is_scope, eps,
+            whole.astype(np.bool_), ba, bb, by_box, starts, box_lo, box_hi, groups, group_lo, group_hi, ga[scope_pos], gb[scope_pos], is_scope, eps,
             _CORNER_SLACK)
     count = np.zeros(len(normal) + 1, np.int64)
     _corner_candidates(*args, count[1:], np.zeros(0, np.int64), np.zeros(1, np.int64))
@@ -294,15 +299,16 @@ def _exact_crossings(scene, normal, point, plane, pos, ga, gb):
 
 
 @njit(cache=True, parallel=True)
-def _corner_candidates(normal, point, ua, ub, whole, ba, bb, by_box, starts, box_lo, box_hi, sa, sb, is_scope, eps, slack,
-                       count, out, offsets):
+def _corner_candidates(normal, point, ua, ub, whole, ba, bb, by_box, starts, box_lo, box_hi, groups, group_lo, group_hi,
+                       sa, sb, is_scope, eps, slack, count, out, offsets):
     """:func:`planar_crossings`'s scan, plane by plane: the edge positions (into the
     generator edges) that may cross each plane strictly (ends beyond half epsilon on
     opposite sides) and, on planes not ``whole``, are scope edges or cross it on a line
     through a scope edge's crossing that cuts the corner (its intercepts with the lines
     of the corner's sides within [-slack, 1 + slack] of them, in the frame
     q = w + x ua + y ub). Boxes of edges (``starts``, edges ``ba``/``bb`` in box order,
-    ``by_box`` their positions) the plane misses by half epsilon are skipped. First call
+    ``by_box`` their positions) the plane misses by half epsilon are skipped, and groups
+    of boxes (``groups``) likewise. First call
     (``out`` empty): the count of each plane into ``count``; second: the positions into
     ``out`` from ``offsets``."""
     half = 0.5 * eps
@@ -337,15 +343,14 @@ def _corner_candidates(normal, point, ua, ub, whole, ba, bb, by_box, starts, box
                 sy[ns] = (q0 * ax0 + q1 * ax1 + q2 * ax2) / det
                 ns += 1
         k_out = 0
-        if whole[p] or ns > 0:
-            for b in range(starts.shape[0] - 1):
-                e0 = 0.5 * (box_hi[b, 0] - box_lo[b, 0])
-                e1 = 0.5 * (box_hi[b, 1] - box_lo[b, 1])
-                e2 = 0.5 * (box_hi[b, 2] - box_lo[b, 2])
-                hc = n0 * (box_lo[b, 0] + e0) + n1 * (box_lo[b, 1] + e1) + n2 * (box_lo[b, 2] + e2) - d
-                r = abs(n0) * e0 + abs(n1) * e1 + abs(n2) * e2
-                if hc + r <= half or hc - r >= -half:
-                    continue  # every end of the box's edges on one side
+        if not (whole[p] or ns > 0):
+            continue
+        for g in range(groups.shape[0] - 1):
+            if _box_side(n0, n1, n2, d, group_lo[g], group_hi[g], half):
+                continue  # every end of the group's edges on one side
+            for b in range(groups[g], groups[g + 1]):
+                if _box_side(n0, n1, n2, d, box_lo[b], box_hi[b], half):
+                    continue
                 for k in range(starts[b], starts[b + 1]):
                     h0 = n0 * ba[k, 0] + n1 * ba[k, 1] + n2 * ba[k, 2] - d
                     h1 = n0 * bb[k, 0] + n1 * bb[k, 1] + n2 * bb[k, 2] - d
@@ -380,6 +385,15 @@ def _corner_candidates(normal, point, ua, ub, whole, ba, bb, by_box, starts, box
                         k_out += 1
         if not fill:
             count[p] = k_out
+
+
+@njit(cache=True, inline="always")
+def _box_side(n0, n1, n2, d, lo, hi, half):
+    """Whether a box lies on one side of the plane n.x = d, farther than ``half``."""
+    e0, e1, e2 = 0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), 0.5 * (hi[2] - lo[2])
+    hc = n0 * (lo[0] + e0) + n1 * (lo[1] + e1) + n2 * (lo[2] + e2) - d
+    r = abs(n0) * e0 + abs(n1) * e1 + abs(n2) * e2
+    return hc + r <= half or hc - r >= -half
 
 
 def full_build_order(scene, gens, plane, ci, cj, rank, edge, normal, point):

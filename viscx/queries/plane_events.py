@@ -184,7 +184,8 @@ def plane_sections(scene, d, tri_ok, tri_edge, basis):
     """
     tri = scene.triangles.astype(np.int64)
     s = d[tri]  # (t, 3)
-    ok = tri_ok & (s.max(axis=1) > 0)
+    # (a triangle wholly in front has no section point: only those reaching P)
+    ok = tri_ok & (s.max(axis=1) > 0) & (s.min(axis=1) <= 0)
     tri, s, te = tri[ok], s[ok], tri_edge[ok]
     V = scene.vertices
     sj = np.roll(s, -1, axis=1)
@@ -394,6 +395,9 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     in_light = np.zeros(scene.n_faces, bool)
     in_light[light.faces] = True
     tri_ok = ~in_light[scene.triangle_face] & (scene.triangle_face != f)
+    corners = np.concatenate(outline)
+    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+    disc = centre, float(np.linalg.norm(corners - centre, axis=1).max()) + 2 * snap
     out = []
     for sigma in (1.0, -1.0):
         seg, ekind, eid = plane_sections(scene, sigma * d, tri_ok, tri_edge, basis)
@@ -412,9 +416,17 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
         tC = np.linalg.norm(vec, axis=1)
         far = tC > snap
         hh, cc, vec, tC = hh[far], cc[far], vec[far], tC[far]
+        udir = vec / tC[:, None]
+        # the trace is the ray beyond C, clipped to f: only rays from C that reach f's
+        # bounding disc (centre m, radius R) can leave one (the others are cut away below)
+        m, R = disc
+        w = m - H[hh]
+        along = np.einsum("ij,ij->i", w, udir)
+        off2 = np.einsum("ij,ij->i", w, w) - along ** 2
+        reach = (off2 <= R * R) & (tC <= along + np.sqrt(np.maximum(R * R - off2, 0.0)) + snap)
+        hh, cc, tC, udir = hh[reach], cc[reach], tC[reach], udir[reach]
         if not len(hh):
             continue
-        udir = vec / tC[:, None]
         h0 = H[hh]
         lo, t_end = np.empty(len(hh)), np.empty(len(hh))
         step = max(1, PAIR_BLOCK // (len(seg) + len(back)))

@@ -182,11 +182,12 @@ def plane_sections(scene, d, tri_ok, tri_edge, basis):
     end_id : (b, 2) int64
         The edge or vertex id.
     """
-    tri = scene.triangles.astype(np.int64)
+    rows = np.flatnonzero(tri_ok)
+    tri = scene.triangles[rows].astype(np.int64)
     s = d[tri]  # (t, 3)
     # (a triangle wholly in front has no section point: only those reaching P)
-    ok = tri_ok & (s.max(axis=1) > 0) & (s.min(axis=1) <= 0)
-    tri, s, te = tri[ok], s[ok], tri_edge[ok]
+    ok = (s.max(axis=1) > 0) & (s.min(axis=1) <= 0)
+    tri, s, te = tri[ok], s[ok], tri_edge[rows[ok]]
     V = scene.vertices
     sj = np.roll(s, -1, axis=1)
     pj = V[np.roll(tri, -1, axis=1)]
@@ -398,6 +399,15 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     corners = np.concatenate(outline)
     centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
     disc = centre, float(np.linalg.norm(corners - centre, axis=1).max()) + 2 * snap
+    # A trace is the ray beyond C, clipped to f, and what decides it (C, the sections
+    # crossed between H and f) lies in the hull of H and f, inside the box of the light
+    # and f: the triangles outside that box (with a margin) are left out. (A section
+    # beyond f only ends a trace past f, or blocks behind past f: either way the part
+    # on f is the same.)
+    tri_lo, tri_hi = _triangle_boxes(scene)
+    ends = np.concatenate([scene.vertices[light.vertices], *scene.face_loops(f)])
+    box_lo, box_hi = ends.min(axis=0) - 4 * snap, ends.max(axis=0) + 4 * snap
+    tri_ok &= np.all(tri_hi >= box_lo, axis=1) & np.all(tri_lo <= box_hi, axis=1)
     out = []
     for sigma in (1.0, -1.0):
         seg, ekind, eid = plane_sections(scene, sigma * d, tri_ok, tri_edge, basis)
@@ -444,6 +454,15 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     if not out:
         return empty
     return tuple(np.concatenate(x) for x in zip(*out))
+
+
+def _triangle_boxes(scene):
+    """(lo, hi): the bounding box of every scene triangle, (t, 3) float each (cached)."""
+    def boxes(scene):
+        corners = scene.vertices[scene.triangles]
+        return corners.min(axis=1), corners.max(axis=1)
+
+    return scene.cached("triangle_boxes", boxes)
 
 
 def light_plane_lines(scene, planes, f, basis, origin, outline, snap):

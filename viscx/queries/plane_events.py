@@ -44,6 +44,7 @@ light's front"), and the traces behind it are dropped (they change nothing there
 """
 
 import numpy as np
+from numba import njit
 
 #: Kinds of the events computed here (V1's arcs are EEE = 0 and VE = 1).
 RP_EDGE, RP_VERTEX, LIGHT_PLANE = 2, 3, 4
@@ -160,15 +161,15 @@ def triangle_edge_ids(scene):
     return np.where(hit, order[pos], -1)
 
 
-def plane_sections(scene, d, tri_ok, tri_edge, basis):
+def plane_sections(scene, d, rows, tri_edge, basis):
     """Sections of triangles by a plane P, seen from its front (module docstring).
 
     Parameters
     ----------
     d : (v,) float64
         Signed distance of every vertex to P (front > 0), values within snap set to 0.
-    tri_ok : (t,) bool
-        Triangles that count.
+    rows : (r,) int
+        Triangles that count, ascending.
     tri_edge : (t, 3) int64
         :func:`triangle_edge_ids`.
     basis : (u, v), (3,) float64 each
@@ -182,7 +183,6 @@ def plane_sections(scene, d, tri_ok, tri_edge, basis):
     end_id : (b, 2) int64
         The edge or vertex id.
     """
-    rows = np.flatnonzero(tri_ok)
     tri = scene.triangles[rows].astype(np.int64)
     s = d[tri]  # (t, 3)
     # (a triangle wholly in front has no section point: only those reaching P)
@@ -393,9 +393,6 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     H3 = Va + w[:, None] * (Vb - Va)
     H = np.stack([H3 @ u3, H3 @ v3], axis=1)
     H_edge = light.edges[cut]
-    in_light = np.zeros(scene.n_faces, bool)
-    in_light[light.faces] = True
-    tri_ok = ~in_light[scene.triangle_face] & (scene.triangle_face != f)
     corners = np.concatenate(outline)
     centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
     disc = centre, float(np.linalg.norm(corners - centre, axis=1).max()) + 2 * snap
@@ -407,11 +404,13 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     tri_lo, tri_hi = _triangle_boxes(scene)
     ends = np.concatenate([scene.vertices[light.vertices], *scene.face_loops(f)])
     box_lo, box_hi = ends.min(axis=0) - 4 * snap, ends.max(axis=0) + 4 * snap
-    tri_ok &= np.all(tri_hi >= box_lo, axis=1) & np.all(tri_lo <= box_hi, axis=1)
+    rows = _boxes_meeting(tri_lo, tri_hi, box_lo, box_hi)
+    owner = scene.triangle_face[rows]
+    rows = rows[~np.isin(owner, light.faces) & (owner != f)]
     out = []
     for sigma in (1.0, -1.0):
-        seg, ekind, eid = plane_sections(scene, sigma * d, tri_ok, tri_edge, basis)
-        back, bkind, bid = plane_sections(scene, -sigma * d, tri_ok, tri_edge, basis)
+        seg, ekind, eid = plane_sections(scene, sigma * d, rows, tri_edge, basis)
+        back, bkind, bid = plane_sections(scene, -sigma * d, rows, tri_edge, basis)
         if not len(seg):
             continue
         # critical points C: section ends on scene edges or vertices, each feature once
@@ -454,6 +453,20 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     if not out:
         return empty
     return tuple(np.concatenate(x) for x in zip(*out))
+
+
+@njit(cache=True)
+def _boxes_meeting(lo, hi, box_lo, box_hi):
+    """(r,) int64, ascending: the boxes (lo, hi (t, 3)) that meet the box [box_lo, box_hi]
+    (one pass, no (t, 3) temporaries: it runs once per receiver)."""
+    out = np.empty(lo.shape[0], np.int64)
+    k = 0
+    for i in range(lo.shape[0]):
+        if (hi[i, 0] >= box_lo[0] and hi[i, 1] >= box_lo[1] and hi[i, 2] >= box_lo[2]
+                and lo[i, 0] <= box_hi[0] and lo[i, 1] <= box_hi[1] and lo[i, 2] <= box_hi[2]):
+            out[k] = i
+            k += 1
+    return out[:k]
 
 
 def _triangle_boxes(scene):

@@ -561,7 +561,7 @@ def test_touching_blocks(crossing_built, tmp_path, monkeypatch):
 
     same, cross, cracks = _touching_failures(crossing_built)
     assert same == 0 and cross == 0 and cracks >= 2
-    monkeypatch.setattr(builder, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
+    monkeypatch.setattr(builder, "contact_pencils", lambda scene, scope=None: np.empty((0, 3), np.int64))
     assert _touching_failures(build_v1(crossing_scene_obj(tmp_path / "x.obj")))[0] >= 5
 
 
@@ -583,7 +583,7 @@ def test_pencil_of_a_face_with_a_vertex_in_its_plane(tmp_path, monkeypatch, seed
         return fails
 
     assert failures("seeded") == 0
-    monkeypatch.setattr(builder, "contact_pencils", lambda scene: np.empty((0, 3), np.int64))
+    monkeypatch.setattr(builder, "contact_pencils", lambda scene, scope=None: np.empty((0, 3), np.int64))
     assert failures("unseeded") >= 3
 
 

@@ -44,6 +44,7 @@ light's front"), and the traces behind it are dropped (they change nothing there
 """
 
 import numpy as np
+from numba import njit
 
 #: Kinds of the events computed here (V1's arcs are EEE = 0 and VE = 1).
 RP_EDGE, RP_VERTEX, LIGHT_PLANE = 2, 3, 4
@@ -160,15 +161,15 @@ def triangle_edge_ids(scene):
     return np.where(hit, order[pos], -1)
 
 
-def plane_sections(scene, d, tri_ok, tri_edge, basis):
+def plane_sections(scene, d, rows, tri_edge, basis):
     """Sections of triangles by a plane P, seen from its front (module docstring).
 
     Parameters
     ----------
     d : (v,) float64
         Signed distance of every vertex to P (front > 0), values within snap set to 0.
-    tri_ok : (t,) bool
-        Triangles that count.
+    rows : (r,) int
+        Triangles that count, ascending.
     tri_edge : (t, 3) int64
         :func:`triangle_edge_ids`.
     basis : (u, v), (3,) float64 each
@@ -182,10 +183,11 @@ def plane_sections(scene, d, tri_ok, tri_edge, basis):
     end_id : (b, 2) int64
         The edge or vertex id.
     """
-    tri = scene.triangles.astype(np.int64)
+    tri = scene.triangles[rows].astype(np.int64)
     s = d[tri]  # (t, 3)
-    ok = tri_ok & (s.max(axis=1) > 0)
-    tri, s, te = tri[ok], s[ok], tri_edge[ok]
+    # (a triangle wholly in front has no section point: only those reaching P)
+    ok = (s.max(axis=1) > 0) & (s.min(axis=1) <= 0)
+    tri, s, te = tri[ok], s[ok], tri_edge[rows[ok]]
     V = scene.vertices
     sj = np.roll(s, -1, axis=1)
     pj = V[np.roll(tri, -1, axis=1)]
@@ -391,13 +393,24 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     H3 = Va + w[:, None] * (Vb - Va)
     H = np.stack([H3 @ u3, H3 @ v3], axis=1)
     H_edge = light.edges[cut]
-    in_light = np.zeros(scene.n_faces, bool)
-    in_light[light.faces] = True
-    tri_ok = ~in_light[scene.triangle_face] & (scene.triangle_face != f)
+    corners = np.concatenate(outline)
+    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+    disc = centre, float(np.linalg.norm(corners - centre, axis=1).max()) + 2 * snap
+    # A trace is the ray beyond C, clipped to f, and what decides it (C, the sections
+    # crossed between H and f) lies in the hull of H and f, inside the box of the light
+    # and f: the triangles outside that box (with a margin) are left out. (A section
+    # beyond f only ends a trace past f, or blocks behind past f: either way the part
+    # on f is the same.)
+    tri_lo, tri_hi = _triangle_boxes(scene)
+    ends = np.concatenate([scene.vertices[light.vertices], *scene.face_loops(f)])
+    box_lo, box_hi = ends.min(axis=0) - 4 * snap, ends.max(axis=0) + 4 * snap
+    rows = _boxes_meeting(tri_lo, tri_hi, box_lo, box_hi)
+    owner = scene.triangle_face[rows]
+    rows = rows[~np.isin(owner, light.faces) & (owner != f)]
     out = []
     for sigma in (1.0, -1.0):
-        seg, ekind, eid = plane_sections(scene, sigma * d, tri_ok, tri_edge, basis)
-        back, bkind, bid = plane_sections(scene, -sigma * d, tri_ok, tri_edge, basis)
+        seg, ekind, eid = plane_sections(scene, sigma * d, rows, tri_edge, basis)
+        back, bkind, bid = plane_sections(scene, -sigma * d, rows, tri_edge, basis)
         if not len(seg):
             continue
         # critical points C: section ends on scene edges or vertices, each feature once
@@ -412,9 +425,17 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
         tC = np.linalg.norm(vec, axis=1)
         far = tC > snap
         hh, cc, vec, tC = hh[far], cc[far], vec[far], tC[far]
+        udir = vec / tC[:, None]
+        # the trace is the ray beyond C, clipped to f: only rays from C that reach f's
+        # bounding disc (centre m, radius R) can leave one (the others are cut away below)
+        m, R = disc
+        w = m - H[hh]
+        along = np.einsum("ij,ij->i", w, udir)
+        off2 = np.einsum("ij,ij->i", w, w) - along ** 2
+        reach = (off2 <= R * R) & (tC <= along + np.sqrt(np.maximum(R * R - off2, 0.0)) + snap)
+        hh, cc, tC, udir = hh[reach], cc[reach], tC[reach], udir[reach]
         if not len(hh):
             continue
-        udir = vec / tC[:, None]
         h0 = H[hh]
         lo, t_end = np.empty(len(hh)), np.empty(len(hh))
         step = max(1, PAIR_BLOCK // (len(seg) + len(back)))
@@ -432,6 +453,29 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     if not out:
         return empty
     return tuple(np.concatenate(x) for x in zip(*out))
+
+
+@njit(cache=True)
+def _boxes_meeting(lo, hi, box_lo, box_hi):
+    """(r,) int64, ascending: the boxes (lo, hi (t, 3)) that meet the box [box_lo, box_hi]
+    (one pass, no (t, 3) temporaries: it runs once per receiver)."""
+    out = np.empty(lo.shape[0], np.int64)
+    k = 0
+    for i in range(lo.shape[0]):
+        if (hi[i, 0] >= box_lo[0] and hi[i, 1] >= box_lo[1] and hi[i, 2] >= box_lo[2]
+                and lo[i, 0] <= box_hi[0] and lo[i, 1] <= box_hi[1] and lo[i, 2] <= box_hi[2]):
+            out[k] = i
+            k += 1
+    return out[:k]
+
+
+def _triangle_boxes(scene):
+    """(lo, hi): the bounding box of every scene triangle, (t, 3) float each (cached)."""
+    def boxes(scene):
+        corners = scene.vertices[scene.triangles]
+        return corners.min(axis=1), corners.max(axis=1)
+
+    return scene.cached("triangle_boxes", boxes)
 
 
 def light_plane_lines(scene, planes, f, basis, origin, outline, snap):

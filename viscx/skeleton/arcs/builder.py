@@ -185,14 +185,16 @@ def _families(scene, nodes, planar, workers=None, scope=None):
     fam_gens.append(seeds)
     # VE families of a vertex and an edge in one face's plane may hold no node: seed them all
     plane_ve, plane_of, vp, ep = same_plane_ve(scene)
-    planes = np.unique(plane_of)  # (the points of every plane, as the full build's)
     if scope is not None:
         mine = scope.families(np.full(len(plane_ve), VE), np.c_[plane_ve, np.full(len(plane_ve), -1)])
         plane_ve, plane_of = plane_ve[mine], plane_of[mine]
+    # the points of the families' planes only: a family's coplanar events are those of its
+    # plane, in that plane's order (:func:`coplanar_join`), whatever other planes are listed
+    planes = np.unique(plane_of)
     fam_kind.append(np.full(len(plane_ve), VE, np.int8))
     fam_gens.append(np.concatenate([plane_ve, np.full((len(plane_ve), 1), -1)], axis=1))
     # so may the pencils at the corners of faces in contact
-    pencils = contact_pencils(scene)
+    pencils = contact_pencils(scene, scope)
     if scope is not None:
         pencils = pencils[scope.families(np.full(len(pencils), EEE), pencils)]
     fam_kind.append(np.full(len(pencils), EEE, np.int8))

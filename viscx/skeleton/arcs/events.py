@@ -49,10 +49,18 @@ def planar_events(scene, scope=None):
     normal = np.cross(ua, ub)
     size = row_norms(normal)
     keep = size > ANGLE_TOLERANCE * row_norms(ua) * row_norms(ub)
+    if scope is not None:  # an event in scope has a scope edge in the pair or crossing its plane
+        keep &= scope.edges[pa] | scope.edges[pb] | scope.crosses_planes(scene, normal / np.maximum(size, 1e-300)[:, None], w)
     pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
 
-    # generator edges crossing each pair's plane strictly inside
-    cp, ce, cq = edges_crossing_planes(scene, normal, w)
+    # generator edges crossing each pair's plane strictly inside (scoped: those that can
+    # make an event in scope, :func:`viscx.skeleton.scope.planar_crossings`)
+    if scope is None:
+        cp, ce, cq = edges_crossing_planes(scene, normal, w)
+    else:
+        from viscx.skeleton.scope import planar_crossings
+
+        cp, ce, cq, rank = planar_crossings(scene, scope, scope.edges[pa] | scope.edges[pb], normal, w, ua[keep], ub[keep])
     # (the pair's own edges and the edges at w do not cross the plane strictly)
     # the crossings in the corner's affine frame: q - w = x ua + y ub
     ua, ub, rel = ua[keep][cp], ub[keep][cp], cq - w[cp]
@@ -78,6 +86,11 @@ def planar_events(scene, scope=None):
     if scope is not None:  # (a quadruple's rows are all kept or all dropped: the same first line)
         distinct &= scope.nodes(np.full(len(gens), E4), gens)
     gens, origin, direction = gens[distinct], origin[distinct], direction[distinct]
+    if scope is not None:  # a quadruple proposed twice keeps the full build's row
+        from viscx.skeleton.scope import full_build_order
+
+        order = full_build_order(scene, gens, cp, ci[distinct], cj[distinct], rank, ce, normal, w)
+        gens, origin, direction = gens[order], origin[order], direction[order]
     # one line per quadruple (two adjacent pairs can propose it)
     first = first_of_rows(gens)
     events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])

@@ -366,7 +366,7 @@ def pencil_events(scene, fkind, fgens):
     return family, np.concatenate(ss), np.full(len(family), END_COPLANAR), np.concatenate(idx)
 
 
-def contact_pencils(scene):
+def contact_pencils(scene, scope=None):
     """EEE families (l, e1, e2) of the pencils of touched planes (:func:`pencil_planes`):
     e1, e2 two generator edges of touched faces (another face or a foreign vertex in their
     plane: two blocks touching face to face, a tetrahedron's corner on a box's side plane)
@@ -392,6 +392,10 @@ def contact_pencils(scene):
     (w < π); two edges' lines through H meet both open edges where their intervals
     overlap by more than an angle of 1e-9.
 
+    With a ``scope`` (:class:`viscx.skeleton.scope.Scope`), only the pencils of planes
+    holding a scope edge and those of scope edges crossing the others (a superset of the
+    pencils in scope, which the caller keeps).
+
     Returns
     -------
     (m, 3) int
@@ -408,7 +412,10 @@ def contact_pencils(scene):
             continue
         inside = inc[:, 2]
         a, b = edge_geometry(scene, inside)
-        for line in np.flatnonzero(role[k] == 2):
+        lines = np.flatnonzero(role[k] == 2)
+        if scope is not None and not scope.edges[inside].any():
+            lines = lines[scope.edges[lines]]
+        for line in lines:
             la, lb = edge_geometry(scene, np.array([line]))
             h0, h1 = la[0] @ n - off, lb[0] @ n - off
             hit = la[0] + h0 / (h0 - h1) * (lb[0] - la[0])

@@ -930,20 +930,6 @@ def _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen,
 
 
 @njit(cache=True)
-def _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
-    """Add the piece [u0, u1] of edge e's side k, owned by ``owner``, to its run (flushing
-    a run it cannot extend)."""
-    if run_o[e, k] == owner and runs[e, k, 1] == u0:
-        runs[e, k, 1] = u1
-        return
-    if run_o[e, k] >= 0:
-        _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-    run_o[e, k] = owner
-    runs[e, k, 0] = u0
-    runs[e, k, 1] = u1
-
-
-@njit(cache=True)
 def _cover_key(p):
     """A 64-bit key of polygon p (splitmix64 of p): the XOR of the keys of a set of covering
     polygons tells, but for a 2^-64 chance, whether two sets are equal."""
@@ -998,10 +984,17 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     frustum and projected centrally on the face's plane, the slab sweep of
     :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
     nearest along the ray through its centre (polygons do not cross: the front-most one of
-    those covering a trapezoid is the same all over it). That polygon is searched once per
-    region, not once per slab: a region with the same two edges and covering polygons as in
-    the previous slab keeps its owner (thin slivers between coincident edges excepted,
-    ``MEMO_GAP``)."""
+    those covering a trapezoid is the same all over it).
+
+    The sweep is event-local: from one slab to the next only the edges at the break change
+    (ending, starting, swapping), so only the regions between the first and the last changed
+    position are redone (winding, covering polygons, owner); a region above them has the same
+    edges above it, one below the same edges below it (a vertical line crosses a closed
+    outline with net winding 0), hence the same covering polygons and owner (if sure: a
+    sliver between coincident edges, thinner than ``MEMO_GAP``, is searched again). An
+    edge's runs (its owner above on side 0, below on side 1) stay open while its neighbouring
+    owners do and are summed (Lambert) once, when they change or the edge ends. With a
+    vertical edge, every slab is swept whole and summed as trapezoids."""
     n_seg = 0
     for L in range(loop_lo.shape[0]):
         p = loop_poly[L]
@@ -1269,7 +1262,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             slab += 1
             last_u1 = u1
             continue
-        memo_ok = last_u1 == u0 and not has_vertical
+        # a vertical edge: every region of the slab searched, whole trapezoids summed
         n_cover = 0
         key = np.uint64(0)
         owner, top = -1, -1
@@ -1293,55 +1286,30 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             if n_cover == 1 and q + 1 < n_act:
                 now = cover[0]
             elif n_cover > 1 and q + 1 < n_act:
-                e = act[q]
-                # a region thinner than MEMO_GAP at a side may be a sliver between coincident
-                # edges (polygons clipped by the same frustum plane, faces sharing an edge),
-                # whose covering set is rounding: searched in every slab, never reused
-                solid = min(act_v0[q] - act_v0[q + 1], act_v1[q] - act_v1[q + 1]) > MEMO_GAP
-                if (solid and memo_ok and memo_slab[e] == slab - 1 and memo_below[e] == act[q + 1]
-                        and memo_key[e] == key):
-                    now = memo_owner[e]
-                else:
-                    vm = 0.5 * (act_v[q] + act_v[q + 1])
-                    for c in range(3):
-                        d[c] = fc[c] + um * fa[c] + vm * fb[c]
-                    best = np.inf
-                    for r in range(n_cover):
-                        pr = cover[r]
-                        dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
-                        if dn == 0.0:
-                            continue
-                        t = -side[pr] / dn
-                        if t <= 0:
-                            continue
-                        # a tie (two faces in one plane, one lying on the other): the smaller lies
-                        # on the larger's front (docs/queries.md, "Faces lying on faces")
-                        if abs(t - best) <= 1e-9 * t:
-                            big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
-                            now = small if side[big] > 0 else big
-                        elif t < best:
-                            best = t
-                            now = pr
-                memo_slab[e] = slab if solid else -2
-                memo_below[e] = act[q + 1]
-                memo_key[e] = key
-                memo_owner[e] = now
+                vm = 0.5 * (act_v[q] + act_v[q + 1])
+                for c in range(3):
+                    d[c] = fc[c] + um * fa[c] + vm * fb[c]
+                best = np.inf
+                for r in range(n_cover):
+                    pr = cover[r]
+                    dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
+                    if dn == 0.0:
+                        continue
+                    t = -side[pr] / dn
+                    if t <= 0:
+                        continue
+                    # a tie (two faces in one plane, one lying on the other): the smaller lies
+                    # on the larger's front (docs/queries.md, "Faces lying on faces")
+                    if abs(t - best) <= 1e-9 * t:
+                        big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
+                        now = small if side[big] > 0 else big
+                    elif t < best:
+                        best = t
+                        now = pr
             if now != owner:
                 if owner >= 0:
-                    if has_vertical:
-                        seen[col[owner]] += _trapezoid(x, n_i, fa, fb, fc, u0, u1, act_v0[q], act_v1[q], act_v0[top],
-                                                       act_v1[top], p0, p1)
-                    else:
-                        # bottom side left to right, top side right to left; the vertical
-                        # sides cancel between slabs (the owner changes only across edges)
-                        # (a run extended in place, the common case, costs no call)
-                        for k in range(2):
-                            e = act[q] if k == 0 else act[top]
-                            if run_o[e, k] == owner and runs[e, k, 1] == u0:
-                                runs[e, k, 1] = u1
-                            else:
-                                _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, slope, x, n_i, fa, fb, fc, col,
-                                           seen, p0, p1)
+                    seen[col[owner]] += _trapezoid(x, n_i, fa, fb, fc, u0, u1, act_v0[q], act_v1[q], act_v0[top],
+                                                   act_v1[top], p0, p1)
                 owner = now
                 top = q
         for q in range(n_act):

@@ -930,20 +930,6 @@ def _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen,
 
 
 @njit(cache=True)
-def _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
-    """Add the piece [u0, u1] of edge e's side k, owned by ``owner``, to its run (flushing
-    a run it cannot extend)."""
-    if run_o[e, k] == owner and runs[e, k, 1] == u0:
-        runs[e, k, 1] = u1
-        return
-    if run_o[e, k] >= 0:
-        _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-    run_o[e, k] = owner
-    runs[e, k, 0] = u0
-    runs[e, k, 1] = u1
-
-
-@njit(cache=True)
 def _cover_key(p):
     """A 64-bit key of polygon p (splitmix64 of p): the XOR of the keys of a set of covering
     polygons tells, but for a 2^-64 chance, whether two sets are equal."""
@@ -981,6 +967,16 @@ def _snap_breaks(us, n, tol):
 
 
 @njit(cache=True)
+def _kept(sure, act_v0, act_v1, q):
+    """Whether region q of a slab (below edge q) keeps the owner it had in the last slab with
+    the same bounding edges: sure then (``sure`` 1: one covering polygon or none; 2: more, and
+    solid) and, if more, solid now (thicker than MEMO_GAP at both sides)."""
+    if sure == 1:
+        return True
+    return sure == 2 and min(act_v0[q] - act_v0[q + 1], act_v1[q] - act_v1[q + 1]) > MEMO_GAP
+
+
+@njit(cache=True)
 def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
                    side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1):
     """Add to ``seen`` the visible part of every polygon through one face of the hemicube
@@ -988,10 +984,17 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     frustum and projected centrally on the face's plane, the slab sweep of
     :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
     nearest along the ray through its centre (polygons do not cross: the front-most one of
-    those covering a trapezoid is the same all over it). That polygon is searched once per
-    region, not once per slab: a region with the same two edges and covering polygons as in
-    the previous slab keeps its owner (thin slivers between coincident edges excepted,
-    ``MEMO_GAP``)."""
+    those covering a trapezoid is the same all over it).
+
+    The sweep is event-local: from one slab to the next only the edges at the break change
+    (ending, starting, swapping), so only the regions between the first and the last changed
+    position are redone (winding, covering polygons, owner); a region above them has the same
+    edges above it, one below the same edges below it (a vertical line crosses a closed
+    outline with net winding 0), hence the same covering polygons and owner (if sure: a
+    sliver between coincident edges, thinner than ``MEMO_GAP``, is searched again). An
+    edge's runs (its owner above on side 0, below on side 1) stay open while its neighbouring
+    owners do and are summed (Lambert) once, when they change or the edge ends. With a
+    vertical edge, every slab is swept whole and summed as trapezoids."""
     n_seg = 0
     for L in range(loop_lo.shape[0]):
         p = loop_poly[L]
@@ -1095,6 +1098,14 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     nxt = 0
     n_on = 0
     d = np.empty(3)
+    # the last slab swept (event-local update): its edges top down and its regions' owners
+    prev_act = np.empty(n_live, np.int64)
+    prev_own = np.empty(n_live, np.int64)
+    own = np.empty(n_live, np.int64)
+    prev_sure = np.empty(n_live, np.int64)  # per region: 1 one covering polygon (or none),
+    sure = np.empty(n_live, np.int64)  # 2 more and solid, 0 a sliver (its owner is rounding)
+    stamp = np.full(n_seg, -1, np.int64)
+    prev_n = 0
     slab = 0  # slabs swept so far
     last_u1 = np.nan  # the right side of the last one
     for k in range(n_brk - 1):
@@ -1110,7 +1121,148 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1)
         if n_act < 2:
             continue
-        memo_ok = last_u1 == u0 and not has_vertical
+        if not has_vertical:
+            # event-local: only the regions whose edges changed since the last slab are redone
+            contiguous = last_u1 == u0 and prev_n >= 2
+            lo, s = 0, 0
+            if contiguous:
+                m = min(n_act, prev_n)
+                while lo < m and act[lo] == prev_act[lo]:
+                    lo += 1
+                while s < m - lo and act[n_act - 1 - s] == prev_act[prev_n - 1 - s]:
+                    s += 1
+            else:
+                # a gap: every open run ends where the last slab did
+                for r in range(prev_n):
+                    e = prev_act[r]
+                    for kk in range(2):
+                        if run_o[e, kk] >= 0:
+                            runs[e, kk, 1] = last_u1
+                            _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+            # regions above lo - 1 have the same edges above them (the same covering set), those
+            # below n_act - s the same edges below (a vertical line crosses a closed outline with
+            # net winding 0): both keep their owners
+            # (if their owner is sure: one covering polygon, or more and the region solid now
+            # and when searched; a sliver's owner is rounding, searched again as in MEMO_GAP)
+            q0 = lo - 1 if lo > 0 else 0
+            q1 = min(n_act - s - 1, n_act - 2)
+            r = 0
+            while r < q0 and _kept(prev_sure[r], act_v0, act_v1, r):
+                own[r] = prev_own[r]
+                sure[r] = prev_sure[r]
+                r += 1
+            q0 = r
+            r = n_act - 2
+            while r > q1 and _kept(prev_sure[r - n_act + prev_n], act_v0, act_v1, r):
+                own[r] = prev_own[r - n_act + prev_n]
+                sure[r] = prev_sure[r - n_act + prev_n]
+                r -= 1
+            q1 = r
+            n_cover = 0
+            key = np.uint64(0)
+            for q in range(q0):
+                p = seg_p[act[q]]
+                before = wind[p]
+                wind[p] += seg_w[act[q]]
+                if before == 0 and wind[p] != 0:
+                    cover[n_cover] = p
+                    n_cover += 1
+                    key ^= _cover_key(p)
+                elif before != 0 and wind[p] == 0:
+                    key ^= _cover_key(p)
+                    for r in range(n_cover):
+                        if cover[r] == p:
+                            cover[r] = cover[n_cover - 1]
+                            n_cover -= 1
+                            break
+            for q in range(q0, q1 + 1):
+                p = seg_p[act[q]]
+                before = wind[p]
+                wind[p] += seg_w[act[q]]
+                if before == 0 and wind[p] != 0:
+                    cover[n_cover] = p
+                    n_cover += 1
+                    key ^= _cover_key(p)
+                elif before != 0 and wind[p] == 0:
+                    key ^= _cover_key(p)
+                    for r in range(n_cover):
+                        if cover[r] == p:
+                            cover[r] = cover[n_cover - 1]
+                            n_cover -= 1
+                            break
+                e = act[q]
+                now = -1
+                if n_cover == 1:
+                    now = cover[0]
+                elif n_cover > 1:
+                    solid = min(act_v0[q] - act_v0[q + 1], act_v1[q] - act_v1[q + 1]) > MEMO_GAP
+                    if solid and contiguous and memo_slab[e] >= 0 and memo_below[e] == act[q + 1] and memo_key[e] == key:
+                        now = memo_owner[e]
+                    else:
+                        vm = 0.5 * (act_v[q] + act_v[q + 1])
+                        for c in range(3):
+                            d[c] = fc[c] + um * fa[c] + vm * fb[c]
+                        best = np.inf
+                        for r in range(n_cover):
+                            pr = cover[r]
+                            dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
+                            if dn == 0.0:
+                                continue
+                            t = -side[pr] / dn
+                            if t <= 0:
+                                continue
+                            if abs(t - best) <= 1e-9 * t:
+                                big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
+                                now = small if side[big] > 0 else big
+                            elif t < best:
+                                best = t
+                                now = pr
+                    memo_slab[e] = slab if solid else -2
+                    memo_below[e] = act[q + 1]
+                    memo_key[e] = key
+                    memo_owner[e] = now
+                if n_cover <= 1:
+                    memo_slab[e] = -2  # a memo holds only while its region goes on
+                own[q] = now
+                sure[q] = 1 if n_cover <= 1 else (2 if memo_slab[e] >= 0 else 0)
+            for q in range(q1 + 1):
+                wind[seg_p[act[q]]] = 0
+            memo_slab[act[n_act - 1]] = -2  # no region below the lowest edge
+            # the edges next to a redone region: their runs (side 0: the owner above, side 1: below)
+            for q in range(q0, min(q1 + 2, n_act)):
+                e = act[q]
+                stamp[e] = slab
+                a = own[q - 1] if q > 0 else -1
+                b = own[q] if q < n_act - 1 else -1
+                for kk in range(2):
+                    o = (a if kk == 0 else b) if a != b else -1
+                    if run_o[e, kk] == o:
+                        continue
+                    if run_o[e, kk] >= 0:
+                        runs[e, kk, 1] = u0
+                        _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+                    if o >= 0:
+                        run_o[e, kk] = o
+                        runs[e, kk, 0] = u0
+            if contiguous:
+                # edges that ended at u0: their runs end there
+                for r in range(lo, prev_n - s):
+                    e = prev_act[r]
+                    if stamp[e] != slab:
+                        for kk in range(2):
+                            if run_o[e, kk] >= 0:
+                                runs[e, kk, 1] = u0
+                                _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+            for r in range(n_act):
+                prev_act[r] = act[r]
+            for q in range(n_act - 1):
+                prev_own[q] = own[q]
+                prev_sure[q] = sure[q]
+            prev_n = n_act
+            slab += 1
+            last_u1 = u1
+            continue
+        # a vertical edge: every region of the slab searched, whole trapezoids summed
         n_cover = 0
         key = np.uint64(0)
         owner, top = -1, -1
@@ -1134,55 +1286,30 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             if n_cover == 1 and q + 1 < n_act:
                 now = cover[0]
             elif n_cover > 1 and q + 1 < n_act:
-                e = act[q]
-                # a region thinner than MEMO_GAP at a side may be a sliver between coincident
-                # edges (polygons clipped by the same frustum plane, faces sharing an edge),
-                # whose covering set is rounding: searched in every slab, never reused
-                solid = min(act_v0[q] - act_v0[q + 1], act_v1[q] - act_v1[q + 1]) > MEMO_GAP
-                if (solid and memo_ok and memo_slab[e] == slab - 1 and memo_below[e] == act[q + 1]
-                        and memo_key[e] == key):
-                    now = memo_owner[e]
-                else:
-                    vm = 0.5 * (act_v[q] + act_v[q + 1])
-                    for c in range(3):
-                        d[c] = fc[c] + um * fa[c] + vm * fb[c]
-                    best = np.inf
-                    for r in range(n_cover):
-                        pr = cover[r]
-                        dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
-                        if dn == 0.0:
-                            continue
-                        t = -side[pr] / dn
-                        if t <= 0:
-                            continue
-                        # a tie (two faces in one plane, one lying on the other): the smaller lies
-                        # on the larger's front (docs/queries.md, "Faces lying on faces")
-                        if abs(t - best) <= 1e-9 * t:
-                            big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
-                            now = small if side[big] > 0 else big
-                        elif t < best:
-                            best = t
-                            now = pr
-                memo_slab[e] = slab if solid else -2
-                memo_below[e] = act[q + 1]
-                memo_key[e] = key
-                memo_owner[e] = now
+                vm = 0.5 * (act_v[q] + act_v[q + 1])
+                for c in range(3):
+                    d[c] = fc[c] + um * fa[c] + vm * fb[c]
+                best = np.inf
+                for r in range(n_cover):
+                    pr = cover[r]
+                    dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
+                    if dn == 0.0:
+                        continue
+                    t = -side[pr] / dn
+                    if t <= 0:
+                        continue
+                    # a tie (two faces in one plane, one lying on the other): the smaller lies
+                    # on the larger's front (docs/queries.md, "Faces lying on faces")
+                    if abs(t - best) <= 1e-9 * t:
+                        big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
+                        now = small if side[big] > 0 else big
+                    elif t < best:
+                        best = t
+                        now = pr
             if now != owner:
                 if owner >= 0:
-                    if has_vertical:
-                        seen[col[owner]] += _trapezoid(x, n_i, fa, fb, fc, u0, u1, act_v0[q], act_v1[q], act_v0[top],
-                                                       act_v1[top], p0, p1)
-                    else:
-                        # bottom side left to right, top side right to left; the vertical
-                        # sides cancel between slabs (the owner changes only across edges)
-                        # (a run extended in place, the common case, costs no call)
-                        for k in range(2):
-                            e = act[q] if k == 0 else act[top]
-                            if run_o[e, k] == owner and runs[e, k, 1] == u0:
-                                runs[e, k, 1] = u1
-                            else:
-                                _owner_run(runs, run_o, e, k, owner, u0, u1, seg_a, slope, x, n_i, fa, fb, fc, col,
-                                           seen, p0, p1)
+                    seen[col[owner]] += _trapezoid(x, n_i, fa, fb, fc, u0, u1, act_v0[q], act_v1[q], act_v0[top],
+                                                   act_v1[top], p0, p1)
                 owner = now
                 top = q
         for q in range(n_act):
@@ -1193,6 +1320,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         for e in range(n_seg):
             for k in range(2):
                 if run_o[e, k] >= 0:
+                    runs[e, k, 1] = last_u1
                     _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
     return brk
 

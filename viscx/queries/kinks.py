@@ -46,6 +46,8 @@ discontinuity mesh of a light leaves out, and because a row needs the D1 lines o
 
 import numpy as np
 
+from viscx.arrays import unique_rows
+
 
 def generator_segments(scene):
     """(g, 2, 3) float64: the ends of the scene's generator edges (cached)."""
@@ -152,8 +154,7 @@ def merge_collinear(a, b, centre, scale):
     d *= np.sign(d[np.arange(len(d)), first])[:, None]
     foot = a + np.einsum("kj,kj->k", centre - a, d)[:, None] * d  # the line's point nearest the centre
     key = np.round(np.concatenate([d, (foot - centre) / scale], axis=1) * 1e9).astype(np.int64)
-    _, line = np.unique(key, axis=0, return_inverse=True)
-    line = line.reshape(-1)
+    _, line = unique_rows(key)
     ta, tb = np.einsum("kj,kj->k", a - foot, d), np.einsum("kj,kj->k", b - foot, d)
     t0, t1 = np.minimum(ta, tb), np.maximum(ta, tb)
     order = np.lexsort((t0, line))

@@ -61,8 +61,8 @@ class Dask:
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:
-            raise ViscxError("--scheduler needs dask: pip install 'viscx[dask]' "
-                             "(dask and dask.distributed)") from None
+            raise ParameterError("{scheduler} needs dask: pip install 'viscx[dask]' "
+                                 "(dask and dask.distributed)") from None
         self.cluster = None
         if scheduler == "local":
             n = max(1, int(workers or os.cpu_count() or 1))
@@ -72,7 +72,7 @@ class Dask:
             self.client = Client(self.cluster)
         else:
             if workers is not None:
-                raise ParameterError("{workers} sizes a local cluster (--scheduler local); a running scheduler has "
+                raise ParameterError("{workers} sizes a local cluster ({scheduler} local); a running scheduler has "
                                      "the workers started for it")
             try:
                 self.client = Client(scheduler, timeout="30s")
@@ -136,6 +136,6 @@ def runner(scheduler=None, workers=None):
     """:class:`Dask` for a scheduler (``"local"`` or an address), else :class:`InProcess`."""
     if scheduler is None:
         if workers is not None:
-            raise ParameterError("{workers} sizes the dask cluster of --scheduler local; give --scheduler too")
+            raise ParameterError("{workers} sizes the dask cluster of {scheduler} local; give {scheduler} too")
         return InProcess()
     return Dask(scheduler, workers)

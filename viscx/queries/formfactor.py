@@ -64,7 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.errors import ViscxError
-from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon
+from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
 from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.queries.kinks import kink_segments
@@ -1396,10 +1396,10 @@ def covered_cells(scene, face, side):
 
 def contour_form_factor(loops_i, n_i, loops_j, n_j):
     """Unoccluded F_ij by the double contour integral, with the change between two node
-    sets (10- and 6-point Gauss–Legendre panels) as its error estimate."""
-    value = polygon_to_polygon(loops_i, n_i, loops_j, n_j)
-    coarse = polygon_to_polygon(loops_i, n_i, loops_j, n_j, order=6)
-    return value, abs(value - coarse)
+    sets (10- and 6-point Gauss–Legendre panels) plus a bound on the rounding of its
+    cancelling terms as its error estimate."""
+    (value, coarse), rounding = polygon_to_polygon_orders(loops_i, n_i, loops_j, n_j, (10, 6))
+    return float(value), abs(float(value) - float(coarse)) + rounding
 
 
 

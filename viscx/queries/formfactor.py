@@ -1223,8 +1223,12 @@ class PairSetup:
                 ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
                 return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
+            def live(tri):
+                ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                return (np.diff(ptr) > 0)[:, None]
+
             cub = RowCubature(column)
-            value, error, cells = cub.integrate(tri, np.array([budget]), np.ones((len(tri), 1), bool))
+            value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return float(value[0]), float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
@@ -1674,19 +1678,13 @@ class RowCubature:
 
     def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates; ``live`` (g, R) bool, where
-        an occluder may hide the column (its shaft test). Returns ``value, error`` (R,) and
-        the triangles evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live(tri) -> (g, R) bool``,
+        where an occluder may hide the column (its shaft test). Returns ``value, error``
+        (R,) and the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
         if live is not None:
-            # a shadow the rule's nodes do not see at all: replaced by the 16 grandchildren
-            unseen = np.any(live & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]), axis=1)
-            if np.any(unseen):
-                grand = split4(split4(tri[unseen]).reshape(-1, 3, 3)).reshape(-1, 3, 3)
-                gq, ge = self.rule(grand, width)
-                tri = np.concatenate([tri[~unseen], grand])
-                q, e = np.concatenate([q[~unseen], gq]), np.concatenate([e[~unseen], ge])
+            tri, q, e = self._look_for_shadows(tri, q, e, live, width)
         # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
         K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
         kid_of = np.full(len(tri), -1, np.int64)
@@ -1728,6 +1726,24 @@ class RowCubature:
                 kid_of[live] = np.arange(len(live))
         value, err = self._leaves(q, e, kid_of, kq)
         return value.sum(axis=0), err.sum(axis=0), cells
+
+    def _look_for_shadows(self, tri, q, e, live, width):
+        """The first triangles where an occluder may hide a column (``live``, its shaft
+        test) but the rule's nodes see nothing of it (|Q| + null ≤ 1e-10 × area): a shadow
+        may lie between the nodes. Such a triangle is replaced by its 4 children, and each
+        child whose shaft still meets an occluder of such a column by its own 4 children
+        (the node density of 16 grandchildren where the shadow may be; on the other
+        children the column is exactly 0). Returns the new ``tri, q, e``."""
+        blind = live(tri) & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None])
+        unseen = np.any(blind, axis=1)
+        if not np.any(unseen):
+            return tri, q, e
+        kids = split4(tri[unseen]).reshape(-1, 3, 3)
+        deeper = np.any(live(kids) & np.repeat(blind[unseen], 4, axis=0), axis=1)
+        new = np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
+        nq, ne = self.rule(new, width)
+        return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
+                np.concatenate([e[~unseen], ne]))
 
     @staticmethod
     def _leaves(q, e, kid_of, kq):
@@ -1855,17 +1871,24 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
-    live = np.zeros((len(tri), width), bool)  # an occluder meets the triangle's shaft to the column
+    shafts = []  # (setup, column) of the pairs with occluders
     for target, t, c in targets:
         setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
         if not setup.empty:
             value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
+            if len(setup.occluders):
+                shafts.append((setup, c))
+
+    def live(tri):
+        """(g, width) bool: an occluder meets the triangle's shaft to the column."""
+        out = np.zeros((len(tri), width), bool)
+        for setup, c in shafts:
             k = len(setup.occluders)
-            if k:
-                ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
-                live[:, c] = np.diff(ptr) > 0
+            ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+            out[:, c] = np.diff(ptr) > 0
+        return out
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
     polygons = scene_polygons(scene)

@@ -326,14 +326,30 @@ def no_boxes(n):
     return np.full(n, -1, np.int64), np.zeros(1, np.int64), np.zeros((0, 4))
 
 
+def hull_order(loops2):
+    """(h,) int64: the vertices of the convex hull of 2-D loops (list of (k, 2)),
+    counter-clockwise, as indices into their concatenation. A single loop that is already
+    strictly convex and counter-clockwise (most faces and their clipped parts) is its own
+    hull, without Qhull (whose set-up is most of a pair's set-up time)."""
+    from scipy.spatial import ConvexHull
+
+    if len(loops2) == 1 and len(loops2[0]) >= 3:
+        p = np.asarray(loops2[0], np.float64)
+        e = np.roll(p, -1, axis=0) - p
+        turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+        if np.all(turn > 1e-12 * np.einsum("ij,ij->i", e, e).max()):
+            return np.arange(len(p))
+    return ConvexHull(np.concatenate(loops2)).vertices
+
+
 def convex_outline(loops, normal):
     """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``."""
-    from scipy.spatial import ConvexHull, QhullError
+    from scipy.spatial import QhullError
 
     pts = np.concatenate(loops)
     eu, ev = plane_basis(normal)
     try:
-        return np.ascontiguousarray(pts[ConvexHull(np.stack([pts @ eu, pts @ ev], axis=1)).vertices])
+        return np.ascontiguousarray(pts[hull_order([np.stack([l @ eu, l @ ev], axis=1) for l in loops])])
     except (QhullError, ValueError):
         return np.ascontiguousarray(pts)
 
@@ -1049,8 +1065,6 @@ class PairSetup:
     @functools.cached_property
     def frame(self):
         """J' in a 2-D basis of its plane: ``(origin, eu, ev, j2, j_loop, hull2, hull3)``."""
-        from scipy.spatial import ConvexHull
-
         eu, ev = plane_basis(self.n_t)
         # a generic rotation of the basis: no edge of an axis-aligned scene is vertical in
         # 2-D, so the slab sweep needs no vertical sides (viscx.geometry.occlusion)
@@ -1060,7 +1074,7 @@ class PairSetup:
         j2 = [np.stack([(l - origin) @ eu, (l - origin) @ ev], axis=1) for l in self.J]
         allj = np.ascontiguousarray(np.concatenate(j2))
         j_loop = np.concatenate([[0], np.cumsum([len(l) for l in j2])]).astype(np.int64)
-        h = ConvexHull(allj).vertices  # counter-clockwise in 2-D
+        h = hull_order(j2)  # counter-clockwise in 2-D
         return origin, eu, ev, allj, j_loop, np.ascontiguousarray(allj[h]), np.ascontiguousarray(np.concatenate(self.J)[h])
 
     def kernel_for(self, occluders):

@@ -1591,15 +1591,15 @@ def scene_polygons(scene):
     return scene.cached("formfactor_polygons", build)
 
 
-def worst_leaves(err, total, over, budget):
+def worst_leaves(err, total, over, budget, left=0.5):
     """(g,) bool: for each column in ``over`` (its summed estimate ``total`` above its
     ``budget``), its leaves with the largest estimates (``err`` (g, R)) until what is left
-    of its estimate is half its budget."""
+    of its estimate is ``left`` times its budget."""
     pick = np.zeros(len(err), bool)
     for c in over:
         order = np.argsort(-err[:, c], kind="stable")
         rest = total[c] - np.cumsum(err[order, c])
-        pick[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+        pick[order[:int(np.searchsorted(-rest, -left * budget[c])) + 1]] = True
     return pick
 
 
@@ -1641,6 +1641,13 @@ def row_rules(cubature, tri, width, weights):
     return out
 
 
+#: What :class:`RowCubature` leaves of a column's estimate unrefined in a round, as a
+#: fraction of its budget: a refined leaf's estimate mostly goes (a leaf on its rule
+#: trades its null rule, about a degree-2 rule's error, for |Q − S|, about its degree-5
+#: rule's), so the round stops just under the budget rather than at half of it.
+REFINE_LEFT = 0.9
+
+
 class RowCubature:
     """Adaptive cubature of a vector integrand (one value per receiver column at each point,
     each column with its own budget) over triangles on which every column is C1: the
@@ -1665,8 +1672,9 @@ class RowCubature:
     kink line crosses a leaf. A feature smaller than the nodes' spacing (a small shadow
     lying between them) is what the first split guards against (:func:`start_triangles`),
     and where the columns' shaft tests say an occluder may hide a column on a first
-    triangle whose nodes see nothing of it, that triangle starts at its 16 grandchildren
-    (the node density of three levels, there only; :meth:`integrate`).
+    triangle whose nodes see nothing of it, that triangle starts at its children, and
+    those whose shafts still meet such an occluder at their own children (the node
+    density of three levels, there only; :meth:`_look_for_shadows`).
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
     largest estimates are refined (until what is left is half its budget): a leaf on its
@@ -1710,7 +1718,7 @@ class RowCubature:
             over = np.flatnonzero(total > budget)
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
-            pick = worst_leaves(err, total, over, budget)
+            pick = worst_leaves(err, total, over, budget, REFINE_LEFT)
             deep = kid_of >= 0
             # leaves on their rule only: evaluate their children
             grow = np.flatnonzero(pick & ~deep)

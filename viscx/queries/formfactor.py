@@ -1677,10 +1677,10 @@ class RowCubature:
     density of three levels, there only; :meth:`_look_for_shadows`).
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
-    largest estimates are refined (until what is left is half its budget): a leaf on its
-    rule only gets its children evaluated; a leaf with its children is replaced by them,
-    each on its rule only (nothing evaluated: their rules and null rules are known). A
-    point is evaluated once for all receivers.
+    largest estimates are refined (until what is left is :data:`REFINE_LEFT` of its
+    budget): a leaf on its rule only gets its children evaluated; a leaf with its children
+    is replaced by them, each on its rule only (nothing evaluated: their rules and null
+    rules are known). A point is evaluated once for all receivers.
 
     Parameters
     ----------

@@ -22,6 +22,8 @@ x must be clipped to its front half-space first (:func:`clip_to_hemisphere`).
 
 import numpy as np
 
+from viscx.geometry.polygon import newell_normal
+
 
 def loop_contour_sum(points, normals, loop):
     """Σ Γ_i · n of one closed loop for many receiver points.
@@ -254,7 +256,7 @@ def _oriented(loops, normal):
     for k, loop in enumerate(loops):
         loop = np.asarray(loop)
         loop = loop.astype(np.result_type(loop.dtype, np.float64))  # float64, or wider when given
-        signed = np.cross(loop, np.roll(loop, -1, axis=0)).sum(axis=0) @ normal
+        signed = newell_normal(loop) @ normal  # 2 × its area about the normal (float64)
         if (signed > 0) != (k == 0):
             loop = loop[::-1]
         out.append(loop)
@@ -306,7 +308,7 @@ def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)
             ws.append(w)
             ids.append(np.full(len(s), k))
         x, w, edge = np.concatenate(xs), np.concatenate(ws), np.concatenate(ids)
-        per = np.zeros((len(a0), len(b0)))  # Σ_nodes of a  w ∫_b ln r
+        per = np.zeros((len(a0), len(b0)), x.dtype)  # Σ_nodes of a  w ∫_b ln r
         mag = np.zeros((len(a0), len(b0)))  # Σ_nodes of a  |w| (|G(L − t0)| + |G(−t0)|)
         step = max(1, _BLOCK // max(len(b0), 1))
         for lo in range(0, len(x), step):
@@ -316,7 +318,7 @@ def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)
             starts = np.flatnonzero(np.concatenate([[True], e[1:] != e[:-1]]))  # the nodes run edge by edge
             per[e[starts]] += np.add.reduceat(w[sl, None] * value, starts, axis=0)
             mag[e[starts]] += np.add.reduceat(np.abs(w[sl, None]) * terms, starts, axis=0)
-        out.append(float((cos_ab * per).sum()) / (2 * np.pi * area_i))
+        out.append((cos_ab * per).sum() / (2 * np.pi * area_i))  # float64, or wider when given
         size = max(size, float((np.abs(cos_ab) * mag).sum()) / (2 * np.pi * area_i))
     return np.array(out), 64 * np.finfo(np.float64).eps * size
 

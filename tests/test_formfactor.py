@@ -188,13 +188,13 @@ def test_contour_grading_stops_at_the_distance_to_the_other_polygon(monkeypatch)
     upper = lower + [0, 0, 1]
     wall = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1.0]])
     p, q = upper, np.roll(upper, -1, axis=0)
-    far = gf._knot_levels(lower[:2], p, q, np.array([0.0, 1.0]))
+    far = gf._knot_levels(lower[:2], p, q, np.array([1.0, 1.0]))
     assert far.max() <= 2
-    near = gf._knot_levels(lower[:2], wall, np.roll(wall, -1, axis=0), np.array([0.0, 1.0]))
+    near = gf._knot_levels(lower[:2], wall, np.roll(wall, -1, axis=0), np.array([1.0, 1.0]))
     assert np.all(near == gf.LEVELS)
     for loops in (([lower], [0, 0, 1], [upper], [0, 0, -1]), ([lower], [0, 0, 1], [wall], [0, 1, 0])):
         graded = gf.polygon_to_polygon(*loops)
         with monkeypatch.context() as m:
-            m.setattr(gf, "_knot_levels", lambda points, p, q, knots: np.full(len(knots), gf.LEVELS))
+            m.setattr(gf, "_knot_levels", lambda points, p, q, span: np.full(len(span), gf.LEVELS))
             dense = gf.polygon_to_polygon(*loops)
         assert abs(graded - dense) < 1e-14

@@ -158,49 +158,48 @@ def _graded_nodes(knots, levels, order=10):
 LEVELS = 40
 
 
-def _knot_levels(points, p, q, knots):
-    """(k,) int: the grading levels toward each knot (points (k, 3) on edge a at
-    parameters ``knots``) for the log kernel of the other polygon's edges ``p → q``
-    (nb, 3): the singularities of the outer integrand are where x meets those edges, so
-    a knot at distance D from them needs panels down to D / 4 only (the panel [0, D / 4]
-    is then at least 3 D / 4 from every singularity: Gauss–Legendre converges there as
-    fast as on the panels above it); :data:`LEVELS` where D = 0 (touching polygons)."""
+def _knot_levels(points, p, q, span):
+    """(k,) int: the grading levels toward each knot (points (k, 3) on the edges of i, each
+    with ``span`` (k,), the longer of its two intervals) for the log kernel of the other
+    polygon's edges ``p → q`` (nb, 3): the singularities of the outer integrand are where x
+    meets those edges, so a knot at distance D from them needs panels down to D / 4 only
+    (the panel [0, D / 4] is then at least 3 D / 4 from every singularity: Gauss–Legendre
+    converges there as fast as on the panels above it); :data:`LEVELS` where D = 0
+    (touching polygons)."""
     d = q - p
     dd = np.einsum("ij,ij->i", d, d)
     with np.errstate(divide="ignore", invalid="ignore"):
         s = np.clip(np.where(dd > 0, np.einsum("kij,ij->ki", points[:, None, :] - p[None], d) / dd, 0.0), 0.0, 1.0)
     dist = np.linalg.norm(points[:, None, :] - p[None] - s[..., None] * d[None], axis=2).min(axis=1)
-    gap = np.diff(knots)
-    span = np.maximum(np.concatenate([gap[:1], np.maximum(gap[:-1], gap[1:]), gap[-1:]]), 0.0)  # the longest adjacent interval
     with np.errstate(divide="ignore"):
         need = np.ceil(np.log2(2 * span / dist))
     return np.where(dist > 0, np.clip(np.nan_to_num(need, posinf=LEVELS), 0, LEVELS), LEVELS).astype(np.int64)
 
 
 def _near_cuts(a0, u_a, len_a, p, q):
-    """Parameters on edge a where the other polygon comes close (its vertices' projections
-    and the closest points of its edges, within a quarter of a's length): the places
-    where the inner integral's log kernel is (nearly) singular. ``p, q`` (nb, 3): the
-    other polygon's edges (start, end)."""
+    """Parameters on each edge a of i (``a0, u_a`` (na, 3), ``len_a`` (na,)) where the
+    other polygon comes close (its vertices' projections and the closest points of its
+    edges ``p → q`` (nb, 3), within a quarter of a's length): the places where the inner
+    integral's log kernel is (nearly) singular. ``t, keep`` (na, 2 nb): the parameters and
+    which are cuts."""
+    w0 = p[None] - a0[:, None]  # (na, nb, 3)
     # vertices
-    t = (p - a0) @ u_a
-    dist = np.linalg.norm(p - a0 - t[:, None] * u_a, axis=1)
-    cuts = [t[(dist < 0.25 * len_a) & (t > 0) & (t < len_a)]]
+    t_v = np.einsum("kij,kj->ki", w0, u_a)
+    dist_v = np.linalg.norm(w0 - t_v[..., None] * u_a[:, None], axis=2)
     # closest points of the segments p-q to the line of a (sampled where they cross its neighbourhood)
     d = q - p
-    w0 = p - a0
-    b_ = d @ u_a
-    c_ = np.einsum("ij,ij->i", d, d)
-    d_ = w0 @ u_a
-    e_ = np.einsum("ij,ij->i", d, w0)
+    b_ = u_a @ d.T  # (na, nb)
+    c_ = np.einsum("ij,ij->i", d, d)[None]
+    d_ = t_v
+    e_ = np.einsum("ij,kij->ki", d, w0)
     den = c_ - b_ * b_
     with np.errstate(divide="ignore", invalid="ignore"):
         s = np.clip(np.where(den > 1e-14 * c_, (b_ * d_ - e_) / den, 0.0), 0.0, 1.0)
-    y = p + s[:, None] * d
-    t = (y - a0) @ u_a
-    dist = np.linalg.norm(y - a0 - t[:, None] * u_a, axis=1)
-    cuts.append(t[(dist < 0.25 * len_a) & (t > 0) & (t < len_a)])
-    return np.concatenate(cuts)
+    y = w0 + s[..., None] * d[None]  # relative to a0
+    t_s = np.einsum("kij,kj->ki", y, u_a)
+    dist_s = np.linalg.norm(y - t_s[..., None] * u_a[:, None], axis=2)
+    t, dist = np.concatenate([t_v, t_s], axis=1), np.concatenate([dist_v, dist_s], axis=1)
+    return t, (dist < 0.25 * len_a[:, None]) & (t > 0) & (t < len_a[:, None])
 
 
 def _log_distance_integral(x, start, direction, length):
@@ -295,11 +294,16 @@ def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)
     p = np.concatenate(lj) if lj else np.zeros((0, 3))
     q = np.concatenate([np.roll(l, -1, axis=0) for l in lj]) if lj else np.zeros((0, 3))
     out, size = [], 0.0
-    knots, levels = [], []
+    cut_t, cut = _near_cuts(a0, u_a, len_a, p, q)
+    knots, spans = [], []
     for k in range(len(a0)):
-        t = np.unique(np.concatenate([[0.0, len_a[k]], _near_cuts(a0[k], u_a[k], len_a[k], p, q)]))
+        t = np.unique(np.concatenate([[0.0, len_a[k]], cut_t[k, cut[k]]]))
+        gap = np.diff(t)
         knots.append(t)
-        levels.append(_knot_levels(a0[k] + t[:, None] * u_a[k], p, q, t))
+        spans.append(np.concatenate([gap[:1], np.maximum(gap[:-1], gap[1:]), gap[-1:]]))  # the longer adjacent interval
+    sizes = np.cumsum([len(t) for t in knots])[:-1]
+    points = np.concatenate([a0[k] + t[:, None] * u_a[k] for k, t in enumerate(knots)]) if knots else np.zeros((0, 3))
+    levels = np.split(_knot_levels(points, p, q, np.concatenate(spans) if spans else np.zeros(0)), sizes)
     for order in orders:
         xs, ws, ids = [], [], []
         for k in range(len(a0)):

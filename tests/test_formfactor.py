@@ -141,3 +141,60 @@ def test_polygon_to_polygon_is_the_integral_of_point_to_polygon(rng):
     values = point_to_polygon(points, np.tile(n_i, (k, 1)), [tri_j])
     sigma = values.std() / np.sqrt(k)
     assert abs(values.mean() - exact) < 4 * sigma
+
+
+def _cornell_contour_pair(emitter, side, receiver, side_r):
+    """I' and J' of a Cornell pair as :class:`viscx.queries.formfactor.PairSetup` clips them."""
+    from conftest import SAMPLES
+
+    from viscx.queries import formfactor as ff
+    from viscx.scene import load_scene
+
+    scene = load_scene(SAMPLES / "cornell_box.obj")
+    setup = ff.PairSetup(scene, emitter, side, ff.face_target(scene, receiver), side_r, occluders=False)
+    return setup.I, setup.n_i, setup.J, setup.n_t
+
+
+def test_contour_estimate_covers_its_rounding_near_touching_edges():
+    """Back of the short block's side 8 → floor: I' is clipped to 1e-9 of the scene above
+    the floor's plane (9.6e-7), so its bottom edge runs 1e-6 from the floor's edges' lines.
+    The inner closed form's distance to a line as √(|w|² − t²) lost half the digits there:
+    the value came out 1.03e-8 off for an estimate (10- vs 6-point panels) of 2.7e-9. The
+    same quadrature in 80-bit extended precision is the oracle: the float64 value is within
+    the estimate of it (the perpendicular part's length, and a bound on the rounding of the
+    cancelling terms)."""
+    from viscx.geometry.formfactor import polygon_to_polygon_orders
+    from viscx.queries.formfactor import contour_form_factor
+
+    I, n_i, J, n_j = _cornell_contour_pair(8, -1, 0, 1)
+    assert min(float(np.min(l[:, 1])) for l in I) < 1e-6  # the grazing case
+    value, error = contour_form_factor(I, n_i, J, n_j)
+    wide = [np.asarray(l, np.longdouble) for l in I], [np.asarray(l, np.longdouble) for l in J]
+    (ref,), _ = polygon_to_polygon_orders(wide[0], n_i, wide[1], n_j, (10,))
+    assert np.asarray(ref).dtype == np.longdouble
+    assert abs(value - float(ref)) <= error
+    assert error < 1e-9
+
+
+def test_contour_grading_stops_at_the_distance_to_the_other_polygon(monkeypatch):
+    """The outer nodes are graded toward a knot only down to a quarter of its distance from
+    the other polygon's edges (:func:`viscx.geometry.formfactor._knot_levels`): two unit
+    squares facing each other at distance 1 take a handful of panels per edge instead of 82,
+    and the value is the one with all 40 levels everywhere to 1e-14; touching polygons
+    (perpendicular squares sharing an edge) keep all 40 levels at the shared edge."""
+    from viscx.geometry import formfactor as gf
+
+    lower = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]])
+    upper = lower + [0, 0, 1]
+    wall = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1.0]])
+    p, q = upper, np.roll(upper, -1, axis=0)
+    far = gf._knot_levels(lower[:2], p, q, np.array([1.0, 1.0]))
+    assert far.max() <= 2
+    near = gf._knot_levels(lower[:2], wall, np.roll(wall, -1, axis=0), np.array([1.0, 1.0]))
+    assert np.all(near == gf.LEVELS)
+    for loops in (([lower], [0, 0, 1], [upper], [0, 0, -1]), ([lower], [0, 0, 1], [wall], [0, 1, 0])):
+        graded = gf.polygon_to_polygon(*loops)
+        with monkeypatch.context() as m:
+            m.setattr(gf, "_knot_levels", lambda points, p, q, span: np.full(len(span), gf.LEVELS))
+            dense = gf.polygon_to_polygon(*loops)
+        assert abs(graded - dense) < 1e-14

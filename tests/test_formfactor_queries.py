@@ -12,7 +12,7 @@ from conftest import ROOT, SAMPLES, soup, viscx_in_process
 from oracles import form_factor_monte_carlo
 from test_formfactor import corner_rectangle, parallel_rectangles, perpendicular_rectangles
 
-from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon
+from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon
 from viscx.queries import formfactor as ff
 from viscx.queries.visibility import point_view
 from viscx.scene import build_scene, load_scene
@@ -179,7 +179,7 @@ def test_contact_corners_cut_the_outer_integral(cornell):
     honest at every tolerance."""
     top = cornell.face_loops(5)[0]
     foot = top * [1, 0, 1]
-    exact = ff.polygon_to_polygon([foot], [0, 1, 0], [top], [0, -1, 0]) * cornell.face_area[5] / cornell.face_area[0]
+    exact = polygon_to_polygon([foot], [0, 1, 0], [top], [0, -1, 0]) * cornell.face_area[5] / cornell.face_area[0]
     for tol in (1e-4, 1e-6, 1e-8):
         r = ff.pair_form_factor(cornell, 0, 1, ff.face_target(cornell, 5), -1, tol=tol)
         assert r.method == "quadrature"

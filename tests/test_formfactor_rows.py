@@ -224,3 +224,22 @@ def test_a_sliver_slab_does_not_hand_a_wrong_owner_on(cornell):
     side = 1 if cornell.face_normal[15][1] < 0 else -1
     h = views(cornell, 15, side, pts)
     assert_columns_equal_pairs(cornell, 15, pts, h, side=side)
+
+
+def test_hull_order_of_a_convex_loop_is_qhulls(rng):
+    """The pairs' hulls (:func:`viscx.queries.formfactor.hull_order`): a single strictly
+    convex counter-clockwise loop is its own hull (no Qhull); a clockwise, non-convex or
+    holed one goes to Qhull; both give the same hull (as a cyclic sequence)."""
+    from scipy.spatial import ConvexHull
+
+    for k in (3, 4, 7):
+        angles = np.sort(rng.uniform(0, 2 * np.pi, k))
+        loop = np.stack([np.cos(angles), 2 * np.sin(angles)], axis=1) + rng.normal(size=2)
+        fast = ff.hull_order([loop])
+        assert list(fast) == list(range(k))
+        qh = list(ConvexHull(loop).vertices)
+        assert qh == list(fast[qh[0]:]) + list(fast[:qh[0]])
+        cw = ff.hull_order([loop[::-1]])  # clockwise: Qhull, counter-clockwise again
+        assert sorted(cw) == list(range(k)) and list(cw) == list(ConvexHull(loop[::-1]).vertices)
+    dent = np.array([[0, 0], [2, 0], [1, 0.5], [2, 2], [0, 2.0]])  # not convex: vertex 2 is not on the hull
+    assert sorted(ff.hull_order([dent])) == [0, 1, 3, 4]

@@ -260,3 +260,35 @@ def test_segments_meeting_a_box(rng):
     clear = np.abs(inside - eps) > 4e-3  # away from the threshold, where sampling decides
     assert np.array_equal(got[clear], inside[clear] > eps)
     assert 50 < got.sum() < 350
+
+
+def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
+    """A first triangle whose nodes see nothing of a column that an occluder may hide there
+    is replaced by its 4 children, and only the children whose shafts still meet an
+    occluder of that column by their own 4 (the 16 grandchildren's node density where the
+    shadow may be, none elsewhere: the column is exactly 0 there). A small shadow (a disc
+    of radius 0.03 between the nodes of the triangle, inside one of its children): that
+    child's 4 children and the 3 other children are evaluated, 7 triangles instead of 16,
+    and their rules see it."""
+    centre, radius = np.array([0.25, 0.05, 0.0]), 0.03
+
+    def integrand(points, tri=None):
+        return (np.linalg.norm(points - centre, axis=1) < radius).astype(np.float64)[:, None]
+
+    def live(tri):
+        # the disc meets the triangle: its centre inside, or an edge within the radius (sampled)
+        t = np.linspace(0, 1, 201)
+        edges = [tri[:, k, None] + t[None, :, None] * (tri[:, (k + 1) % 3, None] - tri[:, k, None]) for k in range(3)]
+        near = np.min([np.linalg.norm(e - centre, axis=2).min(axis=1) for e in edges], axis=0) < radius
+        side = [np.cross(tri[:, (k + 1) % 3] - tri[:, k], centre - tri[:, k])[:, 2] for k in range(3)]
+        inside = np.all(np.array(side) > 0, axis=0)
+        return (near | inside)[:, None]
+
+    tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    cub = ff.RowCubature(integrand)
+    q, e = cub.rule(tri, 1)
+    assert q[0, 0] == 0.0 and e[0, 0] == 0.0 and live(tri)[0, 0]  # the nodes miss it
+    new, nq, _ = cub._look_for_shadows(tri, q, e, live, 1)
+    assert len(new) == 3 + 4
+    assert nq.sum() > 0  # seen now
+    assert np.allclose(ff.triangle_areas(new).sum(), 0.5)

@@ -22,6 +22,8 @@ x must be clipped to its front half-space first (:func:`clip_to_hemisphere`).
 
 import numpy as np
 
+from viscx.geometry.polygon import newell_normal
+
 
 def loop_contour_sum(points, normals, loop):
     """Σ Γ_i · n of one closed loop for many receiver points.
@@ -121,65 +123,108 @@ def clip_to_hemisphere(loop, point, normal):
 _GL = {n: np.polynomial.legendre.leggauss(n) for n in (6, 10)}
 
 
-def _graded_nodes(length, levels=40, order=10, cuts=()):
-    """Quadrature nodes and weights on [0, length], refined geometrically toward both ends
-    and toward every interior cut (where the integrand may be singular)."""
+def _grade(levels):
+    """(levels + 2,) float: panel ends on [0, 1/2], halving toward 0 ``levels`` times
+    (0, 2^-(levels+1), …, 1/4, 1/2)."""
+    return np.concatenate([[0.0], 0.5 ** np.arange(levels + 1, 1, -1), [0.5]])
+
+
+def _graded_nodes(knots, levels, order=10):
+    """Quadrature nodes and weights on [knots[0], knots[-1]]: Gauss–Legendre panels on each
+    interval between consecutive knots, refined geometrically toward both its ends, toward
+    knot k ``levels[k]`` times (where the integrand may be singular: the ends of the edge
+    and every interior cut; a knot far from the other polygon needs fewer levels, see
+    :func:`_knot_levels`). Intervals shorter than 1e-14 of the whole are skipped."""
     x_gl, w_gl = _GL[order]
-    knots = np.unique(np.concatenate([[0.0, length], np.asarray(cuts, dtype=np.float64)]))
-    grade = np.concatenate([[0.0], 0.5 ** np.arange(levels, 0, -1) / 2, [0.5], 1 - 0.5 ** np.arange(1, levels + 1) / 2, [1.0]])
-    a0, b0 = knots[:-1], knots[1:]
-    keep = b0 - a0 > 1e-14 * length
-    a0, b0 = a0[keep], b0[keep]
-    edges = a0[:, None] + (b0 - a0)[:, None] * grade[None, :]
-    a, b = edges[:, :-1].ravel(), edges[:, 1:].ravel()
+    a, b = [], []
+    span = knots[-1] - knots[0]
+    for k in range(len(knots) - 1):
+        lo, hi = knots[k], knots[k + 1]
+        if hi - lo <= 1e-14 * span:
+            continue
+        g = np.concatenate([_grade(levels[k]), 1 - _grade(levels[k + 1])[-2::-1]])
+        ends = lo + (hi - lo) * g
+        a.append(ends[:-1])
+        b.append(ends[1:])
+    a, b = np.concatenate(a), np.concatenate(b)
     half = (b - a) / 2
     nodes = (a + half)[:, None] + half[:, None] * x_gl[None, :]
     weights = half[:, None] * w_gl[None, :]
     return nodes.ravel(), weights.ravel()
 
 
-def _near_cuts(a0, u_a, len_a, loops_j):
-    """Parameters on edge a where the other polygon comes close (its vertices' projections
-    and the closest points of its edges, within a quarter of a's length): the places
-    where the inner integral's log kernel is (nearly) singular."""
-    cuts = []
-    for loop in loops_j:
-        p = np.asarray(loop, dtype=np.float64)
-        q = np.roll(p, -1, axis=0)
-        # vertices
-        t = (p - a0) @ u_a
-        dist = np.linalg.norm(p - a0 - t[:, None] * u_a, axis=1)
-        cuts.append(t[(dist < 0.25 * len_a) & (t > 0) & (t < len_a)])
-        # closest points of the segments p-q to the line of a (sampled where they cross its neighbourhood)
-        d = q - p
-        w0 = p - a0
-        b_ = d @ u_a
-        c_ = np.einsum("ij,ij->i", d, d)
-        d_ = w0 @ u_a
-        e_ = np.einsum("ij,ij->i", d, w0)
-        den = c_ - b_ * b_
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = np.clip(np.where(den > 1e-14 * c_, (b_ * d_ - e_) / den, 0.0), 0.0, 1.0)
-        y = p + s[:, None] * d
-        t = (y - a0) @ u_a
-        dist = np.linalg.norm(y - a0 - t[:, None] * u_a, axis=1)
-        cuts.append(t[(dist < 0.25 * len_a) & (t > 0) & (t < len_a)])
-    return np.concatenate(cuts) if cuts else np.zeros(0)
+#: Most levels of the geometric grading toward a knot (an edge's end, a cut): the
+#: smallest panel is 2^-41 of the interval where the polygons touch there.
+LEVELS = 40
+
+
+def _knot_levels(points, p, q, span):
+    """(k,) int: the grading levels toward each knot (points (k, 3) on the edges of i, each
+    with ``span`` (k,), the longer of its two intervals) for the log kernel of the other
+    polygon's edges ``p → q`` (nb, 3): the singularities of the outer integrand are where x
+    meets those edges, so a knot at distance D from them needs panels down to D / 4 only
+    (the panel [0, D / 4] is then at least 3 D / 4 from every singularity: Gauss–Legendre
+    converges there as fast as on the panels above it); :data:`LEVELS` where D = 0
+    (touching polygons)."""
+    d = q - p
+    dd = np.einsum("ij,ij->i", d, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.clip(np.where(dd > 0, np.einsum("kij,ij->ki", points[:, None, :] - p[None], d) / dd, 0.0), 0.0, 1.0)
+    dist = np.linalg.norm(points[:, None, :] - p[None] - s[..., None] * d[None], axis=2).min(axis=1)
+    with np.errstate(divide="ignore"):
+        need = np.ceil(np.log2(2 * span / dist))
+    return np.where(dist > 0, np.clip(np.nan_to_num(need, posinf=LEVELS), 0, LEVELS), LEVELS).astype(np.int64)
+
+
+def _near_cuts(a0, u_a, len_a, p, q):
+    """Parameters on each edge a of i (``a0, u_a`` (na, 3), ``len_a`` (na,)) where the
+    other polygon comes close (its vertices' projections and the closest points of its
+    edges ``p → q`` (nb, 3), within a quarter of a's length): the places where the inner
+    integral's log kernel is (nearly) singular. ``t, keep`` (na, 2 nb): the parameters and
+    which are cuts."""
+    w0 = p[None] - a0[:, None]  # (na, nb, 3)
+    # vertices
+    t_v = np.einsum("kij,kj->ki", w0, u_a)
+    dist_v = np.linalg.norm(w0 - t_v[..., None] * u_a[:, None], axis=2)
+    # closest points of the segments p-q to the line of a (sampled where they cross its neighbourhood)
+    d = q - p
+    b_ = u_a @ d.T  # (na, nb)
+    c_ = np.einsum("ij,ij->i", d, d)[None]
+    d_ = t_v
+    e_ = np.einsum("ij,kij->ki", d, w0)
+    den = c_ - b_ * b_
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.clip(np.where(den > 1e-14 * c_, (b_ * d_ - e_) / den, 0.0), 0.0, 1.0)
+    y = w0 + s[..., None] * d[None]  # relative to a0
+    t_s = np.einsum("kij,kj->ki", y, u_a)
+    dist_s = np.linalg.norm(y - t_s[..., None] * u_a[:, None], axis=2)
+    t, dist = np.concatenate([t_v, t_s], axis=1), np.concatenate([dist_v, dist_s], axis=1)
+    return t, (dist < 0.25 * len_a[:, None]) & (t > 0) & (t < len_a[:, None])
 
 
 def _log_distance_integral(x, start, direction, length):
-    """∫_0^length ln |x - (start + t direction)| dt for points x, closed form.
+    """∫_0^length ln |x - (start + t direction)| dt for points x and segments, closed form,
+    every point against every segment.
 
     Parameters
     ----------
     x : (m, 3) float
-    start, direction : (3,) float
-        Segment start and unit direction.
-    length : float
+    start, direction : (k, 3) float
+        Segment starts and unit directions.
+    length : (k,) float
+
+    Returns
+    -------
+    value, size : (m, k) float
+        The integrals and the magnitude of the two terms they are the difference of
+        (what their rounding error scales with).
     """
-    w = x - start
-    t0 = w @ direction
-    h = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - t0 * t0, 0.0))
+    w = x[:, None, :] - start[None, :, :]
+    t0 = np.einsum("mkj,kj->mk", w, direction)
+    # the distance to the line as the length of w's perpendicular part (√(|w|² − t0²)
+    # loses half the digits where x is close to the line: edges at 1e-6 above the other
+    # polygon's plane, as a block's side clipped at the floor)
+    h = np.linalg.norm(w - t0[..., None] * direction[None, :, :], axis=2)
 
     def G(y):
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -187,16 +232,99 @@ def _log_distance_integral(x, start, direction, length):
             atan_term = np.where(h > 0, h * np.arctan(y / np.where(h > 0, h, 1.0)), 0.0)
         return 0.5 * log_term - y + atan_term
 
-    return G(length - t0) - G(-t0)
+    g1, g0 = G(length[None, :] - t0), G(-t0)
+    return g1 - g0, np.abs(g1) + np.abs(g0)
 
 
 def _edges(loops):
-    """(start, unit direction, length) of every non-degenerate edge of some loops."""
-    for loop in loops:
-        for a, b in zip(loop, np.roll(loop, -1, axis=0)):
-            length = np.linalg.norm(b - a)
-            if length > 0:
-                yield a, (b - a) / length, length
+    """(start (k, 3), unit direction (k, 3), length (k,)) of every non-degenerate edge of
+    some loops."""
+    if not loops:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
+    a = np.concatenate([np.asarray(l, dtype=np.float64) for l in loops])
+    b = np.concatenate([np.roll(np.asarray(l, dtype=np.float64), -1, axis=0) for l in loops])
+    length = np.linalg.norm(b - a, axis=1)
+    keep = length > 0
+    return a[keep], (b - a)[keep] / length[keep, None], length[keep]
+
+
+def _oriented(loops, normal):
+    """Outer loop counter-clockwise about the normal, holes the other way round; and the
+    area they enclose."""
+    out, area = [], 0.0
+    for k, loop in enumerate(loops):
+        loop = np.asarray(loop)
+        loop = loop.astype(np.result_type(loop.dtype, np.float64))  # float64, or wider when given
+        signed = newell_normal(loop) @ normal  # 2 × its area about the normal (float64)
+        if (signed > 0) != (k == 0):
+            loop = loop[::-1]
+        out.append(loop)
+        area += abs(signed) / 2 * (1 if k == 0 else -1)
+    return out, area
+
+
+#: Points of the outer contour integral per block of (point, edge of j) pairs: bounds the
+#: memory of one evaluation of the inner closed forms.
+_BLOCK = 200_000
+
+
+def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)):
+    """:func:`polygon_to_polygon` with each Gauss–Legendre order of ``orders`` on the same
+    graded panels, and a bound on their rounding errors. Every node of every edge of i meets every edge of j
+    at once (numpy, in blocks of :data:`_BLOCK` pairs).
+
+    Σ_a Σ_b cos(u_a, u_b) ∫_a ∫_b ln r: the inner integrals in closed form at the outer
+    nodes, summed per edge a with its weights, then over the pairs of edges that are not
+    perpendicular (those contribute nothing). The terms cancel (the integrals of ln r are
+    ~ length × ln(size) each, F A_i their small sum): the rounding bound is 64 ε times the
+    sum of their magnitudes (/ 2π A_i).
+
+    Returns
+    -------
+    values : (len(orders),) float64
+    rounding : float
+    """
+    normal_i, normal_j = np.asarray(normal_i, dtype=np.float64), np.asarray(normal_j, dtype=np.float64)
+    li, area_i = _oriented(loops_i, normal_i)
+    lj, _ = _oriented(loops_j, normal_j)
+    a0, u_a, len_a = _edges(li)
+    b0, u_b, len_b = _edges(lj)
+    cos_ab = u_a @ u_b.T  # (na, nb)
+    cos_ab = np.where(np.abs(cos_ab) > 1e-15, cos_ab, 0.0)  # perpendicular edges contribute nothing
+    p = np.concatenate(lj) if lj else np.zeros((0, 3))
+    q = np.concatenate([np.roll(l, -1, axis=0) for l in lj]) if lj else np.zeros((0, 3))
+    out, size = [], 0.0
+    cut_t, cut = _near_cuts(a0, u_a, len_a, p, q)
+    knots, spans = [], []
+    for k in range(len(a0)):
+        t = np.unique(np.concatenate([[0.0, len_a[k]], cut_t[k, cut[k]]]))
+        gap = np.diff(t)
+        knots.append(t)
+        spans.append(np.concatenate([gap[:1], np.maximum(gap[:-1], gap[1:]), gap[-1:]]))  # the longer adjacent interval
+    sizes = np.cumsum([len(t) for t in knots])[:-1]
+    points = np.concatenate([a0[k] + t[:, None] * u_a[k] for k, t in enumerate(knots)]) if knots else np.zeros((0, 3))
+    levels = np.split(_knot_levels(points, p, q, np.concatenate(spans) if spans else np.zeros(0)), sizes)
+    for order in orders:
+        xs, ws, ids = [], [], []
+        for k in range(len(a0)):
+            s, w = _graded_nodes(knots[k], levels[k], order)
+            xs.append(a0[k] + s[:, None] * u_a[k])
+            ws.append(w)
+            ids.append(np.full(len(s), k))
+        x, w, edge = np.concatenate(xs), np.concatenate(ws), np.concatenate(ids)
+        per = np.zeros((len(a0), len(b0)), x.dtype)  # Σ_nodes of a  w ∫_b ln r
+        mag = np.zeros((len(a0), len(b0)))  # Σ_nodes of a  |w| (|G(L − t0)| + |G(−t0)|)
+        step = max(1, _BLOCK // max(len(b0), 1))
+        for lo in range(0, len(x), step):
+            sl = slice(lo, lo + step)
+            value, terms = _log_distance_integral(x[sl], b0, u_b, len_b)
+            e = edge[sl]
+            starts = np.flatnonzero(np.concatenate([[True], e[1:] != e[:-1]]))  # the nodes run edge by edge
+            per[e[starts]] += np.add.reduceat(w[sl, None] * value, starts, axis=0)
+            mag[e[starts]] += np.add.reduceat(np.abs(w[sl, None]) * terms, starts, axis=0)
+        out.append((cos_ab * per).sum() / (2 * np.pi * area_i))  # float64, or wider when given
+        size = max(size, float((np.abs(cos_ab) * mag).sum()) / (2 * np.pi * area_i))
+    return np.array(out), 64 * np.finfo(np.float64).eps * size
 
 
 def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j, order=10):
@@ -217,27 +345,4 @@ def polygon_to_polygon(loops_i, normal_i, loops_j, normal_j, order=10):
     -------
     float
     """
-
-    def oriented(loops, normal):
-        # outer loop counter-clockwise about the normal, holes the other way round
-        out = []
-        for k, loop in enumerate(loops):
-            loop = np.asarray(loop, dtype=np.float64)
-            area = np.cross(loop, np.roll(loop, -1, axis=0)).sum(axis=0) @ normal
-            if (area > 0) != (k == 0):
-                loop = loop[::-1]
-            out.append(loop)
-        return out
-
-    li = oriented(loops_i, np.asarray(normal_i, dtype=np.float64))
-    lj = oriented(loops_j, np.asarray(normal_j, dtype=np.float64))
-    area_i = sum(abs(np.cross(l, np.roll(l, -1, axis=0)).sum(axis=0) @ normal_i) / 2 * (1 if k == 0 else -1) for k, l in enumerate(li))
-    total = 0.0
-    for a0, u_a, len_a in _edges(li):
-        s, w = _graded_nodes(len_a, order=order, cuts=_near_cuts(a0, u_a, len_a, lj))
-        x = a0 + s[:, None] * u_a
-        for b0, u_b, len_b in _edges(lj):
-            cos_ab = u_a @ u_b
-            if abs(cos_ab) > 1e-15:  # perpendicular edges contribute nothing
-                total += cos_ab * (w @ _log_distance_integral(x, b0, u_b, len_b))
-    return total / (2 * np.pi * area_i)
+    return float(polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, (order,))[0][0])

@@ -21,7 +21,13 @@ def newell_normal(points):
     """
     p = np.asarray(points, dtype=np.float64)
     q = np.roll(p, -1, axis=0)
-    return np.cross(p, q).sum(axis=0)
+    # p × q by components, the same operations as np.cross (bit-identical), without its
+    # axis handling, which costs more than the products on the short loops of faces
+    c = np.empty_like(p)
+    c[:, 0] = p[:, 1] * q[:, 2] - p[:, 2] * q[:, 1]
+    c[:, 1] = p[:, 2] * q[:, 0] - p[:, 0] * q[:, 2]
+    c[:, 2] = p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]
+    return c.sum(axis=0)
 
 
 def plane_basis(normal):
@@ -33,9 +39,15 @@ def plane_basis(normal):
     """
     n = np.asarray(normal, dtype=np.float64)
     helper = np.eye(3)[np.argmin(np.abs(n))]
-    u = np.cross(helper, n)
+    u = _cross3(helper, n)
     u /= np.linalg.norm(u)
-    return u, np.cross(n, u)
+    return u, _cross3(n, u)
+
+
+def _cross3(a, b):
+    """(3,) float64: a × b of two 3-vectors, the same operations as np.cross (bit-identical)
+    without its axis handling (plane_basis runs once per face, pair and row)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def signed_area_2d(points):

@@ -64,7 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viscx.errors import ViscxError
-from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon
+from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
 from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.queries.kinks import kink_segments
@@ -326,14 +326,30 @@ def no_boxes(n):
     return np.full(n, -1, np.int64), np.zeros(1, np.int64), np.zeros((0, 4))
 
 
+def hull_order(loops2):
+    """(h,) int64: the vertices of the convex hull of 2-D loops (list of (k, 2)),
+    counter-clockwise, as indices into their concatenation. A single loop that is already
+    strictly convex and counter-clockwise (most faces and their clipped parts) is its own
+    hull, without Qhull (whose set-up is most of a pair's set-up time)."""
+    from scipy.spatial import ConvexHull
+
+    if len(loops2) == 1 and len(loops2[0]) >= 3:
+        p = np.asarray(loops2[0], np.float64)
+        e = np.roll(p, -1, axis=0) - p
+        turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+        if np.all(turn > 1e-12 * np.einsum("ij,ij->i", e, e).max()):
+            return np.arange(len(p))
+    return ConvexHull(np.concatenate(loops2)).vertices
+
+
 def convex_outline(loops, normal):
     """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``."""
-    from scipy.spatial import ConvexHull, QhullError
+    from scipy.spatial import QhullError
 
     pts = np.concatenate(loops)
     eu, ev = plane_basis(normal)
     try:
-        return np.ascontiguousarray(pts[ConvexHull(np.stack([pts @ eu, pts @ ev], axis=1)).vertices])
+        return np.ascontiguousarray(pts[hull_order([np.stack([l @ eu, l @ ev], axis=1) for l in loops])])
     except (QhullError, ValueError):
         return np.ascontiguousarray(pts)
 
@@ -1049,8 +1065,6 @@ class PairSetup:
     @functools.cached_property
     def frame(self):
         """J' in a 2-D basis of its plane: ``(origin, eu, ev, j2, j_loop, hull2, hull3)``."""
-        from scipy.spatial import ConvexHull
-
         eu, ev = plane_basis(self.n_t)
         # a generic rotation of the basis: no edge of an axis-aligned scene is vertical in
         # 2-D, so the slab sweep needs no vertical sides (viscx.geometry.occlusion)
@@ -1060,7 +1074,7 @@ class PairSetup:
         j2 = [np.stack([(l - origin) @ eu, (l - origin) @ ev], axis=1) for l in self.J]
         allj = np.ascontiguousarray(np.concatenate(j2))
         j_loop = np.concatenate([[0], np.cumsum([len(l) for l in j2])]).astype(np.int64)
-        h = ConvexHull(allj).vertices  # counter-clockwise in 2-D
+        h = hull_order(j2)  # counter-clockwise in 2-D
         return origin, eu, ev, allj, j_loop, np.ascontiguousarray(allj[h]), np.ascontiguousarray(np.concatenate(self.J)[h])
 
     def kernel_for(self, occluders):
@@ -1223,8 +1237,12 @@ class PairSetup:
                 ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
                 return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
+            def live(tri):
+                ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                return (np.diff(ptr) > 0)[:, None]
+
             cub = RowCubature(column)
-            value, error, cells = cub.integrate(tri, np.array([budget]), np.ones((len(tri), 1), bool))
+            value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return float(value[0]), float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
@@ -1396,10 +1414,10 @@ def covered_cells(scene, face, side):
 
 def contour_form_factor(loops_i, n_i, loops_j, n_j):
     """Unoccluded F_ij by the double contour integral, with the change between two node
-    sets (10- and 6-point Gauss–Legendre panels) as its error estimate."""
-    value = polygon_to_polygon(loops_i, n_i, loops_j, n_j)
-    coarse = polygon_to_polygon(loops_i, n_i, loops_j, n_j, order=6)
-    return value, abs(value - coarse)
+    sets (10- and 6-point Gauss–Legendre panels) plus a bound on the rounding of its
+    cancelling terms as its error estimate."""
+    (value, coarse), rounding = polygon_to_polygon_orders(loops_i, n_i, loops_j, n_j, (10, 6))
+    return float(value), abs(float(value) - float(coarse)) + rounding
 
 
 
@@ -1573,15 +1591,15 @@ def scene_polygons(scene):
     return scene.cached("formfactor_polygons", build)
 
 
-def worst_leaves(err, total, over, budget):
+def worst_leaves(err, total, over, budget, left=0.5):
     """(g,) bool: for each column in ``over`` (its summed estimate ``total`` above its
     ``budget``), its leaves with the largest estimates (``err`` (g, R)) until what is left
-    of its estimate is half its budget."""
+    of its estimate is ``left`` times its budget."""
     pick = np.zeros(len(err), bool)
     for c in over:
         order = np.argsort(-err[:, c], kind="stable")
         rest = total[c] - np.cumsum(err[order, c])
-        pick[order[:int(np.searchsorted(-rest, -0.5 * budget[c])) + 1]] = True
+        pick[order[:int(np.searchsorted(-rest, -left * budget[c])) + 1]] = True
     return pick
 
 
@@ -1623,6 +1641,13 @@ def row_rules(cubature, tri, width, weights):
     return out
 
 
+#: What :class:`RowCubature` leaves of a column's estimate unrefined in a round, as a
+#: fraction of its budget: a refined leaf's estimate mostly goes (a leaf on its rule
+#: trades its null rule, about a degree-2 rule's error, for |Q − S|, about its degree-5
+#: rule's), so the round stops just under the budget rather than at half of it.
+REFINE_LEFT = 0.9
+
+
 class RowCubature:
     """Adaptive cubature of a vector integrand (one value per receiver column at each point,
     each column with its own budget) over triangles on which every column is C1: the
@@ -1647,14 +1672,15 @@ class RowCubature:
     kink line crosses a leaf. A feature smaller than the nodes' spacing (a small shadow
     lying between them) is what the first split guards against (:func:`start_triangles`),
     and where the columns' shaft tests say an occluder may hide a column on a first
-    triangle whose nodes see nothing of it, that triangle starts at its 16 grandchildren
-    (the node density of three levels, there only; :meth:`integrate`).
+    triangle whose nodes see nothing of it, that triangle starts at its children, and
+    those whose shafts still meet such an occluder at their own children (the node
+    density of three levels, there only; :meth:`_look_for_shadows`).
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
-    largest estimates are refined (until what is left is half its budget): a leaf on its
-    rule only gets its children evaluated; a leaf with its children is replaced by them,
-    each on its rule only (nothing evaluated: their rules and null rules are known). A
-    point is evaluated once for all receivers.
+    largest estimates are refined (until what is left is :data:`REFINE_LEFT` of its
+    budget): a leaf on its rule only gets its children evaluated; a leaf with its children
+    is replaced by them, each on its rule only (nothing evaluated: their rules and null
+    rules are known). A point is evaluated once for all receivers.
 
     Parameters
     ----------
@@ -1674,19 +1700,13 @@ class RowCubature:
 
     def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates; ``live`` (g, R) bool, where
-        an occluder may hide the column (its shaft test). Returns ``value, error`` (R,) and
-        the triangles evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live(tri) -> (g, R) bool``,
+        where an occluder may hide the column (its shaft test). Returns ``value, error``
+        (R,) and the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
         if live is not None:
-            # a shadow the rule's nodes do not see at all: replaced by the 16 grandchildren
-            unseen = np.any(live & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]), axis=1)
-            if np.any(unseen):
-                grand = split4(split4(tri[unseen]).reshape(-1, 3, 3)).reshape(-1, 3, 3)
-                gq, ge = self.rule(grand, width)
-                tri = np.concatenate([tri[~unseen], grand])
-                q, e = np.concatenate([q[~unseen], gq]), np.concatenate([e[~unseen], ge])
+            tri, q, e = self._look_for_shadows(tri, q, e, live, width)
         # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
         K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
         kid_of = np.full(len(tri), -1, np.int64)
@@ -1698,7 +1718,7 @@ class RowCubature:
             over = np.flatnonzero(total > budget)
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
-            pick = worst_leaves(err, total, over, budget)
+            pick = worst_leaves(err, total, over, budget, REFINE_LEFT)
             deep = kid_of >= 0
             # leaves on their rule only: evaluate their children
             grow = np.flatnonzero(pick & ~deep)
@@ -1728,6 +1748,24 @@ class RowCubature:
                 kid_of[live] = np.arange(len(live))
         value, err = self._leaves(q, e, kid_of, kq)
         return value.sum(axis=0), err.sum(axis=0), cells
+
+    def _look_for_shadows(self, tri, q, e, live, width):
+        """The first triangles where an occluder may hide a column (``live``, its shaft
+        test) but the rule's nodes see nothing of it (|Q| + null ≤ 1e-10 × area): a shadow
+        may lie between the nodes. Such a triangle is replaced by its 4 children, and each
+        child whose shaft still meets an occluder of such a column by its own 4 children
+        (the node density of 16 grandchildren where the shadow may be; on the other
+        children the column is exactly 0). Returns the new ``tri, q, e``."""
+        blind = live(tri) & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None])
+        unseen = np.any(blind, axis=1)
+        if not np.any(unseen):
+            return tri, q, e
+        kids = split4(tri[unseen]).reshape(-1, 3, 3)
+        deeper = np.any(live(kids) & np.repeat(blind[unseen], 4, axis=0), axis=1)
+        new = np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
+        nq, ne = self.rule(new, width)
+        return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
+                np.concatenate([e[~unseen], ne]))
 
     @staticmethod
     def _leaves(q, e, kid_of, kq):
@@ -1855,17 +1893,24 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     f0, e0 = np.zeros(width), np.zeros(width)
     targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
-    live = np.zeros((len(tri), width), bool)  # an occluder meets the triangle's shaft to the column
+    shafts = []  # (setup, column) of the pairs with occluders
     for target, t, c in targets:
         setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
         if not setup.empty:
             value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
+            if len(setup.occluders):
+                shafts.append((setup, c))
+
+    def live(tri):
+        """(g, width) bool: an occluder meets the triangle's shaft to the column."""
+        out = np.zeros((len(tri), width), bool)
+        for setup, c in shafts:
             k = len(setup.occluders)
-            if k:
-                ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
-                live[:, c] = np.diff(ptr) > 0
+            ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+            out[:, c] = np.diff(ptr) > 0
+        return out
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
     polygons = scene_polygons(scene)

@@ -978,7 +978,8 @@ def _kept(sure, act_v0, act_v1, q):
 
 @njit(cache=True)
 def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
-                   side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1):
+                   side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w,
+                   runs, run_o):
     """Add to ``seen`` the visible part of every polygon through one face of the hemicube
     around x (the frustum ``planes`` through x, inward normals): each polygon clipped to the
     frustum and projected centrally on the face's plane, the slab sweep of
@@ -994,7 +995,11 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     sliver between coincident edges, thinner than ``MEMO_GAP``, is searched again). An
     edge's runs (its owner above on side 0, below on side 1) stay open while its neighbouring
     owners do and are summed (Lambert) once, when they change or the edge ends. With a
-    vertical edge, every slab is swept whole and summed as trapezoids."""
+    vertical edge, every slab is swept whole and summed as trapezoids.
+
+    ``fw`` (8, e) float64, ``iw`` (13, e) int64, ``key_w`` (e,) uint64, ``runs`` (e, 2, 2)
+    float64 and ``run_o`` (e, 2) int64 are work arrays (allocated once per :func:`point_views`
+    call), e at least the number of projected edges."""
     n_seg = 0
     for L in range(loop_lo.shape[0]):
         p = loop_poly[L]
@@ -1020,8 +1025,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         return brk
     # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
     n_brk = 0
-    lo_u = np.empty(n_seg)
-    hi_u = np.empty(n_seg)
+    lo_u, hi_u = fw[0], fw[1]
     for e in range(n_seg):
         if seg_a[e, 0] > seg_b[e, 0]:
             seg_w[e] = 1
@@ -1037,10 +1041,9 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     # crossings of edges of different polygons: edges by their left ends, each against the
     # ones starting before it ends (their u and v ranges, polygon and weight copied in that
     # order first: the inner loop reads consecutive memory)
-    by_lo = np.argsort(lo_u)
-    s_lo, s_hi = np.empty(n_seg), np.empty(n_seg)
-    s_vlo, s_vhi = np.empty(n_seg), np.empty(n_seg)
-    s_p = np.empty(n_seg, np.int64)  # -1: a vertical edge (no crossing counted)
+    by_lo = np.argsort(lo_u[:n_seg])
+    s_lo, s_hi, s_vlo, s_vhi = fw[2], fw[3], fw[4], fw[5]
+    s_p = iw[0]  # -1: a vertical edge (no crossing counted)
     for r in range(n_seg):
         e = by_lo[r]
         s_lo[r], s_hi[r] = lo_u[e], hi_u[e]
@@ -1060,51 +1063,45 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             # v ranges apart: no crossing (the common case, tested before the call)
             if vhi < s_vlo[r2] or s_vhi[r2] < vlo:
                 continue
-            if _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
-                continue
             u = _crossing_u(seg_a, seg_b, by_lo[r], by_lo[r2])
-            if u == u:
+            if u == u and not _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
                 brk = _grow(brk, n_brk)
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     n_brk = _snap_breaks(us, n_brk, SNAP)
     has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
-    slope = np.empty(n_seg)
+    slope = fw[6]
     _slopes(seg_a, seg_b, n_seg, slope)
-    runs = np.empty((n_seg, 2, 2))  # per edge, bottom/top side: the current run's u range
-    run_o = np.full((n_seg, 2), -1, np.int64)  # ... and its owner (-1 none)
+    # runs: per edge, bottom/top side: the current run's u range; run_o: its owner (-1 none)
+    run_o[:n_seg] = -1
     # the owner of the region below each edge in the last slab, with the edge below it and
     # the covering polygons' signature (:func:`_cover_key`): a region bounded by the same two
     # edges in the next slab, covered by the same polygons, is the same open region (no edge
     # ends between them at the common side; not so across a vertical edge, which bounds no
     # slab), so its nearest polygon is too and is not searched again
-    memo_below = np.empty(n_seg, np.int64)
-    memo_key = np.empty(n_seg, np.uint64)
-    memo_owner = np.empty(n_seg, np.int64)
-    memo_slab = np.full(n_seg, -2, np.int64)
-    live = np.empty(n_seg, np.int64)
+    memo_below, memo_owner, memo_slab = iw[1], iw[2], iw[3]
+    memo_key = key_w
+    memo_slab[:n_seg] = -2
+    live = iw[4]
     n_live = 0
     for r in range(n_seg):
         if seg_w[by_lo[r]] != 0:
             live[n_live] = by_lo[r]
             n_live += 1
-    on = np.empty(n_live, np.int64)
-    entry = np.empty(n_seg, np.int64)  # the order in which each edge entered the sweep
-    act = np.empty(n_live, np.int64)
-    act_v = np.empty(n_live)
-    act_v0 = np.empty(n_live)
-    act_v1 = np.empty(n_live)
+    on = iw[5]
+    entry = iw[6]  # the order in which each edge entered the sweep
+    act = iw[7]
+    act_v, act_v0, act_v1 = fw[7], fw[2], fw[3]  # (s_lo, s_hi are done with)
     nxt = 0
     n_on = 0
     d = np.empty(3)
     # the last slab swept (event-local update): its edges top down and its regions' owners
-    prev_act = np.empty(n_live, np.int64)
-    prev_own = np.empty(n_live, np.int64)
-    own = np.empty(n_live, np.int64)
-    prev_sure = np.empty(n_live, np.int64)  # per region: 1 one covering polygon (or none),
-    sure = np.empty(n_live, np.int64)  # 2 more and solid, 0 a sliver (its owner is rounding)
-    stamp = np.full(n_seg, -1, np.int64)
+    prev_act, prev_own, own = iw[8], iw[9], iw[10]
+    prev_sure = iw[11]  # per region: 1 one covering polygon (or none),
+    sure = iw[12]  # 2 more and solid, 0 a sliver (its owner is rounding)
+    stamp = iw[0]  # (s_p is done with)
+    stamp[:n_seg] = -1
     prev_n = 0
     slab = 0  # slabs swept so far
     last_u1 = np.nan  # the right side of the last one
@@ -1402,6 +1399,8 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     box_state = np.zeros(box_ptr.shape[0], np.int64)
     seen = np.zeros(2 * P)
     p0, p1 = np.empty(3), np.empty(3)
+    fw, iw, key_w = np.empty((8, emax)), np.empty((13, emax), np.int64), np.empty(emax, np.uint64)
+    runs, run_o = np.empty((emax, 2, 2)), np.empty((emax, 2), np.int64)
     # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
     frames = np.empty((5, 3, 3))
     planes = np.empty((5, 4, 3))
@@ -1483,7 +1482,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         for k in range(5):
             brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,
                                  loop_poly, poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w,
-                                 buf_a, buf_b, brk, wind, cover, p0, p1)
+                                 buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w, runs, run_o)
         sky = 1.0
         for p in range(P):
             if use[p]:

@@ -232,12 +232,18 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0,
 @njit(cache=True)
 def _outside_box(x, box_planes, lo, hi, tiny):
     """Whether x lies strictly outside the closed convex box with the outward planes
-    ``box_planes[lo:hi]`` (n, c), and not within 2 tiny in front of any of them (a face that
-    close is seen edge-on and skipped by the kernels, though rays could enter the box
-    through it)."""
+    ``box_planes[lo:hi]`` (n, c, open), and not within 2 tiny in front of any of them (a face
+    that close is seen edge-on and skipped by the kernels, though rays could enter the box
+    through it). The plane of an open box's missing face (``open`` non-zero) must have x
+    behind it or within tiny of it (:func:`viscx.queries.formfactor.closed_boxes`: from
+    there no ray enters the box through it)."""
     out = False
     for k in range(lo, hi):
         s = box_planes[k, 0] * x[0] + box_planes[k, 1] * x[1] + box_planes[k, 2] * x[2] - box_planes[k, 3]
+        if box_planes[k, 4] != 0.0:
+            if s > tiny:
+                return False
+            continue
         if s > 2.0 * tiny:
             out = True
         elif s > 0.0:
@@ -665,7 +671,7 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         Distance below which a point counts as in an occluder's plane.
     poly_box : (P,) int64
         The closed convex box each occluder is a face of (-1 none; its normal outward),
-        ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 4) float64 the boxes' planes
+        ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 5) float64 the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): a point outside a box skips its
         faces as one convex polygon (:func:`_visible_one`).
 
@@ -1367,7 +1373,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         The emitter's polygon (never seen).
     tiny : float
         Distance below which x counts as in a polygon's plane.
-    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 4) float64
+    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 5) float64
         The closed convex box of each polygon (-1 none) and the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
         outside of are not swept (:func:`_outside`; their front faces hide them: what x

@@ -48,6 +48,13 @@ MEMO_GAP = 1e-7
 #: width (a third of the Cornell box's slabs); what either can change of F is below
 #: SNAP × the slab's length / π per piece.
 SNAP = 1e-14
+#: Heights (at a slab's middle, in the hemicube face's plane at unit distance) closer than
+#: this keep the order the edges had in the last slab (:func:`_hemicube_face`): edges on one
+#: line (polygons clipped by one frustum side) otherwise swap by rounding from slab to slab,
+#: and each swap redoes every region between it and the slab's real change. Two edges that
+#: do cross at the slab's left side (at least SNAP / 2 away) and stay this close at its
+#: middle differ over the slab by less than the slab's width times 4e-15.
+ORDER_TIE = 2e-15
 
 
 @njit(cache=True)
@@ -193,13 +200,14 @@ def _slopes(seg_a, seg_b, n_seg, slope):
 
 
 @njit(cache=True)
-def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1):
+def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1, tie):
     """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
     middle are dropped, the others sorted by height at the middle, highest first (ties by
     ``entry``, the order in which they entered the sweep), into ``act`` (edge ids) with
     their heights at the middle, u0 and u1; ``on`` is left in that order. Returns
     ``(n_on, n_act)``, equal. ``hi_u`` (n,) and ``slope`` (n,) float64: each edge's right end
-    and dv/du (:func:`_slopes`).
+    and dv/du (:func:`_slopes`). With ``tie`` > 0, heights within ``tie`` of each other are
+    ties, which keep the order of ``on`` (the last slab's, the new edges after it).
 
     The order is kept from slab to slab: edges do not cross inside a slab, so the previous
     slab's order differs from this one's only by the crossings at their common side and by
@@ -213,7 +221,8 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0,
             continue
         vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope[e]
         j = n_act
-        while j > 0 and (act_v[j - 1] < vm or (act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
+        while j > 0 and (act_v[j - 1] < vm - tie
+                         or (tie == 0.0 and act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
             act_v[j] = act_v[j - 1]
             act_v0[j] = act_v0[j - 1]
             act_v1[j] = act_v1[j - 1]
@@ -558,7 +567,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             n_on += 1
             nxt += 1
         # drop edges that ended, the others by height (descending)
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act_e, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act_e, act_v, act_v0, act_v1, 0.0)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -1003,7 +1012,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     owners do and are summed (Lambert) once, when they change or the edge ends. With a
     vertical edge, every slab is swept whole and summed as trapezoids.
 
-    ``fw`` (8, e) float64, ``iw`` (13, e) int64, ``key_w`` (e,) uint64, ``runs`` (e, 2, 2)
+    ``fw`` (8, e) float64, ``iw`` (14, e) int64, ``key_w`` (e,) uint64, ``runs`` (e, 2, 2)
     float64 and ``run_o`` (e, 2) int64 are work arrays (allocated once per :func:`point_views`
     call), e at least the number of projected edges."""
     n_seg = 0
@@ -1106,6 +1115,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     prev_act, prev_own, own = iw[8], iw[9], iw[10]
     prev_sure = iw[11]  # per region: 1 one covering polygon (or none),
     sure = iw[12]  # 2 more and solid, 0 a sliver (its owner is rounding)
+    keep = iw[13]  # per region: its owner kept from the last slab
     stamp = iw[0]  # (s_p is done with)
     stamp[:n_seg] = -1
     prev_n = 0
@@ -1121,7 +1131,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             entry[live[nxt]] = nxt
             n_on += 1
             nxt += 1
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1, ORDER_TIE)
         if n_act < 2:
             continue
         if not has_vertical:
@@ -1149,21 +1159,33 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             # and when searched; a sliver's owner is rounding, searched again as in MEMO_GAP)
             q0 = lo - 1 if lo > 0 else 0
             q1 = min(n_act - s - 1, n_act - 2)
-            r = 0
-            while r < q0 and _kept(prev_sure[r], act_v0, act_v1, r):
-                own[r] = prev_own[r]
-                sure[r] = prev_sure[r]
-                r += 1
-            q0 = r
-            r = n_act - 2
-            while r > q1 and _kept(prev_sure[r - n_act + prev_n], act_v0, act_v1, r):
-                own[r] = prev_own[r - n_act + prev_n]
-                sure[r] = prev_sure[r - n_act + prev_n]
-                r -= 1
-            q1 = r
+            # the regions outside them that are not sure are redone too, each on its own (a
+            # sliver far above the changed ones does not make all between them redone); a
+            # kept region of one covering polygon or none holds no memo, as when searched
+            r0, r1 = q0, q1
+            for r in range(r0):
+                keep[r] = _kept(prev_sure[r], act_v0, act_v1, r)
+                if keep[r]:
+                    own[r] = prev_own[r]
+                    sure[r] = prev_sure[r]
+                    if sure[r] == 1:
+                        memo_slab[act[r]] = -2
+                elif r < q0:
+                    q0 = r
+            for r in range(n_act - 2, r1, -1):
+                keep[r] = _kept(prev_sure[r - n_act + prev_n], act_v0, act_v1, r)
+                if keep[r]:
+                    own[r] = prev_own[r - n_act + prev_n]
+                    sure[r] = prev_sure[r - n_act + prev_n]
+                    if sure[r] == 1:
+                        memo_slab[act[r]] = -2
+                elif r > q1:
+                    q1 = r
+            for r in range(r0, r1 + 1):
+                keep[r] = False
             n_cover = 0
             key = np.uint64(0)
-            for q in range(q0):
+            for q in range(q1 + 1):
                 p = seg_p[act[q]]
                 before = wind[p]
                 wind[p] += seg_w[act[q]]
@@ -1178,21 +1200,8 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                             cover[r] = cover[n_cover - 1]
                             n_cover -= 1
                             break
-            for q in range(q0, q1 + 1):
-                p = seg_p[act[q]]
-                before = wind[p]
-                wind[p] += seg_w[act[q]]
-                if before == 0 and wind[p] != 0:
-                    cover[n_cover] = p
-                    n_cover += 1
-                    key ^= _cover_key(p)
-                elif before != 0 and wind[p] == 0:
-                    key ^= _cover_key(p)
-                    for r in range(n_cover):
-                        if cover[r] == p:
-                            cover[r] = cover[n_cover - 1]
-                            n_cover -= 1
-                            break
+                if keep[q]:
+                    continue
                 e = act[q]
                 now = -1
                 if n_cover == 1:
@@ -1405,7 +1414,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     box_state = np.zeros(box_ptr.shape[0], np.int64)
     seen = np.zeros(2 * P)
     p0, p1 = np.empty(3), np.empty(3)
-    fw, iw, key_w = np.empty((8, emax)), np.empty((13, emax), np.int64), np.empty(emax, np.uint64)
+    fw, iw, key_w = np.empty((8, emax)), np.empty((14, emax), np.int64), np.empty(emax, np.uint64)
     runs, run_o = np.empty((emax, 2, 2)), np.empty((emax, 2), np.int64)
     # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
     frames = np.empty((5, 3, 3))

@@ -49,11 +49,10 @@ MEMO_GAP = 1e-7
 #: SNAP × the slab's length / π per piece.
 SNAP = 1e-14
 #: Heights (at a slab's middle, in the hemicube face's plane at unit distance) closer than
-#: this keep the order the edges had in the last slab (:func:`_hemicube_face`): edges on one
-#: line (polygons clipped by one frustum side) otherwise swap by rounding from slab to slab,
-#: and each swap redoes every region between it and the slab's real change. Two edges that
-#: do cross at the slab's left side (at least SNAP / 2 away) and stay this close at its
-#: middle differ over the slab by less than the slab's width times 4e-15.
+#: this, of two edges collinear within SNAP, keep the order the edges had in the last slab
+#: (:func:`_hemicube_face`): edges on one line (polygons clipped by one frustum side)
+#: otherwise swap by rounding from slab to slab, and each swap redoes every region between
+#: it and the slab's real change. (Edges that cross are never tied: their order is exact.)
 ORDER_TIE = 2e-15
 
 
@@ -200,14 +199,16 @@ def _slopes(seg_a, seg_b, n_seg, slope):
 
 
 @njit(cache=True)
-def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1, tie):
+def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act, act_v, act_v0, act_v1, tie):
     """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
     middle are dropped, the others sorted by height at the middle, highest first (ties by
     ``entry``, the order in which they entered the sweep), into ``act`` (edge ids) with
     their heights at the middle, u0 and u1; ``on`` is left in that order. Returns
     ``(n_on, n_act)``, equal. ``hi_u`` (n,) and ``slope`` (n,) float64: each edge's right end
-    and dv/du (:func:`_slopes`). With ``tie`` > 0, heights within ``tie`` of each other are
-    ties, which keep the order of ``on`` (the last slab's, the new edges after it).
+    and dv/du (:func:`_slopes`). With ``tie`` > 0, two edges collinear within :data:`SNAP`
+    whose heights are within ``tie`` of each other are a tie, which keeps the order of ``on``
+    (the last slab's, the new edges after it): their order is rounding (they have no
+    crossing: :func:`_hemicube_face`).
 
     The order is kept from slab to slab: edges do not cross inside a slab, so the previous
     slab's order differs from this one's only by the crossings at their common side and by
@@ -221,7 +222,8 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0,
             continue
         vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope[e]
         j = n_act
-        while j > 0 and (act_v[j - 1] < vm - tie
+        while j > 0 and (act_v[j - 1] < vm and (tie == 0.0 or act_v[j - 1] < vm - tie
+                                                 or not _collinear(seg_a, seg_b, e, act[j - 1], SNAP))
                          or (tie == 0.0 and act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
             act_v[j] = act_v[j - 1]
             act_v0[j] = act_v0[j - 1]
@@ -567,7 +569,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             n_on += 1
             nxt += 1
         # drop edges that ended, the others by height (descending)
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act_e, act_v, act_v0, act_v1, 0.0)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act_e, act_v, act_v0, act_v1, 0.0)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -1131,7 +1133,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             entry[live[nxt]] = nxt
             n_on += 1
             nxt += 1
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1, ORDER_TIE)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act, act_v, act_v0, act_v1, ORDER_TIE)
         if n_act < 2:
             continue
         if not has_vertical:

@@ -111,6 +111,8 @@ def _load(path):
         for a in range(int(z["n_args"])):
             v = z[f"{k}_arg{a}"]
             args.append(v.item() if v.ndim == 0 else np.ascontiguousarray(v))
+        if args[-1].ndim == 2 and args[-1].shape[1] == 4:  # recorded before boxes had an open flag
+            args[-1] = np.ascontiguousarray(np.pad(args[-1], ((0, 0), (0, 1))))
         out.append((tuple(args), z[f"{k}_out"], float(z[f"{k}_sec"])))
     return out
 

@@ -9,13 +9,13 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, soup
 from random_scenes import random_boxes
 
-from viscx.geometry.occlusion import point_views
+from viscx.geometry.occlusion import _outside_box, point_views
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
-from viscx.scene import build_scene
+from viscx.scene import build_scene, load_scene
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from buildings import office  # noqa: E402
@@ -24,6 +24,24 @@ from buildings import office  # noqa: E402
 @pytest.fixture(scope="module")
 def office60():
     return build_scene(office(60, seed=0))
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    return load_scene(ROOT / "sample_scenes" / "cornell_box.obj")
+
+
+@pytest.fixture(scope="module")
+def open_box_above_floor():
+    """A 10 × 10 floor (y = 0, facing up), a ceiling (y = 3, facing down) and a box open at
+    its bottom floating between them (x, z in [4, 6], y in [1, 2]: top and four sides,
+    normals outward): from the floor, its inside is seen through the missing bottom."""
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [0, 3, 0], [10, 3, 0], [10, 3, 10], [0, 3, 10]]
+    v += [[x, y, z] for y in (1, 2) for x, z in ((4, 4), (6, 4), (6, 6), (4, 6))]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7],  # floor (up), ceiling (down)
+                [12, 15, 14, 13],  # top (up)
+                [8, 12, 13, 9], [9, 13, 14, 10], [10, 14, 15, 11], [11, 15, 12, 8]]  # sides (out)
+    return build_scene(soup(v, polygons, [0, 1, 2, 2, 2, 2, 2], ["floor", "ceiling", "box"]))
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +76,27 @@ def test_closed_boxes_of_the_office(office60):
     for b in range(len(ptr) - 1):
         verts = np.concatenate([np.concatenate(office60.face_loops(f)) for f in np.flatnonzero(face_box == b)])
         assert np.all(verts @ planes[ptr[b]:ptr[b + 1], :3].T - planes[ptr[b]:ptr[b + 1], 3] <= 1e-9)
+
+
+def test_open_boxes_of_the_cornell_box(cornell, open_box_above_floor):
+    """The Cornell blocks (five faces each, no bottom, standing on the floor) are open boxes:
+    their missing face's plane is the floor's, outward normal down, flagged open; every
+    vertex of a block on or behind each of its six planes. The floating box open at its
+    bottom is one too (its missing face's plane y = 1)."""
+    face_box, ptr, planes = ff.closed_boxes(cornell)
+    for name in ("short_block", "tall_block"):
+        boxes = set(face_box[cornell.group_faces(name)].tolist())
+        assert len(boxes) == 1 and -1 not in boxes
+    assert (face_box >= 0).sum() == 10 and np.array_equal(np.diff(ptr), [6, 6])
+    missing = planes[planes[:, 4] != 0.0]
+    assert np.allclose(missing[:, :4], [[0, -1, 0, 0]] * 2, atol=1e-12)
+    for b in range(2):
+        verts = np.concatenate([np.concatenate(cornell.face_loops(f)) for f in np.flatnonzero(face_box == b)])
+        assert np.all(verts @ planes[ptr[b]:ptr[b + 1], :3].T - planes[ptr[b]:ptr[b + 1], 3] <= 1e-9)
+    s = open_box_above_floor
+    face_box, ptr, planes = ff.closed_boxes(s)
+    assert face_box.tolist() == [-1, -1, 0, 0, 0, 0, 0]
+    assert np.allclose(planes[planes[:, 4] != 0.0, :4], [[0, -1, 0, -1]])
 
 
 def test_rotated_boxes_are_found(boxes_on_floor):
@@ -156,6 +195,58 @@ def test_point_views_from_a_box_face(boxes_on_floor, rng):
             a = point_views(*args, *ff.closed_boxes(s))
             b = point_views(*args, *ff.no_boxes(s.n_faces))
             assert np.abs(a - b).max() <= 1e-12
+
+
+@pytest.mark.parametrize("group,side", [("floor", 1), ("ceiling", 1), ("back_wall", 1), ("left_wall", 1), ("light", 1),
+                                        ("short_block", 1), ("short_block", -1), ("tall_block", 1)])
+def test_point_views_open_boxes_equal(cornell, group, side, rng):
+    """The Cornell blocks as open boxes (their back faces not swept from a point above the
+    floor, outside them): every column and the sky equal to every face swept on its own, to
+    1e-12 at 300 points of each emitter (a block's faces: the top, from outside and from
+    inside the block); the rule is used at them for every box but their own."""
+    s = cornell
+    face = int(s.group_faces(group)[0])
+    pts = face_points(s, face, 300, rng)
+    n_i = side * s.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    args = (pts, n_i, eu, ev, *ff.scene_polygons(s), face, 1e-9 * s.diagonal)
+    a = point_views(*args, *ff.closed_boxes(s))
+    b = point_views(*args, *ff.no_boxes(s.n_faces))
+    assert np.abs(a - b).max() <= 1e-12
+    face_box, ptr, planes = ff.closed_boxes(s)
+    outside = np.array([[_outside_box(x, planes, ptr[k], ptr[k + 1], 1e-9 * s.diagonal) for k in range(2)] for x in pts])
+    for k in range(2):  # never its own box (a point on it is not strictly outside); the other's
+        assert outside[:, k].any() == (face_box[face] != k)
+
+
+def test_open_box_rule_holds_on_its_side_only(open_box_above_floor, rng):
+    """A box open at its bottom, floating: from the ceiling (above the missing face's plane)
+    it is a closed box; from the floor (below it) its inside is seen through the open
+    bottom, so its back faces must be swept: both equal to every face swept on its own
+    (1e-12), and without the open plane's condition the floor's views are wrong (its far
+    sides' inner faces hidden)."""
+    s = open_box_above_floor
+    tiny = 1e-9 * s.diagonal
+    boxes = ff.closed_boxes(s)
+    for face in (0, 1):
+        pts = face_points(s, face, 300, rng)
+        n_i = s.face_normal[face]
+        eu, ev = plane_basis(n_i)
+        args = (pts, n_i, eu, ev, *ff.scene_polygons(s), face, tiny)
+        a = point_views(*args, *boxes)
+        b = point_views(*args, *ff.no_boxes(s.n_faces))
+        assert np.abs(a - b).max() <= 1e-12
+        assert np.any(b[:, 4:14] > 1e-3)  # something of the box is hidden
+        ungated = boxes[2].copy()
+        ungated[:, 4] = 0.0  # the missing face's plane taken as a real one: x beyond it is outside
+        c = point_views(*args, boxes[0], boxes[1], ungated[ungated[:, 3] != -1.0])
+        assert (np.abs(c - b).max() > 1e-3) == (face == 0)
+    # the cubature's triangles: from the ceiling the box's back faces are dropped, from the
+    # floor (below the open plane) none
+    tri = np.array([[[0, 3, 0], [3, 3, 0], [0, 3, 3]], [[0, 0, 0], [3, 0, 0], [0, 0, 3]]], np.float64)
+    faces = np.arange(2, 7)
+    drop = ff.back_faces(s, tri, np.repeat([0, 1], 5), np.tile(faces, 2), tiny)
+    assert drop[:5].any() and not drop[5:].any()
 
 
 def test_back_faces_rule(office60):

@@ -48,6 +48,12 @@ MEMO_GAP = 1e-7
 #: width (a third of the Cornell box's slabs); what either can change of F is below
 #: SNAP × the slab's length / π per piece.
 SNAP = 1e-14
+#: Heights (at a slab's middle, in the hemicube face's plane at unit distance) closer than
+#: this, of two edges collinear within SNAP, keep the order the edges had in the last slab
+#: (:func:`_hemicube_face`): edges on one line (polygons clipped by one frustum side)
+#: otherwise swap by rounding from slab to slab, and each swap redoes every region between
+#: it and the slab's real change. (Edges that cross are never tied: their order is exact.)
+ORDER_TIE = 2e-15
 
 
 @njit(cache=True)
@@ -193,13 +199,16 @@ def _slopes(seg_a, seg_b, n_seg, slope):
 
 
 @njit(cache=True)
-def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1):
+def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act, act_v, act_v0, act_v1, tie):
     """The sweep's edges over the slab [u0, u1]: those of ``on[:n_on]`` that end before its
     middle are dropped, the others sorted by height at the middle, highest first (ties by
     ``entry``, the order in which they entered the sweep), into ``act`` (edge ids) with
     their heights at the middle, u0 and u1; ``on`` is left in that order. Returns
     ``(n_on, n_act)``, equal. ``hi_u`` (n,) and ``slope`` (n,) float64: each edge's right end
-    and dv/du (:func:`_slopes`).
+    and dv/du (:func:`_slopes`). With ``tie`` > 0, two edges collinear within :data:`SNAP`
+    whose heights are within ``tie`` of each other are a tie, which keeps the order of ``on``
+    (the last slab's, the new edges after it): their order is rounding (they have no
+    crossing: :func:`_hemicube_face`).
 
     The order is kept from slab to slab: edges do not cross inside a slab, so the previous
     slab's order differs from this one's only by the crossings at their common side and by
@@ -213,7 +222,9 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0,
             continue
         vm = seg_a[e, 1] + (um - seg_a[e, 0]) * slope[e]
         j = n_act
-        while j > 0 and (act_v[j - 1] < vm or (act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
+        while j > 0 and (act_v[j - 1] < vm and (tie == 0.0 or act_v[j - 1] < vm - tie
+                                                 or not _collinear(seg_a, seg_b, e, act[j - 1], SNAP))
+                         or (tie == 0.0 and act_v[j - 1] == vm and entry[act[j - 1]] > entry[e])):
             act_v[j] = act_v[j - 1]
             act_v0[j] = act_v0[j - 1]
             act_v1[j] = act_v1[j - 1]
@@ -232,12 +243,18 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0,
 @njit(cache=True)
 def _outside_box(x, box_planes, lo, hi, tiny):
     """Whether x lies strictly outside the closed convex box with the outward planes
-    ``box_planes[lo:hi]`` (n, c), and not within 2 tiny in front of any of them (a face that
-    close is seen edge-on and skipped by the kernels, though rays could enter the box
-    through it)."""
+    ``box_planes[lo:hi]`` (n, c, open), and not within 2 tiny in front of any of them (a face
+    that close is seen edge-on and skipped by the kernels, though rays could enter the box
+    through it). The plane of an open box's missing face (``open`` non-zero) must have x
+    behind it or within tiny of it (:func:`viscx.queries.formfactor.closed_boxes`: from
+    there no ray enters the box through it)."""
     out = False
     for k in range(lo, hi):
         s = box_planes[k, 0] * x[0] + box_planes[k, 1] * x[1] + box_planes[k, 2] * x[2] - box_planes[k, 3]
+        if box_planes[k, 4] != 0.0:
+            if s > tiny:
+                return False
+            continue
         if s > 2.0 * tiny:
             out = True
         elif s > 0.0:
@@ -552,7 +569,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             n_on += 1
             nxt += 1
         # drop edges that ended, the others by height (descending)
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act_e, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act_e, act_v, act_v0, act_v1, 0.0)
         if n_act < 2:
             continue
         for p in range(n_poly + 1):
@@ -665,7 +682,7 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         Distance below which a point counts as in an occluder's plane.
     poly_box : (P,) int64
         The closed convex box each occluder is a face of (-1 none; its normal outward),
-        ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 4) float64 the boxes' planes
+        ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 5) float64 the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): a point outside a box skips its
         faces as one convex polygon (:func:`_visible_one`).
 
@@ -978,7 +995,8 @@ def _kept(sure, act_v0, act_v1, q):
 
 @njit(cache=True)
 def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
-                   side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1):
+                   side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w,
+                   runs, run_o):
     """Add to ``seen`` the visible part of every polygon through one face of the hemicube
     around x (the frustum ``planes`` through x, inward normals): each polygon clipped to the
     frustum and projected centrally on the face's plane, the slab sweep of
@@ -994,7 +1012,11 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     sliver between coincident edges, thinner than ``MEMO_GAP``, is searched again). An
     edge's runs (its owner above on side 0, below on side 1) stay open while its neighbouring
     owners do and are summed (Lambert) once, when they change or the edge ends. With a
-    vertical edge, every slab is swept whole and summed as trapezoids."""
+    vertical edge, every slab is swept whole and summed as trapezoids.
+
+    ``fw`` (8, e) float64, ``iw`` (14, e) int64, ``key_w`` (e,) uint64, ``runs`` (e, 2, 2)
+    float64 and ``run_o`` (e, 2) int64 are work arrays (allocated once per :func:`point_views`
+    call), e at least the number of projected edges."""
     n_seg = 0
     for L in range(loop_lo.shape[0]):
         p = loop_poly[L]
@@ -1020,8 +1042,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         return brk
     # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
     n_brk = 0
-    lo_u = np.empty(n_seg)
-    hi_u = np.empty(n_seg)
+    lo_u, hi_u = fw[0], fw[1]
     for e in range(n_seg):
         if seg_a[e, 0] > seg_b[e, 0]:
             seg_w[e] = 1
@@ -1037,10 +1058,9 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     # crossings of edges of different polygons: edges by their left ends, each against the
     # ones starting before it ends (their u and v ranges, polygon and weight copied in that
     # order first: the inner loop reads consecutive memory)
-    by_lo = np.argsort(lo_u)
-    s_lo, s_hi = np.empty(n_seg), np.empty(n_seg)
-    s_vlo, s_vhi = np.empty(n_seg), np.empty(n_seg)
-    s_p = np.empty(n_seg, np.int64)  # -1: a vertical edge (no crossing counted)
+    by_lo = np.argsort(lo_u[:n_seg])
+    s_lo, s_hi, s_vlo, s_vhi = fw[2], fw[3], fw[4], fw[5]
+    s_p = iw[0]  # -1: a vertical edge (no crossing counted)
     for r in range(n_seg):
         e = by_lo[r]
         s_lo[r], s_hi[r] = lo_u[e], hi_u[e]
@@ -1060,51 +1080,46 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             # v ranges apart: no crossing (the common case, tested before the call)
             if vhi < s_vlo[r2] or s_vhi[r2] < vlo:
                 continue
-            if _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
-                continue
             u = _crossing_u(seg_a, seg_b, by_lo[r], by_lo[r2])
-            if u == u:
+            if u == u and not _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
                 brk = _grow(brk, n_brk)
                 brk[n_brk] = u
                 n_brk += 1
     us = np.sort(brk[:n_brk])
     n_brk = _snap_breaks(us, n_brk, SNAP)
     has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
-    slope = np.empty(n_seg)
+    slope = fw[6]
     _slopes(seg_a, seg_b, n_seg, slope)
-    runs = np.empty((n_seg, 2, 2))  # per edge, bottom/top side: the current run's u range
-    run_o = np.full((n_seg, 2), -1, np.int64)  # ... and its owner (-1 none)
+    # runs: per edge, bottom/top side: the current run's u range; run_o: its owner (-1 none)
+    run_o[:n_seg] = -1
     # the owner of the region below each edge in the last slab, with the edge below it and
     # the covering polygons' signature (:func:`_cover_key`): a region bounded by the same two
     # edges in the next slab, covered by the same polygons, is the same open region (no edge
     # ends between them at the common side; not so across a vertical edge, which bounds no
     # slab), so its nearest polygon is too and is not searched again
-    memo_below = np.empty(n_seg, np.int64)
-    memo_key = np.empty(n_seg, np.uint64)
-    memo_owner = np.empty(n_seg, np.int64)
-    memo_slab = np.full(n_seg, -2, np.int64)
-    live = np.empty(n_seg, np.int64)
+    memo_below, memo_owner, memo_slab = iw[1], iw[2], iw[3]
+    memo_key = key_w
+    memo_slab[:n_seg] = -2
+    live = iw[4]
     n_live = 0
     for r in range(n_seg):
         if seg_w[by_lo[r]] != 0:
             live[n_live] = by_lo[r]
             n_live += 1
-    on = np.empty(n_live, np.int64)
-    entry = np.empty(n_seg, np.int64)  # the order in which each edge entered the sweep
-    act = np.empty(n_live, np.int64)
-    act_v = np.empty(n_live)
-    act_v0 = np.empty(n_live)
-    act_v1 = np.empty(n_live)
+    on = iw[5]
+    entry = iw[6]  # the order in which each edge entered the sweep
+    act = iw[7]
+    act_v, act_v0, act_v1 = fw[7], fw[2], fw[3]  # (s_lo, s_hi are done with)
     nxt = 0
     n_on = 0
     d = np.empty(3)
     # the last slab swept (event-local update): its edges top down and its regions' owners
-    prev_act = np.empty(n_live, np.int64)
-    prev_own = np.empty(n_live, np.int64)
-    own = np.empty(n_live, np.int64)
-    prev_sure = np.empty(n_live, np.int64)  # per region: 1 one covering polygon (or none),
-    sure = np.empty(n_live, np.int64)  # 2 more and solid, 0 a sliver (its owner is rounding)
-    stamp = np.full(n_seg, -1, np.int64)
+    prev_act, prev_own, own = iw[8], iw[9], iw[10]
+    prev_sure = iw[11]  # per region: 1 one covering polygon (or none),
+    sure = iw[12]  # 2 more and solid, 0 a sliver (its owner is rounding)
+    keep = iw[13]  # per region: its owner kept from the last slab
+    stamp = iw[0]  # (s_p is done with)
+    stamp[:n_seg] = -1
     prev_n = 0
     slab = 0  # slabs swept so far
     last_u1 = np.nan  # the right side of the last one
@@ -1118,7 +1133,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             entry[live[nxt]] = nxt
             n_on += 1
             nxt += 1
-        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, hi_u, slope, act, act_v, act_v0, act_v1)
+        n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act, act_v, act_v0, act_v1, ORDER_TIE)
         if n_act < 2:
             continue
         if not has_vertical:
@@ -1146,21 +1161,33 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
             # and when searched; a sliver's owner is rounding, searched again as in MEMO_GAP)
             q0 = lo - 1 if lo > 0 else 0
             q1 = min(n_act - s - 1, n_act - 2)
-            r = 0
-            while r < q0 and _kept(prev_sure[r], act_v0, act_v1, r):
-                own[r] = prev_own[r]
-                sure[r] = prev_sure[r]
-                r += 1
-            q0 = r
-            r = n_act - 2
-            while r > q1 and _kept(prev_sure[r - n_act + prev_n], act_v0, act_v1, r):
-                own[r] = prev_own[r - n_act + prev_n]
-                sure[r] = prev_sure[r - n_act + prev_n]
-                r -= 1
-            q1 = r
+            # the regions outside them that are not sure are redone too, each on its own (a
+            # sliver far above the changed ones does not make all between them redone); a
+            # kept region of one covering polygon or none holds no memo, as when searched
+            r0, r1 = q0, q1
+            for r in range(r0):
+                keep[r] = _kept(prev_sure[r], act_v0, act_v1, r)
+                if keep[r]:
+                    own[r] = prev_own[r]
+                    sure[r] = prev_sure[r]
+                    if sure[r] == 1:
+                        memo_slab[act[r]] = -2
+                elif r < q0:
+                    q0 = r
+            for r in range(n_act - 2, r1, -1):
+                keep[r] = _kept(prev_sure[r - n_act + prev_n], act_v0, act_v1, r)
+                if keep[r]:
+                    own[r] = prev_own[r - n_act + prev_n]
+                    sure[r] = prev_sure[r - n_act + prev_n]
+                    if sure[r] == 1:
+                        memo_slab[act[r]] = -2
+                elif r > q1:
+                    q1 = r
+            for r in range(r0, r1 + 1):
+                keep[r] = False
             n_cover = 0
             key = np.uint64(0)
-            for q in range(q0):
+            for q in range(q1 + 1):
                 p = seg_p[act[q]]
                 before = wind[p]
                 wind[p] += seg_w[act[q]]
@@ -1175,21 +1202,8 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                             cover[r] = cover[n_cover - 1]
                             n_cover -= 1
                             break
-            for q in range(q0, q1 + 1):
-                p = seg_p[act[q]]
-                before = wind[p]
-                wind[p] += seg_w[act[q]]
-                if before == 0 and wind[p] != 0:
-                    cover[n_cover] = p
-                    n_cover += 1
-                    key ^= _cover_key(p)
-                elif before != 0 and wind[p] == 0:
-                    key ^= _cover_key(p)
-                    for r in range(n_cover):
-                        if cover[r] == p:
-                            cover[r] = cover[n_cover - 1]
-                            n_cover -= 1
-                            break
+                if keep[q]:
+                    continue
                 e = act[q]
                 now = -1
                 if n_cover == 1:
@@ -1370,7 +1384,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         The emitter's polygon (never seen).
     tiny : float
         Distance below which x counts as in a polygon's plane.
-    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 4) float64
+    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 5) float64
         The closed convex box of each polygon (-1 none) and the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
         outside of are not swept (:func:`_outside`; their front faces hide them: what x
@@ -1402,6 +1416,8 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     box_state = np.zeros(box_ptr.shape[0], np.int64)
     seen = np.zeros(2 * P)
     p0, p1 = np.empty(3), np.empty(3)
+    fw, iw, key_w = np.empty((8, emax)), np.empty((14, emax), np.int64), np.empty(emax, np.uint64)
+    runs, run_o = np.empty((emax, 2, 2)), np.empty((emax, 2), np.int64)
     # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
     frames = np.empty((5, 3, 3))
     planes = np.empty((5, 4, 3))
@@ -1483,7 +1499,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         for k in range(5):
             brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,
                                  loop_poly, poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w,
-                                 buf_a, buf_b, brk, wind, cover, p0, p1)
+                                 buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w, runs, run_o)
         sky = 1.0
         for p in range(P):
             if use[p]:

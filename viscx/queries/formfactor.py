@@ -185,7 +185,8 @@ def face_outlines(scene):
 def closed_boxes(scene):
     """The closed convex polyhedra made of faces of the scene (a box: a cabinet, a desk's
     top, a panel), for culling their back faces (:func:`viscx.geometry.occlusion.blocked_form_factors`,
-    :func:`viscx.geometry.occlusion.point_views`).
+    :func:`viscx.geometry.occlusion.point_views`), and the convex boxes with one face missing
+    (a Cornell block, open at the bottom, standing on the floor).
 
     Two faces without holes are linked when they share an edge, traversed in opposite
     directions (loops counter-clockwise about the normals), are not coplanar, and each
@@ -195,13 +196,26 @@ def closed_boxes(scene):
     their planes (convex). Faces flush with a face of another box (a desk's panel under
     its top) are coplanar or reflex with it, so boxes that touch are never merged.
 
+    An *open* box: the edges without their reverse form one planar loop, the outline of
+    the missing face M (that loop reversed, its normal outward), and every vertex lies
+    behind or on M's plane too. For a point x behind or on M's plane (the side the box is
+    on: a point of the room above a block standing on the floor), the faces form a closed
+    box as far as x can tell: a ray enters a convex solid through a face whose outward
+    normal it goes against, and a ray from x cannot go against M's normal when it meets M's
+    plane (it leaves x's closed half-space there; x in the plane: it never meets it again).
+    So every ray from x that meets a face x is behind has entered the box through a real
+    face, and the closed-box rules hold. M's plane is listed with the box's planes, flagged
+    ``open`` (:func:`viscx.geometry.occlusion._outside_box` then asks x to lie behind it or
+    within ``tiny`` of it; beyond, the faces are swept on their own).
+
     Returns
     -------
     face_box : (f,) int64
         The box of each face, -1 if none.
     box_ptr : (b + 1,) int64
-    box_planes : (k, 4) float64
-        The planes ``n · y = c`` (n outward) of box b: ``box_planes[box_ptr[b]:box_ptr[b + 1]]``.
+    box_planes : (k, 5) float64
+        The planes ``n · y = c`` (n outward) of box b: ``box_planes[box_ptr[b]:box_ptr[b + 1]]``
+        as ``(n, c, open)``, ``open`` 1.0 for the missing face of an open box, else 0.0.
     """
 
     def build(scene):
@@ -249,33 +263,74 @@ def closed_boxes(scene):
         face_box = np.full(n, -1, np.int64)
         ptr, planes = [0], []
         for faces in comps.values():
-            if len(faces) < 4:
+            if len(faces) < 3:
                 continue
             directed = [(a, b) for f in faces for a, b in zip(ids[f], ids[f][1:] + ids[f][:1])]
             count = {}
             for e in directed:
                 count[e] = count.get(e, 0) + 1
-            if any(count.get((b, a), 0) != k for (a, b), k in count.items()):
+            bare = [(a, b) for (a, b), k in count.items() if count.get((b, a), 0) == 0 and k == 1]
+            if any(count.get((b, a), 0) != k for (a, b), k in count.items() if (a, b) not in bare):
                 continue
             verts = scene.vertices[np.unique(np.concatenate([ids[f] for f in faces]))]
-            if np.any(verts @ normal[faces].T - offset[faces] > tol):
+            box = [np.concatenate([normal[f], [offset[f], 0.0]]) for f in faces]
+            if bare:
+                m = _missing_face(scene.vertices, bare, tol)
+                if m is None:
+                    continue
+                box.append(np.concatenate([m, [1.0]]))
+            elif len(faces) < 4:
+                continue
+            box = np.asarray(box)
+            if np.any(verts @ box[:, :3].T - box[:, 3] > tol):
                 continue
             face_box[faces] = len(ptr) - 1
-            planes.extend(np.concatenate([normal[f], [offset[f]]]) for f in faces)
+            planes.extend(box)
             ptr.append(len(planes))
-        return face_box, np.asarray(ptr, np.int64), np.asarray(planes, np.float64).reshape(-1, 4)
+        return face_box, np.asarray(ptr, np.int64), np.asarray(planes, np.float64).reshape(-1, 5)
 
     return scene.cached("closed_boxes", build)
 
 
+def _missing_face(vertices, bare, tol):
+    """The plane ``(n, c)`` (4,) float64 of the face that would close an open box, or None:
+    the box's edges without a reverse (``bare``, directed vertex pairs) must form one loop,
+    lying in one plane within ``tol``; the missing face runs along it backwards, so its
+    outward normal is the Newell normal of the reversed loop."""
+    succ = {}
+    for a, b in bare:
+        if b in succ:
+            return None  # two bare edges into one vertex: no simple loop
+        succ[b] = a  # reversed: b -> a
+    start = bare[0][1]
+    loop, v = [start], succ[start]
+    while v != start:
+        if len(loop) > len(bare) or v not in succ:
+            return None
+        loop.append(v)
+        v = succ[v]
+    if len(loop) != len(bare):
+        return None  # more than one loop
+    pts = vertices[loop].astype(np.float64)
+    nrm = newell_normal(pts)
+    size = float(np.linalg.norm(nrm))
+    if size == 0.0:
+        return None
+    nrm = nrm / size
+    c = float(np.mean(pts @ nrm))
+    if np.any(np.abs(pts @ nrm - c) > tol):
+        return None
+    return np.concatenate([nrm, [c]])
+
+
 def _box_plane_table(scene):
-    """The planes of each :func:`closed_boxes` box as one padded (b, k, 4) float64 array
+    """The planes of each :func:`closed_boxes` box as one padded (b, k, 5) float64 array
     (padding: the plane 0 · y = 1, behind every point), cached."""
 
     def build(scene):
         _, ptr, planes = closed_boxes(scene)
         k = int(np.diff(ptr).max(initial=1))
-        out = np.zeros((len(ptr) - 1, k, 4))
+        out = np.zeros((len(ptr) - 1, k, 5))
         out[:, :, 3] = 1.0
         for b in range(len(ptr) - 1):
             out[b, :ptr[b + 1] - ptr[b]] = planes[ptr[b]:ptr[b + 1]]
@@ -312,10 +367,11 @@ def back_faces(scene, tri, cell, faces, tiny):
     own = np.einsum("kvj,kj->kv", v, scene.face_normal[f]) - scene.face_offset[f][:, None]
     behind = np.all(own < -tiny, axis=1)
     boxed, f, v = boxed[behind], f[behind], v[behind]
-    planes = _box_plane_table(scene)[face_box[f]]  # (k, m, 4)
+    planes = _box_plane_table(scene)[face_box[f]]  # (k, m, 5)
     h = np.einsum("kvj,kmj->kmv", v, planes[:, :, :3]) - planes[:, :, 3][:, :, None]
-    front = np.all(h > 2 * tiny, axis=2)
-    ok = np.all(front | np.all(h <= 0, axis=2), axis=1) & np.any(front, axis=1)
+    missing = planes[:, :, 4] != 0.0  # an open box's missing face: x on or behind its plane
+    front = np.all(h > 2 * tiny, axis=2) & ~missing
+    ok = np.all(front | np.all(h <= np.where(missing, tiny, 0.0)[:, :, None], axis=2), axis=1) & np.any(front, axis=1)
     out[boxed[ok]] = True
     return out
 
@@ -323,7 +379,7 @@ def back_faces(scene, tri, cell, faces, tiny):
 def no_boxes(n):
     """The box arrays of :func:`closed_boxes` for n polygons none of which is culled (a
     subset of the faces: a box's front faces may be missing from it)."""
-    return np.full(n, -1, np.int64), np.zeros(1, np.int64), np.zeros((0, 4))
+    return np.full(n, -1, np.int64), np.zeros(1, np.int64), np.zeros((0, 5))
 
 
 def hull_order(loops2):

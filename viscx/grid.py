@@ -173,6 +173,61 @@ def _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, 
                                                 stamps, r)
 
 
+@njit(cache=True, parallel=True)
+def _first_hits_off_planes(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of,
+                           normal, offset, cosine, gap, casts):
+    # as _first_hits: blocks of rays on the threads, each block with its own stamps
+    n = origins.shape[0]
+    best_tri = np.full(n, -1, dtype=np.int64)
+    best_t = np.full(n, np.inf)
+    n_blocks = max(1, min(n, 256, 16 * n // max(1, frames.shape[0])))
+    for b in prange(n_blocks):
+        stamps = np.full(frames.shape[0], -1, dtype=np.int64)
+        _first_hits_off_planes_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of,
+                                  normal, offset, cosine, gap, casts, b * n // n_blocks, (b + 1) * n // n_blocks, best_tri,
+                                  best_t, stamps)
+    return best_tri, best_t
+
+
+@njit(cache=True, nogil=True)
+def _first_hits_off_planes_serial(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of,
+                                  normal, offset, cosine, gap, casts):
+    n = origins.shape[0]
+    best_tri = np.full(n, -1, dtype=np.int64)
+    best_t = np.full(n, np.inf)
+    stamps = np.full(frames.shape[0], -1, dtype=np.int64)
+    _first_hits_off_planes_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of, normal,
+                              offset, cosine, gap, casts, 0, n, best_tri, best_t, stamps)
+    return best_tri, best_t
+
+
+@njit(cache=True, nogil=True)
+def _first_hits_off_planes_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of, normal,
+                              offset, cosine, gap, casts, start, stop, best_tri, best_t, stamps):
+    """:meth:`TriangleGrid.first_hit_off_planes` of rays start..stop - 1 (``stamps`` as in
+    :func:`_first_hits_of`, one id per cast)."""
+    cast = 0
+    for r in range(start, stop):
+        ox, oy, oz = origins[r, 0], origins[r, 1], origins[r, 2]
+        dx, dy, dz = directions[r, 0], directions[r, 1], directions[r, 2]
+        t0 = tmin[r]
+        for _ in range(casts):
+            tri, t = _first_hit_one(ox, oy, oz, dx, dy, dz, t0, tmax[r], frames, lo, hi, cell, dims, offsets, items, stamps,
+                                    cast)
+            cast += 1
+            best_tri[r], best_t[r] = tri, t
+            if tri < 0:
+                break
+            p = plane_of[tri]
+            nx, ny, nz = normal[p, 0], normal[p, 1], normal[p, 2]
+            # the row dots of numpy's einsum, summed in its order: (x0 + x2) + x1
+            nd = (nx * dx + nz * dz) + ny * dy
+            no = (nx * ox + nz * oz) + ny * oy
+            if not (abs(nd) <= cosine and abs(no - offset[p]) <= gap):
+                break
+            t0 = t + gap
+
+
 @njit(cache=True, inline="always")
 def _first_cell(o, d, lo, cell, n, t0):
     """The DDA's start along one axis, at ray parameter t0: (cell index, step, ray
@@ -467,6 +522,39 @@ class TriangleGrid:
             return _first_hits_serial(*args)
         with _KERNEL_LOCK:
             return _first_hits(*args)
+
+    def first_hit_off_planes(self, origins, directions, tmin, tmax, plane_of, normal, offset, cosine, gap, casts):
+        """:meth:`first_hit`, going on past the triangles whose plane holds the ray: where the
+        hit triangle's plane (``plane_of``, rows of ``normal`` and ``offset``: the plane
+        n · x = offset) is within ``cosine`` of the ray's direction (|n · d|) and ``gap`` of
+        its origin (|n · o - offset|), the ray is cast again from ``gap`` beyond the hit, at
+        most ``casts`` times in all (the last hit is kept).
+
+        Parameters
+        ----------
+        origins, directions : (n, 3) float
+        tmin, tmax : (n,) float
+        plane_of : (t,) int
+        normal : (f, 3) float
+        offset : (f,) float
+        cosine, gap : float
+        casts : int
+
+        Returns
+        -------
+        triangle : (n,) int
+        t : (n,) float
+            As :meth:`first_hit`.
+        """
+        args = (np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
+                np.ascontiguousarray(tmin, dtype=np.float64), np.ascontiguousarray(tmax, dtype=np.float64),
+                self.frames, self.lo, self.hi, self.cell, self.dims, self.offsets, self.items,
+                np.ascontiguousarray(plane_of, dtype=np.int64), np.ascontiguousarray(normal, dtype=np.float64),
+                np.ascontiguousarray(offset, dtype=np.float64), float(cosine), float(gap), int(casts))
+        if in_pool() or len(args[0]) < SERIAL_RAYS:
+            return _first_hits_off_planes_serial(*args)
+        with _KERNEL_LOCK:
+            return _first_hits_off_planes(*args)
 
     def triangles_near(self, points, tol):
         """Every (point, triangle) pair with the point within ``tol`` of the closed triangle.

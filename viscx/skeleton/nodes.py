@@ -16,7 +16,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
 from viscx.raycast import intersect_triangles
-from viscx.scene.neighbourhood import faces_near, generator_wedges, tangent_at_vertices
+from viscx.scene.neighbourhood import faces_near, generator_wedge_ranges, tangent_at_vertices
 from viscx.tolerances import ANGLE_TOLERANCE, GRAZE_COSINE, TIE_MARGIN, TIE_SLACK
 
 # Node kinds.
@@ -266,7 +266,7 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
 
     # ... then tangency, the costly test, on the lines still standing
     rows = np.flatnonzero(keep[cand])
-    wedges = generator_wedges(scene, is_vertex[rows], gid[rows], point[rows])
+    wedges = generator_wedge_ranges(scene, is_vertex[rows], gid[rows], point[rows])
     tangent[rows], degenerate[rows] = tangent_in_wedges(wedges, dc[rows])
     # grazing is the rule, not a degeneracy, at a face holding two of the node's
     # generators (v and e on one face, two edges of one face): Hoberock et al. §4.1
@@ -473,25 +473,35 @@ def first_triangles(scene, origins, directions, tmin, tmax, plane_face=None):
     o, d = origins, directions
     lo = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (len(o),)).copy()
     hi = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (len(o),)).copy()
+    # rays in no pencil's plane: the grazing rule alone, in one kernel
+    plain = np.arange(len(o)) if plane_face is None else np.flatnonzero(plane_face < 0)
+    if len(plain) == len(o):
+        return _first_ungrazed(scene, o, d, lo, hi)
     tri = np.full(len(o), -1, dtype=np.int64)
     t = np.full(len(o), np.inf)
-    todo = np.arange(len(o))
-    for it in range((MAX_GRAZED if plane_face is None else MAX_PASSED) + 1):
-        if it > MAX_GRAZED:  # only pencils' lines go on
-            todo = todo[plane_face[todo] >= 0]
+    tri[plain], t[plain] = _first_ungrazed(scene, o[plain], d[plain], lo[plain], hi[plain])
+    todo = np.flatnonzero(plane_face >= 0)
+    for _ in range(MAX_PASSED + 1):
         tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
         todo = todo[tri[todo] >= 0]
         f = scene.triangle_face[tri[todo]]
         grazing = _in_face_plane(scene, f, o[todo], d[todo])
-        if plane_face is not None:
-            r = np.flatnonzero(~grazing & (plane_face[todo] >= 0))
-            g = plane_face[todo[r]]
-            grazing[r] = _in_face_plane(scene, g, o[todo[r]], d[todo[r]]) & faces_beside_planes(scene, f[r], g)
+        r = np.flatnonzero(~grazing)
+        g = plane_face[todo[r]]
+        grazing[r] = _in_face_plane(scene, g, o[todo[r]], d[todo[r]]) & faces_beside_planes(scene, f[r], g)
         todo = todo[grazing]
         if len(todo) == 0:
             break
         lo[todo] = t[todo] + scene.weld_tolerance
     return tri, t
+
+
+def _first_ungrazed(scene, origins, directions, tmin, tmax):
+    """:func:`first_triangles` of rays in no pencil's plane: a hit on a face whose plane holds
+    the ray (:func:`_in_face_plane`) is passed, at most MAX_GRAZED times."""
+    return scene.ray_caster.exact.first_hit_off_planes(origins, directions, tmin, tmax, scene.triangle_face,
+                                                       scene.face_normal, scene.face_offset, GRAZE_COSINE,
+                                                       scene.weld_tolerance, MAX_GRAZED + 1)
 
 
 def _in_face_plane(scene, faces, origins, directions):
@@ -646,16 +656,20 @@ def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_to
     cand : (k,) int
         Candidate of every generator row; every row of a candidate in ``rows``
         is among the k.
-    wedges : Wedges
+    wedges : WedgeRanges
         The surface around each row's generator point.
     origins, directions : (k, 3) float
     rows : (r,) int
-        The rows to judge.
+        The rows to judge, ascending.
 
     Returns
     -------
     (r,) bool
     """
+    # only the rows of the candidates judged matter (the same answer, on fewer wedges)
+    sub = np.flatnonzero(np.isin(cand, cand[rows]))
+    cand, wedges, origins, directions = cand[sub], wedges.take(sub), origins[sub], directions[sub]
+    rows = np.searchsorted(sub, rows)
     plane = face_planes(scene)
     n_planes = int(plane.max()) + 1
     row_of_wedge = np.repeat(np.arange(len(cand)), np.diff(wedges.offsets))

@@ -130,7 +130,7 @@ def near_pairs(a, b, group, tolerance):
             ii.append(by_a[i])
             kk.append(k)
     i, j = np.concatenate(ii), order[np.concatenate(kk)]
-    near = row_norms(a[i] - b[j]) <= tolerance[i]
+    near = row_norms(np.take(a, i, axis=0) - np.take(b, j, axis=0)) <= np.take(tolerance, i)
     i, j = i[near], j[near]
     pick = np.lexsort([j, i])
     return i[pick], j[pick]
@@ -170,7 +170,7 @@ def unique_elements(el, group, tolerance, same_curve=None):
     i, j = near_pairs(el.start, el.start, group, tolerance)
     later = j > i
     i, j = i[later], j[later]
-    same = row_norms(el.end[i] - el.end[j]) <= tolerance[i]
+    same = row_norms(np.take(el.end, i, axis=0) - np.take(el.end, j, axis=0)) <= np.take(tolerance, i)
     i, j = i[same], j[same]
     if same_curve is not None and len(i):
         keep = same_curve(i, j)

@@ -21,6 +21,7 @@ from pathlib import Path
 # as `viscx build` runs (viscx/cli; before numpy loads): their spinning is not the builders' CPU
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

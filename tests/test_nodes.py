@@ -240,3 +240,62 @@ def test_pencil_line_passes_a_row_of_touching_blocks(tmp_path):
     assert tri[0] == -1
     tri, _ = first_triangles(scene, o, d, 1e-9, 11.0)
     assert tri[0] >= 0
+
+
+def _first_triangles_loop(scene, o, d, tmin, tmax):
+    """first_triangles' rule for rays in no pencil's plane, one ray at a time: cast; where
+    the hit face's plane holds the ray (|n · d| and |n · o - offset| within GRAZE_COSINE
+    and the weld tolerance), cast again from the weld tolerance beyond, at most
+    MAX_GRAZED + 1 casts (the last hit kept)."""
+    from viscx.skeleton.nodes import MAX_GRAZED
+    from viscx.tolerances import GRAZE_COSINE
+
+    tri, t = np.full(len(o), -1), np.full(len(o), np.inf)
+    for i in range(len(o)):
+        lo = tmin
+        for _ in range(MAX_GRAZED + 1):
+            h, th = scene.ray_caster.exact.first_hit(o[i:i + 1], d[i:i + 1], np.array([lo]), np.array([tmax]))
+            tri[i], t[i] = h[0], th[0]
+            if h[0] < 0:
+                break
+            f = scene.triangle_face[h[0]]
+            n = scene.face_normal[f]
+            if not (abs(np.einsum("ij,ij->i", n[None], d[i:i + 1])[0]) <= GRAZE_COSINE
+                    and abs(np.einsum("ij,ij->i", n[None], o[i:i + 1])[0] - scene.face_offset[f]) <= scene.weld_tolerance):
+                break
+            lo = th[0] + scene.weld_tolerance
+    return tri, t
+
+
+def test_first_triangles_passes_grazed_faces_as_its_loop_definition():
+    """first_triangles' kernel (rays in no pencil's plane: ``TriangleGrid.first_hit_off_planes``)
+    against the rule cast by cast, bit for bit, on a furnished room (touching boxes: faces of
+    one plane side by side): rays lying in the faces' planes (grazing, several in a row) and
+    random rays."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from buildings import furnished_room
+
+    from viscx.scene import build_scene
+    from viscx.skeleton.nodes import first_triangles
+
+    scene = build_scene(furnished_room(n_desks=2, n_cabinets=1, n_dividers=1, n_lights=1, seed=3))
+    rng = np.random.default_rng(0)
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    # rays in the planes of random faces: origin a random point of the face's plane in the box
+    f = rng.integers(scene.n_faces, size=300)
+    n = scene.face_normal[f]
+    x = rng.uniform(lo, hi, size=(300, 3))
+    x -= (np.einsum("ij,ij->i", n, x) - scene.face_offset[f])[:, None] * n
+    d = np.cross(n, rng.normal(size=(300, 3)))
+    o = np.concatenate([x, rng.uniform(lo, hi, size=(200, 3))])
+    d = np.concatenate([d, rng.normal(size=(200, 3))])
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    tri, t = first_triangles(scene, o, d, 1e-9, 50.0)
+    ref_tri, ref_t = _first_triangles_loop(scene, o, d, 1e-9, 50.0)
+    assert np.array_equal(tri, ref_tri) and np.array_equal(t, ref_t)
+    # grazing happened: rays went on past a face of their plane
+    grazed = np.flatnonzero(tri[:300] >= 0)
+    assert np.any(scene.triangle_face[tri[:300][grazed]] != f[grazed])

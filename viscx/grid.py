@@ -136,7 +136,8 @@ def bin_boxes(lo, cell, dims, boxes_lo, boxes_hi):
 
 
 @njit(cache=True, parallel=True)
-def _first_hits(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items):
+def _first_hits_off_planes(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of,
+                           normal, offset, cosine, gap, casts):
     # rays are independent: blocks of them on the threads of a parallel loop (same answers
     # on any number of threads), each block with its own tested-triangle stamps (blocks of
     # at least a sixteenth as many rays as triangles: filling them costs less than the rays)
@@ -146,31 +147,51 @@ def _first_hits(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, off
     n_blocks = max(1, min(n, 256, 16 * n // max(1, frames.shape[0])))
     for b in prange(n_blocks):
         stamps = np.full(frames.shape[0], -1, dtype=np.int64)
-        _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, b * n // n_blocks,
-                       (b + 1) * n // n_blocks, best_tri, best_t, stamps)
+        _first_hits_off_planes_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of,
+                                  normal, offset, cosine, gap, casts, b * n // n_blocks, (b + 1) * n // n_blocks, best_tri,
+                                  best_t, stamps)
     return best_tri, best_t
 
 
 @njit(cache=True, nogil=True)
-def _first_hits_serial(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items):
+def _first_hits_off_planes_serial(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of,
+                                  normal, offset, cosine, gap, casts):
     # in the calling thread, without the GIL: threads of viscx.parallel overlap
     n = origins.shape[0]
     best_tri = np.full(n, -1, dtype=np.int64)
     best_t = np.full(n, np.inf)
     stamps = np.full(frames.shape[0], -1, dtype=np.int64)
-    _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, 0, n, best_tri, best_t, stamps)
+    _first_hits_off_planes_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of, normal,
+                              offset, cosine, gap, casts, 0, n, best_tri, best_t, stamps)
     return best_tri, best_t
 
 
 @njit(cache=True, nogil=True)
-def _first_hits_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, start, stop, best_tri, best_t,
-                   stamps):
-    """:func:`_first_hit_one` of rays start..stop - 1, into ``best_tri`` and ``best_t``;
-    ``stamps`` (t,) int: the last ray (index) that tested each triangle, none of these."""
+def _first_hits_off_planes_of(origins, directions, tmin, tmax, frames, lo, hi, cell, dims, offsets, items, plane_of, normal,
+                              offset, cosine, gap, casts, start, stop, best_tri, best_t, stamps):
+    """:meth:`TriangleGrid.first_hit_off_planes` of rays start..stop - 1 (:func:`_first_hit_one`
+    each cast), into ``best_tri`` and ``best_t``; ``stamps`` (t,) int: the last cast (a
+    distinct id) that tested each triangle, none of these."""
+    cast = 0
     for r in range(start, stop):
-        best_tri[r], best_t[r] = _first_hit_one(origins[r, 0], origins[r, 1], origins[r, 2], directions[r, 0], directions[r, 1],
-                                                directions[r, 2], tmin[r], tmax[r], frames, lo, hi, cell, dims, offsets, items,
-                                                stamps, r)
+        ox, oy, oz = origins[r, 0], origins[r, 1], origins[r, 2]
+        dx, dy, dz = directions[r, 0], directions[r, 1], directions[r, 2]
+        t0 = tmin[r]
+        for _ in range(casts):
+            tri, t = _first_hit_one(ox, oy, oz, dx, dy, dz, t0, tmax[r], frames, lo, hi, cell, dims, offsets, items, stamps,
+                                    cast)
+            cast += 1
+            best_tri[r], best_t[r] = tri, t
+            if tri < 0:
+                break
+            p = plane_of[tri]
+            nx, ny, nz = normal[p, 0], normal[p, 1], normal[p, 2]
+            # the row dots of numpy's einsum, summed in its order: (x0 + x2) + x1
+            nd = (nx * dx + nz * dz) + ny * dy
+            no = (nx * ox + nz * oz) + ny * oy
+            if not (abs(nd) <= cosine and abs(no - offset[p]) <= gap):
+                break
+            t0 = t + gap
 
 
 @njit(cache=True, inline="always")
@@ -460,13 +481,42 @@ class TriangleGrid:
             -1 for no hit; on ties (equal t), the lowest triangle id.
         t : (n,) float
         """
+        # one cast, no plane ever holding a ray (|n · d| <= -1 never holds)
+        return self.first_hit_off_planes(origins, directions, tmin, tmax, np.zeros(len(self.triangles), np.int64),
+                                         np.zeros((1, 3)), np.zeros(1), -1.0, 0.0, 1)
+
+    def first_hit_off_planes(self, origins, directions, tmin, tmax, plane_of, normal, offset, cosine, gap, casts):
+        """:meth:`first_hit`, going on past the triangles whose plane holds the ray: where the
+        hit triangle's plane (``plane_of``, rows of ``normal`` and ``offset``: the plane
+        n · x = offset) is within ``cosine`` of the ray's direction (|n · d|) and ``gap`` of
+        its origin (|n · o - offset|), the ray is cast again from ``gap`` beyond the hit, at
+        most ``casts`` times in all (the last hit is kept).
+
+        Parameters
+        ----------
+        origins, directions : (n, 3) float
+        tmin, tmax : (n,) float
+        plane_of : (t,) int
+        normal : (f, 3) float
+        offset : (f,) float
+        cosine, gap : float
+        casts : int
+
+        Returns
+        -------
+        triangle : (n,) int
+        t : (n,) float
+            As :meth:`first_hit`.
+        """
         args = (np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
                 np.ascontiguousarray(tmin, dtype=np.float64), np.ascontiguousarray(tmax, dtype=np.float64),
-                self.frames, self.lo, self.hi, self.cell, self.dims, self.offsets, self.items)
+                self.frames, self.lo, self.hi, self.cell, self.dims, self.offsets, self.items,
+                np.ascontiguousarray(plane_of, dtype=np.int64), np.ascontiguousarray(normal, dtype=np.float64),
+                np.ascontiguousarray(offset, dtype=np.float64), float(cosine), float(gap), int(casts))
         if in_pool() or len(args[0]) < SERIAL_RAYS:
-            return _first_hits_serial(*args)
+            return _first_hits_off_planes_serial(*args)
         with _KERNEL_LOCK:
-            return _first_hits(*args)
+            return _first_hits_off_planes(*args)
 
     def triangles_near(self, points, tol):
         """Every (point, triangle) pair with the point within ``tol`` of the closed triangle.

@@ -34,6 +34,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # threads only burn CPU, on a busy machine taken from the threads doing the work. The results
 # do not depend on it (tests/conftest.py sets it for the suite too).
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# numpy asks for transparent huge pages on its large arrays (madvise); where the kernel's
+# THP defrag is "madvise", a fault there may compact memory synchronously, in the build's
+# system time (office(600): 15.6 -> 8.1 system CPU s; docs/skeleton.md "Furnished
+# buildings"). Read when numpy loads; the results do not depend on it.
+os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 # name -> "module:attribute", in the order `viscx --help` lists them.
 COMMANDS = {

@@ -44,8 +44,9 @@ def _angle_about(x0, x1, x2, e1, e2):
 
 
 @njit(cache=True, nogil=True)
-def _separation(offsets, first, normal, span, directions, angle_tol):
+def _separation(lo_rows, hi_rows, first, normal, span, directions, angle_tol):
     """Scalar code with buffers allocated once: it runs for every sample of every family.
+    The wedges of point i are rows ``lo_rows[i]:hi_rows[i]``.
 
     The wedges' rays are snapped before they are projected: rays of two wedges within
     ``angle_tol`` (chord) of each other are one ray of the surface (the edge two faces
@@ -60,7 +61,7 @@ def _separation(offsets, first, normal, span, directions, angle_tol):
     degenerate = np.zeros(q, dtype=np.bool_)
     most = 0
     for i in range(q):
-        most = max(most, offsets[i + 1] - offsets[i])
+        most = max(most, hi_rows[i] - lo_rows[i])
     starts = np.empty(2 * most)
     lengths = np.empty(2 * most)
     # rays of the point's wedges: (first, end) of each wedge, rows 2k and 2k + 1
@@ -82,8 +83,8 @@ def _separation(offsets, first, normal, span, directions, angle_tol):
         en = np.sqrt(e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2)
         e1[0], e1[1], e1[2] = e1[0] / en, e1[1] / en, e1[2] / en
         e2[0], e2[1], e2[2] = dy * e1[2] - dz * e1[1], dz * e1[0] - dx * e1[2], dx * e1[1] - dy * e1[0]
-        lo = offsets[i]
-        nw = offsets[i + 1] - lo
+        lo = lo_rows[i]
+        nw = hi_rows[i] - lo
         # the rays, each replaced by the first earlier ray it coincides with
         for k in range(nw):
             nx, ny, nz = normal[lo + k, 0], normal[lo + k, 1], normal[lo + k, 2]
@@ -172,7 +173,7 @@ def tangent_in_wedges(wedges, directions, angle_tol=ANGLE_TOLERANCE):
 
     Parameters
     ----------
-    wedges : Wedges
+    wedges : Wedges or WedgeRanges
         The surface around each query point (:mod:`viscx.scene.neighbourhood`).
     directions : (q, 3) float
 
@@ -185,8 +186,9 @@ def tangent_in_wedges(wedges, directions, angle_tol=ANGLE_TOLERANCE):
         The line lies on a face touching the point, or along an edge there.
     """
     directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    lo, hi = wedges.ranges()
     blocked, degenerate = _separation(
-        wedges.offsets, np.ascontiguousarray(wedges.first), np.ascontiguousarray(wedges.normal), wedges.span,
+        lo, hi, np.ascontiguousarray(wedges.first), np.ascontiguousarray(wedges.normal), wedges.span,
         directions, angle_tol,
     )
     return ~blocked, degenerate

@@ -19,7 +19,7 @@ bottom edge on a floor) are tested each time, but only against the few triangles
 found near their edge once.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -50,6 +50,50 @@ class Wedges:
     first: np.ndarray
     normal: np.ndarray
     span: np.ndarray
+
+    def ranges(self):
+        """(lo, hi) : (q,) int, the rows of each point's wedges."""
+        return self.offsets[:-1], self.offsets[1:]
+
+
+@dataclass
+class WedgeRanges:
+    """Wedges around query points as row ranges of shared arrays, read in place: the
+    wedges of point i are rows ``lo[i]:hi[i]`` of ``face``, ``first``, ``normal`` and
+    ``span`` (as in :class:`Wedges`). The cached wedges of generators are asked about for
+    millions of points: a CSR copy per point cost more than the tangency test itself.
+
+    Attributes
+    ----------
+    lo, hi : (q,) int
+    face : (k,) int
+    first, normal : (k, 3) float
+    span : (k,) float
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    face: np.ndarray
+    first: np.ndarray
+    normal: np.ndarray
+    span: np.ndarray
+
+    def ranges(self):
+        """(lo, hi) : (q,) int, the rows of each point's wedges."""
+        return self.lo, self.hi
+
+    def take(self, index):
+        """The wedges of the points ``index`` ((m,) int), as a CSR :class:`Wedges`."""
+        index = np.asarray(index, dtype=np.int64)
+        return _gather(self, self.lo[index], self.hi[index])
+
+
+def _gather(w, lo, hi):
+    """The :class:`Wedges` (CSR) holding rows lo[i]:hi[i] of ``w``'s arrays for each point i."""
+    count = hi - lo
+    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    rows = np.repeat(lo, count) + np.arange(offsets[-1]) - np.repeat(offsets[:-1], count)
+    return Wedges(offsets=offsets, face=w.face[rows], first=w.first[rows], normal=w.normal[rows], span=w.span[rows])
 
 
 def incident_faces(scene):
@@ -191,37 +235,6 @@ def _wedges_of_contacts(scene, points, owner, face):
     return Wedges(offsets=offsets, face=face, first=first_ray, normal=n, span=span)
 
 
-def take_wedges(w, index):
-    """The wedges of the query points ``index`` of ``w``, as a new CSR list.
-
-    Parameters
-    ----------
-    w : Wedges
-    index : (m,) int
-    """
-    index = np.asarray(index, dtype=np.int64)
-    count = w.offsets[index + 1] - w.offsets[index]
-    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-    rows = np.repeat(w.offsets[index], count) + np.arange(offsets[-1]) - np.repeat(offsets[:-1], count)
-    return Wedges(offsets=offsets, face=w.face[rows], first=w.first[rows], normal=w.normal[rows], span=w.span[rows])
-
-
-def merge_wedges(n, parts):
-    """One CSR list over n query points from parts ``(rows, wedges)`` that together
-    cover every point once (``rows`` : (m,) int, the points of ``wedges``, in its order)."""
-    count = np.zeros(n, dtype=np.int64)
-    for rows, w in parts:
-        count[rows] = np.diff(w.offsets)
-    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-    k = offsets[-1]
-    face, first, normal, span = np.empty(k, np.int64), np.empty((k, 3)), np.empty((k, 3)), np.empty(k)
-    for rows, w in parts:
-        c = np.diff(w.offsets)
-        dest = np.repeat(offsets[rows], c) + np.arange(w.offsets[-1]) - np.repeat(w.offsets[:-1], c)
-        face[dest], first[dest], normal[dest], span[dest] = w.face, w.first, w.normal, w.span
-    return Wedges(offsets=offsets, face=face, first=first, normal=normal, span=span)
-
-
 @dataclass
 class GeneratorContacts:
     """The surface around every vertex and along every edge, found once per scene.
@@ -251,6 +264,17 @@ class GeneratorContacts:
     shrink: float
     near_offsets: np.ndarray
     near_triangles: np.ndarray
+    # vertex then edge wedges as one set of rows (:meth:`rows`); not copied by ``replace``
+    _rows: tuple = field(default=None, init=False, repr=False, compare=False)
+
+    def rows(self):
+        """The wedges of every vertex, then of every edge, as one set of arrays (face, first,
+        normal, span), and the first edge row: what :func:`generator_wedge_ranges` points into."""
+        if self._rows is None:
+            v, e = self.vertex, self.edge
+            self._rows = (tuple(np.concatenate([getattr(v, k), getattr(e, k)]) for k in ("face", "first", "normal", "span")),
+                          len(v.face))
+        return self._rows
 
     def with_free_points(self, k):
         """The contacts after k free points (touching no face) are appended as vertices."""
@@ -296,8 +320,7 @@ def generator_contacts(scene):
 
 
 def generator_wedges(scene, is_vertex, generator, points):
-    """The wedges at points of generators: cached at vertices and inside clean edges,
-    searched geometrically elsewhere (:func:`surface_wedges`).
+    """The wedges at points of generators (:func:`generator_wedge_ranges`) as a CSR :class:`Wedges`.
 
     Parameters
     ----------
@@ -311,6 +334,20 @@ def generator_wedges(scene, is_vertex, generator, points):
     Returns
     -------
     Wedges
+    """
+    w = generator_wedge_ranges(scene, is_vertex, generator, points)
+    return w.take(np.arange(len(w.lo)))
+
+
+def generator_wedge_ranges(scene, is_vertex, generator, points):
+    """The wedges at points of generators: cached at vertices and inside clean edges (read
+    in place), searched geometrically elsewhere (:func:`surface_wedges`).
+
+    Parameters as :func:`generator_wedges`.
+
+    Returns
+    -------
+    WedgeRanges
     """
     c = scene.contacts
     is_vertex = np.asarray(is_vertex, dtype=bool)
@@ -329,14 +366,26 @@ def generator_wedges(scene, is_vertex, generator, points):
     listed = ~cached & (off_edge <= scene.weld_tolerance) & (along >= -scene.weld_tolerance) & (
         along <= row_norms(b - a) + scene.weld_tolerance)
     ic, il, ig = ie[cached], ie[listed], ie[~cached & ~listed]
-    parts = [(iv, take_wedges(c.vertex, generator[iv])), (ic, take_wedges(c.edge, generator[ic]))]
+    arrays, edge_row = c.rows()
+    lo, hi = np.empty(len(points), np.int64), np.empty(len(points), np.int64)
+    lo[iv], hi[iv] = c.vertex.offsets[generator[iv]], c.vertex.offsets[generator[iv] + 1]
+    lo[ic], hi[ic] = edge_row + c.edge.offsets[generator[ic]], edge_row + c.edge.offsets[generator[ic] + 1]
+    # the points searched: their wedges appended after the cached ones
+    fresh = []
     if len(il):
         row, tri = scene.ray_caster.exact.triangles_near_listed(points[il], generator[il], c.near_offsets,
                                                                 c.near_triangles, scene.weld_tolerance)
-        parts.append((il, _wedges_of_contacts(scene, points[il], *_unique_faces(row, scene.triangle_face[tri]))))
+        fresh.append((il, _wedges_of_contacts(scene, points[il], *_unique_faces(row, scene.triangle_face[tri]))))
     if len(ig):
-        parts.append((ig, surface_wedges(scene, points[ig])))
-    return merge_wedges(len(points), parts)
+        fresh.append((ig, surface_wedges(scene, points[ig])))
+    base = len(arrays[0])
+    for rows, w in fresh:
+        lo[rows], hi[rows] = base + w.offsets[:-1], base + w.offsets[1:]
+        base += len(w.face)
+    if fresh:
+        arrays = tuple(np.concatenate([a] + [getattr(w, k) for _, w in fresh])
+                       for a, k in zip(arrays, ("face", "first", "normal", "span")))
+    return WedgeRanges(lo, hi, *arrays)
 
 
 # --------------------------------------------------------------------------------------
@@ -364,7 +413,10 @@ def tangent_at_vertices(scene, vertices, directions, angle_tol=ANGLE_TOLERANCE):
     vertices : (q,) int
     directions : (q, 3) float
     """
-    return tangent_in_wedges(take_wedges(scene.contacts.vertex, vertices), directions, angle_tol)
+    v = scene.contacts.vertex
+    vertices = np.asarray(vertices, dtype=np.int64)
+    return tangent_in_wedges(WedgeRanges(v.offsets[vertices], v.offsets[vertices + 1], v.face, v.first, v.normal, v.span),
+                             directions, angle_tol)
 
 
 def tangent_at_edges(scene, edges, directions, points=None, angle_tol=ANGLE_TOLERANCE):

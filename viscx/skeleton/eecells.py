@@ -430,7 +430,7 @@ def _coordinate(scene, arcs, arc, edge, s):
         False where the family's line is undefined (a pencil's parameter point at the
         vertex its edge shares with another generator).
     """
-    kind, g = arcs.kind[arc], arcs.generators[arc]
+    kind, g = np.take(arcs.kind, arc), np.take(arcs.generators, arc, axis=0)
     x = np.empty(len(arc))
     defined = np.ones(len(arc), bool)
     param = np.where(kind == EEE, g[:, 0], g[:, 1]) == edge
@@ -441,7 +441,7 @@ def _coordinate(scene, arcs, arc, edge, s):
         cr = edge_crossings(scene)
         on_b = (g[cross, 2] == edge[cross]).astype(np.int64)
         x[cross] = cr.s[cr.find(g[cross, 0], g[cross, 2]), on_b]
-    ev = scene.half_edges.edge_vertices[edge]
+    ev = np.take(scene.half_edges.edge_vertices, edge, axis=0)
     at_vertex = (kind == VE) & ~param
     w = g[at_vertex, 0]
     a, b = edge_geometry(scene, edge[at_vertex])
@@ -529,7 +529,10 @@ class Elements:
         return len(self.arc)
 
     def take(self, index):
-        return Elements(**{name: getattr(self, name)[index] for name in self.__dataclass_fields__})
+        index = np.asarray(index)
+        index = np.flatnonzero(index) if index.dtype == bool else index
+        # np.take: numpy's fancy indexing of (k, 3) rows is several times slower
+        return Elements(**{name: np.take(getattr(self, name), index, axis=0) for name in self.__dataclass_fields__})
 
     @staticmethod
     def concatenate(parts):

@@ -12,7 +12,7 @@ EE-cells embed their square as the plane z = 1).
 import numpy as np
 from numba import njit
 
-from viscx.arrays import expand_ranges, row_norms, unique_rows, walk_cycle
+from viscx.arrays import row_norms, unique_rows, walk_cycle
 
 #: Decimals to which turning sums are compared when choosing a cell's outer loop.
 TURNING_DECIMALS = 9
@@ -115,25 +115,51 @@ def near_pairs(a, b, group, tolerance):
     g = g.reshape(-1).astype(np.int64)
     key_b = (g * m + cell_b[:, 0]) * m + cell_b[:, 1]
     order = np.argsort(key_b, kind="stable")
-    sorted_keys = key_b[order]
-    # the a's by their own cell's key: each neighbour's key is that plus a constant, so the
-    # nine searches get ascending queries (searchsorted's fast path: ~7x on 10^5 points)
     key_a = (g * m + cell_a[:, 0]) * m + cell_a[:, 1]
+    # the a's by their own cell's key: each neighbour's key is that plus a constant, so the
+    # nine runs of b are found by pointers that only move forward
     by_a = np.argsort(key_a, kind="stable")
-    key_a = key_a[by_a]
-    ii, kk = [], []
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            key = key_a + (dx * m + dy)
-            first = np.searchsorted(sorted_keys, key, "left")
-            i, k = expand_ranges(first, np.searchsorted(sorted_keys, key, "right") - first)
-            ii.append(by_a[i])
-            kk.append(k)
-    i, j = np.concatenate(ii), order[np.concatenate(kk)]
-    near = row_norms(a[i] - b[j]) <= tolerance[i]
-    i, j = i[near], j[near]
+    i, j = _near_in_cells(key_a, by_a, key_b[order], order, m, np.ascontiguousarray(a, dtype=np.float64),
+                          np.ascontiguousarray(b, dtype=np.float64), np.ascontiguousarray(tolerance))
     pick = np.lexsort([j, i])
     return i[pick], j[pick]
+
+
+@njit(cache=True, nogil=True)
+def _near_in_cells(key_a, by_a, sorted_keys, order, m, a, b, tolerance):
+    """The pairs of :func:`near_pairs` in any order: each a[i] (in the order ``by_a`` of its
+    key) against the b of the 3 × 3 cells around its own (the run of each neighbour's key
+    in ``sorted_keys``, b's keys sorted, ``order`` their rows), kept where the distance,
+    summed as :func:`viscx.arrays.row_norms` sums it, is within ``tolerance[i]``."""
+    out_i = np.empty(max(16, 4 * len(key_a)), np.int64)
+    out_j = np.empty_like(out_i)
+    n_out = 0
+    nb = len(sorted_keys)
+    lo = np.zeros(9, np.int64)
+    hi = np.zeros(9, np.int64)
+    for r in range(len(by_a)):
+        i = by_a[r]
+        for q in range(9):
+            key = key_a[i] + ((q // 3 - 1) * m + (q % 3 - 1))
+            while lo[q] < nb and sorted_keys[lo[q]] < key:
+                lo[q] += 1
+            hi[q] = max(hi[q], lo[q])
+            while hi[q] < nb and sorted_keys[hi[q]] <= key:
+                hi[q] += 1
+            for k in range(lo[q], hi[q]):
+                j = order[k]
+                s = 0.0
+                for c in range(a.shape[1]):
+                    d = a[i, c] - b[j, c]
+                    s += d * d
+                if np.sqrt(s) <= tolerance[i]:
+                    if n_out == len(out_i):
+                        out_i = np.concatenate((out_i, np.empty_like(out_i)))
+                        out_j = np.concatenate((out_j, np.empty_like(out_j)))
+                    out_i[n_out] = i
+                    out_j[n_out] = j
+                    n_out += 1
+    return out_i[:n_out], out_j[:n_out]
 
 
 def unique_elements(el, group, tolerance, same_curve=None):
@@ -170,7 +196,7 @@ def unique_elements(el, group, tolerance, same_curve=None):
     i, j = near_pairs(el.start, el.start, group, tolerance)
     later = j > i
     i, j = i[later], j[later]
-    same = row_norms(el.end[i] - el.end[j]) <= tolerance[i]
+    same = row_norms(np.take(el.end, i, axis=0) - np.take(el.end, j, axis=0)) <= np.take(tolerance, i)
     i, j = i[same], j[same]
     if same_curve is not None and len(i):
         keep = same_curve(i, j)

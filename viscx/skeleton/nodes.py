@@ -16,7 +16,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.geometry.tangency import tangent_in_wedges
 from viscx.parallel import map_chunks, row_chunks
 from viscx.raycast import intersect_triangles
-from viscx.scene.neighbourhood import faces_near, generator_wedges, tangent_at_vertices
+from viscx.scene.neighbourhood import faces_near, generator_wedge_ranges, tangent_at_vertices
 from viscx.tolerances import ANGLE_TOLERANCE, GRAZE_COSINE, TIE_MARGIN, TIE_SLACK
 
 # Node kinds.
@@ -198,7 +198,10 @@ def maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins
 
 
 def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origins, directions, plane_face=None):
-    """:func:`maximal_free_segments` on one chunk of lines."""
+    """:func:`maximal_free_segments` on one chunk of lines.
+
+    Rows are gathered with ``np.take`` and masks with ``np.compress``: numpy's fancy
+    indexing of (n, 3) rows by millions of indices is ten times slower (the same copies)."""
     eps = scene.epsilon
     slot_is_vertex = np.asarray(slot_is_vertex, dtype=bool)
     count = np.asarray(slot_count, dtype=np.int64)
@@ -207,26 +210,27 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     o = np.asarray(origins, dtype=np.float64)
     m = len(count)
 
-    # one row per (candidate, generator slot)
+    # one row per (candidate, generator slot): flat = 4 cand + slot
     used = np.arange(4)[None, :] < count[:, None]
-    cand, slot = np.nonzero(used)
-    gid = generators[cand, slot]
-    is_vertex = slot_is_vertex[cand, slot]
-    oc, dc = o[cand], d[cand]
+    flat = np.flatnonzero(used)
+    cand = flat >> 2
+    gid = np.take(generators, flat)
+    is_vertex = np.take(slot_is_vertex, flat)
+    oc, dc = np.take(o, cand, axis=0), np.take(d, cand, axis=0)
     point = np.empty((len(cand), 3))
     ok = np.ones(len(cand), dtype=bool)
     tangent = np.zeros(len(cand), dtype=bool)
     degenerate = np.zeros(len(cand), dtype=bool)
 
     iv = np.flatnonzero(is_vertex)
-    x_v = scene.vertices[gid[iv]]
-    ok[iv] = row_norms(np.cross(x_v - oc[iv], dc[iv])) <= eps
+    x_v = np.take(scene.vertices, np.take(gid, iv), axis=0)
+    ok[iv] = row_norms(np.cross(x_v - np.take(oc, iv, axis=0), np.take(dc, iv, axis=0))) <= eps
     point[iv] = x_v
 
     ie = np.flatnonzero(~is_vertex)
-    ev = scene.half_edges.edge_vertices[gid[ie]]
-    a, b = scene.vertices[ev[:, 0]], scene.vertices[ev[:, 1]]
-    x, dist = segment_parameter(oc[ie], dc[ie], a, b)
+    ev = np.take(scene.half_edges.edge_vertices, np.take(gid, ie), axis=0)
+    a, b = np.take(scene.vertices, ev[:, 0], axis=0), np.take(scene.vertices, ev[:, 1], axis=0)
+    x, dist = segment_parameter(np.take(oc, ie, axis=0), np.take(dc, ie, axis=0), a, b)
     length = row_norms(b - a)
     # the line meets the edge strictly inside: at an endpoint the event is the vertex's
     with np.errstate(invalid="ignore"):
@@ -238,12 +242,13 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
 
     # generators sorted along the line
     t = np.full((m, 4), np.inf)
-    t[cand, slot] = np.einsum("ij,ij->i", point - oc, dc)
+    t.reshape(-1)[flat] = np.einsum("ij,ij->i", point - oc, dc)
     order = np.argsort(t, axis=1, kind="stable")
-    t_sorted = np.take_along_axis(t, order, axis=1)
+    sorted_flat = order + 4 * np.arange(m)[:, None]
+    t_sorted = np.take(t, sorted_flat)
     row_of = np.full((m, 4), -1)
-    row_of[cand, slot] = np.arange(len(cand))
-    row_sorted = np.take_along_axis(row_of, order, axis=1)
+    row_of.reshape(-1)[flat] = np.arange(len(cand))
+    row_sorted = np.take(row_of, sorted_flat)
     for j in range(3):  # distinct points along the line
         has = j + 1 < count
         gap = np.where(has, t_sorted[:, j + 1] - np.where(has, t_sorted[:, j], 0.0), np.inf)
@@ -255,49 +260,50 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     for j in range(3):
         has = keep & (j + 1 < count)
         c = np.flatnonzero(has)
-        pieces_a.append(point[row_sorted[c, j]])
-        pieces_b.append(point[row_sorted[c, j + 1]])
+        pieces_a.append(np.take(point, np.take(row_sorted[:, j], c), axis=0))
+        pieces_b.append(np.take(point, np.take(row_sorted[:, j + 1], c), axis=0))
         piece_cand.append(c)
     piece_cand = np.concatenate(piece_cand)
     if len(piece_cand):
         free = free_pieces(scene, np.concatenate(pieces_a), np.concatenate(pieces_b),
-                           None if plane_face is None else plane_face[piece_cand])
+                           None if plane_face is None else np.take(plane_face, piece_cand))
         keep &= _all_of(piece_cand, free, m)
 
     # ... then tangency, the costly test, on the lines still standing
-    rows = np.flatnonzero(keep[cand])
-    wedges = generator_wedges(scene, is_vertex[rows], gid[rows], point[rows])
-    tangent[rows], degenerate[rows] = tangent_in_wedges(wedges, dc[rows])
+    rows = np.flatnonzero(np.take(keep, cand))
+    d_rows = np.take(dc, rows, axis=0)
+    wedges = generator_wedge_ranges(scene, np.take(is_vertex, rows), np.take(gid, rows), np.take(point, rows, axis=0))
+    tangent[rows], degenerate[rows] = tangent_in_wedges(wedges, d_rows)
     # grazing is the rule, not a degeneracy, at a face holding two of the node's
     # generators (v and e on one face, two edges of one face): Hoberock et al. §4.1
-    grazing = np.flatnonzero(degenerate[rows])
+    grazing = np.flatnonzero(np.take(degenerate, rows))
     if len(grazing):
-        excused = _grazes_shared_face(scene, cand[rows], wedges, oc[rows], dc[rows], grazing)
+        excused = _grazes_shared_face(scene, np.take(cand, rows), wedges, np.take(oc, rows, axis=0), d_rows, grazing)
         degenerate[rows[grazing[excused]]] = False
     keep &= _all_of(cand, ~degenerate, m)
     for j in range(1, 3):  # inner generators must be passed
         inner = j < count - 1
         r = np.where(inner, row_sorted[:, j], 0)
-        keep &= ~inner | tangent[r]
+        keep &= ~inner | np.take(tangent, r)
 
     nodes = np.flatnonzero(keep)
     n = len(nodes)
-    first_row = row_sorted[nodes, 0]
-    last_row = row_sorted[nodes, count[nodes] - 1]
+    first_row = np.take(row_sorted[:, 0], nodes)
+    last_row = np.take(row_sorted, 4 * nodes + np.take(count, nodes) - 1)
     ends = np.empty((n, 2, 3))
     blocker_kind = np.empty((n, 2), dtype=np.int8)
     blocker = np.empty((n, 2), dtype=np.int64)
     for side, row, sign in ((0, first_row, -1.0), (1, last_row, 1.0)):
-        feature_kind = np.where(is_vertex[row], BLOCK_VERTEX, BLOCK_EDGE)
-        ends[:, side] = point[row]
+        feature_kind = np.where(np.take(is_vertex, row), BLOCK_VERTEX, BLOCK_EDGE)
+        ends[:, side] = np.take(point, row, axis=0)
         blocker_kind[:, side] = feature_kind
-        blocker[:, side] = gid[row]
-        go_on = np.flatnonzero(tangent[row])  # passing: the segment ends farther on
+        blocker[:, side] = np.take(gid, row)
+        go_on = np.flatnonzero(np.take(tangent, row))  # passing: the segment ends farther on
         if len(go_on):
-            start = point[row[go_on]]
-            direction = sign * d[nodes[go_on]]
+            start = np.take(point, np.take(row, go_on), axis=0)
+            direction = sign * np.take(d, np.take(nodes, go_on), axis=0)
             face, dist_hit = first_faces(scene, start, direction, tmin=eps,
-                                         plane_face=None if plane_face is None else plane_face[nodes[go_on]])
+                                         plane_face=None if plane_face is None else np.take(plane_face, np.take(nodes, go_on)))
             sky = face < 0
             end = start + np.where(sky, 0.0, dist_hit)[:, None] * direction
             if sky.any():
@@ -312,11 +318,11 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     all_kind[nodes] = blocker_kind
     all_blocker = np.full((m, 2), -1, dtype=np.int64)
     all_blocker[nodes] = blocker
+    # every used slot's row, in order: point and tangent rows are the used slots'
     gen_points = np.full((m, 4, 3), np.nan)
-    has = row_of >= 0
-    gen_points[has] = point[row_of[has]]
+    gen_points.reshape(-1, 3)[flat] = point
     slot_tangent = np.zeros((m, 4), dtype=bool)
-    slot_tangent[has] = tangent[row_of[has]]
+    slot_tangent.reshape(-1)[flat] = tangent
     return LineSegments(keep, d, all_ends, all_kind, all_blocker, gen_points, slot_tangent)
 
 
@@ -346,11 +352,12 @@ def vertex_ray_blockers(scene, vertices, directions):
     vertices = np.asarray(vertices, dtype=np.int64)
     d = np.asarray(directions, dtype=np.float64)
     d = d / row_norms(d)[:, None]
-    x = scene.vertices[vertices]
+    x = np.take(scene.vertices, vertices, axis=0)
     tangent, degenerate = tangent_at_vertices(scene, vertices, d)
     # the ray back along -d matters only where the line passes the vertex
     passing = np.flatnonzero(tangent)
-    face, _ = first_faces(scene, np.concatenate([x[passing], x]), np.concatenate([-d[passing], d]), tmin=scene.epsilon)
+    face, _ = first_faces(scene, np.concatenate([np.take(x, passing, axis=0), x]),
+                          np.concatenate([-np.take(d, passing, axis=0), d]), tmin=scene.epsilon)
     back = np.full(len(d), -1, dtype=face.dtype)
     back[passing], front = face[: len(passing)], face[len(passing):]
     up_kind = np.where(~tangent, BLOCK_VERTEX, np.where(back < 0, BLOCK_SKY, BLOCK_FACE)).astype(np.int8)
@@ -406,12 +413,13 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
     d = np.ascontiguousarray(d / row_norms(d)[:, None])
     tri, t = first_triangles(scene, o, d, tmin, tmax, plane_face)
     margin = np.full(len(o), np.inf)
-    hit = np.flatnonzero(tri >= 0)
-    _, margin[hit], _ = intersect_triangles(o[hit], d[hit], scene.ray_caster.vertices, scene.ray_caster.triangles, tri[hit])
-    t[tri < 0] = np.inf
-    face = np.where(tri >= 0, scene.triangle_face[np.maximum(tri, 0)], -1)
     rows = np.flatnonzero(tri >= 0)
-    hit = o[rows] + t[rows, None] * d[rows]
+    o_rows, d_rows = np.take(o, rows, axis=0), np.take(d, rows, axis=0)
+    _, margin[rows], _ = intersect_triangles(o_rows, d_rows, scene.ray_caster.vertices, scene.ray_caster.triangles,
+                                             np.take(tri, rows))
+    t[tri < 0] = np.inf
+    face = np.where(tri >= 0, np.take(scene.triangle_face, np.maximum(tri, 0)), -1)
+    hit = o_rows + np.take(t, rows)[:, None] * d_rows
     examine = margin[rows] * _triangle_sizes(scene)[tri[rows]] <= TIE_MARGIN * scene.diagonal
     # on a face with coplanar partners: only where a partner's bounding box holds the hit
     p_off, p_face, lo_box, hi_box = coplanar_partners(scene)
@@ -420,17 +428,20 @@ def first_faces(scene, origins, directions, tmin, tmax=np.inf, plane_face=None):
     which = np.repeat(on, count)
     partner = p_face[np.repeat(p_off[face[rows[on]]], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
     tol = 2 * scene.weld_tolerance
-    inside = np.all((hit[which] >= lo_box[partner] - tol) & (hit[which] <= hi_box[partner] + tol), axis=1)
+    hit_which = np.take(hit, which, axis=0)
+    inside = np.all((hit_which >= np.take(lo_box, partner, axis=0) - tol) & (hit_which <= np.take(hi_box, partner, axis=0) + tol),
+                    axis=1)
     slack = TIE_SLACK * scene.diagonal
     # hits on a triangle's boundary: the faces holding the hit point
     edge_rows = np.flatnonzero(examine)
-    pos_e, near_e = faces_near(scene, hit[edge_rows], slack)
+    pos_e, near_e = faces_near(scene, np.take(hit, edge_rows, axis=0), slack)
     pos_e = edge_rows[pos_e]
     # hits inside a coplanar partner's box: the partners holding the hit's projection onto their plane
     pos_p, near_p = which[inside], partner[inside]
-    n, off = scene.face_normal[near_p], scene.face_offset[near_p]
-    gap = np.einsum("ij,ij->i", n, hit[pos_p]) - off
-    q, tri_face = faces_near(scene, hit[pos_p] - gap[:, None] * n, slack)
+    n, off = np.take(scene.face_normal, near_p, axis=0), scene.face_offset[near_p]
+    hit_p = np.take(hit, pos_p, axis=0)
+    gap = np.einsum("ij,ij->i", n, hit_p) - off
+    q, tri_face = faces_near(scene, hit_p - gap[:, None] * n, slack)
     holds = np.zeros(len(pos_p), dtype=bool)
     holds[q[tri_face == near_p[q]]] = True
     pos = np.concatenate([pos_e, pos_p[holds]])
@@ -473,25 +484,35 @@ def first_triangles(scene, origins, directions, tmin, tmax, plane_face=None):
     o, d = origins, directions
     lo = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (len(o),)).copy()
     hi = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (len(o),)).copy()
+    # rays in no pencil's plane: the grazing rule alone, in one kernel
+    plain = np.arange(len(o)) if plane_face is None else np.flatnonzero(plane_face < 0)
+    if len(plain) == len(o):
+        return _first_ungrazed(scene, o, d, lo, hi)
     tri = np.full(len(o), -1, dtype=np.int64)
     t = np.full(len(o), np.inf)
-    todo = np.arange(len(o))
-    for it in range((MAX_GRAZED if plane_face is None else MAX_PASSED) + 1):
-        if it > MAX_GRAZED:  # only pencils' lines go on
-            todo = todo[plane_face[todo] >= 0]
+    tri[plain], t[plain] = _first_ungrazed(scene, o[plain], d[plain], lo[plain], hi[plain])
+    todo = np.flatnonzero(plane_face >= 0)
+    for _ in range(MAX_PASSED + 1):
         tri[todo], t[todo] = scene.ray_caster.exact.first_hit(o[todo], d[todo], lo[todo], hi[todo])
         todo = todo[tri[todo] >= 0]
         f = scene.triangle_face[tri[todo]]
         grazing = _in_face_plane(scene, f, o[todo], d[todo])
-        if plane_face is not None:
-            r = np.flatnonzero(~grazing & (plane_face[todo] >= 0))
-            g = plane_face[todo[r]]
-            grazing[r] = _in_face_plane(scene, g, o[todo[r]], d[todo[r]]) & faces_beside_planes(scene, f[r], g)
+        r = np.flatnonzero(~grazing)
+        g = plane_face[todo[r]]
+        grazing[r] = _in_face_plane(scene, g, o[todo[r]], d[todo[r]]) & faces_beside_planes(scene, f[r], g)
         todo = todo[grazing]
         if len(todo) == 0:
             break
         lo[todo] = t[todo] + scene.weld_tolerance
     return tri, t
+
+
+def _first_ungrazed(scene, origins, directions, tmin, tmax):
+    """:func:`first_triangles` of rays in no pencil's plane: a hit on a face whose plane holds
+    the ray (:func:`_in_face_plane`) is passed, at most MAX_GRAZED times."""
+    return scene.ray_caster.exact.first_hit_off_planes(origins, directions, tmin, tmax, scene.triangle_face,
+                                                       scene.face_normal, scene.face_offset, GRAZE_COSINE,
+                                                       scene.weld_tolerance, MAX_GRAZED + 1)
 
 
 def _in_face_plane(scene, faces, origins, directions):
@@ -554,7 +575,9 @@ def free_pieces(scene, starts, ends, plane_face=None):
     free = length <= 2 * eps
     rays = np.flatnonzero(~free)
     if len(rays):
-        tri, _ = first_triangles(scene, starts[rays], vec[rays] / length[rays, None], eps, length[rays] - eps,
+        length_rays = np.take(length, rays)
+        tri, _ = first_triangles(scene, np.take(starts, rays, axis=0), np.take(vec, rays, axis=0) / length_rays[:, None], eps,
+                                 length_rays - eps,
                                  None if plane_face is None else np.asarray(plane_face)[rays])
         free[rays] = tri < 0
     return free
@@ -646,16 +669,20 @@ def _grazes_shared_face(scene, cand, wedges, origins, directions, rows, angle_to
     cand : (k,) int
         Candidate of every generator row; every row of a candidate in ``rows``
         is among the k.
-    wedges : Wedges
+    wedges : WedgeRanges
         The surface around each row's generator point.
     origins, directions : (k, 3) float
     rows : (r,) int
-        The rows to judge.
+        The rows to judge, ascending.
 
     Returns
     -------
     (r,) bool
     """
+    # only the rows of the candidates judged matter (the same answer, on fewer wedges)
+    sub = np.flatnonzero(np.isin(cand, cand[rows]))
+    cand, wedges, origins, directions = cand[sub], wedges.take(sub), origins[sub], directions[sub]
+    rows = np.searchsorted(sub, rows)
     plane = face_planes(scene)
     n_planes = int(plane.max()) + 1
     row_of_wedge = np.repeat(np.arange(len(cand)), np.diff(wedges.offsets))

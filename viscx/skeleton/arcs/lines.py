@@ -194,12 +194,7 @@ def judge_samples(scene, kind, generators, s, sides=False):
     kind = np.asarray(kind, dtype=np.int64)
     generators = np.asarray(generators, dtype=np.int64)
     if np.any(kind == XE):  # as VE families of the crossing points (crossing_scene)
-        xs, first = crossing_scene(scene)
-        x = kind == XE
-        cr = edge_crossings(scene)
-        generators = generators.copy()
-        generators[x] = np.stack([first + cr.find(generators[x, 0], generators[x, 2]), generators[x, 1],
-                                  np.full(np.count_nonzero(x), -1)], axis=1)
+        xs, first, x, cr, generators = _as_crossing_families(scene, kind, generators)
         out = judge_samples(xs, np.where(x, VE, kind), generators, s, sides)
         out.generator_points[x, 2] = out.generator_points[x, 0]
         blocked_at_crossings(out.state[:, [1, 3]], out.state[:, [2, 4]], generators[:, 0] - first, x, cr, out.state)
@@ -221,10 +216,36 @@ def judge_samples(scene, kind, generators, s, sides=False):
     b = np.where(flip[:, None], seg.blocker[:, ::-1], seg.blocker)
     state = np.stack([valid.astype(np.int64), bk[:, 0], b[:, 0], bk[:, 1], b[:, 1]], axis=1)
     state[~valid, 1:] = -1
-    side = None
-    if sides:  # the V-cells beside valid VE lines: an arc's half-cells must hold all along it
-        side = np.full((len(kind), 12), -1, dtype=np.int64)
-        rows = np.flatnonzero(valid & (kind == VE))
-        if len(rows):
-            side[rows] = np.concatenate(side_blockers(scene, generators[rows, 0], generators[rows, 1], s[rows]), axis=1)
+    # the V-cells beside valid VE lines: an arc's half-cells must hold all along it
+    side = judge_sides(scene, kind, generators, s, valid) if sides else None
     return _Samples(valid, state, direction, ends, gp, side)
+
+
+def judge_sides(scene, kind, generators, s, valid):
+    """The ``sides`` of :func:`judge_samples` (the half-cells of the valid VE and XE samples,
+    -1 elsewhere), for samples already judged (``valid`` : (m,) bool, theirs): where the
+    lines' states alone settle a question (two samples on different arcs), the half-cells
+    are not asked for. Parameters as :func:`judge_samples`; returns (m, 12) int."""
+    kind = np.asarray(kind, dtype=np.int64)
+    generators = np.asarray(generators, dtype=np.int64)
+    if np.any(kind == XE):
+        xs, _, x, _, generators = _as_crossing_families(scene, kind, generators)
+        return judge_sides(xs, np.where(x, VE, kind), generators, s, valid)
+    side = np.full((len(kind), 12), -1, dtype=np.int64)
+    rows = np.flatnonzero(valid & (kind == VE))
+    if len(rows):
+        side[rows] = np.concatenate(side_blockers(scene, generators[rows, 0], generators[rows, 1], np.asarray(s)[rows]), axis=1)
+    return side
+
+
+def _as_crossing_families(scene, kind, generators):
+    """XE families (a, e, b) as the VE families (X, e) of their crossing points X in
+    :func:`crossing_scene`: (that scene, its first crossing vertex, the XE rows (m,) bool,
+    the crossings, the (m, 3) generators with the XE rows rewritten)."""
+    xs, first = crossing_scene(scene)
+    x = kind == XE
+    cr = edge_crossings(scene)
+    generators = generators.copy()
+    generators[x] = np.stack([first + cr.find(generators[x, 0], generators[x, 2]), generators[x, 1],
+                              np.full(np.count_nonzero(x), -1)], axis=1)
+    return xs, first, x, cr, generators

@@ -14,7 +14,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.memory import release_free_memory
 from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_CROSSING, END_EDGE, END_ENDPOINT, END_RANK, END_TRANSITION, VE
-from viscx.skeleton.arcs.lines import family_lines, judge_samples
+from viscx.skeleton.arcs.lines import family_lines, judge_samples, judge_sides
 from viscx.skeleton.arcs.pencils import pencil_planes
 from viscx.skeleton.generators import edge_geometry, edge_junctions
 from viscx.tolerances import END_SAMPLE_EPSILONS, MERGE_EPSILONS, SNAP
@@ -189,8 +189,13 @@ def first_pass(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1, workers=None):
     uniform = np.zeros(n, dtype=bool)
 
     def judge_chunk(c):
-        smp = judge_samples(scene, np.repeat(fkind[f[c]], fr.shape[1]), np.repeat(fgens[f[c]], fr.shape[1], axis=0),
-                            ss[c].reshape(-1), sides=True)
+        kinds, gens, s = np.repeat(fkind[f[c]], fr.shape[1]), np.repeat(fgens[f[c]], fr.shape[1], axis=0), ss[c].reshape(-1)
+        smp = judge_samples(scene, kinds, gens, s)
+        # the half-cells only where the lines agree: an interval whose lines differ is refined anyway
+        lines = smp.state.reshape(len(c), fr.shape[1], -1)
+        agree = np.repeat(np.all(lines == lines[:, :1], axis=(1, 2)), fr.shape[1])
+        smp.sides = np.full((len(s), 12), -1, dtype=np.int64)
+        smp.sides[agree] = judge_sides(scene, kinds[agree], gens[agree], s[agree], smp.valid[agree])
         state = _full_state(smp).reshape(len(c), fr.shape[1], -1)
         uniform[c] = np.all(state == state[:, :1], axis=(1, 2))
         whole = np.flatnonzero(uniform[c] & (state[:, 0, 0] == 1))
@@ -344,10 +349,13 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     ci, cj = np.nonzero(change)
     lo, hi = ss[ci, cj], ss[ci, cj + 1]
     left = state[ci, cj]
+    kinds, gens = fkind[f[ci]], fgens[f[ci]]
     for _ in range(BISECT):
         m = 0.5 * (lo + hi)
-        st = _full_state(judge_samples(scene, fkind[f[ci]], fgens[f[ci]], m, sides=True))
-        same = np.all(st == left, axis=1)
+        at = judge_samples(scene, kinds, gens, m)
+        # the half-cells only where the line's state is left's (elsewhere the sample differs anyway)
+        same = np.all(at.state == left[:, :5], axis=1)
+        same[same] = np.all(judge_sides(scene, kinds[same], gens[same], m[same], at.valid[same]) == left[same, 5:], axis=1)
         lo, hi = np.where(same, m, lo), np.where(same, hi, m)
     cut = _snap_cuts(scene, fkind[f[ci]], fgens[f[ci]], 0.5 * (lo + hi), ss[ci, cj], ss[ci, cj + 1])
     # loose: only the half-cells changed and no event explains it (see _merge_across_possible_events)

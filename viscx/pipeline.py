@@ -97,7 +97,7 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     from viscx.distributed import InProcess
     from viscx.formats.hdf5 import CellsAppender
     from viscx.progress import bar
-    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, vcell_parts, vcells_of_part
+    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, v2_arcs, vcell_parts, vcells_of_part
 
     runner = runner or InProcess()
     timings = {} if timings is None else timings
@@ -109,6 +109,8 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
             vcells.append(cells)
             progress.update()
     vcells.close()
+    # the EE-cells read no half-cells: freed here when the caller keeps no other reference
+    arcs = v2_arcs(arcs, half_rows=slice(0, 0))
     t1 = time.perf_counter()
     eecells = CellsAppender(group, ee=True)
     with bar(desc="EE-cells", quiet=quiet, unit="chunk") as progress:
@@ -497,9 +499,9 @@ def _write_streamed(cx, output, compression, stages, runner, quiet):
             release_free_memory()
         if "V2" in names:
             with stages.stage("V2"):
-                # V2 reads a fifth of V1: read back from the file
-                arcs = stored_v2_arcs(f["V1"])
-                stream_two_cells(cx.scene, arcs, f.create_group("V2", track_order=True), runner, stages.timings, quiet)
+                # V2 reads a fifth of V1: read back from the file (only stream_two_cells holds it)
+                stream_two_cells(cx.scene, stored_v2_arcs(f["V1"]), f.create_group("V2", track_order=True), runner,
+                                 stages.timings, quiet)
     cx.path, cx.stored = Path(output), names
 
 

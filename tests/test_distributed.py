@@ -14,7 +14,7 @@ from viscx.formats import hdf5
 from viscx.formats.diff import diff_files
 from viscx.formats.hdf5 import complex_writer
 from viscx.pipeline import build_complex, level_writers, stream_arcs, stream_two_cells
-from viscx.skeleton import chunks
+from viscx.skeleton import chunks, eecells
 from viscx.skeleton.arcs import builder
 
 # scenes with open chains, demoted loops, whole-sphere vertices and T-junctions between them
@@ -54,6 +54,7 @@ def tiny_chunks(monkeypatch):
     monkeypatch.setattr(builder, "FAMILY_CHUNK", 1000)
     monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
     monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
+    monkeypatch.setattr(eecells, "ARC_SLICE", 500)
     monkeypatch.setattr(hdf5, "APPEND_BYTES", 512)
 
 
@@ -88,6 +89,21 @@ def test_chunk_cuts_keep_vertices_and_squares_whole(built, tiny_chunks):
     assert np.array_equal(seen, cx.scene.generator_vertices)  # each vertex in one chunk, in order
     squares = [np.unique(e1 * (1 << 32) + e2) for _, (_, e1, e2), _ in chunks.eecell_parts(cx.scene, cx.arcs)]
     assert len(np.unique(np.concatenate(squares))) == sum(map(len, squares))  # no square split
+
+
+def test_squares_found_in_slices_of_arcs_keep_the_order_of_one_call(built, monkeypatch):
+    """square_chunks finds the incidences ARC_SLICE arcs at a time: in order of square,
+    each square's in arc_squares' order over all arcs (by block: EEE pairs, VE edges at w
+    and T-junctions, XE; then by arc), whatever the slices (boxes_on_floor: EEE, VE and
+    XE arcs in one square)."""
+    cx = built("boxes_on_floor.obj")
+    arc, e1, e2 = eecells.arc_squares(cx.scene, cx.arcs)
+    whole = np.stack([arc, e1, e2], axis=1)[np.argsort(e1 * (1 << 32) + e2, kind="stable")]
+    monkeypatch.setattr(eecells, "ARC_SLICE", 97)
+    sliced = np.concatenate([np.stack(c, axis=1) for c in eecells.square_chunks(cx.scene, cx.arcs, 50)])
+    assert np.array_equal(sliced, whole)
+    # squares bounded by arcs of several kinds
+    assert len(np.unique(np.stack([e1, e2, cx.arcs.kind[arc]], axis=1), axis=0)) > len(np.unique(e1 * (1 << 32) + e2))
 
 
 def test_build_streams_v1_and_v2_into_the_file(tmp_path):

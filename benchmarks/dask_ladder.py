@@ -1,8 +1,10 @@
-"""The full build of the cities three ways: V2 whole in memory, V2 streamed into the file chunk
-by chunk, and V2's chunks on a local dask cluster (``viscx build --scheduler local``).
+"""The full build of the cities three ways: every level whole in memory, V1 and V2 streamed into
+the file chunk by chunk, and V1's and V2's chunks on a local dask cluster (``viscx build
+--scheduler local``).
 
     python benchmarks/dask_ladder.py --sizes 300 1000          # cities of random boxes
     python benchmarks/dask_ladder.py --sizes 1000 --workers 2 --modes streamed dask
+    python benchmarks/dask_ladder.py --scene bunny.obj --modes streamed   # any scene file
 
 Each build runs in a child process of its own (``prlimit --as`` caps it, ``--cap`` GB) from
 the city written as OBJ: ``whole`` is the build as it was before V2 was streamed (every
@@ -11,7 +13,7 @@ level built in memory, then written: ``build_complex(...).save``), ``streamed`` 
 wall time, the CPU seconds of the process and of its children (the dask workers), the
 peak resident memory of the building process (at the end of each stage, from the build's
 log) and of each dask worker, and whether the
-files are equal (``viscx diff`` against the first mode's). Prints JSON lines and writes
+files are equal (``viscx diff --rtol 0 --atol 0`` against the first mode's). Prints JSON lines and writes
 ``benchmarks/dask_results.json``.
 """
 
@@ -85,6 +87,7 @@ def run_build(mode, scene, out, workers, cap_gb):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[300, 1000])
+    parser.add_argument("--scene", help="a scene file built instead of the cities (e.g. scenes.bunny_in_room's OBJ)")
     parser.add_argument("--modes", nargs="+", default=["whole", "streamed", "dask"], choices=["whole", "streamed", "dask"])
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--cap", type=float, default=7.0, help="address-space cap of each build, GB")
@@ -94,17 +97,18 @@ def main():
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     rows = []
-    for n in args.sizes:
-        city = write_city(n, work / f"city{n}.obj")
+    for n in [None] if args.scene else args.sizes:
+        city = Path(args.scene) if args.scene else write_city(n, work / f"city{n}.obj")
         first = None
         for mode in args.modes:
-            out = work / f"city{n}_{mode}.h5"
-            row = {"polygons": n, **run_build(mode, city, out, args.workers, args.cap)}
+            out = work / f"{city.stem}_{mode}.h5"
+            row = {"polygons" if n else "scene": n or city.name, **run_build(mode, city, out, args.workers, args.cap)}
             if "error" not in row:
                 if first is None:
                     first = out
                 else:
-                    diff = subprocess.run([sys.executable, "-m", "viscx", "diff", str(out), str(first)], capture_output=True)
+                    diff = subprocess.run([sys.executable, "-m", "viscx", "diff", "--rtol", "0", "--atol", "0", str(out),
+                                           str(first)], capture_output=True)
                     row["equal_to"] = (first.stem.split("_")[-1], diff.returncode == 0)
             print(json.dumps(row), flush=True)
             rows.append(row)

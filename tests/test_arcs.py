@@ -499,10 +499,10 @@ def arcs_equal(a, b):
 
 @pytest.mark.parametrize("seed,boxes", [(1, 6), pytest.param(3, 8, marks=pytest.mark.slow)])
 def test_arcs_do_not_depend_on_the_chunks_of_families(seed, boxes, monkeypatch):
-    """V1 builds its families in chunks (first pass, then one refinement of all chunks,
-    then the merge per chunk): chunks of a few families each, on one thread or two, give
-    the arcs of one chunk, array for array (a scene with coplanar events, transitions,
-    merged crossings)."""
+    """V1 builds its families in chunks, each on its own (first pass, refinement, merge,
+    half-cells): chunks of a few families each, on one thread or two, give the arcs of
+    one chunk, array for array (a scene with coplanar events, transitions, merged
+    crossings)."""
     scene = floor_scene(seed, boxes)
     nodes = build_nodes(scene)
     monkeypatch.setattr(builder_module, "FAMILY_CHUNK", 1 << 40)

@@ -66,9 +66,11 @@ class Dask:
         self.cluster = None
         if scheduler == "local":
             n = max(1, int(workers or os.cpu_count() or 1))
-            # processes, not threads: each worker's memory is its own (and measured so)
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                        memory_limit=0, silence_logs=40)
+            # processes, not threads: each worker's memory is its own (and measured so); no
+            # dashboard, and the scheduler's HTTP routes on a free port (on 8787, the
+            # default, a second cluster on the machine warns "Port 8787 is already in use")
+            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                        scheduler_kwargs={"dashboard": False}, memory_limit=0, silence_logs=40)
             self.client = Client(self.cluster)
         else:
             if workers is not None:

@@ -97,7 +97,7 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     from viscx.distributed import InProcess
     from viscx.formats.hdf5 import CellsAppender
     from viscx.progress import bar
-    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, vcell_parts, vcells_of_part
+    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, v2_arcs, vcell_parts, vcells_of_part
 
     runner = runner or InProcess()
     timings = {} if timings is None else timings
@@ -109,6 +109,8 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
             vcells.append(cells)
             progress.update()
     vcells.close()
+    # the EE-cells read no half-cells: freed here when the caller keeps no other reference
+    arcs = v2_arcs(arcs, half_rows=slice(0, 0))
     t1 = time.perf_counter()
     eecells = CellsAppender(group, ee=True)
     with bar(desc="EE-cells", quiet=quiet, unit="chunk") as progress:
@@ -121,6 +123,45 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     eecells.close()
     timings.update({"V2 V-cells": t1 - t0, "V2 EE-cells": time.perf_counter() - t1})
     return {"vcells": vcells.counts.get("cells", 0), "eecells": eecells.counts.get("cells", 0)}
+
+
+def stream_arcs(scene, nodes, group, runner=None, quiet=True):
+    """Build V1 chunk by chunk into ``group`` (the file's ``V1``): the families and planar
+    events of the whole scene (:func:`viscx.skeleton.arcs.builder.arc_families`), then the
+    arcs and half-cells of each chunk of families
+    (:func:`viscx.skeleton.arcs.builder.arcs_of_families`), each written
+    (:class:`viscx.formats.hdf5.ArcsAppender`) before the next is taken, then the XE
+    arcs; the content is :func:`viscx.formats.hdf5.write_arcs`'s of the whole level.
+    ``nodes`` are read only to find the families. Arguments as :func:`stream_two_cells`.
+
+    Returns
+    -------
+    int
+        The arcs written.
+    """
+    from viscx.distributed import InProcess
+    from viscx.formats.hdf5 import ArcsAppender
+    from viscx.memory import release_free_memory
+    from viscx.progress import bar
+    from viscx.skeleton.arcs import crossing_arcs
+    from viscx.skeleton.arcs.builder import arc_families, arcs_of_families, family_parts
+
+    runner = runner or InProcess()
+    planar, families = arc_families(scene, nodes, quiet=quiet)
+    del nodes
+    arcs = ArcsAppender(group)
+    with bar(desc="arcs", quiet=quiet, unit="chunk") as progress:
+        for part in runner.map(arcs_of_families, family_parts(families), (scene, families.plane_points)):
+            arcs.append(*part)
+            del part
+            progress.update()
+    del families
+    release_free_memory()
+    xe = crossing_arcs(scene)
+    if xe is not None:  # after the VE arcs, as build_arcs
+        arcs.append(xe)
+    arcs.close(planar)
+    return len(arcs)
 
 
 def _write_two_cells(group, cells):
@@ -367,10 +408,11 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
         (:mod:`viscx.skeleton.scope`), what its discontinuity mesh and renders need; levels
         up to V1 (:data:`SCOPED_LEVEL`; more is refused). Stored as the option ``light``.
     runner : viscx.distributed.InProcess or viscx.distributed.Dask, optional
-        What runs V2's chunks (:func:`viscx.distributed.runner`; default this process).
-        With an ``output`` and no ``points``, V2 is built chunk by chunk into the file
-        (:func:`stream_two_cells`) and never held whole: the complex returned then reads
-        it from the file on first use. The file is the same either way.
+        What runs V1's and V2's chunks (:func:`viscx.distributed.runner`; default this
+        process). With an ``output``, no ``points`` and no light, V1 and V2 are built
+        chunk by chunk into the file (:func:`stream_arcs`, :func:`stream_two_cells`) and
+        never held whole: the complex returned then reads them (and V0) from the file on
+        first use. The file is the same either way.
 
     Returns
     -------
@@ -393,8 +435,8 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
     built = {}
     points = None if points is None else np.asarray(points, dtype=np.float64).reshape(-1, 3)
     has_points = points is not None and len(points) > 0
-    # V2 built into the file chunk by chunk, after the levels before it are written
-    stream = output is not None and levels >= 2 and not has_points
+    # V1 and V2 built into the file chunk by chunk, after V0 is written
+    stream = output is not None and levels >= 1 and not has_points and not scoped
     names = ["scene", *[name for name, _ in LEVELS[: levels + 1]], *(["points"] if has_points else []),
              *(["write"] if output is not None else [])]
     with Stages(names, "build", quiet=quiet) as stages:
@@ -403,7 +445,7 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
                 scene = scene_of(source, weld=weld, epsilon=epsilon, relative_epsilon=relative_epsilon)
                 scope = light_scope(scene, light_face, light_group) if scoped else None
 
-            for name, builder in LEVELS[: levels + 1 - stream]:
+            for name, builder in LEVELS[: 1 if stream else levels + 1]:
                 with stages.stage(name):
                     built[name] = builder(scene, built, quiet, **({"scope": scope} if scoped else {}))
                 stages.timings.update(getattr(built[name], "timings", {}))
@@ -435,26 +477,31 @@ def build_complex(source, epsilon=None, relative_epsilon=None, weld=None, levels
 
 
 def _write_streamed(cx, output, compression, stages, runner, quiet):
-    """Write ``cx`` (its levels before V2 built) to ``output``, V2 built into the file
-    chunk by chunk (:func:`stream_two_cells`); ``cx`` then reads V2 from the file."""
+    """Write ``cx`` (V0 built) to ``output``, V1 and V2 (up to its ``levels`` option) built
+    into the file chunk by chunk (:func:`stream_arcs`, :func:`stream_two_cells`); ``cx``
+    then reads them from the file."""
     from viscx.formats.atomic import release_input
     from viscx.formats.hdf5 import complex_writer
     from viscx.memory import release_free_memory
-    from viscx.skeleton.chunks import v2_arcs
+    from viscx.skeleton.chunks import stored_v2_arcs
 
     check_output(cx.scene.source, output)
     release_input(output)  # as BuiltComplex.save
-    names = [*cx.built, "V2"]
+    names = [name for name, _ in LEVELS[: cx.options["levels"] + 1]]
     with complex_writer(output, cx.scene, names, cx.options, stages.timings, compression=compression) as f:
         with stages.stage("write"):
             for name, writer in level_writers(cx.built).items():
                 writer(f.create_group(name, track_order=True))
-        with stages.stage("V2"):
-            # V2 reads a fifth of V1 and nothing of V0: the rest is read from the file if asked for
-            arcs = v2_arcs(cx.built.pop("V1"))
-            cx.built.pop("V0", None)
+        with stages.stage("V1"):
+            nodes = cx.built.pop("V0")  # read again from the file if asked for
+            stream_arcs(cx.scene, nodes, f.create_group("V1", track_order=True), runner, quiet)
+            del nodes
             release_free_memory()
-            stream_two_cells(cx.scene, arcs, f.create_group("V2", track_order=True), runner, stages.timings, quiet)
+        if "V2" in names:
+            with stages.stage("V2"):
+                # V2 reads a fifth of V1: read back from the file (only stream_two_cells holds it)
+                stream_two_cells(cx.scene, stored_v2_arcs(f["V1"]), f.create_group("V2", track_order=True), runner,
+                                 stages.timings, quiet)
     cx.path, cx.stored = Path(output), names
 
 

@@ -44,7 +44,7 @@ from viscx.tolerances import DEFAULT_WELD
               "built like a vertex's. Repeatable.")
 @light_options
 @click.option("--scheduler", metavar="ADDRESS", default=None,
-              help="Build V2's chunks as tasks of a dask cluster (needs `pip install 'viscx[dask]'`): `local` "
+              help="Build V1's and V2's chunks as tasks of a dask cluster (needs `pip install 'viscx[dask]'`): `local` "
               "starts one on this machine, else the address of a running dask scheduler (tcp://host:8786). "
               "The file is the same as without it.")
 @click.option("--workers", type=click.IntRange(1, None), default=None, metavar="N",

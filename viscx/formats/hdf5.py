@@ -276,19 +276,68 @@ def write_arcs(group, arcs):
     """Fill a ``V1`` group with :class:`viscx.skeleton.arcs.Arcs` (see docs/format.md):
     the arcs, ``planar/`` (the planar E4 events arcs end at, laid out like ``/V0``) and
     ``half_cells/`` (one VE half-cell per VE arc)."""
-    from viscx.skeleton.arcs import END_NAMES, KIND_NAMES, XE
+    from viscx.skeleton.arcs import XE
 
     for name in _ARC_ARRAYS:
         write_dataset(group, name, getattr(arcs, name))
-    # XE only where the scene has crossing junctions: other files stay as they were
-    kinds = {v: k for k, v in KIND_NAMES.items() if k != XE or np.any(arcs.kind == XE)}
-    group.attrs["kinds"] = json.dumps(kinds)
-    group.attrs["end_types"] = json.dumps({v: k for k, v in END_NAMES.items()})
-    group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2, "vertex": 3})
+    _arc_attributes(group, np.any(arcs.kind == XE))
     write_nodes(group.create_group("planar", track_order=True), arcs.planar)
     hc = group.create_group("half_cells", track_order=True)
     for name in _HALF_CELL_ARRAYS:
         write_dataset(hc, name, getattr(arcs.half_cells, name))
+
+
+def _arc_attributes(group, has_xe):
+    """The code tables of a ``V1`` group (``kinds`` lists XE only when it has XE arcs:
+    other files stay as they were)."""
+    from viscx.skeleton.arcs import END_NAMES, KIND_NAMES, XE
+
+    group.attrs["kinds"] = json.dumps({v: k for k, v in KIND_NAMES.items() if k != XE or has_xe})
+    group.attrs["end_types"] = json.dumps({v: k for k, v in END_NAMES.items()})
+    group.attrs["blocker_kinds"] = json.dumps({"face": 0, "sky": 1, "edge": 2, "vertex": 3})
+
+
+class ArcsAppender:
+    """Arcs (V1) written chunk by chunk into their group, as :func:`write_arcs` writes them
+    whole: each chunk's arcs after the previous chunks', its half-cells' arc ids shifted
+    by the arcs already written; the planar events (built before the arcs, whole) and the
+    code tables on :meth:`close`.
+
+    Parameters
+    ----------
+    group : h5py.Group
+        ``V1``.
+    """
+
+    def __init__(self, group):
+        self.group = group
+        self.arcs = Appender(group, _ARC_ARRAYS)
+        self.half_cells = Appender(group.create_group("half_cells", track_order=True), _HALF_CELL_ARRAYS)
+        self.has_xe = False
+
+    def __len__(self):
+        return self.arcs.rows("kind")
+
+    def append(self, arcs, half_cells=None):
+        """Append a chunk's arcs (a dict of the per-arc arrays of :class:`Arcs`) and their
+        half-cells (HalfCells, arc ids the chunk's; None for none)."""
+        from viscx.skeleton.arcs import XE
+
+        shift = len(self)
+        for name in _ARC_ARRAYS:
+            self.arcs.append(name, arcs[name])
+        self.has_xe |= bool(np.any(arcs["kind"] == XE))
+        if half_cells is not None:
+            for name in _HALF_CELL_ARRAYS:
+                values = getattr(half_cells, name)
+                self.half_cells.append(name, values + shift if name == "arc" else values)
+
+    def close(self, planar):
+        """Write everything waiting, the code tables and the planar events ``planar`` (Nodes)."""
+        self.arcs.close()
+        self.half_cells.close()
+        _arc_attributes(self.group, self.has_xe)
+        write_nodes(self.group.create_group("planar", track_order=True), planar)
 
 
 def read_arcs(group):

@@ -58,6 +58,17 @@ def v2_arcs(arcs, ids=slice(None), half_rows=slice(None)):
                 half_cells=HalfCells(**half))
 
 
+def stored_v2_arcs(group):
+    """:func:`v2_arcs` of the arcs stored in a ``V1`` group (of a file being written too):
+    only what V2 reads is read."""
+    from viscx.skeleton.nodes import Nodes
+
+    planar = group["planar"]
+    return Arcs(**{name: group[name][()] if name in V2_ARC_ARRAYS else group[name][:0] for name in _ARC_ARRAYS},
+                planar=Nodes(**{name: planar[name][:0] for name in Nodes.__dataclass_fields__}),
+                half_cells=HalfCells(**{name: group["half_cells"][name][()] for name in HalfCells.__dataclass_fields__}))
+
+
 def vcell_parts(scene, arcs, size=None):
     """The V-cells' chunks: consecutive ranges of generator vertices holding about
     ``size`` (default VCELL_CHUNK) half-cells each (a vertex's half-cells never split; one

@@ -344,8 +344,9 @@ def skew_pairs(scene, e1, e2):
 # arcs in a square
 
 
-def arc_squares(scene, arcs):
-    """Every (arc, square) incidence: the squares each V1 arc bounds.
+def arc_squares(scene, arcs, part=None, blocks=False):
+    """Every (arc, square) incidence: the squares each V1 arc bounds (of the arcs ``part``, a
+    slice, when given).
 
     EEE (p, q, r): the squares of its skew pairs among (p, q), (p, r), (q, r). VE (w, e):
     the squares (e', e) of every generator edge e' at w skew to e (a side x' ∈ {0, 1}),
@@ -358,13 +359,20 @@ def arc_squares(scene, arcs):
     the crossing point X of a and b: likewise the segment x' = s_X of the squares
     (a, e) and (b, e).
 
+    Listed by kind of incidence (*block*: EEE by its pair, VE by edge at w or T-junction, XE
+    by a or b), each block by arc.
+
     Returns
     -------
     arc : (k,) int
     e1, e2 : (k,) int
         The square's pair, e1 < e2.
+    block : (k,) int8
+        With ``blocks``: the block of each.
     """
-    kind, g = arcs.kind, arcs.generators
+    kind, g, first = arcs.kind, arcs.generators, 0
+    if part is not None:
+        kind, g, first = kind[part], g[part], part.start
     out_arc, out_a, out_b = [], [], []
     eee = np.flatnonzero(kind == EEE)
     for i, j in ((0, 1), (0, 2), (1, 2)):
@@ -400,6 +408,10 @@ def arc_squares(scene, arcs):
         out_arc.append(ve[rows])
         out_a.append(edges[at])
         out_b.append(g[ve[rows], 1])
+    else:  # (their two blocks empty: every block keeps its number)
+        out_arc += [ve, ve]
+        out_a += [ve, ve]
+        out_b += [ve, ve]
     # XE (a, e, b): the segment x' = s_X of the squares (a, e) and (b, e) (crossing junctions)
     xe = np.flatnonzero(kind == XE)
     for slot in (0, 2):
@@ -408,7 +420,10 @@ def arc_squares(scene, arcs):
         out_b.append(g[xe, 1])
     arc, a, b = np.concatenate(out_arc), np.concatenate(out_a), np.concatenate(out_b)
     keep = skew_pairs(scene, a, b)
-    arc, a, b = arc[keep], a[keep], b[keep]
+    arc, a, b = arc[keep] + first, a[keep], b[keep]
+    if blocks:
+        block = np.repeat(np.arange(len(out_arc), dtype=np.int8), [len(x) for x in out_arc])[keep]
+        return arc, np.minimum(a, b), np.maximum(a, b), block
     return arc, np.minimum(a, b), np.maximum(a, b)
 
 
@@ -1761,9 +1776,12 @@ def build_eecells(scene, arcs, quiet=True):
 
 def square_chunks(scene, arcs, size=None):
     """The arc-square incidences (:func:`arc_squares`) in chunks of about ``size``
-    (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order: what
-    :func:`build_eecells` builds one at a time (:func:`squares_cells`) and joins
-    (:func:`_concatenate_cells`); one chunk, maybe empty, at least.
+    (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order, a square's
+    incidences in the order :func:`arc_squares` lists them: what :func:`build_eecells`
+    builds one at a time (:func:`squares_cells`) and joins (:func:`_concatenate_cells`);
+    one chunk, maybe empty, at least. The incidences are found for ARC_SLICE arcs at a
+    time (their temporaries are some 500 bytes per incidence), and put in that order by
+    (square, block), the arcs of one block ascending with the slices.
 
     Returns
     -------
@@ -1771,15 +1789,22 @@ def square_chunks(scene, arcs, size=None):
         Each chunk's (arc, e1, e2).
     """
     size = size or SQUARE_CHUNK
-    arc, e1, e2 = arc_squares(scene, arcs)
+    parts = [arc_squares(scene, arcs, rows, blocks=True) for rows in row_chunks(len(arcs), ARC_SLICE) or [slice(0, 0)]]
+    arc, e1, e2, block = (np.concatenate([p[i] for p in parts]) for i in range(4))
+    del parts
     key = e1 * (1 << 32) + e2
-    by_square = np.argsort(key, kind="stable")  # a square's incidences keep their order
+    by_square = np.argsort(key * 8 + block, kind="stable")  # (blocks: fewer than 8; edges: fewer than 2^28)
+    del block
     arc, e1, e2, key = arc[by_square], e1[by_square], e2[by_square], key[by_square]
     square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     # cut at the start of the square holding every size-th incidence
     cuts = square_start[np.searchsorted(square_start, np.arange(size, len(key), size), "right") - 1]
     bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
     return [(arc[lo:hi], e1[lo:hi], e2[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
+
+
+#: Arcs whose squares :func:`square_chunks` finds at a time.
+ARC_SLICE = 1 << 18
 
 
 #: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).

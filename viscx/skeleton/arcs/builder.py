@@ -1,7 +1,7 @@
 """The V1 builder: every family of a scene, built in chunks of consecutive families.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -23,10 +23,9 @@ from viscx.skeleton.arcs.events import (
     same_plane_ve,
 )
 from viscx.skeleton.arcs.halfcells import build_half_cells
-from viscx.skeleton.arcs.kinds import Arcs, CHUNK, EEE, END_ENDPOINT, END_NODE, END_PLANAR, VE
+from viscx.skeleton.arcs.kinds import Arcs, CHUNK, HalfCells, EEE, END_ENDPOINT, END_NODE, END_PLANAR, VE
 from viscx.skeleton.arcs.pencils import contact_pencils, pencil_events
 from viscx.skeleton.arcs.stages import (
-    Intervals,
     arcs_of_pieces,
     concatenate_parts,
     edge_line_ends,
@@ -43,15 +42,15 @@ from viscx.tolerances import PARAMETER_SLACK
 def build_arcs(scene, nodes, quiet=True, workers=None, scope=None):
     """The arcs (V1) and VE half-cells of a scene, from its nodes (V0).
 
-    The families are found once for the whole scene (:func:`_families`). Their events,
-    intervals and first samples are made in chunks of consecutive families
-    (:func:`_first_pass_of_families`, on threads); the few intervals whose samples
-    disagree are refined all together (:func:`refine_intervals`: its bisection is a sequence of
-    small batches); then each chunk's pieces are merged into its arcs
-    (:func:`_arcs_of_families`). Every stage of an arc is decided within its family, so
-    the arcs do not depend on the chunks; memory holds the result, the first pass's
-    pieces (about as large, freed chunk by chunk) and a chunk's events per thread; the
-    chunks' arcs, each sorted, concatenate in the canonical order.
+    The families are found once for the whole scene (:func:`_families`,
+    :func:`arc_families`). Then each chunk of consecutive families is built on its own
+    (:func:`arcs_of_families`: its events, intervals and first samples, its few
+    intervals whose samples disagree refined, its pieces merged into arcs, their
+    half-cells): every stage of an arc is decided within its family, so the arcs do not
+    depend on the chunks, and the chunks' arcs, each sorted, concatenate in the
+    canonical order (:func:`join_arc_parts`). Memory holds the result and one chunk's
+    events and pieces; a streamed build (:func:`viscx.pipeline.stream_arcs`) writes
+    each chunk's arcs to the file instead and holds one chunk.
 
     Parameters
     ----------
@@ -61,7 +60,7 @@ def build_arcs(scene, nodes, quiet=True, workers=None, scope=None):
     quiet : bool
         No progress bar.
     workers : int, optional
-        Threads building the chunks (default: the CPU count); the arcs do not depend on it.
+        Threads judging a chunk's samples (default: the CPU count); the arcs do not depend on it.
     scope : viscx.skeleton.scope.Scope, optional
         Only the families with a generator in scope (:mod:`viscx.skeleton.scope`; ``nodes``
         then need only hold the nodes in scope) and the planar events with an edge in
@@ -72,49 +71,84 @@ def build_arcs(scene, nodes, quiet=True, workers=None, scope=None):
     -------
     Arcs
     """
-    with bar(total=5, desc="arcs", quiet=quiet, unit="stage") as progress:
+    planar, families = arc_families(scene, nodes, workers, scope, quiet)
+    parts = []
+    with bar(desc="arcs", quiet=quiet, unit="chunk", total=len(_family_chunks(families))) as progress:
+        for part in family_parts(families):
+            parts.append(arcs_of_families(scene, families.plane_points, *part, workers=workers))
+            progress.update()
+    del families
+    release_free_memory()
+    arcs, half_cells = join_arc_parts(parts)
+    xe = crossing_arcs(scene, workers, scope)
+    if xe is not None:  # after the VE arcs: the other arcs' ids do not change
+        arcs = {k: np.concatenate([v, xe[k]]) for k, v in arcs.items()}
+    return Arcs(**arcs, planar=planar, half_cells=half_cells)
+
+
+def arc_families(scene, nodes, workers=None, scope=None, quiet=True):
+    """The planar E4 events (:func:`planar_events`, a Nodes) and every arc family of the
+    scene with its events (:class:`_Families`, :func:`_families`): what the chunks of
+    families are cut from (:func:`family_parts`). Arguments as :func:`build_arcs`."""
+    with bar(total=2, desc="arc families", quiet=quiet, unit="stage") as progress:
         progress.set_postfix_str("planar events")
         planar = planar_events(scene, scope)
         progress.update()
-
         progress.set_postfix_str("families")
         families = _families(scene, nodes, planar, workers, scope)
         progress.update()
+    return planar, families
 
-        chunks = _family_chunks(families)
-        done = []
 
-        def chunk_done(_):
-            done.append(1)
-            progress.set_postfix_str(f"samples: {len(done)}/{len(chunks)} chunks of families")
+def family_parts(families):
+    """The chunks of consecutive families (:func:`_family_chunks`), each as the arguments of
+    :func:`arcs_of_families` after the scene and the plane points: a :class:`_Families` of
+    the chunk's families alone (numbered from 0; without the plane points, which every
+    chunk shares), made one at a time."""
+    for chunk in _family_chunks(families):
+        lo, hi = chunk.start, chunk.stop
+        ev = slice(int(families.event_offsets[lo]), int(families.event_offsets[hi]))
+        p = slice(*(int(i) for i in np.searchsorted(families.plane_family, [lo, hi])))
+        yield (_Families(families.kind[chunk], families.generators[chunk],
+                         families.event_offsets[lo: hi + 1] - families.event_offsets[lo], families.event_s[ev],
+                         families.event_kind[ev], families.event_index[ev], families.plane_family[p] - lo,
+                         families.plane_ve[p], families.plane_of[p], None, families.weight[chunk]),)
 
-        progress.set_postfix_str(f"samples: 0/{len(chunks)} chunks of families")
-        first = map_chunks(lambda c: _first_pass_of_families(scene, families, c), chunks, workers, progress=chunk_done)
-        # the intervals whose samples disagree, of all chunks at once (few: in batches)
-        progress.set_postfix_str("refining")
-        release_free_memory()
-        mixed = Intervals(*(np.concatenate(x) for x in zip(*(m for _, m in first))))
-        refined = refine_intervals(scene, families.kind, families.generators, *mixed, workers=workers)
-        refined = concatenate_parts(refined) if refined else None
-        progress.set_postfix_str("merging")
-        release_free_memory()
-        parts = map_chunks(lambda i: _arcs_of_families(scene, families, chunks, i, first, refined), range(len(chunks)), workers)
-        del families, first, refined
-        release_free_memory()
-        arcs = concatenate_parts(parts, release=True)
-        progress.update()
 
-        progress.set_postfix_str("half-cells")
-        half_cells = build_half_cells(scene, arcs)
-        del arcs["sides"]
-        progress.update()
+def arcs_of_families(scene, plane_points, families, workers=None):
+    """The arcs of a chunk of families (:func:`family_parts`), sorted as :func:`sorted_arcs`,
+    and their half-cells (arc ids the chunk's, from 0): the chunk's first pass, its
+    intervals whose samples disagree refined (each on its own, :func:`refine_intervals`),
+    its pieces merged (:func:`_arcs_of_families`).
 
-        progress.set_postfix_str("crossing junctions")
-        xe = crossing_arcs(scene, workers, scope)
-        if xe is not None:  # after the VE arcs: the other arcs' ids do not change
-            arcs = {k: np.concatenate([v, xe[k]]) for k, v in arcs.items()}
-        progress.update()
-    return Arcs(**arcs, planar=planar, half_cells=half_cells)
+    Returns
+    -------
+    arcs : dict of arrays
+        The per-arc fields of :class:`Arcs`.
+    half_cells : HalfCells
+    """
+    families = replace(families, plane_points=plane_points)
+    every = slice(0, len(families))
+    parts, mixed = _first_pass_of_families(scene, families, every)
+    refined = refine_intervals(scene, families.kind, families.generators, *mixed, workers=workers)
+    arcs = _arcs_of_families(scene, families, every, parts + refined)
+    half_cells = build_half_cells(scene, arcs)
+    del arcs["sides"]
+    return arcs, half_cells
+
+
+def join_arc_parts(parts):
+    """The arcs and half-cells of the chunks of :func:`arcs_of_families` (a list, emptied
+    as it is joined), concatenated: the half-cells' arc ids shifted by the arcs of the
+    chunks before."""
+    shift = np.cumsum([0] + [len(arcs["kind"]) for arcs, _ in parts])
+    half = [replace(hc, arc=hc.arc + s) for (_, hc), s in zip(parts, shift)]
+    half_cells = HalfCells(**{name: np.concatenate([getattr(hc, name) for hc in half])
+                              for name in HalfCells.__dataclass_fields__})
+    del half
+    arcs = concatenate_parts([p[0] for p in parts], release=True)
+    parts.clear()
+    return arcs, half_cells
 
 
 @dataclass
@@ -270,19 +304,10 @@ def _first_pass_of_families(scene, families, chunk):
     return parts, mixed._replace(family=mixed.family + lo)
 
 
-def _arcs_of_families(scene, families, chunks, i, first, refined):
-    """The arcs of the chunk of families ``chunks[i]``, sorted as :func:`sorted_arcs`, with
-    their samples' half-cell pairs (``sides``), from its first pass (``first[i]``, taken
-    out of the list: the first pass is freed as the arcs are made) and its families'
-    refined pieces (``refined``: of all chunks, by ascending family; or None)."""
-    chunk = chunks[i]
-    parts, _ = first[i]
-    first[i] = None
-    if refined is not None:
-        a, b = np.searchsorted(refined["family"], [chunk.start, chunk.stop])
-        mine = {k: v[a:b] for k, v in refined.items()}
-        mine["family"] = mine["family"] - chunk.start
-        parts = parts + [mine]
+def _arcs_of_families(scene, families, chunk, parts):
+    """The arcs of the chunk of families ``chunk`` (a slice), sorted as :func:`sorted_arcs`,
+    with their samples' half-cell pairs (``sides``), from its pieces: its first pass's and
+    its refined ones (dicts of arrays, family ids the chunk's)."""
     arcs = arcs_of_pieces(scene, families.kind[chunk], families.generators[chunk], parts)
     edge_line_ends(scene, arcs)
     # (already sorted: the merge orders the arcs by family, then s, and families are sorted

@@ -77,6 +77,7 @@ from numba import njit
 from viscx.arrays import expand_ranges, walk_cycle
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
+from viscx.grid import overlapping_box_pairs
 from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
@@ -603,8 +604,45 @@ def _face_frame(scene, f):
     return u, v, n * scene.face_offset[f]
 
 
+def _near_segment_pairs(segs, pad):
+    """Pairs (i, j), i < j, of 2-D segments some point lies within ``pad`` of both: a
+    superset, found on a uniform grid (:func:`viscx.grid.overlapping_box_pairs`) over the
+    boxes, grown by ``pad``, of pieces about a cell long (a long chord lists the cells
+    along it, not those of its whole box). A point within pad of a segment is within pad
+    of one of its pieces, so in that piece's grown box.
+
+    segs : (m, 2, 2) float64. Returns (q, 2) int64, sorted.
+    """
+    m = len(segs)
+    if m < 2:
+        return np.zeros((0, 2), np.int64)
+    a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
+    length = np.linalg.norm(d, axis=1)
+    extent = float(np.max(segs.reshape(-1, 2).max(axis=0) - segs.reshape(-1, 2).min(axis=0)))
+    # cells about the median chord (at most 256 per axis over the receiver's extent)
+    cell = max(float(np.median(length)), extent / 256, 2 * pad, 1e-300)
+    pieces = np.ceil(length / cell).astype(np.int64).clip(1)
+    owner = np.repeat(np.arange(m), pieces)
+    k = np.arange(len(owner)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    t0, t1 = k / pieces[owner], (k + 1) / pieces[owner]
+    p0 = a[owner] + t0[:, None] * d[owner]
+    p1 = a[owner] + t1[:, None] * d[owner]
+    lo = np.zeros((len(owner), 3))
+    hi = np.zeros((len(owner), 3))
+    lo[:, :2] = np.minimum(p0, p1) - pad
+    hi[:, :2] = np.maximum(p0, p1) + pad
+    return overlapping_box_pairs(lo, hi, owner, np.zeros(len(owner), np.int64), cell)
+
+
 def _split_params(segs, snap):
     """Where each 2-D segment is cut by the others.
+
+    A cut of segment i by segment j is where their lines cross with both parameters
+    within ``snap`` (in length) of the segments, or where an end of j lies within snap of
+    i (T-junctions, collinear overlaps): either way some point lies within snap of both,
+    so only the pairs :func:`_near_segment_pairs` finds (with twice snap: the crossing's
+    parameters are rounded) are tested, each in both orders, by the same arithmetic as
+    a test of every pair: the cost follows the crossings, not m².
 
     Parameters
     ----------
@@ -621,30 +659,27 @@ def _split_params(segs, snap):
     length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
     out_s = [np.arange(m), np.arange(m)]
     out_t = [np.zeros(m), np.ones(m)]
-    chunk = max(1, 2_000_000 // max(m, 1))
-    for lo in range(0, m, chunk):
-        i = np.arange(lo, min(m, lo + chunk))[:, None]
-        j = np.arange(m)[None, :]
-        di, dj = d[i], d[j]
-        den = di[..., 0] * dj[..., 1] - di[..., 1] * dj[..., 0]
-        r = a[j] - a[i]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ti = (r[..., 0] * dj[..., 1] - r[..., 1] * dj[..., 0]) / den
-            tj = (r[..., 0] * di[..., 1] - r[..., 1] * di[..., 0]) / den
-        ei, ej = snap / length[i], snap / length[j]
-        cross = (i != j) & (np.abs(den) > PARALLEL_TOLERANCE * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
-        ii, jj = np.nonzero(cross)
-        out_s.append(i[ii, 0])
-        out_t.append(np.clip(ti[ii, jj], 0, 1))
-        # ends of segment j within snap of segment i (T-junctions, collinear overlaps)
-        for k in (0, 1):
-            p = segs[:, k][j]
-            w = ((p[..., 0] - a[i][..., 0]) * di[..., 0] + (p[..., 1] - a[i][..., 1]) * di[..., 1]) / length[i] ** 2
-            q = a[i] + np.clip(w, 0, 1)[..., None] * di
-            near = (i != j) & (w > 0) & (w < 1) & (np.linalg.norm(p - q, axis=-1) <= snap)
-            ii, jj = np.nonzero(near)
-            out_s.append(i[ii, 0])
-            out_t.append(w[ii, jj])
+    pairs = _near_segment_pairs(segs, 2 * snap)
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    di, dj = d[i], d[j]
+    den = di[:, 0] * dj[:, 1] - di[:, 1] * dj[:, 0]
+    r = a[j] - a[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = (r[:, 0] * dj[:, 1] - r[:, 1] * dj[:, 0]) / den
+        tj = (r[:, 0] * di[:, 1] - r[:, 1] * di[:, 0]) / den
+    ei, ej = snap / length[i], snap / length[j]
+    cross = (np.abs(den) > PARALLEL_TOLERANCE * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
+    out_s.append(i[cross])
+    out_t.append(np.clip(ti[cross], 0, 1))
+    # ends of segment j within snap of segment i (T-junctions, collinear overlaps)
+    for k in (0, 1):
+        p = segs[j, k]
+        w = ((p[:, 0] - a[i][:, 0]) * di[:, 0] + (p[:, 1] - a[i][:, 1]) * di[:, 1]) / length[i] ** 2
+        q = a[i] + np.clip(w, 0, 1)[:, None] * di
+        near = (w > 0) & (w < 1) & (np.linalg.norm(p - q, axis=-1) <= snap)
+        out_s.append(i[near])
+        out_t.append(w[near])
     return np.concatenate(out_s), np.concatenate(out_t)
 
 

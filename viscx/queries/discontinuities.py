@@ -1153,9 +1153,13 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     # traces that stop short of every line (V1's transitions) go on to the first one
     contacts, lines = {}, {}
     touching = faces_with_contacts(scene, snap, light)
+    traced = np.zeros(scene.n_faces, bool)
+    traced[events.face] = True
     for f in wanted:
         u, v, o = frames[f]
         contacts[f] = contact_edges(scene, f, outlines[f], (u, v), snap, light) if touching[f] else np.zeros(0, np.int64)
+        if not traced[f]:  # (no trace to continue on f)
+            continue
         ends = scene.vertices[scene.half_edges.edge_vertices[contacts[f]]]
         oa = np.concatenate(outlines[f])
         ob = np.concatenate([np.roll(lp, -1, axis=0) for lp in outlines[f]])

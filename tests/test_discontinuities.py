@@ -864,30 +864,11 @@ def test_cli_file_without_v2(tmp_path, capsys):
 def _split_params_all_pairs(segs, snap):
     """The cuts of :func:`viscx.queries.discontinuities._split_params` by testing every
     ordered pair (its definition, O(m²)): sorted (segment, parameter) rows."""
-    from viscx.tolerances import PARALLEL_TOLERANCE
+    from viscx.queries.discontinuities import _cuts
 
     m = len(segs)
-    a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
-    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
     i, j = (x.ravel() for x in np.meshgrid(np.arange(m), np.arange(m), indexing="ij"))
-    i, j = i[i != j], j[i != j]
-    di, dj = d[i], d[j]
-    den = di[:, 0] * dj[:, 1] - di[:, 1] * dj[:, 0]
-    r = a[j] - a[i]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ti = (r[:, 0] * dj[:, 1] - r[:, 1] * dj[:, 0]) / den
-        tj = (r[:, 0] * di[:, 1] - r[:, 1] * di[:, 0]) / den
-    ei, ej = snap / length[i], snap / length[j]
-    cross = (np.abs(den) > PARALLEL_TOLERANCE * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
-    s, t = [np.arange(m), np.arange(m), i[cross]], [np.zeros(m), np.ones(m), np.clip(ti[cross], 0, 1)]
-    for k in (0, 1):
-        p = segs[j, k]
-        w = ((p[:, 0] - a[i][:, 0]) * di[:, 0] + (p[:, 1] - a[i][:, 1]) * di[:, 1]) / length[i] ** 2
-        q = a[i] + np.clip(w, 0, 1)[:, None] * di
-        near = (w > 0) & (w < 1) & (np.linalg.norm(p - q, axis=-1) <= snap)
-        s.append(i[near])
-        t.append(w[near])
-    s, t = np.concatenate(s), np.concatenate(t)
+    s, t = _cuts(segs, i[i != j], j[i != j], snap)
     order = np.lexsort([t, s])
     return s[order], t[order]
 

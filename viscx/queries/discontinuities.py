@@ -657,14 +657,23 @@ def _split_params(segs, snap):
     seg : (q,) int64, t : (q,) float64
         Segment id and parameter of every cut (ends included).
     """
+    pairs = _near_segment_pairs(segs, 2 * snap)
+    return _cuts(segs, np.concatenate([pairs[:, 0], pairs[:, 1]]), np.concatenate([pairs[:, 1], pairs[:, 0]]), snap)
+
+
+def _cuts(segs, i, j, snap):
+    """The cuts of segment i by segment j, for ordered pairs (i, j), i != j: where their
+    lines cross with both parameters within ``snap`` (in length) of the segments, and
+    where an end of j lies within snap of i; plus both ends of every segment.
+
+    segs : (m, 2, 2) float64; i, j : (q,) int64. Returns (segment, parameter) as
+    :func:`_split_params`.
+    """
     m = len(segs)
     a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
     length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
     out_s = [np.arange(m), np.arange(m)]
     out_t = [np.zeros(m), np.ones(m)]
-    pairs = _near_segment_pairs(segs, 2 * snap)
-    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
     di, dj = d[i], d[j]
     den = di[:, 0] * dj[:, 1] - di[:, 1] * dj[:, 0]
     r = a[j] - a[i]

@@ -859,3 +859,62 @@ def test_cli_file_without_v2(tmp_path, capsys):
     build_file(obj, tmp_path / "v1.h5", quiet=True, levels=1)
     r = _cli(capsys, "query", "discontinuities", tmp_path / "v1.h5", "--light-group", "light")
     assert r.returncode == 2 and "V2" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def _split_params_all_pairs(segs, snap):
+    """The cuts of :func:`viscx.queries.discontinuities._split_params` by testing every
+    ordered pair (its definition, O(m²)): sorted (segment, parameter) rows."""
+    from viscx.queries.discontinuities import _cuts
+
+    m = len(segs)
+    i, j = (x.ravel() for x in np.meshgrid(np.arange(m), np.arange(m), indexing="ij"))
+    s, t = _cuts(segs, i[i != j], j[i != j], snap)
+    order = np.lexsort([t, s])
+    return s[order], t[order]
+
+
+def _tangled_segments(seed):
+    """2-D segments a receiver's subdivision meets: an outline (a 10 × 10 square), long
+    chords across it, polylines (shared ends), collinear overlaps, ends within a snap of
+    another segment (T-junctions, both sides), near-parallel pairs."""
+    rng = np.random.default_rng(seed)
+    sq = np.array([[0, 0], [10, 0], [10, 10], [0, 10]], float)
+    parts = [np.stack([sq, np.roll(sq, -1, axis=0)], axis=1)]
+    parts.append(rng.uniform(0, 10, (rng.integers(1, 6), 2, 2)))  # long chords
+    for _ in range(rng.integers(1, 4)):  # polylines of short chords
+        p = np.cumsum(rng.normal(0, 0.3, (rng.integers(2, 30), 2)), axis=0) + rng.uniform(2, 8, 2)
+        parts.append(np.stack([p[:-1], p[1:]], axis=1))
+    base = np.concatenate(parts)
+    pick = base[rng.integers(0, len(base), 6)]
+    t = rng.uniform(-0.2, 1.2, (6, 2))
+    # collinear pieces of existing segments (overlapping or in line beyond them)
+    parts.append(pick[:, :1] + t[..., None] * (pick[:, 1:] - pick[:, :1]))
+    # ends on a segment, or within (0.5 .. 1.5) snap of it, from either side
+    snap = 1e-4
+    at = pick[:, 0] + rng.uniform(0, 1, (6, 1)) * (pick[:, 1] - pick[:, 0])
+    nrm = (pick[:, 1] - pick[:, 0])[:, ::-1] * [1, -1]
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    at = at + rng.choice([0, 0.5, 0.99, 1.01, 1.5, -0.5, -0.99], (6, 1)) * snap * nrm
+    parts.append(np.stack([at, at + rng.normal(0, 1, (6, 2))], axis=1))
+    # near-parallel: turned by 1e-13 .. 1e-6 rad about a point of the segment
+    ang = 10.0 ** rng.uniform(-13, -6, 6) * rng.choice([-1, 1], 6)
+    c, s = np.cos(ang), np.sin(ang)
+    rel = pick - at[:, None]
+    rot = np.stack([c[:, None] * rel[..., 0] - s[:, None] * rel[..., 1], s[:, None] * rel[..., 0] + c[:, None] * rel[..., 1]], -1)
+    parts.append(at[:, None] + rot)
+    segs = np.concatenate(parts)
+    segs = segs[np.linalg.norm(segs[:, 1] - segs[:, 0], axis=1) > 0]  # (as subdivide keeps them)
+    return segs[rng.permutation(len(segs))], snap
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_split_params_equal_all_pairs(seed):
+    """_split_params tests only the pairs its grid finds near each other: the same cuts,
+    float for float, as testing every ordered pair (its definition) on tangled segments."""
+    from viscx.queries.discontinuities import _split_params
+
+    segs, snap = _tangled_segments(seed)
+    s, t = _split_params(segs, snap)
+    order = np.lexsort([t, s])
+    ref_s, ref_t = _split_params_all_pairs(segs, snap)
+    assert np.array_equal(s[order], ref_s) and np.array_equal(t[order], ref_t)

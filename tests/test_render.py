@@ -160,6 +160,24 @@ def test_region_culling_equals_every_occluder(cornell_64):
     assert sum(fewer) >= 10, sum(fewer)
 
 
+def test_only_seen_regions_are_culled(cornell):
+    """shade culls the occluders of the regions its pixels lie in only
+    (DirectLighting.want), and a region's list is the one culling every region of its
+    receiver at once gives: the same image, bit for bit, from fewer culled regions."""
+    scene, mesh = cornell
+    hits = primary_hits(scene, cornell_camera(24))
+    seen = DirectLighting(scene, mesh, emitter(scene, mesh.light))
+    image, region = shade(seen, hits.face, hits.side, hits.point)
+    every = DirectLighting(scene, mesh, emitter(scene, mesh.light))
+    every.want = lambda face, regions: None  # (as before: each receiver's every region)
+    assert np.array_equal(shade(every, hits.face, hits.side, hits.point)[0], image)
+    for key, done in seen._culled.items():
+        assert set(done) == set(region[(hits.face == key[0]) & (region >= 0)].tolist())
+        assert all(np.array_equal(ids, every._culled[key][r]) for r, ids in done.items())
+    n_seen, n_every = (sum(len(d) for d in x._culled.values()) for x in (seen, every))
+    assert n_seen < n_every, (n_seen, n_every)
+
+
 def test_no_black_seams_at_region_boundaries(cornell_64):
     lighting, hits, exact, region, mc, se = cornell_64
     h, w = hits.shape

@@ -77,6 +77,7 @@ from numba import njit
 from viscx.arrays import expand_ranges, walk_cycle
 from viscx.geometry.lines import segment_parameter
 from viscx.geometry.polygon import plane_basis
+from viscx.grid import overlapping_box_pairs
 from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
@@ -87,6 +88,8 @@ from viscx.tolerances import CHORD_TOLERANCE, PARALLEL_TOLERANCE, SPLIT_SNAP
 
 #: Chords per EEE trace before refinement, and refinement rounds at most.
 EEE_START, EEE_ROUNDS = 8, 16
+#: Segment sets up to this size are split by testing every pair (:func:`_near_segment_pairs`).
+SMALL_SEGMENT_SET = 64
 # which light feature an event involves
 LIGHT_VERTEX, LIGHT_EDGE, LIGHT_FACE = 0, 1, 2
 #: Names of the event kinds: V1's arcs, receiver-plane events (C on an occluder edge or an
@@ -603,8 +606,46 @@ def _face_frame(scene, f):
     return u, v, n * scene.face_offset[f]
 
 
+def _near_segment_pairs(segs, pad):
+    """Pairs (i, j), i < j, of 2-D segments some point lies within ``pad`` of both: a
+    superset, found on a uniform grid (:func:`viscx.grid.overlapping_box_pairs`) over the
+    boxes, grown by ``pad``, of pieces about a cell long (a long chord lists the cells
+    along it, not those of its whole box). A point within pad of a segment is within pad
+    of one of its pieces, so in that piece's grown box.
+
+    segs : (m, 2, 2) float64. Returns (q, 2) int64, sorted.
+    """
+    m = len(segs)
+    if m <= SMALL_SEGMENT_SET:  # every pair: the grid costs more than it saves
+        i, j = np.triu_indices(m, 1)
+        return np.stack([i, j], axis=1).astype(np.int64)
+    a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
+    length = np.linalg.norm(d, axis=1)
+    extent = float(np.max(segs.reshape(-1, 2).max(axis=0) - segs.reshape(-1, 2).min(axis=0)))
+    # cells about the median chord (at most 256 per axis over the receiver's extent)
+    cell = max(float(np.median(length)), extent / 256, 2 * pad, 1e-300)
+    pieces = np.ceil(length / cell).astype(np.int64).clip(1)
+    owner = np.repeat(np.arange(m), pieces)
+    k = np.arange(len(owner)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    t0, t1 = k / pieces[owner], (k + 1) / pieces[owner]
+    p0 = a[owner] + t0[:, None] * d[owner]
+    p1 = a[owner] + t1[:, None] * d[owner]
+    lo = np.zeros((len(owner), 3))
+    hi = np.zeros((len(owner), 3))
+    lo[:, :2] = np.minimum(p0, p1) - pad
+    hi[:, :2] = np.maximum(p0, p1) + pad
+    return overlapping_box_pairs(lo, hi, owner, np.zeros(len(owner), np.int64), cell)
+
+
 def _split_params(segs, snap):
     """Where each 2-D segment is cut by the others.
+
+    A cut of segment i by segment j is where their lines cross with both parameters
+    within ``snap`` (in length) of the segments, or where an end of j lies within snap of
+    i (T-junctions, collinear overlaps): either way some point lies within snap of both,
+    so only the pairs :func:`_near_segment_pairs` finds (with twice snap: the crossing's
+    parameters are rounded) are tested, each in both orders, by the same arithmetic as
+    a test of every pair: the cost follows the crossings, not m².
 
     Parameters
     ----------
@@ -616,35 +657,41 @@ def _split_params(segs, snap):
     seg : (q,) int64, t : (q,) float64
         Segment id and parameter of every cut (ends included).
     """
+    pairs = _near_segment_pairs(segs, 2 * snap)
+    return _cuts(segs, np.concatenate([pairs[:, 0], pairs[:, 1]]), np.concatenate([pairs[:, 1], pairs[:, 0]]), snap)
+
+
+def _cuts(segs, i, j, snap):
+    """The cuts of segment i by segment j, for ordered pairs (i, j), i != j: where their
+    lines cross with both parameters within ``snap`` (in length) of the segments, and
+    where an end of j lies within snap of i; plus both ends of every segment.
+
+    segs : (m, 2, 2) float64; i, j : (q,) int64. Returns (segment, parameter) as
+    :func:`_split_params`.
+    """
     m = len(segs)
     a, d = segs[:, 0], segs[:, 1] - segs[:, 0]
     length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
     out_s = [np.arange(m), np.arange(m)]
     out_t = [np.zeros(m), np.ones(m)]
-    chunk = max(1, 2_000_000 // max(m, 1))
-    for lo in range(0, m, chunk):
-        i = np.arange(lo, min(m, lo + chunk))[:, None]
-        j = np.arange(m)[None, :]
-        di, dj = d[i], d[j]
-        den = di[..., 0] * dj[..., 1] - di[..., 1] * dj[..., 0]
-        r = a[j] - a[i]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ti = (r[..., 0] * dj[..., 1] - r[..., 1] * dj[..., 0]) / den
-            tj = (r[..., 0] * di[..., 1] - r[..., 1] * di[..., 0]) / den
-        ei, ej = snap / length[i], snap / length[j]
-        cross = (i != j) & (np.abs(den) > PARALLEL_TOLERANCE * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
-        ii, jj = np.nonzero(cross)
-        out_s.append(i[ii, 0])
-        out_t.append(np.clip(ti[ii, jj], 0, 1))
-        # ends of segment j within snap of segment i (T-junctions, collinear overlaps)
-        for k in (0, 1):
-            p = segs[:, k][j]
-            w = ((p[..., 0] - a[i][..., 0]) * di[..., 0] + (p[..., 1] - a[i][..., 1]) * di[..., 1]) / length[i] ** 2
-            q = a[i] + np.clip(w, 0, 1)[..., None] * di
-            near = (i != j) & (w > 0) & (w < 1) & (np.linalg.norm(p - q, axis=-1) <= snap)
-            ii, jj = np.nonzero(near)
-            out_s.append(i[ii, 0])
-            out_t.append(w[ii, jj])
+    di, dj = d[i], d[j]
+    den = di[:, 0] * dj[:, 1] - di[:, 1] * dj[:, 0]
+    r = a[j] - a[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = (r[:, 0] * dj[:, 1] - r[:, 1] * dj[:, 0]) / den
+        tj = (r[:, 0] * di[:, 1] - r[:, 1] * di[:, 0]) / den
+    ei, ej = snap / length[i], snap / length[j]
+    cross = (np.abs(den) > PARALLEL_TOLERANCE * length[i] * length[j]) & (ti >= -ei) & (ti <= 1 + ei) & (tj >= -ej) & (tj <= 1 + ej)
+    out_s.append(i[cross])
+    out_t.append(np.clip(ti[cross], 0, 1))
+    # ends of segment j within snap of segment i (T-junctions, collinear overlaps)
+    for k in (0, 1):
+        p = segs[j, k]
+        w = ((p[:, 0] - a[i][:, 0]) * di[:, 0] + (p[:, 1] - a[i][:, 1]) * di[:, 1]) / length[i] ** 2
+        q = a[i] + np.clip(w, 0, 1)[:, None] * di
+        near = (w > 0) & (w < 1) & (np.linalg.norm(p - q, axis=-1) <= snap)
+        out_s.append(i[near])
+        out_t.append(w[near])
     return np.concatenate(out_s), np.concatenate(out_t)
 
 
@@ -674,15 +721,116 @@ def _inside(points, loops_a, loops_b, loop_of, n_loops):
 
     loops_a, loops_b : (h, 2) float64 edges; loop_of : (h,) int64.
     """
-    res = np.zeros((len(points), n_loops), bool)
-    for k, p in enumerate(points):
-        ay, by = loops_a[:, 1], loops_b[:, 1]
-        straddle = (ay > p[1]) != (by > p[1])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x = loops_a[:, 0] + (p[1] - ay) * (loops_b[:, 0] - loops_a[:, 0]) / (by - ay)
-        hit = straddle & (x > p[0])
-        res[k] = np.bincount(loop_of[hit], minlength=n_loops) % 2 == 1
+    return _inside_kernel(np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2),
+                          np.ascontiguousarray(loops_a, dtype=np.float64), np.ascontiguousarray(loops_b, dtype=np.float64),
+                          np.ascontiguousarray(loop_of, dtype=np.int64), int(n_loops))
+
+
+@njit(cache=True)
+def _inside_kernel(points, loops_a, loops_b, loop_of, n_loops):
+    # crossings of the ray from each point towards +x, counted per loop
+    res = np.zeros((points.shape[0], n_loops), np.bool_)
+    for k in range(points.shape[0]):
+        px, py = points[k, 0], points[k, 1]
+        for e in range(loops_a.shape[0]):
+            ay, by = loops_a[e, 1], loops_b[e, 1]
+            if (ay > py) != (by > py):
+                x = loops_a[e, 0] + (py - ay) * (loops_b[e, 0] - loops_a[e, 0]) / (by - ay)
+                if x > px:
+                    res[k, loop_of[e]] = not res[k, loop_of[e]]
     return res
+
+
+@njit(cache=True)
+def _components(n, a, b):
+    """Connected components of the graph on n nodes with edges (a, b): (n,) int64 labels,
+    numbered in the order of each component's smallest node (union-find)."""
+    parent = np.arange(n)
+    for e in range(a.shape[0]):
+        x, y = a[e], b[e]
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        while parent[y] != y:
+            parent[y] = parent[parent[y]]
+            y = parent[y]
+        if x < y:
+            parent[y] = x
+        elif y < x:
+            parent[x] = y
+    label = np.full(n, -1, np.int64)
+    out = np.empty(n, np.int64)
+    k = 0
+    for i in range(n):
+        r = i
+        while parent[r] != r:
+            r = parent[r]
+        if label[r] < 0:
+            label[r] = k
+            k += 1
+        out[i] = label[r]
+    return out
+
+
+@njit(cache=True)
+def _interior_points(a, b, offsets):
+    """:func:`interior_point` of many polygons: polygon g has the edges a[i] -> b[i],
+    i in offsets[g]:offsets[g + 1]. Returns (g, 2) float64 and (g,) bool: the polygons
+    with fewer than two vertex heights or crossings, whose point is their vertices' mean
+    (left to the caller)."""
+    n = offsets.shape[0] - 1
+    out = np.zeros((n, 2))
+    degenerate = np.zeros(n, np.bool_)
+    for g in range(n):
+        lo, hi = offsets[g], offsets[g + 1]
+        ys = np.sort(a[lo:hi, 1])
+        # the largest gap between consecutive distinct heights (the first one if tied)
+        best, lower, upper = -1.0, 0.0, 0.0
+        prev = ys[0]
+        for i in range(1, hi - lo):
+            if ys[i] != prev:
+                if ys[i] - prev > best:
+                    best, lower, upper = ys[i] - prev, prev, ys[i]
+                prev = ys[i]
+        if best < 0:
+            degenerate[g] = True
+            continue
+        y = 0.5 * (lower + upper)
+        xs = np.empty(hi - lo)
+        m = 0
+        for i in range(lo, hi):
+            if (a[i, 1] > y) != (b[i, 1] > y):
+                xs[m] = a[i, 0] + (y - a[i, 1]) * (b[i, 0] - a[i, 0]) / (b[i, 1] - a[i, 1])
+                m += 1
+        if m < 2:
+            degenerate[g] = True
+            continue
+        xs = np.sort(xs[:m])
+        k, w = 0, -np.inf
+        for j in range(m // 2):
+            if xs[2 * j + 1] - xs[2 * j] > w:
+                k, w = j, xs[2 * j + 1] - xs[2 * j]
+        out[g, 0] = 0.5 * (xs[2 * k] + xs[2 * k + 1])
+        out[g, 1] = y
+    return out, degenerate
+
+
+def interior_points(polygons):
+    """:func:`interior_point` of each polygon: (g, 2) float64.
+
+    polygons : list of lists of (k, 2) float64 loops.
+    """
+    loops = [lp for poly in polygons for lp in poly]
+    if not loops:
+        return np.zeros((0, 2))
+    a = np.concatenate(loops)
+    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+    sizes = np.array([sum(len(lp) for lp in poly) for poly in polygons], np.int64)
+    offsets = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+    out, degenerate = _interior_points(np.ascontiguousarray(a, np.float64), np.ascontiguousarray(b, np.float64), offsets)
+    for g in np.flatnonzero(degenerate):
+        out[g] = a[offsets[g]:offsets[g + 1]].mean(axis=0)
+    return out
 
 
 def interior_point(loops):
@@ -691,21 +839,7 @@ def interior_point(loops):
 
     loops : list of (k, 2) float64. Returns (2,) float64.
     """
-    allp = np.concatenate(loops)
-    ys = np.unique(allp[:, 1])
-    if len(ys) < 2:
-        return allp.mean(axis=0)
-    gap = int(np.argmax(np.diff(ys)))
-    y = 0.5 * (ys[gap] + ys[gap + 1])
-    a = allp
-    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
-    straddle = (a[:, 1] > y) != (b[:, 1] > y)
-    x = np.sort(a[straddle, 0] + (y - a[straddle, 1]) * (b[straddle, 0] - a[straddle, 0]) / (b[straddle, 1] - a[straddle, 1]))
-    if len(x) < 2:
-        return allp.mean(axis=0)
-    w = x[1::2][: len(x) // 2] - x[0::2][: len(x) // 2]
-    k = int(np.argmax(w))
-    return np.array([0.5 * (x[2 * k] + x[2 * k + 1]), y])
+    return interior_points([loops])[0]
 
 
 @dataclass
@@ -760,13 +894,10 @@ def subdivide(outline, chords, chord_event, snap):
     sid, t = sid[order], t[order]
     pts = segs[sid, 0] + t[:, None] * (segs[sid, 1] - segs[sid, 0])
     # merge points within snap
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     pairs = cKDTree(pts).query_pairs(snap, output_type="ndarray")
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
-    _, vid = connected_components(g, directed=False)
+    vid = _components(len(pts), pairs[:, 0].astype(np.int64), pairs[:, 1].astype(np.int64))
     nvert = vid.max() + 1
     vpos = np.zeros((nvert, 2))
     np.add.at(vpos, vid, pts)
@@ -812,14 +943,13 @@ def subdivide(outline, chords, chord_event, snap):
     cyc = np.repeat(np.arange(nc), np.diff(offs))
     area = 0.5 * np.bincount(cyc, weights=a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1], minlength=nc)
     # components of the graph
-    gg = coo_matrix((np.ones(len(ea)), (ea, eb)), shape=(nvert, nvert))
-    _, comp = connected_components(gg, directed=False)
+    comp = _components(nvert, ea.astype(np.int64), eb.astype(np.int64))
     ccomp = comp[org[walk[offs[:-1]]]]
     loops = [vpos[org[walk[offs[c]:offs[c + 1]]]] for c in range(nc)]
     pos_c = np.flatnonzero(area > 0)
     neg_c = np.flatnonzero(area <= 0)
     # outer loops inside the receiver (not in a hole of it)
-    reps = np.array([interior_point([loops[c]]) for c in pos_c]).reshape(-1, 2)
+    reps = interior_points([[loops[c]] for c in pos_c]).reshape(-1, 2)
     fa = np.concatenate(outline)
     fb = np.concatenate([np.roll(lp, -1, axis=0) for lp in outline])
     in_face = _inside(reps, fa, fb, np.zeros(len(fa), np.int64), 1)[:, 0] if len(reps) else np.zeros(0, bool)
@@ -837,14 +967,24 @@ def subdivide(outline, chords, chord_event, snap):
             if len(cand):
                 best = cand[np.argmin(area[pos_c[cand]])]
                 holes[int(pos_c[best])].append(int(c))
+    # each region's events: the labels of its cycles' half-edges (outer loop and holes)
+    region_of = np.full(nc, -1, np.int64)
+    for r, c in enumerate(pos_c):
+        region_of[c] = r
+        region_of[holes[int(c)]] = r
+    rc = region_of[cyc]
+    span = int(hlab.max()) + 2  # (labels are event rows, or -1 on the outline)
+    key = np.unique(rc[rc >= 0] * span + (hlab[walk][rc >= 0] + 1))
+    kr, kl = key // span, key % span - 1
+    bounds = np.searchsorted(kr, np.arange(len(pos_c) + 1))
+    polys = [[loops[c]] + [loops[h] for h in holes[int(c)]] for c in pos_c]
+    points = interior_points(polys)
     regions = []
-    for c in pos_c:
+    for r, c in enumerate(pos_c):
         hs = holes[int(c)]
-        rl = [loops[c]] + [loops[h] for h in hs]
-        cyc_set = np.isin(cyc, [c, *hs])
-        ev = np.unique(hlab[walk[cyc_set]])
+        ev = kl[bounds[r]:bounds[r + 1]]
         regions.append(Region(outer=loops[c], holes=[loops[h] for h in hs],
-                              area=float(area[c] + sum(area[h] for h in hs)), point=interior_point(rl),
+                              area=float(area[c] + sum(area[h] for h in hs)), point=points[r],
                               events=ev[ev >= 0]))
     return regions
 
@@ -1022,9 +1162,13 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     # traces that stop short of every line (V1's transitions) go on to the first one
     contacts, lines = {}, {}
     touching = faces_with_contacts(scene, snap, light)
+    traced = np.zeros(scene.n_faces, bool)
+    traced[events.face] = True
     for f in wanted:
         u, v, o = frames[f]
         contacts[f] = contact_edges(scene, f, outlines[f], (u, v), snap, light) if touching[f] else np.zeros(0, np.int64)
+        if not traced[f]:  # (no trace to continue on f)
+            continue
         ends = scene.vertices[scene.half_edges.edge_vertices[contacts[f]]]
         oa = np.concatenate(outlines[f])
         ob = np.concatenate([np.roll(lp, -1, axis=0) for lp in outlines[f]])

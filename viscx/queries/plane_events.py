@@ -404,7 +404,9 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     tri_lo, tri_hi = _triangle_boxes(scene)
     ends = np.concatenate([scene.vertices[light.vertices], *scene.face_loops(f)])
     box_lo, box_hi = ends.min(axis=0) - 4 * snap, ends.max(axis=0) + 4 * snap
-    rows = _boxes_meeting(tri_lo, tri_hi, box_lo, box_hi)
+    # (only triangles reaching P have a section, from either side: plane_sections keeps
+    # no other)
+    rows = _boxes_meeting(tri_lo, tri_hi, box_lo, box_hi, scene.triangles, d)
     owner = scene.triangle_face[rows]
     rows = rows[~np.isin(owner, light.faces) & (owner != f)]
     out = []
@@ -456,16 +458,21 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
 
 
 @njit(cache=True)
-def _boxes_meeting(lo, hi, box_lo, box_hi):
-    """(r,) int64, ascending: the boxes (lo, hi (t, 3)) that meet the box [box_lo, box_hi]
-    (one pass, no (t, 3) temporaries: it runs once per receiver)."""
+def _boxes_meeting(lo, hi, box_lo, box_hi, triangles, d):
+    """(r,) int64, ascending: the triangles whose boxes (lo, hi (t, 3)) meet the box
+    [box_lo, box_hi] and that reach the plane P (signed distances ``d`` of their
+    vertices: some on each side of it, or one side and on it); one pass, no (t, 3)
+    temporaries: it runs once per receiver."""
     out = np.empty(lo.shape[0], np.int64)
     k = 0
     for i in range(lo.shape[0]):
         if (hi[i, 0] >= box_lo[0] and hi[i, 1] >= box_lo[1] and hi[i, 2] >= box_lo[2]
                 and lo[i, 0] <= box_hi[0] and lo[i, 1] <= box_hi[1] and lo[i, 2] <= box_hi[2]):
-            out[k] = i
-            k += 1
+            s0, s1, s2 = d[triangles[i, 0]], d[triangles[i, 1]], d[triangles[i, 2]]
+            s_min, s_max = min(s0, s1, s2), max(s0, s1, s2)
+            if (s_max > 0 and s_min <= 0) or (s_min < 0 and s_max >= 0):
+                out[k] = i
+                k += 1
     return out[:k]
 
 

@@ -173,6 +173,7 @@ class DirectLighting:
         self._setups = {}
         self._kernels = {}
         self._culled = {}
+        self._wanted = {}
         self.stats = {"regions": 0, "points": 0, "unlocated": 0, "occluders": 0}
 
     # -- where a point is --------------------------------------------------------------
@@ -206,16 +207,28 @@ class DirectLighting:
             self._setups[key] = out
         return self._setups[key]
 
-    def _region_occluders(self, face, side, k, setup):
-        """Per region of the receiver: the pair's occluders meeting the interior of its shaft
-        to light face k (the convex hull of the region and J', so of their convex outlines),
-        as CSR ``(ptr, ids)`` into ``setup.occluders``: every region at once, one numba call
-        (:func:`viscx.geometry.occlusion.shaft_meets`) over the (region, occluder) pairs
-        whose boxes meet."""
-        key = (int(face), int(side), k)
-        if key not in self._culled:
-            rec = self.receivers[int(face)]
-            hulls = [convex_outline([rec.to3(g.outer)], setup.n_i) for g in rec.regions]
+    def want(self, face, regions):
+        """Announce the regions of ``face`` whose points will be evaluated: their occluders
+        are culled together (one numba call), the others never. A receiver has thousands
+        of regions and an image sees a part of them (the bunny's floor at 128²: 2,258 of
+        11,722); without it, every region of the face is culled at its first use."""
+        self._wanted.setdefault(int(face), set()).update(int(r) for r in np.asarray(regions).ravel() if r >= 0)
+
+    def _region_occluders(self, face, side, k, setup, region):
+        """The pair's occluders meeting the interior of the region's shaft to light face k
+        (the convex hull of the region and J', so of their convex outlines): (c,) int64
+        into ``setup.occluders``, ascending. Culled for every wanted region of the
+        receiver not culled yet at once (:meth:`want`; every region when none was
+        announced): one numba call (:func:`viscx.geometry.occlusion.shaft_meets`) over the
+        (region, occluder) pairs whose boxes meet; a region's answer does not depend on
+        which others are culled with it."""
+        face = int(face)
+        done = self._culled.setdefault((face, int(side), k), {})
+        if region not in done:
+            rec = self.receivers[face]
+            todo = self._wanted[face] if face in self._wanted else range(len(rec.regions))
+            todo = np.array(sorted(set(todo) - done.keys() | {int(region)}), np.int64)
+            hulls = [convex_outline([rec.to3(rec.regions[r].outer)], setup.n_i) for r in todo]
             kc = max(len(h) for h in hulls)
             # (padded by repeating the last vertex: a zero edge gives no axis)
             cells = np.stack([np.concatenate([h, np.repeat(h[-1:], kc - len(h), axis=0)]) for h in hulls])
@@ -235,8 +248,10 @@ class DirectLighting:
             meets = shaft_meets(cells, np.ascontiguousarray(np.broadcast_to(setup.n_i, (len(cells), 3))), target,
                                 np.asarray(setup.n_t, np.float64), cell, ids, pts, lo, hi, normals, tol)
             ptr = np.r_[0, np.cumsum(np.bincount(cell[meets], minlength=len(cells)))].astype(np.int64)
-            self._culled[key] = (ptr, ids[meets])
-        return self._culled[key]
+            ids = ids[meets]
+            for i, r in enumerate(todo):
+                done[int(r)] = ids[ptr[i]:ptr[i + 1]]
+        return done[region]
 
     def _kernel(self, face, side, region, k, setup):
         """The kernel of light face k for points of one region (-1: all the pair's occluders)."""
@@ -244,8 +259,7 @@ class DirectLighting:
         if key not in self._kernels:
             occ = setup.occluders
             if region >= 0 and occ:
-                ptr, ids = self._region_occluders(face, side, k, setup)
-                occ = [occ[i] for i in ids[ptr[region] : ptr[region + 1]]]
+                occ = [occ[i] for i in self._region_occluders(face, side, k, setup, int(region))]
             self.stats["occluders"] += len(occ)
             self._kernels[key] = setup.kernel_for(occ)
         return self._kernels[key]
@@ -346,6 +360,8 @@ def shade(lighting, face, side, points):
     region = regions_of(lighting, face, points)
     hit = np.flatnonzero(face >= 0)
     groups, members = groups_of(face[hit], side[hit], region[hit])
+    for f in np.unique(groups[:, 0]):  # only the regions seen are culled
+        lighting.want(f, groups[groups[:, 0] == f, 2])
     for (f, s, r), rows in zip(groups, members):
         idx = hit[rows]
         out[idx] = lighting.radiance(f, s, r, points[idx]) + lighting.emitted(f, s)[None, :]

@@ -510,6 +510,53 @@ def test_crossing_junction_segments_close_boxes_on_floor():
     assert_oracle(scene, arcs, ee, closed)
 
 
+def test_eee_arcs_reach_their_node_across_condition_5s_stretch(monkeypatch):
+    """Two boxes of the 100-polygon city on its floor (random_boxes(100, keep=[7, 14]),
+    docs/skeleton.md "Arcs", condition 5's stretch). In the square of the floor's edge 0 and
+    box 14's top edge 21, the boundary between the cells whose front blocker is box 7's face
+    and the sky turns a corner at box 7's top vertex w = 7: the VEE node (7, 0, 21), where the EEE arcs
+    (0, 9, 21) along the box's top edge 9 and (0, 7, 21) along its vertical edge 7 meet.
+    The lines of the family (0, 7, 21) within epsilon of w along edge 7 are invalid (node
+    condition 5), a stretch 20.3 epsilon long along the floor's edge, which the end sample
+    (20 epsilon) saw: the arc ended at a transition bisected there, 3e-5 of the square off the
+    corner, and the pair stayed open. The arc now ends at the node, the pair is complete and
+    every pair agrees with the ray caster; knocked out, the pair is open again."""
+    import sys
+    from pathlib import Path
+
+    import viscx.skeleton.arcs.stages as stages
+    from viscx.skeleton.arcs import EEE, END_NODE, END_TRANSITION
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from scenes import random_boxes
+
+    scene = random_boxes(100, keep=[7, 14])
+    nodes = build_nodes(scene)
+    arcs = build_arcs(scene, nodes)
+    ee = build_eecells(scene, arcs)
+
+    def corner_arc(arcs):
+        a = np.flatnonzero((arcs.kind == EEE) & np.all(arcs.generators == [0, 7, 21], axis=1))
+        assert len(a) == 1
+        return a[0]
+
+    a = corner_arc(arcs)
+    assert arcs.end_type[a].tolist() == [END_NODE, END_NODE]
+    node = arcs.end_node[a, 0]
+    w = np.intersect1d(scene.half_edges.edge_vertices[7], nodes.generators[node, :1])
+    assert nodes.generators[node, 1:3].tolist() == [0, 21] and len(w) == 1  # VEE (w, 0, 21), w on edge 7
+    assert ee.complete.all() and len(ee.open_edge1) == 0
+    judged, agreed, _, wrong = ray_oracle(scene, arcs, ee, [[0, 21]], n=2000)
+    assert judged >= 1900 and agreed == judged, wrong[:5]
+    judged, agreed, _, wrong = ray_oracle(scene, arcs, ee, pairs_of(ee))
+    assert judged >= 0.95 * POINTS * len(pairs_of(ee)) and agreed == judged, wrong[:5]
+    monkeypatch.setattr(stages, "_endpoint_cuts", lambda scene, kind, gens, cut, s0, s1: np.full(len(cut), -1, np.int8))
+    knocked = build_arcs(scene, nodes)
+    assert knocked.end_type[corner_arc(knocked), 0] == END_TRANSITION
+    knocked_ee = build_eecells(scene, knocked)
+    assert {(0, 21)} == set(zip(knocked_ee.open_edge1.tolist(), knocked_ee.open_edge2.tolist()))
+
+
 def check_random_scene(seed, points_seed=0):
     scene, arcs, ee = built(f"rand:{seed}")
     done = complete_pairs(ee)

@@ -400,8 +400,8 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
 
 
 def _endpoint_cuts(scene, kind, gens, cut, s0, s1):
-    """Which EEE transitions are node condition 5's at an endpoint w of q or r, and on which
-    side of their interval (s0, s1) that endpoint's event lies.
+    """Which EEE transitions are node condition 5's at an endpoint w of one of the family's
+    edges, and on which side of their interval (s0, s1) that endpoint's event lies.
 
     An EEE (p, q, r) line meeting q within epsilon of its endpoint w is judged invalid
     (condition 5: the event there is the vertex's, a VEE node through w, or a domain end
@@ -411,8 +411,10 @@ def _endpoint_cuts(scene, kind, gens, cut, s0, s1):
     edge seen from a far floor edge), and the arc then ended at a transition bisected
     epsilon along q off w, while the family of w's other edge, sampled beyond its shorter
     stretch, reached the node: the corner of the EE-cells' boundary at w did not close
-    (docs/skeleton.md, "Arcs", condition 5's stretch). Such a cut is recognised by its line
-    meeting q or r within ENDPOINT_ZONE epsilon (length) of w while the line at the
+    (docs/skeleton.md, "Arcs", condition 5's stretch). At an endpoint of p itself the
+    stretch is epsilon along p, but an interval shorter than 200 epsilon is sampled a tenth
+    of its length from its ends, within it. Such a cut is recognised by its line meeting p,
+    q or r within ENDPOINT_ZONE epsilon (length) of an endpoint w while the line at the
     interval's end s0 or s1 meets that edge within it as well (that end is the event at w).
 
     Parameters
@@ -435,7 +437,7 @@ def _endpoint_cuts(scene, kind, gens, cut, s0, s1):
     kinds = np.full(len(rows), EEE)
     lines = [family_lines(scene, kinds, g, s[rows]) for s in (cut, s0, s1)]
     zone = ENDPOINT_ZONE * scene.epsilon
-    for slot in (1, 2):
+    for slot in (0, 1, 2):
         a, b = edge_geometry(scene, g[:, slot])
         length = row_norms(b - a)
         x = []

@@ -46,7 +46,7 @@ def chains_of(scene, arcs):
     by_square = np.argsort(e1 * (1 << 32) + e2, kind="stable")
     squares = (arc[by_square], e1[by_square], e2[by_square])
     el = E.boundary_elements(scene, arcs, squares)
-    loops = E._loops(scene, el)
+    loops = E._open_loops(scene, el, E._loops(scene, el))
     segments = E.open_segments(scene, el, loops[0], loops[2])
     if len(segments.e1):
         el, loops = E._with_segments(scene, arcs, squares, segments, el, loops)

@@ -497,12 +497,12 @@ def arcs_equal(a, b):
             assert x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True), field
 
 
-@pytest.mark.parametrize("seed,boxes", [(1, 6), pytest.param(3, 8, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("seed,boxes", [(4, 6), pytest.param(3, 8, marks=pytest.mark.slow)])
 def test_arcs_do_not_depend_on_the_chunks_of_families(seed, boxes, monkeypatch):
     """V1 builds its families in chunks, each on its own (first pass, refinement, merge,
     half-cells): chunks of a few families each, on one thread or two, give the arcs of
     one chunk, array for array (a scene with coplanar events, transitions, merged
-    crossings)."""
+    crossings; seed 4, since condition 5's stretch left seed 1 no transition)."""
     scene = floor_scene(seed, boxes)
     nodes = build_nodes(scene)
     monkeypatch.setattr(builder_module, "FAMILY_CHUNK", 1 << 40)

@@ -107,6 +107,11 @@ END_SAMPLE_EPSILONS = 20
 #: vertex, a junction or an edge's crossing with the family's plane) when that event lies
 #: within this many epsilon along the family's edge.
 SNAP = 20
+#: A transition of an EEE family whose line meets one of its edges within this many epsilon (length)
+#: of an endpoint, next to its interval's event at that endpoint with nothing valid between,
+#: is node condition 5's (an edge point within epsilon of its end): the arc ends at the event
+#: (docs/skeleton.md, "Arcs"). The bisection puts such a cut at 1 epsilon within rounding.
+ENDPOINT_ZONE = 1.5
 #: Angle (radians) by which a VE line is turned about its vertex, off the plane of the vertex
 #: and the edge, to find the V-cells on either side (half-cells): far above the rounding of
 #: directions (1e-16) and ANGLE_TOLERANCE, far below the thinnest cells of the samples

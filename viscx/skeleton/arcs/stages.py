@@ -17,7 +17,7 @@ from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_CROSSING, END_EDGE, END_EN
 from viscx.skeleton.arcs.lines import family_lines, judge_samples, judge_sides
 from viscx.skeleton.arcs.pencils import pencil_planes
 from viscx.skeleton.generators import edge_geometry, edge_junctions
-from viscx.tolerances import END_SAMPLE_EPSILONS, MERGE_EPSILONS, SNAP
+from viscx.tolerances import END_SAMPLE_EPSILONS, ENDPOINT_ZONE, MERGE_EPSILONS, SNAP
 
 
 #: Where each interval between consecutive events is sampled (fractions of it; the first is
@@ -358,6 +358,14 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         same[same] = np.all(judge_sides(scene, kinds[same], gens[same], m[same], at.valid[same]) == left[same, 5:], axis=1)
         lo, hi = np.where(same, m, lo), np.where(same, hi, m)
     cut = _snap_cuts(scene, fkind[f[ci]], fgens[f[ci]], 0.5 * (lo + hi), ss[ci, cj], ss[ci, cj + 1])
+    # an EEE cut that is node condition 5's at an endpoint of q or r, next to the interval's
+    # end at that endpoint (its node or domain end) with nothing valid between: cut there
+    at_end = _endpoint_cuts(scene, fkind[f[ci]], fgens[f[ci]], cut, s0[ci], s1[ci])
+    first_cut = np.r_[True, ci[1:] != ci[:-1]] if len(ci) else np.zeros(0, bool)
+    last_cut = np.r_[ci[1:] != ci[:-1], True] if len(ci) else np.zeros(0, bool)
+    to_start = (at_end == 0) & first_cut & (state[ci, cj, 0] == 0)
+    to_end = (at_end == 1) & last_cut & (state[ci, cj + 1, 0] == 0)
+    cut = np.where(to_start, s0[ci], np.where(to_end, s1[ci], cut))
     # loose: only the half-cells changed and no event explains it (see _merge_across_possible_events)
     loose = (fkind[f[ci]] == VE) & (cut == 0.5 * (lo + hi)) & np.all(state[ci, cj, :5] == state[ci, cj + 1, :5], axis=1)
     # runs of equal state between cuts; keep the valid ones
@@ -370,9 +378,10 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
     start_s, start_t, start_i = s0[ri].copy(), t0[ri].copy(), i0[ri].copy()
     end_s, end_t, end_i = s1[ri].copy(), t1[ri].copy(), i1[ri].copy()
     after = run_id[ci, cj]  # the run ending at this cut
-    end_s[after], end_t[after], end_i[after] = cut, END_TRANSITION, -1
+    end_s[after], end_t[after], end_i[after] = cut, np.where(to_end, t1[ci], END_TRANSITION), np.where(to_end, i1[ci], -1)
     before = run_id[ci, cj + 1]
-    start_s[before], start_t[before], start_i[before] = cut, END_TRANSITION, -1
+    start_s[before], start_t[before], start_i[before] = (cut, np.where(to_start, t0[ci], END_TRANSITION),
+                                                         np.where(to_start, i0[ci], -1))
     run_loose = np.zeros((nrun, 2), dtype=bool)
     run_loose[after, 1], run_loose[before, 0] = loose, loose
     # each run's middle sample stands for it
@@ -396,6 +405,61 @@ def _refine_batch(scene, fkind, fgens, f, s0, t0, i0, s1, t1, i1):
         "generator_points": smp.generator_points[pick][ok],
         "loose": run_loose[ok],
     }
+
+
+def _endpoint_cuts(scene, kind, gens, cut, s0, s1):
+    """Which EEE transitions are node condition 5's at an endpoint w of one of the family's
+    edges, and on which side of their interval (s0, s1) that endpoint's event lies.
+
+    An EEE (p, q, r) line meeting q within epsilon of its endpoint w is judged invalid
+    (condition 5: the event there is the vertex's, a VEE node through w, or a domain end
+    V0 dropped), so the lines of the family next to the line through w form an invalid
+    stretch whose length along p is epsilon times the ratio of the two points' speeds:
+    longer than the 20 epsilon end samples where q's point moves slowly (a box's vertical
+    edge seen from a far floor edge), and the arc then ended at a transition bisected
+    epsilon along q off w, while the family of w's other edge, sampled beyond its shorter
+    stretch, reached the node: the corner of the EE-cells' boundary at w did not close
+    (docs/skeleton.md, "Arcs", condition 5's stretch). At an endpoint of p itself the
+    stretch is epsilon along p, but an interval shorter than 200 epsilon is sampled a tenth
+    of its length from its ends, within it. Such a cut is recognised by its line meeting p,
+    q or r within ENDPOINT_ZONE epsilon (length) of an endpoint w while the line at the
+    interval's end s0 or s1 meets that edge within it as well (that end is the event at w).
+
+    Parameters
+    ----------
+    kind, gens : (c,) int, (c, 3) int
+        The family of each cut.
+    cut, s0, s1 : (c,) float
+        The cut and its interval's ends.
+
+    Returns
+    -------
+    (c,) int8
+        0: the event at w is s0, 1: it is s1, -1: not such a cut (or not EEE).
+    """
+    side = np.full(len(cut), -1, np.int8)
+    rows = np.flatnonzero(kind == EEE)
+    if len(rows) == 0:
+        return side
+    g = gens[rows]
+    kinds = np.full(len(rows), EEE)
+    lines = [family_lines(scene, kinds, g, s[rows]) for s in (cut, s0, s1)]
+    zone = ENDPOINT_ZONE * scene.epsilon
+    for slot in (0, 1, 2):
+        a, b = edge_geometry(scene, g[:, slot])
+        length = row_norms(b - a)
+        x = []
+        for o, d in lines:
+            defined = row_norms(d) > 0
+            xi, _ = segment_parameter(o, np.where(defined[:, None], d, 1.0), a, b)
+            x.append(np.where(defined, xi, np.nan))
+        with np.errstate(invalid="ignore"):
+            for w in (0.0, 1.0):
+                near = [np.abs(xi - w) * length <= zone for xi in x]
+                for end in (0, 1):
+                    hit = near[0] & near[1 + end] & (side[rows] < 0)
+                    side[rows[hit]] = end
+    return side
 
 
 def _snap_cuts(scene, kind, gens, cut, lo, hi):

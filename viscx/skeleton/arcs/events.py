@@ -499,6 +499,61 @@ def coplanar_join(scene, ve, ve_plane, points):
             np.where(crossing, -2 - which, which))
 
 
+def node_reach(scene, kind, generators, events, rows):
+    """Distance from a VE family's vertex to the farthest generator point of each event on
+    it (the points the event's line is fixed by: a VEE node's edge points, a VV node's other
+    vertex); 0 for EEE families (:func:`viscx.skeleton.arcs.stages.family_intervals`, rule 14).
+
+    Parameters
+    ----------
+    kind : (k,) int
+    generators : (k, 3) int
+    events : Nodes
+    rows : (k,) int
+        The event of each family incidence.
+
+    Returns
+    -------
+    (k,) float
+    """
+    out = np.zeros(len(kind))
+    v = np.flatnonzero(kind == VE)
+    if len(v):
+        gp = events.generator_points[rows[v]]  # (m, 4, 3), nan in unused slots
+        dist = np.linalg.norm(gp - scene.vertices[generators[v, 0]][:, None], axis=2)
+        out[v] = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1)
+    return out
+
+
+def coplanar_reach(scene, ve, s, kind, index):
+    """Distance from a same-plane VE family's vertex to the point of its plane each of its
+    coplanar events passes (:func:`coplanar_events`): the vertex passed, or where the crossing
+    edge meets the line; 0 for a junction (a point of an edge of the plane, not named).
+
+    Parameters
+    ----------
+    ve : (q, 2) int
+        (v, e) of each event's family.
+    s, kind, index : (q,)
+        As :func:`coplanar_events` returns them.
+
+    Returns
+    -------
+    (q,) float
+    """
+    x = scene.vertices[ve[:, 0]]
+    out = np.zeros(len(s))
+    w = np.flatnonzero((kind == END_COPLANAR) & (index >= 0))
+    out[w] = row_norms(scene.vertices[index[w]] - x[w])
+    c = np.flatnonzero(kind == END_CROSSING)
+    if len(c):
+        o, d = family_lines(scene, np.full(len(c), VE), np.c_[ve[c], np.full(len(c), -1)], s[c])
+        a, b = edge_geometry(scene, index[c])
+        t, _ = segment_parameter(a, b - a, o, o + d)  # the crossing point's parameter on the line
+        out[c] = np.abs(np.nan_to_num(t)) * row_norms(d)
+    return out
+
+
 def hidden_events(scene, ve, s):
     """Whether each coplanar event of a same-plane VE family is hidden: the family's line
     there is blocked between its vertex and its edge, and stays blocked nearby.

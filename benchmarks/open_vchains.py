@@ -47,7 +47,7 @@ def chains_of(scene, arcs):
     el, group = el.take(keep), group[keep]
     order, loop_offsets, chain_offsets = V.sphere_loops(scene, el, group)
     walk = el.take(order)
-    harmless = V.point_chains(scene, walk, chain_offsets) | V.covered_chains(walk, group[order], loop_offsets,
+    harmless = V.point_chains(scene, walk, chain_offsets) | V.covered_chains(scene, walk, group[order], loop_offsets,
                                                                              chain_offsets)
     return walk, group[order], loop_offsets, chain_offsets, ~harmless
 

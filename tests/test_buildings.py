@@ -137,7 +137,7 @@ def test_chains_lying_on_closed_loops_of_their_group_bound_nothing(monkeypatch):
         assert np.isclose(vc.solid_angle[vc.vertex == v].sum(), FOUR_PI)
     judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([93, 110]), n=2000)
     assert judged >= 3800 and agreed == judged, wrong[:5]
-    monkeypatch.setattr(vcells, "covered_chains", lambda walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
+    monkeypatch.setattr(vcells, "covered_chains", lambda scene, walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
     knocked = complete_vertices(build_vcells(scene, arcs))
     assert not {93, 110} & set(knocked.tolist())
     assert len(knocked) == len(done) - 2

@@ -721,7 +721,7 @@ def test_each_join_rule_completes_city_vertices(knockout, name, monkeypatch):
     else:
         monkeypatch.setattr(vcells, "point_chains", lambda scene, walk, chain_offsets: np.zeros(len(chain_offsets) - 1, bool))
         # (that chain also lies on a closed loop of its group: covered_chains frees it too)
-        monkeypatch.setattr(vcells, "covered_chains", lambda walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
+        monkeypatch.setattr(vcells, "covered_chains", lambda scene, walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
     vc = build_vcells(scene, arcs, vertices=new)
     assert len(complete_vertices(vc)) < len(new)
     # whatever stays complete still covers its sphere

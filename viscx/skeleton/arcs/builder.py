@@ -16,6 +16,7 @@ from viscx.skeleton.arcs.events import (
     coplanar_reach,
     domain_ends,
     event_parameters,
+    face_plane_crossings,
     family_incidences,
     hidden_events,
     node_reach,
@@ -257,6 +258,11 @@ def _first_pass_of_families(scene, families, chunk):
     cop_f = families.plane_family[p0:p1][cop_f] - lo
     # the points of their plane pencils of touched planes pass
     pen_f, pen_s, pen_kind, pen_index = pencil_events(scene, fkind, fgens)
+    # and where a VE family's edge crosses the plane of a face at its vertex, next to the
+    # events above, where the first samples cannot see it (rule 16)
+    known = (np.concatenate([fam_of, dom_f, cop_f, pen_f]), np.concatenate([families.event_s[ev], dom_s, cop_s, pen_s]))
+    fpc = face_plane_crossings(scene, fkind, fgens, near=known)
+    pen_f, pen_s, pen_kind, pen_index = (np.r_[x, y] for x, y in zip((pen_f, pen_s, pen_kind, pen_index), fpc))
     cop_f, cop_s = np.r_[cop_f, pen_f], np.r_[cop_s, pen_s]
     cop_kind, cop_index = np.r_[cop_kind, pen_kind], np.r_[cop_index, pen_index]
     cop_hidden = np.r_[cop_hidden, np.zeros(len(pen_f), dtype=bool)]

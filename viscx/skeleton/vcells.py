@@ -852,6 +852,12 @@ def point_chains(scene, walk, chain_offsets):
 COVER_SAMPLES = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 
+def cover_tolerance(scene, walk, chain_offsets):
+    """(o,) float: how far an open chain may stray from a closed loop of its group and still
+    lie on it (:func:`covered_chains`): its :func:`end_tolerance`, the join's."""
+    return end_tolerance(scene, walk, chain_offsets[1:] - 1)
+
+
 def covered_chains(scene, walk, group, loop_offsets, chain_offsets):
     """Open chains lying on loops of their own group: every element runs, at its ends and
     inner points (COVER_SAMPLES), along an element of a closed loop of its group (same
@@ -894,7 +900,7 @@ def covered_chains(scene, walk, group, loop_offsets, chain_offsets):
     normal /= np.maximum(size, 1e-300)[:, None]
     chained = np.arange(n_loop, len(walk))
     chain_of = np.repeat(np.arange(n_chains), np.diff(chain_offsets))
-    tolerance = end_tolerance(scene, walk, chain_offsets[1:] - 1)[chain_of]
+    tolerance = cover_tolerance(scene, walk, chain_offsets)[chain_of]
     # sample points of every chain element, and its own circle's normal
     t = np.asarray(COVER_SAMPLES)
     pts = (1 - t)[None, :, None] * walk.start[chained, None] + t[None, :, None] * walk.end[chained, None]

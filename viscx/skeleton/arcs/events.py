@@ -12,7 +12,7 @@ from viscx.geometry.lines import segment_parameter
 from viscx.parallel import map_chunks, row_chunks
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_COPLANAR, END_CROSSING, END_ENDPOINT, END_JUNCTION, VE
-from viscx.skeleton.arcs.lines import family_lines
+from viscx.skeleton.arcs.lines import family_lines, judge_samples
 from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups
 from viscx.skeleton.generators import canonical_eee, edge_geometry, edges_through_vertices, vertex_edges
 from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, validate_candidates
@@ -301,7 +301,10 @@ def face_plane_crossings(scene, fkind, fgens, near=None):
     office(120, 103), vertex 91, a desk panel's floor corner in the desk's front plane, and
     the top edge of another desk whose front lies 8 epsilon behind that plane (its arc ran
     on through the other panel to the edge's end, 8 epsilon too far). Only those are
-    events: the others would only move the samples of arcs already found.
+    events, and only where the lines one epsilon before and after them differ: the others
+    would only move the samples of arcs already found, or cut a short interval next to an
+    edge's end whose samples fall within epsilon of it (no valid line: office(120, 103), VE
+    (68, e132), whose arc then ended at a transition there, not at the node at the end).
 
     Returns
     -------
@@ -333,6 +336,18 @@ def face_plane_crossings(scene, fkind, fgens, near=None):
             k = np.clip(k, 0, len(key) - 1)
             close |= (key.real[k] == fam) & (np.abs(key.imag[k] - s) <= tol)
         fam, s = fam[close], s[close]
+        # ... where something changes: the lines one epsilon before and after differ (a short
+        # interval next to an edge's end cut where nothing changes would be sampled within
+        # epsilon of that end, where no line is valid, and its arc end there, not at the node)
+        step = scene.epsilon / row_norms(b - a)[close]
+        if len(fam) == 0:
+            return fam, s, np.full(0, END_CROSSING), fam
+        gens = np.repeat(fgens[fam], 2, axis=0)
+        smp = judge_samples(scene, np.full(len(gens), VE), gens, np.clip(np.c_[s - step, s + step].ravel(), 0.0, 1.0),
+                            sides=True)
+        state = np.concatenate([smp.state, smp.sides], axis=1).reshape(len(fam), 2, -1)
+        change = np.any(state[:, 0] != state[:, 1], axis=1)
+        fam, s = fam[change], s[change]
     return fam, s, np.full(len(fam), END_CROSSING), fgens[fam, 1]
 
 

@@ -80,6 +80,29 @@ def _light(b, centre, size, y, name):
     b.quad([[cx - sx, y, cz - sz], [cx + sx, y, cz - sz], [cx + sx, y, cz + sz], [cx - sx, y, cz + sz]], name)
 
 
+def boxes_and_quads(boxes=(), quads=()):
+    """A soup of named boxes ``(lo, hi, name)`` and quads ``(corners, name)``: a few pieces of
+    furniture placed exactly, for the tests' minimal scenes."""
+    b = _Builder()
+    for corners, name in quads:
+        b.quad(corners, name)
+    for lo, hi, name in boxes:
+        b.box(lo, hi, name)
+    return b.soup()
+
+
+def desk_boxes(x0, z0, x1, z1, name="desk"):
+    """The three boxes (lo, hi, name) of a desk on the footprint (x0, z0, x1, z1): a top
+    resting on two panels flush with its ends (as :func:`furnished_room` builds them)."""
+    top, legs, panel = 0.72, 0.69, 0.03
+    out = [([x0, legs, z0], [x1, top, z1], name)]
+    if x1 - x0 > z1 - z0:  # panels at the x ends, flush with the top's end faces
+        out += [([x0, 0, z0], [x0 + panel, legs, z1], name), ([x1 - panel, 0, z0], [x1, legs, z1], name)]
+    else:
+        out += [([x0, 0, z0], [x1, legs, z0 + panel], name), ([x0, 0, z1 - panel], [x1, legs, z1], name)]
+    return out
+
+
 def _free(rect, placed, gap):
     """True when rect (x0, z0, x1, z1) keeps ``gap`` from every placed rect."""
     x0, z0, x1, z1 = rect
@@ -146,17 +169,10 @@ def furnished_room(n_desks=16, n_cabinets=10, n_dividers=3, n_lights=4, size=(12
     for i in range(n_cabinets):
         x0, z0, x1, z1 = place(rng.uniform(0.8, 1.2), 0.45, against_wall=True)
         b.box([x0, 0, z0], [x1, rng.uniform(0.8, 2.0), z1], f"cabinet{i}")
-    top, legs, panel = 0.72, 0.69, 0.03
     for i in range(n_desks):
         x0, z0, x1, z1 = place(1.4, 0.7, against_wall=False)
-        name = f"desk{i}"
-        b.box([x0, legs, z0], [x1, top, z1], name)
-        if x1 - x0 > z1 - z0:  # panels at the x ends, flush with the top's end faces
-            b.box([x0, 0, z0], [x0 + panel, legs, z1], name)
-            b.box([x1 - panel, 0, z0], [x1, legs, z1], name)
-        else:
-            b.box([x0, 0, z0], [x1, legs, z0 + panel], name)
-            b.box([x0, 0, z1 - panel], [x1, legs, z1], name)
+        for lo, hi, name in desk_boxes(x0, z0, x1, z1, f"desk{i}"):
+            b.box(lo, hi, name)
     for i in range(n_dividers):
         x0, z0, x1, z1 = place(rng.uniform(1.2, 1.8), 0.05, against_wall=False)
         b.box([x0, 0, z0], [x1, rng.uniform(1.2, 1.6), z1], f"divider{i}")

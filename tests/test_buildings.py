@@ -19,7 +19,7 @@ from viscx.skeleton.eecells import build_eecells
 from viscx.skeleton.vcells import FOUR_PI, build_vcells
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
-from buildings import floor_plan, furnished_room, office, write_obj  # noqa: E402
+from buildings import boxes_and_quads, desk_boxes, floor_plan, furnished_room, office, write_obj  # noqa: E402
 
 #: Directions per vertex for the ray oracle here (the samples' tests use 10 000).
 DIRECTIONS = 500
@@ -121,26 +121,102 @@ def test_a_joined_loop_that_is_a_point_bounds_nothing(monkeypatch):
 
 @pytest.mark.slow
 def test_chains_lying_on_closed_loops_of_their_group_bound_nothing(monkeypatch):
-    """office(120, 103), vertices 93 and 110 (desk panels' top corners, under the tops):
+    """office(206, 114), vertices 119 and 210 (desk panels' top corners, under the tops):
     every edge in the plane of the tops' undersides is seen from the vertex along one
     great circle, and several VE families give partly overlapping pieces of that one
     boundary, each cut at its own coplanar events. The loops follow one family's pieces;
     the other's dangle as open chains lying on those closed loops
     (``vcells.covered_chains``). They bound nothing: the vertices are complete and the ray
-    caster agrees on their directions. Knocked out, they are not complete."""
+    caster agrees on their directions. Knocked out, they are not complete. (office(120, 103)'s
+    vertices 93 and 110, where this was found, no longer need it since rules 14 and 16.)"""
     import viscx.skeleton.vcells as vcells
 
-    scene, arcs, vc = built("office120", lambda: office(120, seed=103))
+    scene, arcs, vc = built("office206", lambda: office(206, seed=114))
     done = complete_vertices(vc)
-    assert {93, 110} <= set(done.tolist())
-    for v in (93, 110):
-        assert np.isclose(vc.solid_angle[vc.vertex == v].sum(), FOUR_PI)
-    judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([93, 110]), n=2000)
+    assert len(done) == 256
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([119, 210]), n=2000)
     assert judged >= 3800 and agreed == judged, wrong[:5]
-    monkeypatch.setattr(vcells, "covered_chains", lambda walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
+    monkeypatch.setattr(vcells, "covered_chains", lambda scene, walk, group, loops, chains: np.zeros(len(chains) - 1, bool))
     knocked = complete_vertices(build_vcells(scene, arcs))
-    assert not {93, 110} & set(knocked.tolist())
-    assert len(knocked) == len(done) - 2
+    assert set(done.tolist()) - set(knocked.tolist()) == {17, 119, 210}
+
+
+@pytest.mark.slow
+def test_chains_on_closed_loops_within_the_join_tolerance(monkeypatch):
+    """office(206, 114), vertex 17 (a light's corner 3 cm under the ceiling): the open chain
+    lies on a closed loop of its group but for its last 1.1e-5 rad, where its family kept
+    another event of a merged run than the loop's; within the join tolerance
+    (``vcells.cover_tolerance``) it is the same boundary. Knocked out (JOIN_CHORD), the
+    vertex stays open."""
+    import viscx.skeleton.vcells as vcells
+    from viscx.tolerances import JOIN_CHORD
+
+    scene, arcs, vc = built("office206", lambda: office(206, seed=114))
+    done = complete_vertices(vc)
+    assert 17 in done and np.isclose(vc.solid_angle[vc.vertex == 17].sum(), FOUR_PI)
+    judged, agreed, wrong = ray_oracle(scene, arcs, vc, np.array([17]), n=2000)
+    assert judged >= 1900 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(vcells, "cover_tolerance", lambda scene, walk, chains: np.full(len(chains) - 1, JOIN_CHORD))
+    knocked = complete_vertices(build_vcells(scene, arcs))
+    assert set(done.tolist()) - set(knocked.tolist()) == {17}
+
+
+def divider_and_far_cabinet():
+    """office(300)'s vertices 295 and 351 in a scene of their own (docs/skeleton.md "Furnished
+    buildings", rule 14): a desk panel 3 cm thick and a divider 5 cm thick 7.8 m away, whose
+    two top edges cross the panel's face plane; a cabinet 8 m from the divider, its top 9 mm
+    above the divider's; the floor and a wall."""
+    w, h, d = 12.0, 3.0, 9.0
+    return boxes_and_quads(
+        boxes=[([11.339014, 0, 4.526366], [11.369014, 0.69, 5.226366], "panel"),
+               ([3.487886, 0, 4.463499], [3.537886, 1.421636, 5.818818], "divider"),
+               ([11.1, 0, 5.803963], [11.55, 1.430425, 6.759532], "cabinet")],
+        quads=[([[0, 0, 0], [0, 0, d], [w, 0, d], [w, 0, 0]], "floor"),
+               ([[0, 0, 0], [0, h, 0], [0, h, d], [0, 0, d]], "wall_west")])
+
+
+def test_events_apart_at_their_far_points_are_not_merged(monkeypatch):
+    """Two events of a VE family 4 epsilon apart along an edge a few cm from the vertex are
+    lines 1e-3 rad apart, 8 mm apart at a cabinet 8 m away: they are two events
+    (``arcs.stages._apart_at_reach``). Merged, a divider's corner loses the arc between them,
+    the third side of a sliver cell 1.1e-3 rad wide, and its cells cover 0.875 of its sphere."""
+    import viscx.skeleton.arcs.stages as stages
+
+    scene, arcs, vc = built("divider", divider_and_far_cabinet)
+    assert_complete_and_agreeing(scene, arcs, vc, 30)
+    monkeypatch.setattr(stages, "_apart_at_reach", lambda scene, gens, s0, s1, reach: np.zeros(len(gens), bool))
+    knocked = build_vcells(scene, build_arcs(scene, build_nodes(scene)))
+    assert len(complete_vertices(knocked)) == 29
+    total = np.bincount(knocked.vertex, weights=knocked.solid_angle)
+    assert np.min(total) < 0.9 * FOUR_PI
+
+
+def desk_before_another_desks_front():
+    """office(120, 103)'s vertex 91 in a scene of its own (rule 16): a desk along x, and a desk
+    along z 3.9 m away whose front lies 1.28e-4 (8.4 epsilon) behind the first desk's front
+    plane z = 2.390125; the floor and a wall."""
+    w, h, d = 12.0, 3.0, 9.0
+    return boxes_and_quads(
+        boxes=desk_boxes(6.847932, 1.690125, 8.247932, 2.390125, "desk2")
+        + desk_boxes(10.754589, 2.389997, 11.454589, 3.789997, "desk1"),
+        quads=[([[0, 0, 0], [0, 0, d], [w, 0, d], [w, 0, 0]], "floor"),
+               ([[w, 0, 0], [w, 0, d], [w, h, d], [w, h, 0]], "wall_east")])
+
+
+def test_face_plane_crossings_next_to_an_event(monkeypatch):
+    """The lines from a panel's corner in its desk's front plane to the other desk's top edge
+    cross that plane 8.4 epsilon from the edge's end: hidden by the far panel before, free
+    beyond. No node lies there and the first samples, 20 epsilon from the interval's ends,
+    miss it; the crossing of the plane of a face at the vertex is an event
+    (``arcs.face_plane_crossings``). Knocked out, the arc runs on to the edge's end and the
+    corner's loop overshoots the plane."""
+    import viscx.skeleton.arcs.builder as builder
+
+    scene, arcs, vc = built("two desks", desk_before_another_desks_front)
+    assert_complete_and_agreeing(scene, arcs, vc, 46)
+    none = tuple(np.zeros(0, t) for t in (np.int64, float, np.int64, np.int64))
+    monkeypatch.setattr(builder, "face_plane_crossings", lambda scene, kind, gens, near=None: none)
+    assert len(complete_vertices(build_vcells(scene, build_arcs(scene, build_nodes(scene))))) == 45
 
 
 def test_families_through_a_t_junction_of_a_node():
@@ -301,7 +377,8 @@ def test_furnished_rooms(seed, capsys):
     worst), the caster agreeing on 2 203 756 of 2 203 756 directions and 399 615 of 399 615
     points; with V-cell rule 12 and V1 rule 13: 4 456 of 4 524 vertices (98.5 %; 96.25 % at
     worst, office(260, 111)), 310 594 of 311 043 pairs (99.86 %; 99.70 % at worst,
-    office(120, 103)); so completeness is held at 96 % of vertices and 99.7 % of pairs."""
+    office(120, 103)); with V1 rules 14 and 16 and V-cell rule 15: every vertex of the 20
+    (4 524), so completeness is held at 100 % of vertices and 99.7 % of pairs."""
     n = int(np.random.default_rng(2026 + seed).integers(50, 301))
     scene = build_scene(office(n, seed=100 + seed))
     arcs = build_arcs(scene, build_nodes(scene))
@@ -319,7 +396,7 @@ def test_furnished_rooms(seed, capsys):
               f"{counts['complete_pairs']} of {counts['pairs']} ({counts['complete_pairs'] / counts['pairs']:.4f}); "
               f"oracle {agreed}/{judged} directions, {ee_agreed}/{ee_judged} points")
     assert ee_agreed == ee_judged and ee_judged >= 0.95 * 100 * len(sample), ee_wrong[:5]
-    assert len(done) >= 0.96 * len(vertices_of(vc)), vc.counts()
+    assert len(done) == len(vertices_of(vc)), vc.counts()
     assert counts["complete_pairs"] >= 0.997 * counts["pairs"], counts
 
 

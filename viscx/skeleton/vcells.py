@@ -411,11 +411,7 @@ def join_open_chains(scene, el, group, order, loop_offsets, chain_offsets):
     first, last = order[chain_offsets[:-1]], order[chain_offsets[1:] - 1]
     ends = el.take(first)  # a chain as one element: its first's start, its last's end
     ends.end, ends.end_tangent, ends.end_reach = el.end[last], el.end_tangent[last], el.end_reach[last]
-    # the merged events lie on the family of the edge nearest the vertex that the end's line
-    # meets (a VEE node (v, e, e') seen along e, merged on VE (v, e')), not always on e itself
-    reach = line_reach(scene, ends.vertex, ends.end, ends.end_reach)
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
-    walk, joined, _ = form_loops(ends, group[first], tolerance)
+    walk, joined, _ = form_loops(ends, group[first], end_tolerance(scene, el, last))
     sizes = np.diff(chain_offsets)
     # one element closed onto itself across a gap bounds nothing, nor does a point
     few = np.bincount(np.repeat(np.arange(len(joined) - 1), np.diff(joined)), weights=sizes[walk[: joined[-1]]],
@@ -488,6 +484,22 @@ def point_loops(scene, el, order, chain_offsets, chains, joined):
     straight = np.ones(len(per_loop), bool)
     np.logical_and.at(straight, loop_of, bent >= STRAIGHT_COSINE)
     return straight & point_chains(scene, walk, offsets)
+
+
+def end_tolerance(scene, el, index):
+    """The join tolerance at the end of each element ``index`` of ``el``: JOIN_EPSILONS
+    epsilon seen from the nearest edge the end's line meets (:func:`line_reach`), between
+    JOIN_CHORD and JOIN_LIMIT (:func:`join_open_chains`).
+
+    The merged events lie on the family of the edge nearest the vertex that the end's line
+    meets (a VEE node (v, e, e') seen along e, merged on VE (v, e')), not always on e itself.
+
+    Returns
+    -------
+    (k,) float
+    """
+    reach = line_reach(scene, el.vertex[index], el.end[index], el.end_reach[index])
+    return np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
 
 
 def line_reach(scene, vertex, direction, reach):
@@ -775,7 +787,7 @@ def build_vcells(scene, arcs, quiet=True, vertices=None):
         progress.set_postfix_str("cells")
         loop_group = group[order[loop_offsets[:-1]]]
         cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside_loops)
-        points = point_chains(scene, walk, chain_offsets) | covered_chains(walk, group[order], loop_offsets, chain_offsets)
+        points = point_chains(scene, walk, chain_offsets) | covered_chains(scene, walk, group[order], loop_offsets, chain_offsets)
         result = _assemble(walk, order, loop_offsets, chain_offsets, turning, cell, whole_sphere_cells(scene, el, vertices),
                            points)
         progress.update()
@@ -830,13 +842,9 @@ def point_chains(scene, walk, chain_offsets):
     -------
     (o,) bool
     """
-    n = len(chain_offsets) - 1
-    if n == 0:
+    if len(chain_offsets) == 1:
         return np.zeros(0, bool)
-    last = chain_offsets[1:] - 1
-    reach = line_reach(scene, walk.vertex[last], walk.end[last], walk.end_reach[last])
-    tolerance = np.clip(JOIN_EPSILONS * scene.epsilon / np.maximum(reach, 1e-300), JOIN_CHORD, JOIN_LIMIT)
-    return chain_extents(walk, chain_offsets) <= tolerance
+    return chain_extents(walk, chain_offsets) <= end_tolerance(scene, walk, chain_offsets[1:] - 1)
 
 
 #: Points at which an open chain's elements are tested against its group's loops
@@ -844,10 +852,16 @@ def point_chains(scene, walk, chain_offsets):
 COVER_SAMPLES = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 
-def covered_chains(walk, group, loop_offsets, chain_offsets):
+def cover_tolerance(scene, walk, chain_offsets):
+    """(o,) float: how far an open chain may stray from a closed loop of its group and still
+    lie on it (:func:`covered_chains`): its :func:`end_tolerance`, the join's."""
+    return end_tolerance(scene, walk, chain_offsets[1:] - 1)
+
+
+def covered_chains(scene, walk, group, loop_offsets, chain_offsets):
     """Open chains lying on loops of their own group: every element runs, at its ends and
     inner points (COVER_SAMPLES), along an element of a closed loop of its group (same
-    great circle and direction, within JOIN_CHORD).
+    great circle and direction, within the chain's join tolerance, :func:`end_tolerance`).
 
     From a vertex v every edge lying in a plane P through v (a desk top's underside under
     which v sits, the floor) is seen along one great circle, and the cells just above
@@ -858,7 +872,10 @@ def covered_chains(walk, group, loop_offsets, chain_offsets):
     does not see. The loop follows one family's pieces; another's dangle, open chains of
     one element on a cell boundary already closed. They bound nothing new, and do not
     keep their vertex from being complete (office(300): 9 of its 13 incomplete vertices,
-    docs/skeleton.md "Furnished buildings", rule 12).
+    docs/skeleton.md "Furnished buildings", rule 12). The families keep different events of
+    a merged run where such a piece ends, so a dangling piece can end a few epsilon past
+    the loop's corner (office(271, 113), vertex 252: 7e-6 rad, 0.15 epsilon at the edge):
+    within the join tolerance it is the same boundary (rule 15).
 
     Parameters
     ----------
@@ -883,6 +900,7 @@ def covered_chains(walk, group, loop_offsets, chain_offsets):
     normal /= np.maximum(size, 1e-300)[:, None]
     chained = np.arange(n_loop, len(walk))
     chain_of = np.repeat(np.arange(n_chains), np.diff(chain_offsets))
+    tolerance = cover_tolerance(scene, walk, chain_offsets)[chain_of]
     # sample points of every chain element, and its own circle's normal
     t = np.asarray(COVER_SAMPLES)
     pts = (1 - t)[None, :, None] * walk.start[chained, None] + t[None, :, None] * walk.end[chained, None]
@@ -893,9 +911,10 @@ def covered_chains(walk, group, loop_offsets, chain_offsets):
     rows, cand = expand_ranges(first, np.searchsorted(group[by_group], group[chained], "right") - first)
     p = pts[rows]  # (pairs, samples, 3)
     n, a, b = normal[cand], walk.start[by_group][cand], walk.end[by_group][cand]
-    on = (np.abs(np.einsum("psk,pk->ps", p, n)) <= JOIN_CHORD)
-    on &= np.einsum("psk,pk->ps", np.cross(a[:, None], p), n) >= -JOIN_CHORD
-    on &= np.einsum("psk,pk->ps", np.cross(p, b[:, None]), n) >= -JOIN_CHORD
+    tol = tolerance[rows][:, None]
+    on = (np.abs(np.einsum("psk,pk->ps", p, n)) <= tol)
+    on &= np.einsum("psk,pk->ps", np.cross(a[:, None], p), n) >= -tol
+    on &= np.einsum("psk,pk->ps", np.cross(p, b[:, None]), n) >= -tol
     on &= (size[cand] > JOIN_CHORD)[:, None] & (np.einsum("pk,pk->p", n, own[rows]) > 0)[:, None]
     covered = np.zeros((len(chained), len(t)), bool)
     np.logical_or.at(covered, rows, on)

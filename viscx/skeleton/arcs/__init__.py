@@ -117,14 +117,18 @@ from viscx.skeleton.arcs.events import (  # noqa: F401
     coplanar_candidates,
     coplanar_events,
     coplanar_join,
+    coplanar_reach,
     domain_ends,
     event_parameters,
+    face_plane_crossings,
     family_incidences,
     hidden_events,
+    node_reach,
     planar_events,
     points_of_planes,
     row_blocks,
     same_plane_ve,
+    vertex_planes,
 )
 from viscx.skeleton.arcs.stages import (  # noqa: F401
     BISECT,

@@ -13,10 +13,13 @@ from viscx.skeleton.arcs.events import (
     PlanePoints,
     coplanar_candidates,
     coplanar_join,
+    coplanar_reach,
     domain_ends,
     event_parameters,
+    face_plane_crossings,
     family_incidences,
     hidden_events,
+    node_reach,
     planar_events,
     points_of_planes,
     row_blocks,
@@ -163,8 +166,10 @@ class _Families:
         Canonical (:class:`Arcs`).
     event_offsets : (f + 1,) int
         Family i's node and planar events are rows ``event_offsets[i]:event_offsets[i + 1]``
-        of ``event_s`` (float), ``event_kind`` (END_NODE or END_PLANAR) and ``event_index``
-        (the node, or the row of the planar events).
+        of ``event_s`` (float), ``event_kind`` (END_NODE or END_PLANAR), ``event_index``
+        (the node, or the row of the planar events) and ``event_reach`` (float32: for a VE
+        family, the distance from its vertex to the event's farthest generator point,
+        :func:`node_reach`).
     plane_family : (m,) int
         The same-plane VE families (:func:`same_plane_ve`), ascending, with their (v, e)
         ``plane_ve`` (m, 2) and plane ``plane_of`` (m,).
@@ -181,6 +186,7 @@ class _Families:
     event_s: np.ndarray
     event_kind: np.ndarray
     event_index: np.ndarray
+    event_reach: np.ndarray
     plane_family: np.ndarray
     plane_ve: np.ndarray
     plane_of: np.ndarray
@@ -206,12 +212,12 @@ def _families(scene, nodes, planar, workers=None, scope=None):
             mine = scope.families(k, g)
             k, g, at = k[mine], g[mine], at[mine]
         return (k.astype(np.int8), g, np.full(len(at), code, np.int8), at + rows.start, event_parameters(scene, k, g, part, at),
-                seeds)
+                seeds, node_reach(scene, k, g, part, at).astype(np.float32))
 
     # in chunks of events (each on its own, on threads): their temporaries stay bounded
     chunks = [(code, events, rows) for code, events in ((END_NODE, nodes), (END_PLANAR, planar))
               for rows in row_chunks(max(len(events), 1), CHUNK // 4)]
-    fam_kind, fam_gens, ev_kind, ev_index, ev_s, seeds = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
+    fam_kind, fam_gens, ev_kind, ev_index, ev_s, seeds, ev_reach = (list(x) for x in zip(*map_chunks(incidences, chunks, workers)))
     n_events = sum(len(k) for k in fam_kind)
     # families through a node only by an edge passing through its vertex: seeds, no events
     seeds = np.concatenate(seeds).reshape(-1, 3)
@@ -251,8 +257,8 @@ def _families(scene, nodes, planar, workers=None, scope=None):
         fam, first, last = coplanar_candidates(scene, plane_ve[rows], plane_of[rows], points)
         weight += np.bincount(plane_family[rows][fam], weights=last - first, minlength=nf).astype(np.int64)
     return _Families(families[:, 0], families[:, 1:], np.r_[0, np.cumsum(count)], np.concatenate(ev_s)[order],
-                     np.concatenate(ev_kind)[order], np.concatenate(ev_index)[order], plane_family, plane_ve, plane_of,
-                     points, weight)
+                     np.concatenate(ev_kind)[order], np.concatenate(ev_index)[order], np.concatenate(ev_reach)[order],
+                     plane_family, plane_ve, plane_of, points, weight)
 
 
 #: Events (known, see :class:`_Families`) per chunk of families built at once by
@@ -282,24 +288,33 @@ def _first_pass_of_families(scene, families, chunk):
     plane_ve = families.plane_ve[p0:p1]
     cop_f, cop_s, cop_kind, cop_index = coplanar_join(scene, plane_ve, families.plane_of[p0:p1], families.plane_points)
     cop_hidden = hidden_events(scene, plane_ve[cop_f], cop_s)
+    cop_reach = coplanar_reach(scene, plane_ve[cop_f], cop_s, cop_kind, cop_index)
     cop_f = families.plane_family[p0:p1][cop_f] - lo
     # the points of their plane pencils of touched planes pass
     pen_f, pen_s, pen_kind, pen_index = pencil_events(scene, fkind, fgens)
+    # and where a VE family's edge crosses the plane of a face at its vertex, next to the
+    # events above, where the first samples cannot see it (rule 16)
+    known = (np.concatenate([fam_of, dom_f, cop_f, pen_f]), np.concatenate([families.event_s[ev], dom_s, cop_s, pen_s]))
+    fpc = face_plane_crossings(scene, fkind, fgens, near=known)
+    pen_f, pen_s, pen_kind, pen_index = (np.r_[x, y] for x, y in zip((pen_f, pen_s, pen_kind, pen_index), fpc))
     cop_f, cop_s = np.r_[cop_f, pen_f], np.r_[cop_s, pen_s]
     cop_kind, cop_index = np.r_[cop_kind, pen_kind], np.r_[cop_index, pen_index]
     cop_hidden = np.r_[cop_hidden, np.zeros(len(pen_f), dtype=bool)]
+    cop_reach = np.r_[cop_reach, np.zeros(len(pen_f))]
     fam_of = np.concatenate([fam_of, dom_f, cop_f, np.arange(nf), np.arange(nf)])
     ev_s = np.concatenate([families.event_s[ev], dom_s, cop_s, np.zeros(nf), np.ones(nf)])
     ev_kind = np.concatenate([families.event_kind[ev], dom_kind, cop_kind, np.full(2 * nf, END_ENDPOINT)])
     ev_index = np.concatenate([families.event_index[ev], dom_vertex, cop_index, np.full(2 * nf, -1)])
     ev_hidden = np.zeros(len(ev_s), dtype=bool)
     ev_hidden[len(ev_s) - 2 * nf - len(cop_s): len(ev_s) - 2 * nf] = cop_hidden
+    # how far beyond the vertex a VE family's event lines are fixed (rule 14); domain ends: on the edge
+    ev_reach = np.concatenate([families.event_reach[ev], np.zeros(len(dom_s)), cop_reach, np.zeros(2 * nf)])
     # events on the family's edge (within rounding of its ends)
     ev_s = np.nan_to_num(ev_s, nan=-1.0)
     inside = (ev_s >= -PARAMETER_SLACK) & (ev_s <= 1 + PARAMETER_SLACK)
     ev_s = np.clip(ev_s, 0.0, 1.0)
-    intervals = family_intervals(scene, fkind, fgens, *(x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden)))
-    del fam_of, ev_s, ev_kind, ev_index, ev_hidden
+    intervals = family_intervals(scene, fkind, fgens, *(x[inside] for x in (fam_of, ev_s, ev_kind, ev_index, ev_hidden, ev_reach)))
+    del fam_of, ev_s, ev_kind, ev_index, ev_hidden, ev_reach
     parts, mixed = first_pass(scene, fkind, fgens, *intervals)
     return parts, mixed._replace(family=mixed.family + lo)
 

@@ -12,11 +12,11 @@ from viscx.geometry.lines import segment_parameter
 from viscx.parallel import map_chunks, row_chunks
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_COPLANAR, END_CROSSING, END_ENDPOINT, END_JUNCTION, VE
-from viscx.skeleton.arcs.lines import family_lines
+from viscx.skeleton.arcs.lines import family_lines, judge_samples
 from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups
 from viscx.skeleton.generators import canonical_eee, edge_geometry, edges_through_vertices, vertex_edges
 from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, validate_candidates
-from viscx.tolerances import ANGLE_MARGIN, ANGLE_TOLERANCE
+from viscx.tolerances import ANGLE_MARGIN, ANGLE_TOLERANCE, END_SAMPLE_EPSILONS
 
 
 
@@ -273,6 +273,84 @@ def _incidences(scene, events, vo, ve, is_gen_vertex, through=False):
     return kind[ok], gens[ok], rows[ok]
 
 
+def vertex_planes(scene):
+    """(k, 2) int: (vertex, plane) rows, sorted and unique: the planes (:func:`face_planes`)
+    of the faces touching each generator vertex, contacts geometric (within the weld
+    tolerance, as tangency's). Cached on the scene."""
+    return scene.cached("vertex_planes", _vertex_planes)
+
+
+def _vertex_planes(scene):
+    gv = scene.generator_vertices
+    pos, face = faces_near(scene, scene.vertices[gv], scene.weld_tolerance)
+    return np.unique(np.stack([gv[pos], face_planes(scene)[face]], axis=1), axis=0).reshape(-1, 2)
+
+
+def face_plane_crossings(scene, fkind, fgens, near=None):
+    """Where the edge e of each VE family (v, e) crosses the plane P of a face touching v,
+    strictly inside e: the family's line there lies in P (rule 16); given ``near`` (the
+    family (k,) int and s (k,) float of other events, the domain's ends 0 and 1 always
+    among them), only those within END_SAMPLE_EPSILONS epsilon of one along e.
+
+    Lines of the family on either side of it pass P's faces on either side, so its state
+    can change there: the line grazes a face of P at v, or (P holding other faces, a desk's
+    front plane through its two panels and its top) passes or meets another face of P.
+    V0 drops such lines unless they meet one more generator where grazing is excused. The
+    first samples of an interval, 20 epsilon from its ends, see a change farther than that
+    from both (they disagree, the change is bisected), but miss one closer to an event:
+    office(120, 103), vertex 91, a desk panel's floor corner in the desk's front plane, and
+    the top edge of another desk whose front lies 8 epsilon behind that plane (its arc ran
+    on through the other panel to the edge's end, 8 epsilon too far). Only those are
+    events, and only where the lines one epsilon before and after them differ: the others
+    would only move the samples of arcs already found, or cut a short interval next to an
+    edge's end whose samples fall within epsilon of it (no valid line: office(120, 103), VE
+    (68, e132), whose arc then ended at a transition there, not at the node at the end).
+
+    Returns
+    -------
+    family, s, kind, index : (q,)
+        Row of the families, parameter on e, END_CROSSING, and e (the edge crossing P).
+    """
+    f = np.flatnonzero(fkind == VE)
+    vp = vertex_planes(scene)
+    lo = np.searchsorted(vp[:, 0], fgens[f, 0], "left")
+    r, k = expand_ranges(lo, np.searchsorted(vp[:, 0], fgens[f, 0], "right") - lo)
+    plane_of_face = face_planes(scene)
+    face_of = np.zeros(plane_of_face.max() + 1, np.int64)
+    face_of[plane_of_face] = np.arange(scene.n_faces)
+    face = face_of[vp[k, 1]]
+    normal, offset = scene.face_normal[face], scene.face_offset[face]
+    a, b = edge_geometry(scene, fgens[f[r], 1])
+    h0 = np.einsum("ij,ij->i", normal, a) - offset
+    h1 = np.einsum("ij,ij->i", normal, b) - offset
+    tol = scene.weld_tolerance
+    cross = (h0 * h1 < 0) & (np.abs(h0) > tol) & (np.abs(h1) > tol)
+    fam, s = f[r[cross]], h0[cross] / (h0[cross] - h1[cross])
+    if near is not None:
+        a, b = edge_geometry(scene, fgens[fam, 1])
+        tol = END_SAMPLE_EPSILONS * scene.epsilon / row_norms(b - a)
+        close = (s <= tol) | (s >= 1 - tol)  # the domain's ends
+        key = np.sort(near[0] + 1j * np.clip(np.nan_to_num(near[1], nan=-1.0), 0.0, 1.0))  # (family, s) sorted
+        at = np.searchsorted(key, fam + 1j * s)
+        for k in (at - 1, at) if len(key) else ():  # the events just before and after
+            k = np.clip(k, 0, len(key) - 1)
+            close |= (key.real[k] == fam) & (np.abs(key.imag[k] - s) <= tol)
+        fam, s = fam[close], s[close]
+        # ... where something changes: the lines one epsilon before and after differ (a short
+        # interval next to an edge's end cut where nothing changes would be sampled within
+        # epsilon of that end, where no line is valid, and its arc end there, not at the node)
+        step = scene.epsilon / row_norms(b - a)[close]
+        if len(fam) == 0:
+            return fam, s, np.full(0, END_CROSSING), fam
+        gens = np.repeat(fgens[fam], 2, axis=0)
+        smp = judge_samples(scene, np.full(len(gens), VE), gens, np.clip(np.c_[s - step, s + step].ravel(), 0.0, 1.0),
+                            sides=True)
+        state = np.concatenate([smp.state, smp.sides], axis=1).reshape(len(fam), 2, -1)
+        change = np.any(state[:, 0] != state[:, 1], axis=1)
+        fam, s = fam[change], s[change]
+    return fam, s, np.full(len(fam), END_CROSSING), fgens[fam, 1]
+
+
 def same_plane_ve(scene):
     """(v, e, -1) for every generator vertex v and generator edge e lying in the plane of a
     face touching v, e not at v and v not on e's line.
@@ -288,10 +366,8 @@ def same_plane_ve(scene):
     he = scene.half_edges
     tol = scene.weld_tolerance
     plane = face_planes(scene)
-    gv, ge = scene.generator_vertices, scene.generator_edges
-    # (vertex, plane): the planes of the faces touching each generator vertex
-    pos, face = faces_near(scene, scene.vertices[gv], tol)
-    vp = np.unique(np.stack([gv[pos], plane[face]], axis=1), axis=0).reshape(-1, 2)
+    ge = scene.generator_edges
+    vp = vertex_planes(scene)
     # (edge, plane): the planes of its own faces, and of faces it lies on
     own = he.edge_is_generator[he.edge]
     ep = [np.stack([he.edge[own], plane[he.face[own]]], axis=1)]
@@ -497,6 +573,61 @@ def coplanar_join(scene, ve, ve_plane, points):
     crossing = which <= -2
     return (fam[inside], s[inside], np.where(crossing, END_CROSSING, END_COPLANAR),
             np.where(crossing, -2 - which, which))
+
+
+def node_reach(scene, kind, generators, events, rows):
+    """Distance from a VE family's vertex to the farthest generator point of each event on
+    it (the points the event's line is fixed by: a VEE node's edge points, a VV node's other
+    vertex); 0 for EEE families (:func:`viscx.skeleton.arcs.stages.family_intervals`, rule 14).
+
+    Parameters
+    ----------
+    kind : (k,) int
+    generators : (k, 3) int
+    events : Nodes
+    rows : (k,) int
+        The event of each family incidence.
+
+    Returns
+    -------
+    (k,) float
+    """
+    out = np.zeros(len(kind))
+    v = np.flatnonzero(kind == VE)
+    if len(v):
+        gp = events.generator_points[rows[v]]  # (m, 4, 3), nan in unused slots
+        dist = np.linalg.norm(gp - scene.vertices[generators[v, 0]][:, None], axis=2)
+        out[v] = np.max(np.where(np.isfinite(dist), dist, 0.0), axis=1)
+    return out
+
+
+def coplanar_reach(scene, ve, s, kind, index):
+    """Distance from a same-plane VE family's vertex to the point of its plane each of its
+    coplanar events passes (:func:`coplanar_events`): the vertex passed, or where the crossing
+    edge meets the line; 0 for a junction (a point of an edge of the plane, not named).
+
+    Parameters
+    ----------
+    ve : (q, 2) int
+        (v, e) of each event's family.
+    s, kind, index : (q,)
+        As :func:`coplanar_events` returns them.
+
+    Returns
+    -------
+    (q,) float
+    """
+    x = scene.vertices[ve[:, 0]]
+    out = np.zeros(len(s))
+    w = np.flatnonzero((kind == END_COPLANAR) & (index >= 0))
+    out[w] = row_norms(scene.vertices[index[w]] - x[w])
+    c = np.flatnonzero(kind == END_CROSSING)
+    if len(c):
+        o, d = family_lines(scene, np.full(len(c), VE), np.c_[ve[c], np.full(len(c), -1)], s[c])
+        a, b = edge_geometry(scene, index[c])
+        t, _ = segment_parameter(a, b - a, o, o + d)  # the crossing point's parameter on the line
+        out[c] = np.abs(np.nan_to_num(t)) * row_norms(d)
+    return out
 
 
 def hidden_events(scene, ve, s):

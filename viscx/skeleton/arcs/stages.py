@@ -71,14 +71,16 @@ def _param_scale(scene, fkind, fgens):
     return row_norms(b - a)
 
 
-def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=None):
+def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hidden=None, ev_reach=None):
     """Merge each family's events closer than 4 epsilon along its edge (by END_RANK: a node
     beats a planar event beats a domain end beats a junction beats a coplanar event),
     except two events of an EEE family whose lines meet one of its other two edges farther
     than 4 epsilon apart (:func:`_apart_along_edges`: they are two lines, docs/skeleton.md
-    "Furnished buildings" rule 13), leave out the groups of hidden events alone
-    (:func:`hidden_events`) and return the intervals between consecutive ones
-    (:class:`Intervals`)."""
+    "Furnished buildings" rule 13) and, given ``ev_reach`` (the distance from a VE family's
+    vertex to the farthest point its event's line is fixed by), two events of a VE family
+    whose lines lie farther than 4 epsilon apart there (:func:`_apart_at_reach`, rule 14),
+    leave out the groups of hidden events alone (:func:`hidden_events`) and return the
+    intervals between consecutive ones (:class:`Intervals`)."""
     # by (family, s) only: events at one (family, s) fall in one group whatever their order
     order = by_family_and_s(fam_of, ev_s)
     f, s, k, i = fam_of[order], ev_s[order], ev_kind[order], ev_index[order]
@@ -89,6 +91,11 @@ def family_intervals(scene, fkind, fgens, fam_of, ev_s, ev_kind, ev_index, ev_hi
     # other edges (lines on a long floor edge sweeping a 3 cm edge of a desk): two events
     pair = np.flatnonzero(~new_group[1:] & (fkind[f[1:]] == EEE))
     new_group[1 + pair[_apart_along_edges(scene, fgens[f[pair]], s[pair], s[pair + 1], MERGE_EPSILONS * scene.epsilon)]] = True
+    if ev_reach is not None:  # likewise a VE family's lines seen along a short edge near its vertex
+        reach = ev_reach[order]
+        pair = np.flatnonzero(~new_group[1:] & (fkind[f[1:]] == VE))
+        far = np.maximum(reach[pair], reach[pair + 1])
+        new_group[1 + pair[_apart_at_reach(scene, fgens[f[pair]], s[pair], s[pair + 1], far)]] = True
     group = np.cumsum(new_group) - 1
     hidden = np.zeros(len(f), bool) if ev_hidden is None else ev_hidden[order]
     seen = np.bincount(group, weights=~hidden) > 0
@@ -126,6 +133,27 @@ def _apart_along_edges(scene, gens, s0, s1, tol):
         t0, t1 = (_closest_parameter(o, d, a, u) for o, d in ((o0, d0), (o1, d1)))
         apart |= np.abs(t1 - t0) * row_norms(u) > tol
     return apart & defined
+
+
+def _apart_at_reach(scene, gens, s0, s1, reach):
+    """Whether the lines of VE families (``gens`` (m, 3)) at s0 and s1 lie farther than
+    MERGE_EPSILONS epsilon apart at ``reach`` (m,) from the vertex: reach times the sine of
+    the angle between them (the distance from one line's point there to the other line).
+
+    Both lines pass the vertex, so along the family's edge they are as close as the merge
+    asks; but an event's line is fixed by points beyond it (a node's edge point, a vertex or
+    an edge's crossing of the plane passed), and seen along an edge 3 cm from the vertex (a
+    desk panel's thickness) two events 4 epsilon apart there are two lines 8 mm apart at a
+    cabinet 8 m away: merged, the arc between them was lost, or its change of side pairs
+    moved by 1e-3 rad (docs/skeleton.md "Furnished buildings", rule 14)."""
+    if len(gens) == 0:
+        return np.zeros(0, bool)
+    kind = np.full(len(gens), VE)
+    _, d0 = family_lines(scene, kind, gens, s0)
+    _, d1 = family_lines(scene, kind, gens, s1)
+    size = row_norms(d0) * row_norms(d1)
+    sine = row_norms(np.cross(d0, d1)) / np.where(size > 0, size, 1.0)
+    return reach * sine > MERGE_EPSILONS * scene.epsilon
 
 
 def _closest_parameter(o, d, a, u):

@@ -1508,6 +1508,101 @@ def facing_sides(scene, face, side, faces):
     return f[order], s[order]
 
 
+# --------------------------------------------------------------------------------------
+# rows in closed form: inner sides of empty closed boxes, sides lying wholly on others
+
+
+def empty_boxes(scene):
+    """(b,) bool: for each closed convex box (:func:`closed_boxes`), whether nothing is
+    inside it: no other face meets its open interior, and nothing lies on the inner side of
+    one of its faces (docs/queries.md, "Faces lying on faces"). Cached.
+
+    A face meets the open interior when a part of positive area is left of it after
+    clipping to every plane of the box moved inwards by 1e-9 of the scene's size (a
+    polygon meeting an open set meets it in an open piece of itself). A face lies on the
+    inner side of a box face g only if it is coplanar with g, overlaps it and has its
+    normal on g's outward side (the smaller lies on the larger's front, so g's inner side
+    can touch only a larger face whose front g's outer side faces): for those few, the
+    matrix's own test decides (:func:`contact_cells` of g's inner side is empty)."""
+
+    def build(scene):
+        face_box, ptr, planes = closed_boxes(scene)
+        tiny = 1e-9 * scene.diagonal
+        box_lo, box_hi = face_boxes(scene)
+        out = np.ones(len(ptr) - 1, bool)
+        for b in range(len(ptr) - 1):
+            mine = np.flatnonzero(face_box == b)
+            lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
+            # faces whose boxes overlap the box's by more than tiny in every axis
+            near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
+            for k in near[face_box[near] != b]:
+                loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
+                for p in planes[ptr[b]:ptr[b + 1]]:
+                    loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
+                    if not loops:
+                        break
+                if loops and abs(loops_area(loops, scene.face_normal[k])) > tiny * tiny:
+                    out[b] = False
+                    break
+            for g in mine if out[b] else ():
+                same = coplanar_faces(scene, g)
+                same = same[scene.face_normal[same] @ scene.face_normal[g] > 0]
+                axes = np.abs(scene.face_normal[g]) < 0.5  # the box test in the plane's two widest axes
+                overlap = np.all((box_lo[same] < box_hi[g] - tiny) | ~axes, axis=1) & np.all(
+                    (box_hi[same] > box_lo[g] + tiny) | ~axes, axis=1)
+                if np.any(overlap) and len(contact_cells(scene, int(g), -1)[0]):
+                    out[b] = False
+                    break
+        return out
+
+    return scene.cached("empty_boxes", build)
+
+
+def closed_form_row(scene, face, side, faces, sky=True):
+    """The row of one face side where it has a closed form, else None; what
+    :func:`emitter_row` returns (``method`` counts under ``closed``).
+
+    * **Inside an empty closed box** (side −1 of a face of a box of :func:`empty_boxes`):
+      the side sees the inner sides of the box's other faces and nothing else (a segment
+      between the relative interiors of two faces of a convex polyhedron runs in its open
+      interior, which no face meets), unoccluded: each F by the exact contour integral
+      (:func:`contour_form_factor`), no sky. The row sums to 1 up to that integral's error.
+    * **Lying wholly on other faces**: the side's cells in contact (:func:`contact_cells`)
+      cover it (a cabinet's bottom on the floor, its back on the wall, a desk panel's top
+      under the desk top): each point sees the side it lies against with F = 1 and nothing
+      else, so F to each such side is the area in contact with it over the face's, exactly.
+      A rest of the face not covered, up to 1e-9 of its area, is the error estimate.
+    """
+    faces = np.asarray(faces, np.int64)
+    none = 2 * len(faces) - 2 * int(np.isin(face, faces))  # the columns, the face's own left out
+    area = float(scene.face_area[face])
+    face_box = closed_boxes(scene)[0]
+    b = face_box[face]
+    if side == -1 and b >= 0 and empty_boxes(scene)[b]:
+        n_i = -scene.face_normal[face]
+        loops_i = oriented_loops(scene.face_loops(face), n_i)
+        others = np.flatnonzero(face_box == b)
+        others = others[(others != face) & np.isin(others, faces)]
+        vals, errs = np.zeros(len(others)), np.zeros(len(others))
+        for k, g in enumerate(others):
+            n_g = -scene.face_normal[g]
+            vals[k], errs[k] = contour_form_factor(loops_i, n_i, oriented_loops(scene.face_loops(g), n_g), n_g)
+        return 2 * others + 1, vals, errs, {"closed": len(others), "none": none - len(others)}, 0.0, 0.0
+    cells, elements = contact_cells(scene, face, side)
+    if not len(cells):
+        return None
+    cell_area = np.array([abs(_cell_area(c)) for c in cells])
+    rest = max(area - float(cell_area.sum()), 0.0) / area
+    if rest > 1e-9:
+        return None
+    cols = np.unique(elements)
+    vals = np.bincount(np.searchsorted(cols, elements), weights=cell_area) / float(cell_area.sum())
+    keep = np.isin(cols // 2, faces)
+    cols, vals = cols[keep], vals[keep]
+    return (cols.astype(np.int64), vals, np.full(len(cols), rest), {"closed": len(cols), "none": none - len(cols)}, 0.0,
+            rest if sky else 0.0)
+
+
 def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     """F from one side of a face to every side of ``faces`` it may see, and to the sky
     (``part``: that part of each pair, :func:`pair_form_factor`).
@@ -1521,6 +1616,9 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
         Pairs per method.
     sky, sky_error : float
     """
+    closed = closed_form_row(scene, face, side, faces, sky)
+    if closed is not None:  # exact terms: all in part 0
+        return closed if part[0] == 0 else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {}, 0.0, 0.0)
     cells, _, kinked = cubature_cells(scene, face, side)
     contact = cell_contacts(scene, face, side)
     cols, vals, errs, counts = [], [], [], {}
@@ -1837,6 +1935,9 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     """
     n = scene.n_faces
     faces = np.asarray(faces, np.int64)
+    closed = closed_form_row(scene, face, side, faces, sky)
+    if closed is not None:
+        return closed
     fj, sj = facing_sides(scene, face, side, np.arange(n, dtype=np.int64))
     if not len(fj) and not len(coplanar_faces(scene, face)):
         # nothing in front of the side and nothing lying on it: it sees the sky, exactly
@@ -2012,6 +2113,12 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     rows = [(i, s) for i in range(n) for s in SIDES]
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
+    return assemble_matrix(scene, results, tol, time.perf_counter() - t0)
+
+
+def assemble_matrix(scene, results, tol, seconds):
+    """The :class:`Matrix` of the rows ``results`` (what :func:`emitter_row` returns, one per
+    side: face 0 front, face 0 back, face 1 front, ...)."""
     counts = {}
     for r in results:
         for k, v in r[3].items():
@@ -2022,8 +2129,8 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     cols, vals, errs = cat(0, np.int64), cat(1, np.float64), cat(2, np.float64)
     sky_v = np.array([r[4] for r in results])
     sky_e = np.array([r[5] for r in results])
-    return Matrix(indptr, cols, vals, errs, sky_v, sky_e, scene.face_area.astype(np.float64).copy(), counts,
-                  time.perf_counter() - t0, float(tol))
+    return Matrix(indptr, cols, vals, errs, sky_v, sky_e, scene.face_area.astype(np.float64).copy(), counts, seconds,
+                  float(tol))
 
 
 # --------------------------------------------------------------------------------------

@@ -1605,7 +1605,8 @@ def closed_form_row(scene, face, side, faces, sky=True):
 
 def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     """F from one side of a face to every side of ``faces`` it may see, and to the sky
-    (``part``: that part of each pair, :func:`pair_form_factor`).
+    (``part``: that part of each pair, :func:`pair_form_factor`); a side with a closed
+    form (:func:`closed_form_row`) takes it, in part 0.
 
     Returns
     -------
@@ -1929,7 +1930,9 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     at the start than three levels on the uncut cells, :class:`ThreeLevelRowCubature` on
     these) with each column's budget ``tol − (contour error)`` (in F). Each column's pair
     occluders, tested against the first triangles' shafts, say where a shadow may lie
-    that the rule's nodes miss (:meth:`RowCubature.integrate`).
+    that the rule's nodes miss (:meth:`RowCubature.integrate`). A side with a closed form
+    (inside an empty closed box, or lying wholly on other faces: :func:`closed_form_row`)
+    takes it instead.
 
     Returns what :func:`emitter_row` returns.
     """
@@ -2103,8 +2106,9 @@ class Matrix:
 
 def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     """F between every pair of sides, each entry computed independently (reciprocity is
-    checked, not imposed), plus every side's sky term: one :func:`emitter_row` per side,
-    on ``workers`` processes (default: the CPU count), with a progress bar."""
+    checked, not imposed), plus every side's sky term: one :func:`row_form_factors` per
+    side (the sides with a closed form by it, :func:`closed_form_row`), on ``workers``
+    processes (default: the CPU count; the largest faces first), with a progress bar."""
     from viscx.progress import bar
 
     t0 = time.perf_counter()

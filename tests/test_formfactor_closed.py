@@ -142,3 +142,20 @@ def test_a_face_inside_a_box_makes_it_not_empty():
     free = int(np.flatnonzero(face_box == 1 - crossed)[0])
     row = ff.closed_form_row(scene, free, -1, faces)
     assert row is not None and abs(row[1].sum() - 1) < 1e-12
+
+
+def test_rows_over_the_faces_in_front_only(room, monkeypatch):
+    """A row's points see only the faces with a vertex ahead of its plane or in it
+    (:func:`viscx.queries.formfactor.seen_faces`): a cabinet's outer side leaves out the
+    faces behind it, and its row is the row over every face, bit for bit."""
+    cabinet = np.asarray(room.group_faces("cabinet0"))
+    up = int(cabinet[room.face_normal[cabinet, 1] > 0.99][0])  # its top: the desk and the floor lie below
+    seen = ff.seen_faces(room, up, 1)
+    assert up in seen and 0 not in seen and len(seen) < room.n_faces
+    faces = np.arange(room.n_faces)
+    got = ff.row_form_factors(room, up, 1, faces, 1e-3)
+    with monkeypatch.context() as m:
+        m.setattr(ff, "seen_faces", lambda scene, face, side: np.arange(scene.n_faces, dtype=np.int64))
+        every = ff.row_form_factors(room, up, 1, faces, 1e-3)
+    for a, b in zip(got[:3] + got[4:], every[:3] + every[4:]):
+        assert np.array_equal(a, b)

@@ -1919,12 +1919,28 @@ def coplanar_faces(scene, face):
     return np.flatnonzero(flat)
 
 
+def seen_faces(scene, face, side):
+    """(k,) int64, sorted: the face and the faces that its side ``side`` may see or touch, a
+    vertex ahead of the side's plane or all in it (within 1e-9 of the scene's size). The
+    others lie behind the plane: no point of the side sees them, and they hide nothing in
+    front of it (a segment from the side to a point ahead of it runs ahead of the plane; where
+    it enters a closed box, it does so through a face with a point ahead, kept, so the box's
+    back faces may still be culled by :func:`viscx.geometry.occlusion.point_views`). What a
+    matrix row's points are computed over."""
+    outline, lo, _ = face_outlines(scene)
+    n_i = side * scene.face_normal[face]
+    ahead = np.maximum.reduceat(outline @ n_i, lo) - float(n_i @ outline[lo[face]]) > -1e-9 * scene.diagonal
+    ahead[face] = True
+    return np.flatnonzero(ahead).astype(np.int64)
+
+
 def row_form_factors(scene, face, side, faces, tol, sky=True):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
     ``hidden`` the vector :func:`viscx.geometry.occlusion.point_views` gives at each point
-    (every receiver from one hidden-surface computation), integrated by
+    (every receiver from one hidden-surface computation, over the faces in front of the
+    side or in its plane: :func:`seen_faces`), integrated by
     :class:`RowCubature` over the emitter's cells cut along the kink lines of all the
     receivers (:func:`emitter_cells` with ``kinks``; where those cells would cost more points
     at the start than three levels on the uncut cells, :class:`ThreeLevelRowCubature` on
@@ -1955,9 +1971,12 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
     cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
     cubature = RowCubature if kinked else ThreeLevelRowCubature
-    width = 2 * n + 1  # the sides of the faces, then the sky
+    # the row's columns: the sides of the faces it may see or touch, then the sky
+    seen = seen_faces(scene, face, side)
+    width = 2 * len(seen) + 1
     f0, e0 = np.zeros(width), np.zeros(width)
-    targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
+    targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
+               for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
     live = np.zeros((len(tri), width), bool)  # an occluder meets the triangle's shaft to the column
     for target, t, c in targets:
@@ -1972,12 +1991,14 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
                 live[:, c] = np.diff(ptr) > 0
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
-    polygons = scene_polygons(scene)
-    boxes = closed_boxes(scene)
+    polygons = polygon_subset(scene, seen)
+    face_box, box_ptr, box_planes = closed_boxes(scene)
+    boxes = (np.ascontiguousarray(face_box[seen]), box_ptr, box_planes)
+    own = int(np.searchsorted(seen, face))
     tiny = 1e-9 * scene.diagonal
 
     def hidden(points, tri=None):
-        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny, *boxes)
+        return point_views(points, n_i, eu, ev, *polygons, own, tiny, *boxes)
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area
     cub = cubature(hidden)
@@ -1985,13 +2006,13 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted = np.zeros(width, bool)
-    wanted[2 * faces] = wanted[2 * faces + 1] = True
-    wanted[2 * face:2 * face + 2] = False
+    wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
     cols = np.flatnonzero(wanted & (F != 0.0))
     counts = {"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
               "evaluations": int(cub.evaluations)}
     sky_v, sky_e = (float(F[-1]), float(E[-1])) if sky else (0.0, 0.0)
-    return cols.astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
+    element = (2 * seen[:, None] + np.arange(2)).reshape(-1)  # the scene's element of each column (but the sky)
+    return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
 
 
 _POOL_SCENE = None

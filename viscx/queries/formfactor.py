@@ -1582,9 +1582,105 @@ def facing_sides(scene, face, side, faces):
     return f[order], s[order]
 
 
+# --------------------------------------------------------------------------------------
+# rows in closed form: inner sides of empty closed boxes, sides lying wholly on others
+
+
+def empty_boxes(scene):
+    """(b,) bool: for each closed convex box (:func:`closed_boxes`), whether nothing is
+    inside it: no other face meets its open interior, and nothing lies on the inner side of
+    one of its faces (docs/queries.md, "Faces lying on faces"). Cached.
+
+    A face meets the open interior when a part of positive area is left of it after
+    clipping to every plane of the box moved inwards by 1e-9 of the scene's size (a
+    polygon meeting an open set meets it in an open piece of itself). A face lies on the
+    inner side of a box face g only if it is coplanar with g, overlaps it and has its
+    normal on g's outward side (the smaller lies on the larger's front, so g's inner side
+    can touch only a larger face whose front g's outer side faces): for those few, the
+    matrix's own test decides (:func:`contact_cells` of g's inner side is empty)."""
+
+    def build(scene):
+        face_box, ptr, planes = closed_boxes(scene)
+        tiny = 1e-9 * scene.diagonal
+        box_lo, box_hi = face_boxes(scene)
+        out = np.ones(len(ptr) - 1, bool)
+        for b in range(len(ptr) - 1):
+            mine = np.flatnonzero(face_box == b)
+            lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
+            # faces whose boxes overlap the box's by more than tiny in every axis
+            near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
+            for k in near[face_box[near] != b]:
+                loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
+                for p in planes[ptr[b]:ptr[b + 1]]:
+                    loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
+                    if not loops:
+                        break
+                if loops and abs(loops_area(loops, scene.face_normal[k])) > tiny * tiny:
+                    out[b] = False
+                    break
+            for g in mine if out[b] else ():
+                same = coplanar_faces(scene, g)
+                same = same[scene.face_normal[same] @ scene.face_normal[g] > 0]
+                axes = np.abs(scene.face_normal[g]) < 0.5  # the box test in the plane's two widest axes
+                overlap = np.all((box_lo[same] < box_hi[g] - tiny) | ~axes, axis=1) & np.all(
+                    (box_hi[same] > box_lo[g] + tiny) | ~axes, axis=1)
+                if np.any(overlap) and len(contact_cells(scene, int(g), -1)[0]):
+                    out[b] = False
+                    break
+        return out
+
+    return scene.cached("empty_boxes", build)
+
+
+def closed_form_row(scene, face, side, faces, sky=True):
+    """The row of one face side where it has a closed form, else None; what
+    :func:`emitter_row` returns (``method`` counts under ``closed``).
+
+    * **Inside an empty closed box** (side −1 of a face of a box of :func:`empty_boxes`):
+      the side sees the inner sides of the box's other faces and nothing else (a segment
+      between the relative interiors of two faces of a convex polyhedron runs in its open
+      interior, which no face meets), unoccluded: each F by the exact contour integral
+      (:func:`contour_form_factor`), no sky. The row sums to 1 up to that integral's error.
+    * **Lying wholly on other faces**: the side's cells in contact (:func:`contact_cells`)
+      cover it (a cabinet's bottom on the floor, its back on the wall, a desk panel's top
+      under the desk top): each point sees the side it lies against with F = 1 and nothing
+      else, so F to each such side is the area in contact with it over the face's, exactly.
+      A rest of the face not covered, up to 1e-9 of its area, is the error estimate.
+    """
+    faces = np.asarray(faces, np.int64)
+    none = 2 * len(faces) - 2 * int(np.isin(face, faces))  # the columns, the face's own left out
+    area = float(scene.face_area[face])
+    face_box = closed_boxes(scene)[0]
+    b = face_box[face]
+    if side == -1 and b >= 0 and empty_boxes(scene)[b]:
+        n_i = -scene.face_normal[face]
+        loops_i = oriented_loops(scene.face_loops(face), n_i)
+        others = np.flatnonzero(face_box == b)
+        others = others[(others != face) & np.isin(others, faces)]
+        vals, errs = np.zeros(len(others)), np.zeros(len(others))
+        for k, g in enumerate(others):
+            n_g = -scene.face_normal[g]
+            vals[k], errs[k] = contour_form_factor(loops_i, n_i, oriented_loops(scene.face_loops(g), n_g), n_g)
+        return 2 * others + 1, vals, errs, {"closed": len(others), "none": none - len(others)}, 0.0, 0.0
+    cells, elements = contact_cells(scene, face, side)
+    if not len(cells):
+        return None
+    cell_area = np.array([abs(_cell_area(c)) for c in cells])
+    rest = max(area - float(cell_area.sum()), 0.0) / area
+    if rest > 1e-9:
+        return None
+    cols = np.unique(elements)
+    vals = np.bincount(np.searchsorted(cols, elements), weights=cell_area) / float(cell_area.sum())
+    keep = np.isin(cols // 2, faces)
+    cols, vals = cols[keep], vals[keep]
+    return (cols.astype(np.int64), vals, np.full(len(cols), rest), {"closed": len(cols), "none": none - len(cols)}, 0.0,
+            rest if sky else 0.0)
+
+
 def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     """F from one side of a face to every side of ``faces`` it may see, and to the sky
-    (``part``: that part of each pair, :func:`pair_form_factor`).
+    (``part``: that part of each pair, :func:`pair_form_factor`); a side with a closed
+    form (:func:`closed_form_row`) takes it, in part 0.
 
     Returns
     -------
@@ -1595,6 +1691,9 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
         Pairs per method.
     sky, sky_error : float
     """
+    closed = closed_form_row(scene, face, side, faces, sky)
+    if closed is not None:  # exact terms: all in part 0
+        return closed if part[0] == 0 else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {}, 0.0, 0.0)
     cells, _, kinked = cubature_cells(scene, face, side)
     contact = cell_contacts(scene, face, side)
     cols, vals, errs, counts = [], [], [], {}
@@ -1914,23 +2013,44 @@ def coplanar_faces(scene, face):
     return np.flatnonzero(flat)
 
 
+def seen_faces(scene, face, side):
+    """(k,) int64, sorted: the face and the faces that its side ``side`` may see or touch, a
+    vertex ahead of the side's plane or all in it (within 1e-9 of the scene's size). The
+    others lie behind the plane: no point of the side sees them, and they hide nothing in
+    front of it (a segment from the side to a point ahead of it runs ahead of the plane; where
+    it enters a closed box, it does so through a face with a point ahead, kept, so the box's
+    back faces may still be culled by :func:`viscx.geometry.occlusion.point_views`). What a
+    matrix row's points are computed over."""
+    outline, lo, _ = face_outlines(scene)
+    n_i = side * scene.face_normal[face]
+    ahead = np.maximum.reduceat(outline @ n_i, lo) - float(n_i @ outline[lo[face]]) > -1e-9 * scene.diagonal
+    ahead[face] = True
+    return np.flatnonzero(ahead).astype(np.int64)
+
+
 def row_form_factors(scene, face, side, faces, tol, sky=True):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
     ``hidden`` the vector :func:`viscx.geometry.occlusion.point_views` gives at each point
-    (every receiver from one hidden-surface computation), integrated by
+    (every receiver from one hidden-surface computation, over the faces in front of the
+    side or in its plane: :func:`seen_faces`), integrated by
     :class:`RowCubature` over the emitter's cells cut along the kink lines of all the
     receivers (:func:`emitter_cells` with ``kinks``; where those cells would cost more points
     at the start than three levels on the uncut cells, :class:`ThreeLevelRowCubature` on
     these) with each column's budget ``tol − (contour error)`` (in F). Each column's pair
     occluders, tested against the first triangles' shafts, say where a shadow may lie
-    that the rule's nodes miss (:meth:`RowCubature.integrate`).
+    that the rule's nodes miss (:meth:`RowCubature.integrate`). A side with a closed form
+    (inside an empty closed box, or lying wholly on other faces: :func:`closed_form_row`)
+    takes it instead.
 
     Returns what :func:`emitter_row` returns.
     """
     n = scene.n_faces
     faces = np.asarray(faces, np.int64)
+    closed = closed_form_row(scene, face, side, faces, sky)
+    if closed is not None:
+        return closed
     fj, sj = facing_sides(scene, face, side, np.arange(n, dtype=np.int64))
     if not len(fj) and not len(coplanar_faces(scene, face)):
         # nothing in front of the side and nothing lying on it: it sees the sky, exactly
@@ -1945,9 +2065,12 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
     cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
     cubature = RowCubature if kinked else ThreeLevelRowCubature
-    width = 2 * n + 1  # the sides of the faces, then the sky
+    # the row's columns: the sides of the faces it may see or touch, then the sky
+    seen = seen_faces(scene, face, side)
+    width = 2 * len(seen) + 1
     f0, e0 = np.zeros(width), np.zeros(width)
-    targets = [(face_target(scene, int(j)), int(t), 2 * int(j) + (0 if t > 0 else 1)) for j, t in zip(fj, sj)]
+    targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
+               for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
     shafts = []  # (setup, column) of the pairs with occluders
     for target, t, c in targets:
@@ -1969,12 +2092,14 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
         return out
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
-    polygons = scene_polygons(scene)
-    boxes = closed_boxes(scene)
+    polygons = polygon_subset(scene, seen)
+    face_box, box_ptr, box_planes = closed_boxes(scene)
+    boxes = (np.ascontiguousarray(face_box[seen]), box_ptr, box_planes)
+    own = int(np.searchsorted(seen, face))
     tiny = 1e-9 * scene.diagonal
 
     def hidden(points, tri=None):
-        return point_views(points, n_i, eu, ev, *polygons, int(face), tiny, *boxes)
+        return point_views(points, n_i, eu, ev, *polygons, own, tiny, *boxes)
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area
     cub = cubature(hidden)
@@ -1982,13 +2107,13 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted = np.zeros(width, bool)
-    wanted[2 * faces] = wanted[2 * faces + 1] = True
-    wanted[2 * face:2 * face + 2] = False
+    wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
     cols = np.flatnonzero(wanted & (F != 0.0))
     counts = {"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
               "evaluations": int(cub.evaluations)}
     sky_v, sky_e = (float(F[-1]), float(E[-1])) if sky else (0.0, 0.0)
-    return cols.astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
+    element = (2 * seen[:, None] + np.arange(2)).reshape(-1)  # the scene's element of each column (but the sky)
+    return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
 
 
 _POOL_SCENE = None
@@ -2103,8 +2228,9 @@ class Matrix:
 
 def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     """F between every pair of sides, each entry computed independently (reciprocity is
-    checked, not imposed), plus every side's sky term: one :func:`emitter_row` per side,
-    on ``workers`` processes (default: the CPU count), with a progress bar."""
+    checked, not imposed), plus every side's sky term: one :func:`row_form_factors` per
+    side (the sides with a closed form by it, :func:`closed_form_row`), on ``workers``
+    processes (default: the CPU count; the largest faces first), with a progress bar."""
     from viscx.progress import bar
 
     t0 = time.perf_counter()
@@ -2113,6 +2239,12 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     rows = [(i, s) for i in range(n) for s in SIDES]
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
+    return assemble_matrix(scene, results, tol, time.perf_counter() - t0)
+
+
+def assemble_matrix(scene, results, tol, seconds):
+    """The :class:`Matrix` of the rows ``results`` (what :func:`emitter_row` returns, one per
+    side: face 0 front, face 0 back, face 1 front, ...)."""
     counts = {}
     for r in results:
         for k, v in r[3].items():
@@ -2123,8 +2255,8 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     cols, vals, errs = cat(0, np.int64), cat(1, np.float64), cat(2, np.float64)
     sky_v = np.array([r[4] for r in results])
     sky_e = np.array([r[5] for r in results])
-    return Matrix(indptr, cols, vals, errs, sky_v, sky_e, scene.face_area.astype(np.float64).copy(), counts,
-                  time.perf_counter() - t0, float(tol))
+    return Matrix(indptr, cols, vals, errs, sky_v, sky_e, scene.face_area.astype(np.float64).copy(), counts, seconds,
+                  float(tol))
 
 
 # --------------------------------------------------------------------------------------

@@ -1,0 +1,153 @@
+"""The office's form-factor matrix (benchmarks/buildings.py) by row class: where the time goes
+and what the whole matrix costs.
+
+Each side of the office is one row of ``viscx formfactor matrix``
+(:func:`viscx.queries.formfactor.form_factor_matrix`); its class says which path computes it:
+
+* ``box inner``: the inner side of a face of an empty closed box (a cabinet, a desk's top or
+  panel, a divider): closed form (contour integrals to the box's other faces);
+* ``lying``: a side lying wholly on other faces (a cabinet's bottom on the floor): closed form;
+* ``box outer``: the outer side of a box face, by the row cubature;
+* ``shell``: floor, ceiling, walls (both sides), by the row cubature (outer sides see the sky);
+* ``light``: the light quads (both sides), by the row cubature.
+
+Without ``--whole``: ``--sample`` rows per class, one process, each row's CPU seconds (one JSON
+line per row, then a summary per class with the extrapolation to all the class's rows).
+With ``--whole``: the whole matrix as the CLI computes it (``--workers`` processes): CPU
+seconds (workers included), wall seconds, peak RSS (this process and, separately, the
+largest worker), reciprocity and row sums, and per class the rows' CPU seconds.
+
+    python benchmarks/office_matrix.py --polygons 300 --tol 1e-4 --sample 5
+    python benchmarks/office_matrix.py --polygons 300 --tol 1e-4 --whole --workers 2
+"""
+
+import argparse
+import json
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+
+def cpu_seconds():
+    """user + sys of this process and its waited-for children (the pool's workers)."""
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
+
+
+def row_classes(scene):
+    """{(face, side): class name} for every side (the module's docstring)."""
+    from viscx.queries import formfactor as ff
+
+    face_box = ff.closed_boxes(scene)[0]
+    empty = ff.empty_boxes(scene)
+    names = scene.group_names
+    out = {}
+    for f in range(scene.n_faces):
+        group = names[scene.face_group[f]]
+        for s in ff.SIDES:
+            if s == -1 and face_box[f] >= 0 and empty[face_box[f]]:
+                kind = "box inner"
+            elif ff.closed_form_row(scene, f, s, np.zeros(0, np.int64), sky=False) is not None:
+                kind = "lying"
+            elif face_box[f] >= 0:
+                kind = "box outer"
+            elif group.startswith("light"):
+                kind = "light"
+            else:
+                kind = "shell"
+            out[(f, s)] = kind
+    return out
+
+
+#: Where each finished row of ``--whole`` is logged (one JSON line, appended by the workers).
+ROW_LOG = [None]
+
+
+def timed_row(scene, face, side, faces, tol, sky):
+    """:func:`viscx.queries.formfactor.row_form_factors` with its CPU seconds in ``counts``
+    (and a line in ``ROW_LOG``, so that a run stopped early still says what it did)."""
+    from viscx.queries.formfactor import row_form_factors
+
+    c0 = time.process_time()
+    cols, vals, errs, counts, sky_v, sky_e = row_form_factors(scene, face, side, faces, tol, sky)
+    cpu = time.process_time() - c0
+    if ROW_LOG[0]:
+        with open(ROW_LOG[0], "a") as f:
+            f.write(json.dumps({"face": int(face), "side": int(side), "area": round(float(scene.face_area[face]), 4),
+                                "cpu": round(cpu, 3), "row_sum": float(vals.sum() + sky_v)}) + "\n")
+    return cols, vals, errs, {**counts, "cpu": cpu}, sky_v, sky_e
+
+
+def main(argv=None):
+    from buildings import office
+
+    from viscx.queries import formfactor as ff
+    from viscx.scene import build_scene
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--polygons", type=int, default=300)
+    parser.add_argument("--tol", type=float, default=1e-4)
+    parser.add_argument("--sample", type=int, default=5, help="rows per class (without --whole)")
+    parser.add_argument("--whole", action="store_true", help="the whole matrix")
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=0, help="of the sample")
+    parser.add_argument("--row-log", default=None, help="--whole: append each finished row here (JSON lines)")
+    args = parser.parse_args(argv)
+    ROW_LOG[0] = args.row_log
+    c0 = time.process_time()
+    scene = build_scene(office(args.polygons, seed=0))
+    classes = row_classes(scene)
+    kinds = sorted(set(classes.values()))
+    members = {k: [r for r, c in classes.items() if c == k] for k in kinds}
+    print(json.dumps({"faces": int(scene.n_faces), "sides": len(classes), "classes": {k: len(v) for k, v in members.items()},
+                      "setup_cpu": round(time.process_time() - c0, 2)}), flush=True)
+    faces = np.arange(scene.n_faces, dtype=np.int64)
+    if not args.whole:
+        rng = np.random.default_rng(args.seed)
+        small = min(members.get("box outer", [(0, 1)]), key=lambda r: scene.face_area[r[0]])
+        ff.row_form_factors(scene, *small, faces, args.tol)  # the kernels compiled or loaded
+        for k in kinds:
+            rows = members[k]
+            pick = [rows[i] for i in sorted(rng.choice(len(rows), min(args.sample, len(rows)), replace=False))]
+            cpu = []
+            for f, s in pick:
+                r = timed_row(scene, f, s, faces, args.tol, True)
+                cpu.append(r[3]["cpu"])
+                print(json.dumps({"class": k, "face": int(f), "side": int(s), "area": round(float(scene.face_area[f]), 4),
+                                  "cpu": round(cpu[-1], 3), "row_sum": float(r[1].sum() + r[4]),
+                                  "max_error": float(r[2].max(initial=r[5]))}), flush=True)
+            print(json.dumps({"class": k, "rows": len(rows), "sampled": len(pick), "mean_cpu": round(float(np.mean(cpu)), 3),
+                              "extrapolated_cpu": round(float(np.mean(cpu)) * len(rows), 1)}), flush=True)
+        return
+    rows = [(f, s) for f in range(scene.n_faces) for s in ff.SIDES]
+    c0, w0 = cpu_seconds(), time.perf_counter()
+    from viscx.progress import bar
+
+    with bar(total=len(rows), desc="form factors", quiet=False, unit="side") as progress:
+        results = ff._map_rows(timed_row, scene, rows, faces, args.tol, True, args.workers,
+                               progress=lambda: progress.update(1))
+    wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
+    m = ff.assemble_matrix(scene, results, args.tol, wall)
+    per = {}
+    for (f, s), r in zip(rows, results):
+        per.setdefault(classes[(f, s)], []).append(r[3]["cpu"])
+    summary = m.summary()
+    summary.pop("methods")
+    print(json.dumps({
+        "polygons": args.polygons, "faces": int(scene.n_faces), "tol": args.tol, "workers": args.workers,
+        "cpu": round(cpu, 1), "wall": round(wall, 1),
+        "peak_rss_gb_main": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, 3),
+        "peak_rss_gb_worker": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1e6, 3),
+        "classes": {k: {"rows": len(v), "cpu": round(float(np.sum(v)), 1), "max_row_cpu": round(float(np.max(v)), 2)}
+                    for k, v in per.items()},
+        **summary}), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -303,3 +303,14 @@ def test_cubature_with_back_face_culling_equals_without(office60, monkeypatch):
     assert with_rule.method == "quadrature"
     assert abs(with_rule.F - without.F) <= 1e-12
     assert culled < sum(lengths)
+
+
+def test_an_open_box_is_never_empty(cornell):
+    """The Cornell blocks are open boxes: their inner sides see the floor through the missing
+    face, so :func:`empty_boxes` calls none of them empty and no inner row of theirs is a
+    closed form over the block's own faces (:func:`closed_form_row`)."""
+    face_box = ff.closed_boxes(cornell)[0]
+    assert (face_box >= 0).sum() == 10 and not ff.empty_boxes(cornell).any()
+    faces = np.arange(cornell.n_faces)
+    for f in np.flatnonzero(face_box >= 0):
+        assert ff.closed_form_row(cornell, int(f), -1, faces) is None

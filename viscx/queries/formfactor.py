@@ -1587,8 +1587,9 @@ def facing_sides(scene, face, side, faces):
 
 
 def empty_boxes(scene):
-    """(b,) bool: for each closed convex box (:func:`closed_boxes`), whether nothing is
-    inside it: no other face meets its open interior, and nothing lies on the inner side of
+    """(b,) bool: for each convex box (:func:`closed_boxes`), whether it is closed and nothing
+    is inside it (an open box, one face missing, is never empty: its inner sides see out
+    through the missing face): no other face meets its open interior, and nothing lies on the inner side of
     one of its faces (docs/queries.md, "Faces lying on faces"). Cached.
 
     A face meets the open interior when a part of positive area is left of it after
@@ -1605,6 +1606,9 @@ def empty_boxes(scene):
         box_lo, box_hi = face_boxes(scene)
         out = np.ones(len(ptr) - 1, bool)
         for b in range(len(ptr) - 1):
+            if np.any(planes[ptr[b]:ptr[b + 1], 4] != 0.0):
+                out[b] = False  # an open box (a missing face): its inner sides see out
+                continue
             mine = np.flatnonzero(face_box == b)
             lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
             # faces whose boxes overlap the box's by more than tiny in every axis

@@ -292,3 +292,20 @@ def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
     assert len(new) == 3 + 4
     assert nq.sum() > 0  # seen now
     assert np.allclose(ff.triangle_areas(new).sum(), 0.5)
+
+
+def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):
+    """The segment pairs are tested in blocks of whole rows (memory linear in the block, not
+    quadratic in the segments: the 122,892-triangle spheres listed 1.7 · 10¹⁰ pairs at
+    once): blocks of 7 pairs give the segments of one block, array for array; past
+    ``MAX_KINK_GENERATORS`` segments in front the lines are not listed (None), and the
+    emitter's kinked cells are None too, so its row keeps the cells without them."""
+    from viscx.queries import kinks
+
+    floor = int(cornell.group_faces("floor")[0])
+    whole = kink_segments(cornell, floor, 1)
+    monkeypatch.setattr(kinks, "PAIR_BLOCK", 7)
+    assert len(whole) and np.array_equal(kink_segments(cornell, floor, 1), whole)
+    monkeypatch.setattr(kinks, "MAX_KINK_GENERATORS", 10)
+    assert kink_segments(cornell, floor, 1) is None
+    assert ff.emitter_cells(cornell, floor, 1, kinks=True) is None

@@ -736,8 +736,8 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     With ``kinks`` the cells are cut along the D1 lines of every receiver too
     (:func:`viscx.queries.kinks.kink_segments`: the matrix row, whose columns are all the
     receivers), so that every integrand is C1 on every cell; None when that would make more
-    than ``limit`` cells (in a cluttered scene the lines are quadratic in the
-    edges and their arrangement quadratic in the lines).
+    than ``limit`` cells or the lines are too many to list (in a cluttered scene the lines
+    are quadratic in the edges and their arrangement quadratic in the lines).
 
     Returns
     -------
@@ -779,7 +779,8 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
         pieces = out
     pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)])), eps)
     if kinks:
-        pieces = cut_along(pieces, to2(kink_segments(scene, face, side)), eps, limit)
+        kinks = kink_segments(scene, face, side)
+        pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
         if pieces is None:
             return None
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]

@@ -49,6 +49,15 @@ import numpy as np
 from viscx.arrays import unique_rows
 
 
+#: More generator segments in front of a face than this: no kink lines (None), the caller
+#: keeps the cells without them. Their pairs are quadratic in number (10⁸ past 14,000), and
+#: so many lines cut a face into far more than the cells a row is cut along
+#: (:data:`viscx.queries.formfactor.MAX_KINK_CELLS`).
+MAX_KINK_GENERATORS = 8_000
+#: Pairs tested at once (memory linear in it).
+PAIR_BLOCK = 1 << 19
+
+
 def generator_segments(scene):
     """(g, 2, 3) float64: the ends of the scene's generator edges (cached)."""
     return scene.cached("generator_segments",
@@ -67,9 +76,10 @@ def kink_segments(scene, face, side):
 
     Returns
     -------
-    (s, 2, 3) float64
+    (s, 2, 3) float64 or None
         Segments in the face's plane (their ends at most twice the scene's diagonal from
-        the face: a piece running to infinity is cut there).
+        the face: a piece running to infinity is cut there); None past
+        :data:`MAX_KINK_GENERATORS` segments in front of the side.
     """
     seg = generator_segments(scene)
     n = side * scene.face_normal[face]
@@ -77,6 +87,8 @@ def kink_segments(scene, face, side):
     tiny = 1e-9 * scene.diagonal
     h = seg @ n - c  # (g, 2) heights of the ends
     keep = np.flatnonzero(h.max(axis=1) > tiny)
+    if len(keep) > MAX_KINK_GENERATORS:
+        return None
     p, h = seg[keep], h[keep]
     # clip to the closed front half-space
     lo, hi = h[:, 0], h[:, 1]
@@ -86,7 +98,35 @@ def kink_segments(scene, face, side):
     q[cut1, 1] = p[cut1, 1] + (p[cut1, 0] - p[cut1, 1]) * (hi[cut1] / (hi[cut1] - lo[cut1]))[:, None]
     d = p[:, 1] - p[:, 0]
     u = d / np.linalg.norm(d, axis=1)[:, None]
-    a, b = np.triu_indices(len(p), 1)
+    starts, ends = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    for a, b in _pair_blocks(len(p), PAIR_BLOCK):
+        s0, s1 = _pair_kinks(scene, face, n, c, tiny, p, q, u, a, b)
+        starts.append(s0)
+        ends.append(s1)
+    return merge_collinear(np.concatenate(starts), np.concatenate(ends),
+                           np.mean(scene.face_loops(face)[0], axis=0), scene.diagonal)
+
+
+def _pair_blocks(g, size):
+    """The pairs a < b of ``g`` segments as ``(a, b)`` (k,) int64 blocks of about ``size``
+    pairs (whole rows a), so that memory stays linear in the block, not quadratic in g."""
+    a0 = 0
+    while a0 < g - 1:
+        a1 = a0 + 1
+        count = g - 1 - a0
+        while a1 < g - 1 and count + (g - 1 - a1) <= size:
+            count += g - 1 - a1
+            a1 += 1
+        a = np.repeat(np.arange(a0, a1), g - 1 - np.arange(a0, a1))
+        b = np.concatenate([np.arange(i + 1, g) for i in range(a0, a1)])
+        yield a, b
+        a0 = a1
+
+
+def _pair_kinks(scene, face, n, c, tiny, p, q, u, a, b):
+    """The pieces ``(starts, ends)`` (s, 3) float64 each of the D1 lines of the segment
+    pairs ``(a[i], b[i])`` (:func:`kink_segments`; ``p`` the segments, ``q`` them clipped to
+    the front half-space, ``u`` their directions)."""
     # the plane of the two (unclipped) lines: normal ua × ub, or ua × (pb − pa) when parallel
     w0 = p[b, 0] - p[a, 0]
     m = np.cross(u[a], u[b])
@@ -102,7 +142,7 @@ def kink_segments(scene, face, side):
     ok &= dn > 1e-9  # Π is not I's plane (nor parallel to it)
     a, b, m, dl = a[ok], b[ok], m[ok], dl[ok] / dn[ok, None]
     if not len(a):
-        return np.zeros((0, 2, 3))
+        return np.zeros((0, 3)), np.zeros((0, 3))
     up = np.cross(m, dl)  # in Π, across L, pointing away from I (up · n > 0)
     up *= np.sign(np.einsum("ij,j->i", up, n))[:, None]
     s = np.einsum("ij,j->i", up, n)  # sin of the angle between Π and I's plane
@@ -132,8 +172,7 @@ def kink_segments(scene, face, side):
     overlap = np.minimum(ang_a[..., 1], ang_b[..., 1]) - np.maximum(ang_a[..., 0], ang_b[..., 0])
     live = (overlap > 1e-12) & (t1 - t0 > tiny)
     k, j = np.nonzero(live)
-    return merge_collinear(o[k] + t0[k, j, None] * dl[k], o[k] + t1[k, j, None] * dl[k],
-                           np.mean(scene.face_loops(face)[0], axis=0), scene.diagonal)
+    return o[k] + t0[k, j, None] * dl[k], o[k] + t1[k, j, None] * dl[k]
 
 
 def merge_collinear(a, b, centre, scale):

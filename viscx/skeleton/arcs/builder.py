@@ -114,7 +114,8 @@ def family_parts(families):
         p = slice(*(int(i) for i in np.searchsorted(families.plane_family, [lo, hi])))
         yield (_Families(families.kind[chunk], families.generators[chunk],
                          families.event_offsets[lo: hi + 1] - families.event_offsets[lo], families.event_s[ev],
-                         families.event_kind[ev], families.event_index[ev], families.plane_family[p] - lo,
+                         families.event_kind[ev], families.event_index[ev], families.event_reach[ev],
+                         families.plane_family[p] - lo,
                          families.plane_ve[p], families.plane_of[p], None, families.weight[chunk]),)
 
 

@@ -240,9 +240,6 @@ def closed_boxes(scene):
                 edges.setdefault((a, b), []).append(f)
         offset = scene.face_offset.astype(np.float64)
 
-        def behind(f, g):  # every vertex of g behind or on f's plane
-            return float(np.max(scene.vertices[ids[g]] @ normal[f])) - offset[f] <= tol
-
         parent = list(range(n))
 
         def root(f):
@@ -251,11 +248,23 @@ def closed_boxes(scene):
                 f = parent[f]
             return f
 
-        for (a, b), fs in edges.items():
-            for f in fs:
-                for g in edges.get((b, a), ()):
-                    if g != f and abs(normal[f] @ normal[g]) < 1 - 1e-9 and behind(f, g) and behind(g, f):
-                        parent[root(f)] = root(g)
+        pairs = [(f, g) for (a, b), fs in edges.items() for f in fs for g in edges.get((b, a), ()) if g != f]
+        pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+        f, g = pairs[:, 0], pairs[:, 1]
+        # linked: not coplanar, and every vertex of each behind or on the other's plane
+        # (a face's vertices padded with its first, so that one array holds them all)
+        width = max((len(loop) for loop in ids if loop is not None), default=1)
+        padded = np.array([(loop + [loop[0]] * (width - len(loop))) if loop is not None else [0] * width
+                           for loop in ids], np.int64)
+        corners = scene.vertices[padded].astype(np.float64)  # (n, width, 3)
+
+        def behind(f, g):  # every vertex of g behind or on f's plane
+            return np.einsum("kjd,kd->kj", corners[g], normal[f]).max(axis=1) - offset[f] <= tol
+
+        linked = np.abs(np.einsum("kd,kd->k", normal[f], normal[g])) < 1 - 1e-9
+        linked[linked] &= behind(f[linked], g[linked]) & behind(g[linked], f[linked])
+        for a, b in pairs[linked].tolist():
+            parent[root(a)] = root(b)
         comps = {}
         for f in range(n):
             if ids[f] is not None:
@@ -282,7 +291,8 @@ def closed_boxes(scene):
             elif len(faces) < 4:
                 continue
             box = np.asarray(box)
-            if np.any(verts @ box[:, :3].T - box[:, 3] > tol):
+            step = max(1, (1 << 22) // len(verts))  # planes at a time: memory bounded (a sphere's 20k faces)
+            if any(np.any(verts @ box[i:i + step, :3].T - box[i:i + step, 3] > tol) for i in range(0, len(box), step)):
                 continue
             face_box[faces] = len(ptr) - 1
             planes.extend(box)

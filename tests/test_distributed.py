@@ -51,7 +51,7 @@ def streamed(cx, path, runner=None):
 def tiny_chunks(monkeypatch):
     """Chunks of a few families, half-cells and squares, datasets written every few rows:
     every scene is many chunks and every large array many appends."""
-    monkeypatch.setattr(builder, "FAMILY_CHUNK", 1000)
+    monkeypatch.setattr(builder, "FAMILY_CHUNK", 40)
     monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
     monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
     monkeypatch.setattr(eecells, "ARC_SLICE", 500)

@@ -150,7 +150,30 @@ class Locator:
                        len(self.receiver.regions))
 
 
-class DirectLighting:
+class Lighting:
+    """A scene lit by an emitter: the faces' reflectances and the light's emission (what
+    the Monte Carlo reference needs, :mod:`viscx.render.montecarlo`).
+
+    Parameters
+    ----------
+    scene : Scene
+    emitter : Emitter
+    """
+
+    def __init__(self, scene, emitter):
+        self.scene = scene
+        self.emitter = emitter
+        self.kd = reflectance(scene)
+
+    def emitted(self, face, side):
+        """(3,) float64: radiance a light face emits towards the seen side (zero elsewhere)."""
+        where = np.flatnonzero(self.emitter.light.faces == face)
+        if side > 0 and len(where):
+            return self.emitter.radiance[where[0]]
+        return np.zeros(3)
+
+
+class DirectLighting(Lighting):
     """Exact direct radiance of receiver points, region by region (module docstring).
 
     Parameters
@@ -162,10 +185,8 @@ class DirectLighting:
     """
 
     def __init__(self, scene, mesh, emitter):
-        self.scene = scene
+        super().__init__(scene, emitter)
         self.mesh = mesh
-        self.emitter = emitter
-        self.kd = reflectance(scene)
         self.is_light = np.zeros(scene.n_faces, bool)
         self.is_light[emitter.light.faces] = True
         self.receivers = {r.face: r for r in mesh.receivers}
@@ -297,13 +318,6 @@ class DirectLighting:
             f[front] = setup.f(points[front], self._kernel(face, side, region, k, setup))
             total += np.maximum(f, 0.0)[:, None] * self.emitter.radiance[k][None, :]
         return total * self.kd[face][None, :]
-
-    def emitted(self, face, side):
-        """(3,) float64: radiance a light face emits towards the seen side (zero elsewhere)."""
-        where = np.flatnonzero(self.emitter.light.faces == face)
-        if side > 0 and len(where):
-            return self.emitter.radiance[where[0]]
-        return np.zeros(3)
 
 
 def regions_of(lighting, face, points):

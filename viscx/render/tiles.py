@@ -43,13 +43,17 @@ from numba import njit, prange
 
 from viscx.geometry.occlusion import shaft_meets, visible_form_factors
 from viscx.geometry.polygon import newell_normal
-from viscx.queries.formfactor import (back_faces, clip_loops, closed_boxes, face_boxes, face_outlines, loops_area,
+from viscx.queries.formfactor import (clip_loops, closed_boxes, face_boxes, face_outlines, loops_area,
                                       oriented_loops, target_frame)
 
 #: Pixels per side of a screen tile (a group is the pixels of a tile that see one face from one side).
 TILE = 8
 #: Faces per leaf of the culling tree (consecutive in Morton order), leaves per node.
 CLUSTER = 32
+#: Margin (fraction of the scene's diagonal) by which a patch is grown for the cones from it
+#: to the light's corners (:meth:`TileShading._box_faces`): the ray from a point on the
+#: patch's border is then inside the cone, not on its side.
+GROWN = 1e-7
 
 
 # --------------------------------------------------------------------------------------
@@ -142,22 +146,27 @@ def face_tree(scene):
 
 
 @njit(cache=True)
-def _support_planes(cells, cell_normal, target, target_normal, tol):
-    """Planes bounding the shaft of each cell (the convex hull of the cell and the target):
-    ``(planes (g, m, 4), count (g,))``, the first ``count[i]`` rows ``(n, c)`` of cell i with
-    n · y <= c on the whole shaft (c is n's support value over the corners, so the bound
-    holds for any n). The directions are the candidates for the hull's facets: the two
-    polygons' normals and the planes through an edge of one and a corner of the other,
-    each kept, oriented outwards, where the corners all lie within ``tol`` on one side of
-    its plane (a facet or nearly)."""
-    g, kc, kt = cells.shape[0], cells.shape[1], target.shape[0]
-    m = 2 + 2 * kc * kt
-    planes = np.zeros((g, m, 4))
+def _support_planes(cells, cell_normal, t_pts, t_ptr, cell_target, target_normal, tol):
+    """Planes bounding the shaft of each cell (the convex hull of the cell and its target,
+    ``t_pts[t_ptr[t]:t_ptr[t + 1]]`` for t = ``cell_target[i]``): ``(planes (g, m, 4), count
+    (g,))``, the first ``count[i]`` rows ``(n, c)`` of cell i with n · y <= c on the whole
+    shaft (c is n's support value over the corners, so the bound holds for any n). The
+    directions are the candidates for the hull's facets: the two polygons' normals and
+    the planes through an edge of one and a corner of the other, each kept, oriented
+    outwards, where the corners all lie within ``tol`` on one side of its plane (a facet
+    or nearly)."""
+    g, kc = cells.shape[0], cells.shape[1]
+    kt_max = 1
+    for t in range(t_ptr.shape[0] - 1):
+        kt_max = max(kt_max, t_ptr[t + 1] - t_ptr[t])
+    planes = np.zeros((g, 2 + 2 * kc * kt_max, 4))
     count = np.zeros(g, np.int64)
     for i in range(g):
         pa = cells[i]
+        target = t_pts[t_ptr[cell_target[i]]:t_ptr[cell_target[i] + 1]]
+        kt = target.shape[0]
         k = 0
-        for j in range(m):
+        for j in range(2 + 2 * kc * kt):
             if j == 0:
                 nx, ny, nz = cell_normal[i, 0], cell_normal[i, 1], cell_normal[i, 2]
                 ax, ay, az = pa[0, 0], pa[0, 1], pa[0, 2]
@@ -167,13 +176,14 @@ def _support_planes(cells, cell_normal, target, target_normal, tol):
             else:
                 r = j - 2
                 if r < kc * kt:  # an edge of the cell, a corner of the target
-                    src, ks, e, dst, v = pa, kc, r // kt, target, r % kt
+                    e, v = r // kt, r % kt
+                    a, b, w = pa[e], pa[(e + 1) % kc], target[v]
                 else:
                     r -= kc * kt
-                    src, ks, e, dst, v = target, kt, r // kc, pa, r % kc
-                a, b = src[e], src[(e + 1) % ks]
+                    e, v = r // kc, r % kc
+                    a, b, w = target[e], target[(e + 1) % kt], pa[v]
                 ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-                wx, wy, wz = dst[v, 0] - a[0], dst[v, 1] - a[1], dst[v, 2] - a[2]
+                wx, wy, wz = w[0] - a[0], w[1] - a[1], w[2] - a[2]
                 nx, ny, nz = ey * wz - ez * wy, ez * wx - ex * wz, ex * wy - ey * wx
                 ax, ay, az = a[0], a[1], a[2]
             size = np.sqrt(nx * nx + ny * ny + nz * nz)
@@ -195,6 +205,25 @@ def _support_planes(cells, cell_normal, target, target_normal, tol):
             k += 1
         count[i] = k
     return planes, count
+
+
+@njit(cache=True)
+def _meets_by_target(cells, cell_normal, t_pts, t_ptr, cand_target, target_normal, cand_cell, cand_poly, poly_pts,
+                     poly_lo, poly_hi, poly_normal, tol):
+    """:func:`shaft_meets` of candidate pairs whose cells have targets of their own
+    (``t_pts[t_ptr[t]:t_ptr[t + 1]]``, t = ``cand_target[c]``; the pairs sorted by it): one
+    call per run of pairs with one target."""
+    out = np.zeros(cand_cell.shape[0], np.bool_)
+    a = 0
+    while a < cand_cell.shape[0]:
+        t = cand_target[a]
+        b = a
+        while b < cand_cell.shape[0] and cand_target[b] == t:
+            b += 1
+        out[a:b] = shaft_meets(cells, cell_normal, t_pts[t_ptr[t]:t_ptr[t + 1]], target_normal, cand_cell[a:b],
+                               cand_poly[a:b], poly_pts, poly_lo, poly_hi, poly_normal, tol)
+        a = b
+    return out
 
 
 @njit(cache=True)
@@ -259,6 +288,78 @@ def _crosses(cell, faces, cell_normal, cell_c, n_t, c_t, occ, occ_loop, loop_ptr
     return out
 
 
+@njit(cache=True)
+def _groups_outside(cells, points, pt_ptr, cell, box, box_ptr, box_planes, tiny):
+    """(c,) int64: for each (group ``cell[c]``, box ``box[c]``), a plane of the box (a row
+    of ``box_planes``) with every corner of the group's patch more than 2 tiny in front,
+    when each of the group's points is outside the box as
+    :func:`viscx.geometry.occlusion._outside_box` judges (no plane with the point within
+    (0, 2 tiny] in front of it, an open box's missing face within tiny in front or behind);
+    else -1. Then that plane alone decides ``_outside_box`` at each point as all the planes
+    do. A plane with the patch's corners all on or behind it, or all more than 2 tiny in
+    front (all but a few of a sphere's seen from a patch beside it), is settled by the
+    corners; the points are judged against the others."""
+    out = np.full(cell.shape[0], -1, np.int64)
+    for c in range(cell.shape[0]):
+        g = cell[c]
+        pa = cells[g]
+        witness, ok = -1, True
+        for k in range(box_ptr[box[c]], box_ptr[box[c] + 1]):
+            nx, ny, nz, d = box_planes[k, 0], box_planes[k, 1], box_planes[k, 2], box_planes[k, 3]
+            lo, hi = np.inf, -np.inf
+            for q in range(pa.shape[0]):
+                h = nx * pa[q, 0] + ny * pa[q, 1] + nz * pa[q, 2] - d
+                lo, hi = min(lo, h), max(hi, h)
+            missing = box_planes[k, 4] != 0.0
+            if not missing and lo > 2.0 * tiny:
+                if witness < 0:
+                    witness = k
+                continue
+            if hi <= (tiny if missing else 0.0):
+                continue
+            for i in range(pt_ptr[g], pt_ptr[g + 1]):
+                h = nx * points[i, 0] + ny * points[i, 1] + nz * points[i, 2] - d
+                if (h > tiny) if missing else (0.0 < h <= 2.0 * tiny):
+                    ok = False
+                    break
+            if not ok:
+                break
+        out[c] = witness if ok else -1
+    return out
+
+
+@njit(cache=True)
+def _silhouette_faces(cells, cell, faces, nb_ptr, nb, normal, offset, tiny):
+    """For (patch, face of a closed convex box) pairs: ``(ring, back)`` (c,) bool each.
+    ``back``: every corner of the patch lies behind the face's plane by more than tiny (a
+    back face for each of its points). ``ring``: not back, and a neighbour of the face
+    (across an edge) is not a front face for each point (every corner more than tiny in
+    front): for some point of the patch the face may hold an edge of the box's silhouette."""
+    ring = np.zeros(faces.shape[0], np.bool_)
+    back = np.zeros(faces.shape[0], np.bool_)
+    for c in range(faces.shape[0]):
+        pa = cells[cell[c]]
+        f = faces[c]
+        hi = -np.inf
+        for q in range(pa.shape[0]):
+            hi = max(hi, normal[f, 0] * pa[q, 0] + normal[f, 1] * pa[q, 1] + normal[f, 2] * pa[q, 2] - offset[f])
+        if hi < -tiny:
+            back[c] = True
+            continue
+        for r in range(nb_ptr[f], nb_ptr[f + 1]):
+            g = nb[r]
+            if g < 0:  # (no single face across: kept)
+                ring[c] = True
+                break
+            lo = np.inf
+            for q in range(pa.shape[0]):
+                lo = min(lo, normal[g, 0] * pa[q, 0] + normal[g, 1] * pa[q, 1] + normal[g, 2] * pa[q, 2] - offset[g])
+            if lo <= tiny:
+                ring[c] = True
+                break
+    return ring, back
+
+
 # --------------------------------------------------------------------------------------
 # the kernels, group by group
 
@@ -266,7 +367,7 @@ def _crosses(cell, faces, cell_normal, cell_c, n_t, c_t, occ, occ_loop, loop_ptr
 @njit(cache=True, parallel=True)
 def _tile_form_factors(points, pt_ptr, group_n, group_target, occ_ptr, occ_ids, occ, occ_loop, loop_ptr, poly_normal,
                        poly_point, poly_box, t_origin, t_eu, t_ev, t_n, t_c, t_j2, t_j2_ptr, t_jl, t_jl_ptr, t_hull,
-                       t_hull_ptr, tiny, box_ptr, box_planes, visit):
+                       t_hull_ptr, tiny, box_ptr, box_planes, w_ptr, w_box, w_row, visit):
     """F from each point (normal ``group_n`` of its group) to the part of its group's target
     it sees past the group's occluders (:func:`visible_form_factors` on the group's own
     arrays, gathered as :meth:`viscx.queries.formfactor.PairSetup.kernel_for` builds them).
@@ -283,6 +384,13 @@ def _tile_form_factors(points, pt_ptr, group_n, group_target, occ_ptr, occ_ids, 
     t_* :
         Per target: the frame of :func:`viscx.queries.formfactor.target_frame` and its
         plane, j2/j_loop/hull flattened with offsets.
+    box_ptr, box_planes :
+        The closed boxes (:func:`viscx.queries.formfactor.closed_boxes`).
+    w_ptr, w_box, w_row : (g + 1,), (w,), (w,) int64
+        Per group, boxes its whole patch is outside of and a plane of each that says so
+        alone (:func:`_groups_outside`): the group's box table holds that plane only for
+        them (the kernel asks each point whether it is outside each box; a sphere has
+        20,480 planes), the box's planes for the others.
     visit : (g,) int64
         The order the groups are shared out among the threads in (a shuffle: the costly
         groups of one face are not all one thread's).
@@ -318,11 +426,39 @@ def _tile_form_factors(points, pt_ptr, group_n, group_target, occ_ptr, occ_ids, 
                 l_loop[L] = v
             l_normal[k] = poly_normal[p]
             l_point[k] = poly_point[p]
-            l_box[k] = poly_box[p]
+        # the group's boxes, numbered in order of first use, with their planes
+        seen = np.empty(n_p, np.int64)
+        n_b, n_planes = 0, 0
+        for k in range(n_p):
+            box = poly_box[ids[k]]
+            l_box[k] = -1
+            if box < 0:
+                continue
+            for j in range(n_b):
+                if seen[j] == box:
+                    l_box[k] = j
+            if l_box[k] < 0:
+                l_box[k] = n_b
+                seen[n_b] = box
+                n_b += 1
+        l_box_ptr = np.zeros(n_b + 1, np.int64)
+        l_row = np.full(n_b, -1, np.int64)
+        for j in range(n_b):
+            for q in range(w_ptr[g], w_ptr[g + 1]):
+                if w_box[q] == seen[j]:
+                    l_row[j] = w_row[q]
+            n_planes += 1 if l_row[j] >= 0 else box_ptr[seen[j] + 1] - box_ptr[seen[j]]
+            l_box_ptr[j + 1] = n_planes
+        l_planes = np.empty((n_planes, box_planes.shape[1]))
+        for j in range(n_b):
+            if l_row[j] >= 0:
+                l_planes[l_box_ptr[j]] = box_planes[l_row[j]]
+            else:
+                l_planes[l_box_ptr[j]:l_box_ptr[j + 1]] = box_planes[box_ptr[seen[j]]:box_ptr[seen[j] + 1]]
         out[a:b] = visible_form_factors(points[a:b], group_n[g], t_j2[t_j2_ptr[t]:t_j2_ptr[t + 1]],
                                         t_jl[t_jl_ptr[t]:t_jl_ptr[t + 1]], t_origin[t], t_eu[t], t_ev[t], t_n[t], t_c[t],
                                         t_hull[t_hull_ptr[t]:t_hull_ptr[t + 1]], l_occ, l_loop, l_poly, l_normal, l_point,
-                                        tiny, l_box, box_ptr, box_planes)
+                                        tiny, l_box, l_box_ptr, l_planes)
     return out
 
 
@@ -335,6 +471,31 @@ def tile_ids(shape, tile=TILE):
     h, w = shape
     rows, cols = np.divmod(np.arange(h * w, dtype=np.int64), w)
     return (rows // tile) * -(-w // tile) + cols // tile
+
+
+def box_faces_info(scene):
+    """What :meth:`TileShading._box_faces` reads of the closed boxes (cached):
+    ``nb_ptr`` (f + 1,), ``nb`` the faces across each edge of each face (from the half
+    edges; -1 none), ``closed`` (b,) bool boxes with no missing face, ``vert_ptr`` (b + 1,)
+    and ``verts`` the vertices of each box's faces."""
+
+    def build(scene):
+        face_box, box_ptr, box_planes = closed_boxes(scene)
+        he = scene.half_edges
+        order = np.argsort(he.face, kind="stable")
+        nb = np.where(he.opp[order] >= 0, he.face[np.maximum(he.opp[order], 0)], -1).astype(np.int64)
+        nb_ptr = np.r_[0, np.cumsum(np.bincount(he.face, minlength=scene.n_faces))].astype(np.int64)
+        n_box = len(box_ptr) - 1
+        closed = np.array([not np.any(box_planes[box_ptr[b]:box_ptr[b + 1], 4]) for b in range(n_box)], bool)
+        lo = scene.loop_offsets[scene.face_loop_offsets[:-1]]
+        hi = scene.loop_offsets[scene.face_loop_offsets[:-1] + 1]
+        verts = [np.unique(np.concatenate([scene.loop_vertices[lo[f]:hi[f]] for f in np.flatnonzero(face_box == b)]))
+                 for b in range(n_box)]
+        return dict(nb_ptr=nb_ptr, nb=nb, closed=closed,
+                    vert_ptr=np.r_[0, np.cumsum([len(v) for v in verts])].astype(np.int64),
+                    verts=np.concatenate(verts).astype(np.int64) if verts else np.zeros(0, np.int64))
+
+    return scene.cached("box_faces_info", build)
 
 
 def _bases(normal):
@@ -360,7 +521,9 @@ class TileShading:
         self.scene = scene
         self.light = light
         self.tiny = 1e-9 * scene.diagonal
-        self.stats = {"groups": 0, "occluders": 0, "clipped": 0, "evaluations": 0}
+        self.stats = {"groups": 0, "occluders": 0, "reduced": 0, "clipped": 0, "evaluations": 0}
+        self._outlines = face_outlines(scene)
+        self._normals = scene.face_normal.astype(np.float64)
 
     def form_factors(self, k, face, side, points, tile):
         """F from each point to the part of light face k it sees (zero where it sees none).
@@ -426,9 +589,14 @@ class TileShading:
         u0, u1 = np.minimum.reduceat(pu, first), np.maximum.reduceat(pu, first)
         v0, v1 = np.minimum.reduceat(pv, first), np.maximum.reduceat(pv, first)
         base = g_n * g_c[:, None]
-        cells = np.ascontiguousarray(np.stack([base + a[:, None] * u + b[:, None] * v
-                                               for a, b in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))], axis=1))
-        ptr, ids = self._occluders(cells, g_n, g_c, g_target, frames, n_t, c_t, l, pf[g_pair])
+
+        def rectangles(m):  # corners counter-clockwise about g_n, grown by m
+            return np.ascontiguousarray(np.stack([base + a[:, None] * u + b[:, None] * v for a, b in (
+                (u0 - m, v0 - m), (u1 + m, v0 - m), (u1 + m, v1 + m), (u0 - m, v1 + m))], axis=1))
+
+        cells = rectangles(0.0)
+        ptr, ids, witness = self._occluders(cells, rectangles(GROWN * scene.diagonal), pts, pt_ptr, g_n, g_target,
+                                            [f[6] for f in frames], n_t, l, pf[g_pair])
         ids, polys = self._clipped(ptr, ids, g_pair, n_i, c_i, n_t, c_t)
         self.stats["groups"] += len(first)
         self.stats["occluders"] += len(ids)
@@ -442,39 +610,127 @@ class TileShading:
             np.ascontiguousarray(pts), pt_ptr, np.ascontiguousarray(g_n), g_target.astype(np.int64), ptr, ids, occ,
             occ_loop, loop_ptr, normal, point, box, np.array(t_origin), np.array(t_eu), np.array(t_ev),
             np.tile(n_t, (len(frames), 1)), np.full(len(frames), c_t), np.concatenate(j2), offsets(j2), np.concatenate(jl),
-            offsets(jl), np.concatenate(hull), offsets(hull), tiny, box_ptr, box_planes, visit)
+            offsets(jl), np.concatenate(hull), offsets(hull), tiny, box_ptr, box_planes,
+            np.r_[0, np.cumsum(np.bincount(witness[:, 0], minlength=len(first)))].astype(np.int64), witness[:, 1].copy(),
+            witness[:, 2].copy(), visit)
         return out
 
-    def _occluders(self, cells, g_n, g_c, g_target, frames, n_t, c_t, light_face, g_face):
+    def _occluders(self, cells, grown, points, pt_ptr, g_n, g_target, hulls, n_t, light_face, g_face):
         """Each group's occluders: the faces meeting the interior of its shaft
-        (:func:`_shaft_candidates`, then :func:`shaft_meets`), but its own face, the
-        light face, faces of no area and back faces of closed boxes the patch is outside
-        of (:func:`back_faces`). Returns CSR ``(ptr (g + 1,), faces)``, ascending per group."""
+        (:func:`_shaft_candidates`, then :func:`shaft_meets`), but its own face, the light
+        face and faces of no area, the faces of closed convex boxes reduced
+        (:meth:`_box_faces`).
+
+        Returns
+        -------
+        ptr, ids : (g + 1,), (k,) int64
+            CSR lists of faces, ascending per group.
+        witness : (w, 3) int64
+            Rows (group, box, plane): a plane of the box that decides alone that each of
+            the group's points is outside it (:func:`_groups_outside`), sorted.
+        """
         scene, tiny = self.scene, self.tiny
         pool = occluder_pool(scene)
+        face_box = closed_boxes(scene)[0]
         order, leaf_lo, leaf_hi, node_lo, node_hi = face_tree(scene)
         f_lo, f_hi = face_boxes(scene)
-        outline, o_lo, o_hi = face_outlines(scene)
-        normals = scene.face_normal.astype(np.float64)
-        cell_of, face_of = [], []
-        for t in np.unique(g_target):
-            gs = np.flatnonzero(g_target == t)
-            hull = frames[t][6]
-            planes, count = _support_planes(cells[gs], g_n[gs], hull, n_t, tiny)
-            ptr, ids = _shaft_candidates(planes, count, order, f_lo, f_hi, leaf_lo, leaf_hi, node_lo, node_hi, CLUSTER)
-            cell = np.repeat(gs, np.diff(ptr))
-            ok = (ids != g_face[cell]) & (ids != light_face) & pool["usable"][ids]
-            cell, ids = cell[ok], ids[ok]
-            meets = shaft_meets(cells, g_n, hull, n_t, cell, ids, outline, o_lo, o_hi, normals, tiny)
-            cell, ids = cell[meets], ids[meets]
-            back = back_faces(scene, cells, cell, ids, tiny)
-            cell_of.append(cell[~back])
-            face_of.append(ids[~back])
-        cell, ids = np.concatenate(cell_of), np.concatenate(face_of)
-        order = np.lexsort((ids, cell))
-        cell, ids = cell[order], ids[order]
-        ptr = np.r_[0, np.cumsum(np.bincount(cell, minlength=len(cells)))].astype(np.int64)
-        return ptr, ids
+        t_pts, t_ptr = np.ascontiguousarray(np.concatenate(hulls)), np.r_[0, np.cumsum([len(h) for h in hulls])].astype(np.int64)
+        planes, count = _support_planes(cells, g_n, t_pts, t_ptr, g_target, n_t, tiny)
+        ptr, ids = _shaft_candidates(planes, count, order, f_lo, f_hi, leaf_lo, leaf_hi, node_lo, node_hi, CLUSTER)
+        cell = np.repeat(np.arange(len(cells)), np.diff(ptr))
+        ok = (ids != g_face[cell]) & (ids != light_face) & pool["usable"][ids]
+        cell, ids = cell[ok], ids[ok]
+        kept = np.zeros(len(cell), bool)
+        plain = np.flatnonzero(face_box[ids] < 0)
+        kept[plain] = self._meets(cells, g_n, t_pts, t_ptr, g_target[cell[plain]], n_t, cell[plain], ids[plain])
+        boxed = np.flatnonzero(face_box[ids] >= 0)
+        kept[boxed], witness = self._box_faces(cells, grown, points, pt_ptr, g_n, g_target, hulls, n_t, cell[boxed],
+                                               ids[boxed])
+        ptr = np.r_[0, np.cumsum(np.bincount(cell[kept], minlength=len(cells)))].astype(np.int64)
+        return ptr, ids[kept], witness
+
+    def _meets(self, cells, g_n, t_pts, t_ptr, target, n_t, cell, faces):
+        """:func:`shaft_meets` of (cell, face) pairs, the cells' targets ``target`` (each
+        pair's) among ``t_pts``/``t_ptr``."""
+        outline, o_lo, o_hi = self._outlines
+        by = np.argsort(target, kind="stable")
+        out = np.zeros(len(cell), bool)
+        out[by] = _meets_by_target(cells, g_n, t_pts, t_ptr, target[by], n_t, cell[by], faces[by], outline, o_lo, o_hi,
+                                   self._normals, self.tiny)
+        return out
+
+    def _box_faces(self, cells, grown, points, pt_ptr, g_n, g_target, hulls, n_t, cell, faces):
+        """Which faces of closed convex boxes a group keeps, of those its shaft's planes
+        left (``cell``, ``faces``).
+
+        A box each of whose points is outside (:func:`_groups_outside`) hides from each
+        point x the central projection S of its part inside the pyramid from x over J''s
+        hull, and the kernel takes S as the convex hull of the listed faces clipped to the
+        pyramid and projected (:func:`viscx.geometry.occlusion._visible_one`): any faces
+        whose clipped projections hold S's corners give it. When the box lies between the
+        light's plane and every point of the patch (heights above that plane in (tiny,
+        least height of the patch − tiny)), central projection from x maps it onto a
+        convex set and S = proj(box) ∩ hull(J'): its corners are corners of the box's
+        silhouette seen from x, crossings of the silhouette with the hull's sides, and
+        corners of the hull whose ray from x meets the box, on the face the ray enters
+        through. So the group keeps the faces that may hold an edge of the silhouette for
+        some point of the patch (:func:`_silhouette_faces`) and the faces meeting the cone
+        from the patch (grown by :data:`GROWN` of the diagonal: the rays from its border
+        points inside) to a hull corner (:func:`shaft_meets`); on a sphere of 20,480 faces
+        a shaft through it meets thousands of faces, these are tens. Other boxes: the
+        faces meeting the shaft (:func:`shaft_meets`), less the back faces (behind every
+        point of the patch) of a box each point is outside of (as
+        :func:`viscx.queries.formfactor.back_faces`: the box's front faces hide them).
+
+        Returns
+        -------
+        kept : (c,) bool
+        witness : (w, 3) int64
+            (group, box, plane) as :meth:`_occluders`.
+        """
+        scene, tiny = self.scene, self.tiny
+        face_box, box_ptr, box_planes = closed_boxes(scene)
+        info = box_faces_info(scene)
+        kept = np.zeros(len(cell), bool)
+        if not len(cell):
+            return kept, np.zeros((0, 3), np.int64)
+        pairs, which = np.unique(np.stack([cell, face_box[faces]], axis=1), axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        row = _groups_outside(cells, points, pt_ptr, pairs[:, 0].copy(), pairs[:, 1].copy(), box_ptr, box_planes, tiny)
+        # the boxes between the light's plane and the patch (its corners' least height)
+        c_t = n_t @ hulls[0][0]
+        h = scene.vertices[info["verts"]] @ n_t - c_t
+        h_lo, h_hi = np.minimum.reduceat(h, info["vert_ptr"][:-1]), np.maximum.reduceat(h, info["vert_ptr"][:-1])
+        patch = (cells @ n_t - c_t).min(axis=1)
+        b = pairs[:, 1]
+        reduced = (row >= 0) & info["closed"][b] & (h_lo[b] > tiny) & (h_hi[b] < patch[pairs[:, 0]] - tiny)
+        ring, back = _silhouette_faces(cells, cell, faces, info["nb_ptr"], info["nb"], self._normals,
+                                       scene.face_offset.astype(np.float64), tiny)
+        # reduced boxes: silhouette faces, and the faces the hull corners' cones meet
+        red = reduced[which]
+        kept[red] = ring[red]
+        ask = np.flatnonzero(red & ~ring & ~back)
+        if len(ask):
+            # one target per (hull, corner): the pairs repeated for each corner of their hull
+            sizes = np.array([len(hh) for hh in hulls])
+            first = np.r_[0, np.cumsum(sizes)][:-1]
+            t = g_target[cell[ask]]
+            rep = np.repeat(np.arange(len(ask)), sizes[t])
+            corner = first[t][rep] + (np.arange(len(rep)) - np.repeat(np.cumsum(sizes[t]) - sizes[t], sizes[t]))
+            apex = np.ascontiguousarray(np.concatenate(hulls))
+            hit = self._meets(grown, g_n, apex, np.arange(len(apex) + 1, dtype=np.int64), corner, n_t, cell[ask][rep],
+                              faces[ask][rep])
+            kept[ask[np.unique(rep[hit])]] = True
+        # other boxes: the shaft's faces, less the back faces of a box each point is outside of
+        other = np.flatnonzero(~red)
+        if len(other):
+            t_pts = np.ascontiguousarray(np.concatenate(hulls))
+            t_ptr = np.r_[0, np.cumsum([len(hh) for hh in hulls])].astype(np.int64)
+            meets = self._meets(cells, g_n, t_pts, t_ptr, g_target[cell[other]], n_t, cell[other], faces[other])
+            kept[other] = meets & ~(back[other] & (row[which[other]] >= 0))
+        self.stats["reduced"] += int(np.sum(reduced))
+        has = row >= 0
+        return kept, np.stack([pairs[has, 0], pairs[has, 1], row[has]], axis=1).astype(np.int64)
 
     def _clipped(self, ptr, ids, g_pair, n_i, c_i, n_t, c_t):
         """The occluder polygons: the scene's faces as they are, and those crossing their

@@ -214,7 +214,16 @@ def test_exact_render_of_the_whole_job(cornell):
     # the light is seen from below: its pixels carry its Ke exactly
     light = a.hits.face.reshape(30, 40) == int(mesh.light.faces[0])
     assert light.any() and np.allclose(a.radiance[light], [17, 12, 4])
-    assert a.stats["method"] == "exact" and a.stats["evaluations"] == a.stats["pixels_hit"]
+    # evaluated once: each pixel seeing another face, in front of the light's plane, with
+    # part of the light in front of the face's (the blocks' sides turned away are not)
+    lf, tiny = mesh.light.faces[0], 1e-9 * scene.diagonal
+    face, side, point = a.hits.face, a.hits.side, a.hits.point
+    seen = np.flatnonzero((face >= 0) & (face != lf))
+    front = point[seen] @ scene.face_normal[lf] - scene.face_offset[lf] > tiny
+    corners = scene.face_loops(lf)[0]
+    n_i = side[seen, None] * scene.face_normal[face[seen]]
+    sees = np.max(corners @ n_i.T, axis=0) - side[seen] * scene.face_offset[face[seen]] > tiny
+    assert a.stats["method"] == "exact" and a.stats["evaluations"] == np.sum(front & sees)
 
 
 # -- sparse reconstruction ----------------------------------------------------------------

@@ -561,7 +561,7 @@ class TileShading:
         c_i = np.einsum("ij,ij->i", n_i, np.where(ps[:, None] > 0, pool["first"][pf], pool["last"][pf]))
         h = np.concatenate(loops_t) @ n_i.T - c_i  # (corners of J, pairs)
         whole = h.min(axis=0) >= 0  # J' = J
-        target = np.where(whole & (h.max(axis=0) - 0.0 > tiny), 0, -1)
+        target = np.where(whole & (h.max(axis=0) > tiny), 0, -1)  # (J' in front by more than tiny)
         frames = [target_frame(loops_t, n_t)]
         for p in np.flatnonzero(~whole):
             J = clip_loops(loops_t, n_i[p], c_i[p])

@@ -1,6 +1,7 @@
 """viscx render: the exact direct illumination against a Monte Carlo reference (embree
-shadow rays), region culling against the whole occluder list, seams at region boundaries,
-the sparse reconstruction's error and its not bleeding across regions, the files written."""
+shadow rays), by tiles against by regions, region culling against the whole occluder
+list, seams at region boundaries, the sparse reconstruction's error and its not bleeding
+across regions, the files written."""
 
 import json
 from pathlib import Path
@@ -18,6 +19,7 @@ from viscx.render.direct import DirectLighting, emitter, groups_of, shade
 from viscx.render.image import region_boundaries, render
 from viscx.render.montecarlo import reference_radiance
 from viscx.render.sparse import allocate, inner_corners, reconstruct
+from viscx.render.tiles import shade_tiles
 
 CORNELL = ROOT / "tests" / "golden" / "cornell_box.h5"
 CORNELL_VIEW = dict(eye=[278, 273, -800], look_at=[278, 273, 0], up=[0, 1, 0], fov=39.3)
@@ -93,6 +95,15 @@ def test_exact_image_agrees_with_monte_carlo_to_its_noise(cornell_64):
     assert black.sum() > 1000 and np.all(mc[black] == 0.0)
 
 
+def test_tiles_equal_the_mesh_path(cornell_64):
+    """The exact image by tiles (viscx.render.tiles, what `viscx render` evaluates; the
+    blocks are open boxes: their back faces culled) is the mesh path's, region by region,
+    to 1e-12."""
+    lighting, hits, exact, _, _, _ = cornell_64
+    tiles, stats = shade_tiles(lighting, hits)
+    assert stats["groups"] > 50 and np.max(np.abs(tiles - exact)) <= 1e-12 * np.abs(exact).max()
+
+
 @pytest.mark.parametrize("seed", [3, pytest.param(11, marks=pytest.mark.slow)])
 def test_exact_image_of_random_scenes_agrees_with_monte_carlo(tmp_path, seed):
     """Held-back scenes (a floor, a tilted square light, random tetrahedra in between),
@@ -108,6 +119,9 @@ def test_exact_image_of_random_scenes_agrees_with_monte_carlo(tmp_path, seed):
     assert ok and d["n"] > 500, str(d)
     black = (exact <= 1e-12) & (hits.face >= 0)[:, None]
     assert np.all(mc[black] == 0.0)
+    # the tiles' image is the mesh path's
+    tiles, _ = shade_tiles(lighting, hits)
+    assert np.max(np.abs(tiles - exact)) <= 1e-12 * np.abs(exact).max()
 
 
 @pytest.mark.slow
@@ -214,7 +228,16 @@ def test_exact_render_of_the_whole_job(cornell):
     # the light is seen from below: its pixels carry its Ke exactly
     light = a.hits.face.reshape(30, 40) == int(mesh.light.faces[0])
     assert light.any() and np.allclose(a.radiance[light], [17, 12, 4])
-    assert a.stats["method"] == "exact" and a.stats["evaluations"] == a.stats["pixels_hit"]
+    # evaluated once: each pixel seeing another face, in front of the light's plane, with
+    # part of the light in front of the face's (the blocks' sides turned away are not)
+    lf, tiny = mesh.light.faces[0], 1e-9 * scene.diagonal
+    face, side, point = a.hits.face, a.hits.side, a.hits.point
+    seen = np.flatnonzero((face >= 0) & (face != lf))
+    front = point[seen] @ scene.face_normal[lf] - scene.face_offset[lf] > tiny
+    corners = scene.face_loops(lf)[0]
+    n_i = side[seen, None] * scene.face_normal[face[seen]]
+    sees = np.max(corners @ n_i.T, axis=0) - side[seen] * scene.face_offset[face[seen]] > tiny
+    assert a.stats["method"] == "exact" and a.stats["evaluations"] == np.sum(front & sees)
 
 
 # -- sparse reconstruction ----------------------------------------------------------------

@@ -140,7 +140,7 @@ class Complex(BuiltComplex):
         return light_mesh(self, light_face, light_group, faces)
 
     def render(self, eye, look_at, up=(0.0, 1.0, 0.0), fov=39.3, size=(512, 512), light_face=None, light_group=None,
-               radiance=None, samples=None, reference=None, seed=0):
+               radiance=None, samples=None, reference=None, seed=0, regions=False):
         """The direct illumination from an area light seen by a pinhole camera
         (:func:`render_light`).
 
@@ -160,14 +160,18 @@ class Complex(BuiltComplex):
         reference : int, optional
             Monte Carlo with this many light samples per pixel instead.
         seed : int
+        regions : bool
+            Label the pixels by the regions of the light's discontinuity mesh (made from
+            V1; the sparse reconstruction always is).
 
         Returns
         -------
         viscx.render.image.Render
-            ``radiance``: (h, w, 3) float64 linear radiance; ``label``: (h, w) int64 regions.
+            ``radiance``: (h, w, 3) float64 linear radiance; ``label``: (h, w) int64 the
+            pixels' (face, side, region) (region -1 without the mesh).
         """
         return render_light(self, eye, look_at, up, fov, size, light_face=light_face, light_group=light_group,
-                            radiance=radiance, samples=samples, reference=reference, seed=seed)
+                            radiance=radiance, samples=samples, reference=reference, seed=seed, regions=regions)
 
 
 def build(scene, levels=MAX_LEVEL, epsilon=None, relative_epsilon=None, weld=None, points=None, quiet=True):
@@ -309,14 +313,16 @@ def form_factor_matrix(query, tol=None, quiet=True):
 
 
 def render_light(query, eye, look_at, up=(0.0, 1.0, 0.0), fov=39.3, size=(512, 512), light_face=None,
-                 light_group=None, radiance=None, samples=None, reference=None, seed=0, progress=None):
-    """Render the direct illumination from an area light (:func:`viscx.render.image.render`
-    over the light's discontinuity mesh, :func:`viscx.queries.discontinuities.light_mesh`).
+                 light_group=None, radiance=None, samples=None, reference=None, seed=0, progress=None, regions=False):
+    """Render the direct illumination from an area light (:func:`viscx.render.image.render`).
+    The light's discontinuity mesh (:func:`viscx.queries.discontinuities.light_mesh`, from
+    the complex's V1) is made only for the sparse reconstruction (``samples``) and for
+    ``regions``: the exact image and the Monte Carlo reference need the scene only.
 
     Parameters
     ----------
     query : viscx.pipeline.BuiltComplex
-    eye, look_at, up, fov, size, light_face, light_group, radiance, samples, reference, seed
+    eye, look_at, up, fov, size, light_face, light_group, radiance, samples, reference, seed, regions
         See :meth:`Complex.render`.
     progress : callable, optional
         Called with the pixels done (Monte Carlo only).
@@ -328,6 +334,7 @@ def render_light(query, eye, look_at, up=(0.0, 1.0, 0.0), fov=39.3, size=(512, 5
     from viscx.queries.discontinuities import light_mesh
     from viscx.render.camera import Camera
     from viscx.render.image import render
+    from viscx.scene.light import light_of
 
     if samples is not None and reference is not None:
         raise ParameterError("give {samples} or {reference}, not both")
@@ -336,7 +343,10 @@ def render_light(query, eye, look_at, up=(0.0, 1.0, 0.0), fov=39.3, size=(512, 5
     if reference is not None and reference < 1:
         raise ParameterError(f"{{reference}} {int(reference)} must be at least 1")
     camera = Camera(eye, look_at, up, fov, int(size[0]), int(size[1]))
-    mesh = light_mesh(query, light_face, light_group)
+    if samples is not None or regions:
+        mesh, light = light_mesh(query, light_face, light_group), None
+    else:
+        mesh, light = None, light_of(query.scene, light_face, light_group)
     return render(query.scene, mesh, camera, radiance=radiance, samples=samples, reference=reference, seed=seed,
-                  progress=progress)
+                  progress=progress, light=light)
 

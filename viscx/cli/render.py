@@ -78,11 +78,15 @@ def render(ctx, file, eye, look_at, up, fov, size, light_face, light_group, radi
     if need > memory_budget():
         raise ViscxError(f"--size {size[0]} {size[1]} needs about {need / 2**30:.0f} GiB, over the memory budget "
                          f"({memory_budget() / 2**30:.1f} GiB; VISCX_MEMORY_BUDGET)")
+    # the discontinuity mesh (and so, from a scene file, the light's scoped build) only
+    # where regions are asked for: the exact image and Monte Carlo need the scene alone
+    regions = samples is not None or show_regions
     cx = open_light_query(file, light_face, light_group, check=lambda scene, light: emitter(scene, light, radiance),
-                          epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
+                          scene_only=not regions, epsilon=epsilon, relative_epsilon=relative_epsilon, weld=weld)
     with bar(total=size[0] * size[1], desc="monte carlo", quiet=quiet(ctx) or reference is None, unit="px") as b:
         result = render_light(cx, eye, look_at, up, fov, size, light_face=light_face, light_group=light_group,
-                              radiance=radiance, samples=samples, reference=reference, seed=seed, progress=b.update)
+                              radiance=radiance, samples=samples, reference=reference, seed=seed, progress=b.update,
+                              regions=regions)
     rgb, used = picture(result, result.light_faces, exposure, show_regions)
     stem = out.with_suffix("")
     write_npy(stem.with_suffix(".npy"), result.radiance.astype(np.float32))

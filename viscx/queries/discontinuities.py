@@ -1217,7 +1217,7 @@ def light_mesh(query, light_face=None, light_group=None, faces=()):
     return discontinuity_mesh(scene, query.arcs, light, faces)
 
 
-def open_light_query(path, light_face=None, light_group=None, check=None, **scene_options):
+def open_light_query(path, light_face=None, light_group=None, check=None, scene_only=False, **scene_options):
     """The complex a light's queries (discontinuity mesh, render) read: a viscx file's V1
     (a full build, which must hold V2, or a build scoped to this light: ``viscx build
     --light-group``), or for a scene file (OBJ, PLY, …) the *scoped* build of the light
@@ -1232,6 +1232,9 @@ def open_light_query(path, light_face=None, light_group=None, check=None, **scen
     check : callable, optional
         ``check(scene, light)`` raises for a query that cannot be answered (a light that
         emits nothing), called before anything is built.
+    scene_only : bool
+        The query needs the scene only (the exact render, :mod:`viscx.render.tiles`):
+        nothing is built from a scene file, and any viscx file's scene will do.
     **scene_options
         ``weld``, ``epsilon``, ``relative_epsilon`` for a scene file; a viscx file keeps
         the ones it was built with.
@@ -1257,6 +1260,8 @@ def open_light_query(path, light_face=None, light_group=None, check=None, **scen
     if not (Path(path).is_file() and h5py.is_hdf5(path)):
         scene = scene_of(path, **given)
         check(scene, light_of(scene, light_face, light_group))
+        if scene_only:
+            return build_complex(scene, quiet=True, levels=-1)
         return build_complex(scene, quiet=True, light_face=light_face, light_group=light_group)
     if given:
         names = ", ".join("{" + k + "}" for k in sorted(given))
@@ -1265,6 +1270,8 @@ def open_light_query(path, light_face=None, light_group=None, check=None, **scen
     cx = open_complex(path)
     scoped = light_option(cx.options)
     check(cx.scene, light_of(cx.scene, light_face, light_group))
+    if scene_only:
+        return cx
     if scoped is None:  # (the file opened once: its scene read and its structure checked once)
         return require_level(cx, "V2", path, hint=", or query the scene file itself")
     asked = {"light_face": int(light_face)} if light_face is not None else {"light_group": light_group}

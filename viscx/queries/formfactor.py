@@ -1094,6 +1094,26 @@ class PairResult:
     seconds: float = 0.0
 
 
+def target_frame(J, n_t):
+    """A target polygon in a 2-D basis of its plane, as the kernels of
+    :mod:`viscx.geometry.occlusion` want it: ``(origin, eu, ev, j2, j_loop, hull2, hull3)``.
+
+    J : list of (k, 3) float64 (outer loop counter-clockwise about n_t, holes clockwise);
+    n_t : (3,) float64 its normal, towards the points that see it.
+    """
+    eu, ev = plane_basis(n_t)
+    # a generic rotation of the basis: no edge of an axis-aligned scene is vertical in
+    # 2-D, so the slab sweep needs no vertical sides (viscx.geometry.occlusion)
+    c, s_ = np.cos(GENERIC_ANGLE), np.sin(GENERIC_ANGLE)
+    eu, ev = c * eu + s_ * ev, -s_ * eu + c * ev
+    origin = J[0][0].copy()
+    j2 = [np.stack([(l - origin) @ eu, (l - origin) @ ev], axis=1) for l in J]
+    allj = np.ascontiguousarray(np.concatenate(j2))
+    j_loop = np.concatenate([[0], np.cumsum([len(l) for l in j2])]).astype(np.int64)
+    h = hull_order(j2)  # counter-clockwise in 2-D
+    return origin, eu, ev, allj, j_loop, np.ascontiguousarray(allj[h]), np.ascontiguousarray(np.concatenate(J)[h])
+
+
 class PairSetup:
     """Everything x-independent of a pair (I side s, J side t) for the cubature.
 
@@ -1131,18 +1151,8 @@ class PairSetup:
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
     def frame(self):
-        """J' in a 2-D basis of its plane: ``(origin, eu, ev, j2, j_loop, hull2, hull3)``."""
-        eu, ev = plane_basis(self.n_t)
-        # a generic rotation of the basis: no edge of an axis-aligned scene is vertical in
-        # 2-D, so the slab sweep needs no vertical sides (viscx.geometry.occlusion)
-        c, s_ = np.cos(GENERIC_ANGLE), np.sin(GENERIC_ANGLE)
-        eu, ev = c * eu + s_ * ev, -s_ * eu + c * ev
-        origin = self.J[0][0].copy()
-        j2 = [np.stack([(l - origin) @ eu, (l - origin) @ ev], axis=1) for l in self.J]
-        allj = np.ascontiguousarray(np.concatenate(j2))
-        j_loop = np.concatenate([[0], np.cumsum([len(l) for l in j2])]).astype(np.int64)
-        h = hull_order(j2)  # counter-clockwise in 2-D
-        return origin, eu, ev, allj, j_loop, np.ascontiguousarray(allj[h]), np.ascontiguousarray(np.concatenate(self.J)[h])
+        """J' in a 2-D basis of its plane (:func:`target_frame`)."""
+        return target_frame(self.J, self.n_t)
 
     def kernel_for(self, occluders):
         """The arrays of :func:`viscx.geometry.occlusion.visible_form_factors` with these

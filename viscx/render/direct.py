@@ -150,7 +150,70 @@ class Locator:
                        len(self.receiver.regions))
 
 
-class DirectLighting:
+class Lighting:
+    """A scene lit by an emitter: the faces' reflectances and the light's emission (what
+    the Monte Carlo reference needs, :mod:`viscx.render.montecarlo`).
+
+    Parameters
+    ----------
+    scene : Scene
+    emitter : Emitter
+    """
+
+    def __init__(self, scene, emitter):
+        self.scene = scene
+        self.emitter = emitter
+        self.kd = reflectance(scene)
+        self._setups = {}
+
+    def _pairs(self, face, side):
+        """Per light face: its PairSetup with this receiver side, or None (cannot see it)."""
+        key = (int(face), int(side))
+        if key not in self._setups:
+            out = []
+            for l in self.emitter.light.faces:
+                if l == face:
+                    out.append(None)
+                    continue
+                s = PairSetup(self.scene, int(face), int(side), face_target(self.scene, int(l)), 1)
+                out.append(None if s.empty else s)
+            self._setups[key] = out
+        return self._setups[key]
+
+    def _reflected(self, face, side, points, kernel):
+        """Reflected radiance (m, 3) at points (m, 3) of one face seen from one side, light
+        face k's form factors with the occluders of ``kernel(k, setup)``
+        (:meth:`viscx.queries.formfactor.PairSetup.kernel_for`)."""
+        total = np.zeros((len(points), 3))
+        for k, setup in enumerate(self._pairs(face, side)):
+            if setup is None:
+                continue
+            # points behind the light's plane (or on it) do not see its front
+            front = points @ setup.n_t - setup.c_t > setup.tiny
+            if not np.any(front):
+                continue
+            f = np.zeros(len(points))
+            f[front] = setup.f(points[front], kernel(k, setup))
+            total += np.maximum(f, 0.0)[:, None] * self.emitter.radiance[k][None, :]
+        return total * self.kd[face][None, :]
+
+    def whole_radiance(self, face, side, points):
+        """Exact reflected radiance (m, 3) at points (m, 3) of one face seen from one side,
+        past every occluder of each (receiver, light face) pair (the faces meeting the
+        shaft of the whole receiver and light face): nothing culled per point, the
+        reference the culled evaluations are checked against."""
+        points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        return self._reflected(face, side, points, lambda k, setup: setup.kernel)
+
+    def emitted(self, face, side):
+        """(3,) float64: radiance a light face emits towards the seen side (zero elsewhere)."""
+        where = np.flatnonzero(self.emitter.light.faces == face)
+        if side > 0 and len(where):
+            return self.emitter.radiance[where[0]]
+        return np.zeros(3)
+
+
+class DirectLighting(Lighting):
     """Exact direct radiance of receiver points, region by region (module docstring).
 
     Parameters
@@ -162,15 +225,12 @@ class DirectLighting:
     """
 
     def __init__(self, scene, mesh, emitter):
-        self.scene = scene
+        super().__init__(scene, emitter)
         self.mesh = mesh
-        self.emitter = emitter
-        self.kd = reflectance(scene)
         self.is_light = np.zeros(scene.n_faces, bool)
         self.is_light[emitter.light.faces] = True
         self.receivers = {r.face: r for r in mesh.receivers}
         self._locators = {}
-        self._setups = {}
         self._kernels = {}
         self._culled = {}
         self._wanted = {}
@@ -193,20 +253,6 @@ class DirectLighting:
         return [rec.to3(g.outer)] + [rec.to3(h) for h in g.holes]
 
     # -- what is needed for one (face, side) -------------------------------------------
-    def _pairs(self, face, side):
-        """Per light face: its PairSetup with this receiver side, or None (cannot see it)."""
-        key = (int(face), int(side))
-        if key not in self._setups:
-            out = []
-            for l in self.emitter.light.faces:
-                if l == face:
-                    out.append(None)
-                    continue
-                s = PairSetup(self.scene, int(face), int(side), face_target(self.scene, int(l)), 1)
-                out.append(None if s.empty else s)
-            self._setups[key] = out
-        return self._setups[key]
-
     def want(self, face, regions):
         """Announce the regions of ``face`` whose points will be evaluated: their occluders
         are culled together (one numba call), the others never. A receiver has thousands
@@ -279,31 +325,13 @@ class DirectLighting:
         (m, 3) float64
         """
         points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        total = np.zeros((len(points), 3))
         if not len(points):
-            return total
+            return np.zeros((0, 3))
         self.stats["points"] += len(points)
         self.stats["regions"] += 1
         if region < 0:
             self.stats["unlocated"] += len(points)
-        for k, setup in enumerate(self._pairs(face, side)):
-            if setup is None:
-                continue
-            # points behind the light's plane (or on it) do not see its front
-            front = points @ setup.n_t - setup.c_t > setup.tiny
-            if not np.any(front):
-                continue
-            f = np.zeros(len(points))
-            f[front] = setup.f(points[front], self._kernel(face, side, region, k, setup))
-            total += np.maximum(f, 0.0)[:, None] * self.emitter.radiance[k][None, :]
-        return total * self.kd[face][None, :]
-
-    def emitted(self, face, side):
-        """(3,) float64: radiance a light face emits towards the seen side (zero elsewhere)."""
-        where = np.flatnonzero(self.emitter.light.faces == face)
-        if side > 0 and len(where):
-            return self.emitter.radiance[where[0]]
-        return np.zeros(3)
+        return self._reflected(face, side, points, lambda k, setup: self._kernel(face, side, region, k, setup))
 
 
 def regions_of(lighting, face, points):

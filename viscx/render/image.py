@@ -6,9 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from viscx.errors import ParameterError
 from viscx.render.camera import primary_hits
-from viscx.render.direct import DirectLighting, emitter, shade
+from viscx.render.direct import DirectLighting, Lighting, emitter, regions_of
 from viscx.render.sparse import LUMINANCE
+from viscx.render.tiles import shade_tiles
 
 #: The tone map's white: this percentile of the luminance of the lit, non-emitting pixels.
 WHITE_PERCENTILE = 99.0
@@ -82,13 +84,19 @@ def _labels(face, side, region):
     return out
 
 
-def render(scene, mesh, camera, radiance=None, samples=None, reference=None, seed=0, progress=None):
-    """Render the direct illumination of the light of ``mesh`` (module docstring).
+def render(scene, mesh, camera, radiance=None, samples=None, reference=None, seed=0, progress=None, light=None):
+    """Render the direct illumination of an area light (module docstring).
+
+    The exact image is evaluated tile by tile (:func:`viscx.render.tiles.shade_tiles`: no
+    discontinuity mesh needed); the mesh, when given, labels its pixels by their regions
+    (``--show-regions``). The sparse reconstruction needs the mesh (it interpolates inside
+    its regions); the Monte Carlo reference does not.
 
     Parameters
     ----------
     scene : Scene
-    mesh : viscx.queries.discontinuities.DiscontinuityMesh
+    mesh : viscx.queries.discontinuities.DiscontinuityMesh or None
+        The light's discontinuity mesh; None with ``light``.
     camera : viscx.render.camera.Camera
     radiance : (3,) float, optional
         The light's radiance (default: its material's Ke).
@@ -99,22 +107,29 @@ def render(scene, mesh, camera, radiance=None, samples=None, reference=None, see
     seed : int
     progress : callable, optional
         Called with pixels done (Monte Carlo only).
+    light : viscx.scene.light.Light, optional
+        The light when no mesh is given.
 
     Returns
     -------
     Render
     """
+    if mesh is None and samples is not None:
+        raise ParameterError("{samples} interpolates inside the regions of the light's discontinuity mesh: give the mesh")
+    light = mesh.light if mesh is not None else light
     t0 = time.perf_counter()
-    lighting = DirectLighting(scene, mesh, emitter(scene, mesh.light, radiance))
+    em = emitter(scene, light, radiance)
+    lighting = Lighting(scene, em) if mesh is None else DirectLighting(scene, mesh, em)
     hits = primary_hits(scene, camera)
     t1 = time.perf_counter()
     stats = {"pixels": int(len(hits.face)), "pixels_hit": int(np.sum(hits.face >= 0)), "primary_s": round(t1 - t0, 4)}
     stderr = None
+    no_region = np.full(len(hits.face), -1, np.int64)
     if reference is not None:
         from viscx.render.montecarlo import reference_radiance
 
         rad, err = reference_radiance(lighting, hits.face, hits.side, hits.point, int(reference), seed, progress)
-        label = _labels(hits.face, hits.side, np.full(len(hits.face), -1, np.int64))
+        label = _labels(hits.face, hits.side, no_region)
         stderr = err.reshape(*hits.shape, 3)
         stats.update(method="monte carlo", light_samples=int(reference), rays=int(reference) * stats["pixels_hit"],
                      noise=float(np.sqrt(np.mean(err[hits.face >= 0] ** 2))) if stats["pixels_hit"] else 0.0)
@@ -126,14 +141,14 @@ def render(scene, mesh, camera, radiance=None, samples=None, reference=None, see
         stats.update(method="sparse", samples=int(len(rec.samples)), corners=int(len(rec.corners)),
                      evaluations=int(rec.evaluations), regions=int(label.max() + 1))
     else:
-        rad, region = shade(lighting, hits.face, hits.side, hits.point)
+        rad, tiles = shade_tiles(Lighting(scene, em), hits)
+        region = no_region if mesh is None else regions_of(lighting, hits.face, hits.point)
         label = _labels(hits.face, hits.side, region)
-        stats.update(method="exact", regions=int(label.max() + 1), evaluations=int(lighting.stats["points"]),
-                     unlocated=int(lighting.stats["unlocated"]))
+        stats.update(method="exact", regions=int(label.max() + 1), **tiles)
     stats["shading_s"] = round(time.perf_counter() - t1, 4)
     stats["seconds"] = round(time.perf_counter() - t0, 4)
     return Render(rad.reshape(*hits.shape, 3), label.reshape(hits.shape), hits, stats, stderr,
-                  np.asarray(mesh.light.faces, np.int64))
+                  np.asarray(light.faces, np.int64))
 
 
 def picture(result, light_faces, exposure=None, show_regions=False):

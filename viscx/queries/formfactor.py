@@ -78,8 +78,11 @@ MATRIX_TOL = 1e-6
 GENERIC_ANGLE = 0.5873926
 #: The cubature's first triangles are no longer than this fraction of the pair's extent.
 MIN_SPLIT = 4
-import os
-THREE_LEVEL_SPLIT = float(os.environ.get("FF_TLS", "4"))
+#: The first triangles of a matrix row on three levels (:class:`ThreeLevelRowCubature`)
+#: are no longer than this fraction of the row's extent: its 16 grandchildren are each
+#: evaluated, so the nodes lie as densely as those of the children of triangles a
+#: :data:`MIN_SPLIT` start gives, where a kink-cut row (:class:`RowCubature`) starts.
+THREE_LEVEL_SPLIT = 2
 
 
 def _unit(v):
@@ -2114,7 +2117,10 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
     cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
-    if not kinked and THREE_LEVEL_SPLIT != MIN_SPLIT:
+    if not kinked:
+        # three levels: the grandchildren of triangles twice as long lie as densely as the
+        # two-level row's children (Cornell: what a kink-cut start needs to see its small
+        # shadows); office(300)'s box outer sides at 1e-4: a cabinet side 4,704 -> 1,176 points
         tri = start_triangles(cells, extent / THREE_LEVEL_SPLIT)
     cubature = RowCubature if kinked else ThreeLevelRowCubature
     # the row's columns: the sides of the faces it may see or touch, then the sky

@@ -314,3 +314,29 @@ def test_an_open_box_is_never_empty(cornell):
     faces = np.arange(cornell.n_faces)
     for f in np.flatnonzero(face_box >= 0):
         assert ff.closed_form_row(cornell, int(f), -1, faces) is None
+
+
+def test_covered_cells_under_a_box_need_no_hole(office60, rng):
+    """A covered cell under an empty closed box standing on the target is hidden by the box
+    from every point of another face (``target_holes``): without it as a hole the pair
+    kernel's hidden part grows by exactly the cell's unoccluded F at every point (the box
+    hides all of it), so the pair's F is unchanged. A face of that box keeps its holes."""
+    from viscx.geometry.formfactor import point_to_polygon
+
+    s = office60
+    i, j = int(s.group_faces("ceiling")[0]), int(s.group_faces("floor")[0])
+    covered = ff.covered_cells(s, j, 1)
+    assert len(covered) >= 6 and ff.target_holes(s, i, j, 1) == []
+    pts = face_points(s, i, 800, rng)
+    _, with_holes = _pair_values(s, i, j, pts, True, holes=True)
+    _, without = _pair_values(s, i, j, pts, True, holes=False)
+    n = np.ascontiguousarray(np.broadcast_to(s.face_normal[i], (len(pts), 3)))
+    cells_f = sum(point_to_polygon(pts, n, [c]) for c in covered)
+    assert np.abs(without - with_holes - cells_f).max() <= 1e-12
+    assert cells_f.max() > 1e-3
+    # the box's own face (a cabinet's top, emitting from its inner side) keeps the holes
+    face_box = ff.closed_boxes(s)[0]
+    _, elements = ff.contact_cells(s, j, 1)
+    k = int(elements[0] // 2)
+    own = np.flatnonzero(face_box == face_box[k])
+    assert len(ff.target_holes(s, int(own[own != k][0]), j, 1)) >= 1

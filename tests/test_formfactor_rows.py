@@ -121,6 +121,18 @@ def test_faces_lying_on_faces():
     assert m.reciprocity_error() < 1e-6
 
 
+def test_reciprocity_in_units_of_the_smaller_and_the_larger_face():
+    """|A_a F_ab − A_b F_ba| over min(A) and over max(A): a big face (area 100) whose entry
+    to a small one (area 1) is 1e-4 off weighs 100 times in the small face's F units."""
+    z = np.zeros
+    # faces 0 (area 1) and 1 (area 100): F[front 0 -> front 1] = 0.5, F[front 1 -> front 0] = 0.005 + 1e-4
+    m = ff.Matrix(np.array([0, 1, 1, 2, 2]), np.array([2, 0]), np.array([0.5, 0.005 + 1e-4]), z(2), z(4), z(4),
+                  np.array([1.0, 100.0]), {}, 0.0, 1e-4)
+    assert abs(m.reciprocity_error() - 1e-2) < 1e-12
+    assert abs(m.reciprocity_error("larger") - 1e-4) < 1e-12
+    assert m.summary()["reciprocity_max_error_larger"] == m.reciprocity_error("larger")
+
+
 def touching_boxes(rng):
     """A 10 × 10 floor (face 0, normal +y) with, on it, a row of two to four axis-aligned
     closed boxes each touching the next along a whole face, a box stacked on the first

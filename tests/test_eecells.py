@@ -589,6 +589,39 @@ def test_loops_closed_across_a_gap_are_probed_again(monkeypatch):
     assert (2, 9) not in {tuple(p) for p in complete_pairs(knocked).tolist()}
 
 
+
+def test_starts_at_the_same_event_are_linked_first(monkeypatch):
+    """Three boxes of the 300-polygon city (random_boxes(300, keep=[32, 39, 45]),
+    docs/skeleton.md "EE-cells", rule 17). In the square of the floor's edge 3 and box 39's edge
+    19, a triangle 2.5e-4 of the square wide (front faces 272 and 276 of box 45, split by an
+    EEE arc of box 45's edge) hangs below a sky -> sky cell whose boundary runs along its two
+    upper sides, from the base's left corner R up to the apex and down to its right corner Q,
+    then on along the base's line. R and Q lie 2.8e-4 apart, within the join tolerance
+    (4.5e-4), so from Q FormLoops could go on at R as well as along the base's line (the
+    element starting at Q itself); R's element turns back by 0.34 rad only, clockwise first, and
+    took the link: a loop of the triangle's two sides winding by 0 (an open chain that is no
+    point), and the outer loop jumped from R to Q. A start at the same event as an end (within
+    SQUARE_SAME_POINT_EPSILONS) is now linked before one a merged event away: the pair is
+    complete and agrees with the ray caster; knocked out, it is open."""
+    import sys
+    from pathlib import Path
+
+    import viscx.skeleton.eecells as eecells
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from scenes import random_boxes
+
+    scene = random_boxes(300, keep=[32, 39, 45])
+    arcs = build_arcs(scene, build_nodes(scene))
+    ee = build_eecells(scene, arcs)
+    assert (3, 19) in {tuple(p) for p in complete_pairs(ee).tolist()}
+    judged, agreed, _, wrong = ray_oracle(scene, arcs, ee, [[3, 19]], n=1000)
+    assert judged >= 950 and agreed == judged, wrong[:5]
+    form_loops = eecells.form_loops
+    monkeypatch.setattr(eecells, "form_loops", lambda el, group, tolerance, near=None: form_loops(el, group, tolerance))
+    knocked = build_eecells(scene, arcs)
+    assert (3, 19) not in {tuple(p) for p in complete_pairs(knocked).tolist()}
+
 def check_random_scene(seed, points_seed=0):
     scene, arcs, ee = built(f"rand:{seed}")
     done = complete_pairs(ee)

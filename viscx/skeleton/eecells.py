@@ -147,6 +147,7 @@ from viscx.tolerances import (
     PARALLEL_TOLERANCE,
     SQUARE_COVER_TOLERANCE,
     SQUARE_JOIN_EPSILONS,
+    SQUARE_SAME_POINT_EPSILONS,
     SQUARE_REFERENCE_OFFSET,
     WINDING_TOLERANCE,
 )
@@ -1863,8 +1864,11 @@ def _groups(el):
 
 
 def _loops(scene, el):
-    """:func:`loops.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
-    return form_loops(el, _groups(el), join_tolerance(scene, el.e1, el.e2))
+    """:func:`loops.form_loops` of the elements: (order, loop_offsets, chain_offsets); a start
+    at the same event as an end (within SQUARE_SAME_POINT_EPSILONS) is linked before one a
+    merged event away (docs/skeleton.md, "EE-cells", rule 17)."""
+    tol = join_tolerance(scene, el.e1, el.e2)
+    return form_loops(el, _groups(el), tol, tol * (SQUARE_SAME_POINT_EPSILONS / SQUARE_JOIN_EPSILONS))
 
 
 def _with_segments(scene, arcs, squares, segments, el, loops):

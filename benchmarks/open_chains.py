@@ -51,7 +51,7 @@ def chains_of(scene, arcs):
     if len(segments.e1):
         el, loops = E._with_segments(scene, arcs, squares, segments, el, loops)
     order, loop_offsets, chain_offsets = loops
-    bad = np.abs(np.abs(E.windings(el.take(order), loop_offsets)) - 2 * np.pi) > WINDING_TOLERANCE
+    bad = np.abs(np.abs(E.windings(el.take(order), loop_offsets, bridged=True)) - 2 * np.pi) > WINDING_TOLERANCE
     order, loop_offsets, chain_offsets = E._demote(order, loop_offsets, chain_offsets, bad)
     return el, order, loop_offsets, chain_offsets, E.point_chains(scene, el.take(order), chain_offsets)
 

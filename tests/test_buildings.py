@@ -668,9 +668,9 @@ def test_probe_room_stops_short_of_the_next_boundary():
     from viscx.skeleton import eecells
 
     # obstacles of square 7: the line x1 = 0.5 + 4e-6 (x2 in [0, 1]) and the probe's own piece;
-    # of square 8: lines x1 = 0.5 + 3e-7 and x1 = 0.5 - 1e-7
-    start = np.array([[0.5 + 4e-6, 0.0], [0.5, 0.4], [0.5 + 3e-7, 0.0], [0.5 - 1e-7, 0.0]])
-    end = np.array([[0.5 + 4e-6, 1.0], [0.5, 0.6], [0.5 + 3e-7, 1.0], [0.5 - 1e-7, 1.0]])
+    # of square 8: lines x1 = 0.5 + 3e-6 and x1 = 0.5 - 1e-7
+    start = np.array([[0.5 + 4e-6, 0.0], [0.5, 0.4], [0.5 + 3e-6, 0.0], [0.5 - 1e-7, 0.0]])
+    end = np.array([[0.5 + 4e-6, 1.0], [0.5, 0.6], [0.5 + 3e-6, 1.0], [0.5 - 1e-7, 1.0]])
     middle = (start + end) / 2
     key = np.array([7, 7, 8, 8])
     at = np.array([[0.5, 0.5]] * 5)
@@ -680,10 +680,10 @@ def test_probe_room_stops_short_of_the_next_boundary():
     at_key = np.array([7, 7, 7, 8, 8])
     got = eecells.probe_room(key, start, middle, end, at_key, at, direction, step, own)
     # towards the line 4e-6 away: 2e-6; away from it: the whole step; a step shorter than
-    # the room: whole; square 8's line 3e-7 away: the floor (1.5e-7 is below it); its line
+    # the room: whole; square 8's line 3e-6 away: the floor (1.5e-6 is below it); its line
     # 1e-7 behind: closer than the floor, passed
     floor = eecells.PROBE_ROOM_FLOOR * 1e-5
-    assert 1.5e-7 < floor < 3e-7
+    assert 1.5e-6 < floor < 3e-6
     np.testing.assert_allclose(got, [2e-6, 1e-5, 1e-6, floor, 1e-5], rtol=1e-9)
 
 

@@ -774,13 +774,8 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
 
 
 #: A probe stopped by another boundary piece moves at least this fraction of its step (a
-#: piece closer than that to the middle is the same curve given twice, or crosses there):
-#: a tenth of epsilon. At a fifth (1 epsilon), the fine probe off an EEE arc beside a sliver
-#: thinner than epsilon along its edge landed beyond the arc across it, and the sliver's two
-#: sides got pairs differing in the front blocker (random_boxes(300), pair (58, 353): 1.5e-5 of
-#: the square high at the probe, 1 epsilon 1.7e-5 along edge 353; docs/skeleton.md "EE-cells",
-#: rule 20).
-PROBE_ROOM_FLOOR = 0.02
+#: piece closer than that to the middle is the same curve given twice, or crosses there).
+PROBE_ROOM_FLOOR = 0.2
 #: V2 segments of one square closer than this many epsilon along their edge are one line.
 SEGMENT_MERGE_EPSILONS = 1
 

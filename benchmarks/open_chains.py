@@ -8,7 +8,8 @@ The EE-cells are built as ``build_eecells`` builds them, one chunk of squares (V
 and the demotion of loops whose winding is not ±2π included). Each end of a chain that is no
 point chain (``eecells.point_chains``) is compared with the elements of its square ending
 (for a chain's start) or starting (for its end) within the join tolerance: one of the chain's
-own group (on a closed loop, or on another chain), one whose pair differs in the front or the
+own group (its own chain's other end: a loop demoted for its winding; on a closed loop; or on
+another chain), one whose pair differs in the front or the
 back blocker alone, another pair, or none. Ends are counted by that partner, whether they lie
 on a side of the square, the kind of the element (EEE, VE, XE arc or a segment of V2) and the
 event its arc ends at there ("cut": a piece's end inside its arc); the first pairs of each
@@ -51,7 +52,7 @@ def chains_of(scene, arcs):
     if len(segments.e1):
         el, loops = E._with_segments(scene, arcs, squares, segments, el, loops)
     order, loop_offsets, chain_offsets = loops
-    bad = np.abs(np.abs(E.windings(el.take(order), loop_offsets)) - 2 * np.pi) > WINDING_TOLERANCE
+    bad = np.abs(np.abs(E.windings(el.take(order), loop_offsets, bridged=True)) - 2 * np.pi) > WINDING_TOLERANCE
     order, loop_offsets, chain_offsets = E._demote(order, loop_offsets, chain_offsets, bad)
     return el, order, loop_offsets, chain_offsets, E.point_chains(scene, el.take(order), chain_offsets)
 
@@ -80,6 +81,8 @@ def classify(scene, arcs, examples=2):
         e, p = ends[i], el.pair
         same = group[j] == group[e]
         flags = {
+            # a loop whose winding is no ±2π, demoted: its end meets its own start
+            "own group (its own chain)": same & (chain_of[j] == chain_of[e]),
             "own group (on a loop)": same & (chain_of[j] < 0),
             "own group (on a chain)": same & (chain_of[j] >= 0),
             "front differs": np.all(p[j, :2] == p[e, :2], axis=1) & np.any(p[j, 2:] != p[e, 2:], axis=1),

@@ -589,6 +589,82 @@ def test_loops_closed_across_a_gap_are_probed_again(monkeypatch):
     assert (2, 9) not in {tuple(p) for p in complete_pairs(knocked).tolist()}
 
 
+
+def test_starts_at_the_same_event_are_linked_first(monkeypatch):
+    """Three boxes of the 300-polygon city (random_boxes(300, keep=[32, 39, 45]),
+    docs/skeleton.md "EE-cells", rule 17). In the square of the floor's edge 3 and box 39's edge
+    19, a triangle 2.5e-4 of the square wide (front faces 272 and 276 of box 45, split by an
+    EEE arc of box 45's edge) hangs below a sky -> sky cell whose boundary runs along its two
+    upper sides, from the base's left corner R up to the apex and down to its right corner Q,
+    then on along the base's line. R and Q lie 2.8e-4 apart, within the join tolerance
+    (4.5e-4), so from Q FormLoops could go on at R as well as along the base's line (the
+    element starting at Q itself); R's element turns back by 0.34 rad only, clockwise first, and
+    took the link: a loop of the triangle's two sides winding by 0 (an open chain that is no
+    point), and the outer loop jumped from R to Q. A start at the same event as an end (within
+    SQUARE_SAME_POINT_EPSILONS) is now linked before one a merged event away: the pair is
+    complete and agrees with the ray caster; knocked out, it is open."""
+    import sys
+    from pathlib import Path
+
+    import viscx.skeleton.eecells as eecells
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from scenes import random_boxes
+
+    scene = random_boxes(300, keep=[32, 39, 45])
+    arcs = build_arcs(scene, build_nodes(scene))
+    ee = build_eecells(scene, arcs)
+    assert (3, 19) in {tuple(p) for p in complete_pairs(ee).tolist()}
+    judged, agreed, _, wrong = ray_oracle(scene, arcs, ee, [[3, 19]], n=1000)
+    assert judged >= 950 and agreed == judged, wrong[:5]
+    form_loops = eecells.form_loops
+    monkeypatch.setattr(eecells, "form_loops", lambda el, group, tolerance, near=None: form_loops(el, group, tolerance))
+    knocked = build_eecells(scene, arcs)
+    assert (3, 19) not in {tuple(p) for p in complete_pairs(knocked).tolist()}
+
+
+def test_constant_coordinates_and_cusps_close_their_loops(monkeypatch):
+    """Six boxes of the 300-polygon city (random_boxes(300, keep=[17, 18, 21, 31, 40, 47]),
+    docs/skeleton.md "EE-cells", rules 18 and 19).
+
+    Rule 18: in the squares of box 21's edge 35 and box 47's edges 64 and 65 (two edges at one
+    corner: V1's pencil through the point where edge 35 crosses their plane, x1 constant) a
+    triangle is bounded by that pencil, whose x1 at its two ends differs by 4.5e-14 with its
+    middle equal to one of them: its Bézier weight was clamped to 1e-12 and its end tangent ran
+    0.045 along x1, against 0.03 along x2, so the loop's winding was 0. Such a coordinate is
+    now constant (weight 1/2).
+
+    Rule 19: in the square of box 21's edge 39 and box 40's edge 62, a sliver 0.03 of the
+    square long and 3e-5 high (face 4 of box 17 in front, two EEE arcs of box 17's edges
+    nearly antiparallel) lost its short side: V1 merged the two events 1.7 epsilon apart
+    along edge 62 that end it. Its loop closes across that gap, within the join tolerance,
+    where one turn between the antiparallel tangents is ±π by their rounding, and it wound by
+    0; it now turns along the gap at such a cusp. All three pairs are complete and agree with
+    the ray caster; each rule knocked out leaves its pairs open."""
+    import sys
+    from pathlib import Path
+
+    import viscx.skeleton.eecells as eecells
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from scenes import random_boxes
+
+    scene = random_boxes(300, keep=[17, 18, 21, 31, 40, 47])
+    arcs = build_arcs(scene, build_nodes(scene))
+    pairs = {(35, 64), (35, 65), (39, 62)}
+    ee = build_eecells(scene, arcs)
+    assert pairs <= {tuple(p) for p in complete_pairs(ee).tolist()}
+    judged, agreed, _, wrong = ray_oracle(scene, arcs, ee, sorted(pairs), n=500)
+    assert judged >= 1400 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(eecells, "_CONSTANT_SPAN", 1e-14)
+    knocked = {tuple(p) for p in complete_pairs(build_eecells(scene, arcs)).tolist()}
+    assert pairs - knocked == {(35, 64), (35, 65)}
+    monkeypatch.undo()
+    windings = eecells.windings
+    monkeypatch.setattr(eecells, "windings", lambda el, loop_offsets, bridged=False: windings(el, loop_offsets))
+    knocked = {tuple(p) for p in complete_pairs(build_eecells(scene, arcs)).tolist()}
+    assert pairs - knocked == {(39, 62)}
+
 def check_random_scene(seed, points_seed=0):
     scene, arcs, ee = built(f"rand:{seed}")
     done = complete_pairs(ee)

@@ -157,6 +157,10 @@ SPHERE_COVER_TOLERANCE = 1e-6
 #: Ends of two elements closer than this many epsilon (along the edges) are one point of
 #: the square: two links of a V1 merge, as JOIN_EPSILONS on the sphere.
 SQUARE_JOIN_EPSILONS = 2 * MERGE_EPSILONS
+#: ... and closer than this many epsilon, the same event (rounding apart: V1 puts the ends of
+#: arcs meeting at one event within 1e-5 of it, merged events 1e-3 of it apart or more,
+#: measured on random_boxes(300)); FormLoops links those first (docs/skeleton.md, "EE-cells", rule 17).
+SQUARE_SAME_POINT_EPSILONS = 1e-3
 #: A loop's reference point lies this far (square units, at most a thousandth of the
 #: element) left of its longest element.
 SQUARE_REFERENCE_OFFSET = 1e-9

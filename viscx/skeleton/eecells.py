@@ -137,16 +137,21 @@ from viscx.skeleton.loops import (
     TURNING_DECIMALS,
     cells_of_loops,
     chain_extents,
+    corner_turns,
     form_loops,
+    loop_successors,
     signed_angle,
-    turning_sums,
     unique_elements,
 )
 from viscx.tolerances import (
     ANGLE_TOLERANCE,
+    CUSP_ANGLE,
+    CUSP_GAP,
     PARALLEL_TOLERANCE,
+    SPIKE_ANGLE,
     SQUARE_COVER_TOLERANCE,
     SQUARE_JOIN_EPSILONS,
+    SQUARE_SAME_POINT_EPSILONS,
     SQUARE_REFERENCE_OFFSET,
     WINDING_TOLERANCE,
 )
@@ -162,6 +167,9 @@ REFERENCE_AT = (np.sqrt(5.0) - 1) / 2
 BLOCKER_CHUNK = 1 << 20
 #: Clamp of the Bézier weights (a coordinate constant along its element has w = 1/2).
 _W_MIN = 1e-12
+#: A coordinate whose ends lie closer than this (square units: rounding of the points computed
+#: on the edges) is constant along its element.
+_CONSTANT_SPAN = 1e-12
 #: Kinds of boundary element: a piece of a V1 arc; V2's own segments of the square (a
 #: side; a pencil x1 = c, the lines through e1(c) in the plane of e2 and a third edge;
 #: a pencil x2 = c likewise), where V1 has no arc (:func:`segment_pieces`).
@@ -636,8 +644,11 @@ def _arc_curves(scene, arcs, arc, e1, e2, interval):
     span = end - start
     with np.errstate(divide="ignore", invalid="ignore"):
         w = (middle - start) / span
-    # a constant coordinate (or one whose middle is off its ends' range: rounding) is linear
-    w = np.where(np.isfinite(w) & (np.abs(span) > 1e-14), w, 0.5)
+    # a constant coordinate (or one whose middle is off its ends' range: rounding) is linear:
+    # a pencil's x1 computed at its ends 4.5e-14 apart, its middle equal to one of them, had w
+    # clamped to _W_MIN and an end tangent 0.045 along x1, a loop's corner wrong by 1.3 rad
+    # (docs/skeleton.md "EE-cells", rule 18)
+    w = np.where(np.isfinite(w) & (np.abs(span) > _CONSTANT_SPAN), w, 0.5)
     return start, middle, end, np.clip(w, _W_MIN, 1 - _W_MIN)
 
 
@@ -1569,9 +1580,11 @@ def _bounding_elements(scene, arcs, arc, e1, e2, interval, kind, probe, curves=N
 # loops in the square (elements of loop j contiguous: loop_offsets[j]:loop_offsets[j + 1])
 
 
-def windings(el, loop_offsets):
+def windings(el, loop_offsets, bridged=False):
     """Winding of each loop (Hoberock et al. Fig. 7): the turning angles at its corners plus the
     angle each element's tangent turns along it (left turns positive).
+
+    With ``bridged``, a loop turns across the gap at a cusp (:func:`_cusp_turns`).
 
     Returns
     -------
@@ -1581,7 +1594,39 @@ def windings(el, loop_offsets):
     n = loop_offsets[-1]
     loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
     along = signed_angle(el.start_tangent[:n], el.end_tangent[:n], el.end[:n])
-    return turning_sums(el, loop_offsets) + np.bincount(loop_of, weights=along, minlength=len(loop_offsets) - 1)
+    turn = _cusp_turns(el, loop_offsets) if bridged else corner_turns(el, loop_offsets)
+    return np.bincount(loop_of, weights=turn + along, minlength=len(loop_offsets) - 1)
+
+
+def _cusp_turns(el, loop_offsets):
+    """:func:`loops.corner_turns`, but where a loop turns back at a corner (within CUSP_ANGLE
+    of ±π) whose gap, closed by FormLoops within the join tolerance, is longer than CUSP_GAP,
+    the turn runs along the gap, at both of its ends (as the V-cells' cusps,
+    :func:`vcells.sphere_turning_sums`), unless the gap runs straight back along one of the
+    two elements (within SPIKE_ANGLE).
+
+    A sliver cell whose short side V1 merged away (two events 1.7 epsilon apart along one
+    edge, the sliver 0.03 of the square long: random_boxes(300), pair (267, 494)) closes
+    across that side's gap with its two long sides antiparallel: one turn between their
+    tangents is ±π by the sign of their rounding, not by the side the gap lies on, and the
+    loop wound by 0 (docs/skeleton.md "EE-cells", rule 19).
+
+    Returns
+    -------
+    (n,) float
+    """
+    n = loop_offsets[-1]
+    nxt, _ = loop_successors(loop_offsets)
+    turn = corner_turns(el, loop_offsets)
+    gap = el.start[nxt] - el.end[:n]
+    cusp = np.flatnonzero((np.abs(turn) > np.pi - CUSP_ANGLE) & (row_norms(gap) > CUSP_GAP))
+    if len(cusp):
+        at = el.end[cusp]
+        at_p = signed_angle(el.end_tangent[cusp], gap[cusp], at)
+        at_q = signed_angle(gap[cusp], el.start_tangent[nxt[cusp]], at)
+        spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
+        turn[cusp] = np.where(spike, turn[cusp], at_p + at_q)
+    return turn
 
 
 @njit(cache=True, inline="always")
@@ -1821,14 +1866,15 @@ def squares_cells(scene, arcs, squares):
         el, loops = _with_segments(scene, arcs, squares, segments, el, loops)
     order, loop_offsets, chain_offsets = loops
     group = _groups(el)
-    turning = windings(el.take(order), loop_offsets)
-    # a closed boundary winds by ±2π; anything else closed only within the join tolerance
-    # (e.g. one spurious arc shorter than it, meeting itself) and is an open chain
+    # a closed boundary winds by ±2π (across the gaps of cusps: rule 19); anything else closed
+    # only within the join tolerance (e.g. one spurious arc shorter than it, meeting itself)
+    # and is an open chain
+    turning = windings(el.take(order), loop_offsets, bridged=True)
     bad = np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE
     order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets, bad)
     walk = el.take(order)
     del el
-    turning = windings(walk, loop_offsets)
+    turning = windings(walk, loop_offsets, bridged=True)
     area = loop_areas(walk, loop_offsets)
     ref = reference_points(walk, loop_offsets)
     loop_group = group[order[loop_offsets[:-1]]]
@@ -1863,8 +1909,11 @@ def _groups(el):
 
 
 def _loops(scene, el):
-    """:func:`loops.form_loops` of the elements: (order, loop_offsets, chain_offsets)."""
-    return form_loops(el, _groups(el), join_tolerance(scene, el.e1, el.e2))
+    """:func:`loops.form_loops` of the elements: (order, loop_offsets, chain_offsets); a start
+    at the same event as an end (within SQUARE_SAME_POINT_EPSILONS) is linked before one a
+    merged event away (docs/skeleton.md, "EE-cells", rule 17)."""
+    tol = join_tolerance(scene, el.e1, el.e2)
+    return form_loops(el, _groups(el), tol, tol * (SQUARE_SAME_POINT_EPSILONS / SQUARE_JOIN_EPSILONS))
 
 
 def _with_segments(scene, arcs, squares, segments, el, loops):

@@ -224,14 +224,16 @@ def chain_extents(walk, chain_offsets):
     return extent
 
 
-def form_loops(el, group, tolerance):
+def form_loops(el, group, tolerance, near=None):
     """Chain each group's elements end to start into loops (Hoberock et al. §5.3 FormLoops).
 
     Candidates to follow an element are the elements of its group starting
     within ``tolerance`` of its end; the first clockwise from the reversed
     incoming tangent wins, exact ties to the smaller id, each element followed
     at most once. Elements that cannot lie on a loop (no candidate before or
-    after them, repeatedly) choose last.
+    after them, repeatedly) choose last; with ``near``, so do links whose start lies
+    farther than ``near`` from the end (a start at the same event, only rounding apart,
+    before one a merged event away, whatever their angles).
 
     Parameters
     ----------
@@ -242,6 +244,8 @@ def form_loops(el, group, tolerance):
     group : (k,) int
     tolerance : float or (k,) float
         Per element: how far its end may be from a start it is joined to.
+    near : float or (k,) float, optional
+        Per element: the distance within which a start is the same point as its end.
 
     Returns
     -------
@@ -259,7 +263,10 @@ def form_loops(el, group, tolerance):
     cw = np.mod(-signed_angle(-el.end_tangent[i], el.start_tangent[j], el.end[i]), 2 * np.pi)
     cw = np.where(cw <= 1e-12, 2 * np.pi, cw)  # going straight back is the last choice
     closable = _closable_links(len(el), i, j)
-    pick = np.lexsort([j, i, cw, ~closable])
+    far = np.zeros(len(i), bool)
+    if near is not None:
+        far = row_norms(el.end[i] - el.start[j]) > np.broadcast_to(near, (len(el),))[i]
+    pick = np.lexsort([j, i, cw, far, ~closable])
     return _trace(_greedy_match(len(el), i[pick], j[pick]))
 
 

@@ -2131,6 +2131,17 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
 
 
+def load_row_kernels(scene):
+    """Load (or compile) the numba kernels of :func:`row_form_factors` with the types its
+    calls have, on no points: a parent that does so before forking its workers loads them
+    once (~0.4 CPU s on the Cornell box) instead of once per worker."""
+    n_i = np.asarray(scene.face_normal[0], np.float64)
+    eu, ev = plane_basis(n_i)
+    point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, *closed_boxes(scene))
+    none_i, none_f = np.zeros(0, np.int64), np.zeros((0, 3))
+    shaft_meets(np.zeros((0, 3, 3)), none_f, none_f, n_i, none_i, none_i, none_f, none_i, none_i, none_f, 1.0)
+
+
 _POOL_SCENE = None
 
 
@@ -2252,6 +2263,7 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     n = scene.n_faces
     faces = np.arange(n, dtype=np.int64)
     rows = [(i, s) for i in range(n) for s in SIDES]
+    load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
     return assemble_matrix(scene, results, tol, time.perf_counter() - t0)

@@ -226,10 +226,16 @@ def test_a_sliver_slab_does_not_hand_a_wrong_owner_on(cornell):
     assert_columns_equal_pairs(cornell, 15, pts, h, side=side)
 
 
-def test_hull_order_of_a_convex_loop_is_qhulls(rng):
+def _cyclic(seq, first):
+    seq = list(seq)
+    k = seq.index(first)
+    return seq[k:] + seq[:k]
+
+
+def test_hull_order_is_qhulls(rng):
     """The pairs' hulls (:func:`viscx.queries.formfactor.hull_order`): a single strictly
-    convex counter-clockwise loop is its own hull (no Qhull); a clockwise, non-convex or
-    holed one goes to Qhull; both give the same hull (as a cyclic sequence)."""
+    convex counter-clockwise loop is its own hull; a clockwise, non-convex or holed one goes
+    to the monotone chain; both give Qhull's hull (as a cyclic sequence)."""
     from scipy.spatial import ConvexHull
 
     for k in (3, 4, 7):
@@ -238,8 +244,19 @@ def test_hull_order_of_a_convex_loop_is_qhulls(rng):
         fast = ff.hull_order([loop])
         assert list(fast) == list(range(k))
         qh = list(ConvexHull(loop).vertices)
-        assert qh == list(fast[qh[0]:]) + list(fast[:qh[0]])
-        cw = ff.hull_order([loop[::-1]])  # clockwise: Qhull, counter-clockwise again
-        assert sorted(cw) == list(range(k)) and list(cw) == list(ConvexHull(loop[::-1]).vertices)
+        assert qh == _cyclic(fast, qh[0])
+        cw = ff.hull_order([loop[::-1]])  # clockwise: the chain, counter-clockwise again
+        qh = list(ConvexHull(loop[::-1]).vertices)
+        assert sorted(cw) == list(range(k)) and _cyclic(cw, qh[0]) == qh
     dent = np.array([[0, 0], [2, 0], [1, 0.5], [2, 2], [0, 2.0]])  # not convex: vertex 2 is not on the hull
-    assert sorted(ff.hull_order([dent])) == [0, 1, 3, 4]
+    assert _cyclic(ff.hull_order([dent]), 0) == [0, 1, 3, 4]
+    # clouds and holed loops, with points on the hull's edges (left out, as by Qhull)
+    for _ in range(20):
+        pts = rng.integers(0, 5, size=(int(rng.integers(4, 30)), 2)).astype(np.float64) + rng.normal(size=2)
+        pts = np.unique(pts, axis=0)
+        rng.shuffle(pts)
+        cut = int(rng.integers(1, len(pts)))
+        qh = list(ConvexHull(pts).vertices)
+        assert _cyclic(ff.hull_order([pts[:cut], pts[cut:]]), qh[0]) == qh
+    with pytest.raises(ValueError):
+        ff.hull_order([np.array([[0.0, 0], [1, 1], [2, 2]]), np.array([[3.0, 3]])])  # collinear: no area

@@ -394,29 +394,46 @@ def no_boxes(n):
 
 def hull_order(loops2):
     """(h,) int64: the vertices of the convex hull of 2-D loops (list of (k, 2)),
-    counter-clockwise, as indices into their concatenation. A single loop that is already
-    strictly convex and counter-clockwise (most faces and their clipped parts) is its own
-    hull, without Qhull (whose set-up is most of a pair's set-up time)."""
-    from scipy.spatial import ConvexHull
-
+    counter-clockwise, as indices into their concatenation (collinear points left out). A
+    single loop that is already strictly convex and counter-clockwise (most faces and their
+    clipped parts) is its own hull; else Andrew's monotone chain (a pair's loops have a few
+    dozen points: Qhull's set-up cost more, and importing scipy.spatial ~0.3 CPU s of a
+    matrix). ValueError when the points span no area."""
     if len(loops2) == 1 and len(loops2[0]) >= 3:
         p = np.asarray(loops2[0], np.float64)
         e = np.roll(p, -1, axis=0) - p
         turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
         if np.all(turn > 1e-12 * np.einsum("ij,ij->i", e, e).max()):
             return np.arange(len(p))
-    return ConvexHull(np.concatenate(loops2)).vertices
+    p = np.concatenate(loops2).astype(np.float64)
+    x, y = p[:, 0].tolist(), p[:, 1].tolist()
+
+    def chain(order):
+        out = []
+        for c in order:
+            while len(out) >= 2:
+                a, b = out[-2], out[-1]
+                if (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a]) > 0:
+                    break
+                out.pop()
+            out.append(c)
+        return out[:-1]
+
+    order = np.lexsort((p[:, 1], p[:, 0])).tolist()
+    hull = chain(order) + chain(order[::-1])
+    if len(hull) < 3:
+        raise ValueError("the points span no area")
+    return np.asarray(hull, np.int64)
 
 
 def convex_outline(loops, normal):
-    """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``."""
-    from scipy.spatial import QhullError
-
+    """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``
+    (the points themselves when they span no area)."""
     pts = np.concatenate(loops)
     eu, ev = plane_basis(normal)
     try:
         return np.ascontiguousarray(pts[hull_order([np.stack([l @ eu, l @ ev], axis=1) for l in loops])])
-    except (QhullError, ValueError):
+    except ValueError:
         return np.ascontiguousarray(pts)
 
 
@@ -1215,7 +1232,8 @@ class PairSetup:
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
         keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
         cell, ids = cell[keep], ids[keep]
-        meets = shaft_meets(np.ascontiguousarray(tri), np.ascontiguousarray(np.broadcast_to(self.n_i, (len(tri), 3))),
+        # (np.tile: a writable copy even for one triangle, as a broadcast one is not: one kernel signature)
+        meets = shaft_meets(np.ascontiguousarray(tri), np.tile(self.n_i, (len(tri), 1)),
                             self.frame[6], np.asarray(self.n_t, np.float64), cell, ids, pts, lo, hi, normals, self.tiny)
         counts = np.bincount(cell[meets], minlength=len(tri))
         return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), ids[meets]
@@ -1304,7 +1322,7 @@ class PairSetup:
                 ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
                 return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
-            def live(tri):
+            def live(tri, need):
                 ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
                 return (np.diff(ptr) > 0)[:, None]
 
@@ -1870,9 +1888,10 @@ class RowCubature:
 
     def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates; ``live(tri) -> (g, R) bool``,
-        where an occluder may hide the column (its shaft test). Returns ``value, error``
-        (R,) and the triangles evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live(tri, need) -> (g, R)
+        bool``, where an occluder may hide the column (its shaft test), asked only where
+        ``need`` (g, R) bool is set (elsewhere it may say anything). Returns ``value,
+        error`` (R,) and the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
         if live is not None:
@@ -1926,12 +1945,15 @@ class RowCubature:
         child whose shaft still meets an occluder of such a column by its own 4 children
         (the node density of 16 grandchildren where the shadow may be; on the other
         children the column is exactly 0). Returns the new ``tri, q, e``."""
-        blind = live(tri) & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None])
+        blind = np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]
+        ask = np.flatnonzero(np.any(blind, axis=1))  # the shaft tests only where they matter
+        blind[ask] &= live(tri[ask], blind[ask])
         unseen = np.any(blind, axis=1)
         if not np.any(unseen):
             return tri, q, e
         kids = split4(tri[unseen]).reshape(-1, 3, 3)
-        deeper = np.any(live(kids) & np.repeat(blind[unseen], 4, axis=0), axis=1)
+        need = np.repeat(blind[unseen], 4, axis=0)
+        deeper = np.any(live(kids, need) & need, axis=1)
         new = np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
         nq, ne = self.rule(new, width)
         return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
@@ -2097,13 +2119,18 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
             if len(setup.occluders):
                 shafts.append((setup, c))
 
-    def live(tri):
-        """(g, width) bool: an occluder meets the triangle's shaft to the column."""
+    def live(tri, need):
+        """(g, width) bool: an occluder meets the triangle's shaft to the column (tested
+        where ``need`` (g, width) bool asks, else False)."""
         out = np.zeros((len(tri), width), bool)
         for setup, c in shafts:
+            rows = np.flatnonzero(need[:, c])
+            if not len(rows):
+                continue
             k = len(setup.occluders)
-            ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
-            out[:, c] = np.diff(ptr) > 0
+            ptr, _ = setup.shaft_cull(tri[rows], (np.arange(len(rows) + 1) * k).astype(np.int64),
+                                      np.tile(np.arange(k), len(rows)))
+            out[rows, c] = np.diff(ptr) > 0
         return out
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)

@@ -2065,6 +2065,51 @@ def seen_faces(scene, face, side):
     return np.flatnonzero(ahead).astype(np.int64)
 
 
+def pair_contour(scene, setup, key):
+    """:func:`contour_form_factor` of a pair's I' and J' (``key``: face i, side, face j,
+    side), computed once for (i, j) and (j, i) where neither is clipped by the other's
+    plane (every vertex of each more than tiny in front of the other: both rows then take
+    the same whole loops, and A_i F⁰_ij = A_j F⁰_ji, errors alike). Kept per process on the
+    scene; :func:`form_factor_matrix` computes them before its workers fork."""
+    memo = scene.cached("pair contours", lambda s: {})
+    if not _unclipped(setup):
+        return contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+    a_i = loops_area(setup.I, setup.n_i)
+    key = tuple(int(k) for k in key)
+    flux = memo.get(key, memo.get((key[2], key[3], key[0], key[1])))  # A_i F⁰_ij = A_j F⁰_ji
+    if flux is None:
+        value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+        flux = memo[key] = (value * a_i, err * a_i)
+    return flux[0] / a_i, flux[1] / a_i
+
+
+def _unclipped(setup):
+    """Whether every vertex of I and of J lies more than tiny in front of the other's plane."""
+    return (min(float(np.min(l @ setup.n_t)) for l in setup.I) - setup.c_t > setup.tiny
+            and min(float(np.min(l @ setup.n_i)) for l in setup.J) - setup.c_i > setup.tiny)
+
+
+def matrix_contours(scene):
+    """Every facing pair's :func:`pair_contour`, once for both of its orders, into the
+    scene's memo (the matrix's parent, before its workers fork: each row then finds its
+    contour terms there; the inner sides of empty closed boxes, whose rows are closed forms
+    of their own, are left out)."""
+    face_box = closed_boxes(scene)[0]
+    empty = empty_boxes(scene)
+    inner = lambda f, s: s == -1 and face_box[f] >= 0 and empty[face_box[f]]  # noqa: E731
+    for face in range(scene.n_faces):
+        for side in SIDES:
+            if inner(face, side):
+                continue
+            fj, sj = facing_sides(scene, face, side, np.arange(scene.n_faces, dtype=np.int64))
+            for j, t in zip(fj, sj):
+                if inner(int(j), int(t)):
+                    continue
+                setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t), occluders=False)
+                if not setup.empty and _unclipped(setup):
+                    pair_contour(scene, setup, (face, side, int(j), int(t)))
+
+
 def row_form_factors(scene, face, side, faces, tol, sky=True):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
@@ -2113,7 +2158,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     for target, t, c in targets:
         setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
         if not setup.empty:
-            value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+            value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
             if len(setup.occluders):
@@ -2291,6 +2336,7 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     faces = np.arange(n, dtype=np.int64)
     rows = [(i, s) for i in range(n) for s in SIDES]
     load_row_kernels(scene)  # once here, not once in each forked worker
+    matrix_contours(scene)  # each facing pair's contour term once, for both its orders
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
     return assemble_matrix(scene, results, tol, time.perf_counter() - t0)

@@ -1140,10 +1140,16 @@ class PairSetup:
             or max(float(np.max(l @ n_i)) for l in self.J) - c_i <= tiny
             or max(float(np.max(l @ n_t)) for l in self.I) - c_t <= tiny
         )
-        if self.empty or not occluders:
-            self.occluders = []
-            return
-        self.occluders = pair_occluders(scene, self.I, n_i, c_i, self.J, n_t, c_t, {int(face_i), int(target.face)})
+        self.face_t = int(target.face)
+        self.occluders = []
+        if not self.empty and occluders:
+            self.find_occluders()
+
+    def find_occluders(self):
+        """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
+        here when it needs them first)."""
+        self.occluders = pair_occluders(self.scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t,
+                                        {self.face_i, self.face_t})
 
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
@@ -2154,15 +2160,16 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
                for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
-    shafts = []  # (setup, column) of the pairs with occluders
+    shafts = []  # (setup, column) of the pairs whose occluders the shadow search may ask for
     for target, t, c in targets:
-        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
+        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
         if not setup.empty:
             value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
-            if len(setup.occluders):
+            if cubature is RowCubature:
                 shafts.append((setup, c))
+    found = set()  # the setups whose occluders are known (found when first asked for)
 
     def live(tri, need):
         """(g, width) bool: an occluder meets the triangle's shaft to the column (tested
@@ -2172,7 +2179,12 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
             rows = np.flatnonzero(need[:, c])
             if not len(rows):
                 continue
+            if c not in found:
+                setup.find_occluders()
+                found.add(c)
             k = len(setup.occluders)
+            if not k:
+                continue
             ptr, _ = setup.shaft_cull(tri[rows], (np.arange(len(rows) + 1) * k).astype(np.int64),
                                       np.tile(np.arange(k), len(rows)))
             out[rows, c] = np.diff(ptr) > 0

@@ -58,7 +58,8 @@ ORDER_TIE = 2e-15
 #: within which :func:`_hemicube_face` takes a vertex for one on it (a vertex the clipping
 #: made there is within ~1e-16): an edge with both ends on one such plane lies on the
 #: frustum's side, and no other edge (all in the frustum) crosses it but by rounding, so its
-#: crossings are not looked for (a fifth of the sweep's cost on the Cornell box).
+#: crossings are not looked for (with the whole-frustum copy, ~59 → ~57 µs a point on the
+#: Cornell box).
 RIM = 1e-13
 
 

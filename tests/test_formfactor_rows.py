@@ -260,3 +260,29 @@ def test_hull_order_is_qhulls(rng):
         assert _cyclic(ff.hull_order([pts[:cut], pts[cut:]]), qh[0]) == qh
     with pytest.raises(ValueError):
         ff.hull_order([np.array([[0.0, 0], [1, 1], [2, 2]]), np.array([[3.0, 3]])])  # collinear: no area
+
+
+def test_contour_terms_are_shared_by_both_orders_only_where_unclipped(cornell):
+    """:func:`viscx.queries.formfactor.pair_contour`: a facing pair whose polygons are
+    both wholly in front of the other's plane gets one contour integral for both orders
+    (A_i F⁰_ij = A_j F⁰_ji exactly), each within its estimate of its own integral; a pair
+    sharing an edge (each row clips its emitter off the other's plane) is not shared."""
+    scene = load_scene(SAMPLES / "cornell_box.obj")  # a fresh memo
+    floor, ceiling, back = (int(scene.group_faces(g)[0]) for g in ("floor", "ceiling", "back_wall"))
+
+    def setup(i, s, j, t):
+        return ff.PairSetup(scene, i, s, ff.face_target(scene, j), t, occluders=False)
+
+    pairs = {}
+    for i, s, j, t in ((floor, 1, ceiling, 1), (ceiling, 1, floor, 1), (floor, 1, back, 1), (back, 1, floor, 1)):
+        st = setup(i, s, j, t)
+        pairs[i, j] = (ff.pair_contour(scene, st, (i, s, j, t)), ff.contour_form_factor(st.I, st.n_i, st.J, st.n_t),
+                       ff.loops_area(st.I, st.n_i))
+    memo = scene.cached("pair contours", lambda s: {})
+    assert (floor, 1, ceiling, 1) in memo and (ceiling, 1, floor, 1) not in memo  # one for both orders
+    assert not any(back in k for k in memo)  # they share an edge: each order computed on its own
+    (fc, _, a_f), (cf, direct, a_c) = pairs[floor, ceiling], pairs[ceiling, floor]
+    assert fc[0] * a_f == pytest.approx(cf[0] * a_c, rel=1e-15)
+    assert abs(cf[0] - direct[0]) <= cf[1] + direct[1]
+    for i, j in ((floor, back), (back, floor)):
+        assert pairs[i, j][0] == pairs[i, j][1]

@@ -2076,7 +2076,10 @@ def pair_contour(scene, setup, key):
     side), computed once for (i, j) and (j, i) where neither is clipped by the other's
     plane (every vertex of each more than tiny in front of the other: both rows then take
     the same whole loops, and A_i F⁰_ij = A_j F⁰_ji, errors alike). Kept per process on the
-    scene; :func:`form_factor_matrix` computes them before its workers fork."""
+    scene: a worker reuses the terms of the rows it ran before. (Computing them all in the
+    matrix's parent before it forks would save more CPU on the Cornell box, ~0.1 s, but
+    serially: on a room of hundreds of faces, with tens of thousands of facing pairs, that
+    is wall time no worker shares.)"""
     memo = scene.cached("pair contours", lambda s: {})
     if not _unclipped(setup):
         return contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
@@ -2093,27 +2096,6 @@ def _unclipped(setup):
     """Whether every vertex of I and of J lies more than tiny in front of the other's plane."""
     return (min(float(np.min(l @ setup.n_t)) for l in setup.I) - setup.c_t > setup.tiny
             and min(float(np.min(l @ setup.n_i)) for l in setup.J) - setup.c_i > setup.tiny)
-
-
-def matrix_contours(scene):
-    """Every facing pair's :func:`pair_contour`, once for both of its orders, into the
-    scene's memo (the matrix's parent, before its workers fork: each row then finds its
-    contour terms there; the inner sides of empty closed boxes, whose rows are closed forms
-    of their own, are left out)."""
-    face_box = closed_boxes(scene)[0]
-    empty = empty_boxes(scene)
-    inner = lambda f, s: s == -1 and face_box[f] >= 0 and empty[face_box[f]]  # noqa: E731
-    for face in range(scene.n_faces):
-        for side in SIDES:
-            if inner(face, side):
-                continue
-            fj, sj = facing_sides(scene, face, side, np.arange(scene.n_faces, dtype=np.int64))
-            for j, t in zip(fj, sj):
-                if inner(int(j), int(t)):
-                    continue
-                setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t), occluders=False)
-                if not setup.empty and _unclipped(setup):
-                    pair_contour(scene, setup, (face, side, int(j), int(t)))
 
 
 def row_form_factors(scene, face, side, faces, tol, sky=True):
@@ -2348,7 +2330,6 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     faces = np.arange(n, dtype=np.int64)
     rows = [(i, s) for i in range(n) for s in SIDES]
     load_row_kernels(scene)  # once here, not once in each forked worker
-    matrix_contours(scene)  # each facing pair's contour term once, for both its orders
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
     return assemble_matrix(scene, results, tol, time.perf_counter() - t0)

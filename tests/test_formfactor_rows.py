@@ -238,10 +238,16 @@ def test_a_sliver_slab_does_not_hand_a_wrong_owner_on(cornell):
     assert_columns_equal_pairs(cornell, 15, pts, h, side=side)
 
 
-def test_hull_order_of_a_convex_loop_is_qhulls(rng):
+def _cyclic(seq, first):
+    seq = list(seq)
+    k = seq.index(first)
+    return seq[k:] + seq[:k]
+
+
+def test_hull_order_is_qhulls(rng):
     """The pairs' hulls (:func:`viscx.queries.formfactor.hull_order`): a single strictly
-    convex counter-clockwise loop is its own hull (no Qhull); a clockwise, non-convex or
-    holed one goes to Qhull; both give the same hull (as a cyclic sequence)."""
+    convex counter-clockwise loop is its own hull; a clockwise, non-convex or holed one goes
+    to the monotone chain; both give Qhull's hull (as a cyclic sequence)."""
     from scipy.spatial import ConvexHull
 
     for k in (3, 4, 7):
@@ -250,8 +256,45 @@ def test_hull_order_of_a_convex_loop_is_qhulls(rng):
         fast = ff.hull_order([loop])
         assert list(fast) == list(range(k))
         qh = list(ConvexHull(loop).vertices)
-        assert qh == list(fast[qh[0]:]) + list(fast[:qh[0]])
-        cw = ff.hull_order([loop[::-1]])  # clockwise: Qhull, counter-clockwise again
-        assert sorted(cw) == list(range(k)) and list(cw) == list(ConvexHull(loop[::-1]).vertices)
+        assert qh == _cyclic(fast, qh[0])
+        cw = ff.hull_order([loop[::-1]])  # clockwise: the chain, counter-clockwise again
+        qh = list(ConvexHull(loop[::-1]).vertices)
+        assert sorted(cw) == list(range(k)) and _cyclic(cw, qh[0]) == qh
     dent = np.array([[0, 0], [2, 0], [1, 0.5], [2, 2], [0, 2.0]])  # not convex: vertex 2 is not on the hull
-    assert sorted(ff.hull_order([dent])) == [0, 1, 3, 4]
+    assert _cyclic(ff.hull_order([dent]), 0) == [0, 1, 3, 4]
+    # clouds and holed loops, with points on the hull's edges (left out, as by Qhull)
+    for _ in range(20):
+        pts = rng.integers(0, 5, size=(int(rng.integers(4, 30)), 2)).astype(np.float64) + rng.normal(size=2)
+        pts = np.unique(pts, axis=0)
+        rng.shuffle(pts)
+        cut = int(rng.integers(1, len(pts)))
+        qh = list(ConvexHull(pts).vertices)
+        assert _cyclic(ff.hull_order([pts[:cut], pts[cut:]]), qh[0]) == qh
+    with pytest.raises(ValueError):
+        ff.hull_order([np.array([[0.0, 0], [1, 1], [2, 2]]), np.array([[3.0, 3]])])  # collinear: no area
+
+
+def test_contour_terms_are_shared_by_both_orders_only_where_unclipped(cornell):
+    """:func:`viscx.queries.formfactor.pair_contour`: a facing pair whose polygons are
+    both wholly in front of the other's plane gets one contour integral for both orders
+    (A_i F⁰_ij = A_j F⁰_ji exactly), each within its estimate of its own integral; a pair
+    sharing an edge (each row clips its emitter off the other's plane) is not shared."""
+    scene = load_scene(SAMPLES / "cornell_box.obj")  # a fresh memo
+    floor, ceiling, back = (int(scene.group_faces(g)[0]) for g in ("floor", "ceiling", "back_wall"))
+
+    def setup(i, s, j, t):
+        return ff.PairSetup(scene, i, s, ff.face_target(scene, j), t, occluders=False)
+
+    pairs = {}
+    for i, s, j, t in ((floor, 1, ceiling, 1), (ceiling, 1, floor, 1), (floor, 1, back, 1), (back, 1, floor, 1)):
+        st = setup(i, s, j, t)
+        pairs[i, j] = (ff.pair_contour(scene, st, (i, s, j, t)), ff.contour_form_factor(st.I, st.n_i, st.J, st.n_t),
+                       ff.loops_area(st.I, st.n_i))
+    memo = scene.cached("pair contours", lambda s: {})
+    assert (floor, 1, ceiling, 1) in memo and (ceiling, 1, floor, 1) not in memo  # one for both orders
+    assert not any(back in k for k in memo)  # they share an edge: each order computed on its own
+    (fc, _, a_f), (cf, direct, a_c) = pairs[floor, ceiling], pairs[ceiling, floor]
+    assert fc[0] * a_f == pytest.approx(cf[0] * a_c, rel=1e-15)
+    assert abs(cf[0] - direct[0]) <= cf[1] + direct[1]
+    for i, j in ((floor, back), (back, floor)):
+        assert pairs[i, j][0] == pairs[i, j][1]

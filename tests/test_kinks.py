@@ -275,7 +275,7 @@ def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
     def integrand(points, tri=None):
         return (np.linalg.norm(points - centre, axis=1) < radius).astype(np.float64)[:, None]
 
-    def live(tri):
+    def live(tri, need=None):
         # the disc meets the triangle: its centre inside, or an edge within the radius (sampled)
         t = np.linspace(0, 1, 201)
         edges = [tri[:, k, None] + t[None, :, None] * (tri[:, (k + 1) % 3, None] - tri[:, k, None]) for k in range(3)]

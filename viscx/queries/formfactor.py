@@ -399,29 +399,46 @@ def no_boxes(n):
 
 def hull_order(loops2):
     """(h,) int64: the vertices of the convex hull of 2-D loops (list of (k, 2)),
-    counter-clockwise, as indices into their concatenation. A single loop that is already
-    strictly convex and counter-clockwise (most faces and their clipped parts) is its own
-    hull, without Qhull (whose set-up is most of a pair's set-up time)."""
-    from scipy.spatial import ConvexHull
-
+    counter-clockwise, as indices into their concatenation (collinear points left out). A
+    single loop that is already strictly convex and counter-clockwise (most faces and their
+    clipped parts) is its own hull; else Andrew's monotone chain (a pair's loops have a few
+    dozen points: Qhull's set-up cost more, and importing scipy.spatial ~0.3 CPU s of a
+    matrix). ValueError when the points span no area."""
     if len(loops2) == 1 and len(loops2[0]) >= 3:
         p = np.asarray(loops2[0], np.float64)
         e = np.roll(p, -1, axis=0) - p
         turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
         if np.all(turn > 1e-12 * np.einsum("ij,ij->i", e, e).max()):
             return np.arange(len(p))
-    return ConvexHull(np.concatenate(loops2)).vertices
+    p = np.concatenate(loops2).astype(np.float64)
+    x, y = p[:, 0].tolist(), p[:, 1].tolist()
+
+    def chain(order):
+        out = []
+        for c in order:
+            while len(out) >= 2:
+                a, b = out[-2], out[-1]
+                if (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a]) > 0:
+                    break
+                out.pop()
+            out.append(c)
+        return out[:-1]
+
+    order = np.lexsort((p[:, 1], p[:, 0])).tolist()
+    hull = chain(order) + chain(order[::-1])
+    if len(hull) < 3:
+        raise ValueError("the points span no area")
+    return np.asarray(hull, np.int64)
 
 
 def convex_outline(loops, normal):
-    """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``."""
-    from scipy.spatial import QhullError
-
+    """(k, 3) float64: the convex hull of planar loops, counter-clockwise about ``normal``
+    (the points themselves when they span no area)."""
     pts = np.concatenate(loops)
     eu, ev = plane_basis(normal)
     try:
         return np.ascontiguousarray(pts[hull_order([np.stack([l @ eu, l @ ev], axis=1) for l in loops])])
-    except (QhullError, ValueError):
+    except ValueError:
         return np.ascontiguousarray(pts)
 
 
@@ -1148,10 +1165,16 @@ class PairSetup:
             or max(float(np.max(l @ n_i)) for l in self.J) - c_i <= tiny
             or max(float(np.max(l @ n_t)) for l in self.I) - c_t <= tiny
         )
-        if self.empty or not occluders:
-            self.occluders = []
-            return
-        self.occluders = pair_occluders(scene, self.I, n_i, c_i, self.J, n_t, c_t, {int(face_i), int(target.face)})
+        self.face_t = int(target.face)
+        self.occluders = []
+        if not self.empty and occluders:
+            self.find_occluders()
+
+    def find_occluders(self):
+        """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
+        here when it needs them first)."""
+        self.occluders = pair_occluders(self.scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t,
+                                        {self.face_i, self.face_t})
 
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
@@ -1230,7 +1253,8 @@ class PairSetup:
         cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
         keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
         cell, ids = cell[keep], ids[keep]
-        meets = shaft_meets(np.ascontiguousarray(tri), np.ascontiguousarray(np.broadcast_to(self.n_i, (len(tri), 3))),
+        # (np.tile: a writable copy even for one triangle, as a broadcast one is not: one kernel signature)
+        meets = shaft_meets(np.ascontiguousarray(tri), np.tile(self.n_i, (len(tri), 1)),
                             self.frame[6], np.asarray(self.n_t, np.float64), cell, ids, pts, lo, hi, normals, self.tiny)
         counts = np.bincount(cell[meets], minlength=len(tri))
         return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), ids[meets]
@@ -1319,7 +1343,7 @@ class PairSetup:
                 ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
                 return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
-            def live(tri):
+            def live(tri, need):
                 ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
                 return (np.diff(ptr) > 0)[:, None]
 
@@ -1918,9 +1942,10 @@ class RowCubature:
 
     def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates; ``live(tri) -> (g, R) bool``,
-        where an occluder may hide the column (its shaft test). Returns ``value, error``
-        (R,) and the triangles evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live(tri, need) -> (g, R)
+        bool``, where an occluder may hide the column (its shaft test), asked only where
+        ``need`` (g, R) bool is set (elsewhere it may say anything). Returns ``value,
+        error`` (R,) and the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
         if live is not None:
@@ -1974,12 +1999,15 @@ class RowCubature:
         child whose shaft still meets an occluder of such a column by its own 4 children
         (the node density of 16 grandchildren where the shadow may be; on the other
         children the column is exactly 0). Returns the new ``tri, q, e``."""
-        blind = live(tri) & (np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None])
+        blind = np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]
+        ask = np.flatnonzero(np.any(blind, axis=1))  # the shaft tests only where they matter
+        blind[ask] &= live(tri[ask], blind[ask])
         unseen = np.any(blind, axis=1)
         if not np.any(unseen):
             return tri, q, e
         kids = split4(tri[unseen]).reshape(-1, 3, 3)
-        deeper = np.any(live(kids) & np.repeat(blind[unseen], 4, axis=0), axis=1)
+        need = np.repeat(blind[unseen], 4, axis=0)
+        deeper = np.any(live(kids, need) & need, axis=1)
         new = np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
         nq, ne = self.rule(new, width)
         return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
@@ -2091,6 +2119,33 @@ def seen_faces(scene, face, side):
     return np.flatnonzero(ahead).astype(np.int64)
 
 
+def pair_contour(scene, setup, key):
+    """:func:`contour_form_factor` of a pair's I' and J' (``key``: face i, side, face j,
+    side), computed once for (i, j) and (j, i) where neither is clipped by the other's
+    plane (every vertex of each more than tiny in front of the other: both rows then take
+    the same whole loops, and A_i F⁰_ij = A_j F⁰_ji, errors alike). Kept per process on the
+    scene: a worker reuses the terms of the rows it ran before. (Computing them all in the
+    matrix's parent before it forks would save more CPU on the Cornell box, ~0.1 s, but
+    serially: on a room of hundreds of faces, with tens of thousands of facing pairs, that
+    is wall time no worker shares.)"""
+    memo = scene.cached("pair contours", lambda s: {})
+    if not _unclipped(setup):
+        return contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+    a_i = loops_area(setup.I, setup.n_i)
+    key = tuple(int(k) for k in key)
+    flux = memo.get(key, memo.get((key[2], key[3], key[0], key[1])))  # A_i F⁰_ij = A_j F⁰_ji
+    if flux is None:
+        value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+        flux = memo[key] = (value * a_i, err * a_i)
+    return flux[0] / a_i, flux[1] / a_i
+
+
+def _unclipped(setup):
+    """Whether every vertex of I and of J lies more than tiny in front of the other's plane."""
+    return (min(float(np.min(l @ setup.n_t)) for l in setup.I) - setup.c_t > setup.tiny
+            and min(float(np.min(l @ setup.n_i)) for l in setup.J) - setup.c_i > setup.tiny)
+
+
 def row_form_factors(scene, face, side, faces, tol, sky=True):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
@@ -2140,23 +2195,34 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
                for j, t in zip(fj, sj)]
     area = float(scene.face_area[face])
-    shafts = []  # (setup, column) of the pairs with occluders
+    shafts = []  # (setup, column) of the pairs whose occluders the shadow search may ask for
     for target, t, c in targets:
-        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=cubature is RowCubature)
+        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
         if not setup.empty:
-            value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+            value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
-            if len(setup.occluders):
+            if cubature is RowCubature:
                 shafts.append((setup, c))
+    found = set()  # the setups whose occluders are known (found when first asked for)
 
-    def live(tri):
-        """(g, width) bool: an occluder meets the triangle's shaft to the column."""
+    def live(tri, need):
+        """(g, width) bool: an occluder meets the triangle's shaft to the column (tested
+        where ``need`` (g, width) bool asks, else False)."""
         out = np.zeros((len(tri), width), bool)
         for setup, c in shafts:
+            rows = np.flatnonzero(need[:, c])
+            if not len(rows):
+                continue
+            if c not in found:
+                setup.find_occluders()
+                found.add(c)
             k = len(setup.occluders)
-            ptr, _ = setup.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
-            out[:, c] = np.diff(ptr) > 0
+            if not k:
+                continue
+            ptr, _ = setup.shaft_cull(tri[rows], (np.arange(len(rows) + 1) * k).astype(np.int64),
+                                      np.tile(np.arange(k), len(rows)))
+            out[rows, c] = np.diff(ptr) > 0
         return out
     n_i = side * scene.face_normal[face]
     eu, ev = plane_basis(n_i)
@@ -2182,6 +2248,17 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     sky_v, sky_e = (float(F[-1]), float(E[-1])) if sky else (0.0, 0.0)
     element = (2 * seen[:, None] + np.arange(2)).reshape(-1)  # the scene's element of each column (but the sky)
     return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
+
+
+def load_row_kernels(scene):
+    """Load (or compile) the numba kernels of :func:`row_form_factors` with the types its
+    calls have, on no points: a parent that does so before forking its workers loads them
+    once (~0.4 CPU s on the Cornell box) instead of once per worker."""
+    n_i = np.asarray(scene.face_normal[0], np.float64)
+    eu, ev = plane_basis(n_i)
+    point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, *closed_boxes(scene))
+    none_i, none_f = np.zeros(0, np.int64), np.zeros((0, 3))
+    shaft_meets(np.zeros((0, 3, 3)), none_f, none_f, n_i, none_i, none_i, none_f, none_i, none_i, none_f, 1.0)
 
 
 _POOL_SCENE = None
@@ -2311,6 +2388,7 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     n = scene.n_faces
     faces = np.arange(n, dtype=np.int64)
     rows = [(i, s) for i in range(n) for s in SIDES]
+    load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
     return assemble_matrix(scene, results, tol, time.perf_counter() - t0)

@@ -1,9 +1,6 @@
 """Cleaning a triangle soup: welding, degenerate and duplicate triangles."""
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 
 def weld_vertices(vertices, tolerance):
@@ -25,6 +22,12 @@ def weld_vertices(vertices, tolerance):
     remap : (n,) int
         New index of every old vertex.
     """
+    # scipy imported here, not with the module: ~0.3 CPU s of every command that only
+    # loads a built file (the queries, the form factors) and never welds
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
     n = len(vertices)
     if n == 0:
         return vertices.copy(), np.zeros(0, dtype=np.int64)

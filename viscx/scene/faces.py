@@ -10,8 +10,6 @@ more an event than a flat diagonal is.
 
 import numpy as np
 from numba import njit
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from viscx.arrays import walk_cycle
 from viscx.errors import ViscxError
@@ -84,6 +82,9 @@ def merge_coplanar(vertices, triangles, triangle_group, tolerance):
         & (dist12 <= tolerance)
         & (dist21 <= tolerance)
     )
+    from scipy.sparse import coo_matrix  # here: a built file's loading never needs scipy (clean.weld)
+    from scipy.sparse.csgraph import connected_components
+
     graph = coo_matrix((np.ones(join.sum()), (t1[join], t2[join])), shape=(t, t))
     _, label = connected_components(graph, directed=False)
 

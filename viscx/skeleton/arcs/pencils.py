@@ -4,8 +4,6 @@ the families whose lines lie in them, and where those lines cross the plane's ed
 
 import numpy as np
 from numba import njit, prange
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from viscx.arrays import unique_rows
 from viscx.geometry.lines import segment_parameter
@@ -151,6 +149,9 @@ def _pencil_planes(scene):
     opp_face = np.where(he.opp >= 0, he.face[np.maximum(he.opp, 0)], -1)
     flat = np.flatnonzero(is_touched[he.face] & (he.opp >= 0) & ~he.edge_is_generator[he.edge])
     flat = flat[is_touched[opp_face[flat]] & (plane_of[opp_face[flat]] == plane_of[he.face[flat]])]
+    from scipy.sparse import coo_matrix  # here: the queries import this module, and need no scipy
+    from scipy.sparse.csgraph import connected_components
+
     n = scene.n_faces
     _, label = connected_components(coo_matrix((np.ones(len(flat)), (he.face[flat], opp_face[flat])), shape=(n, n)),
                                     directed=False)

@@ -279,14 +279,21 @@ def floor_plan(rooms=(2, 2), room_size=(5.0, 4.0), height=3.0, wall=0.2, doors=T
         for j in range(nz):
             z0, z1 = j * (sz + t) + t, (j + 1) * (sz + t)
             wall_run(2, x, z0, z1, name, opening("window" if outer else "door", z0, z1, windows if outer else doors))
+    light = (0.3, 0.6)  # half sizes along x and z
     for i in range(nx * nz):
         cx = (i % nx) * (sx + t) + t + sx / 2
         cz = (i // nx) * (sz + t) + t + sz / 2
-        _light(b, (cx, cz), (0.3, 0.6), height - 0.03, f"light{i + 1}")
+        _light(b, (cx, cz), light, height - 0.03, f"light{i + 1}")
     for p in range(pillars):
-        r = int(rng.integers(nx * nz))
-        x0 = (r % nx) * (sx + t) + t + round(float(rng.uniform(0.5, sx - 0.8)), 6)
-        z0 = (r // nx) * (sz + t) + t + round(float(rng.uniform(0.5, sz - 0.8)), 6)
+        while True:  # drawn again where the pillar would pierce its room's light (seed 3 of 2 x 2 rooms)
+            r = int(rng.integers(nx * nz))
+            x0 = (r % nx) * (sx + t) + t + round(float(rng.uniform(0.5, sx - 0.8)), 6)
+            z0 = (r // nx) * (sz + t) + t + round(float(rng.uniform(0.5, sz - 0.8)), 6)
+            cx = (r % nx) * (sx + t) + t + sx / 2
+            cz = (r // nx) * (sz + t) + t + sz / 2
+            if x0 > cx + light[0] + 0.1 or x0 + 0.3 < cx - light[0] - 0.1 or \
+                    z0 > cz + light[1] + 0.1 or z0 + 0.3 < cz - light[1] - 0.1:
+                break
         b.box([x0, 0, z0], [x0 + 0.3, height, z0 + 0.3], f"pillar{p}")
     return b.soup()
 

@@ -52,6 +52,9 @@ def fractions(row):
 
 
 def _child(spec, conn):
+    from viscx.memory import keep_freed_memory
+
+    keep_freed_memory()  # as `viscx build` runs (viscx/cli)
     row = run_skeleton(build_scene(scene_of(spec)), spec)
     conn.send(row | fractions(row))
 

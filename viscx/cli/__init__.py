@@ -94,7 +94,10 @@ def cli(ctx, quiet):
     # a command that may compile numba kernels: say so when it does (not for its --help, which
     # then needs no numba import: 0.8 -> 0.1 CPU s)
     if ctx.invoked_subcommand is not None and not ctx.meta["viscx.help"]:
+        from viscx.memory import keep_freed_memory
         from viscx.progress import report_compilation
+
+        keep_freed_memory()
 
         report_compilation(not quiet)
         ctx.call_on_close(lambda: report_compilation(False))

@@ -349,6 +349,136 @@ def _box_plane_table(scene):
     return scene.cached("box_plane_table", build)
 
 
+def closed_solids(scene):
+    """The closed solids bounded by faces of the scene, convex or not (a scanned statue: the
+    npm bunny's 3,674 triangles): connected sets of faces without holes in which every
+    directed edge of a face (loops counter-clockwise about the normals) is traversed
+    backwards by exactly one other face of the set and by no third face (a watertight,
+    consistently oriented 2-manifold). A ray from a point outside such a solid that meets a
+    face the point is behind (a back face) has entered the solid before, through a face the
+    point is in front of; so from such a point an edge between two front faces or two back
+    faces is never on the outline of what the solid hides (docs/queries.md).
+
+    Returns
+    -------
+    face_solid : (f,) int64
+        The solid of each face, -1 if none.
+    outward : (s,) float64
+        +1 where the faces' normals point out of solid s, -1 where they point in (the
+        sign of its volume by the divergence theorem).
+    neighbour : (m,) int64
+        Aligned with ``scene.loop_vertices``: the face across the edge from each loop
+        vertex to the next, -1 outside a solid.
+    """
+
+    def build(scene):
+        n, lv, lo = scene.n_faces, scene.loop_vertices.astype(np.int64), scene.loop_offsets.astype(np.int64)
+        flo = scene.face_loop_offsets
+        one = np.diff(flo) == 1  # faces without holes
+        loop_face = np.repeat(np.arange(n), np.diff(flo))
+        sizes = np.diff(lo)
+        edge_loop = np.repeat(np.arange(len(sizes)), sizes)
+        nxt = np.arange(len(lv)) + 1
+        nxt[lo[1:] - 1] = lo[:-1]  # the last vertex of a loop goes to its first
+        a, b = lv, lv[nxt]
+        face = loop_face[edge_loop]
+        nv = scene.n_vertices
+        key, rev = a * nv + b, b * nv + a
+        order = np.argsort(key, kind="stable")
+        sk = key[order]
+        count = np.searchsorted(sk, key, "right") - np.searchsorted(sk, key, "left")
+        left = np.searchsorted(sk, rev, "left")
+        rcount = np.searchsorted(sk, rev, "right") - left
+        neighbour = np.full(len(lv), -1, np.int64)
+        paired = (count == 1) & (rcount == 1) & one[face]
+        neighbour[paired] = face[order[left[paired]]]
+        paired &= one[np.maximum(neighbour, 0)] & (neighbour != face)
+        neighbour[~paired] = -1
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        link = np.flatnonzero(paired)
+        _, comp = connected_components(coo_matrix((np.ones(len(link)), (face[link], neighbour[link])), shape=(n, n)),
+                                       directed=False)
+        # a solid: every edge of every face of the component paired
+        bare = np.bincount(comp[face[~paired]], minlength=n) > 0
+        faces_in = np.bincount(comp, minlength=n)
+        good = ~bare & (faces_in >= 4)
+        face_solid = np.full(n, -1, np.int64)
+        ok = good[comp] & one
+        ids, face_solid[ok] = np.unique(comp[ok], return_inverse=True)
+        neighbour[~ok[face]] = -1
+        # volume: Σ_f A_f (n_f · p_f) / 3 over each solid's faces
+        vol = np.bincount(face_solid[ok], weights=scene.face_area[ok] * scene.face_offset[ok], minlength=len(ids))
+        return face_solid, np.where(vol >= 0, 1.0, -1.0), neighbour
+
+    return scene.cached("closed_solids", build)
+
+
+def _outside_solids(scene, n, c, tiny):
+    """(s,) bool: the :func:`closed_solids` whose normals point out and that lie in the
+    closed front half-space ``n · y >= c`` (within ``tiny``) of an emitter's plane: every
+    point of the plane is outside them or on them."""
+    face_solid, outward, _ = closed_solids(scene)
+    if not len(outward):
+        return np.zeros(0, bool)
+    loop_face = np.repeat(np.arange(scene.n_faces), np.diff(scene.face_loop_offsets))
+    vface = np.repeat(loop_face, np.diff(scene.loop_offsets))
+    solid = face_solid[vface]
+    low = np.full(len(outward), np.inf)
+    np.minimum.at(low, solid[solid >= 0], scene.vertices[scene.loop_vertices[solid >= 0]] @ n - c)
+    return (outward > 0) & (low >= -tiny)
+
+
+def solid_edge_positions(scene, face, loop):
+    """(k,) int64: for the outer loop ``loop`` (k, 3) of a face's part, the position in
+    ``scene.loop_vertices`` of each edge's start when the part is the face's whole outer
+    loop (not clipped: the same points in the same order), else -1 (no
+    :func:`closed_solids` rule for its edges)."""
+    first = scene.face_loop_offsets[face]
+    lo, hi = scene.loop_offsets[first], scene.loop_offsets[first + 1]
+    whole = scene.vertices[scene.loop_vertices[lo:hi]]
+    if whole.shape != loop.shape or not np.array_equal(whole, loop):
+        return np.full(len(loop), -1, np.int64)
+    return np.arange(lo, hi, dtype=np.int64)
+
+
+def inner_solid_edges(scene, n, c, tiny, faces, pos, points):
+    """(e,) bool: whether edge e (the edge of face ``faces[e]`` starting at loop vertex
+    ``pos[e]``, -1 none) is, from every one of ``points[e]`` (e, r, 3) on the emitter's
+    plane ``n · y = c``, an edge between two front faces or between two back faces of a
+    :func:`closed_solids` solid the plane is outside of (by more than ``tiny`` from each
+    face's plane): never on the outline of what the solid hides from there. From a
+    point outside the solid the front faces' images cover everything the solid hides, with
+    the number of front faces a ray crosses as their winding, so an edge between two front
+    faces lies inside their images and one between two back faces behind one of them; what
+    a point sees of the light changes only across the images of edges between a front and
+    a back face (or of faces seen edge-on). The facing is linear along the plane, so three
+    points decide it for their triangle."""
+    out = np.zeros(len(faces), bool)
+    face_solid, outward, neighbour = closed_solids(scene)
+    ok = (pos >= 0) & (faces >= 0)
+    ok[ok] &= face_solid[faces[ok]] >= 0
+    if not np.any(ok):
+        return out
+    eligible = _outside_solids(scene, n, c, tiny)
+    ok[ok] &= eligible[face_solid[faces[ok]]]
+    rows = np.flatnonzero(ok)
+    if not len(rows):
+        return out
+    other = neighbour[pos[rows]]
+    sign = outward[face_solid[faces[rows]]][:, None]
+    x = points[rows]
+
+    def facing(f):
+        return sign * (np.einsum("erj,ej->er", x, scene.face_normal[f]) - scene.face_offset[f][:, None])
+
+    a, b = facing(faces[rows]), facing(other)
+    front = np.all(a > tiny, axis=1) & np.all(b > tiny, axis=1)
+    back = np.all(a < -tiny, axis=1) & np.all(b < -tiny, axis=1)
+    out[rows] = front | back
+    return out
+
+
 def back_faces(scene, tri, cell, faces, tiny):
     """(c,) bool: for each pair (triangle ``tri[cell[c]]``, face ``faces[c]``), whether the
     face is a back face of a closed convex box (:func:`closed_boxes`) for every point of the
@@ -496,13 +626,14 @@ def _front_edges(scene, face, side, margin):
     """The edges of the other faces' parts in front of side ``side`` of a face (clipped to
     its closed front half-space), for the faces whose boxes meet the face's box grown by
     ``margin``: ``(n, c, tiny, edges)``, n · y = c the side's plane (n its normal), edges a
-    list of ``(a, b)`` (k, 3) arrays, a loop's edges a → b."""
+    list of ``(a, b, face)``: (k, 3) arrays, a loop's edges a → b, and the face's id."""
     n = side * scene.face_normal[face]
     c = float(n @ scene.face_loops(face)[0][0])
     box_lo, box_hi = face_boxes(scene)
     lo, hi = box_lo[face] - margin, box_hi[face] + margin
     near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
-    edges = [(loop, np.roll(loop, -1, axis=0)) for k in near if k != face for loop in clip_loops(scene.face_loops(k), n, c)]
+    edges = [(loop, np.roll(loop, -1, axis=0), k) for k in near if k != face
+             for loop in clip_loops(scene.face_loops(k), n, c)]
     return n, c, 1e-9 * scene.diagonal, edges
 
 
@@ -518,7 +649,7 @@ def contact_segments(scene, face, side):
     """
     n, c, tiny, edges = _front_edges(scene, face, side, 10 * 1e-9 * scene.diagonal)
     out = []
-    for loop, b in edges:
+    for loop, b, _ in edges:
         flat = (np.abs(loop @ n - c) <= 10 * tiny) & (np.abs(b @ n - c) <= 10 * tiny)
         flat &= np.linalg.norm(b - loop, axis=1) > 10 * tiny
         out.append(np.stack([loop[flat], b[flat]], axis=1))
@@ -534,15 +665,28 @@ def _hovering_loops(scene, face, side):
     hover over it (within a quarter of its extent), projected on its plane, with which of
     their edges hover (ends at heights 0 < h ≤ a quarter of the edge's length):
     ``(n, [(proj (k, 3), hover (k,) bool, low (k,), length (k,))])``, edge k from vertex k
-    to k + 1, ``low`` its lower end's height."""
+    to k + 1, ``low`` its lower end's height. An edge of a closed solid that is, from every
+    point of the band its cuts would grade (a quarter of its length around it), between
+    two front or two back faces (:func:`inner_solid_edges`: the bunny's underside over the
+    floor) is on no outline there and does not hover."""
     box_lo, box_hi = face_boxes(scene)
     n, c, tiny, edges = _front_edges(scene, face, side, 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face])))
     out = []
-    for loop, b in edges:
+    for loop, b, k in edges:
         ha, hb = loop @ n - c, b @ n - c
         length = np.linalg.norm(b - loop, axis=1)
         low = np.minimum(ha, hb)
         hover = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
+        if np.any(hover):
+            pa, pb = loop - ha[:, None] * n, b - hb[:, None] * n
+            d = pb - pa
+            d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+            m = (0.25 * length)[:, None]
+            across = np.cross(n, d)
+            band = np.stack([pa - m * d + m * across, pa - m * d - m * across, pb + m * d + m * across,
+                             pb + m * d - m * across], axis=1)
+            hover &= ~inner_solid_edges(scene, n, c, tiny, np.full(len(loop), k), solid_edge_positions(scene, k, loop),
+                                        band)
         if np.any(hover):
             out.append((loop - ha[:, None] * n, hover, low, length))
     return n, out
@@ -1245,6 +1389,19 @@ class PairSetup:
         above = np.where(h[idx] > 10 * self.tiny, h[idx], np.inf).min(axis=1)
         return above, flat[idx], flat[nxt]
 
+    @functools.cached_property
+    def _edge_positions(self):
+        """(P, k) int64: :func:`solid_edge_positions` of each occluder's outline edges, in
+        :attr:`_heights`' padded order."""
+        pts, lo, hi, _ = self.occluder_outlines
+        k = int((hi - lo).max()) if len(lo) else 1
+        out = np.full((len(lo), k), -1, np.int64)
+        faces = self._occluder_faces
+        for p in np.flatnonzero(faces >= 0):
+            pos = solid_edge_positions(self.scene, faces[p], pts[lo[p]:hi[p]])
+            out[p] = pos[np.minimum(np.arange(k), len(pos) - 1)]
+        return out
+
     def unresolved(self, tri, ptr, ids):
         """(g,) float64: what a rule may miss on each triangle crossed by the outline of an
         occluder that hovers above I by less than half the triangle's width. Its shadow there
@@ -1274,6 +1431,13 @@ class PairSetup:
         # the edge's line crosses the triangle with more than h on both sides, within the edge
         crosses = (s.max(axis=2) > h) & (s.min(axis=2) < -h) & (t.max(axis=2) > 0) & (t.min(axis=2) < length)
         crosses &= length > 0
+        # edges of a closed solid between two front or two back faces from the whole
+        # triangle are on no outline there (the bunny's underside over the floor)
+        c_, k_ = np.nonzero(crosses)
+        if len(c_):
+            inner = inner_solid_edges(self.scene, self.n_i, self.c_i, self.tiny, self._occluder_faces[occ[c_]],
+                                      self._edge_positions[occ[c_], k_], tri[cell[c_]])
+            crosses[c_[inner], k_[inner]] = False
         hit = crosses.any(axis=1)
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out

@@ -100,3 +100,41 @@ def test_inner_edges_leave_the_estimate_alone(scene, monkeypatch):
     assert setup.unresolved(tri, ptr, ids).tolist() == [0.0]
     monkeypatch.setattr(ff, "inner_solid_edges", lambda scene, n, c, tiny, faces, pos, points: np.zeros(len(faces), bool))
     assert setup.unresolved(tri, ptr, ids)[0] == pytest.approx(2 * 0.02 * np.sqrt(2))
+
+
+@pytest.fixture(scope="module")
+def torus_scene():
+    """A 10 × 10 floor (y = 0, facing up), a 2 × 2 light at y = 8 (facing down) and a torus
+    (256 triangles, no two coplanar: a closed solid, not convex) tilted by 50° above the
+    floor's middle: seen from the floor its front faces' outline is an outer and an inner
+    loop that cross each other."""
+    import trimesh
+
+    t = trimesh.creation.torus(major_radius=1.5, minor_radius=0.5, major_sections=16, minor_sections=8)
+    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(50), [1, 0, 0]))
+    t.apply_translation([5.0, 3.0, 5.0])
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
+    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
+                            ["floor", "light", "torus"]))
+
+
+@pytest.mark.parametrize("which", ["solid", "torus"])
+def test_front_face_outline_equals_every_face(which, scene, torus_scene):
+    """The pair kernel with a solid's faces as the outline of its front faces
+    (:func:`viscx.geometry.occlusion._solid_outlines`) equals the kernel with every face
+    on its own, within 1e-12, at points on the floor (the torus' outline crosses itself:
+    its crossings must be breaks of the sweep), and per cubature triangle past the
+    triangles' culled lists."""
+    s = scene if which == "solid" else torus_scene
+    floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
+    setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
+    k = setup.kernel
+    assert np.count_nonzero(k["poly_solid"] >= 0) == len(s.group_faces(which))
+    each = dict(k, poly_solid=np.full_like(k["poly_solid"], -1))
+    rng = np.random.default_rng(1)
+    xz = rng.uniform(1.0, 9.0, (300, 2))
+    points = np.ascontiguousarray(np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=1))
+    new, old = setup.f(points), setup.f(points, each)
+    assert np.abs(new - old).max() <= 1e-12
+    assert np.count_nonzero(new < setup.f(points, setup.kernel_for([])) - 1e-6) > 30  # it hides something

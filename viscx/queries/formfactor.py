@@ -1302,13 +1302,52 @@ class PairSetup:
                 occ_poly.append(k)
             pn.append(nk)
             pp.append(loops[0][0])
+        occ_loop = np.asarray(occ_loop, np.int64)
         return dict(
             n_i=self.n_i, j2=allj, j_loop=j_loop, origin=origin, eu=eu, ev=ev, n_j=self.n_t, c_j=self.c_t, hull=hull3,
-            occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=np.asarray(occ_loop, np.int64),
+            occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=occ_loop,
             occ_poly=np.asarray(occ_poly, np.int64), poly_normal=np.asarray(pn, np.float64).reshape(-1, 3),
             poly_point=np.asarray(pp, np.float64).reshape(-1, 3), tiny=self.tiny, poly_box=boxes, box_ptr=box_ptr,
-            box_planes=box_planes,
+            box_planes=box_planes, **self._solid_arrays(occluders, boxes, occ_loop),
         )
+
+    def _solid_arrays(self, occluders, boxes, occ_loop):
+        """The :func:`closed_solids` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
+        for these occluders: ``poly_solid`` (a face of a solid that lies in the closed front
+        half-space of I, so that every point of I is outside it, unclipped, and no face of a
+        convex box; else -1), ``occ_nb`` (the occluder across each edge, -1 none),
+        ``occ_vid`` (compact vertex ids) and ``occ_next`` (the next vertex of each loop)."""
+        n = int(occ_loop[-1])
+        poly_solid = np.full(len(occluders), -1, np.int64)
+        occ_nb = np.full(n, -1, np.int64)
+        occ_vid = np.zeros(n, np.int64)
+        sizes = np.diff(occ_loop)
+        occ_next = np.arange(n, dtype=np.int64) + 1
+        occ_next[occ_loop[1:][sizes > 0] - 1] = occ_loop[:-1][sizes > 0]
+        face_solid, _, neighbour = closed_solids(self.scene)
+        eligible = _outside_solids(self.scene, self.n_i, self.c_i, self.tiny)
+        if not np.any(eligible):
+            return dict(poly_solid=poly_solid, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
+        pos = np.full(n, -1, np.int64)
+        pid_of, edge_pos = {}, {}
+        for k, o in enumerate(occluders):
+            f = o[2] if len(o) > 2 else -1
+            if f < 0 or face_solid[f] < 0 or not eligible[face_solid[f]] or boxes[k] >= 0 or len(o[0]) != 1:
+                continue
+            p = solid_edge_positions(self.scene, f, o[0][0])
+            if p[0] < 0:
+                continue
+            poly_solid[k] = face_solid[f]
+            pid_of[int(f)], edge_pos[k] = k, p
+        # occluder k's loops start at loop Σ_{k' < k} len(loops_k'); a solid face has one
+        first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
+        for k in np.flatnonzero(poly_solid >= 0):
+            pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + 1]] = edge_pos[k]
+        rows = np.flatnonzero(pos >= 0)
+        nb_face = neighbour[pos[rows]]
+        occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]
+        _, occ_vid[rows] = np.unique(self.scene.loop_vertices[pos[rows]], return_inverse=True)
+        return dict(poly_solid=poly_solid, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
 
     @functools.cached_property
     def kernel(self):
@@ -1321,7 +1360,8 @@ class PairSetup:
         k = self.kernel if kernel is None else kernel
         return visible_form_factors(np.ascontiguousarray(points), k["n_i"], k["j2"], k["j_loop"], k["origin"], k["eu"], k["ev"],
                                     k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"], k["poly_normal"],
-                                    k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"])
+                                    k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"], k["poly_solid"],
+                                    k["occ_nb"], k["occ_vid"], k["occ_next"])
 
     def blocked(self, points, group, ptr, ids):
         """F(x → J') − F(x → visible part of J') at ``points``, each past its group's occluders
@@ -1329,7 +1369,8 @@ class PairSetup:
         k = self.kernel
         return blocked_form_factors(points, np.asarray(group, np.int64), ptr, ids, k["n_i"], k["j2"], k["j_loop"], k["origin"],
                                     k["eu"], k["ev"], k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"],
-                                    k["poly_normal"], k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"])
+                                    k["poly_normal"], k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"],
+                                    k["poly_solid"], k["occ_nb"], k["occ_vid"], k["occ_next"])
 
     # -- the cubature's domain ----------------------------------------------------------
     def triangles(self):

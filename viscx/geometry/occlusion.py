@@ -965,6 +965,36 @@ def _separated_on(ax, ay, az, pa, pb, poly_pts, lo, hi, tol):
 
 
 @njit(cache=True)
+def _boxes_apart(pa, pb, poly_pts, lo, hi, tol):
+    """Whether the bounding box of pa ∪ pb and that of ``poly_pts[lo:hi]`` are more than
+    ``tol`` apart along an axis."""
+    for d in range(3):
+        a_lo = min(pa[:, d].min(), pb[:, d].min())
+        a_hi = max(pa[:, d].max(), pb[:, d].max())
+        b_lo = poly_pts[lo:hi, d].min()
+        b_hi = poly_pts[lo:hi, d].max()
+        if b_hi <= a_lo + tol or a_hi <= b_lo + tol:
+            return True
+    return False
+
+
+@njit(cache=True)
+def shaft_boxes_meet(cells, target, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi, tol):
+    """The first test of :func:`shaft_meets` only (conservative: a superset of the
+    polygons meeting the shaft): the candidates whose bounding box meets the shaft's.
+
+    Returns
+    -------
+    (c,) bool
+    """
+    out = np.zeros(cand_cell.shape[0], np.bool_)
+    for c in range(cand_cell.shape[0]):
+        p = cand_poly[c]
+        out[c] = not _boxes_apart(cells[cand_cell[c]], target, poly_pts, poly_lo[p], poly_hi[p], tol)
+    return out
+
+
+@njit(cache=True)
 def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi,
                 poly_normal, tol):
     """Which candidate polygons meet the interior of the *shaft* of a cell and the target:
@@ -999,18 +1029,9 @@ def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly,
         kc = pa.shape[0]
         p = cand_poly[c]
         lo, hi = poly_lo[p], poly_hi[p]
-        # boxes first
-        sep = False
-        for d in range(3):
-            a_lo = min(pa[:, d].min(), target[:, d].min())
-            a_hi = max(pa[:, d].max(), target[:, d].max())
-            b_lo = poly_pts[lo:hi, d].min()
-            b_hi = poly_pts[lo:hi, d].max()
-            if b_hi <= a_lo + tol or a_hi <= b_lo + tol:
-                sep = True
-                break
-        if sep:
+        if _boxes_apart(pa, target, poly_pts, lo, hi, tol):  # boxes first
             continue
+        sep = False
         n = cell_normal[cand_cell[c]]
         if _separated_on(n[0], n[1], n[2], pa, target, poly_pts, lo, hi, tol):
             continue

@@ -65,7 +65,8 @@ import numpy as np
 
 from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
-from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
+from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
+                                     visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.queries.kinks import kink_segments
 
@@ -946,7 +947,8 @@ def cubature_cells(scene, face, side, min_size=None):
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
     that makes more than :data:`MAX_KINK_CELLS` cells or more start triangles than three
     levels (21 triangles each) on the uncut ones; then the uncut cells (three levels:
-    :class:`Cubature`, :class:`ThreeLevelRowCubature`).
+    :class:`Cubature`, :class:`ThreeLevelRowCubature`). Uncut cells already past that
+    many are kept without listing the kink lines at all.
 
     Returns
     -------
@@ -963,7 +965,12 @@ def cubature_cells(scene, face, side, min_size=None):
         return scene.cached(f"cubature_cells {int(face)} {int(side)}", lambda s: cubature_cells(s, face, side, size))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
+    limit = min(MAX_KINK_CELLS, 21 * len(tri))
+    if len(cells) > limit:
+        # cuts only add cells: past the limit before the kink lines are even listed (they
+        # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
+        return cells, tri, False
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
         if len(kinked_tri) <= 21 * len(tri):
@@ -1395,13 +1402,25 @@ class PairSetup:
         """Each triangle's occluders (CSR ``ptr, ids`` into :attr:`occluders`) reduced to the
         ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`) that are
         not back faces of a closed box outside of which the whole triangle lies
-        (:func:`back_faces`)."""
+        (:func:`back_faces`). The faces of a closed solid (``poly_solid`` of :attr:`kernel`)
+        in a list already culled (fewer than all the pair's occluders: a child's list, from
+        its parent's) are kept where their boxes meet the shaft's
+        (:func:`viscx.geometry.occlusion.shaft_boxes_meet`): a superset, as exact (a face
+        that misses the shaft hides nothing), and the kernel's cost grows little with them
+        (their outline is what it sweeps) while the full test of the hundreds of bunny
+        triangles in each shaft was most of the cubature's time."""
         pts, lo, hi, normals = self.occluder_outlines
-        cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
+        counts = np.diff(ptr)
+        cell = np.repeat(np.arange(len(tri)), counts)
         keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
         cell, ids = cell[keep], ids[keep]
-        meets = shaft_meets(np.ascontiguousarray(tri), np.ascontiguousarray(np.broadcast_to(self.n_i, (len(tri), 3))),
-                            self.frame[6], np.asarray(self.n_t, np.float64), cell, ids, pts, lo, hi, normals, self.tiny)
+        tri = np.ascontiguousarray(tri)
+        rough = (self.kernel["poly_solid"][ids] >= 0) & (counts[cell] < len(self.occluders))
+        meets = np.empty(len(ids), bool)
+        meets[rough] = shaft_boxes_meet(tri, self.frame[6], cell[rough], ids[rough], pts, lo, hi, self.tiny)
+        meets[~rough] = shaft_meets(tri, np.ascontiguousarray(np.broadcast_to(self.n_i, (len(tri), 3))), self.frame[6],
+                                    np.asarray(self.n_t, np.float64), cell[~rough], ids[~rough], pts, lo, hi, normals,
+                                    self.tiny)
         counts = np.bincount(cell[meets], minlength=len(tri))
         return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), ids[meets]
 

@@ -95,11 +95,22 @@ def _clip_to_frustum(pts, lo, hi, x, planes, n_planes, buf_a, buf_b):
                 break
         if out:
             return 0
+    return _clip_planes(pts, lo, hi, x, planes, n_planes, buf_a, buf_b, buf_a.shape[0] + 1)
+
+
+@njit(cache=True)
+def _clip_planes(pts, lo, hi, x, planes, n_planes, buf_a, buf_b, most):
+    """The loop ``pts[lo:hi]`` clipped to each plane in turn into ``buf_a``; its size (0
+    when fewer than 3 are left), -1 when a loop of more than ``most`` points would be
+    clipped (each clip at most doubles it: a chain that is no convex loop could outgrow the
+    buffers; a convex loop gains one point a plane)."""
     n_in = hi - lo
     for q in range(n_in):
         for c in range(3):
             buf_a[q, c] = pts[lo + q, c]
     for i in range(n_planes):
+        if n_in > most:
+            return -1
         n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
         for q in range(n_in):
             for c in range(3):
@@ -770,19 +781,7 @@ def _clip_chain(chain, n, x, planes, n_planes, cb_a, cb_b):
     (Sutherland–Hodgman, each plane through x: the projection of the clipped chain is the
     projected chain clipped, winding numbers kept inside) into ``cb_a``; its size, -1 if it
     would outgrow the buffers."""
-    for q in range(n):
-        for c in range(3):
-            cb_a[q, c] = chain[q, c]
-    for i in range(n_planes):
-        if 2 * n > cb_a.shape[0]:
-            return -1
-        n = _clip_loop(cb_a, n, cb_b, x, planes[i])
-        for q in range(n):
-            for c in range(3):
-                cb_a[q, c] = cb_b[q, c]
-        if n < 3:
-            return 0
-    return n
+    return _clip_planes(chain, 0, n, x, planes, n_planes, cb_a, cb_b, cb_a.shape[0] // 2)
 
 
 @njit(cache=True)

@@ -1144,8 +1144,7 @@ class Cubature:
             Triangles evaluated.
         """
         candidates = np.asarray(candidates, np.int64)
-        ptr = (np.arange(len(tri) + 1) * len(candidates)).astype(np.int64)
-        ptr, ids = self.cull(tri, ptr, np.tile(candidates, len(tri)))
+        ptr, ids = cull_all(self.cull, tri, candidates)
         while len(tri) and min_size > 0:
             long = np.sqrt(2 * triangle_areas(tri)) > min_size
             if not np.any(long):
@@ -1209,6 +1208,33 @@ class Cubature:
         err = self.estimates(tri, ptr, ids, q, kq, gq)
         self.leaves = (tri, ptr, ids, q, kq, gq, err)
         return float(gq.sum()), float(err.sum()), cells
+
+
+#: Candidate pairs (triangle, occluder) culled at once by :func:`cull_all`: every triangle
+#: against every occluder of a pair is 27 million pairs on the bunny's floor, whose arrays
+#: (GBs, mapped afresh and faulted in page by page) cost seconds of system time.
+CULL_BLOCK = 1 << 20
+
+
+def cull_all(cull, tri, candidates):
+    """``cull(tri, ptr, ids)`` of every triangle against all the candidates, by blocks of
+    triangles (at most :data:`CULL_BLOCK` pairs each, at least one triangle): the same
+    lists, in bounded memory.
+
+    Returns
+    -------
+    ptr : (g + 1,) int64
+    ids : (k,) int64
+    """
+    step = max(1, CULL_BLOCK // max(len(candidates), 1))
+    ptrs, lists = [np.zeros(1, np.int64)], []
+    for lo in range(0, len(tri), step):
+        block = tri[lo:lo + step]
+        ptr, ids = cull(block, (np.arange(len(block) + 1) * len(candidates)).astype(np.int64),
+                        np.tile(candidates, len(block)))
+        ptrs.append(ptr[1:] + ptrs[-1][-1])
+        lists.append(ids)
+    return np.concatenate(ptrs).astype(np.int64), (np.concatenate(lists) if lists else np.zeros(0, np.int64))
 
 
 def _longest_side(tri):
@@ -1520,16 +1546,16 @@ class PairSetup:
         if self.kinked:
             tri = split_large(tri, min_size)
             k = len(self.occluders)
-            ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+            ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
             tri = tri[np.diff(ptr) > 0]
 
             def column(points, tri):
                 # each triangle past the occluders that meet its shaft (as Cubature's lists)
-                ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                ptr, ids = cull_all(self.shaft_cull, tri, np.arange(k))
                 return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
             def live(tri):
-                ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
             cub = RowCubature(column)

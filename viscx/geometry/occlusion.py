@@ -105,6 +105,15 @@ def _clip_to_frustum(pts, lo, hi, x, planes, n_planes, buf_a, buf_b):
                 inside = False
         if out:
             return 0
+    return _clip_planes(pts, lo, hi, x, planes, n_planes, buf_a, buf_b, buf_a.shape[0] + 1)
+
+
+@njit(cache=True)
+def _clip_planes(pts, lo, hi, x, planes, n_planes, buf_a, buf_b, most):
+    """The loop ``pts[lo:hi]`` clipped to each plane in turn into ``buf_a``; its size (0
+    when fewer than 3 are left), -1 when a loop of more than ``most`` points would be
+    clipped (each clip at most doubles it: a chain that is no convex loop could outgrow the
+    buffers; a convex loop gains one point a plane)."""
     n_in = hi - lo
     for q in range(n_in):
         for c in range(3):
@@ -112,6 +121,8 @@ def _clip_to_frustum(pts, lo, hi, x, planes, n_planes, buf_a, buf_b):
     if inside:
         return n_in
     for i in range(n_planes):
+        if n_in > most:
+            return -1
         n_in = _clip_loop(buf_a, n_in, buf_b, x, planes[i])
         for q in range(n_in):
             for c in range(3):
@@ -406,11 +417,12 @@ def _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, hull_first, 
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state, box_head, box_next, box_list,
                  hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0,
-                 p1):
+                 p1, poly_solid, occ_nb, occ_vid, occ_next, sw):
     """Form factor from (x, n_i) to the visible part of J past the occluder polygons ``sel``
     (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring), and ``brk``
     (grown if it had to). The faces of a closed convex box x is outside of (``poly_box``,
-    :func:`_outside`) are replaced by the convex hull of their projection."""
+    :func:`_outside`) are replaced by the convex hull of their projection; the faces of a
+    closed solid (``poly_solid``, :func:`_solid_outlines`) by the outline of its front faces."""
     hx = n_j[0] * x[0] + n_j[1] * x[1] + n_j[2] * x[2] - c_j
     if hx <= 0:
         return 0.0, brk
@@ -441,12 +453,18 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             seg_p[n_seg] = 0
             seg_w[n_seg] = 1
             n_seg += 1
-    # occluders: clipped to the pyramid, projected through x; the faces of a closed box
-    # that x is outside of are gathered first (one convex polygon per box, below)
+    # closed solids: the outlines of their front faces first (every face of a solid is
+    # then done with, unless they did not fit: then each face on its own, below)
     n_poly = poly_normal.shape[0]
+    n_seg, solids = _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, occ_nb,
+                                    occ_vid, occ_next, sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b,
+                                    seg_p, seg_w, n_seg, buf_a.shape[0])
+    mark, self_cross = sw[0], sw[5]
     n_box = 0
     for r in range(sel.shape[0]):
         pid = sel[r]
+        if solids and poly_solid[pid] >= 0:
+            continue
         b = poly_box[pid]
         if _outside(x, b, box_state, box_ptr, box_planes, tiny):
             if box_head[b] < 0:
@@ -511,6 +529,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         b = poly_box[sel[r]]
         if b >= 0:
             box_state[b] = 0
+        mark[sel[r]] = 0
     if n_hulls and j_loop.shape[0] > 2:
         n_seg = _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, box_list, n_hulls)
     # winding weights: an edge running right to left adds its polygon's sign below it
@@ -540,7 +559,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             f = by_lo[r2]
             if lo_u[f] > hi_u[e]:
                 break
-            if seg_p[f] == seg_p[e] or seg_w[f] == 0:
+            if (seg_p[f] == seg_p[e] and self_cross[seg_p[e]] == 0) or seg_w[f] == 0:
                 continue
             u = _crossing_u(seg_a, seg_b, min(e, f), max(e, f))
             if u == u:
@@ -634,8 +653,160 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         for e in range(n_seg):
             if runs[e, 0] != 0:
                 total += _flush(runs, e, seg_a, slope, origin, eu, ev, x, n_i, p0, p1)
+    for e in range(n_seg):
+        self_cross[seg_p[e]] = 0
     # counter-clockwise seen from x: Σ Γ points back at x, against n_i
     return -total / TWO_PI, brk
+
+
+@njit(cache=True)
+def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, occ_nb, occ_vid, occ_next,
+                    sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b, seg_p, seg_w, n_seg, kmax):
+    """The faces of closed solids among ``sel`` (``poly_solid`` >= 0; x outside each solid,
+    every face one loop, its edge q → ``occ_next[q]`` shared with occluder ``occ_nb[q]``,
+    -1 if that is none of them; ``occ_vid`` the vertices' ids) as the outlines of their
+    front faces, appended to the segments: the edges of a front face whose neighbour is not
+    a listed front face, chained into loops, clipped to the pyramid and projected, one
+    polygon per solid whose loops may cross each other. A ray from x meeting a back face
+    has entered the solid through a front face that meets the ray's segment to J, inside
+    the shaft (listed), so the back faces hide nothing more; the front faces' projections
+    are all counter-clockwise, their winding numbers add up, and the shared edges cancel:
+    the non-zero winding of the outline is their union. Work arrays ``sw``: (mark (P,)
+    1 front, 2 back or edge-on; head (V,), link (n,), used (n,), rep (P,), self_cross
+    (P + 1,), chain (n, 3), two clip buffers (2 n + 8, 3)).
+
+    Returns
+    -------
+    n_seg : int
+    done : bool
+        False when there are none or an outline did not fit (the faces are left to the
+        caller, each on its own, and the segments are as they were).
+    """
+    mark, head, link, used, rep, self_cross = sw[0], sw[1], sw[2], sw[3], sw[4], sw[5]
+    chain, cb_a, cb_b = sw[6], sw[7], sw[8]
+    n_front = 0
+    for r in range(sel.shape[0]):
+        pid = sel[r]
+        if poly_solid[pid] < 0:
+            continue
+        side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
+                + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
+        if side > tiny:
+            mark[pid] = 1
+            n_front += 1
+        else:
+            mark[pid] = 2
+    if n_front == 0:
+        ok = True
+        for r in range(sel.shape[0]):
+            if poly_solid[sel[r]] >= 0:
+                ok = False  # back faces only: nothing to add, all done
+        return n_seg, not ok
+    # the emitted edges, listed by their start vertex
+    n_em = 0
+    for r in range(sel.shape[0]):
+        pid = sel[r]
+        if poly_solid[pid] < 0 or mark[pid] != 1:
+            continue
+        for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid] + 1]):
+            nb = occ_nb[q]
+            if nb >= 0 and mark[nb] == 1:
+                continue
+            v = occ_vid[q]
+            link[q] = head[v]
+            head[v] = q
+            n_em += 1
+    start_seg = n_seg
+    budget = n_front * kmax
+    ok = True
+    for r in range(sel.shape[0]):
+        pid = sel[r]
+        if not ok:
+            break
+        if poly_solid[pid] < 0 or mark[pid] != 1:
+            continue
+        for q0 in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid] + 1]):
+            nb = occ_nb[q0]
+            if (nb >= 0 and mark[nb] == 1) or used[q0]:
+                continue
+            # walk the loop from edge q0
+            n_ch = 0
+            q = q0
+            start = occ_vid[q0]
+            while True:
+                used[q] = 1
+                for c in range(3):
+                    chain[n_ch, c] = occ[q, c]
+                n_ch += 1
+                v = occ_vid[occ_next[q]]
+                if v == start:
+                    break
+                e = head[v]
+                while e >= 0 and used[e]:
+                    e = link[e]
+                if e < 0 or n_ch >= n_em:
+                    ok = False  # not a closed chain (cannot happen for a solid's faces)
+                    break
+                head[v] = link[e]
+                q = e
+            if not ok:
+                break
+            n_in = _clip_chain(chain, n_ch, x, planes, n_hull, cb_a, cb_b)
+            if n_in < 0 or n_seg - start_seg + n_in > budget:
+                ok = False
+                break
+            if n_in < 3:
+                continue
+            s = poly_solid[pid]
+            if rep[s] < 0:
+                rep[s] = pid
+            _project(cb_a, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, seg_a, n_seg)
+            first = n_seg
+            for k in range(n_in):
+                m = first + k + 1 if k + 1 < n_in else first
+                seg_b[first + k, 0], seg_b[first + k, 1] = seg_a[m, 0], seg_a[m, 1]
+                seg_p[first + k] = rep[s] + 1
+                seg_w[first + k] = 1
+            self_cross[rep[s] + 1] = 1
+            n_seg += n_in
+    # reset the work arrays
+    for r in range(sel.shape[0]):
+        pid = sel[r]
+        if poly_solid[pid] < 0:
+            continue
+        rep[poly_solid[pid]] = -1
+        for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid] + 1]):
+            head[occ_vid[q]] = -1
+            used[q] = 0
+        if not ok:
+            mark[pid] = 0
+    if not ok:
+        for e in range(start_seg, n_seg):
+            self_cross[seg_p[e]] = 0
+        return start_seg, False
+    return n_seg, True
+
+
+@njit(cache=True)
+def _clip_chain(chain, n, x, planes, n_planes, cb_a, cb_b):
+    """A closed chain of points (an outline, not planar) clipped to the planes through x
+    (Sutherland–Hodgman, each plane through x: the projection of the clipped chain is the
+    projected chain clipped, winding numbers kept inside) into ``cb_a``; its size, -1 if it
+    would outgrow the buffers."""
+    return _clip_planes(chain, 0, n, x, planes, n_planes, cb_a, cb_b, cb_a.shape[0] // 2)
+
+
+@njit(cache=True)
+def _solid_buffers(occ, n_poly, occ_vid):
+    """Work arrays of :func:`_solid_outlines`."""
+    n = occ.shape[0]
+    n_vid = 1
+    for q in range(n):
+        n_vid = max(n_vid, occ_vid[q] + 1)
+    cap = 2 * n + 8
+    return (np.zeros(n_poly, np.int64), np.full(n_vid, -1, np.int64), np.full(n, -1, np.int64), np.zeros(n, np.int64),
+            np.full(n_poly, -1, np.int64), np.zeros(n_poly + 1, np.int64), np.empty((n + 1, 3)), np.empty((cap, 3)),
+            np.empty((cap, 3)))
 
 
 @njit(cache=True)
@@ -667,7 +838,7 @@ def _buffers(j2, hull, occ_loop, n_poly):
 
 @njit(cache=True)
 def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly, poly_normal,
-                         poly_point, tiny, poly_box, box_ptr, box_planes):
+                         poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid, occ_nb, occ_vid, occ_next):
     """Form factors from differential areas (points, common normal n_i) to the part of J
     each point sees past the occluders.
 
@@ -697,6 +868,13 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         ``box_ptr`` (b + 1,) int64 and ``box_planes`` (k, 5) float64 the boxes' planes
         (:func:`viscx.queries.formfactor.closed_boxes`): a point outside a box skips its
         faces as one convex polygon (:func:`_visible_one`).
+    poly_solid : (P,) int64
+        The closed solid each occluder is a face of (-1 none; every point outside it, the
+        face one loop, unclipped, its normal outward: :func:`viscx.queries.formfactor.closed_solids`);
+        ``occ_nb`` (no,) int64 the occluder across the edge from each loop vertex to the
+        next (``occ_next`` (no,) int64, its index), -1 none; ``occ_vid`` (no,) int64 the
+        vertices' ids (equal for one point). The solid's front faces enter as their
+        outline (:func:`_solid_outlines`).
 
     Returns
     -------
@@ -711,17 +889,20 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     box_head = np.full(box_ptr.shape[0], -1, np.int64)
     box_next = np.empty(n_poly, np.int64)
     box_list = np.empty(box_ptr.shape[0], np.int64)
+    sw = _solid_buffers(occ, n_poly, occ_vid)
     out = np.empty(points.shape[0])
     for i in range(points.shape[0]):
         out[i], brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                    poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
-                                   box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+                                   box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1,
+                                   poly_solid, occ_nb, occ_vid, occ_next, sw)
     return out
 
 
 @njit(cache=True)
 def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ,
-                         occ_loop, occ_poly, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes):
+                         occ_loop, occ_poly, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid, occ_nb,
+                         occ_vid, occ_next):
     """The part of F(x → J) that the occluders hide, ``F(x → J) − F(x → visible part of J)``,
     each point seeing past its own group's occluders only.
 
@@ -749,6 +930,7 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
     box_head = np.full(box_ptr.shape[0], -1, np.int64)
     box_next = np.empty(n_poly, np.int64)
     box_list = np.empty(box_ptr.shape[0], np.int64)
+    sw = _solid_buffers(occ, n_poly, occ_vid)
     out = np.zeros(points.shape[0])
     for i in range(points.shape[0]):
         g = point_group[i]
@@ -757,10 +939,12 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
             continue
         whole, brk = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                   poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
-                                  box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+                                  box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1,
+                                   poly_solid, occ_nb, occ_vid, occ_next, sw)
         seen, brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                  poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
-                                 box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1)
+                                 box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1,
+                                   poly_solid, occ_nb, occ_vid, occ_next, sw)
         out[i] = whole - seen
     return out
 
@@ -789,6 +973,36 @@ def _separated_on(ax, ay, az, pa, pb, poly_pts, lo, hi, tol):
         b_lo, b_hi = min(b_lo, d), max(b_hi, d)
     t = tol * size
     return b_hi <= a_lo + t or a_hi <= b_lo + t
+
+
+@njit(cache=True)
+def _boxes_apart(pa, pb, poly_pts, lo, hi, tol):
+    """Whether the bounding box of pa ∪ pb and that of ``poly_pts[lo:hi]`` are more than
+    ``tol`` apart along an axis."""
+    for d in range(3):
+        a_lo = min(pa[:, d].min(), pb[:, d].min())
+        a_hi = max(pa[:, d].max(), pb[:, d].max())
+        b_lo = poly_pts[lo:hi, d].min()
+        b_hi = poly_pts[lo:hi, d].max()
+        if b_hi <= a_lo + tol or a_hi <= b_lo + tol:
+            return True
+    return False
+
+
+@njit(cache=True)
+def shaft_boxes_meet(cells, target, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi, tol):
+    """The first test of :func:`shaft_meets` only (conservative: a superset of the
+    polygons meeting the shaft): the candidates whose bounding box meets the shaft's.
+
+    Returns
+    -------
+    (c,) bool
+    """
+    out = np.zeros(cand_cell.shape[0], np.bool_)
+    for c in range(cand_cell.shape[0]):
+        p = cand_poly[c]
+        out[c] = not _boxes_apart(cells[cand_cell[c]], target, poly_pts, poly_lo[p], poly_hi[p], tol)
+    return out
 
 
 @njit(cache=True)
@@ -826,18 +1040,9 @@ def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly,
         kc = pa.shape[0]
         p = cand_poly[c]
         lo, hi = poly_lo[p], poly_hi[p]
-        # boxes first
-        sep = False
-        for d in range(3):
-            a_lo = min(pa[:, d].min(), target[:, d].min())
-            a_hi = max(pa[:, d].max(), target[:, d].max())
-            b_lo = poly_pts[lo:hi, d].min()
-            b_hi = poly_pts[lo:hi, d].max()
-            if b_hi <= a_lo + tol or a_hi <= b_lo + tol:
-                sep = True
-                break
-        if sep:
+        if _boxes_apart(pa, target, poly_pts, lo, hi, tol):  # boxes first
             continue
+        sep = False
         n = cell_normal[cand_cell[c]]
         if _separated_on(n[0], n[1], n[2], pa, target, poly_pts, lo, hi, tol):
             continue

@@ -65,7 +65,8 @@ import numpy as np
 
 from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
-from viscx.geometry.occlusion import blocked_form_factors, point_views, shaft_meets, visible_form_factors
+from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
+                                     visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.queries.kinks import kink_segments
 
@@ -354,6 +355,136 @@ def _box_plane_table(scene):
     return scene.cached("box_plane_table", build)
 
 
+def closed_solids(scene):
+    """The closed solids bounded by faces of the scene, convex or not (a scanned statue: the
+    npm bunny's 3,674 triangles): connected sets of faces without holes in which every
+    directed edge of a face (loops counter-clockwise about the normals) is traversed
+    backwards by exactly one other face of the set and by no third face (a watertight,
+    consistently oriented 2-manifold). A ray from a point outside such a solid that meets a
+    face the point is behind (a back face) has entered the solid before, through a face the
+    point is in front of; so from such a point an edge between two front faces or two back
+    faces is never on the outline of what the solid hides (docs/queries.md).
+
+    Returns
+    -------
+    face_solid : (f,) int64
+        The solid of each face, -1 if none.
+    outward : (s,) float64
+        +1 where the faces' normals point out of solid s, -1 where they point in (the
+        sign of its volume by the divergence theorem).
+    neighbour : (m,) int64
+        Aligned with ``scene.loop_vertices``: the face across the edge from each loop
+        vertex to the next, -1 outside a solid.
+    """
+
+    def build(scene):
+        n, lv, lo = scene.n_faces, scene.loop_vertices.astype(np.int64), scene.loop_offsets.astype(np.int64)
+        flo = scene.face_loop_offsets
+        one = np.diff(flo) == 1  # faces without holes
+        loop_face = np.repeat(np.arange(n), np.diff(flo))
+        sizes = np.diff(lo)
+        edge_loop = np.repeat(np.arange(len(sizes)), sizes)
+        nxt = np.arange(len(lv)) + 1
+        nxt[lo[1:] - 1] = lo[:-1]  # the last vertex of a loop goes to its first
+        a, b = lv, lv[nxt]
+        face = loop_face[edge_loop]
+        nv = scene.n_vertices
+        key, rev = a * nv + b, b * nv + a
+        order = np.argsort(key, kind="stable")
+        sk = key[order]
+        count = np.searchsorted(sk, key, "right") - np.searchsorted(sk, key, "left")
+        left = np.searchsorted(sk, rev, "left")
+        rcount = np.searchsorted(sk, rev, "right") - left
+        neighbour = np.full(len(lv), -1, np.int64)
+        paired = (count == 1) & (rcount == 1) & one[face]
+        neighbour[paired] = face[order[left[paired]]]
+        paired &= one[np.maximum(neighbour, 0)] & (neighbour != face)
+        neighbour[~paired] = -1
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        link = np.flatnonzero(paired)
+        _, comp = connected_components(coo_matrix((np.ones(len(link)), (face[link], neighbour[link])), shape=(n, n)),
+                                       directed=False)
+        # a solid: every edge of every face of the component paired
+        bare = np.bincount(comp[face[~paired]], minlength=n) > 0
+        faces_in = np.bincount(comp, minlength=n)
+        good = ~bare & (faces_in >= 4)
+        face_solid = np.full(n, -1, np.int64)
+        ok = good[comp] & one
+        ids, face_solid[ok] = np.unique(comp[ok], return_inverse=True)
+        neighbour[~ok[face]] = -1
+        # volume: Σ_f A_f (n_f · p_f) / 3 over each solid's faces
+        vol = np.bincount(face_solid[ok], weights=scene.face_area[ok] * scene.face_offset[ok], minlength=len(ids))
+        return face_solid, np.where(vol >= 0, 1.0, -1.0), neighbour
+
+    return scene.cached("closed_solids", build)
+
+
+def _outside_solids(scene, n, c, tiny):
+    """(s,) bool: the :func:`closed_solids` whose normals point out and that lie in the
+    closed front half-space ``n · y >= c`` (within ``tiny``) of an emitter's plane: every
+    point of the plane is outside them or on them."""
+    face_solid, outward, _ = closed_solids(scene)
+    if not len(outward):
+        return np.zeros(0, bool)
+    loop_face = np.repeat(np.arange(scene.n_faces), np.diff(scene.face_loop_offsets))
+    vface = np.repeat(loop_face, np.diff(scene.loop_offsets))
+    solid = face_solid[vface]
+    low = np.full(len(outward), np.inf)
+    np.minimum.at(low, solid[solid >= 0], scene.vertices[scene.loop_vertices[solid >= 0]] @ n - c)
+    return (outward > 0) & (low >= -tiny)
+
+
+def solid_edge_positions(scene, face, loop):
+    """(k,) int64: for the outer loop ``loop`` (k, 3) of a face's part, the position in
+    ``scene.loop_vertices`` of each edge's start when the part is the face's whole outer
+    loop (not clipped: the same points in the same order), else -1 (no
+    :func:`closed_solids` rule for its edges)."""
+    first = scene.face_loop_offsets[face]
+    lo, hi = scene.loop_offsets[first], scene.loop_offsets[first + 1]
+    whole = scene.vertices[scene.loop_vertices[lo:hi]]
+    if whole.shape != loop.shape or not np.array_equal(whole, loop):
+        return np.full(len(loop), -1, np.int64)
+    return np.arange(lo, hi, dtype=np.int64)
+
+
+def inner_solid_edges(scene, n, c, tiny, faces, pos, points):
+    """(e,) bool: whether edge e (the edge of face ``faces[e]`` starting at loop vertex
+    ``pos[e]``, -1 none) is, from every one of ``points[e]`` (e, r, 3) on the emitter's
+    plane ``n · y = c``, an edge between two front faces or between two back faces of a
+    :func:`closed_solids` solid the plane is outside of (by more than ``tiny`` from each
+    face's plane): never on the outline of what the solid hides from there. From a
+    point outside the solid the front faces' images cover everything the solid hides, with
+    the number of front faces a ray crosses as their winding, so an edge between two front
+    faces lies inside their images and one between two back faces behind one of them; what
+    a point sees of the light changes only across the images of edges between a front and
+    a back face (or of faces seen edge-on). The facing is linear along the plane, so three
+    points decide it for their triangle."""
+    out = np.zeros(len(faces), bool)
+    face_solid, outward, neighbour = closed_solids(scene)
+    ok = (pos >= 0) & (faces >= 0)
+    ok[ok] &= face_solid[faces[ok]] >= 0
+    if not np.any(ok):
+        return out
+    eligible = _outside_solids(scene, n, c, tiny)
+    ok[ok] &= eligible[face_solid[faces[ok]]]
+    rows = np.flatnonzero(ok)
+    if not len(rows):
+        return out
+    other = neighbour[pos[rows]]
+    sign = outward[face_solid[faces[rows]]][:, None]
+    x = points[rows]
+
+    def facing(f):
+        return sign * (np.einsum("erj,ej->er", x, scene.face_normal[f]) - scene.face_offset[f][:, None])
+
+    a, b = facing(faces[rows]), facing(other)
+    front = np.all(a > tiny, axis=1) & np.all(b > tiny, axis=1)
+    back = np.all(a < -tiny, axis=1) & np.all(b < -tiny, axis=1)
+    out[rows] = front | back
+    return out
+
+
 def back_faces(scene, tri, cell, faces, tiny):
     """(c,) bool: for each pair (triangle ``tri[cell[c]]``, face ``faces[c]``), whether the
     face is a back face of a closed convex box (:func:`closed_boxes`) for every point of the
@@ -518,13 +649,14 @@ def _front_edges(scene, face, side, margin):
     """The edges of the other faces' parts in front of side ``side`` of a face (clipped to
     its closed front half-space), for the faces whose boxes meet the face's box grown by
     ``margin``: ``(n, c, tiny, edges)``, n · y = c the side's plane (n its normal), edges a
-    list of ``(a, b)`` (k, 3) arrays, a loop's edges a → b."""
+    list of ``(a, b, face)``: (k, 3) arrays, a loop's edges a → b, and the face's id."""
     n = side * scene.face_normal[face]
     c = float(n @ scene.face_loops(face)[0][0])
     box_lo, box_hi = face_boxes(scene)
     lo, hi = box_lo[face] - margin, box_hi[face] + margin
     near = np.flatnonzero(np.all(box_lo <= hi, axis=1) & np.all(box_hi >= lo, axis=1))
-    edges = [(loop, np.roll(loop, -1, axis=0)) for k in near if k != face for loop in clip_loops(scene.face_loops(k), n, c)]
+    edges = [(loop, np.roll(loop, -1, axis=0), k) for k in near if k != face
+             for loop in clip_loops(scene.face_loops(k), n, c)]
     return n, c, 1e-9 * scene.diagonal, edges
 
 
@@ -540,7 +672,7 @@ def contact_segments(scene, face, side):
     """
     n, c, tiny, edges = _front_edges(scene, face, side, 10 * 1e-9 * scene.diagonal)
     out = []
-    for loop, b in edges:
+    for loop, b, _ in edges:
         flat = (np.abs(loop @ n - c) <= 10 * tiny) & (np.abs(b @ n - c) <= 10 * tiny)
         flat &= np.linalg.norm(b - loop, axis=1) > 10 * tiny
         out.append(np.stack([loop[flat], b[flat]], axis=1))
@@ -556,15 +688,28 @@ def _hovering_loops(scene, face, side):
     hover over it (within a quarter of its extent), projected on its plane, with which of
     their edges hover (ends at heights 0 < h ≤ a quarter of the edge's length):
     ``(n, [(proj (k, 3), hover (k,) bool, low (k,), length (k,))])``, edge k from vertex k
-    to k + 1, ``low`` its lower end's height."""
+    to k + 1, ``low`` its lower end's height. An edge of a closed solid that is, from every
+    point of the band its cuts would grade (a quarter of its length around it), between
+    two front or two back faces (:func:`inner_solid_edges`: the bunny's underside over the
+    floor) is on no outline there and does not hover."""
     box_lo, box_hi = face_boxes(scene)
     n, c, tiny, edges = _front_edges(scene, face, side, 0.25 * float(np.linalg.norm(box_hi[face] - box_lo[face])))
     out = []
-    for loop, b in edges:
+    for loop, b, k in edges:
         ha, hb = loop @ n - c, b @ n - c
         length = np.linalg.norm(b - loop, axis=1)
         low = np.minimum(ha, hb)
         hover = (low > 10 * tiny) & (np.maximum(ha, hb) <= 0.25 * length)
+        if np.any(hover):
+            pa, pb = loop - ha[:, None] * n, b - hb[:, None] * n
+            d = pb - pa
+            d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+            m = (0.25 * length)[:, None]
+            across = np.cross(n, d)
+            band = np.stack([pa - m * d + m * across, pa - m * d - m * across, pb + m * d + m * across,
+                             pb + m * d - m * across], axis=1)
+            hover &= ~inner_solid_edges(scene, n, c, tiny, np.full(len(loop), k), solid_edge_positions(scene, k, loop),
+                                        band)
         if np.any(hover):
             out.append((loop - ha[:, None] * n, hover, low, length))
     return n, out
@@ -824,7 +969,8 @@ def cubature_cells(scene, face, side, min_size=None):
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
     that makes more than :data:`MAX_KINK_CELLS` cells or more start triangles than three
     levels (21 triangles each) on the uncut ones; then the uncut cells (three levels:
-    :class:`Cubature`, :class:`ThreeLevelRowCubature`).
+    :class:`Cubature`, :class:`ThreeLevelRowCubature`). Uncut cells already past that
+    many are kept without listing the kink lines at all.
 
     Returns
     -------
@@ -841,7 +987,12 @@ def cubature_cells(scene, face, side, min_size=None):
         return scene.cached(f"cubature_cells {int(face)} {int(side)}", lambda s: cubature_cells(s, face, side, size))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=min(MAX_KINK_CELLS, 21 * len(tri)))
+    limit = min(MAX_KINK_CELLS, 21 * len(tri))
+    if len(cells) > limit:
+        # cuts only add cells: past the limit before the kink lines are even listed (they
+        # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
+        return cells, tri, False
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
         if len(kinked_tri) <= 21 * len(tri):
@@ -1015,8 +1166,7 @@ class Cubature:
             Triangles evaluated.
         """
         candidates = np.asarray(candidates, np.int64)
-        ptr = (np.arange(len(tri) + 1) * len(candidates)).astype(np.int64)
-        ptr, ids = self.cull(tri, ptr, np.tile(candidates, len(tri)))
+        ptr, ids = cull_all(self.cull, tri, candidates)
         while len(tri) and min_size > 0:
             long = np.sqrt(2 * triangle_areas(tri)) > min_size
             if not np.any(long):
@@ -1080,6 +1230,33 @@ class Cubature:
         err = self.estimates(tri, ptr, ids, q, kq, gq)
         self.leaves = (tri, ptr, ids, q, kq, gq, err)
         return float(gq.sum()), float(err.sum()), cells
+
+
+#: Candidate pairs (triangle, occluder) culled at once by :func:`cull_all`: every triangle
+#: against every occluder of a pair is 27 million pairs on the bunny's floor, whose arrays
+#: (GBs, mapped afresh and faulted in page by page) cost seconds of system time.
+CULL_BLOCK = 1 << 20
+
+
+def cull_all(cull, tri, candidates):
+    """``cull(tri, ptr, ids)`` of every triangle against all the candidates, by blocks of
+    triangles (at most :data:`CULL_BLOCK` pairs each, at least one triangle): the same
+    lists, in bounded memory.
+
+    Returns
+    -------
+    ptr : (g + 1,) int64
+    ids : (k,) int64
+    """
+    step = max(1, CULL_BLOCK // max(len(candidates), 1))
+    ptrs, lists = [np.zeros(1, np.int64)], []
+    for lo in range(0, len(tri), step):
+        block = tri[lo:lo + step]
+        ptr, ids = cull(block, (np.arange(len(block) + 1) * len(candidates)).astype(np.int64),
+                        np.tile(candidates, len(block)))
+        ptrs.append(ptr[1:] + ptrs[-1][-1])
+        lists.append(ids)
+    return np.concatenate(ptrs).astype(np.int64), (np.concatenate(lists) if lists else np.zeros(0, np.int64))
 
 
 def _longest_side(tri):
@@ -1196,13 +1373,52 @@ class PairSetup:
                 occ_poly.append(k)
             pn.append(nk)
             pp.append(loops[0][0])
+        occ_loop = np.asarray(occ_loop, np.int64)
         return dict(
             n_i=self.n_i, j2=allj, j_loop=j_loop, origin=origin, eu=eu, ev=ev, n_j=self.n_t, c_j=self.c_t, hull=hull3,
-            occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=np.asarray(occ_loop, np.int64),
+            occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=occ_loop,
             occ_poly=np.asarray(occ_poly, np.int64), poly_normal=np.asarray(pn, np.float64).reshape(-1, 3),
             poly_point=np.asarray(pp, np.float64).reshape(-1, 3), tiny=self.tiny, poly_box=boxes, box_ptr=box_ptr,
-            box_planes=box_planes,
+            box_planes=box_planes, **self._solid_arrays(occluders, boxes, occ_loop),
         )
+
+    def _solid_arrays(self, occluders, boxes, occ_loop):
+        """The :func:`closed_solids` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
+        for these occluders: ``poly_solid`` (a face of a solid that lies in the closed front
+        half-space of I, so that every point of I is outside it, unclipped, and no face of a
+        convex box; else -1), ``occ_nb`` (the occluder across each edge, -1 none),
+        ``occ_vid`` (compact vertex ids) and ``occ_next`` (the next vertex of each loop)."""
+        n = int(occ_loop[-1])
+        poly_solid = np.full(len(occluders), -1, np.int64)
+        occ_nb = np.full(n, -1, np.int64)
+        occ_vid = np.zeros(n, np.int64)
+        sizes = np.diff(occ_loop)
+        occ_next = np.arange(n, dtype=np.int64) + 1
+        occ_next[occ_loop[1:][sizes > 0] - 1] = occ_loop[:-1][sizes > 0]
+        face_solid, _, neighbour = closed_solids(self.scene)
+        eligible = _outside_solids(self.scene, self.n_i, self.c_i, self.tiny)
+        if not np.any(eligible):
+            return dict(poly_solid=poly_solid, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
+        pos = np.full(n, -1, np.int64)
+        pid_of, edge_pos = {}, {}
+        for k, o in enumerate(occluders):
+            f = o[2] if len(o) > 2 else -1
+            if f < 0 or face_solid[f] < 0 or not eligible[face_solid[f]] or boxes[k] >= 0 or len(o[0]) != 1:
+                continue
+            p = solid_edge_positions(self.scene, f, o[0][0])
+            if p[0] < 0:
+                continue
+            poly_solid[k] = face_solid[f]
+            pid_of[int(f)], edge_pos[k] = k, p
+        # occluder k's loops start at loop Σ_{k' < k} len(loops_k'); a solid face has one
+        first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
+        for k in np.flatnonzero(poly_solid >= 0):
+            pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + 1]] = edge_pos[k]
+        rows = np.flatnonzero(pos >= 0)
+        nb_face = neighbour[pos[rows]]
+        occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]
+        _, occ_vid[rows] = np.unique(self.scene.loop_vertices[pos[rows]], return_inverse=True)
+        return dict(poly_solid=poly_solid, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
 
     @functools.cached_property
     def kernel(self):
@@ -1215,7 +1431,8 @@ class PairSetup:
         k = self.kernel if kernel is None else kernel
         return visible_form_factors(np.ascontiguousarray(points), k["n_i"], k["j2"], k["j_loop"], k["origin"], k["eu"], k["ev"],
                                     k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"], k["poly_normal"],
-                                    k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"])
+                                    k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"], k["poly_solid"],
+                                    k["occ_nb"], k["occ_vid"], k["occ_next"])
 
     def blocked(self, points, group, ptr, ids):
         """F(x → J') − F(x → visible part of J') at ``points``, each past its group's occluders
@@ -1223,7 +1440,8 @@ class PairSetup:
         k = self.kernel
         return blocked_form_factors(points, np.asarray(group, np.int64), ptr, ids, k["n_i"], k["j2"], k["j_loop"], k["origin"],
                                     k["eu"], k["ev"], k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"],
-                                    k["poly_normal"], k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"])
+                                    k["poly_normal"], k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"],
+                                    k["poly_solid"], k["occ_nb"], k["occ_vid"], k["occ_next"])
 
     # -- the cubature's domain ----------------------------------------------------------
     def triangles(self):
@@ -1248,14 +1466,26 @@ class PairSetup:
         """Each triangle's occluders (CSR ``ptr, ids`` into :attr:`occluders`) reduced to the
         ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`) that are
         not back faces of a closed box outside of which the whole triangle lies
-        (:func:`back_faces`)."""
+        (:func:`back_faces`). The faces of a closed solid (``poly_solid`` of :attr:`kernel`)
+        in a list already culled (fewer than all the pair's occluders: a child's list, from
+        its parent's) are kept where their boxes meet the shaft's
+        (:func:`viscx.geometry.occlusion.shaft_boxes_meet`): a superset, as exact (a face
+        that misses the shaft hides nothing), and the kernel's cost grows little with them
+        (their outline is what it sweeps) while the full test of the hundreds of bunny
+        triangles in each shaft was most of the cubature's time."""
         pts, lo, hi, normals = self.occluder_outlines
-        cell = np.repeat(np.arange(len(tri)), np.diff(ptr))
+        counts = np.diff(ptr)
+        cell = np.repeat(np.arange(len(tri)), counts)
         keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
         cell, ids = cell[keep], ids[keep]
+        tri = np.ascontiguousarray(tri)
+        rough = (self.kernel["poly_solid"][ids] >= 0) & (counts[cell] < len(self.occluders))
+        meets = np.empty(len(ids), bool)
+        meets[rough] = shaft_boxes_meet(tri, self.frame[6], cell[rough], ids[rough], pts, lo, hi, self.tiny)
         # (np.tile: a writable copy even for one triangle, as a broadcast one is not: one kernel signature)
-        meets = shaft_meets(np.ascontiguousarray(tri), np.tile(self.n_i, (len(tri), 1)),
-                            self.frame[6], np.asarray(self.n_t, np.float64), cell, ids, pts, lo, hi, normals, self.tiny)
+        meets[~rough] = shaft_meets(tri, np.tile(self.n_i, (len(tri), 1)), self.frame[6],
+                                    np.asarray(self.n_t, np.float64), cell[~rough], ids[~rough], pts, lo, hi, normals,
+                                    self.tiny)
         counts = np.bincount(cell[meets], minlength=len(tri))
         return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), ids[meets]
 
@@ -1283,6 +1513,19 @@ class PairSetup:
         flat = pts - h[:, None] * self.n_i
         above = np.where(h[idx] > 10 * self.tiny, h[idx], np.inf).min(axis=1)
         return above, flat[idx], flat[nxt]
+
+    @functools.cached_property
+    def _edge_positions(self):
+        """(P, k) int64: :func:`solid_edge_positions` of each occluder's outline edges, in
+        :attr:`_heights`' padded order."""
+        pts, lo, hi, _ = self.occluder_outlines
+        k = int((hi - lo).max()) if len(lo) else 1
+        out = np.full((len(lo), k), -1, np.int64)
+        faces = self._occluder_faces
+        for p in np.flatnonzero(faces >= 0):
+            pos = solid_edge_positions(self.scene, faces[p], pts[lo[p]:hi[p]])
+            out[p] = pos[np.minimum(np.arange(k), len(pos) - 1)]
+        return out
 
     def unresolved(self, tri, ptr, ids):
         """(g,) float64: what a rule may miss on each triangle crossed by the outline of an
@@ -1313,6 +1556,13 @@ class PairSetup:
         # the edge's line crosses the triangle with more than h on both sides, within the edge
         crosses = (s.max(axis=2) > h) & (s.min(axis=2) < -h) & (t.max(axis=2) > 0) & (t.min(axis=2) < length)
         crosses &= length > 0
+        # edges of a closed solid between two front or two back faces from the whole
+        # triangle are on no outline there (the bunny's underside over the floor)
+        c_, k_ = np.nonzero(crosses)
+        if len(c_):
+            inner = inner_solid_edges(self.scene, self.n_i, self.c_i, self.tiny, self._occluder_faces[occ[c_]],
+                                      self._edge_positions[occ[c_], k_], tri[cell[c_]])
+            crosses[c_[inner], k_[inner]] = False
         hit = crosses.any(axis=1)
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out
@@ -1335,16 +1585,16 @@ class PairSetup:
         if self.kinked:
             tri = split_large(tri, min_size)
             k = len(self.occluders)
-            ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+            ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
             tri = tri[np.diff(ptr) > 0]
 
             def column(points, tri):
                 # each triangle past the occluders that meet its shaft (as Cubature's lists)
-                ptr, ids = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                ptr, ids = cull_all(self.shaft_cull, tri, np.arange(k))
                 return self.blocked(points, np.repeat(np.arange(len(tri)), 7), ptr, ids)[:, None]
 
             def live(tri, need):
-                ptr, _ = self.shaft_cull(tri, (np.arange(len(tri) + 1) * k).astype(np.int64), np.tile(np.arange(k), len(tri)))
+                ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
             cub = RowCubature(column)

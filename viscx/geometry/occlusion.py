@@ -105,6 +105,11 @@ def _clip_to_frustum(pts, lo, hi, x, planes, n_planes, buf_a, buf_b):
                 inside = False
         if out:
             return 0
+    if inside:
+        for q in range(hi - lo):
+            for c in range(3):
+                buf_a[q, c] = pts[lo + q, c]
+        return hi - lo
     return _clip_planes(pts, lo, hi, x, planes, n_planes, buf_a, buf_b, buf_a.shape[0] + 1)
 
 
@@ -118,8 +123,6 @@ def _clip_planes(pts, lo, hi, x, planes, n_planes, buf_a, buf_b, most):
     for q in range(n_in):
         for c in range(3):
             buf_a[q, c] = pts[lo + q, c]
-    if inside:
-        return n_in
     for i in range(n_planes):
         if n_in > most:
             return -1

@@ -3,16 +3,18 @@
 after V0, measured stage by stage on the large cities.
 
     python benchmarks/streamed_stages.py v0.h5 out.h5      # prints one JSON line per stage
+    python benchmarks/streamed_stages.py v0.h5 out.h5 --scheduler local --workers 2
 
 The output is the file ``viscx build`` writes (V0 copied, V1 by ``stream_arcs``' steps, V2
 by ``stream_two_cells``): ``viscx diff --rtol 0 --atol 0`` against a whole build of the same
 scene shows they agree. Stage peaks are the process's high-water mark (``VmHWM``), reset at
 each stage's start (``/proc/self/clear_refs``, Linux), so each is that stage's own peak with
-what the process already held.
+what the process already held. With ``--scheduler``, the chunks of V1 and V2 run as dask
+tasks (:mod:`viscx.distributed`) and the last line gives each worker's peak.
 """
 
+import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -47,8 +49,8 @@ class _Stage:
               flush=True)
 
 
-def main(v0_path, out_path):
-    from viscx.distributed import InProcess
+def main(v0_path, out_path, scheduler=None, workers=None):
+    from viscx.distributed import runner as make_runner
     from viscx.formats.hdf5 import complex_writer, stored_nodes
     from viscx.pipeline import level_writers, open_complex, stream_arcs, stream_two_cells
     from viscx.skeleton.arcs.events import planar_events
@@ -65,11 +67,20 @@ def main(v0_path, out_path):
         with _Stage("V1 planar events (alone)"):
             planar_events(scene)
         # as viscx build: the nodes read back from the file
-        stream_arcs(scene, stored_nodes(f["V0"]), f.create_group("V1", track_order=True), InProcess(),
+        runner = make_runner(scheduler, workers)
+        stream_arcs(scene, stored_nodes(f["V0"]), f.create_group("V1", track_order=True), runner,
                     step=lambda name: _Stage("V1 " + name))
         with _Stage("V2"):
-            stream_two_cells(scene, stored_v2_arcs(f["V1"]), f.create_group("V2", track_order=True))
+            stream_two_cells(scene, stored_v2_arcs(f["V1"]), f.create_group("V2", track_order=True), runner)
+        print(json.dumps({"worker_peaks_gb": {k: round(v, 3) for k, v in runner.peaks().items()}}), flush=True)
+        runner.close()
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("v0")
+    parser.add_argument("output")
+    parser.add_argument("--scheduler", default=None, help="'local' or a dask scheduler's address")
+    parser.add_argument("--workers", type=int, default=None)
+    args = parser.parse_args()
+    main(args.v0, args.output, args.scheduler, args.workers)

@@ -431,6 +431,19 @@ def test_corner_cutting_pairs_match_brute_force():
     assert [rank[b] for b in zip(fi.tolist(), fj.tolist())] == sorted(rank[b] for b in found)
 
 
+def test_same_plane_ve_in_blocks_of_rows(monkeypatch):
+    """same_plane_ve joins each (vertex, plane) row with the edges of its plane a block of
+    rows at a time: the families of one join (boxes on the floor: 368, many rows of the
+    floor's plane)."""
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    whole = events_module.same_plane_ve(scene)
+    monkeypatch.setattr(events_module, "CHUNK", 3)  # blocks of about 30 pairs
+    blocks = events_module.same_plane_ve(scene)
+    assert len(whole[0]) > 300
+    for a, b in zip(whole, blocks):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
 def test_planar_events_in_blocks_of_corners_are_one_pass(monkeypatch):
     """planar_events finds the edges crossing the corners' planes a block of corners at a
     time (PLANAR_BLOCK): the same events, field for field, as one block, and a quadruple

@@ -478,18 +478,25 @@ def same_plane_ve(scene):
         inside = (np.abs(np.einsum("ij,ij->i", n, a[pos]) - off) <= tol) & (np.abs(np.einsum("ij,ij->i", n, b[pos]) - off) <= tol)
         ep.append(np.stack([ge[pos[inside]], plane[face[inside]]], axis=1))
     ep = np.unique(np.concatenate(ep), axis=0).reshape(-1, 2)
-    # join on the plane
+    # join on the plane, in blocks of (vertex, plane) rows: a city's floor alone joins
+    # millions of its vertices with its edges, each pair some 200 bytes of temporaries
     order = np.argsort(ep[:, 1], kind="stable")
     first = np.searchsorted(ep[order, 1], vp[:, 1], "left")
-    r, k = expand_ranges(first, np.searchsorted(ep[order, 1], vp[:, 1], "right") - first)
-    k = order[k]
-    v, e = vp[r, 0], ep[k, 0]
-    ends = he.edge_vertices[e]
-    x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
-    u = (b - a) / row_norms(b - a)[:, None]
-    off_line = row_norms(np.cross(x - a, u)) > tol
-    ok = (ends != v[:, None]).all(axis=1) & off_line
-    fam = np.unique(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1), axis=0).reshape(-1, 3)
+    count = np.searchsorted(ep[order, 1], vp[:, 1], "right") - first
+    fam = []
+    for rows in row_blocks(count, CHUNK * 10):
+        r, k = expand_ranges(first[rows], count[rows])
+        r += rows.start
+        k = order[k]
+        v, e = vp[r, 0], ep[k, 0]
+        ends = he.edge_vertices[e]
+        x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
+        u = (b - a) / row_norms(b - a)[:, None]
+        off_line = row_norms(np.cross(x - a, u)) > tol
+        ok = (ends != v[:, None]).all(axis=1) & off_line
+        fam.append(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1))
+    # (ids are non-negative: unique_rows' order is np.unique's, lexicographic)
+    fam, _ = unique_rows(np.concatenate(fam).reshape(-1, 3))
     return fam[:, :2], fam[:, 2], vp, ep
 
 

@@ -431,6 +431,45 @@ def test_corner_cutting_pairs_match_brute_force():
     assert [rank[b] for b in zip(fi.tolist(), fj.tolist())] == sorted(rank[b] for b in found)
 
 
+def test_same_plane_ve_in_blocks_of_rows(monkeypatch):
+    """same_plane_ve joins each (vertex, plane) row with the edges of its plane a block of
+    rows at a time: the families of one join (boxes on the floor: 368, many rows of the
+    floor's plane)."""
+    scene = load_scene(SAMPLES / "boxes_on_floor.obj")
+    whole = events_module.same_plane_ve(scene)
+    monkeypatch.setattr(events_module, "CHUNK", 3)  # blocks of about 30 pairs
+    blocks = events_module.same_plane_ve(scene)
+    assert len(whole[0]) > 300
+    for a, b in zip(whole, blocks):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
+def test_planar_events_in_blocks_of_corners_are_one_pass(monkeypatch):
+    """planar_events finds the edges crossing the corners' planes a block of corners at a
+    time (PLANAR_BLOCK): the same events, field for field, as one block, and a quadruple
+    proposed by corners of two blocks keeps the line one pass meets first (in the order
+    (j - i, i) over every crossing). Random tetrahedra where the first block's line is
+    not that one, and gives other last bits to the node."""
+    import viscx.skeleton.arcs.pencils as pencils_module
+
+    scene = build_scene(random_tetrahedra(np.random.default_rng(12), 4))
+    monkeypatch.setattr(pencils_module, "PLANE_EDGE_TESTS", 1)  # one plane per chunk of products
+    monkeypatch.setattr(events_module, "PLANAR_BLOCK", 1 << 30)
+    whole = events_module.planar_events(scene)
+    monkeypatch.setattr(events_module, "PLANAR_BLOCK", 1)  # one corner per block
+    proposed = []
+    corner_lines = events_module._corner_lines
+    monkeypatch.setattr(events_module, "_corner_lines", lambda *a: proposed.append(corner_lines(*a)) or proposed[-1])
+    blocks = events_module.planar_events(scene)
+    assert len(whole.kind) > 0
+    # the precondition: a quadruple of the events proposed in two blocks
+    blocks_of = Counter(q for part in proposed for q in {tuple(g) for g in part[2].tolist()})
+    assert any(blocks_of[tuple(g)] > 1 for g in whole.generators.tolist())
+    for field in whole.__dataclass_fields__:
+        a, b = getattr(whole, field), getattr(blocks, field)
+        assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), field
+
+
 # ---------------------------------------------------------------------------------------
 # HDF5
 

@@ -15,7 +15,7 @@ from viscx.formats.diff import diff_files
 from viscx.formats.hdf5 import complex_writer
 from viscx.pipeline import build_complex, level_writers, stream_arcs, stream_two_cells
 from viscx.skeleton import chunks, eecells
-from viscx.skeleton.arcs import builder
+from viscx.skeleton.arcs import builder, events, pencils
 
 # scenes with open chains, demoted loops, whole-sphere vertices and T-junctions between them
 # (the default suite the first two: 3.8 of 7.3 CPU s)
@@ -52,6 +52,8 @@ def tiny_chunks(monkeypatch):
     """Chunks of a few families, half-cells and squares, datasets written every few rows:
     every scene is many chunks and every large array many appends."""
     monkeypatch.setattr(builder, "FAMILY_CHUNK", 40)
+    monkeypatch.setattr(events, "PLANAR_BLOCK", 1)  # a corner pair per block of planar events' crossings
+    monkeypatch.setattr(pencils, "PLANE_EDGE_TESTS", 1)
     monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
     monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
     monkeypatch.setattr(eecells, "ARC_SLICE", 500)

@@ -5,6 +5,7 @@ chains them, times each stage and keeps the result as a :class:`BuiltComplex`,
 which writes itself to a viscx file and reads one back (its levels on first use).
 """
 
+import contextlib
 import json
 import time
 from dataclasses import dataclass, field
@@ -125,14 +126,18 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     return {"vcells": vcells.counts.get("cells", 0), "eecells": eecells.counts.get("cells", 0)}
 
 
-def stream_arcs(scene, nodes, group, runner=None, quiet=True):
+def stream_arcs(scene, nodes, group, runner=None, quiet=True, step=None):
     """Build V1 chunk by chunk into ``group`` (the file's ``V1``): the families and planar
     events of the whole scene (:func:`viscx.skeleton.arcs.builder.arc_families`), then the
     arcs and half-cells of each chunk of families
     (:func:`viscx.skeleton.arcs.builder.arcs_of_families`), each written
     (:class:`viscx.formats.hdf5.ArcsAppender`) before the next is taken, then the XE
     arcs; the content is :func:`viscx.formats.hdf5.write_arcs`'s of the whole level.
-    ``nodes`` are read only to find the families. Arguments as :func:`stream_two_cells`.
+    ``nodes`` are read only to find the families, by chunks of rows: the file's
+    (:func:`viscx.formats.hdf5.stored_nodes`) are not read whole. ``step(name)``, when
+    given, is a context manager around each of the two steps, ``"families"`` and
+    ``"chunks of families"`` (``benchmarks/streamed_stages.py`` measures them). Other
+    arguments as :func:`stream_two_cells`.
 
     Returns
     -------
@@ -147,20 +152,23 @@ def stream_arcs(scene, nodes, group, runner=None, quiet=True):
     from viscx.skeleton.arcs.builder import arc_families, arcs_of_families, family_parts
 
     runner = runner or InProcess()
-    planar, families = arc_families(scene, nodes, quiet=quiet)
-    del nodes
-    arcs = ArcsAppender(group)
-    with bar(desc="arcs", quiet=quiet, unit="chunk") as progress:
-        for part in runner.map(arcs_of_families, family_parts(families), (scene, families.plane_points)):
-            arcs.append(*part)
-            del part
-            progress.update()
-    del families
-    release_free_memory()
-    xe = crossing_arcs(scene)
-    if xe is not None:  # after the VE arcs, as build_arcs
-        arcs.append(xe)
-    arcs.close(planar)
+    step = step or (lambda name: contextlib.nullcontext())
+    with step("families"):
+        planar, families = arc_families(scene, nodes, quiet=quiet)
+        del nodes
+    with step("chunks of families"):
+        arcs = ArcsAppender(group)
+        with bar(desc="arcs", quiet=quiet, unit="chunk") as progress:
+            for part in runner.map(arcs_of_families, family_parts(families), (scene, families.plane_points)):
+                arcs.append(*part)
+                del part
+                progress.update()
+        del families
+        release_free_memory()
+        xe = crossing_arcs(scene)
+        if xe is not None:  # after the VE arcs, as build_arcs
+            arcs.append(xe)
+        arcs.close(planar)
     return len(arcs)
 
 
@@ -481,7 +489,7 @@ def _write_streamed(cx, output, compression, stages, runner, quiet):
     into the file chunk by chunk (:func:`stream_arcs`, :func:`stream_two_cells`); ``cx``
     then reads them from the file."""
     from viscx.formats.atomic import release_input
-    from viscx.formats.hdf5 import complex_writer
+    from viscx.formats.hdf5 import complex_writer, stored_nodes
     from viscx.memory import release_free_memory
     from viscx.skeleton.chunks import stored_v2_arcs
 
@@ -493,10 +501,10 @@ def _write_streamed(cx, output, compression, stages, runner, quiet):
             for name, writer in level_writers(cx.built).items():
                 writer(f.create_group(name, track_order=True))
         with stages.stage("V1"):
-            nodes = cx.built.pop("V0")  # read again from the file if asked for
-            stream_arcs(cx.scene, nodes, f.create_group("V1", track_order=True), runner, quiet)
-            del nodes
+            # V1 reads the nodes back from the file chunk by chunk (and so does cx if asked)
+            del cx.built["V0"]
             release_free_memory()
+            stream_arcs(cx.scene, stored_nodes(f["V0"]), f.create_group("V1", track_order=True), runner, quiet)
         if "V2" in names:
             with stages.stage("V2"):
                 # V2 reads a fifth of V1: read back from the file (only stream_two_cells holds it)

@@ -256,6 +256,16 @@ def read_nodes(group):
     return Nodes(**validate.node_arrays(group, group.file.filename, validate.scene_sizes(group.file)))
 
 
+def stored_nodes(group):
+    """The :class:`viscx.skeleton.nodes.Nodes` of a ``V0`` group left in the file: each
+    field the group's h5py dataset, read by rows as it is sliced. What a streamed V1 reads
+    of the V0 it has just written (:func:`viscx.pipeline.stream_arcs`: chunks of nodes),
+    so that the whole level is never in memory again; not checked (the build's own file)."""
+    from viscx.skeleton.nodes import Nodes
+
+    return Nodes(**{name: group[name] for name in Nodes.__dataclass_fields__})
+
+
 _ARC_ARRAYS = [
     "kind",
     "generators",

@@ -13,9 +13,9 @@ from viscx.parallel import map_chunks, row_chunks
 from viscx.scene.neighbourhood import faces_near
 from viscx.skeleton.arcs.kinds import CHUNK, EEE, END_COPLANAR, END_CROSSING, END_ENDPOINT, END_JUNCTION, VE
 from viscx.skeleton.arcs.lines import family_lines, judge_samples
-from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups
+from viscx.skeleton.arcs.pencils import edges_crossing_planes, pairs_within_groups, plane_chunk
 from viscx.skeleton.generators import canonical_eee, edge_geometry, edges_through_vertices, vertex_edges
-from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, validate_candidates
+from viscx.skeleton.nodes import E4, Nodes, VEE, VV, face_planes, first_triangles, nodes_among, sort_nodes, validate_candidates
 from viscx.tolerances import ANGLE_MARGIN, ANGLE_TOLERANCE, END_SAMPLE_EPSILONS
 
 
@@ -30,12 +30,15 @@ def planar_events(scene, scope=None):
     arcs where the line turns into a face's plane at one of its edges (Durand's
     FEE events) or into the plane of two edges of one vertex.
 
+    The edges crossing the pairs' planes (tens of millions on a 3001-polygon city) are
+    found for blocks of pairs at a time (:func:`_planar_candidates`): memory holds one
+    block's crossings and the candidate lines, not every crossing at once.
+
     Returns
     -------
     Nodes
         Kind E4, generators the four edges increasing, one line per quadruple.
     """
-    eps = scene.epsilon
     vo, ve = vertex_edges(scene)
     # pairs of generator edges at one vertex
     owner = np.repeat(np.arange(scene.n_vertices), np.diff(vo))
@@ -51,51 +54,147 @@ def planar_events(scene, scope=None):
     keep = size > ANGLE_TOLERANCE * row_norms(ua) * row_norms(ub)
     if scope is not None:  # an event in scope has a scope edge in the pair or crossing its plane
         keep &= scope.edges[pa] | scope.edges[pb] | scope.crosses_planes(scene, normal / np.maximum(size, 1e-300)[:, None], w)
-    pa, pb, pw, w, normal = pa[keep], pb[keep], pw[keep], w[keep], normal[keep] / size[keep, None]
-
-    # generator edges crossing each pair's plane strictly inside (scoped: those that can
-    # make an event in scope, :func:`viscx.skeleton.scope.planar_crossings`)
+    corner = _Corners(pa[keep], pb[keep], w[keep], normal[keep] / size[keep, None], ua[keep], ub[keep])
+    del i, j, pa, pb, pw, w, ua, ub, normal, size, keep
     if scope is None:
-        cp, ce, cq = edges_crossing_planes(scene, normal, w)
+        gens, origin, direction = _planar_candidates(scene, corner)
     else:
-        from viscx.skeleton.scope import planar_crossings
+        gens, origin, direction = _scoped_planar_candidates(scene, scope, corner)
+    if len(gens) == 0:
+        return _no_events(scene)
+    # validated in chunks of candidates (each line on its own), sorted once
+    parts = [nodes_among(scene, np.full(r.stop - r.start, E4, np.int8), gens[r], origin[r], direction[r])
+             for r in row_chunks(len(gens), CHUNK)]
+    events = sort_nodes(Nodes(**{k: np.concatenate([getattr(n, k) for n in parts])
+                                 for k in Nodes.__dataclass_fields__}))
+    first = first_of_rows(events.generators)
+    return Nodes(**{k: getattr(events, k)[first] for k in events.__dataclass_fields__})
 
-        cp, ce, cq, rank = planar_crossings(scene, scope, scope.edges[pa] | scope.edges[pb], normal, w, ua[keep], ub[keep])
+
+@dataclass
+class _Corners:
+    """The pairs of generator edges (``pa``, ``pb``: (k,) int) at one vertex ``w`` ((k, 3)
+    float) that span a plane: its unit ``normal`` and the edges' vectors from w, ``ua``
+    and ``ub`` ((k, 3) float)."""
+
+    pa: np.ndarray
+    pb: np.ndarray
+    w: np.ndarray
+    normal: np.ndarray
+    ua: np.ndarray
+    ub: np.ndarray
+
+    def __len__(self):
+        return len(self.pa)
+
+
+#: Corner pairs whose crossing edges :func:`_planar_candidates` finds at once (rounded to
+#: whole chunks of :func:`viscx.skeleton.arcs.pencils.edges_crossing_planes`).
+PLANAR_BLOCK = 1 << 13
+
+
+def _planar_blocks(scene, n):
+    """Consecutive slices of ``range(n)`` corner pairs, each about PLANAR_BLOCK pairs and a
+    whole number of :func:`edges_crossing_planes`'s chunks of planes (so that each plane
+    is tested in the same chunk as when all are passed at once: the same products)."""
+    inner = plane_chunk(scene)
+    return row_chunks(n, inner * max(1, PLANAR_BLOCK // inner))
+
+
+def _planar_candidates(scene, corner):
+    """The candidate lines of the planar events, one per quadruple of generator edges:
+    for each corner pair, the lines through two edges crossing its plane that cut the
+    corner (:func:`_corner_cutting_pairs`) and cross both of its edges, in blocks of
+    pairs (:func:`_planar_blocks`).
+
+    A quadruple can be proposed by two corner pairs; its line is the one the whole scene's
+    pass meets first: candidates ordered by (j - i, i) over every crossing (i < j the
+    crossings' rows, as :func:`_corner_cutting_pairs` orders one block's), which a block
+    gives with i shifted by the crossings of the blocks before.
+
+    Returns
+    -------
+    gens : (c, 4) int64
+        Increasing, distinct rows.
+    origin, direction : (c, 3) float
+    """
+    gens, origin, direction, span, at = [], [], [], [], []
+    shift = 0
+    for rows in _planar_blocks(scene, len(corner)):
+        cp, ce, cq = edges_crossing_planes(scene, corner.normal[rows], corner.w[rows])
+        cp += rows.start
+        ci, cj, g, o, d = _corner_lines(scene, corner, cp, ce, cq)
+        # a quadruple's first line in this block (the block's order is the whole pass's)
+        first = first_of_rows(g)
+        gens.append(g[first])
+        origin.append(o[first])
+        direction.append(d[first])
+        span.append((cj - ci)[first])
+        at.append(ci[first] + shift)
+        shift += len(cp)
+        del cp, ce, cq, ci, cj, g, o, d, first
+    gens, origin, direction = np.concatenate(gens), np.concatenate(origin), np.concatenate(direction)
+    order = np.lexsort([np.concatenate(at), np.concatenate(span)])
+    first = order[first_of_rows(gens[order])]
+    return gens[first], origin[first], direction[first]
+
+
+def _scoped_planar_candidates(scene, scope, corner):
+    """:func:`_planar_candidates` of a scoped build: the crossings that can make an event
+    in scope (:func:`viscx.skeleton.scope.planar_crossings`), a quadruple's line the
+    full build's (:func:`viscx.skeleton.scope.full_build_order`)."""
+    from viscx.skeleton.scope import full_build_order, planar_crossings
+
+    cp, ce, cq, rank = planar_crossings(scene, scope, scope.edges[corner.pa] | scope.edges[corner.pb], corner.normal,
+                                        corner.w, corner.ua, corner.ub)
+    ci, cj, gens, origin, direction = _corner_lines(scene, corner, cp, ce, cq)
+    # (a quadruple's rows are all kept or all dropped: the same first line)
+    mine = scope.nodes(np.full(len(gens), E4), gens)
+    ci, cj, gens, origin, direction = ci[mine], cj[mine], gens[mine], origin[mine], direction[mine]
+    # a quadruple proposed twice keeps the full build's row
+    order = full_build_order(scene, gens, cp, ci, cj, rank, ce, corner.normal, corner.w)
+    gens, origin, direction = gens[order], origin[order], direction[order]
+    first = first_of_rows(gens)
+    return gens[first], origin[first], direction[first]
+
+
+def _corner_lines(scene, corner, cp, ce, cq):
+    """The lines through two edges crossing a corner pair's plane (the pair ``cp``, the
+    edge ``ce``, where it crosses ``cq``; grouped by pair, ascending) that cut the
+    corner and cross both of the pair's edges, with four distinct edges, in the order
+    of :func:`_corner_cutting_pairs`.
+
+    Returns
+    -------
+    ci, cj : (c,) int
+        The two crossings' rows.
+    gens : (c, 4) int64
+        The quadruple, increasing.
+    origin, direction : (c, 3) float
+        The line from crossing ci to crossing cj.
+    """
     # (the pair's own edges and the edges at w do not cross the plane strictly)
     # the crossings in the corner's affine frame: q - w = x ua + y ub
-    ua, ub, rel = ua[keep][cp], ub[keep][cp], cq - w[cp]
-    n = normal[cp]
+    ua, ub, rel = corner.ua[cp], corner.ub[cp], cq - corner.w[cp]
+    n = corner.normal[cp]
     det = np.einsum("ij,ij->i", np.cross(ua, ub), n)
     x = np.einsum("ij,ij->i", np.cross(rel, ub), n) / det
     y = np.einsum("ij,ij->i", np.cross(ua, rel), n) / det
+    del ua, ub, rel, n, det
     ci, cj = _corner_cutting_pairs(x, y, cp)
-    if len(ci) == 0:
-        return _no_events(scene)
     pair = cp[ci]
     origin, direction = cq[ci], cq[cj] - cq[ci]
-    fine = row_norms(direction) > eps
+    fine = row_norms(direction) > scene.epsilon
     # the line must cross both edges of the pair (cut the corner at w) before it is worth judging
-    for e in (pa, pb):
+    for e in (corner.pa, corner.pb):
         a, b = edge_geometry(scene, e[pair])
         x, _ = segment_parameter(origin, np.where(fine[:, None], direction, 1.0), a, b)
         with np.errstate(invalid="ignore"):
             fine &= (x > 0) & (x < 1)
     ci, cj, pair, origin, direction = ci[fine], cj[fine], pair[fine], origin[fine], direction[fine]
-    gens = np.sort(np.stack([pa[pair], pb[pair], ce[ci], ce[cj]], axis=1), axis=1)
+    gens = np.sort(np.stack([corner.pa[pair], corner.pb[pair], ce[ci], ce[cj]], axis=1), axis=1)
     distinct = np.all(np.diff(gens, axis=1) > 0, axis=1)
-    if scope is not None:  # (a quadruple's rows are all kept or all dropped: the same first line)
-        distinct &= scope.nodes(np.full(len(gens), E4), gens)
-    gens, origin, direction = gens[distinct], origin[distinct], direction[distinct]
-    if scope is not None:  # a quadruple proposed twice keeps the full build's row
-        from viscx.skeleton.scope import full_build_order
-
-        order = full_build_order(scene, gens, cp, ci[distinct], cj[distinct], rank, ce, normal, w)
-        gens, origin, direction = gens[order], origin[order], direction[order]
-    # one line per quadruple (two adjacent pairs can propose it)
-    first = first_of_rows(gens)
-    events = validate_candidates(scene, np.full(len(first), E4, np.int8), gens[first], origin[first], direction[first])
-    first = first_of_rows(events.generators)
-    return Nodes(**{k: getattr(events, k)[first] for k in events.__dataclass_fields__})
+    return ci[distinct], cj[distinct], gens[distinct], origin[distinct], direction[distinct]
 
 
 def _corner_cutting_pairs(x, y, group, slack=1e-9):
@@ -379,18 +478,25 @@ def same_plane_ve(scene):
         inside = (np.abs(np.einsum("ij,ij->i", n, a[pos]) - off) <= tol) & (np.abs(np.einsum("ij,ij->i", n, b[pos]) - off) <= tol)
         ep.append(np.stack([ge[pos[inside]], plane[face[inside]]], axis=1))
     ep = np.unique(np.concatenate(ep), axis=0).reshape(-1, 2)
-    # join on the plane
+    # join on the plane, in blocks of (vertex, plane) rows: a city's floor alone joins
+    # millions of its vertices with its edges, each pair some 200 bytes of temporaries
     order = np.argsort(ep[:, 1], kind="stable")
     first = np.searchsorted(ep[order, 1], vp[:, 1], "left")
-    r, k = expand_ranges(first, np.searchsorted(ep[order, 1], vp[:, 1], "right") - first)
-    k = order[k]
-    v, e = vp[r, 0], ep[k, 0]
-    ends = he.edge_vertices[e]
-    x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
-    u = (b - a) / row_norms(b - a)[:, None]
-    off_line = row_norms(np.cross(x - a, u)) > tol
-    ok = (ends != v[:, None]).all(axis=1) & off_line
-    fam = np.unique(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1), axis=0).reshape(-1, 3)
+    count = np.searchsorted(ep[order, 1], vp[:, 1], "right") - first
+    fam = []
+    for rows in row_blocks(count, CHUNK * 10):
+        r, k = expand_ranges(first[rows], count[rows])
+        r += rows.start
+        k = order[k]
+        v, e = vp[r, 0], ep[k, 0]
+        ends = he.edge_vertices[e]
+        x, a, b = scene.vertices[v], scene.vertices[ends[:, 0]], scene.vertices[ends[:, 1]]
+        u = (b - a) / row_norms(b - a)[:, None]
+        off_line = row_norms(np.cross(x - a, u)) > tol
+        ok = (ends != v[:, None]).all(axis=1) & off_line
+        fam.append(np.stack([v[ok], e[ok], ep[k[ok], 1]], axis=1))
+    # (ids are non-negative: unique_rows' order is np.unique's, lexicographic)
+    fam, _ = unique_rows(np.concatenate(fam).reshape(-1, 3))
     return fam[:, :2], fam[:, 2], vp, ep
 
 

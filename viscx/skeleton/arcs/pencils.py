@@ -36,7 +36,7 @@ def edges_crossing_planes(scene, normal, point):
     ga, gb = edge_geometry(scene, ge)
     eps = scene.epsilon
     planes, edges, points = [np.empty(0, np.int64)], [np.empty(0, np.int64)], [np.empty((0, 3))]
-    chunk = max(1, (1 << 22) // max(1, len(ge)))
+    chunk = plane_chunk(scene)
     for lo in range(0, len(normal), chunk):
         sl = slice(lo, lo + chunk)
         h0 = normal[sl] @ ga.T - np.einsum("ij,ij->i", normal[sl], point[sl])[:, None]
@@ -47,6 +47,16 @@ def edges_crossing_planes(scene, normal, point):
         edges.append(ge[j])
         points.append(ga[j] + f[:, None] * (gb[j] - ga[j]))
     return np.concatenate(planes), np.concatenate(edges), np.concatenate(points)
+
+
+#: Plane × edge tests per chunk of :func:`edges_crossing_planes`.
+PLANE_EDGE_TESTS = 1 << 22
+
+
+def plane_chunk(scene):
+    """The planes :func:`edges_crossing_planes` tests at once: about PLANE_EDGE_TESTS
+    plane × generator edge products (two float arrays of that size in flight)."""
+    return max(1, PLANE_EDGE_TESTS // max(1, len(scene.generator_edges)))
 
 
 def pairs_within_groups(group):

@@ -6,7 +6,8 @@ oracle of the tests (tests/discontinuity_oracle.py) on sampled points.
 
 The mesh is built as ``viscx query discontinuities FILE --light-group NAME`` builds it
 (scoped to the light, in this process: CPU seconds and peak memory reported), or read from
-``--mesh`` if that file exists (written there otherwise). Checked: every receiver that is
+``--mesh`` if that file exists (written there otherwise), or from ``--output``, what that
+command wrote (.msgpack or .json). Checked: every receiver that is
 not in a group named like ``sphere*``/``bunny`` (room faces: floor, walls, ceiling) and
 ``--faces`` receivers drawn at random among the others that hold traces; on each, at most
 ``--max-regions`` regions (4 points each, the same labels within a region) and
@@ -36,10 +37,34 @@ from discontinuity_oracle import check_mesh  # noqa: E402
 from skeleton import peak_mb  # noqa: E402
 
 from viscx.pipeline import scene_of  # noqa: E402
-from viscx.queries.discontinuities import open_discontinuities  # noqa: E402
+from viscx.queries.discontinuities import ReceiverMesh, Region, _face_frame, open_discontinuities  # noqa: E402
+from viscx.scene.light import light_of  # noqa: E402
 
 #: Margin (of the diagonal) between judged points and mesh lines, as in the tests.
 MARGIN = 1e-4
+
+
+def mesh_of_output(scene, data, light_group):
+    """A DiscontinuityMesh-like object (what :func:`check_mesh` reads) from the query's
+    output (the dict of :func:`viscx.queries.discontinuities.mesh_result`): 3-D points
+    back in each receiver's frame."""
+    from types import SimpleNamespace
+
+    points, offsets = [[] for _ in range(data["events"])], None
+    receivers = []
+    for f in data["faces"]:
+        u, v, o = frame = _face_frame(scene, f["face"])
+        two = lambda p: np.stack([np.asarray(p) @ u, np.asarray(p) @ v], axis=1)  # noqa: E731
+        for seg in f["segments"]:
+            points[seg["event"]] = seg["points"]
+        regions = [Region(two(g["outer"]), [two(h) for h in g["holes"]], g["area"]) for g in f["regions"]]
+        receivers.append(ReceiverMesh(f["face"], np.array([seg["event"] for seg in f["segments"]], np.int64), regions,
+                                      frame, np.array([c["edge"] for c in f["contacts"]], np.int64)))
+    offsets = np.r_[0, np.cumsum([len(p) for p in points])].astype(np.int64)
+    flat = np.array([q for p in points for q in p], np.float64).reshape(-1, 3)
+    return SimpleNamespace(light=light_of(scene, None, light_group), offsets=offsets, points=flat,
+                           receivers=receivers, snap=data["snap"], tolerance=data["tolerance"],
+                           events=SimpleNamespace(arc=np.zeros(data["events"])))
 
 
 def main(argv=None):
@@ -47,13 +72,23 @@ def main(argv=None):
     parser.add_argument("scene")
     parser.add_argument("--light-group", default="light")
     parser.add_argument("--mesh", help="a pickle of the mesh: read if it exists (the scene read again), else written")
+    parser.add_argument("--output", help="the output of viscx query discontinuities (.msgpack or .json) to check")
     parser.add_argument("--faces", type=int, default=150, help="receivers drawn among the occluders' faces")
     parser.add_argument("--max-regions", type=int, default=60)
     parser.add_argument("--max-traces", type=int, default=60)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     row = {"scene": args.scene}
-    if args.mesh and Path(args.mesh).exists():
+    if args.output:
+        scene = scene_of(args.scene)
+        if args.output.endswith(".json"):
+            data = json.loads(Path(args.output).read_text())
+        else:
+            import msgpack
+
+            data = msgpack.unpackb(Path(args.output).read_bytes(), strict_map_key=False)
+        mesh = mesh_of_output(scene, data, args.light_group)
+    elif args.mesh and Path(args.mesh).exists():
         scene = scene_of(args.scene)
         with open(args.mesh, "rb") as f:
             mesh = pickle.load(f)

@@ -14,7 +14,6 @@ as JSON lines and appended to ``--out`` if given.
 
 import argparse
 import json
-import multiprocessing
 import os
 import sys
 import time
@@ -27,7 +26,7 @@ os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from buildings_skeleton import fractions  # noqa: E402
+from buildings_skeleton import fractions, run_in_child  # noqa: E402
 from scenes import bunny_in_room  # noqa: E402
 from skeleton import peak_mb, run_skeleton  # noqa: E402
 
@@ -58,17 +57,6 @@ def _child(path, triangles, levels, conn):
     conn.send(row | fractions(row))
 
 
-def run_one(path, triangles, levels):
-    ctx = multiprocessing.get_context("spawn")
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(path, triangles, levels, child))
-    proc.start()
-    child.close()
-    row = parent.recv()
-    proc.join()
-    return row
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("bunny", help="index.js of the npm package bunny")
@@ -77,7 +65,7 @@ def main(argv=None):
     parser.add_argument("--out", help="a JSON-lines file the rows are appended to")
     args = parser.parse_args(argv)
     for size in args.sizes:
-        row = run_one(args.bunny, size, args.levels)
+        row = run_in_child(_child, args.bunny, size, args.levels)
         line = json.dumps({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()})
         print(line, flush=True)
         if args.out:

@@ -85,20 +85,27 @@ def shaft_triangles(scene, setup, points):
     hull = y[ConvexHull(np.stack([y @ u, y @ v], axis=1)).vertices]  # counter-clockwise about n
     centre = hull.mean(axis=0)
     slack = 1e-9 * scene.diagonal
-    vx = scene.vertices
-    keep_vertex_side = np.zeros(len(scene.triangles), bool)
-    for x in np.asarray(points, dtype=np.float64).reshape(-1, 3):
-        outside = np.zeros(len(scene.triangles), bool)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    # first the box of the points and the light: a triangle outside it meets no pyramid
+    ends = np.concatenate([points, y])
+    corners = scene.vertices[scene.triangles]
+    rows = np.flatnonzero(np.all((corners.max(axis=1) >= ends.min(axis=0) - slack)
+                                 & (corners.min(axis=1) <= ends.max(axis=0) + slack), axis=1))
+    corners = corners[rows]
+    kept = np.zeros(len(rows), bool)
+    for x in points:
+        outside = np.zeros(len(rows), bool)
         # the light's plane: beyond it from x, nothing of xy
         side = np.sign(n[0] @ x - off[0])
-        outside |= (side * (vx @ n[0] - off[0]) < -slack)[scene.triangles].all(axis=1)
+        outside |= (side * (corners @ n[0] - off[0]) < -slack).all(axis=1)
         for a, b in zip(hull, np.roll(hull, -1, axis=0)):
             m = np.cross(a - x, b - x)
             m *= np.sign(m @ (centre - x))  # the pyramid's inside: positive
-            scale = np.linalg.norm(m)
-            outside |= ((vx - x) @ m < -slack * scale)[scene.triangles].all(axis=1)
-        keep_vertex_side |= ~outside
-    return keep_vertex_side
+            outside |= ((corners - x) @ m < -slack * np.linalg.norm(m)).all(axis=1)
+        kept |= ~outside
+    out = np.zeros(len(scene.triangles), bool)
+    out[rows[kept]] = True
+    return out
 
 
 def labels_of(scene, setup, points, receiver, chunk=64, cull=False):
@@ -151,7 +158,7 @@ def labels_of(scene, setup, points, receiver, chunk=64, cull=False):
         flat_bad = (slope == 0) & (c0 < 0)
         # a light edge in the triangle's plane (a light face's neighbour): segments to it end on
         # the triangle's boundary and are not hidden by it
-        scale = (np.abs(c0).max(axis=(1, 2, 3)) + np.abs(c1).max(axis=(1, 2, 3)) + 1e-300)[:, None, None]
+        scale = (np.abs(c0).max(axis=(1, 2, 3), initial=0.0) + np.abs(c1).max(axis=(1, 2, 3), initial=0.0) + 1e-300)[:, None, None]
         flat_bad[..., 3] |= (np.abs(c0[..., 3]) <= 1e-12 * scale) & (np.abs(c1[..., 3]) <= 1e-12 * scale)
         lo_cand = np.where(inc, root, -np.inf)
         hi_cand = np.where(dec, root, np.inf)

@@ -60,9 +60,14 @@ def _child(spec, conn):
 
 
 def run_one(spec):
+    return run_in_child(_child, spec)
+
+
+def run_in_child(target, *args):
+    """``target(*args, conn)`` in a spawned process (its own peak memory): what it sends."""
     ctx = multiprocessing.get_context("spawn")
     parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(spec, child))
+    proc = ctx.Process(target=target, args=(*args, child))
     proc.start()
     row = parent.recv()
     proc.join()

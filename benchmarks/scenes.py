@@ -137,18 +137,41 @@ def read_bunny(path):
 BUNNY_LIGHT = (0.0, 19.0, 0.0)
 
 
-def bunny_in_room(path, room=30.0, height=20.0, light=4.0, light_drop=0.5):
+def decimate(positions, cells, triangles):
+    """A mesh simplified to about ``triangles`` triangles by quadric edge collapse
+    (trimesh's ``simplify_quadric_decimation``; it needs the package ``fast-simplification``,
+    a benchmark-only dependency: ``pip install fast-simplification``). Deterministic.
+
+    Parameters
+    ----------
+    positions : (n, 3) float
+    cells : (t, 3) int
+    triangles : int
+
+    Returns
+    -------
+    positions : (n', 3) float64
+    cells : (t', 3) int64
+    """
+    mesh = trimesh.Trimesh(positions, cells, process=False).simplify_quadric_decimation(face_count=int(triangles))
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def bunny_in_room(path, room=30.0, height=20.0, light=4.0, light_drop=0.5, triangles=None):
     """The npm bunny (:func:`read_bunny`) standing on the floor of a closed room under a
     quad light: its lowest vertex on the floor (y = 0), the room ``room`` wide and deep
     and ``height`` high around it, the light a ``light``-wide square ``light_drop`` under
     the ceiling, above the bunny. Groups: floor, ceiling, wall_x0, wall_x1, wall_z0,
-    wall_z1, light, bunny.
+    wall_z1, light, bunny. ``triangles``: the bunny decimated to about that many
+    triangles first (:func:`decimate`), for growth ladders.
 
     Returns
     -------
     PolygonSoup
     """
     positions, cells = read_bunny(path)
+    if triangles is not None:
+        positions, cells = decimate(positions, cells, triangles)
     positions = positions - [0.0, positions[:, 1].min(), 0.0]
     h, y, q = room / 2, height, light / 2
     box = np.array([[x, yy, z] for x in (-h, h) for yy in (0.0, y) for z in (-h, h)])  # index 4x + 2y + z

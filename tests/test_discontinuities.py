@@ -106,6 +106,23 @@ def test_small_scene_oracle(small):
             assert _parity(g.point[None], [g.outer, *g.holes])[0]
 
 
+def test_oracle_shaft_culling_keeps_the_labels(tmp_path):
+    """The oracle's culling for large scenes (labels against the triangles of each chunk's
+    shafts to the light alone) gives every point the labels of all triangles, and culls."""
+    from discontinuity_oracle import labels_of, shaft_triangles
+
+    scene = load_scene(light_scene_obj(tmp_path / "cull.obj", 11, count=3))
+    setup = oracle_setup(scene, scene.group_faces("light"))
+    floor = int(scene.group_faces("floor")[0])
+    pts = np.c_[np.random.default_rng(2).uniform(-2, 12, (40, 1)), np.zeros((40, 1)),
+                np.random.default_rng(3).uniform(-2, 12, (40, 1))]
+    full = labels_of(scene, setup, pts, floor)
+    assert labels_of(scene, setup, pts, floor, chunk=4, cull=True) == full
+    assert len({len(x) for x in full}) > 1  # points in shadow and in light
+    kept = shaft_triangles(scene, setup, pts[:1])
+    assert 0 < kept.sum() < len(kept)
+
+
 def test_oracle_sees_a_broken_mesh(small):
     """Break the mesh (drop one event's trace): the oracle notices."""
     from viscx.queries import discontinuities as dm

@@ -284,3 +284,41 @@ def test_free_points_equal_reference():
     # some VEE nodes pass a free point between their edges
     vee = nodes.generators[nodes.kind == 1]
     assert (vee[:, 0] >= scene.n_vertices).sum() > 5
+
+
+def bumpy_ball_on_floor(seed):
+    """An icosahedron with every vertex moved along its ray by up to ±35 % (a non-convex
+    closed mesh: reflex and nearly flat edges, no blocking solid) standing over a floor."""
+    import trimesh
+    from conftest import soup
+
+    rng = np.random.default_rng(seed)
+    ico = trimesh.creation.icosahedron()
+    v = ico.vertices * rng.uniform(0.65, 1.35, (len(ico.vertices), 1)) + [0.0, 1.6, 0.0]
+    floor = [[-3.0, 0.0, -3.0], [-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0]]
+    polygons = [[0, 1, 2, 3]] + (ico.faces + 4).tolist()
+    return build_scene(soup(np.concatenate([floor, v]), polygons, [0] + [1] * len(ico.faces)))
+
+
+def test_inner_edges_must_be_passed(monkeypatch):
+    """The scans drop inner edges no direction allowed by the outer generators passes
+    (module docstring, "Inner edges are passed"): fewer tuples on a non-convex mesh, the
+    reference's nodes all the same."""
+    import viscx.skeleton.candidates as cand
+
+    scene = bumpy_ball_on_floor(0)
+    with_rule, without = {}, {}
+    nodes = build_nodes(scene)
+    fast_candidates(scene, stats=with_rule)
+    unfiltered = cand.passing_arcs
+
+    def any_direction(*args):
+        frame, arc = unfiltered(*args)
+        arc[:, 1] = np.pi
+        return frame, arc
+
+    monkeypatch.setattr(cand, "passing_arcs", any_direction)
+    fast_candidates(scene, stats=without)
+    assert with_rule["E4 quadruples"] < 0.5 * without["E4 quadruples"]
+    assert with_rule["VEE triples"] < without["VEE triples"]
+    assert_same_nodes(nodes, reference_nodes(scene))

@@ -146,6 +146,26 @@ family or nothing: the pair (b, c) is skipped when b, c and a (or d) are. This i
 architectural scene: its edges and every box's bottom edges are coplanar, and
 every vertical edge meets the floor at its end.
 
+Inner edges are passed
+----------------------
+(N2) asks every inner generator to be passed. At an inner point of an edge b whose
+two faces alone touch it (a clean edge of a mesh), a line is passed iff both faces lie
+on one side of the plane through the line and b (:mod:`viscx.geometry.tangency`), which
+depends only on the line's direction u projected along b: u⊥ must not lie strictly
+between the faces' inward directions w₁, w₂ (perpendicular to b), an arc of the circle
+of lines about b (:func:`passing_arcs`). A node's line passes within ε of its outer
+generator points A', D' and of B' on b, so u⊥ lies within asin(2ε / |A'⊥|) of the
+direction of A'⊥ (A' projected along b, b's line at the origin), and A' lies on the
+outer segment: u⊥ lies on the arc of directions in which b's line sees the projected
+outer segment, grown by that error (:func:`_sight_arc`), and likewise for D'. An inner
+edge whose passing arc, grown by ``PASS_ANGLE``, misses the intersection of the two
+sight arcs is dropped (:func:`_passable`; three arcs meet iff one's start lies on the
+other two). The growth keeps the dropped directions clearly inside the crossing ones
+(at least 1e-7 off each face's plane and off b for a unit direction): validation
+calls them crossing whatever its grazing tolerances. On a fine mesh most edges are
+nearly flat, so few directions pass them: this is what keeps the bunny's candidates
+near its nodes.
+
 VV candidates are the unblocked pairs not joined by an edge whose segment is
 free, tested exactly as validation tests it (same two points in the same order
 along the canonical direction, so the same rays). VEE and E4 candidates are the
@@ -197,6 +217,9 @@ CONVEXITY_BUDGET = 4_000_000
 RAY_CHUNK = 1 << 20
 #: Tuples per chunk when solving candidate lines (bounds memory; chunks run on threads).
 LINE_CHUNK = 1 << 18
+#: Margin (radians) by which a line's direction must lie inside an edge's crossing
+#: directions for the scans to drop it as an inner generator (:func:`passing_arcs`).
+PASS_ANGLE = 1e-6
 #: Candidates per call of the validator (bounds its memory).
 VALIDATE_CHUNK = 1 << 18
 
@@ -1086,9 +1109,68 @@ def _no_vee_line(p, lines, e1, e2):
 
 
 @njit(cache=True, nogil=True)
+def _on_arc(x, start, length):
+    """Whether angle x lies on the arc [start, start + length] of the circle of lines (angles mod π)."""
+    return length >= np.pi or (x - start) % np.pi <= length
+
+
+@njit(cache=True, nogil=True)
+def _sight_arc(b0, b1, e1, e2, p, q, eps):
+    """The arc (start, length) of angles mod π, in edge b's frame (e1, e2 ⊥ b), that the
+    direction of a line meeting b and segment pq within ε (validation's (N1)) may take
+    once projected along b (module docstring, "Inner edges are passed"); length ≥ π:
+    any. Points of pq project to p', q' in the plane ⊥ b with b's line at the origin.
+    A line through B' on b passing within ε of P' on pq has its projected direction
+    within asin(2ε / |P'⊥|) of P'⊥'s, |P'⊥| ≥ ρ, the distance of segment p'q' from the
+    origin. The inflation adds ``PASS_ANGLE`` and 1e-7 / |u⊥| for a unit direction u
+    (|u⊥| ≥ (ρ - 2ε) / (the farthest two points of pq and b + 2ε)): the projected
+    direction is then at least 1e-7 off each face's plane and off b itself, far above
+    the grazing tolerances of the tangency test."""
+    px, py = _dot(_sub(p, b0), e1), _dot(_sub(p, b0), e2)
+    qx, qy = _dot(_sub(q, b0), e1), _dot(_sub(q, b0), e2)
+    dx, dy = qx - px, qy - py
+    dd = dx * dx + dy * dy
+    t = 0.0 if dd == 0 else min(1.0, max(0.0, -(px * dx + py * dy) / dd))
+    rho = np.hypot(px + t * dx, py + t * dy)
+    if not rho > 8 * eps:
+        return 0.0, np.pi
+    far = 0.0
+    for x in (p, q):
+        for y in (b0, b1):
+            w = _sub(x, y)
+            far = max(far, np.sqrt(_dot(w, w)))
+    grow = 1.1 * 2 * eps / rho + PASS_ANGLE + 1e-7 * (far + 2 * eps) / (rho - 2 * eps)
+    ext = np.arctan2(px * qy - py * qx, px * qx + py * qy)
+    start = np.arctan2(py, px) + min(ext, 0.0)
+    return (start - grow) % np.pi, abs(ext) + 2 * grow
+
+
+@njit(cache=True, nogil=True)
+def _passable(b, ea, eb, pass_frame, pass_arc, p0, p1, q0, q1, eps):
+    """Whether a line meeting segments p0p1 and q0q1 and edge b (b between them) may pass
+    b (validation's (N2)): its direction's arc from each segment (:func:`_sight_arc`) and
+    b's arc of passing directions (``pass_arc``, inflated) meet. Three arcs of a circle
+    meet iff the start of one of them lies on the other two."""
+    if pass_arc[b, 1] >= np.pi:
+        return True
+    b0, b1 = _row(ea, b), _row(eb, b)
+    e1 = (pass_frame[b, 0, 0], pass_frame[b, 0, 1], pass_frame[b, 0, 2])
+    e2 = (pass_frame[b, 1, 0], pass_frame[b, 1, 1], pass_frame[b, 1, 2])
+    s1, l1 = _sight_arc(b0, b1, e1, e2, p0, p1, eps)
+    s2, l2 = _sight_arc(b0, b1, e1, e2, q0, q1, eps)
+    s3, l3 = pass_arc[b, 0], pass_arc[b, 1]
+    if l1 < np.pi and _on_arc(s1, s2, l2) and _on_arc(s1, s3, l3):
+        return True
+    if l2 < np.pi and _on_arc(s2, s1, l1) and _on_arc(s2, s3, l3):
+        return True
+    return _on_arc(s3, s1, l1) and _on_arc(s3, s2, l2)
+
+
+@njit(cache=True, nogil=True)
 def _scan_edge_pairs(
     first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, v_off, v_items, tol, eps,
-    scope_e, scope_v, scope_a, scope_b, partner_off, partners, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    scope_e, scope_v, scope_a, scope_b, partner_off, partners, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items,
+    pass_frame, pass_arc
 ):
     """Outer edge pairs (a, d), a in ``first``, d > a (or, with ``partner_off`` non-empty,
     d in ``partners[partner_off[a]:partner_off[a + 1]]``): the vertices and edge pairs in
@@ -1211,6 +1293,9 @@ def _scan_edge_pairs(
                 # meets b where b crosses it; near b's end that is no node
                 if coplanar and _crosses_plane_at_end(pa, da, pd, dd, pb, db, eps):
                     continue
+                # an inner edge must be passed: by a direction the outer edges allow
+                if not _passable(b, ea, eb, pass_frame, pass_arc, pa, qa, pd, qd, eps):
+                    continue
                 inner[m] = b
                 box[m, 0], box[m, 1], box[m, 2], box[m, 3] = arc
                 coef[m, 0], coef[m, 1], coef[m, 2], coef[m, 3] = f
@@ -1258,7 +1343,8 @@ def _scan_edge_pairs(
 @njit(cache=True, nogil=True)
 def _scan_vertex_edges(
     first, ev, ea, eb, ed, lines, vx, table, blocked, sov, lo, cell, dims, e_off, e_items, tol, eps,
-    scope_e, scope_v, scope_a, scope_b, partner_off, partners, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items
+    scope_e, scope_v, scope_a, scope_b, partner_off, partners, s_planes_off, s_planes, s_lo, s_cell, s_dims, s_off, s_items,
+    pass_frame, pass_arc
 ):
     """Vertex v (positions in ``first``) at an end, the far edge e (every edge, or those
     listed for v as in :func:`_scan_edge_pairs`): the edges in the
@@ -1311,6 +1397,8 @@ def _scan_vertex_edges(
                 if b == e or b0 == v or b1 == v or _adjacent(ev, b, e) or not (ve_in or scope_e[b]):
                     continue
                 if _vertex_edge_blocked(table, v, b0, b1) or _blocked(blocked, b, e):
+                    continue
+                if not _passable(b, ea, eb, pass_frame, pass_arc, pv, pv, pe, qe, eps):
                     continue
                 # lines through v meeting e at e(t) meet line b where v, e(t), b are
                 # coplanar: (e(t) - v) · n_b = 0 with n_b the normal of plane (v, b)
@@ -1592,6 +1680,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     v_items = lone[v_items]
     tol = HULL_TOL * eps + 1e-12 * scene.diagonal
     scoping = _scope_arrays(scope, gv, ge, ev, vx)
+    passing = passing_arcs(scene, ge, ed)
     # the outer pairs the scans visit: all, or (scoped) those whose joint box meets a
     # scope generator's (light-centred: :func:`viscx.skeleton.scope.pairs_near`)
     if scope is None:
@@ -1614,7 +1703,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
         _scan_vertex_edges,
         ve_first,
         (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, tol, eps)
-        + scoping + ve_pairs + solid_grid,
+        + scoping + ve_pairs + solid_grid + passing,
         max(1, min(64, len(ve_first) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1630,7 +1719,7 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
         _scan_edge_pairs,
         ee_first,
         (ev, ea, eb, ed, lines, vx, table, blocked, sov, grid.lo, grid.cell, grid.dims, e_off, e_items, v_off, v_items, tol, eps)
-        + scoping + ee_pairs + solid_grid,
+        + scoping + ee_pairs + solid_grid + passing,
         max(1, min(64, len(ee_first) // (8 * workers) + 1)),
         pb,
         workers,
@@ -1666,6 +1755,51 @@ def fast_candidates(scene, progress=None, workers=None, stats=None, scope=None):
     stats["E4 candidates"] = int(len(out[-1][0]))
     stats["seconds E4 lines"] = time.perf_counter() - clock
     return _pack(out)
+
+
+def passing_arcs(scene, edges, directions):
+    """Each generator edge's directions of passing lines, as an arc of the circle of
+    lines about it (module docstring, "Inner edges are passed").
+
+    A line through an inner point of an edge with two faces, seen along the edge, is
+    passed iff both faces lie on one side of the plane of the line and the edge
+    (:mod:`viscx.geometry.tangency`): with w₁, w₂ the faces' unit directions
+    perpendicular to the edge, inwards, the line's projected direction must not lie
+    strictly between w₁ and w₂ (the angle θ < π they span), an arc of π - θ of the
+    lines. Only where those two faces alone touch every inner point (the edge is clean,
+    ``scene.contacts``); elsewhere every direction may pass.
+
+    Parameters
+    ----------
+    edges : (n,) int
+        Edge ids.
+    directions : (n, 3) float
+        The edges' directions as the scans use them (end minus start).
+
+    Returns
+    -------
+    frame : (n, 2, 3) float
+        Unit e₁ = w₁ and e₂ = b̂ × w₁ spanning the plane ⊥ the edge.
+    arc : (n, 2) float
+        Start (angle from e₁, in [0, π)) and length of the passing arc, grown by
+        ``PASS_ANGLE`` on both sides; length π where any direction may pass.
+    """
+    c = scene.contacts
+    edges = np.asarray(edges, dtype=np.int64)
+    lo, hi = c.edge.offsets[edges], c.edge.offsets[edges + 1]
+    two = (hi - lo == 2) & c.edge_clean[edges]
+    first, normal = c.edge.first, c.edge.normal
+    w = np.cross(normal, first)  # a half-plane spans from its first ray towards n × first
+    w1, w2 = w[np.where(two, lo, 0)], w[np.where(two, lo + 1, 0)]
+    b = directions / np.maximum(row_norms(directions), 1e-300)[:, None]
+    e1 = w1 / np.maximum(row_norms(w1), 1e-300)[:, None]
+    e2 = np.cross(b, e1)
+    omega = np.arctan2(np.einsum("ij,ij->i", w2, e2), np.einsum("ij,ij->i", w2, e1))
+    # crossing lines lie strictly between 0 and ω (mod π): (0, ω) if ω > 0, else (ω + π, π)
+    arc = np.stack([np.where(omega > 0, omega, 0.0) - PASS_ANGLE, np.pi - np.abs(omega) + 2 * PASS_ANGLE], axis=1)
+    arc[:, 0] %= np.pi
+    arc[~(two & np.isfinite(omega) & (arc[:, 1] < np.pi)), 1] = np.pi
+    return np.ascontiguousarray(np.stack([e1, e2], axis=1)), arc
 
 
 def _scope_arrays(scope, gv, ge, ev, vx):

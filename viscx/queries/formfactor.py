@@ -2470,8 +2470,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
             k = len(setup.occluders)
             if not k:
                 continue
-            ptr, _ = setup.shaft_cull(tri[rows], (np.arange(len(rows) + 1) * k).astype(np.int64),
-                                      np.tile(np.arange(k), len(rows)))
+            ptr, _ = cull_all(setup.shaft_cull, tri[rows], np.arange(k))
             out[rows, c] = np.diff(ptr) > 0
         return out
     n_i = side * scene.face_normal[face]

@@ -2383,10 +2383,20 @@ def pair_contour(scene, setup, key):
         return contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
     a_i = loops_area(setup.I, setup.n_i)
     key = tuple(int(k) for k in key)
-    flux = memo.get(key, memo.get((key[2], key[3], key[0], key[1])))  # A_i F⁰_ij = A_j F⁰_ji
+    rev = (key[2], key[3], key[0], key[1])
+    canonical = min(key, rev)  # A_i F⁰_ij = A_j F⁰_ji
+    flux = memo.get(canonical)
     if flux is None:
-        value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
-        flux = memo[key] = (value * a_i, err * a_i)
+        # always from the canonical order's emitter, whichever row asks first: the same
+        # digits in every run, however the rows are shared among the workers
+        if key == canonical:
+            value, err = contour_form_factor(setup.I, setup.n_i, setup.J, setup.n_t)
+            flux = (value * a_i, err * a_i)
+        else:
+            a_j = loops_area(setup.J, setup.n_t)
+            value, err = contour_form_factor(setup.J, setup.n_t, setup.I, setup.n_i)
+            flux = (value * a_j, err * a_j)
+        memo[canonical] = flux
     return flux[0] / a_i, flux[1] / a_i
 
 

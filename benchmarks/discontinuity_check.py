@@ -128,6 +128,9 @@ def check_row(res, show=5):
     row |= {k: len(v) for k, v in res.items() if isinstance(v, list)}
     row["cross_skipped_not_outline"] = sum(why != "on the outline" for *_, why in res["cross_skipped"])
     row["failures"] = {k: res[k][:show] for k in ("same_fail", "cross_fail", "dangling") if res[k]}
+    skipped = [s for s in res["cross_skipped"] if s[-1] != "on the outline"]
+    if skipped:
+        row["failures"]["cross_skipped_not_outline"] = skipped[:show]
     return row
 
 

@@ -4,6 +4,9 @@ points (tests/discontinuity_oracle.py, exact clipping of the light's outline by 
 occluder triangles' images)."""
 
 import json
+import sys
+from pathlib import Path
+
 import msgpack
 import numpy as np
 import pytest
@@ -484,10 +487,11 @@ def saddle_scene_obj(path):
     1: u, r0, r1) lies in z = 0; around u the ring r0..r5 (radius 1) climbs in front of
     f's plane at r2, r4, r5, dips behind it at r3: f's two neighbours across its edges at u
     rise in front, the fan crosses z = 0 twice more on the side of H. Closed by a cone to
-    b = (0, 0, -3) (the solid is the region between the two height fields over the ring)."""
+    b = (0, 0, -3) (the solid, group ``bunny``, is the region between the two height fields
+    over the ring)."""
     ring = [(-30, 0.0), (30, 0.0), (90, 0.5), (180, -0.5), (270, 0.5), (300, 0.5)]
     pts = [(0.0, 0.0, 0.0)] + [(np.cos(np.radians(a)), np.sin(np.radians(a)), z) for a, z in ring] + [(0.0, 0.0, -3.0)]
-    lines = ["o light", "v -4 -1 -1", "v -4 -1 1", "v -4 1 1", "v -4 1 -1", "f 1 4 3 2", "o solid"]
+    lines = ["o light", "v -4 -1 -1", "v -4 -1 1", "v -4 1 1", "v -4 1 -1", "f 1 4 3 2", "o bunny"]
     lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in pts]
     for i in range(6):  # (u, r_i, r_i+1) up, (b, r_i+1, r_i) down
         lines += [f"f 5 {6 + i} {6 + (i + 1) % 6}", f"f 12 {6 + (i + 1) % 6} {6 + i}"]
@@ -532,6 +536,23 @@ def test_saddle_at_the_receivers_vertex(saddle, monkeypatch):
     scene, mesh = open_mesh(saddle)
     res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
     assert res["cross_fail"] and res["dangling"] and {f for f, *_ in res["cross_fail"]} == {2}
+
+
+def test_discontinuity_check_counts_the_whole_mesh(tmp_path, capsys):
+    """benchmarks/discontinuity_check.py prints the whole mesh's events and regions beside the
+    receivers it checked. Before, the checked receivers' region count replaced the whole
+    mesh's: the spheres' 257,609 regions were reported as 134,789 (the room's faces and 60
+    sphere faces), which looked like a disagreement with the 257,599 counted in process."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    import discontinuity_check
+
+    obj = saddle_scene_obj(tmp_path / "s.obj")
+    discontinuity_check.main([str(obj), "--faces", "1"])
+    row = json.loads(capsys.readouterr().out)
+    scene, mesh = open_discontinuities(obj, light_group="light")
+    assert row["events"] == len(mesh.events.arc)
+    assert row["regions"] == sum(len(r.regions) for r in mesh.receivers) > row["regions_checked"] > 0
+    assert row["receivers_checked"] == 1 and row["same_pairs"] == row["same_agree"] > 0
 
 
 def crossing_scene_obj(path):

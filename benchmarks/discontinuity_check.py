@@ -77,6 +77,7 @@ def main(argv=None):
     parser.add_argument("--max-regions", type=int, default=60)
     parser.add_argument("--max-traces", type=int, default=60)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--show", type=int, default=5, help="failures printed of each kind")
     args = parser.parse_args(argv)
     row = {"scene": args.scene}
     if args.output:
@@ -113,11 +114,24 @@ def main(argv=None):
                      max_regions=args.max_regions, max_traces=args.max_traces, cull=True)
     row |= {"cpu_oracle": round(time.process_time() - c0, 1), "receivers_checked": len(faces),
             "points": res["same_pairs"] + res["regions_sampled"] + 2 * res["cross_pairs"]}
-    row |= {k: v for k, v in res.items() if isinstance(v, int)}
+    row |= check_row(res, args.show)
+    print(json.dumps(row, default=str), flush=True)
+
+
+def check_row(res, show=5):
+    """The counts of :func:`check_mesh`'s result ``res`` as the row prints them, and its
+    first ``show`` failures of each kind. Its ``regions`` (those of the receivers checked)
+    is ``regions_checked``: the row's ``regions`` counts the whole mesh's. (Before, the
+    checked receivers' count replaced it: the spheres' 257,609 regions were printed as the
+    134,789 of the 66 receivers checked.)"""
+    row = {("regions_checked" if k == "regions" else k): v for k, v in res.items() if isinstance(v, int)}
     row |= {k: len(v) for k, v in res.items() if isinstance(v, list)}
     row["cross_skipped_not_outline"] = sum(why != "on the outline" for *_, why in res["cross_skipped"])
-    row["failures"] = {k: res[k][:5] for k in ("same_fail", "cross_fail", "dangling") if res[k]}
-    print(json.dumps(row, default=str), flush=True)
+    row["failures"] = {k: res[k][:show] for k in ("same_fail", "cross_fail", "dangling") if res[k]}
+    skipped = [s for s in res["cross_skipped"] if s[-1] != "on the outline"]
+    if skipped:
+        row["failures"]["cross_skipped_not_outline"] = skipped[:show]
+    return row
 
 
 if __name__ == "__main__":

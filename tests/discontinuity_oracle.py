@@ -255,6 +255,20 @@ def _first_far(q, a, b, margin, count, chunk=64):
     return np.concatenate(kept)[:count] if kept else q[:0]
 
 
+def _straddles(q, a, b):
+    """(c, k) bool: the segment between each point pair q (c, 2, 2) crosses segment a -> b
+    (k, 2) (each pair's ends strictly on both sides of the other's line, both ways)."""
+    p0, p1 = q[:, None, 0], q[:, None, 1]
+
+    def side(o, d, x):
+        return d[..., 0] * (x[..., 1] - o[..., 1]) - d[..., 1] * (x[..., 0] - o[..., 0])
+
+    ab = (b - a)[None]
+    s0, s1 = side(a[None], ab, p0), side(a[None], ab, p1)
+    t0, t1 = side(p0, p1 - p0, a[None]), side(p0, p1 - p0, b[None])
+    return (s0 * s1 < 0) & (t0 * t1 < 0)
+
+
 #: Where along a trace (fractions of its length) the crossing check is tried, in order.
 CROSS_AT = (0.5, 0.3, 0.7, 0.15, 0.85, 0.05, 0.95, 0.01, 0.99)
 
@@ -285,10 +299,12 @@ def check_mesh(scene, mesh, rng, margin, samples=4, faces=None, max_regions=None
     mesh line, contact and outline; every pair must have equal labels. Crossing: every
     trace, at its middle (by length), offset ±margin along its normal; where those points
     are outside the face or within margin/2 of another line, at the first of
-    :data:`CROSS_AT` where they are not, then the same with margin/4; labels must differ
-    and the points be in different regions. A trace with no such place is listed in
-    ``cross_skipped`` (face, event, why: "on the outline" for a trace along the face's
-    outline, which has no other side). Trace ends inside the face farther
+    :data:`CROSS_AT` where they are not, then the same with margin/4, preferring a place
+    where the pair crosses no other line (where lines meet at a small angle, one far
+    enough from the pair's points can still run between them, and its change may undo
+    this one's); labels must differ and the points be in different regions. A trace with
+    no such place is listed in ``cross_skipped`` (face, event, why: "on the outline" for a
+    trace along the face's outline, which has no other side). Trace ends inside the face farther
     than the mesh's snap distance from every other line are listed in ``dangling``
     (face, event, point, distance).
 
@@ -370,25 +386,33 @@ def check_mesh(scene, mesh, rng, margin, samples=4, faces=None, max_regions=None
         for k in traces:
             rows = np.flatnonzero(owner == k)
             others = owner != k
-            why, good = "zero length", []
+            why, pick, fallback = "zero length", None, None
             for off in (margin, 0.25 * margin):  # a trace close to the outline: nearer
                 q = _crossing_points(a[rows], b[rows], off)
                 if not len(q):
                     break
                 inside = _parity(q.reshape(-1, 2), outline).reshape(-1, 2).all(axis=1)
                 near = _seg_dist(q.reshape(-1, 2), a[others], b[others]).min(axis=1).reshape(-1, 2).min(axis=1)
-                good = np.flatnonzero(inside & (near >= 0.5 * off))
-                if len(good):
+                good = inside & (near >= 0.5 * off)
+                # preferably a pair crossing this trace alone: where lines meet at a small
+                # angle, a pair far enough from the others can still straddle one of them
+                alone = good & ~_straddles(q, a[others], b[others]).any(axis=1)
+                if alone.any():
+                    pick = q[np.argmax(alone)]
                     break
+                if good.any() and fallback is None:
+                    fallback = q[np.argmax(good)]
                 why = "outside" if not inside.any() else "near another line"
-            if not len(good):
+            if pick is None:
+                pick = fallback
+            if pick is None:
                 # a trace along the receiver's outline has no other side to cross to
                 mid = 0.5 * (a[rows] + b[rows])
                 if _seg_dist(mid, a[:nb], b[:nb]).min(axis=1).max() <= mesh.snap:
                     why = "on the outline"
                 out["cross_skipped"].append((r.face, int(k), why))
                 continue
-            q = q[good[0]]
+            q = pick
             out["cross_pairs"] += 1
             reg = region_of(q)
             if reg[0] == reg[1]:

@@ -4,6 +4,10 @@ points (tests/discontinuity_oracle.py, exact clipping of the light's outline by 
 occluder triangles' images)."""
 
 import json
+import pickle
+import sys
+from pathlib import Path
+
 import msgpack
 import numpy as np
 import pytest
@@ -475,6 +479,82 @@ def test_vertex_in_lone_receiver_plane(tmp_path, monkeypatch, seed, crossing):
     monkeypatch.setattr(pe, "front_decides", lambda kind, *a: np.zeros(len(kind), bool))
     _, mesh, same, cross, _ = _oracle_failures(cx, [2], (1, 2, 3), 12)
     assert not (mesh.events.kind == pe.RP_VERTEX).any() and same >= 1
+
+
+def saddle_scene_obj(path):
+    """An OBJ: a closed solid of 12 triangles with a saddle at its vertex u (the origin; a
+    scanned mesh's vertex in miniature) and a square light (group ``light``, facing +x) at
+    x = -4 whose plane-crossing edges meet z = 0 at H = (-4, ±1, 0). The receiver f (face
+    1: u, r0, r1) lies in z = 0; around u the ring r0..r5 (radius 1) climbs in front of
+    f's plane at r2, r4, r5, dips behind it at r3: f's two neighbours across its edges at u
+    rise in front, the fan crosses z = 0 twice more on the side of H. Closed by a cone to
+    b = (0, 0, -3) (the solid, group ``bunny``, is the region between the two height fields
+    over the ring)."""
+    ring = [(-30, 0.0), (30, 0.0), (90, 0.5), (180, -0.5), (270, 0.5), (300, 0.5)]
+    pts = [(0.0, 0.0, 0.0)] + [(np.cos(np.radians(a)), np.sin(np.radians(a)), z) for a, z in ring] + [(0.0, 0.0, -3.0)]
+    lines = ["o light", "v -4 -1 -1", "v -4 -1 1", "v -4 1 1", "v -4 1 -1", "f 1 4 3 2", "o bunny"]
+    lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in pts]
+    for i in range(6):  # (u, r_i, r_i+1) up, (b, r_i+1, r_i) down
+        lines += [f"f 5 {6 + i} {6 + (i + 1) % 6}", f"f 12 {6 + (i + 1) % 6} {6 + i}"]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def saddle(tmp_path_factory):
+    return build_v1(saddle_scene_obj(tmp_path_factory.mktemp("saddle") / "s.obj"))
+
+
+def test_saddle_at_the_receivers_vertex(saddle, monkeypatch):
+    """A receiver whose own vertex u is a saddle of the closed surface (the decimated bunny's
+    missing lines, in miniature). From x on f, x→H passes u beside one of the two lobes of
+    the surface in front of f's plane (the neighbours across f's edges and the fan's faces
+    crossing the plane), and which of u's edges ends the hidden part of the light edge
+    next to H changes across the line Hu: an RPV event of u, with two sections ending at u
+    on each side of the line (:func:`viscx.queries.plane_events.pierces`; taken as
+    pierced before: no RPV line, and the oracle finds f's regions holding edges 6 and 9,
+    u-r2 and u-r5).
+    And V1's planar families of the face (u, r1, r2) cross f's edge u-r1 (a concave edge)
+    into the solid and reach the bottom face from inside: across the solid from the light,
+    their traces change nothing and dangle (:func:`viscx.queries.discontinuities.across_solid`)."""
+    from viscx.queries import discontinuities as dm
+    from viscx.queries import plane_events as pe
+
+    scene, mesh, same, cross, pairs = _oracle_failures(saddle, [], (1, 2), 8)
+    assert (same, cross) == (0, 0) and pairs >= 200
+    ev = mesh.events
+    rp = np.flatnonzero(ev.kind == pe.RP_VERTEX)
+    assert ev.face[rp].tolist() == [1, 1] and np.all(ev.generators[rp, 0] == 4)  # from u, for both H
+    for k in rp:
+        assert np.allclose(mesh.points[mesh.offsets[k]], scene.vertices[4])
+    # the sections' counts on either side of the line: one side only, or even on both
+    assert pe.pierces([0, 2, 1, 2, 1], [3, 2, 1, 1, 0]).tolist() == [False, False, True, True, False]
+    with monkeypatch.context() as m:
+        m.setattr(pe, "pierces", lambda left, right: (np.asarray(left) > 0) & (np.asarray(right) > 0))
+        _, mesh, same, cross, _ = _oracle_failures(saddle, [1], (1, 2), 8)
+        assert not (mesh.events.kind == pe.RP_VERTEX).any() and same >= 1
+    monkeypatch.setattr(dm, "across_solid", lambda scene, light, face, towards: np.zeros(len(face), bool))
+    scene, mesh = open_mesh(saddle)
+    res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
+    assert res["cross_fail"] and res["dangling"] and {f for f, *_ in res["cross_fail"]} == {2}
+
+
+def test_discontinuity_check_counts_the_whole_mesh(tmp_path, capsys):
+    """benchmarks/discontinuity_check.py prints the whole mesh's events and regions beside the
+    receivers it checked. Before, the checked receivers' region count replaced the whole
+    mesh's: the spheres' 257,609 regions were reported as 134,789 (the room's faces and 60
+    sphere faces), which looked like a disagreement with the 257,599 counted in process."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    import discontinuity_check
+
+    obj = saddle_scene_obj(tmp_path / "s.obj")
+    discontinuity_check.main([str(obj), "--faces", "1", "--mesh", str(tmp_path / "mesh.pkl")])  # (the mesh kept)
+    row = json.loads(capsys.readouterr().out)
+    with open(tmp_path / "mesh.pkl", "rb") as f:
+        mesh = pickle.load(f)
+    assert row["events"] == len(mesh.events.arc)
+    assert row["regions"] == sum(len(r.regions) for r in mesh.receivers) > row["regions_checked"] > 0
+    assert row["receivers_checked"] == 1 and row["same_pairs"] == row["same_agree"] > 0
 
 
 def crossing_scene_obj(path):

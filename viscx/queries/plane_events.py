@@ -267,6 +267,43 @@ def clip_lines_to_polygon(p0, u, lo, hi, loops, snap):
     return row[inside], t0[inside], t1[inside]
 
 
+def pierces(left, right):
+    """Whether the line HC passes C through the occluder there, from the numbers of
+    sections ending at C on each side of it.
+
+    Near C the sections ending there are rays from C that cut the plane (seen from the
+    front) into sectors. The line leaves C in two directions: towards H, through the
+    sector the segment HC runs in, which is free (the caller asks that no section
+    crosses HC, and H is on the light's outline), and towards x. A ray crossed on the
+    way round from one direction to the other is where a closed surface is entered or
+    left, so the sector towards x is free as well when an even number of rays lie on
+    either side, and inside the solid when an odd number do.
+
+    * All sections on one side (an occluder's vertex in P, a panel hinged on the
+      receiver's edge): the line grazes, as before.
+    * One on each side (a convex vertex whose section by P the line runs into): pierced.
+    * Two on each side: a saddle of a closed surface at one of the receiver's own
+      vertices (a scanned mesh: the receiver's two neighbours across its edges at C rise
+      in front of P, two more faces of the fan cross P at C on the side of H). Between
+      them the line runs above the receiver and through the free sector towards H: x→H
+      passes C beside one lobe of the surface or the other, and which of C's edges ends
+      the hidden part of the light edge next to H changes across the line (the RPV
+      event). Before, such a line was taken as pierced: the bunny's faces lacked these
+      lines (tests/test_discontinuities.py::test_saddle_at_the_receivers_vertex).
+
+    Parameters
+    ----------
+    left, right : (n,) int
+        Sections ending at C strictly on each side of the line.
+
+    Returns
+    -------
+    (n,) bool
+    """
+    left, right = np.asarray(left), np.asarray(right)
+    return (left > 0) & (right > 0) & ((left % 2 == 1) | (right % 2 == 1))
+
+
 def _graze_interval(h, u, tC, seg, back, front_free, snap):
     """Where along lines h + t u (through H at t = 0 and C at t = tC) a receiver point x
     has a receiver-plane event: x→H grazes at C and is otherwise free in front, and
@@ -290,10 +327,12 @@ def _graze_interval(h, u, tC, seg, back, front_free, snap):
     C = h + tC[:, None] * u
     near0 = np.linalg.norm(seg[None, :, 0] - C[:, None], axis=-1) <= snap
     at_c = near0 | (np.linalg.norm(seg[None, :, 1] - C[:, None], axis=-1) <= snap)
-    # sections ending at C must lie on one side of the line (it grazes), else it pierces
+    # the line passes C through the occluder unless it grazes it there: sections ending
+    # at C on one side of it only, or an even number on each side (a closed surface
+    # saddled at C, a vertex of the receiver itself: :func:`pierces`)
     other = np.where(near0[..., None], seg[None, :, 1], seg[None, :, 0])
     side = _cross2(u[:, None], other - h[:, None])
-    pierced = (at_c & (side > snap)).any(axis=1) & (at_c & (side < -snap)).any(axis=1)
+    pierced = pierces(np.count_nonzero(at_c & (side > snap), axis=1), np.count_nonzero(at_c & (side < -snap), axis=1))
     t = np.where(at_c, np.inf, _line_hits(h, u, seg, snap))
     t = np.where(t > snap, t, np.inf)  # sections through H itself (the light's neighbours)
     hidden = pierced | (t < tC[:, None] + snap).any(axis=1)

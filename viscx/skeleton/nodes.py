@@ -258,8 +258,9 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     # The tests are one conjunction, so their order is free: cheapest first.
     # Inner generators are passed (a wedge look-up each, no ray): on a closed mesh most
     # lines cross their middle edge (the bunny decimated to 1,000 triangles: 18.5 % of its
-    # V1 samples are segments; the pieces cast fall from 1.51 to 0.88 million). These rows
-    # are judged again below with the ends, so the lines kept and what they hold do not change.
+    # V1 samples are segments; the pieces cast fall from 1.51 to 0.88 million, but the
+    # pieces left are the long ones: V1 CPU 2-3 % less). These rows are judged again below
+    # with the ends, so the lines kept and what they hold do not change.
     inner = np.concatenate([np.take(row_sorted[:, j], np.flatnonzero(keep & (j < count - 1))) for j in (1, 2)])
     if len(inner):
         passed = _passed(scene, np.take(is_vertex, inner), np.take(gid, inner), np.take(point, inner, axis=0),

@@ -561,3 +561,35 @@ def test_events_sort_by_family_then_s():
     family = rng.integers(0, 50, 20000)
     s = rng.choice(np.r_[np.linspace(0, 1, 7), -0.0, rng.random(30)], 20000)
     assert np.array_equal(arcs_module.by_family_and_s(family, s), np.lexsort([s, family]))
+
+
+def test_inner_generators_are_judged_before_the_rays(monkeypatch):
+    """maximal_free_segments tests that the inner generator is passed before it casts the
+    pieces (a wedge look-up, no ray): on a non-convex closed mesh most EEE samples cross
+    their middle edge, so fewer pieces are cast, and every field of the samples is the
+    same as with the rays first."""
+    import viscx.skeleton.nodes as nodes_module
+    from test_fast_nodes import bumpy_ball_on_floor
+
+    scene = bumpy_ball_on_floor(0)
+    _, families = builder_module.arc_families(scene, build_nodes(scene))
+    rng = np.random.default_rng(1)
+    f = rng.choice(np.flatnonzero(families.kind == EEE), 3000)
+    kind, gens, s = families.kind[f], families.generators[f], rng.random(len(f))
+    cast = []
+    free_pieces = nodes_module.free_pieces
+
+    def counted(scene, starts, *args):
+        cast.append(len(starts))
+        return free_pieces(scene, starts, *args)
+
+    monkeypatch.setattr(nodes_module, "free_pieces", counted)
+    first = judge_samples(scene, kind, gens, s, sides=True)
+    with_rule = sum(cast)
+    cast.clear()
+    monkeypatch.setattr(nodes_module, "_passed", lambda scene, is_vertex, *args: np.ones(len(is_vertex), bool))
+    rays_first = judge_samples(scene, kind, gens, s, sides=True)
+    for name in ("valid", "state", "sides", "direction", "ends", "generator_points"):
+        assert np.array_equal(getattr(first, name), getattr(rays_first, name), equal_nan=True), name
+    assert 0 < first.valid.sum() < 0.5 * len(f)
+    assert with_rule < 0.8 * sum(cast)

@@ -135,7 +135,8 @@ class LineSegments:
     generator_points : (m, 4, 3) float
         Where the line meets each generator slot (NaN for unused slots).
     tangent : (m, 4) bool
-        Whether the line passes at each generator slot (False for unused slots).
+        Whether the line passes at each generator slot (False for unused slots). Read it
+        on valid lines: a line rejected before its ends are judged holds False.
     """
 
     valid: np.ndarray
@@ -255,6 +256,17 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
         keep &= ~has | (gap > eps)
 
     # The tests are one conjunction, so their order is free: cheapest first.
+    # Inner generators are passed (a wedge look-up each, no ray): on a closed mesh most
+    # lines cross their middle edge (the bunny decimated to 1,000 triangles: 18.5 % of its
+    # V1 samples are segments; the pieces cast fall from 1.51 to 0.88 million, but the
+    # pieces left are the long ones: V1 CPU 2-3 % less). These rows are judged again below
+    # with the ends, so the lines kept and what they hold do not change.
+    inner = np.concatenate([np.take(row_sorted[:, j], np.flatnonzero(keep & (j < count - 1))) for j in (1, 2)])
+    if len(inner):
+        passed = _passed(scene, np.take(is_vertex, inner), np.take(gid, inner), np.take(point, inner, axis=0),
+                         np.take(dc, inner, axis=0))
+        keep &= _all_of(np.take(cand, inner), passed, m)
+
     # Consecutive generators see each other (batched rays) ...
     pieces_a, pieces_b, piece_cand = [], [], []
     for j in range(3):
@@ -324,6 +336,13 @@ def _maximal_free_segments(scene, slot_is_vertex, slot_count, generators, origin
     slot_tangent = np.zeros((m, 4), dtype=bool)
     slot_tangent.reshape(-1)[flat] = tangent
     return LineSegments(keep, d, all_ends, all_kind, all_blocker, gen_points, slot_tangent)
+
+
+def _passed(scene, is_vertex, generator, points, directions):
+    """(k,) bool: whether each line (``directions`` (k, 3) float) passes the generator
+    (vertex or edge id, ``is_vertex`` (k,) bool) at its point (``points`` (k, 3) float):
+    the tangency of :func:`maximal_free_segments`, without the degeneracy."""
+    return tangent_in_wedges(generator_wedge_ranges(scene, is_vertex, generator, points), directions)[0]
 
 
 def vertex_ray_blockers(scene, vertices, directions):

@@ -666,7 +666,7 @@ def test_probe_room_stops_short_of_the_next_boundary():
     lies within it, half the distance to the first piece it would cross otherwise (a steep
     piece beside a line x1 = c, as the top's edge beside a panel's pencil in office(300)
     pair (0, 571)), never less than PROBE_ROOM_FLOOR of the step, and skips its own piece
-    and the pieces of other squares."""
+    and the pieces of other squares; with ``floor`` FINEST_PROBE_FLOOR it stops closer."""
     from viscx.skeleton import eecells
 
     # obstacles of square 7: the line x1 = 0.5 + 4e-6 (x2 in [0, 1]) and the probe's own piece;
@@ -687,6 +687,10 @@ def test_probe_room_stops_short_of_the_next_boundary():
     floor = eecells.PROBE_ROOM_FLOOR * 1e-5
     assert 1.5e-6 < floor < 3e-6
     np.testing.assert_allclose(got, [2e-6, 1e-5, 1e-6, floor, 1e-5], rtol=1e-9)
+    # with the finest floor (rule 20) square 8's probe stops halfway to its line 3e-6 away
+    finest = eecells.probe_room(key, start, middle, end, at_key, at, direction, step, own,
+                                eecells.FINEST_PROBE_FLOOR)
+    np.testing.assert_allclose(finest, [2e-6, 1e-5, 1e-6, 1.5e-6, 1e-5], rtol=1e-9)
 
 
 @pytest.mark.slow
@@ -712,7 +716,7 @@ def test_probes_stay_beside_their_piece(monkeypatch):
         assert ee.complete.all() and len(ee.open_edge1) == 0, pair
         judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array([pair]), n=1000)
         assert judged >= 900 and agreed == judged, wrong[:5]
-    monkeypatch.setattr(eecells, "probe_room", lambda key, s, m, e, at_key, at, d, step, own: step)
+    monkeypatch.setattr(eecells, "probe_room", lambda key, s, m, e, at_key, at, d, step, own, floor=None: step)
     mine = (e1 == 0) & (e2 == 571)
     knocked = eecells.squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
     assert not knocked.complete.any() and len(knocked.open_edge1) > 0

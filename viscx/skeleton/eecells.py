@@ -66,7 +66,9 @@ crosses the plane of e2 and a coplanar edge). Where V1's arcs leave a square's l
 open, V2 adds these *segments* of its own (:func:`open_segments`,
 :func:`segment_pieces`: exact cuts, the probes decide), boundary elements of their own
 kinds (SIDE, PENCIL1, PENCIL2), and probes that square again 5 epsilon off its pieces
-(FINE_PROBE; the Cornell light's slivers are thinner than PROBE).
+(FINE_PROBE; the Cornell light's slivers are thinner than PROBE), each probe stopping short
+of the square's next piece but moving at least 1 epsilon, and where loops still stay open
+0.1 epsilon (:func:`_finest_probes`: slivers thinner than epsilon between two arcs).
 
 Which side gets which pair is found like the VE half-cells' (arcs/halfcells.py): the
 arc's middle point of the square is moved off the arc, across it on each side,

@@ -379,7 +379,9 @@ def test_furnished_rooms(seed, capsys):
     worst, office(260, 111)), 310 594 of 311 043 pairs (99.86 %; 99.70 % at worst,
     office(120, 103)); with V1 rules 14 and 16 and V-cell rule 15: every vertex of the 20
     (4 524); with EE rules 17 to 19: 310 888 of 311 043 pairs (99.95 %; 99.79 % at worst,
-    office(120, 103)), the caster agreeing on every judged direction and point. So
+    office(120, 103)), the caster agreeing on every judged direction and point; with EE rule
+    20: 310 932 of 311 043 pairs (99.96 %; 99.79 % at worst, office(120, 103)), the caster
+    agreeing on 2 260 273 of 2 260 273 directions and 399 612 of 399 612 points. So
     completeness is held at 100 % of vertices and 99.7 % of pairs."""
     n = int(np.random.default_rng(2026 + seed).integers(50, 301))
     scene = build_scene(office(n, seed=100 + seed))
@@ -666,7 +668,7 @@ def test_probe_room_stops_short_of_the_next_boundary():
     lies within it, half the distance to the first piece it would cross otherwise (a steep
     piece beside a line x1 = c, as the top's edge beside a panel's pencil in office(300)
     pair (0, 571)), never less than PROBE_ROOM_FLOOR of the step, and skips its own piece
-    and the pieces of other squares."""
+    and the pieces of other squares; with ``floor`` FINEST_PROBE_FLOOR it stops closer."""
     from viscx.skeleton import eecells
 
     # obstacles of square 7: the line x1 = 0.5 + 4e-6 (x2 in [0, 1]) and the probe's own piece;
@@ -687,6 +689,10 @@ def test_probe_room_stops_short_of_the_next_boundary():
     floor = eecells.PROBE_ROOM_FLOOR * 1e-5
     assert 1.5e-6 < floor < 3e-6
     np.testing.assert_allclose(got, [2e-6, 1e-5, 1e-6, floor, 1e-5], rtol=1e-9)
+    # with the finest floor (rule 20) square 8's probe stops halfway to its line 3e-6 away
+    finest = eecells.probe_room(key, start, middle, end, at_key, at, direction, step, own,
+                                eecells.FINEST_PROBE_FLOOR)
+    np.testing.assert_allclose(finest, [2e-6, 1e-5, 1e-6, 1.5e-6, 1e-5], rtol=1e-9)
 
 
 @pytest.mark.slow
@@ -712,7 +718,7 @@ def test_probes_stay_beside_their_piece(monkeypatch):
         assert ee.complete.all() and len(ee.open_edge1) == 0, pair
         judged, agreed, _, wrong = ee_ray_oracle(scene, arcs, ee, np.array([pair]), n=1000)
         assert judged >= 900 and agreed == judged, wrong[:5]
-    monkeypatch.setattr(eecells, "probe_room", lambda key, s, m, e, at_key, at, d, step, own: step)
+    monkeypatch.setattr(eecells, "probe_room", lambda key, s, m, e, at_key, at, d, step, own, floor=None: step)
     mine = (e1 == 0) & (e2 == 571)
     knocked = eecells.squares_cells(scene, arcs, (arc[mine], e1[mine], e2[mine]))[0]
     assert not knocked.complete.any() and len(knocked.open_edge1) > 0

@@ -665,6 +665,37 @@ def test_constant_coordinates_and_cusps_close_their_loops(monkeypatch):
     knocked = {tuple(p) for p in complete_pairs(build_eecells(scene, arcs)).tolist()}
     assert pairs - knocked == {(39, 62)}
 
+def test_finest_probes_close_slivers_thinner_than_epsilon(monkeypatch):
+    """Four boxes of the 300-polygon city (random_boxes(300, keep=[4, 20, 29, 32]),
+    docs/skeleton.md "EE-cells", rule 20). In the square of box 4's top edge 10 and box 29's
+    vertical edge 29 (the city's pair (58, 353)) a sliver between two EEE arcs is thinner than
+    one epsilon along the edge that moves most: the fine probe off the near arc, moving at
+    least PROBE_ROOM_FLOOR (1 epsilon) of its step, lands beyond the far arc, so that arc's two
+    sides differ in the front blocker alone and the sliver's loop stays open. The squares still
+    open after V2's segments are built again with the floor at FINEST_PROBE_FLOOR (0.1
+    epsilon): the pair is complete and agrees with the ray caster; knocked out, it is open."""
+    import sys
+    from pathlib import Path
+
+    import viscx.skeleton.eecells as eecells
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from scenes import random_boxes
+
+    scene = random_boxes(300, keep=[4, 20, 29, 32])
+    arcs = build_arcs(scene, build_nodes(scene))
+    arc, e1, e2 = eecells.arc_squares(scene, arcs)
+    mine = (e1 == 10) & (e2 == 29)
+    square = (arc[mine], e1[mine], e2[mine])
+    ee = eecells.squares_cells(scene, arcs, square)[0]
+    assert ee.complete.all() and len(ee.open_edge1) == 0
+    judged, agreed, _, wrong = ray_oracle(scene, arcs, ee, [[10, 29]], n=1000)
+    assert judged >= 950 and agreed == judged, wrong[:5]
+    monkeypatch.setattr(eecells, "FINEST_PROBE_FLOOR", eecells.PROBE_ROOM_FLOOR)
+    knocked = eecells.squares_cells(scene, arcs, square)[0]
+    assert not knocked.complete.any() and len(knocked.open_edge1) > 0
+
+
 def check_random_scene(seed, points_seed=0):
     scene, arcs, ee = built(f"rand:{seed}")
     done = complete_pairs(ee)

@@ -66,7 +66,9 @@ crosses the plane of e2 and a coplanar edge). Where V1's arcs leave a square's l
 open, V2 adds these *segments* of its own (:func:`open_segments`,
 :func:`segment_pieces`: exact cuts, the probes decide), boundary elements of their own
 kinds (SIDE, PENCIL1, PENCIL2), and probes that square again 5 epsilon off its pieces
-(FINE_PROBE; the Cornell light's slivers are thinner than PROBE).
+(FINE_PROBE; the Cornell light's slivers are thinner than PROBE), each probe stopping short
+of the square's next piece but moving at least 1 epsilon, and where loops still stay open
+0.1 epsilon (:func:`_finest_probes`: slivers thinner than epsilon between two arcs).
 
 Which side gets which pair is found like the VE half-cells' (arcs/halfcells.py): the
 arc's middle point of the square is moved off the arc, across it on each side,
@@ -732,8 +734,9 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
     curves : tuple, optional
         The pieces' :func:`_curves`, if known.
     obstacles : tuple, optional
-        (key, start, middle, end, own) of the square's boundary pieces (:func:`probe_room`):
-        each probe then stops halfway to the first of them it would cross.
+        (key, start, middle, end, own, floor) of the square's boundary pieces and the probe's
+        floor (:func:`probe_room`): each probe then stops halfway to the first of them it would
+        cross, but moves at least ``floor`` of its step.
 
     Returns
     -------
@@ -757,9 +760,10 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
     step = probe * scene.epsilon / np.max(np.abs(left) * length, axis=1)
     steps = np.stack([step, step])
     if obstacles is not None:
-        key, o_start, o_middle, o_end, own = obstacles
+        key, o_start, o_middle, o_end, own, floor = obstacles
         for k, sign in enumerate((1.0, -1.0)):
-            steps[k] = probe_room(key, o_start, o_middle, o_end, e1 * (1 << 32) + e2, middle, sign * left, step, own)
+            steps[k] = probe_room(key, o_start, o_middle, o_end, e1 * (1 << 32) + e2, middle, sign * left, step, own,
+                                  floor)
     raw = np.concatenate([middle + steps[0][:, None] * left, middle - steps[1][:, None] * left])
     probes = np.clip(raw, 0.0, 1.0)
     k = len(arc)
@@ -776,14 +780,17 @@ def side_pairs(scene, arcs, arc, e1, e2, interval, kind=None, probe=PROBE, curve
 #: A probe stopped by another boundary piece moves at least this fraction of its step (a
 #: piece closer than that to the middle is the same curve given twice, or crosses there).
 PROBE_ROOM_FLOOR = 0.2
+#: The floor in the squares whose loops stay open with PROBE_ROOM_FLOOR (:func:`_finest_probes`).
+FINEST_PROBE_FLOOR = 0.02
 #: V2 segments of one square closer than this many epsilon along their edge are one line.
 SEGMENT_MERGE_EPSILONS = 1
 
 
-def probe_room(key, start, middle, end, at_key, at, direction, step, own):
+def probe_room(key, start, middle, end, at_key, at, direction, step, own, floor=None):
     """How far each probe may move from its piece's middle before it crosses another boundary
-    piece of its square: half the distance to the first crossing, within [step ·
-    PROBE_ROOM_FLOOR, step].
+    piece of its square: half the distance to the first crossing, within [step · floor, step]
+    (``floor`` PROBE_ROOM_FLOOR by default; FINEST_PROBE_FLOOR where loops stay open with it,
+    :func:`_finest_probes`).
 
     A probe that crosses a boundary judges the cell beyond it. The probes move a fixed
     number of epsilon along the edge that moves most; a cell thinner than that across its
@@ -808,17 +815,19 @@ def probe_room(key, start, middle, end, at_key, at, direction, step, own):
     step : (k,) float
     own : (k,) int
         Each probe's own piece among the obstacles (skipped), -1 for none.
+    floor : float, optional
 
     Returns
     -------
     (k,) float
     """
+    floor = PROBE_ROOM_FLOOR if floor is None else floor
     lo = np.searchsorted(key, at_key, "left")
     hi = np.searchsorted(key, at_key, "right")
     return _probe_room(np.ascontiguousarray(start), np.ascontiguousarray(middle), np.ascontiguousarray(end),
                        lo, hi, np.ascontiguousarray(at), np.ascontiguousarray(direction),
                        np.ascontiguousarray(step, dtype=np.float64), np.ascontiguousarray(own, dtype=np.int64),
-                       PROBE_ROOM_FLOOR)
+                       float(floor))
 
 
 @njit(cache=True)
@@ -1432,7 +1441,7 @@ def _uncovered(seg, lo, hi, n, tol):
     return out_seg[:g], out_lo[:g], out_hi[:g]
 
 
-def boundary_elements(scene, arcs, squares=None, segments=None):
+def boundary_elements(scene, arcs, squares=None, segments=None, floor=None):
     """Every boundary element of every square, sorted by (e1, e2, kind, arc, interval, side):
     the arcs' (:func:`side_pieces`), then V2's own segments' (:func:`segment_pieces`), each
     boundary given twice kept once (:func:`_unique`).
@@ -1443,6 +1452,9 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
         (arc, e1, e2) incidences, every square whole: default all (:func:`arc_squares`).
     segments : Segments, optional
         V2's segments of these squares (:func:`open_segments`): none by default.
+    floor : float, optional
+        With segments, the least fraction of its step a fine probe moves (:func:`probe_room`):
+        PROBE_ROOM_FLOOR by default.
 
     Returns
     -------
@@ -1456,8 +1468,9 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
     # arcs' pieces among themselves, then V2's segment pieces among all of them
     key = pieces[1] * (1 << 32) + pieces[2]
     start, middle, end, _ = curves
+    floor = PROBE_ROOM_FLOOR if floor is None else floor
     el = _bounding_elements(scene, arcs, *pieces, kind, FINE_PROBE, curves,
-                            (key, start, middle, end, np.arange(len(key))))
+                            (key, start, middle, end, np.arange(len(key)), floor))
     seg = segment_pieces(scene, arcs, segments, pieces, el, curves)
     seg_curves = _curves(scene, arcs, *seg)
     all_key = np.concatenate([key, seg[1] * (1 << 32) + seg[2]])
@@ -1466,7 +1479,7 @@ def boundary_elements(scene, arcs, squares=None, segments=None):
     where[by_square] = np.arange(len(all_key))
     both = tuple(np.concatenate([c, s])[by_square] for c, s in zip(curves[:3], seg_curves[:3]))
     more = _bounding_elements(scene, arcs, *seg, FINE_PROBE, seg_curves,
-                              (all_key[by_square], *both, where[len(key):]))
+                              (all_key[by_square], *both, where[len(key):], floor))
     el = Elements.concatenate([el, more])
     return _unique(scene, el.take(_element_order(el)))
 
@@ -1864,6 +1877,7 @@ def squares_cells(scene, arcs, squares):
     segments = open_segments(scene, el, loops[0], loops[2])
     if len(segments.e1):
         el, loops = _with_segments(scene, arcs, squares, segments, el, loops)
+        el, loops = _finest_probes(scene, arcs, squares, segments, el, loops)
     order, loop_offsets, chain_offsets = loops
     group = _groups(el)
     # a closed boundary winds by ±2π (across the gaps of cusps: rule 19); anything else closed
@@ -1903,6 +1917,42 @@ def _open_loops(scene, el, loops):
     return _demote(order, loop_offsets, chain_offsets, bad)
 
 
+def _finest_probes(scene, arcs, squares, segments, el, loops):
+    """The squares still open after V2's segments built again with the fine probes' floor
+    lowered to FINEST_PROBE_FLOOR of their step (docs/skeleton.md, "EE-cells", rule 20).
+
+    A sliver cell thinner than the floor (one epsilon along the edge that moves most) between
+    two arcs is jumped across: the fine probe off the near arc lands beyond the far one, so
+    that side gets the pair of the cell beyond (random_boxes(300), pair (58, 353): a sliver
+    1.5e-5 of the square high between two EEE arcs, the two sides' pairs then differing in
+    the front blocker alone) and the sliver's loop stays open. Probes that close to a piece
+    may also land between one boundary given twice by two families more than epsilon apart
+    (lowered everywhere, the 997-polygon city lost 85 complete pairs so): hence only in the
+    squares whose loops stay open anyway, whose elements are then replaced (:func:`_with_segments`
+    with their segments). Arguments and returns as :func:`_with_segments`.
+    """
+    still = _open_squares(scene, el, loops)
+    keep = np.isin(segments.e1 * (1 << 32) + segments.e2, still)
+    if not keep.any():
+        return el, loops
+    return _with_segments(scene, arcs, squares, segments.take(keep), el, loops, FINEST_PROBE_FLOOR)
+
+
+def _open_squares(scene, el, loops):
+    """(q,) int: the squares (e1 << 32 | e2, ascending) that hold an open chain that is no
+    point, or a loop whose winding is no ±2π (across cusps' gaps) and no point: the squares
+    not complete with these loops (as :func:`squares_cells` finds them)."""
+    order, loop_offsets, chain_offsets = loops
+    turning = windings(el.take(order), loop_offsets, bridged=True)
+    bad = np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE
+    order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets, bad)
+    chains = order[loop_offsets[-1]:]
+    offsets = chain_offsets - loop_offsets[-1]
+    points = point_chains(scene, el.take(chains), offsets)
+    first = chains[offsets[:-1][~points]]
+    return unique_sorted(el.e1[first] * (1 << 32) + el.e2[first])
+
+
 def _groups(el):
     """(k,) int: the group (edge pair and blocker pair) of each element."""
     return unique_rows(np.concatenate([el.e1[:, None], el.e2[:, None], el.pair], axis=1))[1]
@@ -1916,14 +1966,14 @@ def _loops(scene, el):
     return form_loops(el, _groups(el), tol, tol * (SQUARE_SAME_POINT_EPSILONS / SQUARE_JOIN_EPSILONS))
 
 
-def _with_segments(scene, arcs, squares, segments, el, loops):
+def _with_segments(scene, arcs, squares, segments, el, loops, floor=None):
     """The squares left open built again with V2's segments (:func:`open_segments`).
 
-    Their elements (:func:`boundary_elements` with the segments, and the finer probe)
-    replace theirs; FormLoops runs on them alone, the other squares keep their loops
-    (groups never meet). Elements in the order of :func:`boundary_elements` and walks as
-    one FormLoops over all of them gives: loops by their smallest element, each from it,
-    then the chains.
+    Their elements (:func:`boundary_elements` with the segments, and the finer probe, whose
+    floor is ``floor``: PROBE_ROOM_FLOOR by default) replace theirs; FormLoops runs on them
+    alone, the other squares keep their loops and chains (groups never meet). Elements in the
+    order of :func:`boundary_elements` and walks as one FormLoops over all of them gives:
+    loops by their smallest element, each from it, then the chains by their first element.
 
     Returns
     -------
@@ -1931,10 +1981,10 @@ def _with_segments(scene, arcs, squares, segments, el, loops):
     loops : tuple
         (order, loop_offsets, chain_offsets) as :func:`loops.form_loops`.
     """
-    order, loop_offsets, _ = loops
+    order, loop_offsets, chain_offsets = loops
     redo = unique_sorted(segments.e1 * (1 << 32) + segments.e2)
     square_key = squares[1] * (1 << 32) + squares[2]
-    again = boundary_elements(scene, arcs, tuple(q[np.isin(square_key, redo)] for q in squares), segments)
+    again = boundary_elements(scene, arcs, tuple(q[np.isin(square_key, redo)] for q in squares), segments, floor)
     again_order, again_loops, again_chains = _loops(scene, again)
     kept = np.flatnonzero(~np.isin(el.e1 * (1 << 32) + el.e2, redo))
     merged = Elements.concatenate([el.take(kept), again])
@@ -1943,19 +1993,23 @@ def _with_segments(scene, arcs, squares, segments, el, loops):
     at[sort] = np.arange(len(sort))  # position of each merged element in the sorted ones
     new_of_old = np.full(len(el), -1)
     new_of_old[kept] = at[: len(kept)]
-    # the kept squares' loops (a loop lies in one square) and the new ones, by smallest element
-    sizes = np.diff(loop_offsets)
-    mine = new_of_old[order[loop_offsets[:-1]]] >= 0
-    walks = [new_of_old[order[expand_ranges(loop_offsets[:-1][mine], sizes[mine])[1]]], at[len(kept) + again_order]]
-    sizes = np.concatenate([sizes[mine], np.diff(again_loops)])
-    n_loop = int(sizes.sum())
-    flat = np.concatenate([walks[0], walks[1][: again_loops[-1]]])
-    starts = np.cumsum(sizes) - sizes
-    by_first = np.argsort(flat[starts], kind="stable")
-    flat = flat[expand_ranges(starts[by_first], sizes[by_first])[1]]
-    new_order = np.concatenate([flat, walks[1][again_loops[-1]:]])
-    loop_offsets = np.r_[0, np.cumsum(sizes[by_first])].astype(np.int64)
-    chain_offsets = (n_loop + again_chains - again_chains[0]).astype(np.int64)
+
+    def walks(offsets, again_offsets):
+        """The kept squares' walks (a walk lies in one square) and the new ones, by first element."""
+        sizes = np.diff(offsets)
+        mine = new_of_old[order[offsets[:-1]]] >= 0
+        flat = np.concatenate([new_of_old[order[expand_ranges(offsets[:-1][mine], sizes[mine])[1]]],
+                               at[len(kept) + again_order[again_offsets[0]:again_offsets[-1]]]])
+        sizes = np.concatenate([sizes[mine], np.diff(again_offsets)])
+        starts = np.cumsum(sizes) - sizes
+        by_first = np.argsort(flat[starts], kind="stable")
+        return flat[expand_ranges(starts[by_first], sizes[by_first])[1]], np.r_[0, np.cumsum(sizes[by_first])]
+
+    loop_walks, loop_offsets = walks(loop_offsets, again_loops)
+    chain_walks, chain_offsets = walks(chain_offsets, again_chains)
+    new_order = np.concatenate([loop_walks, chain_walks])
+    loop_offsets = loop_offsets.astype(np.int64)
+    chain_offsets = (loop_offsets[-1] + chain_offsets).astype(np.int64)
     return merged.take(sort), (new_order, loop_offsets, chain_offsets)
 
 

@@ -23,6 +23,7 @@ over the cores (on a shared machine the measured wall time says little).
 
     python benchmarks/office_matrix.py --polygons 300 --tol 1e-4 --sample 5
     python benchmarks/office_matrix.py --polygons 300 --tol 1e-4 --whole --workers 2
+    python benchmarks/office_matrix.py --polygons 1000 --tol 1e-4 --whole --row-log rows.jsonl
 """
 
 import argparse
@@ -120,6 +121,8 @@ def main(argv=None):
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0, help="of the sample")
     parser.add_argument("--row-log", default=None, help="--whole: append each finished row here (JSON lines)")
+    parser.add_argument("--save", default=None, help="--whole: the matrix's arrays to this .npz (to compare runs: "
+                        "the same on any number of workers, bit for bit)")
     args = parser.parse_args(argv)
     ROW_LOG[0] = args.row_log
     c0 = time.process_time()
@@ -161,6 +164,8 @@ def main(argv=None):
         per.setdefault(classes[(f, s)], []).append(r[3]["cpu"])
     workers = min(default_workers(args.workers), len(rows))
     largest = sorted(range(len(rows)), key=lambda k: -results[k][3]["cpu"])[:5]
+    if args.save:
+        np.savez(args.save, **{k: getattr(m, k) for k in ("indptr", "indices", "data", "error", "sky", "sky_error")})
     summary = m.summary()
     summary.pop("methods")
     print(json.dumps({

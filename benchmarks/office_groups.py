@@ -84,17 +84,17 @@ def kernel_costs(scene, n=300, seed=1):
     return out
 
 
-#: Where each finished emitter part of a query is logged by the workers (:func:`timed_part`).
+#: Where each finished emitter part of a query is logged by the workers (:func:`timed_part`),
+#: and the library's ``emitter_row`` it times.
 PART_LOG = [None]
+EMITTER_ROW = [None]
 
 
 def timed_part(scene, face, side, faces, tol, sky, part=(0, 1)):
     """:func:`viscx.queries.formfactor.emitter_row` (one emitter, or one part of it: what a
     worker of :func:`group_to_group` runs) with its CPU seconds appended to ``PART_LOG``."""
-    from viscx.queries.formfactor import emitter_row
-
     c0 = time.process_time()
-    out = emitter_row(scene, face, side, faces, tol, sky, part)
+    out = EMITTER_ROW[0](scene, face, side, faces, tol, sky, part)
     with open(PART_LOG[0], "a") as f:
         f.write(json.dumps({"face": int(face), "part": list(part), "cpu": round(time.process_time() - c0, 3),
                             "pid": os.getpid()}) + "\n")
@@ -132,7 +132,7 @@ def main(argv=None):
         return
     pairs = [tuple(p.split(":")) for p in args.pairs] if args.pairs else [(a, b) for a in GROUPS for b in GROUPS if a != b]
     workers = default_workers(args.workers)
-    ff.emitter_row = timed_part  # group_to_group hands its workers this one: each part's CPU logged
+    EMITTER_ROW[0], ff.emitter_row = ff.emitter_row, timed_part  # group_to_group hands its workers this one
     log = Path(tempfile.mkdtemp()) / "parts.jsonl"
     PART_LOG[0] = str(log)
     for a, b in pairs:

@@ -120,6 +120,7 @@ def main(argv=None):
     parser.add_argument("--whole", action="store_true", help="the whole matrix")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0, help="of the sample")
+    parser.add_argument("--classes", default=None, help="without --whole: only these classes (comma-separated)")
     parser.add_argument("--row-log", default=None, help="--whole: append each finished row here (JSON lines)")
     parser.add_argument("--save", default=None, help="--whole: the matrix's arrays to this .npz (to compare runs: "
                         "the same on any number of workers, bit for bit)")
@@ -137,7 +138,7 @@ def main(argv=None):
         rng = np.random.default_rng(args.seed)
         small = min(members.get("box outer", [(0, 1)]), key=lambda r: scene.face_area[r[0]])
         ff.row_form_factors(scene, *small, faces, args.tol)  # the kernels compiled or loaded
-        for k in kinds:
+        for k in kinds if args.classes is None else [c for c in args.classes.split(",") if c in members]:
             rows = members[k]
             pick = [rows[i] for i in sorted(rng.choice(len(rows), min(args.sample, len(rows)), replace=False))]
             cpu = []

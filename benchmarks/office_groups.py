@@ -1,7 +1,12 @@
 """Group-to-group form factors in the office (benchmarks/buildings.py): each query's value,
 error estimate, CPU seconds (the worker processes included) and wall seconds, as
 ``viscx formfactor groups`` computes them (:func:`viscx.queries.formfactor.group_to_group`,
-default workers: one per core). One JSON line per query.
+default workers: one per core). One JSON line per query, with what bounds its wall time on
+quiet cores (the machine may be shared): the CPU seconds of the main process's own work
+(``serial_cpu``: the emitter's cells and the receivers' covered cells, before the workers
+fork), of each task the workers run (an emitter, or a part of a single emitter), the
+largest of them, and ``quiet_wall_estimate``: the serial part plus the tasks handed out in
+order to the first free of the workers.
 
     python benchmarks/office_groups.py --polygons 300 --tol 1e-4
     python benchmarks/office_groups.py --pairs floor:light1 wall_west:wall_east
@@ -19,8 +24,10 @@ cubature has them) for a few group pairs, at 300 random points each.
 
 import argparse
 import json
+import os
 import resource
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -77,9 +84,38 @@ def kernel_costs(scene, n=300, seed=1):
     return out
 
 
+#: Where each finished emitter part of a query is logged by the workers (:func:`timed_part`),
+#: and the library's ``emitter_row`` it times.
+PART_LOG = [None]
+EMITTER_ROW = [None]
+
+
+def timed_part(scene, face, side, faces, tol, sky, part=(0, 1)):
+    """:func:`viscx.queries.formfactor.emitter_row` (one emitter, or one part of it: what a
+    worker of :func:`group_to_group` runs) with its CPU seconds appended to ``PART_LOG``."""
+    c0 = time.process_time()
+    out = EMITTER_ROW[0](scene, face, side, faces, tol, sky, part)
+    with open(PART_LOG[0], "a") as f:
+        f.write(json.dumps({"face": int(face), "part": list(part), "cpu": round(time.process_time() - c0, 3),
+                            "pid": os.getpid()}) + "\n")
+    return out
+
+
+def makespan(tasks, workers):
+    """Wall time of ``tasks`` (CPU seconds, in the order they are handed out) on ``workers``
+    quiet cores, each task to the first worker free."""
+    free = [0.0] * workers
+    for t in tasks:
+        k = free.index(min(free))
+        free[k] += t
+    return max(free)
+
+
 def main(argv=None):
     from buildings import office
 
+    from viscx.parallel import default_workers
+    from viscx.queries import formfactor as ff
     from viscx.queries.formfactor import group_to_group
     from viscx.scene import build_scene
 
@@ -88,17 +124,31 @@ def main(argv=None):
     parser.add_argument("--tol", type=float, default=1e-4)
     parser.add_argument("--pairs", nargs="*", default=None, metavar="FROM:TO")
     parser.add_argument("--kernels", action="store_true", help="per-point cost of the kernels instead")
+    parser.add_argument("--workers", type=int, default=None, help="default: one per core")
     args = parser.parse_args(argv)
     scene = build_scene(office(args.polygons, seed=0))
     if args.kernels:
         print(json.dumps(kernel_costs(scene)), flush=True)
         return
     pairs = [tuple(p.split(":")) for p in args.pairs] if args.pairs else [(a, b) for a in GROUPS for b in GROUPS if a != b]
+    workers = default_workers(args.workers)
+    EMITTER_ROW[0], ff.emitter_row = ff.emitter_row, timed_part  # group_to_group hands its workers this one
+    log = Path(tempfile.mkdtemp()) / "parts.jsonl"
+    PART_LOG[0] = str(log)
     for a, b in pairs:
-        c0, w0 = cpu_seconds(), time.perf_counter()
-        r = group_to_group(scene, scene.group_faces(a), scene.group_faces(b), 1, args.tol)
+        log.write_text("")
+        c0, w0, s0 = cpu_seconds(), time.perf_counter(), time.process_time()
+        r = group_to_group(scene, scene.group_faces(a), scene.group_faces(b), 1, args.tol, workers=args.workers)
+        cpu, wall = cpu_seconds() - c0, time.perf_counter() - w0
+        parts = [json.loads(line) for line in log.read_text().splitlines()]
+        serial = time.process_time() - s0 - sum(p["cpu"] for p in parts if p["pid"] == os.getpid())
+        # the parts in the order _map_rows hands them out (the largest emitters first)
+        area = scene.face_area
+        tasks = [p["cpu"] for p in sorted(parts, key=lambda p: (-area[p["face"]], p["face"], p["part"][0]))]
         print(json.dumps({"from": a, "to": b, "F": r["F"], "error": r["error"], "pairs": r["pairs"], "tol": args.tol,
-                          "cpu": round(cpu_seconds() - c0, 2), "wall": round(time.perf_counter() - w0, 2)}), flush=True)
+                          "cpu": round(cpu, 2), "wall": round(wall, 2), "workers": workers,
+                          "serial_cpu": round(serial, 2), "tasks": len(tasks), "largest_task_cpu": round(max(tasks), 2),
+                          "quiet_wall_estimate": round(serial + makespan(tasks, workers), 2)}), flush=True)
 
 
 if __name__ == "__main__":

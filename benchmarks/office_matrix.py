@@ -13,12 +13,17 @@ Each side of the office is one row of ``viscx formfactor matrix``
 
 Without ``--whole``: ``--sample`` rows per class, one process, each row's CPU seconds (one JSON
 line per row, then a summary per class with the extrapolation to all the class's rows).
-With ``--whole``: the whole matrix as the CLI computes it (``--workers`` processes): CPU
-seconds (workers included), wall seconds, peak RSS (this process and, separately, the
-largest worker), reciprocity and row sums, and per class the rows' CPU seconds.
+With ``--whole``: the whole matrix as the CLI computes it (``--workers`` processes, a row's
+points on the cores the others leave idle): CPU seconds (workers included), wall seconds,
+peak RSS (this process and, separately, the largest worker), reciprocity and row sums, per
+class the rows' CPU seconds, the five largest rows (CPU seconds, and the serial part no
+other core can take) and the balance (:func:`balance`): the wall time on quiet cores
+is about the larger of CPU / cores and the largest row's serial part plus the rest of it
+over the cores (on a shared machine the measured wall time says little).
 
     python benchmarks/office_matrix.py --polygons 300 --tol 1e-4 --sample 5
     python benchmarks/office_matrix.py --polygons 300 --tol 1e-4 --whole --workers 2
+    python benchmarks/office_matrix.py --polygons 1000 --tol 1e-4 --whole --row-log rows.jsonl
 """
 
 import argparse
@@ -69,24 +74,42 @@ def row_classes(scene):
 ROW_LOG = [None]
 
 
-def timed_row(scene, face, side, faces, tol, sky):
-    """:func:`viscx.queries.formfactor.row_form_factors` with its CPU seconds in ``counts``
-    (and a line in ``ROW_LOG``, so that a run stopped early still says what it did)."""
+def timed_row(scene, face, side, faces, tol, sky, threads=1):
+    """:func:`viscx.queries.formfactor.row_form_factors` with its CPU seconds in ``counts``:
+    ``cpu`` all of the row's threads, ``serial`` its calling thread's alone (with threads,
+    its points run on the others, so this is the part no other core can take; a line in
+    ``ROW_LOG`` too, so that a run stopped early still says what it did)."""
     from viscx.queries.formfactor import row_form_factors
 
-    c0 = time.process_time()
-    cols, vals, errs, counts, sky_v, sky_e = row_form_factors(scene, face, side, faces, tol, sky)
-    cpu = time.process_time() - c0
+    c0, s0 = time.process_time(), time.thread_time()
+    cols, vals, errs, counts, sky_v, sky_e = row_form_factors(scene, face, side, faces, tol, sky, threads)
+    cpu, serial = time.process_time() - c0, time.thread_time() - s0
     if ROW_LOG[0]:
         with open(ROW_LOG[0], "a") as f:
             f.write(json.dumps({"face": int(face), "side": int(side), "area": round(float(scene.face_area[face]), 4),
-                                "cpu": round(cpu, 3), "row_sum": float(vals.sum() + sky_v)}) + "\n")
-    return cols, vals, errs, {**counts, "cpu": cpu}, sky_v, sky_e
+                                "cpu": round(cpu, 3), "serial": round(serial, 3), "row_sum": float(vals.sum() + sky_v)})
+                    + "\n")
+    return cols, vals, errs, {**counts, "cpu": cpu, "serial": serial}, sky_v, sky_e
+
+
+def balance(cpu, serial, workers):
+    """What bounds the wall time of a matrix on ``workers`` quiet cores, from its rows' CPU
+    seconds ``cpu`` and their serial parts ``serial`` (:func:`timed_row`): the whole CPU
+    over the cores, and the largest row's least wall time (its serial part plus the rest
+    on all the cores); the wall time is about the larger of the two (plus what the workers
+    lose to one another)."""
+    cpu, serial = np.asarray(cpu), np.asarray(serial)
+    least = serial + (cpu - serial) / workers
+    k = int(np.argmax(least))
+    return {"cpu_over_cores": round(float(cpu.sum()) / workers, 1), "largest_row_cpu": round(float(cpu.max()), 1),
+            "largest_row_least_wall": round(float(least[k]), 1), "its_serial_cpu": round(float(serial[k]), 1),
+            "quiet_wall_estimate": round(max(float(cpu.sum()) / workers, float(least[k])), 1)}
 
 
 def main(argv=None):
     from buildings import office
 
+    from viscx.parallel import default_workers
     from viscx.queries import formfactor as ff
     from viscx.scene import build_scene
 
@@ -97,7 +120,10 @@ def main(argv=None):
     parser.add_argument("--whole", action="store_true", help="the whole matrix")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0, help="of the sample")
+    parser.add_argument("--classes", default=None, help="without --whole: only these classes (comma-separated)")
     parser.add_argument("--row-log", default=None, help="--whole: append each finished row here (JSON lines)")
+    parser.add_argument("--save", default=None, help="--whole: the matrix's arrays to this .npz (to compare runs: "
+                        "the same on any number of workers, bit for bit)")
     args = parser.parse_args(argv)
     ROW_LOG[0] = args.row_log
     c0 = time.process_time()
@@ -112,7 +138,7 @@ def main(argv=None):
         rng = np.random.default_rng(args.seed)
         small = min(members.get("box outer", [(0, 1)]), key=lambda r: scene.face_area[r[0]])
         ff.row_form_factors(scene, *small, faces, args.tol)  # the kernels compiled or loaded
-        for k in kinds:
+        for k in kinds if args.classes is None else [c for c in args.classes.split(",") if c in members]:
             rows = members[k]
             pick = [rows[i] for i in sorted(rng.choice(len(rows), min(args.sample, len(rows)), replace=False))]
             cpu = []
@@ -131,12 +157,16 @@ def main(argv=None):
 
     with bar(total=len(rows), desc="form factors", quiet=False, unit="side") as progress:
         results = ff._map_rows(timed_row, scene, rows, faces, args.tol, True, args.workers,
-                               progress=lambda: progress.update(1))
+                               progress=lambda: progress.update(1), threads=True)
     wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
     m = ff.assemble_matrix(scene, results, args.tol, wall)
     per = {}
     for (f, s), r in zip(rows, results):
         per.setdefault(classes[(f, s)], []).append(r[3]["cpu"])
+    workers = min(default_workers(args.workers), len(rows))
+    largest = sorted(range(len(rows)), key=lambda k: -results[k][3]["cpu"])[:5]
+    if args.save:
+        np.savez(args.save, **{k: getattr(m, k) for k in ("indptr", "indices", "data", "error", "sky", "sky_error")})
     summary = m.summary()
     summary.pop("methods")
     print(json.dumps({
@@ -146,6 +176,10 @@ def main(argv=None):
         "peak_rss_gb_worker": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1e6, 3),
         "classes": {k: {"rows": len(v), "cpu": round(float(np.sum(v)), 1), "max_row_cpu": round(float(np.max(v)), 2)}
                     for k, v in per.items()},
+        "largest_rows": [{"face": rows[k][0], "side": rows[k][1], "class": classes[rows[k]],
+                          "cpu": round(results[k][3]["cpu"], 1), "serial": round(results[k][3]["serial"], 1)}
+                         for k in largest],
+        "balance": balance([r[3]["cpu"] for r in results], [r[3]["serial"] for r in results], workers),
         **summary}), flush=True)
 
 

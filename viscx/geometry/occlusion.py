@@ -1570,7 +1570,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     return brk
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
                 box_planes):
     """What each point of an emitter sees of every polygon side, and what is hidden of it:

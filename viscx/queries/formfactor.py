@@ -2114,22 +2114,52 @@ def _degree2_weights(a):
 NULL_RULE = RULE_WEIGHTS - _degree2_weights(_C)
 
 
+#: Triangles per piece of a :func:`row_rules` call at the least, and the pieces a larger
+#: call is cut into at the most: what the threads of a row share
+#: (``cubature.threads``). The pieces depend on the call only, never on the threads.
+ROW_PIECE, ROW_PIECES = 16, 32
+
+#: The row kernels' cores (:func:`_map_rows`): a semaphore, shared by the forked workers,
+#: holding one token per worker process; each piece of :func:`row_rules` runs holding one.
+#: None outside a pool.
+_ROW_CORES = None
+
+
 def row_rules(cubature, tri, width, weights):
-    """Rules on Radon's 7 nodes of each triangle for a vector integrand, in chunks that bound
+    """Rules on Radon's 7 nodes of each triangle for a vector integrand, in pieces that bound
     the memory of one integrand call: ``(len(weights), g, R)`` float64, each ``weights``
     (7,) summed over the nodes and scaled by the area (``cubature.integrand(points, tri)``
-    is called with the chunk's triangles, points 7 k … 7 k + 6 in triangle k;
-    ``cubature.evaluations`` counts the points)."""
+    is called with the piece's triangles, points 7 k … 7 k + 6 in triangle k;
+    ``cubature.evaluations`` counts the points).
+
+    The pieces run on ``cubature.threads`` threads (:func:`viscx.parallel.map_chunks`; the
+    integrand must be thread-safe and release the GIL: ``point_views`` is ``nogil``), so
+    that a large row (the office's floor) uses the cores the other rows leave idle. Each
+    piece writes its own triangles' slice and its values do not depend on the other
+    pieces: the result is the same, bit for bit, on any number of threads. In a pool of
+    row processes (:func:`_map_rows`), a piece runs holding one of the pool's core tokens
+    (:data:`_ROW_CORES`), so that the kernels of all the rows together keep as many cores
+    busy as there are workers, no more: a row's threads get the cores when the other rows
+    are done."""
+    from contextlib import nullcontext
+
+    from viscx.parallel import map_chunks, row_chunks
+
     out = np.zeros((len(weights), len(tri), width))
     area = triangle_areas(tri)
-    chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1))))
-    for lo in range(0, len(tri), chunk):
-        part = tri[lo:lo + chunk]
+    chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1)), max(ROW_PIECE, -(-len(tri) // ROW_PIECES))))
+    cores = _ROW_CORES if _ROW_CORES is not None else nullcontext()
+
+    def piece(s):
+        part = tri[s]
         pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-        values = cubature.integrand(np.ascontiguousarray(pts), part).reshape(len(part), 7, -1)
-        cubature.evaluations += len(pts)
+        with cores:
+            values = cubature.integrand(np.ascontiguousarray(pts), part).reshape(len(part), 7, -1)
         for k, w in enumerate(weights):
-            out[k, lo:lo + chunk] = np.einsum("grc,r->gc", values, w) * area[lo:lo + chunk, None]
+            out[k, s] = np.einsum("grc,r->gc", values, w) * area[s, None]
+        return len(pts)
+
+    cubature.evaluations += sum(map_chunks(piece, row_chunks(len(tri), chunk), getattr(cubature, "threads", 1)))
     return out
 
 
@@ -2179,11 +2209,15 @@ class RowCubature:
     integrand : callable
         ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64``, the points the nodes of
         the triangles (:func:`row_rules`).
+    threads : int
+        Threads the integrand's calls run on (:func:`row_rules`; the result does not
+        depend on them).
     """
 
-    def __init__(self, integrand):
+    def __init__(self, integrand, threads=1):
         self.integrand = integrand
         self.evaluations = 0
+        self.threads = threads
 
     def rule(self, tri, width):
         """Radon's rule on each triangle and its null-rule estimate: ``q, e`` (g, R) float64."""
@@ -2291,11 +2325,14 @@ class ThreeLevelRowCubature:
     ----------
     integrand : callable
         ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64`` (:func:`row_rules`).
+    threads : int
+        As :class:`RowCubature`'s.
     """
 
-    def __init__(self, integrand):
+    def __init__(self, integrand, threads=1):
         self.integrand = integrand
         self.evaluations = 0
+        self.threads = threads
 
     def rule(self, tri, width):
         """(g, R) float64: Radon's rule on each triangle."""
@@ -2406,7 +2443,7 @@ def _unclipped(setup):
             and min(float(np.min(l @ setup.n_i)) for l in setup.J) - setup.c_i > setup.tiny)
 
 
-def row_form_factors(scene, face, side, faces, tol, sky=True):
+def row_form_factors(scene, face, side, faces, tol, sky=True, threads=1):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
@@ -2420,7 +2457,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
     occluders, tested against the first triangles' shafts, say where a shadow may lie
     that the rule's nodes miss (:meth:`RowCubature.integrate`). A side with a closed form
     (inside an empty closed box, or lying wholly on other faces: :func:`closed_form_row`)
-    takes it instead.
+    takes it instead. The row's points are evaluated on ``threads`` threads
+    (:func:`row_rules`: the same result on any number).
 
     Returns what :func:`emitter_row` returns.
     """
@@ -2495,7 +2533,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True):
         return point_views(points, n_i, eu, ev, *polygons, own, tiny, *boxes)
 
     budget = np.maximum(tol - e0, 0.1 * tol) * area
-    cub = cubature(hidden)
+    cub = cubature(hidden, threads)
     h, h_err, _ = cub.integrate(tri, budget, live) if cubature is RowCubature else cub.integrate(tri, budget)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
@@ -2524,24 +2562,34 @@ _POOL_SCENE = None
 
 
 def _row_task(args, scene=None):
-    row, face, side, faces, tol, sky, *part = args
-    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part)
+    row, face, side, faces, tol, sky, part, options = args
+    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part, **options)
 
 
-def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None):
+def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None, threads=False):
     """``row(scene, face, side, faces, tol, sky)`` (:func:`emitter_row` pair by pair, or
     :func:`row_form_factors` all receivers at once) of every (face, side) in ``rows``, in
     that order, on ``workers`` processes (forked: they share the scene; the results do not
     depend on their number). A row given as (face, side, part) is that part of it
-    (``row(..., sky, part)``, :func:`emitter_row`)."""
+    (``row(..., sky, part)``, :func:`emitter_row`).
+
+    The costly rows (large faces) go first, so that no worker is left with one at the end.
+    With ``threads`` (:func:`row_form_factors`), each row also evaluates its points on as
+    many threads as there are workers, each piece of points holding one of ``workers``
+    core tokens shared by the processes (:func:`row_rules`): while every worker has a row,
+    each row's kernels run on about one core; once the queue is empty, the rows still
+    running take the cores the finished workers left (the office's floor row is 40 % of
+    its matrix: without this, one core would do it alone while the other idles). Threads
+    only share a row's points out: the row is the same, bit for bit."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     from viscx.parallel import default_workers
 
-    global _POOL_SCENE
-    tasks = [(row, int(r[0]), int(r[1]), faces, tol, sky, *r[2:]) for r in rows]
-    workers = min(default_workers(workers), len(tasks))
+    global _POOL_SCENE, _ROW_CORES
+    workers = min(default_workers(workers), len(rows))
+    options = {"threads": workers} if threads and workers > 1 else {}
+    tasks = [(row, int(r[0]), int(r[1]), faces, tol, sky, tuple(r[2:]), options) for r in rows]
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:
@@ -2549,11 +2597,11 @@ def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None):
             if progress:
                 progress()
         return out
-    # the costly rows (large faces) first, so that no worker is left with one at the end
     order = np.argsort(-scene.face_area[[t[1] for t in tasks]], kind="stable")
-    _POOL_SCENE = scene
+    ctx = mp.get_context("fork")
+    _POOL_SCENE, _ROW_CORES = scene, (ctx.BoundedSemaphore(workers) if options else None)
     try:
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
+        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
             futures = {k: pool.submit(_row_task, tasks[k]) for k in order}
             out = [None] * len(tasks)
             for k in order:
@@ -2561,7 +2609,7 @@ def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None):
                 if progress:
                     progress()
     finally:
-        _POOL_SCENE = None
+        _POOL_SCENE, _ROW_CORES = None, None
     return out
 
 
@@ -2640,7 +2688,9 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     """F between every pair of sides, each entry computed independently (reciprocity is
     checked, not imposed), plus every side's sky term: one :func:`row_form_factors` per
     side (the sides with a closed form by it, :func:`closed_form_row`), on ``workers``
-    processes (default: the CPU count; the largest faces first), with a progress bar."""
+    processes (default: the CPU count; the largest faces first; a row's points on the
+    cores the others leave idle, :func:`_map_rows`), with a progress bar. The result does
+    not depend on ``workers``, to the bit."""
     from viscx.progress import bar
 
     t0 = time.perf_counter()
@@ -2649,7 +2699,8 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
     rows = [(i, s) for i in range(n) for s in SIDES]
     load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
-        results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers, progress=lambda: progress.update(1))
+        results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers,
+                            progress=lambda: progress.update(1), threads=True)
     return assemble_matrix(scene, results, tol, time.perf_counter() - t0)
 
 

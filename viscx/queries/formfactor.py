@@ -1657,9 +1657,12 @@ class PairSetup:
         tri = self.triangles()
         pts = np.concatenate(self.I + self.J)
         min_size = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / MIN_SPLIT
-        tri = split_large(tri, min_size)
+        if self.kinked:
+            tri = split_large(tri, min_size)
         # the triangles wholly in a closed solid's umbra hide F(x → J') whole: its
-        # contour integral, exact, instead of the cubature (the bunny's floor under it)
+        # contour integral, exact, instead of the cubature (the bunny's floor under it;
+        # tested before the three-level path splits the large ones, whose lists it culls
+        # level by level)
         shadow = self.umbra(tri)
         umbra, umbra_err = self.unoccluded_integral(tri[shadow])
         tri = tri[~shadow]

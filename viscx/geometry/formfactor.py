@@ -248,18 +248,20 @@ def _edges(loops):
     return a[keep], (b - a)[keep] / length[keep, None], length[keep]
 
 
-def _oriented(loops, normal):
+def _oriented(loops, normal, separate=False):
     """Outer loop counter-clockwise about the normal, holes the other way round; and the
-    area they enclose."""
+    area they enclose. ``separate``: every loop is an outer loop of its own (disjoint
+    polygons, their areas added)."""
     out, area = [], 0.0
     for k, loop in enumerate(loops):
         loop = np.asarray(loop)
         loop = loop.astype(np.result_type(loop.dtype, np.float64))  # float64, or wider when given
         signed = newell_normal(loop) @ normal  # 2 × its area about the normal (float64)
-        if (signed > 0) != (k == 0):
+        outer = k == 0 or separate
+        if (signed > 0) != outer:
             loop = loop[::-1]
         out.append(loop)
-        area += abs(signed) / 2 * (1 if k == 0 else -1)
+        area += abs(signed) / 2 * (1 if outer else -1)
     return out, area
 
 
@@ -268,7 +270,7 @@ def _oriented(loops, normal):
 _BLOCK = 200_000
 
 
-def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)):
+def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,), separate=False):
     """:func:`polygon_to_polygon` with each Gauss–Legendre order of ``orders`` on the same
     graded panels, and a bound on their rounding errors. Every node of every edge of i meets every edge of j
     at once (numpy, in blocks of :data:`_BLOCK` pairs).
@@ -279,13 +281,16 @@ def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)
     ~ length × ln(size) each, F A_i their small sum): the rounding bound is 64 ε times the
     sum of their magnitudes (/ 2π A_i).
 
+    ``separate``: the loops of i are disjoint polygons of their own (each counter-clockwise,
+    no holes): F from their union (the contour sums are linear in the loops).
+
     Returns
     -------
     values : (len(orders),) float64
     rounding : float
     """
     normal_i, normal_j = np.asarray(normal_i, dtype=np.float64), np.asarray(normal_j, dtype=np.float64)
-    li, area_i = _oriented(loops_i, normal_i)
+    li, area_i = _oriented(loops_i, normal_i, separate)
     lj, _ = _oriented(loops_j, normal_j)
     a0, u_a, len_a = _edges(li)
     b0, u_b, len_b = _edges(lj)

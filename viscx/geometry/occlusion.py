@@ -1099,6 +1099,96 @@ def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly,
     return out
 
 
+@njit(cache=True)
+def _segment_meets_box(ax, ay, bx, by, lo_u, lo_v, hi_u, hi_v):
+    """Whether the 2-D segment (a, b) meets the closed box [lo, hi] (separating axes: the
+    box's two and the segment's normal)."""
+    if max(ax, bx) < lo_u or min(ax, bx) > hi_u or max(ay, by) < lo_v or min(ay, by) > hi_v:
+        return False
+    dx, dy = bx - ax, by - ay
+    pos, neg = False, False
+    for cu in (lo_u, hi_u):
+        for cv in (lo_v, hi_v):
+            s = dx * (cv - ay) - dy * (cu - ax)
+            pos = pos or s >= 0.0
+            neg = neg or s <= 0.0
+    return pos and neg
+
+
+@njit(cache=True)
+def umbra_triangles(tri, hull, n_t, c_t, eu, ev, heights, sec_ptr, sec, margin):
+    """(g,) bool: the triangles of an emitter from every point of which the whole of J is
+    hidden by a closed solid, shown by one of its sections (``sec[sec_ptr[k]:sec_ptr[k + 1]]``,
+    (s, 4) float64 segments ``(u_a, v_a, u_b, v_b)`` in the basis (eu, ev), by the plane
+    parallel to J at height ``heights[k]`` above it: ``n_t · y = c_t + heights[k]``).
+
+    A plane P strictly between a triangle T and J (every vertex of T higher than P by more
+    than ``margin``) meets the segments from T to J in the convex hull of the points where
+    the segments between their vertices (T's three, J's hull ``hull`` (h, 3)) cross it (the
+    shaft conv(T ∪ J) cut by P: its vertices lie on edges of the shaft that cross P, and
+    those join a vertex of T to one of J). If the box around those points (grown by
+    ``margin``) meets no segment of the section, it lies wholly inside or wholly outside
+    the solid's section; a ray from its centre along +u that crosses an odd number of
+    segments says inside (the crossing points of an edge of the solid are computed once
+    per edge by the caller, so the section's polylines share their vertices bit for bit
+    and the half-open rule counts each crossing once). Then every segment from a point x
+    of T to J passes through a point of P inside the solid; as x is outside it (the
+    solid lies in the closed front half-space of T's plane, so a ray from x backwards meets
+    none of its faces: even parity), the segment crosses a face of the solid before that
+    point, strictly between x and J: the visible part of J from x is empty, and the hidden
+    part is F(x → J), whole. Conservative: a triangle not shown so (a box meeting the
+    section, a plane not between) is simply kept.
+
+    Parameters
+    ----------
+    tri : (g, 3, 3) float64
+    hull : (h, 3) float64
+        J's convex hull (its vertices on the plane ``n_t · y = c_t``).
+    n_t, eu, ev : (3,) float64
+        J's normal (towards the triangles) and a basis of its plane.
+    heights : (k,) float64
+    sec_ptr : (k + 1,) int64
+    margin : float
+    """
+    out = np.zeros(tri.shape[0], np.bool_)
+    for i in range(tri.shape[0]):
+        h = np.empty(3)
+        for a in range(3):
+            h[a] = tri[i, a, 0] * n_t[0] + tri[i, a, 1] * n_t[1] + tri[i, a, 2] * n_t[2] - c_t
+        low = min(h[0], min(h[1], h[2]))
+        for k in range(heights.shape[0]):
+            hp = heights[k]
+            if hp <= margin or low <= hp + margin or sec_ptr[k + 1] == sec_ptr[k]:
+                continue
+            lo_u, lo_v, hi_u, hi_v = np.inf, np.inf, -np.inf, -np.inf
+            for a in range(3):
+                s = 1.0 - hp / h[a]
+                for b in range(hull.shape[0]):
+                    pu, pv = 0.0, 0.0
+                    for d in range(3):
+                        p = tri[i, a, d] + s * (hull[b, d] - tri[i, a, d])
+                        pu += p * eu[d]
+                        pv += p * ev[d]
+                    lo_u, hi_u = min(lo_u, pu), max(hi_u, pu)
+                    lo_v, hi_v = min(lo_v, pv), max(hi_v, pv)
+            lo_u, lo_v, hi_u, hi_v = lo_u - margin, lo_v - margin, hi_u + margin, hi_v + margin
+            cu, cv = 0.5 * (lo_u + hi_u), 0.5 * (lo_v + hi_v)
+            crossings = 0
+            meets = False
+            for s_ in range(sec_ptr[k], sec_ptr[k + 1]):
+                ax, ay, bx, by = sec[s_, 0], sec[s_, 1], sec[s_, 2], sec[s_, 3]
+                if _segment_meets_box(ax, ay, bx, by, lo_u, lo_v, hi_u, hi_v):
+                    meets = True
+                    break
+                if (ay > cv) != (by > cv):
+                    if ax + (cv - ay) / (by - ay) * (bx - ax) > cu:
+                        crossings += 1
+            if not meets and crossings % 2 == 1:
+                out[i] = True
+                break
+    return out
+
+
 # --------------------------------------------------------------------------------------
 # a point's view of every polygon at once (one evaluation per point for a whole matrix row)
 

@@ -66,7 +66,7 @@ import numpy as np
 from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
-                                     visible_form_factors)
+                                     umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.queries.kinks import kink_segments
 
@@ -483,6 +483,81 @@ def inner_solid_edges(scene, n, c, tiny, faces, pos, points):
     back = np.all(a < -tiny, axis=1) & np.all(b < -tiny, axis=1)
     out[rows] = front | back
     return out
+
+
+#: Planes parallel to the target across each closed solid whose sections show the
+#: emitter's triangles wholly in its umbra (:func:`solid_sections`, :meth:`PairSetup.umbra`).
+UMBRA_PLANES = 16
+
+
+def solid_sections(scene, solids, n, c, tiny, count=UMBRA_PLANES):
+    """Sections of closed solids (:func:`closed_solids`, ids ``solids``) by ``count`` planes
+    ``n · y = c + h`` spread evenly across their extent along n (midpoints of ``count``
+    equal slices; a plane within 10 ``tiny`` of a vertex of a solid is left out, so that
+    every edge crossing it crosses it properly and no face lies in it), as 2-D segments in
+    the basis :func:`plane_basis` (n). The crossing point of an edge is computed once per
+    edge (from its lower vertex id to its higher), so the two faces along it give the same
+    point bit for bit and the sections are closed polylines sharing their vertices (what
+    the parity count of :func:`viscx.geometry.occlusion.umbra_triangles` needs). A face
+    meets a plane in the chords between its crossing points taken in pairs along the line
+    (a non-convex face: more than one).
+
+    Returns
+    -------
+    heights : (k,) float64
+    sec_ptr : (k + 1,) int64
+    sec : (s, 4) float64
+        Segments ``(u_a, v_a, u_b, v_b)`` of plane k: ``sec[sec_ptr[k]:sec_ptr[k + 1]]``.
+    """
+    face_solid = closed_solids(scene)[0]
+    faces = np.flatnonzero(np.isin(face_solid, np.asarray(solids, np.int64)))
+    eu, ev = plane_basis(n)
+    if not len(faces):
+        return np.zeros(0), np.zeros(1, np.int64), np.zeros((0, 4))
+    first = scene.face_loop_offsets[faces]  # a solid's faces have one loop each
+    lo, hi = scene.loop_offsets[first], scene.loop_offsets[first + 1]
+    sizes = hi - lo
+    pos = np.repeat(lo - np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes) + np.arange(sizes.sum())
+    nxt = pos + 1
+    last = np.cumsum(sizes) - 1
+    nxt[last] = lo
+    edge_face = np.repeat(faces, sizes)
+    a, b = scene.loop_vertices[pos].astype(np.int64), scene.loop_vertices[nxt].astype(np.int64)
+    a, b = np.minimum(a, b), np.maximum(a, b)
+    height = scene.vertices @ n - c
+    used = np.unique(np.concatenate([a, b]))
+    top, bottom = float(height[used].max()), float(height[used].min())
+    heights, ptr, out = [], [0], []
+    face_dir = np.cross(scene.face_normal[faces], n)  # along each face's chord
+    for k in range(count):
+        h = bottom + (top - bottom) * (k + 0.5) / count
+        if np.min(np.abs(height[used] - h)) <= 10 * tiny:
+            continue
+        d = height - h
+        cross = np.flatnonzero((d[a] > 0) != (d[b] > 0))
+        ea, eb, ef = a[cross], b[cross], edge_face[cross]
+        t = (d[ea] / (d[ea] - d[eb]))[:, None]
+        p = scene.vertices[ea] + t * (scene.vertices[eb] - scene.vertices[ea])
+        uv = np.stack([p @ eu, p @ ev], axis=1)
+        order = np.argsort(ef, kind="stable")
+        ef, uv = ef[order], uv[order]
+        starts = np.flatnonzero(np.concatenate([[True], ef[1:] != ef[:-1]]))
+        counts = np.diff(np.concatenate([starts, [len(ef)]]))
+        two = starts[counts == 2]
+        segs = [np.concatenate([uv[two], uv[two + 1]], axis=1)]
+        for s0, m in zip(starts[counts > 2], counts[counts > 2]):
+            # a non-convex face: its chords are between the crossings in pairs along the line
+            f = int(np.searchsorted(faces, ef[s0]))
+            along = np.array([face_dir[f] @ eu, face_dir[f] @ ev])
+            q = uv[s0:s0 + m][np.argsort(uv[s0:s0 + m] @ along, kind="stable")]
+            segs.append(np.concatenate([q[0::2], q[1::2]], axis=1))
+        seg = np.concatenate(segs)
+        heights.append(h)
+        ptr.append(ptr[-1] + len(seg))
+        out.append(seg)
+    if not heights:
+        return np.zeros(0), np.zeros(1, np.int64), np.zeros((0, 4))
+    return np.asarray(heights), np.asarray(ptr, np.int64), np.ascontiguousarray(np.concatenate(out))
 
 
 def back_faces(scene, tri, cell, faces, tiny):
@@ -1584,6 +1659,15 @@ class PairSetup:
         min_size = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)) / MIN_SPLIT
         if self.kinked:
             tri = split_large(tri, min_size)
+        # the triangles wholly in a closed solid's umbra hide F(x → J') whole: its
+        # contour integral, exact, instead of the cubature (the bunny's floor under it;
+        # tested before the three-level path splits the large ones, whose lists it culls
+        # level by level)
+        shadow = self.umbra(tri)
+        umbra, umbra_err = self.unoccluded_integral(tri[shadow])
+        tri = tri[~shadow]
+        budget = max(budget - umbra_err, 0.5 * budget)
+        if self.kinked:
             k = len(self.occluders)
             ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
             tri = tri[np.diff(ptr) > 0]
@@ -1599,10 +1683,36 @@ class PairSetup:
 
             cub = RowCubature(column)
             value, error, cells = cub.integrate(tri, np.array([budget]), live)
-            return float(value[0]), float(error[0]), cub.evaluations, cells
+            return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
-        return value, error, cub.evaluations, cells
+        return umbra + value, umbra_err + error, cub.evaluations, cells
+
+    def umbra(self, tri):
+        """(g,) bool: the triangles (g, 3, 3) of I' from every point of which a closed solid
+        hides the whole of J' (:func:`viscx.geometry.occlusion.umbra_triangles`, by the
+        sections of the solids that lie in the closed front half-space of I:
+        :func:`solid_sections`); conservative (False where not shown)."""
+        out = np.zeros(len(tri), bool)
+        solids = np.flatnonzero(_outside_solids(self.scene, self.n_i, self.c_i, self.tiny))
+        if not len(tri) or not len(solids):
+            return out
+        heights, sec_ptr, sec = solid_sections(self.scene, solids, self.n_t, self.c_t, self.tiny)
+        if not len(heights):
+            return out
+        eu, ev = plane_basis(self.n_t)
+        hull = np.ascontiguousarray(self.frame[6])
+        return umbra_triangles(np.ascontiguousarray(tri), hull, np.asarray(self.n_t, np.float64), float(self.c_t), eu, ev,
+                               heights, sec_ptr, sec, 10 * self.tiny)
+
+    def unoccluded_integral(self, tri):
+        """∫ F(x → J') dx over the triangles (g, 3, 3) of I' (disjoint): the contour integral
+        of their union (exact), ``(value, error)`` in area × F."""
+        if not len(tri):
+            return 0.0, 0.0
+        area = float(triangle_areas(tri).sum())
+        v, e = contour_form_factor(list(tri), self.n_i, self.J, self.n_t, separate=True)
+        return v * area, e * area
 
 
 def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1),
@@ -1801,11 +1911,12 @@ def target_holes(scene, face_i, face, side):
     return [c for c, h in zip(cells, hidden) if not h]
 
 
-def contour_form_factor(loops_i, n_i, loops_j, n_j):
+def contour_form_factor(loops_i, n_i, loops_j, n_j, separate=False):
     """Unoccluded F_ij by the double contour integral, with the change between two node
     sets (10- and 6-point Gauss–Legendre panels) plus a bound on the rounding of its
-    cancelling terms as its error estimate."""
-    (value, coarse), rounding = polygon_to_polygon_orders(loops_i, n_i, loops_j, n_j, (10, 6))
+    cancelling terms as its error estimate. ``separate``: the loops of i are disjoint
+    polygons (F from their union), not one polygon with holes."""
+    (value, coarse), rounding = polygon_to_polygon_orders(loops_i, n_i, loops_j, n_j, (10, 6), separate)
     return float(value), abs(float(value) - float(coarse)) + rounding
 
 

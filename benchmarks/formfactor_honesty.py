@@ -5,10 +5,13 @@ shadow between the coarse rows' nodes is seen), and counted *beyond* where
 ``|F − F_ref| > E + E_ref + 1e-14`` (its estimate plus the reference's; 1e-14 is the
 contour integrals' rounding, F ∈ [0, 1]).
 
-``--rows three-level`` (default) takes the rows on :class:`ThreeLevelRowCubature` at the
+``--rows three-level`` takes the rows on :class:`ThreeLevelRowCubature` at the
 coarse start (the emitters with more kink cells than they may be cut into), ``all`` every
-row the matrix integrates (not the closed-form ones). The reference is cached in
-``--cache`` (a pickle, keyed by the office, the rows and its options), as it costs minutes.
+row the matrix integrates (not the closed-form ones; the default). With ``--reciprocal`` each row holds
+the pairs the matrix computes in it (:func:`viscx.queries.formfactor.computed_pairs`): what
+the matrix reports (a derived entry's error and estimate are the computed one's times
+A_a / A_b). The reference rows are cached in ``--cache`` (a pickle, keyed by the office, the
+row and its options) as they are computed, as they cost minutes.
 
     python benchmarks/formfactor_honesty.py --polygons 100 --tol 1e-4 --cache /tmp/ref100.pkl
 
@@ -29,22 +32,20 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 
-def honest_rows(scene, rows, tol, split=1.0):
-    """{(face, side): :func:`viscx.queries.formfactor.row_form_factors` result, its CPU s in
-    ``counts["cpu"]``}, the first triangles ``split`` times smaller than the default."""
+def timed_row(scene, face, side, tol, split=1.0, reciprocal=False):
+    """:func:`viscx.queries.formfactor.row_form_factors` of every face (with ``reciprocal``,
+    the pairs the matrix computes in this row), its CPU s in ``counts["cpu"]``, the first
+    triangles ``split`` times smaller than the default."""
     from viscx.queries import formfactor as ff
 
     faces = np.arange(scene.n_faces, dtype=np.int64)
     saved = ff.MIN_SPLIT, ff.THREE_LEVEL_SPLIT
     ff.MIN_SPLIT, ff.THREE_LEVEL_SPLIT = saved[0] * split, saved[1] * split
     try:
-        out = {}
-        for f, s in rows:
-            c0 = time.process_time()
-            r = ff.row_form_factors(scene, f, s, faces, tol)
-            r[3]["cpu"] = time.process_time() - c0
-            out[(f, s)] = r
-        return out
+        c0 = time.process_time()
+        r = ff.row_form_factors(scene, face, side, faces, tol, reciprocal=reciprocal)
+        r[3]["cpu"] = time.process_time() - c0
+        return r
     finally:
         ff.MIN_SPLIT, ff.THREE_LEVEL_SPLIT = saved
 
@@ -77,7 +78,9 @@ def main(argv=None):
     parser.add_argument("--tol", type=float, default=1e-4)
     parser.add_argument("--ref-tol", type=float, default=1e-6)
     parser.add_argument("--ref-split", type=float, default=4.0)
-    parser.add_argument("--rows", choices=("three-level", "all"), default="three-level")
+    parser.add_argument("--rows", choices=("three-level", "all"), default="all")
+    parser.add_argument("--reciprocal", action="store_true",
+                        help="the rows as the matrix computes them: only the pairs whose other face is larger")
     parser.add_argument("--cache", default=None, help="the reference's pickle (read if it holds these rows)")
     args = parser.parse_args(argv)
     scene = build_scene(office(args.polygons, seed=0))
@@ -85,31 +88,27 @@ def main(argv=None):
     rows = [r for r, c in sorted(classes.items()) if c not in ("box inner", "lying")]
     if args.rows == "three-level":
         rows = [(f, s) for f, s in rows if not ff.cubature_cells(scene, f, s)[2]]
-    key = (args.polygons, tuple(rows), args.ref_tol, args.ref_split)
-    ref = None
-    if args.cache and Path(args.cache).exists():
-        cached = pickle.load(open(args.cache, "rb"))
-        ref = cached.get(key)
-    if ref is None:
-        ref = honest_rows(scene, rows, args.ref_tol, args.ref_split)
-        if args.cache:
-            cached = pickle.load(open(args.cache, "rb")) if Path(args.cache).exists() else {}
-            cached[key] = ref
-            pickle.dump(cached, open(args.cache, "wb"))
-    got = honest_rows(scene, rows, args.tol)
-    entries, beyond, worst, diff = 0, 0, 0.0, 0.0
+    cached = pickle.load(open(args.cache, "rb")) if args.cache and Path(args.cache).exists() else {}
+    entries, beyond, worst, diff, cpu, points = 0, 0, 0.0, 0.0, 0.0, 0
     for r in rows:
-        b, w, n = compare(got[r], ref[r])
+        key = (args.polygons, r, args.ref_tol, args.ref_split, args.reciprocal)
+        if key not in cached:
+            cached[key] = timed_row(scene, *r, args.ref_tol, args.ref_split, args.reciprocal)
+            if args.cache:
+                pickle.dump(cached, open(args.cache, "wb"))
+        ref = cached[key]
+        got = timed_row(scene, *r, args.tol, reciprocal=args.reciprocal)
+        b, w, n = compare(got, ref)
         entries, beyond, worst = entries + n, beyond + len(b), max(worst, w)
         diff = max(diff, max((x[3] for x in b), default=0.0))
-        print(json.dumps({"row": [int(r[0]), int(r[1])], "class": classes[r], "cpu": round(got[r][3]["cpu"], 2),
-                          "points": got[r][3]["evaluations"], "ref_cpu": round(ref[r][3]["cpu"], 2),
-                          "beyond": [list(x) for x in b]}), flush=True)
+        cpu, points = cpu + got[3]["cpu"], points + got[3]["evaluations"]
+        print(json.dumps({"row": [int(r[0]), int(r[1])], "class": classes[r], "cpu": round(got[3]["cpu"], 2),
+                          "points": got[3]["evaluations"], "ref_cpu": round(ref[3]["cpu"], 2),
+                          "worst_ratio": round(w, 3), "beyond": [list(x) for x in b]}), flush=True)
     print(json.dumps({"polygons": args.polygons, "tol": args.tol, "ref_tol": args.ref_tol, "ref_split": args.ref_split,
                       "rows": len(rows), "entries": entries, "beyond": beyond, "worst_ratio": worst,
                       "largest_difference_beyond": diff,
-                      "cpu": round(sum(got[r][3]["cpu"] for r in rows), 1),
-                      "points": int(sum(got[r][3]["evaluations"] for r in rows))}), flush=True)
+                      "reciprocal": args.reciprocal, "cpu": round(cpu, 1), "points": int(points)}), flush=True)
 
 
 if __name__ == "__main__":

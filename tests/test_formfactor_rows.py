@@ -121,6 +121,41 @@ def test_faces_lying_on_faces():
     assert m.reciprocity_error() < 1e-6
 
 
+def test_reciprocity_imposed_against_the_two_sided_matrix():
+    """The matrix computes each pair in the rows of its smaller face and derives the other
+    direction (``A_a F_ab = A_b F_ba``, its estimate scaled by A_a / A_b): reciprocity holds
+    to rounding, and the matrix computed two-sided (every entry on its own, the oracle) is
+    within the estimates of both entry by entry, its own reciprocity within its estimates.
+    Rows + sky = 1 stays a check (the derived entries come from other rows), and the matrix
+    is the same bit for bit on 1 and 2 processes."""
+    from test_formfactor_queries import square
+
+    scene = scene_of([square(0), square(1, size=0.5, flip=True), [[0.3, 0.3, 0.5], [0.6, 0.35, 0.5], [0.45, 0.7, 0.55]]])
+    m = ff.form_factor_matrix(scene, tol=1e-6, workers=1)
+    two = ff.form_factor_matrix(scene, tol=1e-6, workers=1, reciprocal=False)
+    assert m.summary()["reciprocity"] == "imposed" and two.summary()["reciprocity"] == "measured"
+    assert m.method_counts["derived"] > 0 and m.reciprocity_error() < 1e-15
+    F, E, F2, E2 = m.dense(), ff.Matrix.dense(_errors(m)), two.dense(), ff.Matrix.dense(_errors(two))
+    assert np.array_equal(F != 0, F2 != 0)
+    assert np.all(np.abs(F - F2) <= E + E2 + 1e-14)
+    a = np.repeat(scene.face_area, 2)
+    flux, bound = a[:, None] * F2, a[:, None] * E2
+    assert np.all(np.abs(flux - flux.T) <= bound + bound.T + 1e-14)
+    assert two.reciprocity_error() > 1e-12  # two-sided, it is a measurement
+    # the face of smaller area computes: square 1 (0.25) to square 0 (1), derived back
+    assert ff.computed_pairs(scene, 1, np.array([0, 2])).tolist() == [True, scene.face_area[2] > 0.25]
+    assert np.isclose(F[0, 2], F[2, 0] * scene.face_area[1] / scene.face_area[0], rtol=1e-15, atol=0)
+    assert np.abs(m.row_sums() - 1).max() < 1e-5
+    par = ff.form_factor_matrix(scene, tol=1e-6, workers=2)
+    for k in ("indptr", "indices", "data", "error", "sky", "sky_error"):
+        assert np.array_equal(getattr(par, k), getattr(m, k)), k
+
+
+def _errors(m):
+    """The matrix ``m`` with its error estimates as its values (for :meth:`Matrix.dense`)."""
+    return ff.Matrix(m.indptr, m.indices, m.error, m.error, m.sky, m.sky_error, m.area, {}, 0.0, m.tol)
+
+
 def test_reciprocity_in_units_of_the_smaller_and_the_larger_face():
     """|A_a F_ab − A_b F_ba| over min(A) and over max(A): a big face (area 100) whose entry
     to a small one (area 1) is 1e-4 off weighs 100 times in the small face's F units."""

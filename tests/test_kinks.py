@@ -294,6 +294,36 @@ def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
     assert np.allclose(ff.triangle_areas(new).sum(), 0.5)
 
 
+def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
+    """A row on three levels (:class:`ThreeLevelRowCubature`, forced by no kink cells
+    allowed) looks for shadows between its nodes as :class:`RowCubature` does: a small tile
+    hovering 0.03 over a unit floor, at the point farthest from every node of the 21 rules
+    of the floor's first triangles (0.031 from the nearest), hides a bit of the receiver
+    above. Without the search the floor → receiver entry is 1.2e-6 off for an estimate of
+    1.3e-15 at tol 1e-4; with it, within its estimate of the pair's F at 1e-9."""
+    monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
+    cx = cy = 0.665  # farthest from the nodes (found on a 181² grid)
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    receiver = [[0.4, 0.4, 1], [0.4, 0.6, 1], [0.6, 0.6, 1], [0.6, 0.4, 1]]  # facing down: element 2
+    tile = [[cx - 0.005, cy - 0.005, 0.03], [cx + 0.005, cy - 0.005, 0.03], [cx + 0.005, cy + 0.005, 0.03],
+            [cx - 0.005, cy + 0.005, 0.03]]
+    scene = scene_of([floor, receiver, tile])
+    faces = np.arange(scene.n_faces)
+    ref = ff.face_to_face(scene, 0, 1, side_i=1, tol=1e-9)
+
+    def entry():
+        cols, F, E, *_ = ff.row_form_factors(scene, 0, 1, faces, 1e-4)
+        assert not ff.cubature_cells(scene, 0, 1)[2]  # on three levels
+        (k,) = np.flatnonzero(cols == 2)
+        return F[k], E[k]
+
+    F, E = entry()
+    assert abs(F - ref["F"]) <= E + ref["error"]
+    monkeypatch.setattr(ff, "look_for_shadows", lambda tri, seen, live: (np.zeros(len(tri), bool), np.zeros((0, 3, 3))))
+    F, E = entry()
+    assert abs(F - ref["F"]) > 100 * (E + ref["error"])  # without the search: the shadow unseen
+
+
 def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):
     """The segment pairs are tested in blocks of whole rows (memory linear in the block, not
     quadratic in the segments: the 122,892-triangle spheres listed 1.7 · 10¹⁰ pairs at

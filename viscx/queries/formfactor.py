@@ -1038,6 +1038,72 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
+def plane_segments(scene, face, side):
+    """(s, 2, 3) float64: the lines where the planes of the faces in front of side ``side``
+    of a face cross it (each plane once, as a segment across the face), those of the
+    faces that have vertices more than 1e-9 of the scene's size on both sides of it. On
+    such a line a face turns edge-on: F to it goes to 0 there like the distance and its
+    shadow's edges pass over each other, so every column it sees or hides has a kink
+    (D1) along the whole line (the planes' kink lines of :func:`viscx.queries.kinks.kink_segments`,
+    pair of edges of one face, extended across the face)."""
+    outline, lo, hi = face_outlines(scene)
+    tiny = 1e-9 * scene.diagonal
+    mine = outline[lo[face]:hi[face]]
+    others = seen_faces(scene, face, side)
+    others = others[others != face]
+    normal = scene.face_normal[others]
+    c = np.einsum("fj,fj->f", normal, outline[lo[others]])
+    h = mine @ normal.T - c
+    cross = (h.max(axis=0) > tiny) & (h.min(axis=0) < -tiny)
+    normal, c = normal[cross], c[cross]
+    # one segment per plane: the sign fixed by the normal's largest component, then rounded
+    flip = np.sign(normal[np.arange(len(normal)), np.argmax(np.abs(normal), axis=1)])
+    normal, c = normal * flip[:, None], c * flip
+    key = np.round(np.column_stack([normal, c / tiny]), 6)
+    _, first = np.unique(key, axis=0, return_index=True)
+    normal, c = normal[np.sort(first)], c[np.sort(first)]
+    n_i = scene.face_normal[face]
+    c_i = float(n_i @ mine[0])
+    centre = mine.mean(axis=0)
+    radius = float(np.linalg.norm(mine - centre, axis=1).max()) * 1.01
+    d = np.cross(n_i, normal)
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    # the point of each line nearest the centre: centre + a n_i + b n_g, both planes met
+    g = normal @ n_i
+    det = 1 - g * g
+    r_i, r_g = c_i - n_i @ centre, c - normal @ centre
+    a, b = (r_i - g * r_g) / det, (r_g - g * r_i) / det
+    p = centre + a[:, None] * n_i + b[:, None] * normal
+    return np.stack([p - radius * d, p + radius * d], axis=1)
+
+
+def plane_cells(scene, face, side, cells, start):
+    """The cells (list of convex (k, 3), counter-clockwise about the side's normal) cut
+    along :func:`plane_segments`, or None when that makes more than twice ``start`` (the
+    first triangles without the cuts) plus the lines cells: a line adds about a cell for
+    each cell it crosses, and a grid of lines (the floor of a furnished room, crossed by
+    the vertical planes of every box) multiplies them instead. For
+    the rows on three levels (:class:`ThreeLevelRowCubature`): a kink along a line that runs
+    within a node's distance of a first triangle's edge is seen by none of the three levels
+    (office(100), a divider's end 0.05 × 1.46 m: the desks' plane at 0.72 m ran 0.009
+    below its triangles' edges at half its height, and two entries came out 2.3e-8 and
+    6.4e-6 off for estimates of 1.7e-13 and 1.1e-7); cut along them, no line crosses a
+    cell. The other kink lines (two edges of different faces lining up) are partial and
+    quadratic in the edges; the planes are few in a building."""
+    seg = plane_segments(scene, face, side)
+    if not len(seg):
+        return cells
+    n = side * scene.face_normal[face]
+    eu, ev = plane_basis(n)
+    origin = cells[0][0]
+
+    def to2(p):
+        return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
+
+    pieces = cut_along([to2(c) for c in cells], to2(seg), 1e-8 * scene.diagonal, 2 * (start + len(seg)))
+    return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+
+
 def cubature_cells(scene, face, side, min_size=None):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
@@ -2274,6 +2340,34 @@ def row_rules(cubature, tri, width, weights):
     return out
 
 
+def look_for_shadows(tri, seen, live):
+    """Where a small shadow may lie between the nodes of the first triangles (g, 3, 3): a
+    column an occluder may hide on a triangle (``live``, its shaft test) whose nodes see
+    nothing of it (``seen`` (g, R): what the rules and their estimates say, ≤ 1e-10 × the
+    triangle's area). Such a triangle is replaced by its 4 children, and each child whose
+    shaft still meets an occluder of such a column by its own 4 children (the node density
+    four times finer where the shadow may be; on the other children the column is exactly
+    0). ``live(tri, need) -> (g, R) bool`` is asked only where ``need`` is set.
+
+    Returns
+    -------
+    unseen : (g,) bool
+        The triangles replaced.
+    new : (h, 3, 3) float64
+        What replaces them (the children, then the grandchildren).
+    """
+    blind = seen <= 1e-10 * triangle_areas(tri)[:, None]
+    ask = np.flatnonzero(np.any(blind, axis=1))  # the shaft tests only where they matter
+    blind[ask] &= live(tri[ask], blind[ask])
+    unseen = np.any(blind, axis=1)
+    if not np.any(unseen):
+        return unseen, np.zeros((0, 3, 3))
+    kids = split4(tri[unseen]).reshape(-1, 3, 3)
+    need = np.repeat(blind[unseen], 4, axis=0)
+    deeper = np.any(live(kids, need) & need, axis=1)
+    return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
+
+
 #: What :class:`RowCubature` leaves of a column's estimate unrefined in a round, as a
 #: fraction of its budget: a refined leaf's estimate mostly goes (a leaf on its rule
 #: trades its null rule, about a degree-2 rule's error, for |Q − S|, about its degree-5
@@ -2388,22 +2482,11 @@ class RowCubature:
         return value.sum(axis=0), err.sum(axis=0), cells
 
     def _look_for_shadows(self, tri, q, e, live, width):
-        """The first triangles where an occluder may hide a column (``live``, its shaft
-        test) but the rule's nodes see nothing of it (|Q| + null ≤ 1e-10 × area): a shadow
-        may lie between the nodes. Such a triangle is replaced by its 4 children, and each
-        child whose shaft still meets an occluder of such a column by its own 4 children
-        (the node density of 16 grandchildren where the shadow may be; on the other
-        children the column is exactly 0). Returns the new ``tri, q, e``."""
-        blind = np.abs(q) + e <= 1e-10 * triangle_areas(tri)[:, None]
-        ask = np.flatnonzero(np.any(blind, axis=1))  # the shaft tests only where they matter
-        blind[ask] &= live(tri[ask], blind[ask])
-        unseen = np.any(blind, axis=1)
-        if not np.any(unseen):
+        """:func:`look_for_shadows` on the first triangles, whose rules and null rules are
+        ``q, e`` (g, R): the new triangles on their rules. Returns the new ``tri, q, e``."""
+        unseen, new = look_for_shadows(tri, np.abs(q) + e, live)
+        if not len(new):
             return tri, q, e
-        kids = split4(tri[unseen]).reshape(-1, 3, 3)
-        need = np.repeat(blind[unseen], 4, axis=0)
-        deeper = np.any(live(kids, need) & need, axis=1)
-        new = np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
         nq, ne = self.rule(new, width)
         return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
                 np.concatenate([e[~unseen], ne]))
@@ -2432,6 +2515,13 @@ class ThreeLevelRowCubature:
     largest estimates are split (until what is left is half its budget). A point is
     evaluated once for all receivers.
 
+    A shadow smaller than the grandchildren's nodes' spacing may fall between all 147 nodes
+    of a first triangle, and its three levels then agree on nothing seen (office(100), a
+    desk side's row at 1e-4: an entry 4.2e-8 off for an estimate of 2.9e-14): the first
+    triangles go through :func:`look_for_shadows`, as :class:`RowCubature`'s, each new
+    triangle on its own three levels. (A kink near a triangle's edge is the other thing
+    three levels miss: :func:`plane_cells`.)
+
     Parameters
     ----------
     integrand : callable
@@ -2449,20 +2539,36 @@ class ThreeLevelRowCubature:
         """(g, R) float64: Radon's rule on each triangle."""
         return row_rules(self, tri, width, (RULE_WEIGHTS,))[0]
 
+    def levels(self, tri, width):
+        """The three levels of the triangles (g, 3, 3): ``q`` (g, R), their children ``K``
+        (4 g, 3, 3) (rows 4 k … 4 k + 3 those of triangle k) and rules ``kq`` (4 g, R), their
+        grandchildren ``G`` (16 g, 3, 3) and rules ``gq`` (16 g, R)."""
+        K = split4(tri).reshape(-1, 3, 3)
+        G = split4(K).reshape(-1, 3, 3)
+        return self.rule(tri, width), K, self.rule(K, width), G, self.rule(G, width)
+
     def estimates(self, tri, q, kq, gq):
         """(g, R): :meth:`Cubature.estimates` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
         return three_level_error(q, kq, gq)[0]
 
-    def integrate(self, tri, budget):
+    def integrate(self, tri, budget, live=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates. Returns ``value, error`` (R,)
-        and the triangles evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live`` the shaft test of
+        :meth:`RowCubature.integrate`. Returns ``value, error`` (R,) and the triangles
+        evaluated."""
         width = len(budget)
-        q = self.rule(tri, width)
-        K = split4(tri).reshape(-1, 3, 3)
-        kq = self.rule(K, width)
-        G = split4(K).reshape(-1, 3, 3)
-        gq = self.rule(G, width)
+        q, K, kq, G, gq = self.levels(tri, width)
+        if live is not None:
+            # what each first triangle's 21 rules see of each column
+            seen = np.abs(q) + np.abs(kq).reshape(-1, 4, width).sum(axis=1) + np.abs(gq).reshape(-1, 16, width).sum(axis=1)
+            unseen, new = look_for_shadows(tri, seen, live)
+            if len(new):
+                keep = ~unseen
+                nq, nK, nkq, nG, ngq = self.levels(new, width)
+                k_keep, g_keep = np.repeat(keep, 4), np.repeat(keep, 16)
+                tri, q = np.concatenate([tri[keep], new]), np.concatenate([q[keep], nq])
+                K, kq = np.concatenate([K[k_keep], nK]), np.concatenate([kq[k_keep], nkq])
+                G, gq = np.concatenate([G[g_keep], nG]), np.concatenate([gq[g_keep], ngq])
         cells = 21 * len(tri)
         four = np.arange(4)
         for _ in range(200):
@@ -2554,7 +2660,7 @@ def _unclipped(setup):
             and min(float(np.min(l @ setup.n_i)) for l in setup.J) - setup.c_i > setup.tiny)
 
 
-def row_form_factors(scene, face, side, faces, tol, sky=True, threads=1):
+def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, threads=1):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
@@ -2568,13 +2674,19 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, threads=1):
     occluders, tested against the first triangles' shafts, say where a shadow may lie
     that the rule's nodes miss (:meth:`RowCubature.integrate`). A side with a closed form
     (inside an empty closed box, or lying wholly on other faces: :func:`closed_form_row`)
-    takes it instead. The row's points are evaluated on ``threads`` threads
+    takes it instead. Only the columns asked for (and the sky, with ``sky``) have a budget:
+    the others are integrated with them (one kernel call gives every column) but neither
+    refined nor searched for shadows. With ``reciprocal``, only the faces of ``faces`` this
+    side computes the pairs of (:func:`computed_pairs`) are asked for: :func:`assemble_matrix`
+    derives the others. The row's points are evaluated on ``threads`` threads
     (:func:`row_rules`: the same result on any number).
 
     Returns what :func:`emitter_row` returns.
     """
     n = scene.n_faces
     faces = np.asarray(faces, np.int64)
+    if reciprocal:
+        faces = faces[computed_pairs(scene, face, faces)]
     closed = closed_form_row(scene, face, side, faces, sky)
     if closed is not None:
         return closed
@@ -2596,13 +2708,20 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, threads=1):
         # two-level row's children (Cornell: what a kink-cut start needs to see its small
         # shadows); office(300)'s box outer sides at 1e-4: a cabinet side 4,704 -> 1,176 points
         tri = start_triangles(cells, extent / THREE_LEVEL_SPLIT)
+        planed = plane_cells(scene, face, side, cells, len(tri))
+        if planed is not None:
+            cells = planed
+            tri = start_triangles(cells, extent / THREE_LEVEL_SPLIT)
     cubature = RowCubature if kinked else ThreeLevelRowCubature
     # the row's columns: the sides of the faces it may see or touch, then the sky
     seen = seen_faces(scene, face, side)
     width = 2 * len(seen) + 1
     f0, e0 = np.zeros(width), np.zeros(width)
+    wanted = np.zeros(width, bool)
+    wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
+    wanted[-1] = sky
     targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
-               for j, t in zip(fj, sj)]
+               for j, t in zip(fj, sj) if np.isin(j, faces)]
     area = float(scene.face_area[face])
     shafts = []  # (setup, column) of the pairs whose occluders the shadow search may ask for
     for target, t, c in targets:
@@ -2611,8 +2730,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, threads=1):
             value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
-            if cubature is RowCubature:
-                shafts.append((setup, c))
+            shafts.append((setup, c))
     found = set()  # the setups whose occluders are known (found when first asked for)
 
     def live(tri, need):
@@ -2643,19 +2761,31 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, threads=1):
     def hidden(points, tri=None):
         return point_views(points, n_i, eu, ev, *polygons, own, tiny, *boxes)
 
-    budget = np.maximum(tol - e0, 0.1 * tol) * area
+    budget = np.where(wanted, np.maximum(tol - e0, 0.1 * tol) * area, np.inf)
     cub = cubature(hidden, threads)
-    h, h_err, _ = cub.integrate(tri, budget, live) if cubature is RowCubature else cub.integrate(tri, budget)
+    h, h_err, _ = cub.integrate(tri, budget, live)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
-    wanted = np.zeros(width, bool)
-    wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
+    wanted[-1] = False
     cols = np.flatnonzero(wanted & (F != 0.0))
     counts = {"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
               "evaluations": int(cub.evaluations)}
     sky_v, sky_e = (float(F[-1]), float(E[-1])) if sky else (0.0, 0.0)
     element = (2 * seen[:, None] + np.arange(2)).reshape(-1)  # the scene's element of each column (but the sky)
     return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
+
+
+def computed_pairs(scene, face, faces):
+    """(k,) bool: for each of ``faces`` (k,) int64, whether the matrix computes the pair's
+    form factors in the rows of ``face`` (both sides) rather than in its rows: the pair
+    {a, b} is computed from the face of smaller area (the smaller index between equal areas)
+    and the other direction derived, ``A_a F_ab = A_b F_ba`` (:func:`assemble_matrix`). Its
+    error is then the computed entry's times A_a / A_b ≤ 1 (radiosity's usual practice: the
+    small face's row resolves what it sees of the large one to ``tol``, and the large
+    face's row, refined for every small receiver, would cost the most for the least)."""
+    area = scene.face_area
+    faces = np.asarray(faces, np.int64)
+    return (area[faces] > area[face]) | ((area[faces] == area[face]) & (faces > face))
 
 
 def load_row_kernels(scene):
@@ -2740,6 +2870,11 @@ class Matrix:
     area : (n,) float64
     method_counts : dict
     seconds : float
+    tol : float
+    reciprocal : bool
+        Each pair computed once, in the rows of its smaller face, and the other direction
+        derived (:func:`computed_pairs`): the reciprocity error is then 0 by construction
+        (up to rounding), and row sums are the check.
     """
 
     indptr: np.ndarray
@@ -2752,6 +2887,7 @@ class Matrix:
     method_counts: dict
     seconds: float
     tol: float
+    reciprocal: bool = False
 
     def dense(self):
         n = len(self.indptr) - 1
@@ -2783,6 +2919,7 @@ class Matrix:
         return {
             "elements": int(len(self.sky)),
             "nonzeros": int(len(self.data)),
+            "reciprocity": "imposed" if self.reciprocal else "measured",
             "reciprocity_max_error": self.reciprocity_error(),
             "reciprocity_max_error_larger": self.reciprocity_error("larger"),
             "row_sum_min": float(rows.min()),
@@ -2795,41 +2932,55 @@ class Matrix:
         }
 
 
-def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None):
-    """F between every pair of sides, each entry computed independently (reciprocity is
-    checked, not imposed), plus every side's sky term: one :func:`row_form_factors` per
-    side (the sides with a closed form by it, :func:`closed_form_row`), on ``workers``
-    processes (default: the CPU count; the largest faces first; a row's points on the
-    cores the others leave idle, :func:`_map_rows`), with a progress bar. The result does
-    not depend on ``workers``, to the bit."""
+def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciprocal=True):
+    """F between every pair of sides, plus every side's sky term: one
+    :func:`row_form_factors` per side (the sides with a closed form by it,
+    :func:`closed_form_row`), on ``workers`` processes (default: the CPU count; the largest
+    faces first; a row's points on the cores the others leave idle, :func:`_map_rows`),
+    with a progress bar. With ``reciprocal`` (the default) each pair is computed in the
+    rows of its smaller face and the other direction derived, ``A_a F_ab = A_b F_ba``
+    (:func:`computed_pairs`); without, every entry is computed on its own and reciprocity
+    is a measurement (the oracle the tests compare the two with). The result does not
+    depend on ``workers``, to the bit."""
     from viscx.progress import bar
 
     t0 = time.perf_counter()
     n = scene.n_faces
     faces = np.arange(n, dtype=np.int64)
     rows = [(i, s) for i in range(n) for s in SIDES]
+    row = functools.partial(row_form_factors, reciprocal=True) if reciprocal else row_form_factors
     load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
-        results = _map_rows(row_form_factors, scene, rows, faces, tol, True, workers,
+        results = _map_rows(row, scene, rows, faces, tol, True, workers,
                             progress=lambda: progress.update(1), threads=True)
-    return assemble_matrix(scene, results, tol, time.perf_counter() - t0)
+    return assemble_matrix(scene, results, tol, time.perf_counter() - t0, reciprocal)
 
 
-def assemble_matrix(scene, results, tol, seconds):
+def assemble_matrix(scene, results, tol, seconds, reciprocal=False):
     """The :class:`Matrix` of the rows ``results`` (what :func:`emitter_row` returns, one per
-    side: face 0 front, face 0 back, face 1 front, ...)."""
+    side: face 0 front, face 0 back, face 1 front, ...). With ``reciprocal``, the rows hold
+    only the pairs they compute (:func:`computed_pairs`), and each entry F_ab gives the other
+    direction F_ba = A_a F_ab / A_b, its error scaled alike."""
     counts = {}
     for r in results:
         for k, v in r[3].items():
             counts[k] = counts.get(k, 0) + v
     lengths = np.array([len(r[0]) for r in results], np.int64)
-    indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     cat = lambda k, dt: np.concatenate([r[k] for r in results]).astype(dt) if len(results) else np.zeros(0, dt)  # noqa: E731
     cols, vals, errs = cat(0, np.int64), cat(1, np.float64), cat(2, np.float64)
+    rows = np.repeat(np.arange(len(results), dtype=np.int64), lengths)
+    if reciprocal:
+        ratio = scene.face_area[rows // 2] / scene.face_area[cols // 2]
+        rows, cols = np.concatenate([rows, cols]), np.concatenate([cols, rows])
+        vals, errs = np.concatenate([vals, vals * ratio]), np.concatenate([errs, errs * ratio])
+        order = np.lexsort([cols, rows])
+        rows, cols, vals, errs = rows[order], cols[order], vals[order], errs[order]
+        counts["derived"] = int(len(ratio))
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=len(results)))]).astype(np.int64)
     sky_v = np.array([r[4] for r in results])
     sky_e = np.array([r[5] for r in results])
     return Matrix(indptr, cols, vals, errs, sky_v, sky_e, scene.face_area.astype(np.float64).copy(), counts, seconds,
-                  float(tol))
+                  float(tol), bool(reciprocal))
 
 
 # --------------------------------------------------------------------------------------

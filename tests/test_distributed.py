@@ -57,6 +57,7 @@ def tiny_chunks(monkeypatch):
     monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
     monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
     monkeypatch.setattr(eecells, "ARC_SLICE", 500)
+    monkeypatch.setattr(eecells, "SQUARE_GROUP", 30)  # squares put in order a few e1's at a time
     monkeypatch.setattr(hdf5, "APPEND_BYTES", 512)
 
 
@@ -94,16 +95,29 @@ def test_chunk_cuts_keep_vertices_and_squares_whole(built, tiny_chunks):
 
 
 def test_squares_found_in_slices_of_arcs_keep_the_order_of_one_call(built, monkeypatch):
-    """square_chunks finds the incidences ARC_SLICE arcs at a time: in order of square,
-    each square's in arc_squares' order over all arcs (by block: EEE pairs, VE edges at w
-    and T-junctions, XE; then by arc), whatever the slices (boxes_on_floor: EEE, VE and
-    XE arcs in one square)."""
+    """square_chunks finds the incidences ARC_SLICE arcs at a time, spills them and puts
+    them in order SQUARE_GROUP at a time: in order of square, each square's in
+    arc_squares' order over all arcs (by block: EEE pairs, VE edges at w and
+    T-junctions, XE; then by arc), and the same chunks, whatever the slices and groups
+    (boxes_on_floor: EEE, VE and XE arcs in one square)."""
     cx = built("boxes_on_floor.obj")
     arc, e1, e2 = eecells.arc_squares(cx.scene, cx.arcs)
     whole = np.stack([arc, e1, e2], axis=1)[np.argsort(e1 * (1 << 32) + e2, kind="stable")]
     monkeypatch.setattr(eecells, "ARC_SLICE", 97)
     sliced = np.concatenate([np.stack(c, axis=1) for c in eecells.square_chunks(cx.scene, cx.arcs, 50)])
     assert np.array_equal(sliced, whole)
+    # the chunks themselves (not only their concatenation) whatever the slices and groups of e1's
+    monkeypatch.setattr(eecells, "ARC_SLICE", 1 << 18)
+    monkeypatch.setattr(eecells, "SQUARE_GROUP", 1 << 22)
+    one = list(eecells.square_chunks(cx.scene, cx.arcs, 50))
+    assert len(one) > 3
+    for slice_, group in ((97, 1), (97, 7), (5, 60)):
+        monkeypatch.setattr(eecells, "ARC_SLICE", slice_)
+        monkeypatch.setattr(eecells, "SQUARE_GROUP", group)
+        chunked = list(eecells.square_chunks(cx.scene, cx.arcs, 50))
+        assert len(chunked) == len(one)
+        for a, b in zip(chunked, one):
+            assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
     # squares bounded by arcs of several kinds
     assert len(np.unique(np.stack([e1, e2, cx.arcs.kind[arc]], axis=1), axis=0)) > len(np.unique(e1 * (1 << 32) + e2))
 

@@ -138,6 +138,24 @@ def test_build_streams_v1_and_v2_into_the_file(tmp_path):
     assert f"{len(cx.vcells) + len(cx.eecells)} V- and EE-cells" in run.stdout
 
 
+def test_a_scene_that_cast_rays_pickles(built):
+    """A dask worker sends its copy of the scene to another worker after its tasks cast
+    rays with it: the scene pickles without its ray tracer (embree's cannot be pickled),
+    which is built again where it is read and casts the same."""
+    import pickle
+
+    scene = built("boxes_on_floor.obj").scene
+    origins = np.tile(scene.bbox.mean(axis=0), (3, 1))
+    directions = np.array([[0.0, -1.0, 0.0], [0.3, 0.2, 0.9], [-0.5, 0.1, 0.1]])
+    face, t = scene.ray_caster.first_hit(origins, directions)
+    assert np.any(face >= 0)  # (the floor at least)
+    copy = pickle.loads(pickle.dumps(scene))
+    assert copy._caster is None and scene._caster is not None
+    assert np.array_equal(copy.vertices, scene.vertices)
+    face2, t2 = copy.ray_caster.first_hit(origins, directions)
+    assert np.array_equal(face2, face) and np.array_equal(t2, t)
+
+
 def test_workers_without_scheduler_is_refused(tmp_path):
     run = viscx_in_process("build", SAMPLES / "two_triangles.obj", "-o", tmp_path / "t.h5", "--workers", "2")
     assert run.returncode == 2 and "--workers" in run.stderr and "--scheduler" in run.stderr

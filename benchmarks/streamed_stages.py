@@ -90,6 +90,7 @@ def main(v0_path, out_path, scheduler=None, workers=None, levels=2, planar_alone
         print(json.dumps({"worker_peaks_gb": {k: round(v, 3) for k, v in runner.peaks().items()}}), flush=True)
     runner.close()
 
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("v0")

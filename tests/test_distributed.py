@@ -57,6 +57,7 @@ def tiny_chunks(monkeypatch):
     monkeypatch.setattr(chunks, "VCELL_CHUNK", 7)
     monkeypatch.setattr(chunks, "EECELL_CHUNK", 40)
     monkeypatch.setattr(eecells, "ARC_SLICE", 500)
+    monkeypatch.setattr(eecells, "SQUARE_GROUP", 30)  # squares put in order a few e1's at a time
     monkeypatch.setattr(hdf5, "APPEND_BYTES", 512)
 
 
@@ -94,16 +95,29 @@ def test_chunk_cuts_keep_vertices_and_squares_whole(built, tiny_chunks):
 
 
 def test_squares_found_in_slices_of_arcs_keep_the_order_of_one_call(built, monkeypatch):
-    """square_chunks finds the incidences ARC_SLICE arcs at a time: in order of square,
-    each square's in arc_squares' order over all arcs (by block: EEE pairs, VE edges at w
-    and T-junctions, XE; then by arc), whatever the slices (boxes_on_floor: EEE, VE and
-    XE arcs in one square)."""
+    """square_chunks finds the incidences ARC_SLICE arcs at a time, spills them and puts
+    them in order SQUARE_GROUP at a time: in order of square, each square's in
+    arc_squares' order over all arcs (by block: EEE pairs, VE edges at w and
+    T-junctions, XE; then by arc), and the same chunks, whatever the slices and groups
+    (boxes_on_floor: EEE, VE and XE arcs in one square)."""
     cx = built("boxes_on_floor.obj")
     arc, e1, e2 = eecells.arc_squares(cx.scene, cx.arcs)
     whole = np.stack([arc, e1, e2], axis=1)[np.argsort(e1 * (1 << 32) + e2, kind="stable")]
     monkeypatch.setattr(eecells, "ARC_SLICE", 97)
     sliced = np.concatenate([np.stack(c, axis=1) for c in eecells.square_chunks(cx.scene, cx.arcs, 50)])
     assert np.array_equal(sliced, whole)
+    # the chunks themselves (not only their concatenation) whatever the slices and groups of e1's
+    monkeypatch.setattr(eecells, "ARC_SLICE", 1 << 18)
+    monkeypatch.setattr(eecells, "SQUARE_GROUP", 1 << 22)
+    one = list(eecells.square_chunks(cx.scene, cx.arcs, 50))
+    assert len(one) > 3
+    for slice_, group in ((97, 1), (97, 7), (23, 60)):
+        monkeypatch.setattr(eecells, "ARC_SLICE", slice_)
+        monkeypatch.setattr(eecells, "SQUARE_GROUP", group)
+        chunked = list(eecells.square_chunks(cx.scene, cx.arcs, 50))
+        assert len(chunked) == len(one)
+        for a, b in zip(chunked, one):
+            assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
     # squares bounded by arcs of several kinds
     assert len(np.unique(np.stack([e1, e2, cx.arcs.kind[arc]], axis=1), axis=0)) > len(np.unique(e1 * (1 << 32) + e2))
 
@@ -122,6 +136,24 @@ def test_build_streams_v1_and_v2_into_the_file(tmp_path):
     assert diff_files(out, tmp_path / "whole.h5", rtol=0, atol=0).equal
     assert f"{len(cx.arcs)} arcs" in run.stdout
     assert f"{len(cx.vcells) + len(cx.eecells)} V- and EE-cells" in run.stdout
+
+
+def test_a_scene_that_cast_rays_pickles(built):
+    """A dask worker sends its copy of the scene to another worker after its tasks cast
+    rays with it: the scene pickles without its ray tracer (embree's cannot be pickled),
+    which is built again where it is read and casts the same."""
+    import pickle
+
+    scene = built("boxes_on_floor.obj").scene
+    origins = np.tile(scene.bbox.mean(axis=0), (3, 1))
+    directions = np.array([[0.0, -1.0, 0.0], [0.3, 0.2, 0.9], [-0.5, 0.1, 0.1]])
+    face, t = scene.ray_caster.first_hit(origins, directions)
+    assert np.any(face >= 0)  # (the floor at least)
+    copy = pickle.loads(pickle.dumps(scene))
+    assert copy._caster is None and scene._caster is not None
+    assert np.array_equal(copy.vertices, scene.vertices)
+    face2, t2 = copy.ray_caster.first_hit(origins, directions)
+    assert np.array_equal(face2, face) and np.array_equal(t2, t)
 
 
 def test_workers_without_scheduler_is_refused(tmp_path):

@@ -161,6 +161,13 @@ class Scene(Cached):
             self._caster = RayCaster(self.vertices, self.triangles, self.triangle_face, epsilon=self.epsilon)
         return self._caster
 
+    def __getstate__(self):
+        """Pickled without its ray tracer, which embree cannot pickle (built again on first
+        use where it is read): a dask worker whose tasks cast rays sends its copy of the
+        scene on to another worker that lacks it (the 3001-polygon city's V1 on 2 workers
+        failed so, "Could not serialize object of type Scene")."""
+        return {**self.__dict__, "_caster": None}
+
     @property
     def contacts(self):
         """The :class:`viscx.scene.neighbourhood.GeneratorContacts` of this scene (built on first use)."""

@@ -1823,7 +1823,7 @@ def build_eecells(scene, arcs, quiet=True):
     -------
     EECells
     """
-    chunks = square_chunks(scene, arcs)
+    chunks = list(square_chunks(scene, arcs))
     parts = []
     with bar(total=sum(len(c[0]) for c in chunks), desc="EE-cells", quiet=quiet, unit="incidence") as progress:
         for squares in chunks:
@@ -1837,32 +1837,120 @@ def square_chunks(scene, arcs, size=None):
     (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order, a square's
     incidences in the order :func:`arc_squares` lists them: what :func:`build_eecells`
     builds one at a time (:func:`squares_cells`) and joins (:func:`_concatenate_cells`);
-    one chunk, maybe empty, at least. The incidences are found for ARC_SLICE arcs at a
-    time (their temporaries are some 500 bytes per incidence), and put in that order by
-    (square, block), the arcs of one block ascending with the slices.
+    one chunk, maybe empty, at least. Made one at a time, never all of them at once:
 
-    Returns
-    -------
-    list of ((k,) int, (k,) int, (k,) int)
-        Each chunk's (arc, e1, e2).
+    * the incidences are found for ARC_SLICE arcs at a time (their temporaries are some
+      500 bytes per incidence), each slice's put in order of e1 (stably) and spilled to a
+      temporary file with the number of each e1's (:class:`_SquareSpill`);
+    * then whole e1's, consecutive, of together about SQUARE_GROUP incidences are read
+      back from every slice, in the slices' order, and put in order by (square, block),
+      a block's arcs ascending with the slices: the order of one call over every arc.
+
+    The chunks are cut at the start of the square holding every size-th incidence of
+    that whole order (the incidences after a group's last cut wait for the next group),
+    so they do not depend on the slices or the groups.
+
+    Yields
+    ------
+    arc, e1, e2 : (k,) int
+        A chunk's incidences.
     """
     size = size or SQUARE_CHUNK
-    parts = [arc_squares(scene, arcs, rows, blocks=True) for rows in row_chunks(len(arcs), ARC_SLICE) or [slice(0, 0)]]
-    arc, e1, e2, block = (np.concatenate([p[i] for p in parts]) for i in range(4))
-    del parts
-    key = e1 * (1 << 32) + e2
-    by_square = np.argsort(key * 8 + block, kind="stable")  # (blocks: fewer than 8; edges: fewer than 2^28)
-    del block
-    arc, e1, e2, key = arc[by_square], e1[by_square], e2[by_square], key[by_square]
-    square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    # cut at the start of the square holding every size-th incidence
-    cuts = square_start[np.searchsorted(square_start, np.arange(size, len(key), size), "right") - 1]
-    bounds = np.r_[0, unique_sorted(cuts[cuts > 0]), len(key)]
-    return [(arc[lo:hi], e1[lo:hi], e2[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
+    with _SquareSpill(scene) as spill:
+        for rows in row_chunks(len(arcs), ARC_SLICE):
+            spill.add(*arc_squares(scene, arcs, rows, blocks=True))
+        done, waiting = 0, None  # incidences yielded; the sorted ones after the last cut
+        for arc, e1, e2, block in spill.groups(SQUARE_GROUP):
+            key = e1 * (1 << 32) + e2
+            by_square = np.argsort(key * 8 + block, kind="stable")  # (blocks: fewer than 8; edges: fewer than 2^28)
+            sorted_ = [arc[by_square], e1[by_square], e2[by_square], key[by_square]]
+            del arc, e1, e2, block, key, by_square
+            if waiting is not None:  # (their squares come before the group's: smaller e1)
+                sorted_ = [np.concatenate([w, x]) for w, x in zip(waiting, sorted_)]
+            arc, e1, e2, key = sorted_
+            square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+            # cut at the start of the square holding every size-th incidence (counted from the first)
+            at = np.arange(-done % size or size, len(key), size)
+            cuts = unique_sorted(square_start[np.searchsorted(square_start, at, "right") - 1])
+            bounds = np.r_[0, cuts[cuts > 0]]
+            for lo, hi in zip(bounds[:-1], bounds[1:]):
+                yield arc[lo:hi], e1[lo:hi], e2[lo:hi]
+            done += int(bounds[-1])
+            waiting = [x[bounds[-1]:] for x in (arc, e1, e2, key)]
+        if waiting is None:  # no incidence: one empty chunk
+            empty = np.zeros(0, np.int64)
+            waiting = [empty] * 4
+        yield tuple(waiting[:3])
+
+
+class _SquareSpill:
+    """Arc-square incidences spilled to an unnamed temporary file slice by slice, each
+    slice's rows in order of e1 (stably), and read back by groups of consecutive e1's:
+    :func:`square_chunks` holds one slice's or one group's at a time (13 bytes an
+    incidence on disk: arc ids int64, edges int32, blocks int8; read back in the dtypes
+    :func:`arc_squares` gave).
+
+    ``with _SquareSpill(scene) as spill``: :meth:`add` each slice's, then :meth:`groups`;
+    the file is gone on exit.
+    """
+
+    _STORED = (np.int64, np.int32, np.int32, np.int8)  # arc, e1, e2, block
+
+    def __init__(self, scene):
+        self.n_edges = int(len(scene.half_edges.edge_vertices))
+        self.records = []  # per slice: (its offset in the file, (n_edges + 1,) first row of each e1)
+        self.counts = np.zeros(self.n_edges, np.int64)
+        self.dtypes = None
+
+    def __enter__(self):
+        import tempfile
+
+        self.file = tempfile.TemporaryFile(prefix="viscx-squares-")
+        return self
+
+    def __exit__(self, *exc):
+        self.file.close()
+
+    def add(self, arc, e1, e2, block):
+        """Spill one slice's incidences (:func:`arc_squares` with ``blocks``)."""
+        self.dtypes = self.dtypes or [x.dtype for x in (arc, e1, e2, block)]
+        order = np.argsort(e1, kind="stable")
+        n = np.bincount(e1, minlength=self.n_edges)
+        self.counts += n
+        self.file.seek(0, 2)
+        self.records.append((self.file.tell(), np.r_[0, np.cumsum(n)]))
+        for stored, values in zip(self._STORED, (arc, e1, e2, block)):
+            values[order].astype(stored, copy=False).tofile(self.file)
+
+    def groups(self, size):
+        """Yield (arc, e1, e2, block) of whole consecutive e1's, about ``size`` incidences
+        each (an e1 with more on its own), each slice's after the slice before's."""
+        ends = np.cumsum(self.counts)
+        lo = first = 0
+        while len(ends) and first < ends[-1]:
+            hi = max(lo + 1, int(np.searchsorted(ends, first + size, "right")))
+            parts = zip(*(self._read(record, lo, hi) for record in self.records))
+            yield tuple(np.concatenate(p).astype(dtype, copy=False) for p, dtype in zip(parts, self.dtypes))
+            lo, first = hi, int(ends[hi - 1])
+
+    def _read(self, record, lo, hi):
+        """One slice's columns, its rows of the e1's lo .. hi - 1."""
+        start, offsets = record
+        n, row, count = int(offsets[-1]), int(offsets[lo]), int(offsets[hi] - offsets[lo])
+        columns = []
+        for stored in self._STORED:
+            item = np.dtype(stored).itemsize
+            self.file.seek(start + row * item)
+            columns.append(np.fromfile(self.file, stored, count))
+            start += n * item
+        return columns
 
 
 #: Arcs whose squares :func:`square_chunks` finds at a time.
 ARC_SLICE = 1 << 18
+
+#: Incidences :func:`square_chunks` puts in order at a time (some 70 bytes each then).
+SQUARE_GROUP = 1 << 22
 
 
 #: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).

@@ -37,10 +37,6 @@ from numba import njit
 TWO_PI = 2.0 * np.pi
 #: Rotation (radians) of each hemicube face's 2-D basis in :func:`point_views`.
 GENERIC_TURN = 0.4127319
-#: The cones the front hemisphere is cut into in :func:`point_views` (at least 3: each must be
-#: pointed, to project centrally on one plane), and the (generic) azimuth of the first one's side.
-WEDGES = 3
-GENERIC_AZIMUTH = 0.2917163
 #: Height (in the hemicube face's plane, at unit distance from the point) below which a
 #: region of the sweep does not reuse its owner from the previous slab (:func:`_hemicube_face`).
 MEMO_GAP = 1e-7
@@ -1583,10 +1579,9 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
 
     For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
     seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
-    back). The front hemisphere is cut into :data:`WEDGES` = 3 pointed cones through x (120°
-    of azimuth each, from the horizon to n_i: fewer pieces to clip and sweep than the five
-    faces of a hemicube, 57 → 45 µs a point on the Cornell matrix); in each, the polygons are
-    clipped, projected centrally and swept (:func:`_hemicube_face`): every trapezoid of the sweep goes to the
+    back). The front hemisphere is cut into the five faces of a hemicube (top along n_i, four
+    half sides), each a frustum through x; in each, the polygons are clipped, projected
+    centrally and swept (:func:`_hemicube_face`): every trapezoid of the sweep goes to the
     nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
     depends only on the solid angle, so the projected region gives the same value).
 
@@ -1654,41 +1649,32 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     p0, p1 = np.empty(3), np.empty(3)
     fw, iw, key_w = np.empty((8, emax)), np.empty((14, emax), np.int64), np.empty(emax, np.uint64)
     runs, run_o, rim = np.empty((emax, 2, 2)), np.empty((emax, 2), np.int64), np.empty(emax, np.int64)
-    # the front hemisphere cut into WEDGES pointed cones through x: wedge k between the
-    # azimuths θ_k and θ_k+1 (θ_k = GENERIC_AZIMUTH + 2πk / WEDGES about n_i, a_k the
-    # horizontal direction at θ_k) is {r: r·n_i ≥ 0, r on the inner sides of the planes
-    # through n_i and a_k, a_k+1}, its extreme rays n_i, a_k, a_k+1; it is projected
-    # centrally on the plane at unit distance along fc, the direction at equal angles from
-    # the three (fc ∝ cos(α / 2)² n_i + (a_k + a_k+1) / 2, α = 2π / WEDGES)
-    m = WEDGES
-    frames = np.empty((m, 3, 3))
-    planes = np.empty((m, 3, 3))
-    az = np.empty((m + 1, 3))
-    nz = np.empty((m + 1, 3))  # the inward normal, towards larger azimuth, of the plane through n_i and a_k
-    for k in range(m + 1):
-        th = GENERIC_AZIMUTH + 2.0 * np.pi * k / m
-        ct, st = np.cos(th), np.sin(th)
+    # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
+    frames = np.empty((5, 3, 3))
+    planes = np.empty((5, 4, 3))
+    for c in range(3):
+        frames[0, 0, c], frames[0, 1, c], frames[0, 2, c] = eu[c], ev[c], n_i[c]
+    for k in range(4):
+        sgn = 1.0 if k % 2 == 0 else -1.0
         for c in range(3):
-            az[k, c] = ct * eu[c] + st * ev[c]
-            nz[k, c] = -st * eu[c] + ct * ev[c]
-    h = np.cos(np.pi / m) ** 2
-    for k in range(m):
+            fc = sgn * (eu[c] if k < 2 else ev[c])
+            frames[k + 1, 2, c] = fc
+            frames[k + 1, 1, c] = n_i[c]
+        fcv = frames[k + 1, 2]
+        frames[k + 1, 0, 0] = n_i[1] * fcv[2] - n_i[2] * fcv[1]
+        frames[k + 1, 0, 1] = n_i[2] * fcv[0] - n_i[0] * fcv[2]
+        frames[k + 1, 0, 2] = n_i[0] * fcv[1] - n_i[1] * fcv[0]
+    for k in range(5):
         for c in range(3):
-            planes[k, 0, c] = n_i[c]
-            planes[k, 1, c] = nz[k, c]
-            planes[k, 2, c] = -nz[k + 1, c]
-            frames[k, 2, c] = h * n_i[c] + 0.5 * (az[k, c] + az[k + 1, c])
-            frames[k, 0, c] = az[k + 1, c] - az[k, c]
-        fcv, fav = frames[k, 2], frames[k, 0]
-        fcv /= np.sqrt(fcv[0] * fcv[0] + fcv[1] * fcv[1] + fcv[2] * fcv[2])
-        fav /= np.sqrt(fav[0] * fav[0] + fav[1] * fav[1] + fav[2] * fav[2])
-        frames[k, 1, 0] = fcv[1] * fav[2] - fcv[2] * fav[1]
-        frames[k, 1, 1] = fcv[2] * fav[0] - fcv[0] * fav[2]
-        frames[k, 1, 2] = fcv[0] * fav[1] - fcv[1] * fav[0]
-    # each quarter's 2-D basis turned by a generic angle: the cone's sides and the edges of an
+            fa, fb, fc = frames[k, 0, c], frames[k, 1, c], frames[k, 2, c]
+            planes[k, 0, c] = fc - fa
+            planes[k, 1, c] = fc + fa
+            planes[k, 2, c] = fc - fb
+            planes[k, 3, c] = fc + fb if k == 0 else fb
+    # each face's 2-D basis turned by a generic angle: the frustum's sides and the edges of an
     # axis-aligned scene are not vertical in 2-D, so the sweep needs no vertical sides
     ca, sa = np.cos(GENERIC_TURN), np.sin(GENERIC_TURN)
-    for k in range(WEDGES):
+    for k in range(5):
         for c in range(3):
             fa, fb = frames[k, 0, c], frames[k, 1, c]
             frames[k, 0, c] = ca * fa + sa * fb
@@ -1741,8 +1727,8 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         for p in range(P):
             sweep[p] = use[p] and not (side[p] < 0 and _outside(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
         box_state[:] = 0
-        for k in range(WEDGES):
-            brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 3, pts, loop_lo, loop_hi,
+        for k in range(5):
+            brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,
                                  loop_poly, poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w,
                                  buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w, runs, run_o, rim)
         sky = 1.0

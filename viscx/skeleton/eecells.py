@@ -1966,14 +1966,8 @@ def squares_cells(scene, arcs, squares):
     if len(segments.e1):
         el, loops = _with_segments(scene, arcs, squares, segments, el, loops)
         el, loops = _finest_probes(scene, arcs, squares, segments, el, loops)
-    order, loop_offsets, chain_offsets = loops
     group = _groups(el)
-    # a closed boundary winds by ±2π (across the gaps of cusps: rule 19); anything else closed
-    # only within the join tolerance (e.g. one spurious arc shorter than it, meeting itself)
-    # and is an open chain
-    turning = windings(el.take(order), loop_offsets, bridged=True)
-    bad = np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE
-    order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets, bad)
+    (order, loop_offsets, chain_offsets), bad = _wound_loops(el, loops)
     walk = el.take(order)
     del el
     turning = windings(walk, loop_offsets, bridged=True)
@@ -1983,6 +1977,17 @@ def squares_cells(scene, arcs, squares):
     cell = cells_of_loops(walk, loop_offsets, loop_group, ref, inside=inside_square_loops)
     points = point_chains(scene, walk, chain_offsets)
     return _assemble(walk, order, loop_offsets, chain_offsets, turning, area, cell, points), int(np.count_nonzero(bad))
+
+
+def _wound_loops(el, loops):
+    """``loops`` (as :func:`loops.form_loops`) with the loops that do not wind by ±2π
+    demoted to open chains, and the (l,) bool of those demoted: a closed boundary winds by
+    ±2π (across the gaps of cusps: rule 19); anything else closed only within the join
+    tolerance (e.g. one spurious arc shorter than it, meeting itself) and is an open chain."""
+    order, loop_offsets, chain_offsets = loops
+    turning = windings(el.take(order), loop_offsets, bridged=True)
+    bad = np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE
+    return _demote(order, loop_offsets, chain_offsets, bad), bad
 
 
 def _open_loops(scene, el, loops):
@@ -2030,10 +2035,7 @@ def _open_squares(scene, el, loops):
     """(q,) int: the squares (e1 << 32 | e2, ascending) that hold an open chain that is no
     point, or a loop whose winding is no ±2π (across cusps' gaps) and no point: the squares
     not complete with these loops (as :func:`squares_cells` finds them)."""
-    order, loop_offsets, chain_offsets = loops
-    turning = windings(el.take(order), loop_offsets, bridged=True)
-    bad = np.abs(np.abs(turning) - 2 * np.pi) > WINDING_TOLERANCE
-    order, loop_offsets, chain_offsets = _demote(order, loop_offsets, chain_offsets, bad)
+    (order, loop_offsets, chain_offsets), _ = _wound_loops(el, loops)
     chains = order[loop_offsets[-1]:]
     offsets = chain_offsets - loop_offsets[-1]
     points = point_chains(scene, el.take(chains), offsets)

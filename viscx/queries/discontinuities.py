@@ -304,17 +304,31 @@ def across_solid(scene, light, face, towards):
     -------
     (m,) bool
     """
+    # arriving from the unlit side: travelling the way the lit side's normal points
+    lit = lit_sides(scene, light)[face]
+    return np.einsum("ij,ij->i", towards, scene.face_normal[face]) * lit > 0
+
+
+def lit_sides(scene, light):
+    """The side of each face from which segments from the light can reach it: (f,) int8,
+    +1 the side its normal points to, -1 the other, 0 both (a face of no closed solid).
+
+    A face of a closed solid S (:func:`viscx.queries.formfactor.closed_solids`) is reached
+    from the light only on the side of S the light is on (:func:`light_inside_solids`):
+    a segment from a point of the face into the other side stays in that side of S until
+    it crosses S again, which blocks it (the faces are two-sided), so it never reaches
+    the light. Segments arriving from that side (:func:`across_solid`) and receiver-plane
+    events judged from it (:func:`viscx.queries.plane_events.receiver_plane_events`,
+    ``sides``) change nothing on the face."""
     from viscx.queries.formfactor import closed_solids
 
     face_solid, outward, _ = closed_solids(scene)
-    s = face_solid[face]
-    out = np.zeros(len(face), bool)
-    k = np.flatnonzero(s >= 0)
-    if not len(k):
-        return out
-    # arriving inside S: travelling the way the normals of S point out of it
-    inside = np.einsum("ij,ij->i", towards[k], scene.face_normal[face[k]]) * outward[s[k]] > 0
-    out[k] = inside != light_inside_solids(scene, light)[s[k]]
+    out = np.zeros(scene.n_faces, np.int8)
+    k = np.flatnonzero(face_solid >= 0)
+    if len(k):
+        s = face_solid[k]
+        # outward normals point to the outside: the lit side unless the light is inside S
+        out[k] = np.where(light_inside_solids(scene, light)[s], -outward[s], outward[s]).astype(np.int8)
     return out
 
 
@@ -1203,10 +1217,12 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     outlines = {f: [np.stack([lp @ frames[f][0], lp @ frames[f][1]], axis=1) for lp in scene.face_loops(f)] for f in wanted}
     # receiver-plane events (straight traces in the receiver's plane)
     tri_edge = triangle_edge_ids(scene)
+    lit = lit_sides(scene, light)
     rp_rows, rp_pts = [], []
     for f in wanted:
         u, v, o = frames[f]
-        kind, occ, ledge, ends = receiver_plane_events(scene, light, f, (u, v), outlines[f], snap, tri_edge)
+        sides = (1.0, -1.0) if lit[f] == 0 else (float(lit[f]),)
+        kind, occ, ledge, ends = receiver_plane_events(scene, light, f, (u, v), outlines[f], snap, tri_edge, sides)
         m = len(kind)
         rp_rows.append(_plane_rows(np.full(m, f), kind, np.full(m, LIGHT_EDGE), ledge,
                                    np.stack([occ, ledge, np.full(m, -1)], axis=1)))

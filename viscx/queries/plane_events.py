@@ -388,7 +388,7 @@ def front_decides(kind, ids, back_kind, back_ids, sigma):
     return (kind == END_VERTEX) & (~behind | (sigma > 0))
 
 
-def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
+def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None, sides=(1.0, -1.0)):
     """Receiver-plane events on receiver f (module docstring).
 
     Parameters
@@ -400,6 +400,10 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
         f's loops in 2-D.
     tri_edge : (t, 3) int64, optional
         :func:`triangle_edge_ids` (computed when not given).
+    sides : tuple of float
+        The passes σ to run: the sides of P (σ times f's normal) taken as the front, from
+        which x→H may reach the light (both for a lone face; for a face of a closed solid,
+        the side the light is on: :func:`viscx.queries.discontinuities.lit_sides`).
 
     Returns
     -------
@@ -449,7 +453,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     owner = scene.triangle_face[rows]
     rows = rows[~np.isin(owner, light.faces) & (owner != f)]
     out = []
-    for sigma in (1.0, -1.0):
+    for sigma in sides:
         seg, ekind, eid = plane_sections(scene, sigma * d, rows, tri_edge, basis)
         back, bkind, bid = plane_sections(scene, -sigma * d, rows, tri_edge, basis)
         if not len(seg):

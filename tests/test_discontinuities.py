@@ -1020,3 +1020,53 @@ def test_split_params_equal_all_pairs(seed):
     order = np.lexsort([t, s])
     ref_s, ref_t = _split_params_all_pairs(segs, snap)
     assert np.array_equal(s[order], ref_s) and np.array_equal(t[order], ref_t)
+
+
+def graze_scene_obj(path, offset=1e-3):
+    """An OBJ: a floor (y = 0), a square light facing down at y = 10, a horizontal triangle
+    panel with its corner v at (0, 5, 0), and a receiver triangle in the plane z = ``offset``
+    that the lines from the light edge x = -1 through v meet at 4e-4 rad, 2.5-2.6 beyond v
+    (the 250-triangle bunny's face 213 in miniature): the lines through v and the
+    receiver's two edges cross that light edge 2.6 epsilon apart."""
+    d0 = np.array([1.0, -5.0, 0.0]) / np.sqrt(26.0)  # the line from (-1, 10, 0) through v
+    side = np.array([5.0, 1.0, 0.0]) / np.sqrt(26.0)  # normal to the plane of v and the light edge
+    w = np.array([0.0, 5.0, offset])
+    polys = {"floor": [(-10, 0, -10), (-10, 0, 10), (10, 0, 10), (10, 0, -10)],
+             "light": [(-1, 10, -1), (1, 10, -1), (1, 10, 1), (-1, 10, 1)],
+             "panel": [(0.0, 5.0, 0.0), (-0.3, 5.0, 0.4), (0.3, 5.0, 0.4)],
+             "receiver": [w + 2.5 * d0 - 0.1 * side, w + 2.5 * d0 + 0.1 * side, w + 2.6 * d0]}
+    lines, k = [], 1
+    for name, pts in polys.items():
+        lines += [f"o {name}"] + [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in pts]
+        lines.append("f " + " ".join(str(k + i) for i in range(len(pts))))
+        k += len(pts)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_lines_between_merged_events_on_a_grazed_receiver(tmp_path, monkeypatch):
+    """The VE family of the panel's corner v (vertex 8) and the light edge 5 meets the
+    receiver (face 3) seen nearly edge-on: its lines through the receiver's two edges are
+    2.6 epsilon apart along the light edge, so V1 merges the two events (MERGE_EPSILONS)
+    and no arc of the family ends on the receiver; the lines between them trace a 0.1 long
+    line on it, across which the light edge's hidden part turns from the panel's edge 8 to
+    its edge 9 (the oracle). :func:`viscx.queries.discontinuities.merged_windows` finds
+    them at the arcs' junction; without it 5 same-region pairs (seeds 1 and 2) fail."""
+    from viscx.queries import discontinuities as dm
+
+    cx = build_v1(graze_scene_obj(tmp_path / "g.obj"))
+    arcs = cx.arcs
+    family = np.flatnonzero((arcs.kind == 1) & (arcs.generators[:, 0] == 8) & (arcs.generators[:, 1] == 5))
+    assert len(family) >= 2 and not np.any(arcs.blocker[family] == 3)
+    scene, mesh, same, cross, pairs = _oracle_failures(cx, [], (1, 2), 8)
+    assert (same, cross) == (0, 0) and pairs >= 500
+    ev = mesh.events
+    mine = np.flatnonzero(ev.face == 3)
+    assert ev.arc[mine].tolist() == [-1] and ev.generators[mine[0]].tolist() == [8, 5, -1]
+    p = mesh.points[mesh.offsets[mine[0]]:mesh.offsets[mine[0] + 1]]
+    assert abs(np.linalg.norm(p[-1] - p[0]) - 0.1) < 1e-3  # across the whole receiver
+    empty = {"row": np.zeros(0, np.int64), "interval": np.zeros((0, 2)), "blocker_kind": np.zeros(0, np.int8),
+             "blocker": np.zeros(0, np.int64), "ends": np.zeros((0, 2, 3)), "direction": np.zeros((0, 3))}
+    monkeypatch.setattr(dm, "merged_windows", lambda *a, **k: empty)
+    _, mesh, same, _, _ = _oracle_failures(cx, [], (1, 2), 8)
+    assert same >= 1 and not np.any(mesh.events.face == 3)

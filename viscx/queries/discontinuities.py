@@ -82,12 +82,16 @@ from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.scene.light import Light, light_of
-from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
+from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines, judge_samples
 from viscx.skeleton.nodes import BLOCK_FACE, face_planes
-from viscx.tolerances import CHORD_TOLERANCE, PARALLEL_TOLERANCE, SPLIT_SNAP
+from viscx.tolerances import CHORD_TOLERANCE, MERGE_EPSILONS, PARALLEL_TOLERANCE, SPLIT_SNAP
 
 #: Chords per EEE trace before refinement, and refinement rounds at most.
 EEE_START, EEE_ROUNDS = 8, 16
+#: Lines judged across a merged event's window (MERGE_EPSILONS epsilon on each side: a
+#: quarter epsilon apart), and bisection steps locating a lost window's ends
+#: (:func:`merged_windows`).
+WINDOW_SAMPLES, WINDOW_BISECT = 33, 30
 #: Segment sets up to this size are split by testing every pair (:func:`_near_segment_pairs`).
 SMALL_SEGMENT_SET = 64
 # which light feature an event involves
@@ -125,6 +129,10 @@ class Events:
     generators : (m, 3) int64
         The arc's generators; (occluder edge or vertex, light edge, -1) for a
         receiver-plane event, (light face, -1, -1) for the light's plane.
+    interval : (m, 2) float64
+        The family parameters traced: the arc's interval, or the window of lines
+        between two events V1 merged (arc -1: :func:`merged_windows`); NaN for the
+        events in a face's plane.
     """
 
     arc: np.ndarray
@@ -134,6 +142,7 @@ class Events:
     light_feature: np.ndarray
     kind: np.ndarray
     generators: np.ndarray
+    interval: np.ndarray
 
     def take(self, rows):
         """The events of the given rows (repeats allowed): Events."""
@@ -150,7 +159,7 @@ def _plane_rows(face, kind, light_kind, light_feature, generators):
     m = len(face)
     return Events(np.full(m, -1, np.int64), np.full(m, -1, np.int64), np.asarray(face, np.int64),
                   np.asarray(light_kind, np.int8), np.asarray(light_feature, np.int64), np.asarray(kind, np.int64),
-                  np.asarray(generators, np.int64).reshape(m, 3))
+                  np.asarray(generators, np.int64).reshape(m, 3), np.full((m, 2), np.nan))
 
 
 def select_events(scene, arcs, light):
@@ -198,13 +207,20 @@ def select_events(scene, arcs, light):
     lkind[ok], lfeat[ok] = LIGHT_EDGE, ge3[ok, slot[ok]]
     sel = np.flatnonzero(end >= 0)
     e = end[sel]
-    bk = arcs.blocker_kind[sel, e]
-    face = arcs.blocker[sel, e]
+    # the arcs', then the windows' candidates: (arc, end, blocker kind and id at that end,
+    # interval, segment ends, direction)
+    win = merged_windows(scene, arcs, end)
+    cand = [np.r_[sel, np.full(len(win["row"]), -1)], np.r_[e, end[win["row"]]],
+            np.r_[arcs.blocker_kind[sel, e], win["blocker_kind"]], np.r_[arcs.blocker[sel, e], win["blocker"]],
+            np.concatenate([arcs.interval[sel], win["interval"]]), np.concatenate([arcs.ends[sel], win["ends"]]),
+            np.concatenate([arcs.direction[sel], win["direction"]])]
+    src = np.r_[sel, win["row"]]  # the arc each candidate's family, light feature and kind are read from
     in_light = np.zeros(scene.n_faces, bool)
     in_light[light.faces] = True
-    keep = (bk == BLOCK_FACE) & (face >= 0)
-    keep[keep] &= ~in_light[face[keep]]
-    sel, e, face = sel[keep], e[keep], face[keep]
+    keep = (cand[2] == BLOCK_FACE) & (cand[3] >= 0)
+    keep[keep] &= ~in_light[cand[3][keep]]
+    arc_id, e, _, face, interval, seg_ends, direction = (x[keep] for x in cand)
+    sel = src[keep]
     # no trace along the receiver's own outline
     he = scene.half_edges
     own_edge = np.unique(he.face.astype(np.int64) * (ne + 1) + he.edge)
@@ -239,14 +255,102 @@ def select_events(scene, arcs, light):
     # a lone panel's planar families, and segments through a crack between two blocks in
     # contact: nothing changes across their trace
     bad |= panel_pencils(scene, k, gs, snap)
-    bad |= through_cracks(scene, arcs.ends[sel, 0], arcs.ends[sel, 1])
+    bad |= through_cracks(scene, seg_ends[:, 0], seg_ends[:, 1])
     # segments reaching their receiver from the far side of its closed solid
-    towards = np.where((e == 1)[:, None], arcs.direction[sel], -arcs.direction[sel])
+    towards = np.where((e == 1)[:, None], direction, -direction)
     bad |= across_solid(scene, light, face, towards)
-    sel, e, face = sel[~bad], e[~bad], face[~bad]
-    order = np.lexsort([sel, face])
-    sel, e, face = sel[order], e[order], face[order]
-    return Events(sel, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel])
+    sel, arc_id, e, face, interval = sel[~bad], arc_id[~bad], e[~bad], face[~bad], interval[~bad]
+    # by receiver, then arc (the windows, arc -1, first: by their family and interval)
+    order = np.lexsort([interval[:, 0], sel, arc_id, face])
+    sel, arc_id, e, face, interval = sel[order], arc_id[order], e[order], face[order], interval[order]
+    return Events(arc_id, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel], interval)
+
+
+def merged_windows(scene, arcs, end, samples=WINDOW_SAMPLES, steps=WINDOW_BISECT):
+    """The lines V1 lost between two events of a family it merged, where they end on a
+    face that neither neighbouring arc ends on.
+
+    V1 takes a family's events closer than MERGE_EPSILONS epsilon along its parameter edge
+    (and whose lines stay that close: docs/skeleton.md, "Furnished buildings" rule 14) as
+    one event, as epsilon-visibility asks: the lines between them are one line of the
+    complex, and the arcs on either side meet at it. On a receiver seen nearly edge-on
+    from the family's lines those few epsilons of line space are a long trace: the VE
+    family of the 250-triangle bunny's vertex 99 and light edge 13 meets face 213 at
+    0.08° over 4.6e-5 of its parameter (the nodes of edges 322 and 316, 3.9 epsilon apart
+    along the light edge, merged), a 0.071 trace 150 epsilon wide on the face, and the
+    exact labels differ across it. So at each junction of two arcs of a family, the
+    window of MERGE_EPSILONS epsilon (along the edge) on each side is judged at ``samples`` lines by V1's own rule
+    (:func:`viscx.skeleton.arcs.judge_samples`); each run of valid lines ending on
+    another face is a window, its ends bisected ``steps`` times.
+
+    Parameters
+    ----------
+    end : (n,) int64
+        Each arc's receiver end (0 back, 1 front), -1 for arcs that are not the light's.
+
+    Returns
+    -------
+    dict of arrays: ``row`` (w,) the arc before each window's junction (its family and
+    light feature), ``interval`` (w, 2), ``blocker_kind``, ``blocker`` (w,) at the
+    receiver end, ``ends`` (w, 2, 3) and ``direction`` (w, 3) of a line of the window.
+    """
+    kind = np.asarray(arcs.kind, np.int64)
+    g = np.asarray(arcs.generators, np.int64)
+    same = np.all(g[1:] == g[:-1], axis=1) & (kind[1:] == kind[:-1]) & (arcs.interval[1:, 0] == arcs.interval[:-1, 1])
+    j = np.flatnonzero(same & (end[:-1] >= 0))
+    e = end[j]
+    bk = np.stack([arcs.blocker_kind[j, e], arcs.blocker_kind[j + 1, e]], axis=1)
+    bl = np.stack([arcs.blocker[j, e], arcs.blocker[j + 1, e]], axis=1)
+    out = {"row": np.zeros(0, np.int64), "interval": np.zeros((0, 2)), "blocker_kind": np.zeros(0, np.int8),
+           "blocker": np.zeros(0, np.int64), "ends": np.zeros((0, 2, 3)), "direction": np.zeros((0, 3))}
+    if not len(j):
+        return out
+    ev = scene.half_edges.edge_vertices
+    edge = np.where(kind[j] == EEE, g[j, 0], g[j, 1])
+    width = MERGE_EPSILONS * scene.epsilon / np.linalg.norm(scene.vertices[ev[edge, 1]] - scene.vertices[ev[edge, 0]], axis=1)
+    s = np.clip(arcs.interval[j, 1][:, None] + width[:, None] * np.linspace(-1.0, 1.0, samples)[None], 0.0, 1.0)
+
+    def judge(rows, s):  # receiver-end blocker (kind, id) and validity of lines s of junctions rows
+        smp = judge_samples(scene, kind[j[rows]], g[j[rows]], s)
+        er = e[rows]
+        return smp.valid, smp.state[np.arange(len(rows)), 1 + 2 * er], smp.state[np.arange(len(rows)), 2 + 2 * er], smp
+
+    rows = np.repeat(np.arange(len(j)), samples)
+    valid, k_, b_, smp = judge(rows, s.ravel())
+    theirs = ((k_[:, None] == bk[rows]) & (b_[:, None] == bl[rows])).any(axis=1)  # a neighbouring arc's blocker
+    lost = (valid & (k_ == BLOCK_FACE) & (b_ >= 0) & ~theirs).reshape(-1, samples)
+    b_ = b_.reshape(-1, samples)
+    # runs of lost samples on one face
+    start = lost & ~np.c_[np.zeros((len(j), 1), bool), lost[:, :-1] & (b_[:, :-1] == b_[:, 1:])]
+    ri, ci = np.nonzero(start)
+    if not len(ri):
+        return out
+    stop = ci.copy()
+    while True:  # (runs are a few samples long)
+        more = (stop + 1 < samples)
+        nxt = np.minimum(stop + 1, samples - 1)
+        more &= lost[ri, nxt] & (b_[ri, nxt] == b_[ri, ci])
+        if not more.any():
+            break
+        stop[more] += 1
+    face = b_[ri, ci]
+    # each end bisected between the run's last sample and the next one out (or the window's end)
+    ends = []
+    for inner, outer in ((ci, np.maximum(ci - 1, 0)), (stop, np.minimum(stop + 1, samples - 1))):
+        a, b = s[ri, inner], s[ri, outer]
+        for _ in range(steps):
+            m = 0.5 * (a + b)
+            ok, km, bm, _ = judge(ri, m)
+            on = ok & (km == BLOCK_FACE) & (bm == face)
+            a, b = np.where(on, m, a), np.where(on, b, m)
+        ends.append(a)
+    mid = ri * samples + (ci + stop) // 2
+    out["row"] = j[ri]
+    out["interval"] = np.sort(np.stack(ends, axis=1), axis=1)
+    out["blocker_kind"] = np.full(len(ri), BLOCK_FACE, np.int8)
+    out["blocker"] = face.astype(np.int64)
+    out["ends"], out["direction"] = smp.ends[mid], smp.direction[mid]
+    return out
 
 
 def light_inside_solids(scene, light):
@@ -472,10 +576,10 @@ def trace_events(scene, arcs, events, tolerance, interval=None):
         The family parameter s of each point.
     """
     m = len(events.arc)
-    kind = arcs.kind[events.arc].astype(np.int64)
-    gens = arcs.generators[events.arc]
+    kind = events.kind.astype(np.int64)
+    gens = events.generators
     if interval is None:
-        interval = arcs.interval[events.arc]
+        interval = events.interval
     s0, s1 = interval[:, 0], interval[:, 1]
     # chords: (event, sa, sb); VE and XE (lines through a point) one chord, EEE EEE_START refined
     planar, _, x, _ = pencil_points(scene, kind, gens)

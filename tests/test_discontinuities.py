@@ -17,6 +17,8 @@ from discontinuity_oracle import _seg_dist, check_mesh, labels_at, oracle_setup
 from viscx.pipeline import BuiltComplex, build_complex, build_file
 from viscx.queries.discontinuities import light_mesh, open_discontinuities
 from viscx.scene import load_scene
+from viscx.scene.light import light_of
+from viscx.tolerances import SPLIT_SNAP
 
 #: Margin (of the diagonal) between judged points and mesh lines; the EEE traces' chordal
 #: tolerance is 10 epsilons = 1e-5 of the diagonal.
@@ -1070,3 +1072,60 @@ def test_lines_between_merged_events_on_a_grazed_receiver(tmp_path, monkeypatch)
     monkeypatch.setattr(dm, "merged_windows", lambda *a, **k: empty)
     _, mesh, same, _, _ = _oracle_failures(cx, [], (1, 2), 8)
     assert same >= 1 and not np.any(mesh.events.face == 3)
+
+
+def tip_scene_obj(path, lift=1.04):
+    """An OBJ: a closed solid (group ``bunny``: a height field over a hexagon, walls down to
+    z = -1 and a bottom) whose face 1 lies in z = 0 at the foot of a valley wall rising to
+    R, beyond which a tip W stands ``lift`` snap distances above the plane, its edges to
+    L1 and L2 dropping through it 2e-4 apart (the 1,000-triangle bunny's face 226 and
+    vertex 91 in miniature); a square light facing -y at y = 10, its edge x = x(C1)
+    crossing z = 0 at H, in line with C1 (edge W-L1 ∩ z = 0) and face 1."""
+    d = lift * SPLIT_SNAP * 1e-6 * np.sqrt(2.5 ** 2 + 11.5 ** 2 + 2.0 ** 2)  # snap: the box's diagonal
+    top = {"F1": (0.0, -0.5, 0.0), "F2": (1.0, -0.5, 0.0), "F3": (0.5, -1.5, 0.0), "R": (0.3, 0.0, 0.3),
+           "W": (0.5, 1.0, d), "Q1": (0.0, 1.0, 0.3), "Q2": (1.0, 1.0, 0.3), "L1": (0.45, 2.0, -0.3),
+           "L2": (0.55, 1.5, -0.1)}
+    tris = ["F1 F2 F3", "F1 F2 R", "F2 Q2 R", "Q1 F1 R", "W R Q2", "W Q2 L2", "W L2 L1", "W L1 Q1", "W Q1 R",
+            "Q2 L1 L2"]
+    hull = ["F3", "F2", "Q2", "L1", "Q1", "F1"]  # counter-clockwise
+    ix = {k: i for i, k in enumerate(top)}
+    pts = [np.array(p) for p in top.values()] + [np.array([top[k][0], top[k][1], -1.0]) for k in hull]
+    low = {k: len(top) + i for i, k in enumerate(hull)}
+    faces = []
+    for t in tris:  # the top's normals up
+        a, b, c = (ix[k] for k in t.split())
+        faces.append([a, b, c] if np.cross(pts[b] - pts[a], pts[c] - pts[a])[2] > 0 else [a, c, b])
+    for a, b in zip(hull, hull[1:] + hull[:1]):
+        faces += [[ix[a], low[a], low[b]], [ix[a], low[b], ix[b]]]
+    faces.append([low[k] for k in reversed(hull)])
+    w, l1 = np.array(top["W"]), np.array(top["L1"])
+    xh = float((w + d / (d - l1[2]) * (l1 - w))[0])
+    light = [(xh - 2, 10.0, -1.0), (xh, 10.0, -1.0), (xh, 10.0, 1.0), (xh - 2, 10.0, 1.0)]
+    lines = ["o light"] + [f"v {x!r} {y!r} {z!r}" for x, y, z in light] + ["f 1 2 3 4", "o bunny"]
+    lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in pts]
+    lines += ["f " + " ".join(str(5 + i) for i in f) for f in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_receiver_plane_events_from_the_lit_side_only(tmp_path, monkeypatch):
+    """Judged from inside the solid (the pass whose front is below face 1), x→H leaves the
+    solid only through the tip, whose sections by the plane all end within the snap
+    distance of C1 or of the line H-C1: taken as grazing there, it gave two RPE lines of
+    W's edges on face 1, 1e-4 apart, with no change across either (the oracle: 4 crossings
+    failed, a dangling end). From that side x→H stays in the solid until it crosses it
+    again, so the pass is left out (:func:`viscx.queries.discontinuities.lit_sides`)."""
+    from viscx.queries import discontinuities as dm
+    from viscx.queries import plane_events as pe
+
+    cx = build_v1(tip_scene_obj(tmp_path / "t.obj"))
+    assert dm.lit_sides(cx.scene, light_of(cx.scene, None, "light")).tolist() == [0] + [1] * 17
+    scene, mesh, same, cross, pairs = _oracle_failures(cx, [], (1, 2), 8)
+    assert (same, cross) == (0, 0) and pairs >= 200
+    assert not np.isin(mesh.events.kind, [pe.RP_EDGE, pe.RP_VERTEX]).any()
+    monkeypatch.setattr(dm, "lit_sides", lambda scene, light: np.zeros(scene.n_faces, np.int8))
+    scene, mesh = open_mesh(cx)
+    res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
+    ev = mesh.events
+    rp = np.flatnonzero((ev.kind == pe.RP_EDGE) & (ev.face == 1))
+    assert len(rp) == 2 and res["cross_fail"] and res["dangling"]

@@ -43,6 +43,10 @@ in one plane: :func:`pencil_points`) is left out where both of those edges have 
 their faces in that plane (a lone panel: :func:`panel_pencils`, nothing changes across
 its trace).
 
+V1 merges a family's events closer than MERGE_EPSILONS epsilon into one; the lines
+between them that end on a face neither neighbouring arc ends on (a receiver seen nearly
+edge-on) are traced as events of their own, arc -1 (:func:`merged_windows`).
+
 Traces
 ------
 Every segment of an arc ends on f, so the trace is {line(s) ∩ plane(f) : s in the arc's
@@ -279,9 +283,10 @@ def merged_windows(scene, arcs, end, samples=WINDOW_SAMPLES, steps=WINDOW_BISECT
     0.08° over 4.6e-5 of its parameter (the nodes of edges 322 and 316, 3.9 epsilon apart
     along the light edge, merged), a 0.071 trace 150 epsilon wide on the face, and the
     exact labels differ across it. So at each junction of two arcs of a family, the
-    window of MERGE_EPSILONS epsilon (along the edge) on each side is judged at ``samples`` lines by V1's own rule
-    (:func:`viscx.skeleton.arcs.judge_samples`); each run of valid lines ending on
-    another face is a window, its ends bisected ``steps`` times.
+    lines within MERGE_EPSILONS epsilon (along the edge) on each side, inside the two arcs'
+    intervals, are judged at ``samples`` parameters by V1's own rule
+    (:func:`viscx.skeleton.arcs.judge_samples`); each run of valid lines ending on a face
+    neither arc ends on is a window, its ends bisected ``steps`` times.
 
     Parameters
     ----------
@@ -307,8 +312,10 @@ def merged_windows(scene, arcs, end, samples=WINDOW_SAMPLES, steps=WINDOW_BISECT
         return out
     ev = scene.half_edges.edge_vertices
     edge = np.where(kind[j] == EEE, g[j, 0], g[j, 1])
-    width = MERGE_EPSILONS * scene.epsilon / np.linalg.norm(scene.vertices[ev[edge, 1]] - scene.vertices[ev[edge, 0]], axis=1)
-    s = np.clip(arcs.interval[j, 1][:, None] + width[:, None] * np.linspace(-1.0, 1.0, samples)[None], 0.0, 1.0)
+    length = np.linalg.norm(scene.vertices[ev[edge, 1]] - scene.vertices[ev[edge, 0]], axis=1)
+    width = MERGE_EPSILONS * scene.epsilon / length  # the merge's reach, as a parameter
+    s = np.clip(arcs.interval[j, 1][:, None] + width[:, None] * np.linspace(-1.0, 1.0, samples)[None],
+                arcs.interval[j, :1], arcs.interval[j + 1, 1:])  # (within the two arcs)
 
     def judge(rows, s):  # receiver-end blocker (kind, id) and validity of lines s of junctions rows
         smp = judge_samples(scene, kind[j[rows]], g[j[rows]], s)

@@ -27,7 +27,10 @@ from C away from H where
   C reaches both sides of P, the event is where either side is free
   (:func:`front_decides`).
 
-(And the same with front and back exchanged, for a receiver seen from both sides.)
+(And the same with front and back exchanged, for a receiver seen from both sides: a lone
+face. A face of a closed solid is seen only from the solid's side the light is on: from
+the other side x→H stays in the solid until it crosses it again, and is blocked; ``sides``
+of :func:`receiver_plane_events`.)
 These lines lie in P, so P's own faces and every face with an edge in P are grazed:
 instead of casting rays, everything is decided exactly in P's 2-D coordinates. Each
 triangle T of a face other than f and the light's faces is replaced by its *section*

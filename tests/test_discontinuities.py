@@ -1129,3 +1129,34 @@ def test_receiver_plane_events_from_the_lit_side_only(tmp_path, monkeypatch):
     ev = mesh.events
     rp = np.flatnonzero((ev.kind == pe.RP_EDGE) & (ev.face == 1))
     assert len(rp) == 2 and res["cross_fail"] and res["dangling"]
+
+
+def test_a_short_traces_joints_are_not_merged_into_one_vertex():
+    """The whole bunny's face 2549 in 2-D: a trace 7 snap long (B) from the outline to a node,
+    written as 8 chords under snap, between a trace at 9° to the outline (A) and a third one
+    (C). subdivide merges points within snap by single linkage, so B's joints, its end on
+    the outline and the node chain into one vertex off the outline: both wedges were lost
+    (one region, 2.7e-5 of area missing). trace_events now thins such joints
+    (:func:`viscx.queries.discontinuities.thin_polylines`): three regions, the whole area."""
+    from viscx.queries.discontinuities import subdivide, thin_polylines
+
+    snap = 4.7e-4
+    outline = [np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]])]
+    node = np.array([0.051, 0.0034])
+    lines = [np.array([[0.03, 0.0], node]), np.linspace([0.0515, 0.0], node, 9), np.array([node, [0.055, 0.0]])]
+    offsets = np.r_[0, np.cumsum([len(p) for p in lines])]
+    points = np.concatenate(lines)
+
+    def regions(offsets, points):
+        chords = np.concatenate([np.stack([points[a:b - 1], points[a + 1:b]], axis=1)
+                                 for a, b in zip(offsets[:-1], offsets[1:])])
+        reg = subdivide(outline, chords, np.repeat(np.arange(len(offsets) - 1), np.diff(offsets) - 1), snap)
+        return len(reg), sum(g.area for g in reg)
+
+    count, area = regions(offsets, points)
+    assert count == 1 and area < 0.5 - 1e-5  # (the defect, unthinned)
+    o2, p2, s2 = thin_polylines(offsets, points, np.arange(len(points), dtype=float), snap)
+    assert np.diff(o2).tolist() == [2, 5, 2] and s2.tolist() == [0, 1, 2, 4, 6, 8, 10, 11, 12]
+    assert np.array_equal(p2[[0, 1, 2, 6, 7, 8]], points[[0, 1, 2, 10, 11, 12]])  # every end kept
+    count, area = regions(o2, p2)
+    assert count == 3 and area == pytest.approx(0.5, abs=1e-12)

@@ -630,7 +630,51 @@ def trace_events(scene, arcs, events, tolerance, interval=None):
     order = np.lexsort([ps, pev])
     pev, ps = pev[order], ps[order]
     pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev], (planar[pev], x[pev]))
-    return offsets, pts, ps
+    return thin_polylines(offsets, pts, ps, SPLIT_SNAP * scene.epsilon)
+
+
+def thin_polylines(offsets, points, params, gap):
+    """Polylines without inner points closer than ``gap`` to the point kept before them or
+    to their last point (their ends kept): :func:`subdivide` merges points within the snap
+    distance by single linkage, so the joints of a short EEE trace (``EEE_START`` chords of
+    a trace 7 snap long: the whole bunny's face 2549) chained into one vertex with the
+    trace's ends, 2.2e-3 inside the face, and the wedge between the trace and the outline
+    was lost. A joint is dropped only where its neighbours are within a few snap, so the
+    chord replacing two stays within the conic's chordal tolerance unless the conic turns
+    at the epsilon scale. Polylines with a non-finite point are left as they are (the
+    caller drops them).
+
+    Parameters
+    ----------
+    offsets : (m + 1,) int64
+    points : (p, 3) float64
+    params : (p,) float64
+    gap : float
+
+    Returns
+    -------
+    offsets, points, params
+    """
+    n = np.diff(offsets)
+    owner = np.repeat(np.arange(len(n)), n)
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    inner = owner[1:] == owner[:-1]
+    close = np.zeros(len(n), bool)
+    close[owner[1:][inner & (step < gap)]] = True
+    bad = np.zeros(len(n), bool)
+    bad[owner[~np.isfinite(points).all(axis=1)]] = True
+    todo = np.flatnonzero(close & ~bad & (n > 2))
+    if not len(todo):
+        return offsets, points, params
+    keep = np.ones(len(points), bool)
+    for k in todo:  # (short EEE traces only: a few per receiver at most)
+        p = points[offsets[k]:offsets[k + 1]]
+        last, mine = 0, keep[offsets[k]:offsets[k + 1]]
+        for i in range(1, len(p) - 1):
+            mine[i] = np.linalg.norm(p[i] - p[last]) >= gap and np.linalg.norm(p[-1] - p[i]) >= gap
+            last = i if mine[i] else last
+    counts = np.bincount(owner[keep], minlength=len(n))
+    return np.r_[0, np.cumsum(counts)].astype(np.int64), points[keep], params[keep]
 
 
 def _in_domain(scene, kind, generators, s):

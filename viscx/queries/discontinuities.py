@@ -56,9 +56,10 @@ edge, so its trace is the straight segment between the images of the interval's 
 An EEE family's lines rule a quadric; its trace is a conic arc, written as a polyline
 refined until each chord's middle parameter is within ``CHORD_TOLERANCE`` × epsilon of
 the chord; a planar EEE family is a pencil of lines through one point, its trace
-straight. The traces lie in f (every trace point is where a segment ending on f meets
-f), so clipping to the receiver only snaps ends that are within the snap distance of
-its outline. A trace ending where V1 ended its arc at a transition, and meeting no
+straight. Inner joints closer than the snap distance to the joint before or to
+the end are dropped (:func:`thin_polylines`). The traces lie in f (every trace point
+is where a segment ending on f meets f), so clipping to the receiver only snaps ends
+that are within the snap distance of its outline. A trace ending where V1 ended its arc at a transition, and meeting no
 other line there, is continued to the first line it meets
 (:func:`continue_transitions`).
 

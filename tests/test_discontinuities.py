@@ -17,6 +17,8 @@ from discontinuity_oracle import _seg_dist, check_mesh, labels_at, oracle_setup
 from viscx.pipeline import BuiltComplex, build_complex, build_file
 from viscx.queries.discontinuities import light_mesh, open_discontinuities
 from viscx.scene import load_scene
+from viscx.scene.light import light_of
+from viscx.tolerances import SPLIT_SNAP
 
 #: Margin (of the diagonal) between judged points and mesh lines; the EEE traces' chordal
 #: tolerance is 10 epsilons = 1e-5 of the diagonal.
@@ -1020,3 +1022,141 @@ def test_split_params_equal_all_pairs(seed):
     order = np.lexsort([t, s])
     ref_s, ref_t = _split_params_all_pairs(segs, snap)
     assert np.array_equal(s[order], ref_s) and np.array_equal(t[order], ref_t)
+
+
+def graze_scene_obj(path, offset=1e-3):
+    """An OBJ: a floor (y = 0), a square light facing down at y = 10, a horizontal triangle
+    panel with its corner v at (0, 5, 0), and a receiver triangle in the plane z = ``offset``
+    that the lines from the light edge x = -1 through v meet at 4e-4 rad, 2.5-2.6 beyond v
+    (the 250-triangle bunny's face 213 in miniature): the lines through v and the
+    receiver's two edges cross that light edge 2.6 epsilon apart."""
+    d0 = np.array([1.0, -5.0, 0.0]) / np.sqrt(26.0)  # the line from (-1, 10, 0) through v
+    side = np.array([5.0, 1.0, 0.0]) / np.sqrt(26.0)  # normal to the plane of v and the light edge
+    w = np.array([0.0, 5.0, offset])
+    polys = {"floor": [(-10, 0, -10), (-10, 0, 10), (10, 0, 10), (10, 0, -10)],
+             "light": [(-1, 10, -1), (1, 10, -1), (1, 10, 1), (-1, 10, 1)],
+             "panel": [(0.0, 5.0, 0.0), (-0.3, 5.0, 0.4), (0.3, 5.0, 0.4)],
+             "receiver": [w + 2.5 * d0 - 0.1 * side, w + 2.5 * d0 + 0.1 * side, w + 2.6 * d0]}
+    lines, k = [], 1
+    for name, pts in polys.items():
+        lines += [f"o {name}"] + [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in pts]
+        lines.append("f " + " ".join(str(k + i) for i in range(len(pts))))
+        k += len(pts)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_lines_between_merged_events_on_a_grazed_receiver(tmp_path, monkeypatch):
+    """The VE family of the panel's corner v (vertex 8) and the light edge 5 meets the
+    receiver (face 3) seen nearly edge-on: its lines through the receiver's two edges are
+    2.6 epsilon apart along the light edge, so V1 merges the two events (MERGE_EPSILONS)
+    and no arc of the family ends on the receiver; the lines between them trace a 0.1 long
+    line on it, across which the light edge's hidden part turns from the panel's edge 8 to
+    its edge 9 (the oracle). :func:`viscx.queries.discontinuities.merged_windows` finds
+    them at the arcs' junction; without it 5 same-region pairs (seeds 1 and 2) fail."""
+    from viscx.queries import discontinuities as dm
+
+    cx = build_v1(graze_scene_obj(tmp_path / "g.obj"))
+    arcs = cx.arcs
+    family = np.flatnonzero((arcs.kind == 1) & (arcs.generators[:, 0] == 8) & (arcs.generators[:, 1] == 5))
+    assert len(family) >= 2 and not np.any(arcs.blocker[family] == 3)
+    scene, mesh, same, cross, pairs = _oracle_failures(cx, [], (1, 2), 8)
+    assert (same, cross) == (0, 0) and pairs >= 500
+    ev = mesh.events
+    mine = np.flatnonzero(ev.face == 3)
+    assert ev.arc[mine].tolist() == [-1] and ev.generators[mine[0]].tolist() == [8, 5, -1]
+    p = mesh.points[mesh.offsets[mine[0]]:mesh.offsets[mine[0] + 1]]
+    assert abs(np.linalg.norm(p[-1] - p[0]) - 0.1) < 1e-3  # across the whole receiver
+    empty = {"row": np.zeros(0, np.int64), "interval": np.zeros((0, 2)), "blocker_kind": np.zeros(0, np.int8),
+             "blocker": np.zeros(0, np.int64), "ends": np.zeros((0, 2, 3)), "direction": np.zeros((0, 3))}
+    monkeypatch.setattr(dm, "merged_windows", lambda *a, **k: empty)
+    _, mesh, same, _, _ = _oracle_failures(cx, [], (1, 2), 8)
+    assert same >= 1 and not np.any(mesh.events.face == 3)
+
+
+def tip_scene_obj(path, lift=1.04):
+    """An OBJ: a closed solid (group ``bunny``: a height field over a hexagon, walls down to
+    z = -1 and a bottom) whose face 1 lies in z = 0 at the foot of a valley wall rising to
+    R, beyond which a tip W stands ``lift`` snap distances above the plane, its edges to
+    L1 and L2 dropping through it 2e-4 apart (the 1,000-triangle bunny's face 226 and
+    vertex 91 in miniature); a square light facing -y at y = 10, its edge x = x(C1)
+    crossing z = 0 at H, in line with C1 (edge W-L1 ∩ z = 0) and face 1."""
+    d = lift * SPLIT_SNAP * 1e-6 * np.sqrt(2.5 ** 2 + 11.5 ** 2 + 2.0 ** 2)  # snap: the box's diagonal
+    top = {"F1": (0.0, -0.5, 0.0), "F2": (1.0, -0.5, 0.0), "F3": (0.5, -1.5, 0.0), "R": (0.3, 0.0, 0.3),
+           "W": (0.5, 1.0, d), "Q1": (0.0, 1.0, 0.3), "Q2": (1.0, 1.0, 0.3), "L1": (0.45, 2.0, -0.3),
+           "L2": (0.55, 1.5, -0.1)}
+    tris = ["F1 F2 F3", "F1 F2 R", "F2 Q2 R", "Q1 F1 R", "W R Q2", "W Q2 L2", "W L2 L1", "W L1 Q1", "W Q1 R",
+            "Q2 L1 L2"]
+    hull = ["F3", "F2", "Q2", "L1", "Q1", "F1"]  # counter-clockwise
+    ix = {k: i for i, k in enumerate(top)}
+    pts = [np.array(p) for p in top.values()] + [np.array([top[k][0], top[k][1], -1.0]) for k in hull]
+    low = {k: len(top) + i for i, k in enumerate(hull)}
+    faces = []
+    for t in tris:  # the top's normals up
+        a, b, c = (ix[k] for k in t.split())
+        faces.append([a, b, c] if np.cross(pts[b] - pts[a], pts[c] - pts[a])[2] > 0 else [a, c, b])
+    for a, b in zip(hull, hull[1:] + hull[:1]):
+        faces += [[ix[a], low[a], low[b]], [ix[a], low[b], ix[b]]]
+    faces.append([low[k] for k in reversed(hull)])
+    w, l1 = np.array(top["W"]), np.array(top["L1"])
+    xh = float((w + d / (d - l1[2]) * (l1 - w))[0])
+    light = [(xh - 2, 10.0, -1.0), (xh, 10.0, -1.0), (xh, 10.0, 1.0), (xh - 2, 10.0, 1.0)]
+    lines = ["o light"] + [f"v {x!r} {y!r} {z!r}" for x, y, z in light] + ["f 1 2 3 4", "o bunny"]
+    lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in pts]
+    lines += ["f " + " ".join(str(5 + i) for i in f) for f in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_receiver_plane_events_from_the_lit_side_only(tmp_path, monkeypatch):
+    """Judged from inside the solid (the pass whose front is below face 1), x→H leaves the
+    solid only through the tip, whose sections by the plane all end within the snap
+    distance of C1 or of the line H-C1: taken as grazing there, it gave two RPE lines of
+    W's edges on face 1, 1e-4 apart, with no change across either (the oracle: 4 crossings
+    failed, a dangling end). From that side x→H stays in the solid until it crosses it
+    again, so the pass is left out (:func:`viscx.queries.discontinuities.lit_sides`)."""
+    from viscx.queries import discontinuities as dm
+    from viscx.queries import plane_events as pe
+
+    cx = build_v1(tip_scene_obj(tmp_path / "t.obj"))
+    assert dm.lit_sides(cx.scene, light_of(cx.scene, None, "light")).tolist() == [0] + [1] * 17
+    scene, mesh, same, cross, pairs = _oracle_failures(cx, [], (1, 2), 8)
+    assert (same, cross) == (0, 0) and pairs >= 200
+    assert not np.isin(mesh.events.kind, [pe.RP_EDGE, pe.RP_VERTEX]).any()
+    monkeypatch.setattr(dm, "lit_sides", lambda scene, light: np.zeros(scene.n_faces, np.int8))
+    scene, mesh = open_mesh(cx)
+    res = check_mesh(scene, mesh, np.random.default_rng(1), MARGIN * scene.diagonal, samples=8)
+    ev = mesh.events
+    rp = np.flatnonzero((ev.kind == pe.RP_EDGE) & (ev.face == 1))
+    assert len(rp) == 2 and res["cross_fail"] and res["dangling"]
+
+
+def test_a_short_traces_joints_are_not_merged_into_one_vertex():
+    """The whole bunny's face 2549 in 2-D: a trace 7 snap long (B) from the outline to a node,
+    written as 8 chords under snap, between a trace at 9° to the outline (A) and a third one
+    (C). subdivide merges points within snap by single linkage, so B's joints, its end on
+    the outline and the node chain into one vertex off the outline: both wedges were lost
+    (one region, 2.7e-5 of area missing). trace_events now thins such joints
+    (:func:`viscx.queries.discontinuities.thin_polylines`): three regions, the whole area."""
+    from viscx.queries.discontinuities import subdivide, thin_polylines
+
+    snap = 4.7e-4
+    outline = [np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]])]
+    node = np.array([0.051, 0.0034])
+    lines = [np.array([[0.03, 0.0], node]), np.linspace([0.0515, 0.0], node, 9), np.array([node, [0.055, 0.0]])]
+    offsets = np.r_[0, np.cumsum([len(p) for p in lines])]
+    points = np.concatenate(lines)
+
+    def regions(offsets, points):
+        chords = np.concatenate([np.stack([points[a:b - 1], points[a + 1:b]], axis=1)
+                                 for a, b in zip(offsets[:-1], offsets[1:])])
+        reg = subdivide(outline, chords, np.repeat(np.arange(len(offsets) - 1), np.diff(offsets) - 1), snap)
+        return len(reg), sum(g.area for g in reg)
+
+    count, area = regions(offsets, points)
+    assert count == 1 and area < 0.5 - 1e-5  # (the defect, unthinned)
+    o2, p2, s2 = thin_polylines(offsets, points, np.arange(len(points), dtype=float), snap)
+    assert np.diff(o2).tolist() == [2, 5, 2] and s2.tolist() == [0, 1, 2, 4, 6, 8, 10, 11, 12]
+    assert np.array_equal(p2[[0, 1, 2, 6, 7, 8]], points[[0, 1, 2, 10, 11, 12]])  # every end kept
+    count, area = regions(o2, p2)
+    assert count == 3 and area == pytest.approx(0.5, abs=1e-12)

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import SAMPLES, viscx_in_process
-from test_discontinuities import (contact_scene_obj, crossing_scene_obj, light_scene_obj, panel_scene_obj,
-                                  saddle_scene_obj)
+from test_discontinuities import (contact_scene_obj, crossing_scene_obj, graze_scene_obj, light_scene_obj,
+                                  panel_scene_obj, saddle_scene_obj, tip_scene_obj)
 
 from viscx.pipeline import build_complex, light_scope, open_complex
 from viscx.queries.discontinuities import light_mesh, mesh_result, open_discontinuities, open_light_query
@@ -128,7 +128,7 @@ def _random_scene(tmp_path, kind, seed):
             "contact": lambda p: contact_scene_obj(p, seed),
             "crossing": crossing_scene_obj,
             "panel": lambda p: panel_scene_obj(p, tilt=0.3, fold=True),
-            "saddle": saddle_scene_obj}[kind]
+            "saddle": saddle_scene_obj, "graze": graze_scene_obj, "tip": tip_scene_obj}[kind]
     return make(tmp_path / f"{kind}{seed}.obj")
 
 
@@ -139,11 +139,13 @@ def _check_random(tmp_path, kind, seed):
     assert assert_same_mesh(tmp_path / "full.h5", obj, light_group="light")["events"] > 0
 
 
-@pytest.mark.parametrize("kind, seed", [("tetrahedra", 3), ("crossing", 0), ("saddle", 0)])
+@pytest.mark.parametrize("kind, seed", [("tetrahedra", 3), ("crossing", 0), ("saddle", 0), ("graze", 0), ("tip", 0)])
 def test_scoped_equals_full_build_random(tmp_path, kind, seed):
     """Random tetrahedra under a square light; touching boxes with an X-junction (XE arcs); a
     closed mesh with a saddle at a receiver's vertex (RPV lines of the receiver's own vertex,
-    traces across the solid dropped)."""
+    traces across the solid dropped); a receiver grazed by the lines between two merged
+    events (a window of lines traced, arc -1); a closed solid's tip just above a receiver's
+    plane (receiver-plane events from the lit side only)."""
     _check_random(tmp_path, kind, seed)
 
 

@@ -43,6 +43,10 @@ in one plane: :func:`pencil_points`) is left out where both of those edges have 
 their faces in that plane (a lone panel: :func:`panel_pencils`, nothing changes across
 its trace).
 
+V1 merges a family's events closer than MERGE_EPSILONS epsilon into one; the lines
+between them that end on a face neither neighbouring arc ends on (a receiver seen nearly
+edge-on) are traced as events of their own, arc -1 (:func:`merged_windows`).
+
 Traces
 ------
 Every segment of an arc ends on f, so the trace is {line(s) ∩ plane(f) : s in the arc's
@@ -52,9 +56,10 @@ edge, so its trace is the straight segment between the images of the interval's 
 An EEE family's lines rule a quadric; its trace is a conic arc, written as a polyline
 refined until each chord's middle parameter is within ``CHORD_TOLERANCE`` × epsilon of
 the chord; a planar EEE family is a pencil of lines through one point, its trace
-straight. The traces lie in f (every trace point is where a segment ending on f meets
-f), so clipping to the receiver only snaps ends that are within the snap distance of
-its outline. A trace ending where V1 ended its arc at a transition, and meeting no
+straight. Inner joints closer than the snap distance to the joint before or to
+the end are dropped (:func:`thin_polylines`). The traces lie in f (every trace point
+is where a segment ending on f meets f), so clipping to the receiver only snaps ends
+that are within the snap distance of its outline. A trace ending where V1 ended its arc at a transition, and meeting no
 other line there, is continued to the first line it meets
 (:func:`continue_transitions`).
 
@@ -82,12 +87,16 @@ from viscx.queries.cracks import through_cracks
 from viscx.queries.plane_events import (LIGHT_PLANE, RP_EDGE, RP_VERTEX, triangle_edge_ids, clip_to_front,
                                         light_plane_lines, light_planes, receiver_plane_events)
 from viscx.scene.light import Light, light_of
-from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines
+from viscx.skeleton.arcs import EEE, END_TRANSITION, VE, XE, KIND_NAMES, family_lines, judge_samples
 from viscx.skeleton.nodes import BLOCK_FACE, face_planes
-from viscx.tolerances import CHORD_TOLERANCE, PARALLEL_TOLERANCE, SPLIT_SNAP
+from viscx.tolerances import CHORD_TOLERANCE, MERGE_EPSILONS, PARALLEL_TOLERANCE, SPLIT_SNAP
 
 #: Chords per EEE trace before refinement, and refinement rounds at most.
 EEE_START, EEE_ROUNDS = 8, 16
+#: Lines judged across a merged event's window (MERGE_EPSILONS epsilon on each side: a
+#: quarter epsilon apart), and bisection steps locating a lost window's ends
+#: (:func:`merged_windows`).
+WINDOW_SAMPLES, WINDOW_BISECT = 33, 30
 #: Segment sets up to this size are split by testing every pair (:func:`_near_segment_pairs`).
 SMALL_SEGMENT_SET = 64
 # which light feature an event involves
@@ -125,6 +134,10 @@ class Events:
     generators : (m, 3) int64
         The arc's generators; (occluder edge or vertex, light edge, -1) for a
         receiver-plane event, (light face, -1, -1) for the light's plane.
+    interval : (m, 2) float64
+        The family parameters traced: the arc's interval, or the window of lines
+        between two events V1 merged (arc -1: :func:`merged_windows`); NaN for the
+        events in a face's plane.
     """
 
     arc: np.ndarray
@@ -134,6 +147,7 @@ class Events:
     light_feature: np.ndarray
     kind: np.ndarray
     generators: np.ndarray
+    interval: np.ndarray
 
     def take(self, rows):
         """The events of the given rows (repeats allowed): Events."""
@@ -150,7 +164,7 @@ def _plane_rows(face, kind, light_kind, light_feature, generators):
     m = len(face)
     return Events(np.full(m, -1, np.int64), np.full(m, -1, np.int64), np.asarray(face, np.int64),
                   np.asarray(light_kind, np.int8), np.asarray(light_feature, np.int64), np.asarray(kind, np.int64),
-                  np.asarray(generators, np.int64).reshape(m, 3))
+                  np.asarray(generators, np.int64).reshape(m, 3), np.full((m, 2), np.nan))
 
 
 def select_events(scene, arcs, light):
@@ -198,13 +212,20 @@ def select_events(scene, arcs, light):
     lkind[ok], lfeat[ok] = LIGHT_EDGE, ge3[ok, slot[ok]]
     sel = np.flatnonzero(end >= 0)
     e = end[sel]
-    bk = arcs.blocker_kind[sel, e]
-    face = arcs.blocker[sel, e]
+    # the arcs', then the windows' candidates: (arc, end, blocker kind and id at that end,
+    # interval, segment ends, direction)
+    win = merged_windows(scene, arcs, end)
+    cand = [np.r_[sel, np.full(len(win["row"]), -1)], np.r_[e, end[win["row"]]],
+            np.r_[arcs.blocker_kind[sel, e], win["blocker_kind"]], np.r_[arcs.blocker[sel, e], win["blocker"]],
+            np.concatenate([arcs.interval[sel], win["interval"]]), np.concatenate([arcs.ends[sel], win["ends"]]),
+            np.concatenate([arcs.direction[sel], win["direction"]])]
+    src = np.r_[sel, win["row"]]  # the arc each candidate's family, light feature and kind are read from
     in_light = np.zeros(scene.n_faces, bool)
     in_light[light.faces] = True
-    keep = (bk == BLOCK_FACE) & (face >= 0)
-    keep[keep] &= ~in_light[face[keep]]
-    sel, e, face = sel[keep], e[keep], face[keep]
+    keep = (cand[2] == BLOCK_FACE) & (cand[3] >= 0)
+    keep[keep] &= ~in_light[cand[3][keep]]
+    arc_id, e, _, face, interval, seg_ends, direction = (x[keep] for x in cand)
+    sel = src[keep]
     # no trace along the receiver's own outline
     he = scene.half_edges
     own_edge = np.unique(he.face.astype(np.int64) * (ne + 1) + he.edge)
@@ -239,14 +260,105 @@ def select_events(scene, arcs, light):
     # a lone panel's planar families, and segments through a crack between two blocks in
     # contact: nothing changes across their trace
     bad |= panel_pencils(scene, k, gs, snap)
-    bad |= through_cracks(scene, arcs.ends[sel, 0], arcs.ends[sel, 1])
+    bad |= through_cracks(scene, seg_ends[:, 0], seg_ends[:, 1])
     # segments reaching their receiver from the far side of its closed solid
-    towards = np.where((e == 1)[:, None], arcs.direction[sel], -arcs.direction[sel])
+    towards = np.where((e == 1)[:, None], direction, -direction)
     bad |= across_solid(scene, light, face, towards)
-    sel, e, face = sel[~bad], e[~bad], face[~bad]
-    order = np.lexsort([sel, face])
-    sel, e, face = sel[order], e[order], face[order]
-    return Events(sel, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel])
+    sel, arc_id, e, face, interval = sel[~bad], arc_id[~bad], e[~bad], face[~bad], interval[~bad]
+    # by receiver, then arc (the windows, arc -1, first: by their family and interval)
+    order = np.lexsort([interval[:, 0], sel, arc_id, face])
+    sel, arc_id, e, face, interval = sel[order], arc_id[order], e[order], face[order], interval[order]
+    return Events(arc_id, e, face, lkind[sel], lfeat[sel], kind[sel], g[sel], interval)
+
+
+def merged_windows(scene, arcs, end, samples=WINDOW_SAMPLES, steps=WINDOW_BISECT):
+    """The lines V1 lost between two events of a family it merged, where they end on a
+    face that neither neighbouring arc ends on.
+
+    V1 takes a family's events closer than MERGE_EPSILONS epsilon along its parameter edge
+    (and whose lines stay that close: docs/skeleton.md, "Furnished buildings" rule 14) as
+    one event, as epsilon-visibility asks: the lines between them are one line of the
+    complex, and the arcs on either side meet at it. On a receiver seen nearly edge-on
+    from the family's lines those few epsilons of line space are a long trace: the VE
+    family of the 250-triangle bunny's vertex 99 and light edge 13 meets face 213 at
+    0.08° over 4.6e-5 of its parameter (the nodes of edges 322 and 316, 3.9 epsilon apart
+    along the light edge, merged), a 0.071 trace 150 epsilon wide on the face, and the
+    exact labels differ across it. So at each junction of two arcs of a family, the
+    lines within MERGE_EPSILONS epsilon (along the edge) on each side, inside the two arcs'
+    intervals, are judged at ``samples`` parameters by V1's own rule
+    (:func:`viscx.skeleton.arcs.judge_samples`); each run of valid lines ending on a face
+    neither arc ends on is a window, its ends bisected ``steps`` times.
+
+    Parameters
+    ----------
+    end : (n,) int64
+        Each arc's receiver end (0 back, 1 front), -1 for arcs that are not the light's.
+
+    Returns
+    -------
+    dict of arrays: ``row`` (w,) the arc before each window's junction (its family and
+    light feature), ``interval`` (w, 2), ``blocker_kind``, ``blocker`` (w,) at the
+    receiver end, ``ends`` (w, 2, 3) and ``direction`` (w, 3) of a line of the window.
+    """
+    kind = np.asarray(arcs.kind, np.int64)
+    g = np.asarray(arcs.generators, np.int64)
+    same = np.all(g[1:] == g[:-1], axis=1) & (kind[1:] == kind[:-1]) & (arcs.interval[1:, 0] == arcs.interval[:-1, 1])
+    j = np.flatnonzero(same & (end[:-1] >= 0))
+    e = end[j]
+    bk = np.stack([arcs.blocker_kind[j, e], arcs.blocker_kind[j + 1, e]], axis=1)
+    bl = np.stack([arcs.blocker[j, e], arcs.blocker[j + 1, e]], axis=1)
+    out = {"row": np.zeros(0, np.int64), "interval": np.zeros((0, 2)), "blocker_kind": np.zeros(0, np.int8),
+           "blocker": np.zeros(0, np.int64), "ends": np.zeros((0, 2, 3)), "direction": np.zeros((0, 3))}
+    if not len(j):
+        return out
+    ev = scene.half_edges.edge_vertices
+    edge = np.where(kind[j] == EEE, g[j, 0], g[j, 1])
+    length = np.linalg.norm(scene.vertices[ev[edge, 1]] - scene.vertices[ev[edge, 0]], axis=1)
+    width = MERGE_EPSILONS * scene.epsilon / length  # the merge's reach, as a parameter
+    s = np.clip(arcs.interval[j, 1][:, None] + width[:, None] * np.linspace(-1.0, 1.0, samples)[None],
+                arcs.interval[j, :1], arcs.interval[j + 1, 1:])  # (within the two arcs)
+
+    def judge(rows, s):  # receiver-end blocker (kind, id) and validity of lines s of junctions rows
+        smp = judge_samples(scene, kind[j[rows]], g[j[rows]], s)
+        er = e[rows]
+        return smp.valid, smp.state[np.arange(len(rows)), 1 + 2 * er], smp.state[np.arange(len(rows)), 2 + 2 * er], smp
+
+    rows = np.repeat(np.arange(len(j)), samples)
+    valid, k_, b_, smp = judge(rows, s.ravel())
+    theirs = ((k_[:, None] == bk[rows]) & (b_[:, None] == bl[rows])).any(axis=1)  # a neighbouring arc's blocker
+    lost = (valid & (k_ == BLOCK_FACE) & (b_ >= 0) & ~theirs).reshape(-1, samples)
+    b_ = b_.reshape(-1, samples)
+    # runs of lost samples on one face
+    start = lost & ~np.c_[np.zeros((len(j), 1), bool), lost[:, :-1] & (b_[:, :-1] == b_[:, 1:])]
+    ri, ci = np.nonzero(start)
+    if not len(ri):
+        return out
+    stop = ci.copy()
+    while True:  # (runs are a few samples long)
+        more = (stop + 1 < samples)
+        nxt = np.minimum(stop + 1, samples - 1)
+        more &= lost[ri, nxt] & (b_[ri, nxt] == b_[ri, ci])
+        if not more.any():
+            break
+        stop[more] += 1
+    face = b_[ri, ci]
+    # each end bisected between the run's last sample and the next one out (or the window's end)
+    ends = []
+    for inner, outer in ((ci, np.maximum(ci - 1, 0)), (stop, np.minimum(stop + 1, samples - 1))):
+        a, b = s[ri, inner], s[ri, outer]
+        for _ in range(steps):
+            m = 0.5 * (a + b)
+            ok, km, bm, _ = judge(ri, m)
+            on = ok & (km == BLOCK_FACE) & (bm == face)
+            a, b = np.where(on, m, a), np.where(on, b, m)
+        ends.append(a)
+    mid = ri * samples + (ci + stop) // 2
+    out["row"] = j[ri]
+    out["interval"] = np.sort(np.stack(ends, axis=1), axis=1)
+    out["blocker_kind"] = np.full(len(ri), BLOCK_FACE, np.int8)
+    out["blocker"] = face.astype(np.int64)
+    out["ends"], out["direction"] = smp.ends[mid], smp.direction[mid]
+    return out
 
 
 def light_inside_solids(scene, light):
@@ -304,17 +416,31 @@ def across_solid(scene, light, face, towards):
     -------
     (m,) bool
     """
+    # arriving from the unlit side: travelling the way the lit side's normal points
+    lit = lit_sides(scene, light)[face]
+    return np.einsum("ij,ij->i", towards, scene.face_normal[face]) * lit > 0
+
+
+def lit_sides(scene, light):
+    """The side of each face from which segments from the light can reach it: (f,) int8,
+    +1 the side its normal points to, -1 the other, 0 both (a face of no closed solid).
+
+    A face of a closed solid S (:func:`viscx.queries.formfactor.closed_solids`) is reached
+    from the light only on the side of S the light is on (:func:`light_inside_solids`):
+    a segment from a point of the face into the other side stays in that side of S until
+    it crosses S again, which blocks it (the faces are two-sided), so it never reaches
+    the light. Segments arriving from that side (:func:`across_solid`) and receiver-plane
+    events judged from it (:func:`viscx.queries.plane_events.receiver_plane_events`,
+    ``sides``) change nothing on the face."""
     from viscx.queries.formfactor import closed_solids
 
     face_solid, outward, _ = closed_solids(scene)
-    s = face_solid[face]
-    out = np.zeros(len(face), bool)
-    k = np.flatnonzero(s >= 0)
-    if not len(k):
-        return out
-    # arriving inside S: travelling the way the normals of S point out of it
-    inside = np.einsum("ij,ij->i", towards[k], scene.face_normal[face[k]]) * outward[s[k]] > 0
-    out[k] = inside != light_inside_solids(scene, light)[s[k]]
+    out = np.zeros(scene.n_faces, np.int8)
+    k = np.flatnonzero(face_solid >= 0)
+    if len(k):
+        s = face_solid[k]
+        # outward normals point to the outside: the lit side unless the light is inside S
+        out[k] = np.where(light_inside_solids(scene, light)[s], -outward[s], outward[s]).astype(np.int8)
     return out
 
 
@@ -458,10 +584,10 @@ def trace_events(scene, arcs, events, tolerance, interval=None):
         The family parameter s of each point.
     """
     m = len(events.arc)
-    kind = arcs.kind[events.arc].astype(np.int64)
-    gens = arcs.generators[events.arc]
+    kind = events.kind.astype(np.int64)
+    gens = events.generators
     if interval is None:
-        interval = arcs.interval[events.arc]
+        interval = events.interval
     s0, s1 = interval[:, 0], interval[:, 1]
     # chords: (event, sa, sb); VE and XE (lines through a point) one chord, EEE EEE_START refined
     planar, _, x, _ = pencil_points(scene, kind, gens)
@@ -505,7 +631,51 @@ def trace_events(scene, arcs, events, tolerance, interval=None):
     order = np.lexsort([ps, pev])
     pev, ps = pev[order], ps[order]
     pts = _trace_points(scene, kind[pev], gens[pev], ps, events.face[pev], (planar[pev], x[pev]))
-    return offsets, pts, ps
+    return thin_polylines(offsets, pts, ps, SPLIT_SNAP * scene.epsilon)
+
+
+def thin_polylines(offsets, points, params, gap):
+    """Polylines without inner points closer than ``gap`` to the point kept before them or
+    to their last point (their ends kept): :func:`subdivide` merges points within the snap
+    distance by single linkage, so the joints of a short EEE trace (``EEE_START`` chords of
+    a trace 7 snap long: the whole bunny's face 2549) chained into one vertex with the
+    trace's ends, 2.2e-3 inside the face, and the wedge between the trace and the outline
+    was lost. A joint is dropped only where its neighbours are within a few snap, so the
+    chord replacing two stays within the conic's chordal tolerance unless the conic turns
+    at the epsilon scale. Polylines with a non-finite point are left as they are (the
+    caller drops them).
+
+    Parameters
+    ----------
+    offsets : (m + 1,) int64
+    points : (p, 3) float64
+    params : (p,) float64
+    gap : float
+
+    Returns
+    -------
+    offsets, points, params
+    """
+    n = np.diff(offsets)
+    owner = np.repeat(np.arange(len(n)), n)
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    inner = owner[1:] == owner[:-1]
+    close = np.zeros(len(n), bool)
+    close[owner[1:][inner & (step < gap)]] = True
+    bad = np.zeros(len(n), bool)
+    bad[owner[~np.isfinite(points).all(axis=1)]] = True
+    todo = np.flatnonzero(close & ~bad & (n > 2))
+    if not len(todo):
+        return offsets, points, params
+    keep = np.ones(len(points), bool)
+    for k in todo:  # (short EEE traces only: a few per receiver at most)
+        p = points[offsets[k]:offsets[k + 1]]
+        last, mine = 0, keep[offsets[k]:offsets[k + 1]]
+        for i in range(1, len(p) - 1):
+            mine[i] = np.linalg.norm(p[i] - p[last]) >= gap and np.linalg.norm(p[-1] - p[i]) >= gap
+            last = i if mine[i] else last
+    counts = np.bincount(owner[keep], minlength=len(n))
+    return np.r_[0, np.cumsum(counts)].astype(np.int64), points[keep], params[keep]
 
 
 def _in_domain(scene, kind, generators, s):
@@ -1203,10 +1373,12 @@ def discontinuity_mesh(scene, arcs, light, faces=None):
     outlines = {f: [np.stack([lp @ frames[f][0], lp @ frames[f][1]], axis=1) for lp in scene.face_loops(f)] for f in wanted}
     # receiver-plane events (straight traces in the receiver's plane)
     tri_edge = triangle_edge_ids(scene)
+    lit = lit_sides(scene, light)
     rp_rows, rp_pts = [], []
     for f in wanted:
         u, v, o = frames[f]
-        kind, occ, ledge, ends = receiver_plane_events(scene, light, f, (u, v), outlines[f], snap, tri_edge)
+        sides = (1.0, -1.0) if lit[f] == 0 else (float(lit[f]),)
+        kind, occ, ledge, ends = receiver_plane_events(scene, light, f, (u, v), outlines[f], snap, tri_edge, sides)
         m = len(kind)
         rp_rows.append(_plane_rows(np.full(m, f), kind, np.full(m, LIGHT_EDGE), ledge,
                                    np.stack([occ, ledge, np.full(m, -1)], axis=1)))

@@ -27,7 +27,10 @@ from C away from H where
   C reaches both sides of P, the event is where either side is free
   (:func:`front_decides`).
 
-(And the same with front and back exchanged, for a receiver seen from both sides.)
+(And the same with front and back exchanged, for a receiver seen from both sides: a lone
+face. A face of a closed solid is seen only from the solid's side the light is on: from
+the other side x→H stays in the solid until it crosses it again, and is blocked; ``sides``
+of :func:`receiver_plane_events`.)
 These lines lie in P, so P's own faces and every face with an edge in P are grazed:
 instead of casting rays, everything is decided exactly in P's 2-D coordinates. Each
 triangle T of a face other than f and the light's faces is replaced by its *section*
@@ -388,7 +391,7 @@ def front_decides(kind, ids, back_kind, back_ids, sigma):
     return (kind == END_VERTEX) & (~behind | (sigma > 0))
 
 
-def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
+def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None, sides=(1.0, -1.0)):
     """Receiver-plane events on receiver f (module docstring).
 
     Parameters
@@ -400,6 +403,10 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
         f's loops in 2-D.
     tri_edge : (t, 3) int64, optional
         :func:`triangle_edge_ids` (computed when not given).
+    sides : tuple of float
+        The passes σ to run: the sides of P (σ times f's normal) taken as the front, from
+        which x→H may reach the light (both for a lone face; for a face of a closed solid,
+        the side the light is on: :func:`viscx.queries.discontinuities.lit_sides`).
 
     Returns
     -------
@@ -449,7 +456,7 @@ def receiver_plane_events(scene, light, f, basis, outline, snap, tri_edge=None):
     owner = scene.triangle_face[rows]
     rows = rows[~np.isin(owner, light.faces) & (owner != f)]
     out = []
-    for sigma in (1.0, -1.0):
+    for sigma in sides:
         seg, ekind, eid = plane_sections(scene, sigma * d, rows, tri_edge, basis)
         back, bkind, bid = plane_sections(scene, -sigma * d, rows, tri_edge, basis)
         if not len(seg):

@@ -53,6 +53,33 @@ def pytest_collection_modifyitems(items):
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
+@pytest.fixture(scope="session")
+def sample_build(tmp_path_factory):
+    """``sample_build(scene)``: the path of a ``viscx build`` of the sample scene ``scene``
+    (a file name in sample_scenes/), made once per test process.
+
+    Tests that want a full build bit for bit equal to what this machine computes take it from
+    here, not from tests/golden/: the golden files may have been written on another machine
+    (another CPU's vector units round the last bits of some sums differently, ~1e-15), and
+    tests/test_golden.py holds them equal to a fresh build within `viscx diff`'s tolerances.
+    """
+    from viscx.cli import main
+
+    folder = tmp_path_factory.mktemp("sample_builds")
+    built = {}
+
+    def build(scene):
+        if scene not in built:
+            out = folder / (Path(scene).stem + ".h5")
+            with pytest.raises(SystemExit) as exc:
+                main(["--quiet", "build", str(SAMPLES / scene), "-o", str(out)])
+            assert exc.value.code == 0 and out.exists()
+            built[scene] = out
+        return built[scene]
+
+    return build
+
+
 def sample_scene_paths():
     """Every 3-D sample scene shipped in sample_scenes/."""
     return sorted(p for p in SAMPLES.glob("*") if p.suffix.lower() in (".obj", ".ply"))

@@ -35,24 +35,11 @@ def test_every_golden_file_has_a_scene():
     assert sorted(p.name for p in GOLDEN_DIR.glob("*.h5")) == sorted(GOLDEN.values())
 
 
-@pytest.fixture(scope="module")
-def rebuilt(tmp_path_factory):
-    """``rebuilt(scene)``: the path of a build of the sample scene, made by ``viscx build``
-    once for this file's tests (each of them judges it; the determinism tests build the
-    scene again and compare)."""
-    folder = tmp_path_factory.mktemp("rebuilt")
-    built = {}
-
-    def rebuild(scene):
-        if scene not in built:
-            out = folder / GOLDEN[scene]
-            with pytest.raises(SystemExit) as exc:
-                main(["--quiet", "build", str(SAMPLES / scene), "-o", str(out)])
-            assert exc.value.code == 0 and out.exists()
-            built[scene] = out
-        return built[scene]
-
-    return rebuild
+@pytest.fixture
+def rebuilt(sample_build):
+    """``rebuilt(scene)``: the build of the sample scene made once per test process (each test
+    here judges it; the determinism tests build the scene again and compare)."""
+    return sample_build
 
 
 @pytest.mark.parametrize("scene", sorted(GOLDEN))

@@ -109,17 +109,17 @@ def assert_same_mesh(full_path, scoped_source, **light):
 
 
 @pytest.mark.parametrize("name", sorted(SAMPLE_LIGHTS))
-def test_scoped_mesh_equals_full_build_samples(name):
-    """Every sample scene with a light: the mesh from the scene file equals the golden file's."""
-    mesh = assert_same_mesh(GOLDEN / (Path(name).stem + ".h5"), SAMPLES / name, **SAMPLE_LIGHTS[name])
+def test_scoped_mesh_equals_full_build_samples(name, sample_build):
+    """Every sample scene with a light: the mesh from the scene file equals the full build's."""
+    mesh = assert_same_mesh(sample_build(name), SAMPLES / name, **SAMPLE_LIGHTS[name])
     # (tetrahedra.obj's face 0 casts every trace behind itself; the box side only its LP line)
     assert mesh["events"] >= {"cornell_box.obj": 100, "room_with_door.obj": 30}.get(name, 0)
 
 
 @pytest.mark.parametrize("name", ["cornell_box.obj", "tetrahedra.obj"])
-def test_scoped_levels_equal_full_build_samples(name):
+def test_scoped_levels_equal_full_build_samples(name, sample_build):
     light = SAMPLE_LIGHTS[name]
-    full = open_complex(GOLDEN / (Path(name).stem + ".h5"))
+    full = open_complex(sample_build(name))
     assert_scoped_levels(full, build_complex(SAMPLES / name, quiet=True, **light), **light)
 
 

@@ -52,16 +52,15 @@ def test_pairs_are_computed_from_their_smaller_face(room):
 def test_reciprocal_entries_equal_the_two_sided_ones(room, a, b):
     """Every entry F_(i,+1)→(j,t) of the query, derived or computed, within the sum of its
     estimate and the two-sided one's of the entry computed from i; the estimates within
-    tol (derived ones scaled by A_j / A_i ≤ 1); the group values alike."""
+    tol (derived ones scaled by A_j / A_i ≤ 1); the groups' Σ A_i F alike."""
     one, two = entries(room, a, b, True), entries(room, a, b, False)
     for key in set(one) | set(two):  # an entry left out is 0 (from the floor, the desk boxes' inner sides: ~1e-7)
         (v, e), (w, d) = one.get(key, (0.0, 0.0)), two.get(key, (0.0, 0.0))
         assert e <= TOL and d <= TOL, key
         assert abs(v - w) <= e + d + 1e-12, (key, v, w, e, d)
-    g1 = ff.group_to_group(room, room.group_faces(a), room.group_faces(b), tol=TOL, workers=1)
-    g2 = ff.group_to_group(room, room.group_faces(a), room.group_faces(b), tol=TOL, workers=1, reciprocal=False)
-    assert g1["pairs"] == g2["pairs"]
-    assert abs(g1["F"] - g2["F"]) <= g1["error"] + g2["error"], (g1, g2)
+    area = room.face_area
+    flux = [sum(area[r // 2] * np.array(x) for (r, _), x in es.items()) for es in (one, two)]  # (A F, A error)
+    assert abs(flux[0][0] - flux[1][0]) <= flux[0][1] + flux[1][1]
 
 
 def test_floor_to_desk_against_monte_carlo(room):
@@ -69,6 +68,7 @@ def test_floor_to_desk_against_monte_carlo(room):
     from the floor."""
     floor, desk = room.group_faces("floor"), room.group_faces("desk0")
     g = ff.group_to_group(room, floor, desk, tol=TOL, workers=1)
+    assert g["pairs"] == 18 and g["error"] <= TOL
     est, _ = form_factor_monte_carlo(room, floor, 1, 1_000_000, seed=5)
     mc = float(est[np.concatenate([2 * desk, 2 * desk + 1])].sum())
     sigma = np.sqrt(mc * (1 - mc) / 1_000_000)

@@ -149,7 +149,7 @@ def main(argv=None):
         tasks = [p["cpu"] for p in sorted(parts, key=lambda p: (-area[p["face"]], p["face"], -p["side"], p["part"][0]))]
         print(json.dumps({"from": a, "to": b, "F": r["F"], "error": r["error"], "pairs": r["pairs"], "tol": args.tol,
                           "cpu": round(cpu, 2), "wall": round(wall, 2), "workers": workers,
-                          "serial_cpu": round(serial, 2), "tasks": len(tasks), "largest_task_cpu": round(max(tasks), 2),
+                          "serial_cpu": round(serial, 2), "tasks": len(tasks), "largest_task_cpu": round(max(tasks, default=0.0), 2),
                           "quiet_wall_estimate": round(serial + makespan(tasks, workers), 2)}), flush=True)
 
 

@@ -2061,9 +2061,10 @@ def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=No
     rows = group_rows(scene, faces_i, side_i, faces_j, reciprocal)
     n_parts = SINGLE_PARTS if len(rows) == 1 else 1
     if n_parts > 1:
-        shared_emitter_work(scene, *rows[0])
-    tasks = [(f, s, r, (k, n_parts)) for f, s, r in rows for k in range(n_parts)]
-    results = _map_rows(emitter_row, scene, tasks, tol, False, workers)
+        shared_emitter_work(scene, *rows[0][:3])
+    tasks = [(f, s, r, (k, n_parts)) for f, s, r, _ in rows for k in range(n_parts)]
+    tols = [tol * scale for *_, scale in rows for _ in range(n_parts)]
+    results = _map_rows(emitter_row, scene, tasks, tols, False, workers)
     row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in tasks])
     if reciprocal:
         row, col, val, err = (np.concatenate(pair) for pair in zip((row, col, val, err),
@@ -2074,29 +2075,44 @@ def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=No
 
 
 def group_rows(scene, faces_i, side_i, faces_j, reciprocal=True):
-    """The rows a group query computes: ``[(face, side, receivers (k,) int64)]``, each face
-    side once with every receiver it computes a pair with, in the order of the faces.
+    """The rows a group query computes: ``[(face, side, receivers (k,) int64, scale (k,)
+    float64)]``, each face side once with every receiver it computes a pair with, in the
+    order of the faces, and the factor of ``tol`` each pair needs.
 
-    Two-sided, the rows are (i, side_i) → faces_j ∖ {i}. With ``reciprocal``, a pair {i, j}
-    is computed in the rows of the face :func:`computed_pairs` names: (i, side_i) → j where
-    i is the smaller, else (j, +1) and (j, −1) → i, whose entries to side side_i of i give
-    F_(i,side_i)→(j,t) by reciprocity; a face in both groups has its rows shared by the
-    pairs it emits and those it is derived from. Receivers a side cannot see or touch are
-    left out (:func:`seen_receivers`), and the rows left with none."""
+    Two-sided, the rows are (i, side_i) → faces_j ∖ {i}, each pair to tol. With
+    ``reciprocal``, a pair {i, j} is computed in the rows of the face :func:`computed_pairs`
+    names: (i, side_i) → j where i is the smaller, else (j, +1) and (j, −1) → i, whose
+    entries to side side_i of i give F_(i,side_i)→(j,t) = (A_j / A_i) F_(j,t)→(i,side_i)
+    (:func:`derived_entries`). The query asks for F from the faces_i only, so a pair
+    computed for its derived direction alone needs its estimate within tol · A_i / A_j
+    (≥ tol): scaled by A_j / A_i, it is within tol (a desk panel's side to the floor, ~100
+    times smaller, is refined to ~100 tol in its own F; the matrix, which needs both
+    directions, computes every pair to tol). A face in both groups has its rows shared by
+    the pairs it emits and those it is derived from, each pair to the smaller of its
+    needs. Receivers a side cannot see or touch are left out (:func:`seen_receivers`), and
+    the rows left with none."""
     faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
-    wanted = {}
+    area = scene.face_area
+    wanted = {}  # (face, side) -> {receiver: factor of tol}
+
+    def need(row, receiver, scale):
+        got = wanted.setdefault(row, {})
+        got[receiver] = min(got.get(receiver, np.inf), scale)
+
     for i in faces_i:
         others = faces_j[faces_j != i]
         mine = computed_pairs(scene, int(i), others) if reciprocal else np.ones(len(others), bool)
-        wanted.setdefault((int(i), int(side_i)), set()).update(others[mine].tolist())
+        for j in others[mine]:
+            need((int(i), int(side_i)), int(j), 1.0)
         for j in others[~mine]:
             for t in SIDES:
-                wanted.setdefault((int(j), t), set()).add(int(i))
+                need((int(j), t), int(i), float(area[i] / area[j]))
     rows = []
     for (f, s) in sorted(wanted, key=lambda k: (k[0], -k[1])):
-        receivers = seen_receivers(scene, f, s, np.asarray(sorted(wanted[f, s]), np.int64))
-        if len(receivers):
-            rows.append((f, s, receivers))
+        receivers = np.asarray(sorted(wanted[f, s]), np.int64)
+        seen = seen_receivers(scene, f, s, receivers)
+        if len(seen):
+            rows.append((f, s, seen, np.array([wanted[f, s][int(r)] for r in seen])))
     return rows
 
 
@@ -2253,7 +2269,9 @@ def closed_form_row(scene, face, side, faces, sky=True):
 def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     """F from one side of a face to every side of ``faces`` it may see, and to the sky
     (``part``: that part of each pair, :func:`pair_form_factor`); a side with a closed
-    form (:func:`closed_form_row`) takes it, in part 0.
+    form (:func:`closed_form_row`) takes it, in part 0. ``tol``: the target on each
+    pair's estimate, one for all or (k,) float64, one per face of ``faces`` (the sky
+    takes the smallest).
 
     Returns
     -------
@@ -2270,15 +2288,17 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     cells, _, kinked = cubature_cells(scene, face, side)
     contact = cell_contacts(scene, face, side)
     cols, vals, errs, counts = [], [], [], {}
-    fj, sj = facing_sides(scene, face, side, np.asarray(faces, np.int64))
+    faces = np.asarray(faces, np.int64)
+    tols = np.broadcast_to(np.asarray(tol, np.float64), faces.shape)
+    fj, sj = facing_sides(scene, face, side, faces)
     # the sides it lies against (faces in its plane: not facing it, F = their common area)
     touched = np.unique(contact[contact >= 0])
-    touched = touched[np.isin(touched // 2, np.asarray(faces, np.int64))]
+    touched = touched[np.isin(touched // 2, faces)]
     fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
-    counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
+    counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(faces.tolist()))
     for j, t in zip(fj, sj):
-        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact,
-                             part=part, kinked=kinked)
+        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=float(tols[faces == j][0]),
+                             cells=cells, contact=contact, part=part, kinked=kinked)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -2287,7 +2307,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part, kinked=kinked)
+            r = pair_form_factor(scene, face, side, box, 1, tol=float(np.min(tols, initial=np.max(tol))), cells=cells,
+                                 contact=contact, part=part, kinked=kinked)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -2872,7 +2893,8 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     ``rows`` (each row its own receivers ``faces`` (k,) int64), in that order, on
     ``workers`` processes (forked: they share the scene; the results do not depend on
     their number). A row given as (face, side, faces, part) is that part of it
-    (``row(..., sky, part)``, :func:`emitter_row`).
+    (``row(..., sky, part)``, :func:`emitter_row`). ``tol``: one for every row, or a list
+    of one per row (for :func:`emitter_row`, each may be one per receiver).
 
     The costly rows (large faces) go first, so that no worker is left with one at the end.
     With ``threads`` (:func:`row_form_factors`), each row also evaluates its points on as
@@ -2890,7 +2912,9 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     global _POOL_SCENE, _ROW_CORES
     workers = min(default_workers(workers), len(rows))
     options = {"threads": workers} if threads and workers > 1 else {}
-    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), tol, sky, tuple(r[3:]), options) for r in rows]
+    tols = tol if isinstance(tol, list) else [tol] * len(rows)
+    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), t, sky, tuple(r[3:]), options)
+             for r, t in zip(rows, tols)]
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:

@@ -3,10 +3,12 @@ error estimate, CPU seconds (the worker processes included) and wall seconds, as
 ``viscx formfactor groups`` computes them (:func:`viscx.queries.formfactor.group_to_group`,
 default workers: one per core). One JSON line per query, with what bounds its wall time on
 quiet cores (the machine may be shared): the CPU seconds of the main process's own work
-(``serial_cpu``: the emitter's cells and the receivers' covered cells, before the workers
-fork), of each task the workers run (an emitter, or a part of a single emitter), the
+(``serial_cpu``: the rows' planning, and for a query of one row its cells and the
+receivers' covered cells, before the workers fork), of each task the workers run (a row:
+a face side and the receivers it computes pairs with, each pair computed from its face of
+smaller area and the other direction derived; or a part of a query's single row), the
 largest of them, and ``quiet_wall_estimate``: the serial part plus the tasks handed out in
-order to the first free of the workers.
+order to the first free of the workers (the command's start-up, ~1 s, not included).
 
     python benchmarks/office_groups.py --polygons 300 --tol 1e-4
     python benchmarks/office_groups.py --pairs floor:light1 wall_west:wall_east
@@ -91,12 +93,12 @@ EMITTER_ROW = [None]
 
 
 def timed_part(scene, face, side, faces, tol, sky, part=(0, 1)):
-    """:func:`viscx.queries.formfactor.emitter_row` (one emitter, or one part of it: what a
+    """:func:`viscx.queries.formfactor.emitter_row` (one row, or one part of it: what a
     worker of :func:`group_to_group` runs) with its CPU seconds appended to ``PART_LOG``."""
     c0 = time.process_time()
     out = EMITTER_ROW[0](scene, face, side, faces, tol, sky, part)
     with open(PART_LOG[0], "a") as f:
-        f.write(json.dumps({"face": int(face), "part": list(part), "cpu": round(time.process_time() - c0, 3),
+        f.write(json.dumps({"face": int(face), "side": int(side), "part": list(part), "cpu": round(time.process_time() - c0, 3),
                             "pid": os.getpid()}) + "\n")
     return out
 
@@ -142,12 +144,12 @@ def main(argv=None):
         cpu, wall = cpu_seconds() - c0, time.perf_counter() - w0
         parts = [json.loads(line) for line in log.read_text().splitlines()]
         serial = time.process_time() - s0 - sum(p["cpu"] for p in parts if p["pid"] == os.getpid())
-        # the parts in the order _map_rows hands them out (the largest emitters first)
+        # the tasks in the order _map_rows hands them out (the largest emitters first)
         area = scene.face_area
-        tasks = [p["cpu"] for p in sorted(parts, key=lambda p: (-area[p["face"]], p["face"], p["part"][0]))]
+        tasks = [p["cpu"] for p in sorted(parts, key=lambda p: (-area[p["face"]], p["face"], -p["side"], p["part"][0]))]
         print(json.dumps({"from": a, "to": b, "F": r["F"], "error": r["error"], "pairs": r["pairs"], "tol": args.tol,
                           "cpu": round(cpu, 2), "wall": round(wall, 2), "workers": workers,
-                          "serial_cpu": round(serial, 2), "tasks": len(tasks), "largest_task_cpu": round(max(tasks), 2),
+                          "serial_cpu": round(serial, 2), "tasks": len(tasks), "largest_task_cpu": round(max(tasks, default=0.0), 2),
                           "quiet_wall_estimate": round(serial + makespan(tasks, workers), 2)}), flush=True)
 
 

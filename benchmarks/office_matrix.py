@@ -156,7 +156,7 @@ def main(argv=None):
     from viscx.progress import bar
 
     with bar(total=len(rows), desc="form factors", quiet=False, unit="side") as progress:
-        results = ff._map_rows(timed_row, scene, rows, faces, args.tol, True, args.workers,
+        results = ff._map_rows(timed_row, scene, [(f, s, faces) for f, s in rows], args.tol, True, args.workers,
                                progress=lambda: progress.update(1), threads=True)
     wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
     m = ff.assemble_matrix(scene, results, args.tol, wall)

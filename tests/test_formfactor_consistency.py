@@ -77,8 +77,10 @@ def test_cabinet_room_pairs_equal_the_matrix(cabinet_room):
 
 
 def test_single_emitter_group_runs_in_parts(tile_cube):
-    """A group of one face runs as SINGLE_PARTS parts (its free cells dealt out): the same
-    value on 1 or 2 workers, equal to the pair query within the estimates."""
+    """A query of one row (the floor, computing both pairs: the faces' areas are equal and
+    it has the smaller index) runs as SINGLE_PARTS parts (its free cells dealt out): the
+    same value on 1 or 2 workers, equal to the pair query within the estimates."""
+    assert [(f, s) for f, s, *_ in ff.group_rows(tile_cube[0], [0], 1, [1, 2])] == [(0, 1)]
     scene, rows = tile_cube
     one = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=1)
     two = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=2)

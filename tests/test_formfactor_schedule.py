@@ -96,9 +96,9 @@ def test_rows_do_not_depend_on_the_workers():
     same arrays, bit for bit (the whole matrix: the slow test below)."""
     scene = load_scene(SAMPLES / "boxes_on_floor.obj")
     faces = np.arange(scene.n_faces, dtype=np.int64)
-    rows = [(int(f), s) for f in np.argsort(-scene.face_area)[:2] for s in (1, -1)]
-    one = ff._map_rows(ff.row_form_factors, scene, rows, faces, 1e-2, True, 1, threads=True)
-    two = ff._map_rows(ff.row_form_factors, load_scene(SAMPLES / "boxes_on_floor.obj"), rows, faces, 1e-2, True, 2,
+    rows = [(int(f), s, faces) for f in np.argsort(-scene.face_area)[:2] for s in (1, -1)]
+    one = ff._map_rows(ff.row_form_factors, scene, rows, 1e-2, True, 1, threads=True)
+    two = ff._map_rows(ff.row_form_factors, load_scene(SAMPLES / "boxes_on_floor.obj"), rows, 1e-2, True, 2,
                        threads=True)
     for a, b in zip(one, two):
         assert_same_rows(a, b)

@@ -139,7 +139,11 @@ def faces(ctx, file, from_face, from_side, to_face, tol, output, fmt):
 @click.pass_context
 def groups(ctx, file, from_group, from_side, to_group, from_face, to_face, tol, output, fmt):
     """F from one side of the faces of group A to the faces of group B,
-    Σ_i A_i Σ_j F_ij / Σ_i A_i (a face in both does not see itself).
+    Σ_i A_i Σ_j F_ij / Σ_i A_i (a face in both does not see itself). As in the
+    matrix, each face pair is computed once, from its face of smaller area, and
+    the other direction derived by reciprocity (A_i F_ij = A_j F_ji), its error
+    estimate scaled alike: a floor to a desk is computed from the desk's faces,
+    each to --tol times A_floor / A_face (within --tol once scaled).
 
     \b
     viscx formfactor groups cornell.h5 --from-group floor --to-group light

@@ -2024,30 +2024,105 @@ def _pair_dict(p):
             "evaluations": int(p.evaluations), "cells": int(p.cells), "seconds": round(p.seconds, 4)}
 
 
-def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None):
+def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True):
     """Area-weighted F from side ``side_i`` of the faces_i to (both sides of) the faces_j:
     ``Σ_i A_i Σ_j F_ij / Σ_i A_i``. A face in both sets does not see itself (planar).
 
-    Each emitting face's cells are computed once for all its receivers, and the pairs it
-    cannot see are skipped by the vectorised facing test of :func:`emitter_row`; emitters
-    run on ``workers`` processes (default: the CPU count). A single emitter (a floor, a
-    wall) runs as :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too
-    uses the cores; the parts depend on the group, never on the workers. ``tol`` bounds
-    the error estimate of each face pair."""
-    faces_i = [int(i) for i in faces_i]
+    With ``reciprocal`` (the default, as the matrix), each face pair is computed once, in
+    the rows of its face of smaller area (:func:`computed_pairs`), and the other direction
+    derived as the matrix derives it (:func:`derived_entries`): the floor's part of
+    floor → desk is ``A_i F_(i,s)→j = Σ_t A_j F_(j,t)→(i,s)``, from the desk faces' rows
+    to the floor, each estimate scaled by A_j / A_i ≤ 1 (:func:`group_rows`). Without,
+    every pair is computed from the faces_i (two-sided: the oracle the tests compare with).
+
+    Each emitting face side's cells are computed once for all its receivers
+    (:func:`emitter_row`), and the pairs it cannot see are left out of its row by the
+    vectorised facing test (:func:`seen_receivers`); rows run on ``workers`` processes
+    (default: the CPU count). A query of one row (a floor to a ceiling) runs as
+    :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too uses the cores;
+    the parts depend on the query, never on the workers. ``tol`` bounds the error estimate
+    of each face pair."""
+    faces_i = np.asarray(sorted({int(i) for i in faces_i}), np.int64)
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
-    area = scene.face_area
-    n_parts = SINGLE_PARTS if len(faces_i) == 1 else 1
+    row, _, val, err = group_entries(scene, faces_i, faces_j, side_i, tol, workers, reciprocal)
+    area = scene.face_area[row // 2]
+    a = float(scene.face_area[faces_i].sum())
+    pairs = len(faces_i) * len(faces_j) - int(np.isin(faces_i, faces_j).sum())
+    return {"F": float(np.sum(area * val)) / a, "error": float(np.sum(area * err)) / a, "pairs": int(pairs)}
+
+
+def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True):
+    """The entries F_(i,side_i)→(j,t) of a group query (:func:`group_to_group`), computed or
+    derived: ``(rows, cols (m,) int64, values, errors (m,) float64)``, rows the elements
+    ``2 i + (0 front, 1 back)`` of side ``side_i`` of the faces_i, cols those of both sides
+    of the faces_j, j ≠ i (the parts of a row split into parts are entries of their own:
+    their sum is the entry)."""
+    faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
+    rows = group_rows(scene, faces_i, side_i, faces_j, reciprocal)
+    n_parts = SINGLE_PARTS if len(rows) == 1 else 1
     if n_parts > 1:
-        shared_emitter_work(scene, faces_i[0], side_i, faces_j)
-    emitters = [i for i in faces_i for _ in range(n_parts)]
-    rows = _map_rows(emitter_row, scene, [(i, side_i, (k, n_parts)) for i in faces_i for k in range(n_parts)], faces_j,
-                     tol, False, workers)
-    total = sum(area[i] * r[1].sum() for i, r in zip(emitters, rows))
-    err = sum(area[i] * r[2].sum() for i, r in zip(emitters, rows))
-    a = float(area[faces_i].sum())
-    pairs = sum(len(set(faces_j.tolist()) - {i}) for i in faces_i)
-    return {"F": float(total / a), "error": float(err / a), "pairs": int(pairs)}
+        shared_emitter_work(scene, *rows[0][:3])
+    tasks = [(f, s, r, (k, n_parts)) for f, s, r, _ in rows for k in range(n_parts)]
+    tols = [tol * scale for *_, scale in rows for _ in range(n_parts)]
+    results = _map_rows(emitter_row, scene, tasks, tols, False, workers)
+    row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in tasks])
+    if reciprocal:
+        row, col, val, err = (np.concatenate(pair) for pair in zip((row, col, val, err),
+                                                                      derived_entries(scene, row, col, val, err)))
+    keep = (np.isin(row, 2 * faces_i + (0 if side_i > 0 else 1)) & np.isin(col // 2, faces_j)
+            & (row // 2 != col // 2))
+    return row[keep], col[keep], val[keep], err[keep]
+
+
+def group_rows(scene, faces_i, side_i, faces_j, reciprocal=True):
+    """The rows a group query computes: ``[(face, side, receivers (k,) int64, scale (k,)
+    float64)]``, each face side once with every receiver it computes a pair with, in the
+    order of the faces, and the factor of ``tol`` each pair needs.
+
+    Two-sided, the rows are (i, side_i) → faces_j ∖ {i}, each pair to tol. With
+    ``reciprocal``, a pair {i, j} is computed in the rows of the face :func:`computed_pairs`
+    names: (i, side_i) → j where i is the smaller, else (j, +1) and (j, −1) → i, whose
+    entries to side side_i of i give F_(i,side_i)→(j,t) = (A_j / A_i) F_(j,t)→(i,side_i)
+    (:func:`derived_entries`). The query asks for F from the faces_i only, so a pair
+    computed for its derived direction alone needs its estimate within tol · A_i / A_j
+    (≥ tol): scaled by A_j / A_i, it is within tol (a desk panel's side to the floor, ~100
+    times smaller, is refined to ~100 tol in its own F; the matrix, which needs both
+    directions, computes every pair to tol). A face in both groups has its rows shared by
+    the pairs it emits and those it is derived from, each pair to the smaller of its
+    needs. Receivers a side cannot see or touch are left out (:func:`seen_receivers`), and
+    the rows left with none."""
+    faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
+    area = scene.face_area
+    wanted = {}  # (face, side) -> {receiver: factor of tol}
+
+    def need(row, receiver, scale):
+        got = wanted.setdefault(row, {})
+        got[receiver] = min(got.get(receiver, np.inf), scale)
+
+    for i in faces_i:
+        others = faces_j[faces_j != i]
+        mine = computed_pairs(scene, int(i), others) if reciprocal else np.ones(len(others), bool)
+        for j in others[mine]:
+            need((int(i), int(side_i)), int(j), 1.0)
+        for j in others[~mine]:
+            for t in SIDES:
+                need((int(j), t), int(i), float(area[i] / area[j]))
+    rows = []
+    for (f, s) in sorted(wanted, key=lambda k: (k[0], -k[1])):
+        receivers = np.asarray(sorted(wanted[f, s]), np.int64)
+        seen = seen_receivers(scene, f, s, receivers)
+        if len(seen):
+            rows.append((f, s, seen, np.array([wanted[f, s][int(r)] for r in seen])))
+    return rows
+
+
+def seen_receivers(scene, face, side, faces):
+    """(k,) int64, sorted: those of ``faces`` that side ``side`` of a face may see
+    (:func:`facing_sides`) or touch (lying in its plane: :func:`coplanar_faces`); the rest
+    have F = 0 from it."""
+    faces = np.asarray(faces, np.int64)
+    fj, _ = facing_sides(scene, face, side, faces)
+    return faces[np.isin(faces, fj) | np.isin(faces, coplanar_faces(scene, face))]
 
 
 def shared_emitter_work(scene, face, side, faces):
@@ -2194,7 +2269,9 @@ def closed_form_row(scene, face, side, faces, sky=True):
 def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     """F from one side of a face to every side of ``faces`` it may see, and to the sky
     (``part``: that part of each pair, :func:`pair_form_factor`); a side with a closed
-    form (:func:`closed_form_row`) takes it, in part 0.
+    form (:func:`closed_form_row`) takes it, in part 0. ``tol``: the target on each
+    pair's estimate, one for all or (k,) float64, one per face of ``faces`` (the sky
+    takes the smallest).
 
     Returns
     -------
@@ -2211,15 +2288,17 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     cells, _, kinked = cubature_cells(scene, face, side)
     contact = cell_contacts(scene, face, side)
     cols, vals, errs, counts = [], [], [], {}
-    fj, sj = facing_sides(scene, face, side, np.asarray(faces, np.int64))
+    faces = np.asarray(faces, np.int64)
+    tols = np.broadcast_to(np.asarray(tol, np.float64), faces.shape)
+    fj, sj = facing_sides(scene, face, side, faces)
     # the sides it lies against (faces in its plane: not facing it, F = their common area)
     touched = np.unique(contact[contact >= 0])
-    touched = touched[np.isin(touched // 2, np.asarray(faces, np.int64))]
+    touched = touched[np.isin(touched // 2, faces)]
     fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
-    counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(np.asarray(faces).tolist()))
+    counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(faces.tolist()))
     for j, t in zip(fj, sj):
-        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=tol, cells=cells, contact=contact,
-                             part=part, kinked=kinked)
+        r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=float(tols[faces == j][0]),
+                             cells=cells, contact=contact, part=part, kinked=kinked)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -2228,7 +2307,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     sky_v, sky_e = 0.0, 0.0
     if sky:
         for box in sky_targets(scene):
-            r = pair_form_factor(scene, face, side, box, 1, tol=tol, cells=cells, contact=contact, part=part, kinked=kinked)
+            r = pair_form_factor(scene, face, side, box, 1, tol=float(np.min(tols, initial=np.max(tol))), cells=cells,
+                                 contact=contact, part=part, kinked=kinked)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -2807,12 +2887,14 @@ def _row_task(args, scene=None):
     return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part, **options)
 
 
-def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None, threads=False):
+def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=False):
     """``row(scene, face, side, faces, tol, sky)`` (:func:`emitter_row` pair by pair, or
-    :func:`row_form_factors` all receivers at once) of every (face, side) in ``rows``, in
-    that order, on ``workers`` processes (forked: they share the scene; the results do not
-    depend on their number). A row given as (face, side, part) is that part of it
-    (``row(..., sky, part)``, :func:`emitter_row`).
+    :func:`row_form_factors` all receivers at once) of every (face, side, faces) in
+    ``rows`` (each row its own receivers ``faces`` (k,) int64), in that order, on
+    ``workers`` processes (forked: they share the scene; the results do not depend on
+    their number). A row given as (face, side, faces, part) is that part of it
+    (``row(..., sky, part)``, :func:`emitter_row`). ``tol``: one for every row, or a list
+    of one per row (for :func:`emitter_row`, each may be one per receiver).
 
     The costly rows (large faces) go first, so that no worker is left with one at the end.
     With ``threads`` (:func:`row_form_factors`), each row also evaluates its points on as
@@ -2830,7 +2912,9 @@ def _map_rows(row, scene, rows, faces, tol, sky, workers=None, progress=None, th
     global _POOL_SCENE, _ROW_CORES
     workers = min(default_workers(workers), len(rows))
     options = {"threads": workers} if threads and workers > 1 else {}
-    tasks = [(row, int(r[0]), int(r[1]), faces, tol, sky, tuple(r[2:]), options) for r in rows]
+    tols = tol if isinstance(tol, list) else [tol] * len(rows)
+    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), t, sky, tuple(r[3:]), options)
+             for r, t in zip(rows, tols)]
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []
         for t in tasks:
@@ -2947,11 +3031,11 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciproc
     t0 = time.perf_counter()
     n = scene.n_faces
     faces = np.arange(n, dtype=np.int64)
-    rows = [(i, s) for i in range(n) for s in SIDES]
+    rows = [(i, s, faces) for i in range(n) for s in SIDES]
     row = functools.partial(row_form_factors, reciprocal=True) if reciprocal else row_form_factors
     load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
-        results = _map_rows(row, scene, rows, faces, tol, True, workers,
+        results = _map_rows(row, scene, rows, tol, True, workers,
                             progress=lambda: progress.update(1), threads=True)
     return assemble_matrix(scene, results, tol, time.perf_counter() - t0, reciprocal)
 
@@ -2959,28 +3043,44 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciproc
 def assemble_matrix(scene, results, tol, seconds, reciprocal=False):
     """The :class:`Matrix` of the rows ``results`` (what :func:`emitter_row` returns, one per
     side: face 0 front, face 0 back, face 1 front, ...). With ``reciprocal``, the rows hold
-    only the pairs they compute (:func:`computed_pairs`), and each entry F_ab gives the other
-    direction F_ba = A_a F_ab / A_b, its error scaled alike."""
+    only the pairs they compute (:func:`computed_pairs`), and each entry gives the other
+    direction (:func:`derived_entries`)."""
     counts = {}
     for r in results:
         for k, v in r[3].items():
             counts[k] = counts.get(k, 0) + v
-    lengths = np.array([len(r[0]) for r in results], np.int64)
-    cat = lambda k, dt: np.concatenate([r[k] for r in results]).astype(dt) if len(results) else np.zeros(0, dt)  # noqa: E731
-    cols, vals, errs = cat(0, np.int64), cat(1, np.float64), cat(2, np.float64)
-    rows = np.repeat(np.arange(len(results), dtype=np.int64), lengths)
+    rows, cols, vals, errs = row_entries(results, np.arange(len(results), dtype=np.int64))
     if reciprocal:
-        ratio = scene.face_area[rows // 2] / scene.face_area[cols // 2]
-        rows, cols = np.concatenate([rows, cols]), np.concatenate([cols, rows])
-        vals, errs = np.concatenate([vals, vals * ratio]), np.concatenate([errs, errs * ratio])
+        derived = derived_entries(scene, rows, cols, vals, errs)
+        rows, cols, vals, errs = (np.concatenate(pair) for pair in zip((rows, cols, vals, errs), derived))
         order = np.lexsort([cols, rows])
         rows, cols, vals, errs = rows[order], cols[order], vals[order], errs[order]
-        counts["derived"] = int(len(ratio))
+        counts["derived"] = int(len(derived[0]))
     indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=len(results)))]).astype(np.int64)
     sky_v = np.array([r[4] for r in results])
     sky_e = np.array([r[5] for r in results])
     return Matrix(indptr, cols, vals, errs, sky_v, sky_e, scene.face_area.astype(np.float64).copy(), counts, seconds,
                   float(tol), bool(reciprocal))
+
+
+def row_entries(results, elements):
+    """The entries of rows ``results`` (what :func:`emitter_row` returns), result k being
+    a row of element ``elements[k]``: ``(rows, cols (m,) int64, values, errors (m,) float64)``,
+    in the rows' order."""
+    lengths = np.array([len(r[0]) for r in results], np.int64)
+    cat = lambda k, dt: np.concatenate([r[k] for r in results]).astype(dt) if len(results) else np.zeros(0, dt)  # noqa: E731
+    rows = np.repeat(np.asarray(elements, np.int64), lengths)
+    return rows, cat(0, np.int64), cat(1, np.float64), cat(2, np.float64)
+
+
+def derived_entries(scene, rows, cols, values, errors):
+    """The other direction of computed entries F_ab (element a = ``rows``, b = ``cols``):
+    by reciprocity ``A_a F_ab = A_b F_ba``, so ``F_ba = F_ab A_a / A_b``, its error
+    estimate scaled alike (the pair computed from its smaller face, :func:`computed_pairs`:
+    A_a / A_b ≤ 1, within ``tol`` if F_ab is). Returns ``(rows, cols, values, errors)``
+    of the F_ba."""
+    ratio = scene.face_area[rows // 2] / scene.face_area[cols // 2]
+    return cols, rows, values * ratio, errors * ratio
 
 
 # --------------------------------------------------------------------------------------

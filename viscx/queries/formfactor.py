@@ -63,6 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viscx.arrays import graph_components
 from viscx.errors import ViscxError
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
@@ -400,11 +401,8 @@ def closed_solids(scene):
         neighbour[paired] = face[order[left[paired]]]
         paired &= one[np.maximum(neighbour, 0)] & (neighbour != face)
         neighbour[~paired] = -1
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
         link = np.flatnonzero(paired)
-        _, comp = connected_components(coo_matrix((np.ones(len(link)), (face[link], neighbour[link])), shape=(n, n)),
-                                       directed=False)
+        _, comp = graph_components(n, face[link], neighbour[link])
         # a solid: every edge of every face of the component paired
         bare = np.bincount(comp[face[~paired]], minlength=n) > 0
         faces_in = np.bincount(comp, minlength=n)

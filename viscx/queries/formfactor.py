@@ -2825,12 +2825,14 @@ def computed_pairs(scene, face, faces):
 def load_row_kernels(scene):
     """Load (or compile) the numba kernels of :func:`row_form_factors` with the types its
     calls have, on no points: a parent that does so before forking its workers loads them
-    once (~0.4 CPU s on the Cornell box) instead of once per worker."""
+    once (~0.4 CPU s on the Cornell box) instead of once per worker (every kernel a row
+    calls: `NUMBA_DEBUG_CACHE=1` shows each loaded once in a matrix)."""
     n_i = np.asarray(scene.face_normal[0], np.float64)
     eu, ev = plane_basis(n_i)
     point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, *closed_boxes(scene))
     none_i, none_f = np.zeros(0, np.int64), np.zeros((0, 3))
     shaft_meets(np.zeros((0, 3, 3)), none_f, none_f, n_i, none_i, none_i, none_f, none_i, none_i, none_f, 1.0)
+    shaft_boxes_meet(np.zeros((0, 3, 3)), none_f, none_i, none_i, none_f, none_i, none_i, 1.0)
 
 
 _POOL_SCENE = None

@@ -2544,8 +2544,10 @@ class ThreeLevelRowCubature:
     explains why): one value per receiver column at each point, each column with its own
     budget. Every triangle is
     evaluated on the same three levels (its rule, 4 children, 16 grandchildren); a column's
-    estimate is the sum of its triangles' estimates (:meth:`Cubature.estimates`, column by
-    column), and while some column's exceeds its budget, that column's triangles with the
+    estimate is the sum of its triangles' estimates, on the kink model
+    (:func:`kinked_three_level_error`: a kink line may cross any triangle here, so the
+    smooth model's ``|Q − K| / 64`` of :class:`Cubature` is too optimistic where K and G
+    agree by chance), and while some column's exceeds its budget, that column's triangles with the
     largest estimates are split (until what is left is half its budget). A point is
     evaluated once for all receivers.
 

@@ -1218,9 +1218,10 @@ KINK_LEVELS = 12
 #: A triangle whose finest change ``|K − G|`` is larger than the one before ``|Q − K|`` is
 #: not converging yet (a shadow first seen by the grandchildren: office(100), a cabinet
 #: side's row, whose values over the levels ran 0, 0, 1.6e-7, 4.7e-7, then settled at
-#: 4.4e-7): its next change may be as large again; its estimate is ``KINK_GROWTH × |K − G|``,
-#: the next three levels' changes on the kink model's ratio (1 + 1/4 + 1/16 ≈ 4/3) after
-#: one as large as the last, times 3: what puts such triangles first in line to be split.
+#: 4.37e-7, G's error 1.7 × ``|K − G|``). No model bounds what such a triangle has not
+#: seen yet: this is a safety factor (its next change may be as large as the last again,
+#: and then its successors', ≤ 1/3 of it on the kink model: ≤ 4/3, times 3 as the kink
+#: model's margin), and it puts such triangles first in line to be split.
 KINK_GROWTH = 4
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from viscx.arrays import expand_ranges, first_of_rows, unique_rows, unique_sorted
+from viscx.arrays import expand_ranges, first_of_rows, graph_components, unique_rows, unique_sorted
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 5000])
@@ -58,3 +58,21 @@ def test_row_norms_equal_numpys_norm_bit_for_bit():
         for y in (x, np.asfortranarray(x), x[::2], x.astype(np.float32)):
             a, b = np.linalg.norm(y, axis=1), row_norms(y)
             assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), (shape, y.dtype)
+
+
+def test_graph_components_against_scipy():
+    """The labels of scipy's connected_components on random graphs (isolated nodes, loops,
+    repeated edges), and one component along a shuffled path of 10⁵ nodes."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n = int(rng.integers(1, 200))
+        a, b = rng.integers(0, n, (2, int(rng.integers(0, 2 * n))))
+        count, label = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+        got = graph_components(n, a, b)
+        assert got[0] == count and np.array_equal(got[1], label)
+    path = rng.permutation(100_000)
+    count, label = graph_components(100_000, path[:-1], path[1:])
+    assert count == 1 and not label.any()

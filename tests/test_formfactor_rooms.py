@@ -256,3 +256,32 @@ def test_closed_room_with_overlapping_faces_rows_slow():
     m = ff.form_factor_matrix(scene, tol=1e-7)
     check_reciprocity(scene, m)
     check_rows(m)
+
+
+def test_three_level_rows_on_the_kink_model(monkeypatch):
+    """office(100)'s cabinet side 64 and desk-top edge 41 (on three levels, their kinks
+    uncut), at tol 1e-4 against the rows 4 times finer at 1e-7: every entry within its
+    estimate plus the reference's. On the smooth model (``|Q − K| / 64`` at the least,
+    :func:`viscx.queries.formfactor.three_level_error`) four were not (64 → 41+: 2.7e-7 off
+    for 1.7e-7 and → 44+, a shadow first seen by the grandchildren; 41 → 3+, a wall: 4.9e-8
+    for 3.3e-8 and → 16+, the children and grandchildren agreeing by chance across a kink):
+    :func:`viscx.queries.formfactor.kinked_three_level_error`."""
+    scene = build_scene(office(100, seed=0))
+    faces = np.arange(scene.n_faces)
+
+    def beyond(face):
+        with monkeypatch.context() as m:
+            m.setattr(ff, "MIN_SPLIT", 4 * ff.MIN_SPLIT)
+            m.setattr(ff, "THREE_LEVEL_SPLIT", 4 * ff.THREE_LEVEL_SPLIT)
+            r = ff.row_form_factors(scene, face, 1, faces, 1e-7, reciprocal=True)
+        ref = dict(zip(r[0].tolist(), zip(r[1], r[2])))
+        row = ff.row_form_factors(scene, face, 1, faces, 1e-4, reciprocal=True)
+        assert not ff.cubature_cells(scene, face, 1)[2]  # on three levels
+        got = dict(zip(row[0].tolist(), zip(row[1], row[2])))
+        return {c for c in set(got) | set(ref)
+                if abs(got.get(c, (0.0, 0.0))[0] - ref.get(c, (0.0, 0.0))[0])
+                > got.get(c, (0.0, 0.0))[1] + ref.get(c, (0.0, 0.0))[1] + 1e-14}
+
+    assert beyond(64) == set() and beyond(41) == set()
+    monkeypatch.setattr(ff.ThreeLevelRowCubature, "estimates", lambda self, tri, q, kq, gq: ff.three_level_error(q, kq, gq)[0])
+    assert beyond(64) == {82, 88} and beyond(41) == {6, 32}

@@ -128,6 +128,36 @@ def walk_cycle(successor, start, seen, order, k):
     return k
 
 
+def graph_components(n, a, b):
+    """The connected components of the undirected graph on ``n`` nodes with the edges
+    ``(a[k], b[k])``: ``(count, label)``, ``label`` (n,) int64 numbered 0, 1, … in the order
+    of each component's smallest node (the labels of ``scipy.sparse.csgraph.
+    connected_components``). Hooking and pointer jumping (Shiloach and Vishkin): every
+    round hooks the root of each edge's larger label onto the smaller, then makes every
+    node point to its root; O(log n) rounds of numpy. (For the form factors' closed
+    solids: importing scipy's graph module costs ~0.15 CPU s, a tenth of a small matrix.)
+
+    Parameters
+    ----------
+    n : int
+    a, b : (e,) int
+    """
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    root = np.arange(n, dtype=np.int64)
+    while True:
+        ra, rb = root[a], root[b]
+        if np.array_equal(ra, rb):
+            break
+        np.minimum.at(root, np.maximum(ra, rb), np.minimum(ra, rb))
+        while True:  # every node to its root (the smallest node of what is joined so far)
+            up = root[root]
+            if np.array_equal(up, root):
+                break
+            root = up
+    smallest, label = np.unique(root, return_inverse=True)
+    return len(smallest), label.astype(np.int64)
+
+
 def bounding_diagonal(vertices):
     """Length of the diagonal of the points' bounding box; inf where it overflows float64
     (coordinates so large that distances between them cannot be computed).

@@ -32,9 +32,6 @@ from pathlib import Path
 import numpy as np
 
 from viscx.arrays import expand_ranges
-from viscx.skeleton.nodes import BLOCK_FACE
-from viscx.skeleton.loops import cells_of_loops
-from viscx.skeleton.vcells import inside_loops, reference_points, sphere_loops, sphere_turning_sums, stored_elements
 
 
 @dataclass
@@ -150,6 +147,12 @@ def point_view(scene, arcs, vcells, vertex, point):
     -------
     PointView
     """
+    # the skeleton's modules here, not at the top: opening a file for a form-factor matrix
+    # (:func:`open_query`) needs none of them (nor embree)
+    from viscx.skeleton.loops import cells_of_loops
+    from viscx.skeleton.nodes import BLOCK_FACE
+    from viscx.skeleton.vcells import inside_loops, reference_points, sphere_loops, sphere_turning_sums, stored_elements
+
     p = np.asarray(point, dtype=np.float64)
     n_faces = len(scene.face_area)
     mine = np.flatnonzero(vcells.vertex == vertex)

@@ -578,10 +578,12 @@ class Gaps:
     corner : (g,) bool
         The loop turns once there, at the corner where the two elements' great circles
         meet (a spike or a crossing by the gap); elsewhere it runs along the gap.
+    placed : (g,) bool
+        Corners that are one point of both elements (:attr:`meet`): the incoming element
+        cut or lengthened to end there, the next one to start there, each keeping its
+        direction.
     meet : (g, 3) float
-        That corner, unit, where it is one point of both elements (the incoming element
-        shortened or lengthened to end there, the next one to start there, each keeping
-        its direction); zero elsewhere.
+        That point, unit, where ``placed``.
     """
 
     index: np.ndarray
@@ -589,12 +591,8 @@ class Gaps:
     at_p: np.ndarray
     at_q: np.ndarray
     corner: np.ndarray
+    placed: np.ndarray
     meet: np.ndarray
-
-    @property
-    def placed(self):
-        """(g,) bool: gaps whose loop turns at a corner that :attr:`meet` places."""
-        return self.corner & self.meet.any(axis=1)
 
 
 def loop_gaps(el, loop_offsets):
@@ -656,8 +654,7 @@ def loop_gaps(el, loop_offsets):
               & (np.einsum("ij,ij->i", np.cross(a, meet), n_in) > 0)
               & (np.einsum("ij,ij->i", np.cross(meet, b), n_out) > 0))
     corner = spike | near
-    meet[~(corner & placed)] = 0.0
-    return Gaps(gap, after, at_p, at_q, corner, meet)
+    return Gaps(gap, after, at_p, at_q, corner, corner & placed, meet)
 
 
 def sphere_turning_sums(el, loop_offsets):

@@ -868,6 +868,36 @@ def test_turning_where_elements_cross_by_a_gap(monkeypatch):
     assert abs(vcells.sphere_turning_sums(el, offsets)[0] - turning + 2 * np.pi) < 1e-8
 
 
+def test_point_location_in_a_loop_whose_element_runs_past_a_spike():
+    """A small triangle P0, P1, P2 (counter-clockwise) whose side P0 -> P1 runs on 1.5 times
+    its length past P1 (its family kept a farther event of a merged run), the gap running
+    straight back along it to P1, where the next side starts (the whole npm bunny's vertex
+    967: a cell of 2.9e-10 sr, sides 5e-5 to 9.4e-5 rad, the gap 6.5e-5 rad). The turning
+    sum turns once at P1 (the spike rule) and gives the triangle's area; point location
+    must see the same loop: the reference point beside the middle of the longest element,
+    beyond P1, lay outside the triangle, so every direction of the sphere was inside this
+    cell and in the one really holding it (every direction of vertex 967 in two cells).
+    Directions in the triangle are inside, the rest of the sphere outside."""
+    import viscx.skeleton.vcells as vcells
+
+    corners = [_unit([*x, 1.0]) for x in ([0.0, 0.0], [1e-4, 0.0], [0.3e-4, 0.8e-4])]
+    p0, p1, p2 = corners
+    past = _unit(p0 + 2.5 * (p1 - p0))
+    el = _arcs_on_sphere(np.array([p0, p1, p2]), np.array([past, p2, p0]))
+    offsets = np.array([0, 3])
+    area = triangle_solid_angle(np.zeros(3), np.array(corners))
+    # (within 1e-8 sr: the spike's one turn is taken between tangents 1.5e-4 rad apart)
+    assert abs(vcells.sphere_turning_sums(el, offsets)[0] - (2 * np.pi - area)) < 1e-8
+    ref = vcells.reference_points(el, offsets)
+    rng = np.random.default_rng(0)
+    w = rng.dirichlet(np.ones(3), 200)
+    within = w @ np.array(corners)
+    within /= np.linalg.norm(within, axis=1, keepdims=True)
+    targets = np.concatenate([within, uniform_directions(rng, 1000), [_unit(p0 + 2.0 * (p1 - p0) + [0, 1e-6, 0])]])
+    inside = vcells.inside_loops(el, offsets, ref, np.zeros(len(targets), np.int64), targets)
+    assert inside[:200].all() and not inside[200:].any()
+
+
 @pytest.mark.slow
 def test_every_vertex_of_the_1000_polygon_city_is_complete(monkeypatch):
     """random_boxes(1000) (997 polygons): every one of its 1332 vertices is complete (920

@@ -146,7 +146,8 @@ SPIKE_ANGLE = 1e-6
 #: apart than CUSP_GAP (a chord far above the ends' rounding) the gap's side decides the turn.
 CUSP_ANGLE = 1e-3
 CUSP_GAP = 1e-10
-#: Angle by which a loop's reference point lies left of its longest element's midpoint.
+#: Angle by which a loop's reference point lies left of the middle of its longest arc
+#: (:func:`viscx.skeleton.vcells.reference_points`).
 SPHERE_REFERENCE_OFFSET = 1e-8
 #: A vertex's cells cover its sphere when their solid angles sum to 4π within this.
 SPHERE_COVER_TOLERANCE = 1e-6

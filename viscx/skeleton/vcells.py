@@ -564,24 +564,54 @@ def _line_reach(origin, direction, vertex, reach, a, b, va, vb, tol):
 # loops on the sphere (elements of loop j contiguous: loop_offsets[j]:loop_offsets[j + 1])
 
 
-def sphere_turning_sums(el, loop_offsets):
-    """:func:`viscx.skeleton.loops.turning_sums` of loops on a vertex's sphere, bridging gaps.
+@dataclass
+class Gaps:
+    """Where the loops' elements do not meet end to start (:func:`loop_gaps`).
 
-    Where an element ends farther than
-    JOIN_CHORD from the next one's start (:func:`join_open_chains`), or farther than
-    CUSP_GAP at a cusp (a corner turning back within CUSP_ANGLE of ±π), the loop runs
-    along the great circle between them, turning at both of its ends: turning once from
-    the incoming to the outgoing tangent would miss a full turn where the gap runs back
-    (a turn beyond ±π). Where the two elements' great circles meet next to the gap (within
-    CORNER_REACH chords of both its ends) the corner is there and the loop turns once.
+    Attributes
+    ----------
+    index, next : (g,) int
+        The element ending at each gap and the element starting after it.
+    at_p, at_q : (g,) float
+        The turns from the element's end tangent to the gap's great circle at its end p,
+        and from the gap's circle to the next element's start tangent at its start q.
+    corner : (g,) bool
+        The loop turns once there, at the corner where the two elements' great circles
+        meet (a spike or a crossing by the gap); elsewhere it runs along the gap.
+    placed : (g,) bool
+        Corners that are one point of both elements (:attr:`meet`): the incoming element
+        cut or lengthened to end there, the next one to start there, each keeping its
+        direction.
+    meet : (g, 3) float
+        That point, unit, where ``placed``.
+    """
+
+    index: np.ndarray
+    next: np.ndarray
+    at_p: np.ndarray
+    at_q: np.ndarray
+    corner: np.ndarray
+    placed: np.ndarray
+    meet: np.ndarray
+
+
+def loop_gaps(el, loop_offsets):
+    """The gaps of loops on a vertex's sphere and how the loops run across them.
+
+    A gap is an element ending farther than JOIN_CHORD from the next one's start
+    (:func:`join_open_chains`), or farther than CUSP_GAP at a cusp (a corner turning back
+    within CUSP_ANGLE of ±π). The loop runs along the great circle between its ends,
+    turning at both, unless the two elements' great circles meet next to the gap (within
+    CORNER_REACH chords of both its ends), or the gap runs straight back along either
+    element (a spike, within SPIKE_ANGLE of ±π at an end): the corner is then where the
+    circles meet, and the loop turns there once (:func:`sphere_turning_sums`).
 
     Returns
     -------
-    (l,) float
-        2π minus the solid angle of the loop's left region (Gauss-Bonnet).
+    Gaps
     """
     n = loop_offsets[-1]
-    nxt, loop_of = loop_successors(loop_offsets)
+    nxt, _ = loop_successors(loop_offsets)
     turn = corner_turns(el, loop_offsets)
     p, q = el.end[:n], el.start[nxt]
     chord = row_norms(q - p)
@@ -590,11 +620,12 @@ def sphere_turning_sums(el, loop_offsets):
     # tangents, in (-π, π], wraps it to -π plus that angle; the gap's side decides
     cusp = (np.abs(turn) > np.pi - CUSP_ANGLE) & (chord > CUSP_GAP)
     gap = np.flatnonzero((chord > JOIN_CHORD) | cusp)
-    p, q = p[gap], q[gap]
+    p, q, chord, after = p[gap], q[gap], chord[gap], nxt[gap]
+    a, b = el.start[gap], el.end[after]  # the incoming element's start, the next one's end
     cos = np.einsum("ij,ij->i", p, q)[:, None]
     leave, arrive = q - cos * p, cos * q - p  # the great circle's tangents at p and at q
     at_p = signed_angle(el.end_tangent[gap], leave, p)
-    at_q = signed_angle(arrive, el.start_tangent[nxt[gap]], q)
+    at_q = signed_angle(arrive, el.start_tangent[after], q)
     # where the two elements' great circles meet by the gap (the incoming element
     # overshoots the corner, or the outgoing one starts before it: their families kept
     # different events of a merged group) the corner is that meeting point and the loop
@@ -603,7 +634,8 @@ def sphere_turning_sums(el, loop_offsets):
     # either element (a spike: one great circle, or a corner on that element, whose ±π
     # rounding decides). Elsewhere the gap is a side V1 lost, and the loop runs along it.
     spike = np.maximum(np.abs(at_p), np.abs(at_q)) > np.pi - SPIKE_ANGLE
-    meet = np.cross(np.cross(el.start[gap], p), np.cross(q, el.end[nxt[gap]]))
+    n_in, n_out = np.cross(a, p), np.cross(q, b)
+    meet = np.cross(n_in, n_out)
     size = row_norms(meet)
     ok = size > PARALLEL_TOLERANCE  # circles crossing at more than ~1e-12 rad
     meet[ok] /= size[ok, None]
@@ -611,29 +643,58 @@ def sphere_turning_sums(el, loop_offsets):
     from_p, from_q = row_norms(meet - p), row_norms(meet - q)
     # ... next to the gap, and not at the elements' other ends (a loop of two elements
     # and a gap, all about as long: their circles meet at its third corner)
-    near = (ok & (np.maximum(from_p, from_q) <= CORNER_REACH * chord[gap])
-            & (2 * from_p < row_norms(el.start[gap] - p))
-            & (2 * from_q < row_norms(el.end[nxt[gap]] - q)))
-    turn[gap] = np.where(spike | near, turn[gap], at_p + at_q)
+    near = (ok & (np.maximum(from_p, from_q) <= CORNER_REACH * chord)
+            & (2 * from_p < row_norms(a - p)) & (2 * from_q < row_norms(b - q)))
+    # The corner as a point of both elements: next to the gap (a spike's circles meet by
+    # the end the gap runs back to, possibly beyond the incoming element's middle), and
+    # each element keeping its direction when cut or lengthened to it. Point location
+    # needs it (:func:`loop_segments`): a spike's element runs on past the corner, and
+    # a reference point beside that part lies outside the loop's region.
+    placed = (ok & (np.minimum(from_p, from_q) <= CORNER_REACH * chord)
+              & (np.einsum("ij,ij->i", np.cross(a, meet), n_in) > 0)
+              & (np.einsum("ij,ij->i", np.cross(meet, b), n_out) > 0))
+    corner = spike | near
+    return Gaps(gap, after, at_p, at_q, corner, corner & placed, meet)
+
+
+def sphere_turning_sums(el, loop_offsets):
+    """:func:`viscx.skeleton.loops.turning_sums` of loops on a vertex's sphere, bridging gaps.
+
+    Across a gap (:func:`loop_gaps`) the loop runs along the great circle between its
+    ends, turning at both of them: turning once from the incoming to the outgoing tangent
+    would miss a full turn where the gap runs back (a turn beyond ±π). Where the gap has
+    a corner (the two elements' circles meet next to it, or it runs back along one of
+    them) the loop turns once, there.
+
+    Returns
+    -------
+    (l,) float
+        2π minus the solid angle of the loop's left region (Gauss-Bonnet).
+    """
+    _, loop_of = loop_successors(loop_offsets)
+    turn = corner_turns(el, loop_offsets)
+    g = loop_gaps(el, loop_offsets)
+    turn[g.index] = np.where(g.corner, turn[g.index], g.at_p + g.at_q)
     return np.bincount(loop_of, weights=turn, minlength=len(loop_offsets) - 1)
 
 
 def reference_points(el, loop_offsets):
     """A point just left of each loop: SPHERE_REFERENCE_OFFSET (at most a thousandth of the
-    element) off the middle of its longest element.
+    arc) off the middle of its longest arc (:func:`loop_segments`: elements cut at the
+    corners of their gaps, and the gaps' arcs).
 
     Returns
     -------
     (l, 3) float
     """
-    n = loop_offsets[-1]
-    length = np.arccos(np.clip(np.einsum("ij,ij->i", el.start[:n], el.end[:n]), -1.0, 1.0))
-    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
+    starts, ends, offsets = loop_segments(el, loop_offsets)
+    length = np.arccos(np.clip(np.einsum("ij,ij->i", starts, ends), -1.0, 1.0))
+    loop_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
     pick = np.lexsort([-length, loop_of])
-    best = pick[np.searchsorted(loop_of[pick], np.arange(len(loop_offsets) - 1))]
-    mid = el.start[best] + el.end[best]
+    best = pick[np.searchsorted(loop_of[pick], np.arange(len(offsets) - 1))]
+    mid = starts[best] + ends[best]
     mid /= row_norms(mid)[:, None]
-    left = np.cross(mid, el.end[best] - el.start[best])
+    left = np.cross(mid, ends[best] - starts[best])
     left /= row_norms(left)[:, None]
     ref = mid + np.minimum(SPHERE_REFERENCE_OFFSET, 1e-3 * length[best])[:, None] * left
     return ref / row_norms(ref)[:, None]
@@ -721,9 +782,10 @@ def inside_loops(el, loop_offsets, ref, loop, targets):
 
 
 def loop_segments(el, loop_offsets):
-    """The great-circle arcs each loop consists of: its elements and, where an element
-    ends farther than JOIN_CHORD from the next one's start (:func:`join_open_chains`),
-    the minor arc across that gap (a path through the gap crosses the loop there).
+    """The great-circle arcs each loop consists of, as the turning sums run along it
+    (:func:`sphere_turning_sums`): its elements, each cut or lengthened to the corner of
+    a gap where the loop turns once there (:attr:`Gaps.meet`), and the minor arc across
+    every other gap (a path through the gap crosses the loop there).
 
     Returns
     -------
@@ -732,16 +794,19 @@ def loop_segments(el, loop_offsets):
     offsets : (l + 1,) int
     """
     n = loop_offsets[-1]
-    nxt = np.arange(1, n + 1)
-    nxt[loop_offsets[1:] - 1] = loop_offsets[:-1]
-    gap = np.flatnonzero(row_norms(el.start[nxt] - el.end[:n]) > JOIN_CHORD)
-    if len(gap) == 0:
-        return np.ascontiguousarray(el.start[:n]), np.ascontiguousarray(el.end[:n]), np.asarray(loop_offsets, np.int64)
-    loop_of = np.repeat(np.arange(len(loop_offsets) - 1), np.diff(loop_offsets))
-    owner = np.concatenate([loop_of, loop_of[gap]])
+    g = loop_gaps(el, loop_offsets)
+    starts, ends = np.array(el.start[:n], dtype=np.float64), np.array(el.end[:n], dtype=np.float64)
+    placed = g.placed
+    ends[g.index[placed]] = g.meet[placed]
+    starts[g.next[placed]] = g.meet[placed]
+    bridge = ~placed
+    if not bridge.any():
+        return starts, ends, np.asarray(loop_offsets, np.int64)
+    _, loop_of = loop_successors(loop_offsets)
+    owner = np.concatenate([loop_of, loop_of[g.index[bridge]]])
     order = np.argsort(owner, kind="stable")  # each loop's elements, then its gaps
-    starts = np.concatenate([el.start[:n], el.end[gap]])[order]
-    ends = np.concatenate([el.end[:n], el.start[nxt[gap]]])[order]
+    starts = np.concatenate([starts, el.end[g.index[bridge]]])[order]
+    ends = np.concatenate([ends, el.start[g.next[bridge]]])[order]
     offsets = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(loop_offsets) - 1))])
     return np.ascontiguousarray(starts), np.ascontiguousarray(ends), offsets.astype(np.int64)
 

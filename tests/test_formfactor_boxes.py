@@ -183,7 +183,11 @@ def test_point_views_without_back_faces_equal(office60, group, rng):
 
 def test_point_views_from_a_box_face(boxes_on_floor, rng):
     """From a box's own faces, outside and inside (its back side, into the box): the box is
-    never culled from a point on it (not strictly outside), other boxes are."""
+    never culled from a point on it (not strictly outside), other boxes are. Equal to
+    1e-13: swept, a far box's back face meets its front face along an edge seen nearly
+    edge-on (a sliver thinner than 1e-7), and the tie rule of faces lying on faces gave
+    the sliver to the smaller, the back face (seen -4.1e-13 at point 18 of the box's top),
+    until it was kept to faces in one plane (:func:`viscx.geometry.occlusion._nearest`)."""
     s = boxes_on_floor
     face_box = ff.closed_boxes(s)[0]
     for face in np.flatnonzero(face_box == face_box[1])[:3]:
@@ -194,7 +198,7 @@ def test_point_views_from_a_box_face(boxes_on_floor, rng):
             args = (pts, n_i, eu, ev, *ff.scene_polygons(s), int(face), 1e-9 * s.diagonal)
             a = point_views(*args, *ff.closed_boxes(s))
             b = point_views(*args, *ff.no_boxes(s.n_faces))
-            assert np.abs(a - b).max() <= 1e-12
+            assert np.abs(a - b).max() <= 1e-13
 
 
 @pytest.mark.parametrize("group,side", [("floor", 1), ("ceiling", 1), ("back_wall", 1), ("left_wall", 1), ("light", 1),

@@ -35,32 +35,46 @@ import numpy as np
 from numba import njit
 
 TWO_PI = 2.0 * np.pi
-#: Rotation (radians) of each hemicube face's 2-D basis in :func:`point_views`.
+#: Rotation (radians) of each wedge's 2-D basis in :func:`point_views`.
 GENERIC_TURN = 0.4127319
-#: Height (in the hemicube face's plane, at unit distance from the point) below which a
-#: region of the sweep does not reuse its owner from the previous slab (:func:`_hemicube_face`).
+#: The cones the front hemisphere is cut into in :func:`point_views` (at least 3: each must be
+#: pointed, to project centrally on one plane), and the (generic) azimuth of the first one's side.
+WEDGES = 3
+GENERIC_AZIMUTH = 0.2917163
+#: Height (in the wedge's plane, at unit distance from the point) below which a
+#: region of the sweep does not reuse its owner from the previous slab (:func:`_wedge_view`).
 MEMO_GAP = 1e-7
-#: Distance (in the hemicube face's plane, at unit distance from the point: the frustum's
-#: coordinates are within ±1.5) below which :func:`_hemicube_face` takes two breaks of its
+#: Distance (in the wedge's plane, at unit distance from the point: the wedge's
+#: coordinates are within ±2) below which :func:`_wedge_view` takes two breaks of its
 #: sweep for one and two edges for collinear: rounding, not geometry. Polygons clipped by the
 #: same frustum plane, or sharing a clipped edge, give edges on one line up to ~1e-16 whose
 #: "crossings" fall anywhere along it and whose breaks a few ulps apart make slabs of no
 #: width (a third of the Cornell box's slabs); what either can change of F is below
 #: SNAP × the slab's length / π per piece.
 SNAP = 1e-14
-#: Heights (at a slab's middle, in the hemicube face's plane at unit distance) closer than
+#: Heights (at a slab's middle, in the wedge's plane at unit distance) closer than
 #: this, of two edges collinear within SNAP, keep the order the edges had in the last slab
-#: (:func:`_hemicube_face`): edges on one line (polygons clipped by one frustum side)
+#: (:func:`_wedge_view`): edges on one line (polygons clipped by one frustum side)
 #: otherwise swap by rounding from slab to slab, and each swap redoes every region between
 #: it and the slab's real change. (Edges that cross are never tied: their order is exact.)
 ORDER_TIE = 2e-15
-#: Distance from a plane of the hemicube's frustum (relative to the distance from the point)
-#: within which :func:`_hemicube_face` takes a vertex for one on it (a vertex the clipping
+#: Distance from a plane of the wedge (relative to the distance from the point)
+#: within which :func:`_wedge_view` takes a vertex for one on it (a vertex the clipping
 #: made there is within ~1e-16): an edge with both ends on one such plane lies on the
 #: frustum's side, and no other edge (all in the frustum) crosses it but by rounding, so its
 #: crossings are not looked for (with the whole-frustum copy, ~59 → ~57 µs a point on the
 #: Cornell box).
 RIM = 1e-13
+#: Slope (|dv/du| in a wedge's 2-D basis) above which an edge is steep. The sweep
+#: places the ends of an edge's runs by their u (:func:`_flush_owner`), and a steep edge's
+#: height at a crossing's rounded u is off by |dv/du| × ulp(u): the boundary of a region has
+#: a gap of that size where a steep edge meets another, and Lambert's sum over it is off by
+#: about that much (a floor's edge at dv/du = 1.9e6 put 5.5e-12 into F, found against a
+#: 40-digit contour integral of the visible floor). With a steep edge, the wedge's 2-D basis
+#: is turned so that the vertical lies in the middle of the widest gap between the edges'
+#: directions (:func:`_turn_from_steep`; n edges leave a gap of at least π / n, so the
+#: steepest is then below ~0.64 n); below STEEP the gaps stay under ~2e-13, ~1e-15 of F.
+STEEP = 1e3
 
 
 @njit(cache=True)
@@ -234,7 +248,7 @@ def _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act, act_v, 
     and dv/du (:func:`_slopes`). With ``tie`` > 0, two edges collinear within :data:`SNAP`
     whose heights are within ``tie`` of each other are a tie, which keeps the order of ``on``
     (the last slab's, the new edges after it): their order is rounding (they have no
-    crossing: :func:`_hemicube_face`).
+    crossing: :func:`_wedge_view`).
 
     The order is kept from slab to slab: edges do not cross inside a slab, so the previous
     slab's order differs from this one's only by the crossings at their common side and by
@@ -1219,7 +1233,7 @@ def _inside_plane(x, pts, loop_lo, loop_hi, first, last, normal):
 @njit(cache=True)
 def _trapezoid(x, n_i, fa, fb, fc, u0, u1, vb0, vb1, vt0, vt1, p0, p1):
     """F from (x, n_i) to the trapezoid (u0, vb0), (u1, vb1), (u1, vt1), (u0, vt0) of a
-    hemicube face's plane (points x + fc + u fa + v fb): Lambert's contour sum."""
+    wedge's plane (points x + fc + u fa + v fb): Lambert's contour sum."""
     total = 0.0
     us = (u0, u1, u1, u0)
     vs = (vb0, vb1, vt1, vt0)
@@ -1304,12 +1318,97 @@ def _kept(sure, act_v0, act_v1, q):
 
 
 @njit(cache=True)
-def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
-                   side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w,
-                   runs, run_o, rim):
-    """Add to ``seen`` the visible part of every polygon through one face of the hemicube
-    around x (the frustum ``planes`` through x, inward normals): each polygon clipped to the
-    frustum and projected centrally on the face's plane, the slab sweep of
+def _steepest(seg_a, seg_b, n_seg):
+    """max |dv/du| of the edges ``[seg_a, seg_b)[:n_seg]`` (inf for a vertical one; points
+    of no length left out)."""
+    most = 0.0
+    for e in range(n_seg):
+        du, dv = abs(seg_b[e, 0] - seg_a[e, 0]), abs(seg_b[e, 1] - seg_a[e, 1])
+        if dv > most * du:
+            most = np.inf if du == 0.0 else dv / du
+    return most
+
+
+@njit(cache=True)
+def _turn_from_steep(seg_a, seg_b, n_seg, fa, fb, ang):
+    """Turn the 2-D basis (fa, fb) of a wedge, and the edges' coordinates with it,
+    so that the vertical lies in the middle of the widest gap between the edges' directions
+    (angles mod π; ``ang`` (n,) float64 work): with n edges the widest gap is at least π / n,
+    so no edge is steeper than about 2 n / π. Returns the turned basis (new arrays)."""
+    n = 0
+    for e in range(n_seg):
+        du, dv = seg_b[e, 0] - seg_a[e, 0], seg_b[e, 1] - seg_a[e, 1]
+        if du != 0.0 or dv != 0.0:
+            t = np.arctan2(dv, du)
+            ang[n] = t + np.pi if t < 0.0 else (0.0 if t >= np.pi else t)
+            n += 1
+    a = np.sort(ang[:n])
+    mid, gap = 0.5 * (a[0] + a[n - 1] - np.pi), a[0] + np.pi - a[n - 1]
+    for k in range(n - 1):
+        if a[k + 1] - a[k] > gap:
+            gap = a[k + 1] - a[k]
+            mid = 0.5 * (a[k] + a[k + 1])
+    # directions turned by phi = π/2 - mid: (u', v') = R(phi) (u, v), (fa', fb') = R(phi) (fa, fb)
+    phi = 0.5 * np.pi - mid
+    c, s = np.cos(phi), np.sin(phi)
+    for e in range(n_seg):
+        u, v = seg_a[e, 0], seg_a[e, 1]
+        seg_a[e, 0], seg_a[e, 1] = c * u - s * v, s * u + c * v
+        u, v = seg_b[e, 0], seg_b[e, 1]
+        seg_b[e, 0], seg_b[e, 1] = c * u - s * v, s * u + c * v
+    ta, tb = np.empty(3), np.empty(3)
+    for k in range(3):
+        ta[k] = c * fa[k] - s * fb[k]
+        tb[k] = s * fa[k] + c * fb[k]
+    return ta, tb
+
+
+@njit(cache=True)
+def _nearest(cover, n_cover, d, poly_normal, side, rank):
+    """The polygon of ``cover[:n_cover]`` that the ray x + t d meets first (t = -side / (n · d)
+    > 0 least), or -1.
+
+    A tie (t within 1e-9) between two faces in one plane, one lying on the other, goes to
+    the smaller on the larger's front side and to the larger on its back side
+    (docs/queries.md, "Faces lying on faces"). Faces in different planes tie only where the
+    ray meets both at once, at a common edge or vertex seen edge-on (a sliver of a region
+    along it): the lesser t is the nearer there too, whatever the areas (the coplanar rule
+    let a box's back face win such slivers from its front face: -4.1e-13 of F to the back
+    face, tests/test_formfactor_boxes.py)."""
+    now = -1
+    best = np.inf
+    for r in range(n_cover):
+        pr = cover[r]
+        dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
+        if dn == 0.0:
+            continue
+        t = -side[pr] / dn
+        if t <= 0:
+            continue
+        if now >= 0 and abs(t - best) <= 1e-9 * t and _coplanar(poly_normal, side, pr, now):
+            big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
+            now = small if side[big] > 0 else big
+        elif t < best:
+            best = t
+            now = pr
+    return now
+
+
+@njit(cache=True)
+def _coplanar(poly_normal, side, p, q):
+    """Whether polygons p and q lie in one plane (to 1e-9), by their normals and their
+    distances ``side`` from the point."""
+    dot = poly_normal[p, 0] * poly_normal[q, 0] + poly_normal[p, 1] * poly_normal[q, 1] + poly_normal[p, 2] * poly_normal[q, 2]
+    return abs(dot) >= 1.0 - 1e-9 and abs(abs(side[p]) - abs(side[q])) <= 1e-9 * max(abs(side[p]), abs(side[q]))
+
+
+@njit(cache=True)
+def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
+                side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w,
+                runs, run_o, rim):
+    """Add to ``seen`` the visible part of every polygon through one wedge around x (the
+    frustum ``planes`` through x, inward normals; :func:`_wedges`): each polygon clipped to
+    the frustum and projected centrally on the wedge's plane, the slab sweep of
     :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
     nearest along the ray through its centre (polygons do not cross: the front-most one of
     those covering a trapezoid is the same all over it).
@@ -1360,9 +1459,11 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
         n_seg += n_in
     if n_seg == 0:
         return brk
+    lo_u, hi_u = fw[0], fw[1]
+    if _steepest(seg_a, seg_b, n_seg) > STEEP:
+        fa, fb = _turn_from_steep(seg_a, seg_b, n_seg, fa, fb, lo_u)
     # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
     n_brk = 0
-    lo_u, hi_u = fw[0], fw[1]
     for e in range(n_seg):
         if seg_a[e, 0] > seg_b[e, 0]:
             seg_w[e] = 1
@@ -1537,21 +1638,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                         vm = 0.5 * (act_v[q] + act_v[q + 1])
                         for c in range(3):
                             d[c] = fc[c] + um * fa[c] + vm * fb[c]
-                        best = np.inf
-                        for r in range(n_cover):
-                            pr = cover[r]
-                            dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
-                            if dn == 0.0:
-                                continue
-                            t = -side[pr] / dn
-                            if t <= 0:
-                                continue
-                            if abs(t - best) <= 1e-9 * t:
-                                big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
-                                now = small if side[big] > 0 else big
-                            elif t < best:
-                                best = t
-                                now = pr
+                        now = _nearest(cover, n_cover, d, poly_normal, side, rank)
                     memo_slab[e] = slab if solid else -2
                     memo_below[e] = act[q + 1]
                     memo_key[e] = key
@@ -1624,23 +1711,7 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
                 vm = 0.5 * (act_v[q] + act_v[q + 1])
                 for c in range(3):
                     d[c] = fc[c] + um * fa[c] + vm * fb[c]
-                best = np.inf
-                for r in range(n_cover):
-                    pr = cover[r]
-                    dn = poly_normal[pr, 0] * d[0] + poly_normal[pr, 1] * d[1] + poly_normal[pr, 2] * d[2]
-                    if dn == 0.0:
-                        continue
-                    t = -side[pr] / dn
-                    if t <= 0:
-                        continue
-                    # a tie (two faces in one plane, one lying on the other): the smaller lies
-                    # on the larger's front (docs/queries.md, "Faces lying on faces")
-                    if abs(t - best) <= 1e-9 * t:
-                        big, small = (pr, now) if rank[pr] > rank[now] else (now, pr)
-                        now = small if side[big] > 0 else big
-                    elif t < best:
-                        best = t
-                        now = pr
+                now = _nearest(cover, n_cover, d, poly_normal, side, rank)
             if now != owner:
                 if owner >= 0:
                     seen[col[owner]] += _trapezoid(x, n_i, fa, fb, fc, u0, u1, act_v0[q], act_v1[q], act_v0[top],
@@ -1660,6 +1731,55 @@ def _hemicube_face(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, 
     return brk
 
 
+@njit(cache=True)
+def _wedges(n_i, eu, ev):
+    """The front hemisphere of (n_i, eu, ev) cut into :data:`WEDGES` pointed cones through the
+    point: ``frames`` (WEDGES, 3, 3) float64, each cone's (fa, fb, fc) (its 2-D basis and the
+    direction of its plane of projection), and ``planes`` (WEDGES, 3, 3) float64, the inward
+    normals of its three sides.
+
+    Wedge k lies between the azimuths θ_k and θ_k+1 (θ_k = GENERIC_AZIMUTH + 2πk / WEDGES
+    about n_i, a_k the horizontal direction at θ_k): it is {r: r·n_i ≥ 0, r on the inner
+    sides of the planes through n_i and a_k, a_k+1}, its extreme rays n_i, a_k, a_k+1. It is
+    projected centrally on the plane at unit distance along fc, the direction at equal
+    angles from the three (fc ∝ cos(α / 2)² n_i + (a_k + a_k+1) / 2, α = 2π / WEDGES): the
+    extreme rays are then at 63.4° from fc (|u|, |v| < 2.1 in the plane, 120° of azimuth)."""
+    m = WEDGES
+    frames = np.empty((m, 3, 3))
+    planes = np.empty((m, 3, 3))
+    az = np.empty((m + 1, 3))
+    nz = np.empty((m + 1, 3))  # the inward normal, towards larger azimuth, of the plane through n_i and a_k
+    for k in range(m + 1):
+        th = GENERIC_AZIMUTH + 2.0 * np.pi * k / m
+        ct, st = np.cos(th), np.sin(th)
+        for c in range(3):
+            az[k, c] = ct * eu[c] + st * ev[c]
+            nz[k, c] = -st * eu[c] + ct * ev[c]
+    h = np.cos(np.pi / m) ** 2
+    for k in range(m):
+        for c in range(3):
+            planes[k, 0, c] = n_i[c]
+            planes[k, 1, c] = nz[k, c]
+            planes[k, 2, c] = -nz[k + 1, c]
+            frames[k, 2, c] = h * n_i[c] + 0.5 * (az[k, c] + az[k + 1, c])
+            frames[k, 0, c] = az[k + 1, c] - az[k, c]
+        fcv, fav = frames[k, 2], frames[k, 0]
+        fcv /= np.sqrt(fcv[0] * fcv[0] + fcv[1] * fcv[1] + fcv[2] * fcv[2])
+        fav /= np.sqrt(fav[0] * fav[0] + fav[1] * fav[1] + fav[2] * fav[2])
+        frames[k, 1, 0] = fcv[1] * fav[2] - fcv[2] * fav[1]
+        frames[k, 1, 1] = fcv[2] * fav[0] - fcv[0] * fav[2]
+        frames[k, 1, 2] = fcv[0] * fav[1] - fcv[1] * fav[0]
+    # each wedge's 2-D basis turned by a generic angle: the cone's sides and the edges of an
+    # axis-aligned scene are not vertical in 2-D, so the sweep needs no vertical sides
+    ca, sa = np.cos(GENERIC_TURN), np.sin(GENERIC_TURN)
+    for k in range(WEDGES):
+        for c in range(3):
+            fa, fb = frames[k, 0, c], frames[k, 1, c]
+            frames[k, 0, c] = ca * fa + sa * fb
+            frames[k, 1, c] = -sa * fa + ca * fb
+    return frames, planes
+
+
 @njit(cache=True, nogil=True)
 def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
                 box_planes):
@@ -1669,10 +1789,11 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
 
     For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
     seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
-    back). The front hemisphere is cut into the five faces of a hemicube (top along n_i, four
-    half sides), each a frustum through x; in each, the polygons are clipped, projected
-    centrally and swept (:func:`_hemicube_face`): every trapezoid of the sweep goes to the
-    nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
+    back). The front hemisphere is cut into :data:`WEDGES` = 3 pointed cones through x (120°
+    of azimuth each, from the horizon to n_i: fewer pieces to clip and sweep than the five
+    faces of a hemicube, 57 → 45 µs a point on the Cornell matrix; :func:`_wedges`); in each,
+    the polygons are clipped, projected centrally and swept (:func:`_wedge_view`): every
+    trapezoid of the sweep goes to the nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
     depends only on the solid angle, so the projected region gives the same value).
 
     Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
@@ -1739,36 +1860,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     p0, p1 = np.empty(3), np.empty(3)
     fw, iw, key_w = np.empty((8, emax)), np.empty((14, emax), np.int64), np.empty(emax, np.uint64)
     runs, run_o, rim = np.empty((emax, 2, 2)), np.empty((emax, 2), np.int64), np.empty(emax, np.int64)
-    # the hemicube: (fa, fb, fc) per face, and its frustum's planes (inward normals)
-    frames = np.empty((5, 3, 3))
-    planes = np.empty((5, 4, 3))
-    for c in range(3):
-        frames[0, 0, c], frames[0, 1, c], frames[0, 2, c] = eu[c], ev[c], n_i[c]
-    for k in range(4):
-        sgn = 1.0 if k % 2 == 0 else -1.0
-        for c in range(3):
-            fc = sgn * (eu[c] if k < 2 else ev[c])
-            frames[k + 1, 2, c] = fc
-            frames[k + 1, 1, c] = n_i[c]
-        fcv = frames[k + 1, 2]
-        frames[k + 1, 0, 0] = n_i[1] * fcv[2] - n_i[2] * fcv[1]
-        frames[k + 1, 0, 1] = n_i[2] * fcv[0] - n_i[0] * fcv[2]
-        frames[k + 1, 0, 2] = n_i[0] * fcv[1] - n_i[1] * fcv[0]
-    for k in range(5):
-        for c in range(3):
-            fa, fb, fc = frames[k, 0, c], frames[k, 1, c], frames[k, 2, c]
-            planes[k, 0, c] = fc - fa
-            planes[k, 1, c] = fc + fa
-            planes[k, 2, c] = fc - fb
-            planes[k, 3, c] = fc + fb if k == 0 else fb
-    # each face's 2-D basis turned by a generic angle: the frustum's sides and the edges of an
-    # axis-aligned scene are not vertical in 2-D, so the sweep needs no vertical sides
-    ca, sa = np.cos(GENERIC_TURN), np.sin(GENERIC_TURN)
-    for k in range(5):
-        for c in range(3):
-            fa, fb = frames[k, 0, c], frames[k, 1, c]
-            frames[k, 0, c] = ca * fa + sa * fb
-            frames[k, 1, c] = -sa * fa + ca * fb
+    frames, planes = _wedges(n_i, eu, ev)
     hidden = np.zeros((points.shape[0], 2 * P + 1))
     for i in range(points.shape[0]):
         x = points[i]
@@ -1817,8 +1909,8 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         for p in range(P):
             sweep[p] = use[p] and not (side[p] < 0 and _outside(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
         box_state[:] = 0
-        for k in range(5):
-            brk = _hemicube_face(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 4, pts, loop_lo, loop_hi,
+        for k in range(WEDGES):
+            brk = _wedge_view(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 3, pts, loop_lo, loop_hi,
                                  loop_poly, poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w,
                                  buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w, runs, run_o, rim)
         sky = 1.0

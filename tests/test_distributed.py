@@ -94,6 +94,41 @@ def test_chunk_cuts_keep_vertices_and_squares_whole(built, tiny_chunks):
     assert len(np.unique(np.concatenate(squares))) == sum(map(len, squares))  # no square split
 
 
+def test_vcell_chunks_read_their_own_rows_of_the_file(built, tiny_chunks, tmp_path):
+    """V2 read from the file: each chunk of V-cells reads its own half-cells' rows and its
+    VE arcs' (a run of consecutive arcs), never a whole dataset but the half-cells'
+    vertices, and the chunks are those made from V1 in memory."""
+    import h5py
+
+    cx = built("room_with_door.obj")
+    cx.save(tmp_path / "whole.h5")
+    reads = []
+    read = h5py.Dataset.__getitem__
+
+    def logged(self, key):
+        values = read(self, key)
+        reads.append((self.name.split("/V1/")[-1], len(values) if np.ndim(values) else 1, len(self)))
+        return values
+
+    with h5py.File(tmp_path / "whole.h5", "r") as f, pytest.MonkeyPatch.context() as patch:
+        patch.setattr(h5py.Dataset, "__getitem__", logged)
+        stored = chunks.stored_v2_arcs(f["V1"])
+        parts = list(chunks.vcell_parts(cx.scene, stored))
+    whole = list(chunks.vcell_parts(cx.scene, cx.arcs))
+    assert len(parts) == len(whole) > 2
+    for (a, va, sa), (b, vb, sb) in zip(parts, whole):
+        assert sa == sb and np.array_equal(va, vb)
+        for name in chunks.V2_ARC_ARRAYS:
+            assert np.array_equal(getattr(a, name), getattr(b, name))
+        for name in a.half_cells.__dataclass_fields__:
+            assert np.array_equal(getattr(a.half_cells, name), getattr(b.half_cells, name))
+    n_half = len(cx.arcs.half_cells)
+    big = max(np.diff(np.searchsorted(cx.arcs.half_cells.vertex, [v[0] for _, v, _ in whole] + [1 << 40])))
+    assert [r for r in reads if r[1] == n_half] == [("half_cells/vertex", n_half, n_half)]
+    # every other read is of one chunk's rows (its VE arcs or its half-cells; fewer than a few chunks)
+    assert max(r[1] for r in reads if r[0] != "half_cells/vertex") <= 2 * big < n_half / 2
+
+
 def test_squares_found_in_slices_of_arcs_keep_the_order_of_one_call(built, monkeypatch):
     """square_chunks finds the incidences ARC_SLICE arcs at a time, spills them and puts
     them in order SQUARE_GROUP at a time: in order of square, each square's in

@@ -82,6 +82,8 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     ----------
     scene : Scene
     arcs : Arcs
+        V1, or what V2 reads of it from the file (:func:`viscx.skeleton.chunks.stored_v2_arcs`:
+        the V-cells' chunks then read their own rows).
     group : h5py.Group
     runner : viscx.distributed.InProcess or viscx.distributed.Dask, optional
         What runs the chunks (default: this process).
@@ -110,7 +112,8 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
             vcells.append(cells)
             progress.update()
     vcells.close()
-    # the EE-cells read no half-cells: freed here when the caller keeps no other reference
+    # the EE-cells read every arc's V2 arrays and no half-cell: read here (from a file once;
+    # in memory, the half-cells are freed when the caller keeps no other reference)
     arcs = v2_arcs(arcs, half_rows=slice(0, 0))
     t1 = time.perf_counter()
     eecells = CellsAppender(group, ee=True)

@@ -16,7 +16,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from viscx.arrays import unique_sorted
 from viscx.skeleton.arcs import Arcs, HalfCells
 from viscx.skeleton.eecells import ARC, squares_cells, square_chunks
 from viscx.skeleton.vcells import build_vcells
@@ -137,20 +136,24 @@ def vcells_of_part(scene, part, vertices, shift):
 def eecell_parts(scene, arcs, size=None):
     """The EE-cells' chunks (:func:`viscx.skeleton.eecells.square_chunks`: about ``size``
     (default EECELL_CHUNK) arc-square incidences, every square whole), each as the arguments of
-    :func:`eecells_of_part` after the scene, made one at a time.
+    :func:`eecells_of_part` after the scene, made one at a time. The arcs' rows go along
+    with their incidences through the squares' spill: from :func:`stored_v2_arcs`, the
+    file is read a slice of arcs at a time, and no part of V1 is held whole.
 
     Yields
     ------
     part : Arcs
-        The arcs bounding the chunk's squares (:func:`v2_arcs`).
+        The arcs bounding the chunk's squares (:func:`v2_arcs`, without half-cells).
     squares : ((k,) int, (k,) int, (k,) int)
         The chunk's (arc, e1, e2) incidences, arcs numbered in ``part``.
     ids : (a,) int
         Arc i of ``part`` is arc ``ids[i]`` of the whole build.
     """
-    for arc, e1, e2 in square_chunks(scene, arcs, size or EECELL_CHUNK):
-        ids = unique_sorted(arc)
-        yield v2_arcs(arcs, ids, slice(0, 0)), (np.searchsorted(ids, arc), e1, e2), ids
+    none = v2_arcs(arcs, np.zeros(0, np.int64), slice(0, 0))
+    for arc, e1, e2, *rows in square_chunks(scene, arcs, size or EECELL_CHUNK, carry=V2_ARC_ARRAYS):
+        ids, first = np.unique(arc, return_index=True)
+        part = replace(none, **{name: values[first] for name, values in zip(V2_ARC_ARRAYS, rows)})
+        yield part, (np.searchsorted(ids, arc), e1, e2), ids
 
 
 def eecells_of_part(scene, part, squares, ids):

@@ -1961,8 +1961,9 @@ class _SquareSpill:
 #: Arcs whose squares :func:`square_chunks` finds at a time.
 ARC_SLICE = 1 << 18
 
-#: Incidences :func:`square_chunks` puts in order at a time (some 70 bytes each then).
-SQUARE_GROUP = 1 << 22
+#: Incidences :func:`square_chunks` puts in order at a time: some 90 bytes each then, 180
+#: with the arcs' rows V2 carries (:func:`viscx.skeleton.chunks.eecell_parts`), 0.38 GB.
+SQUARE_GROUP = 1 << 21
 
 
 #: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).

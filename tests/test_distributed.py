@@ -94,6 +94,53 @@ def test_chunk_cuts_keep_vertices_and_squares_whole(built, tiny_chunks):
     assert len(np.unique(np.concatenate(squares))) == sum(map(len, squares))  # no square split
 
 
+def test_v2_chunks_read_their_own_rows_of_the_file(built, tiny_chunks, tmp_path, monkeypatch):
+    """V2 read from the file: each chunk of V-cells reads its own half-cells' rows and its
+    VE arcs' (a run of consecutive arcs), the EE-cells' squares a slice of arcs at a time
+    (the arcs' rows spilled with their incidences), never a whole dataset but the
+    half-cells' vertices; the chunks are those made from V1 in memory."""
+    import h5py
+
+    cx = built("room_with_door.obj")
+    cx.save(tmp_path / "whole.h5")
+    monkeypatch.setattr(eecells, "ARC_SLICE", 97)
+    reads = []
+    read = h5py.Dataset.__getitem__
+
+    def logged(self, key):
+        values = read(self, key)
+        reads.append((self.name.split("/V1/")[-1], len(values) if np.ndim(values) else 1))
+        return values
+
+    def same(a, b):
+        return all(np.array_equal(getattr(a, name), getattr(b, name)) and getattr(a, name).dtype == getattr(b, name).dtype
+                   for name in chunks.V2_ARC_ARRAYS) and all(
+            np.array_equal(getattr(a.half_cells, name), getattr(b.half_cells, name))
+            for name in a.half_cells.__dataclass_fields__)
+
+    with h5py.File(tmp_path / "whole.h5", "r") as f, pytest.MonkeyPatch.context() as patch:
+        patch.setattr(h5py.Dataset, "__getitem__", logged)
+        stored = chunks.stored_v2_arcs(f["V1"])
+        vparts = list(chunks.vcell_parts(cx.scene, stored))
+        vreads, reads[:] = reads[:], []
+        eparts = list(chunks.eecell_parts(cx.scene, stored))
+    whole = list(chunks.vcell_parts(cx.scene, cx.arcs))
+    assert len(vparts) == len(whole) > 2
+    for (a, va, sa), (b, vb, sb) in zip(vparts, whole):
+        assert sa == sb and np.array_equal(va, vb) and same(a, b)
+    ewhole = list(chunks.eecell_parts(cx.scene, cx.arcs))
+    assert len(eparts) == len(ewhole) > 2
+    for (a, sq_a, ids_a), (b, sq_b, ids_b) in zip(eparts, ewhole):
+        assert same(a, b) and np.array_equal(ids_a, ids_b) and all(map(np.array_equal, sq_a, sq_b))
+        assert np.array_equal(a.kind, cx.arcs.kind[ids_a])  # (and not merely equal both ways)
+    n_half, n_arcs = len(cx.arcs.half_cells), len(cx.arcs)
+    big = max(np.diff(np.searchsorted(cx.arcs.half_cells.vertex, [v[0] for _, v, _ in whole] + [1 << 40])))
+    assert [r for r in vreads if r[1] == n_half] == [("half_cells/vertex", n_half)]
+    # every other read is of one chunk's rows (its VE arcs or its half-cells)
+    assert max(r[1] for r in vreads if r[0] != "half_cells/vertex") <= 2 * big < n_half / 2
+    assert max(r[1] for r in reads) <= eecells.ARC_SLICE < n_arcs / 2  # a slice of arcs at a time
+
+
 def test_squares_found_in_slices_of_arcs_keep_the_order_of_one_call(built, monkeypatch):
     """square_chunks finds the incidences ARC_SLICE arcs at a time, spills them and puts
     them in order SQUARE_GROUP at a time: in order of square, each square's in
@@ -118,6 +165,13 @@ def test_squares_found_in_slices_of_arcs_keep_the_order_of_one_call(built, monke
         assert len(chunked) == len(one)
         for a, b in zip(chunked, one):
             assert all(x.dtype == y.dtype and np.array_equal(x, y) for x, y in zip(a, b))
+    # the arcs' rows carried with their incidences: the same chunks, each incidence with its arc's rows
+    carried = list(eecells.square_chunks(cx.scene, cx.arcs, 50, carry=("kind", "generators", "interval")))
+    assert len(carried) == len(one)
+    for (arc_, e1_, e2_, kind, gens, interval), c in zip(carried, one):
+        assert all(np.array_equal(x, y) for x, y in zip((arc_, e1_, e2_), c))
+        assert np.array_equal(kind, cx.arcs.kind[arc_]) and np.array_equal(gens, cx.arcs.generators[arc_])
+        assert np.array_equal(interval, cx.arcs.interval[arc_]) and interval.dtype == cx.arcs.interval.dtype
     # squares bounded by arcs of several kinds
     assert len(np.unique(np.stack([e1, e2, cx.arcs.kind[arc]], axis=1), axis=0)) > len(np.unique(e1 * (1 << 32) + e2))
 

@@ -82,6 +82,8 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     ----------
     scene : Scene
     arcs : Arcs
+        V1, or what V2 reads of it from the file (:func:`viscx.skeleton.chunks.stored_v2_arcs`:
+        the V-cells' chunks then read their own rows, the EE-cells' a slice of arcs at a time).
     group : h5py.Group
     runner : viscx.distributed.InProcess or viscx.distributed.Dask, optional
         What runs the chunks (default: this process).
@@ -98,7 +100,7 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
     from viscx.distributed import InProcess
     from viscx.formats.hdf5 import CellsAppender
     from viscx.progress import bar
-    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, v2_arcs, vcell_parts, vcells_of_part
+    from viscx.skeleton.chunks import eecell_parts, eecells_of_part, vcell_parts, vcells_of_part
 
     runner = runner or InProcess()
     timings = {} if timings is None else timings
@@ -110,8 +112,6 @@ def stream_two_cells(scene, arcs, group, runner=None, timings=None, quiet=True):
             vcells.append(cells)
             progress.update()
     vcells.close()
-    # the EE-cells read no half-cells: freed here when the caller keeps no other reference
-    arcs = v2_arcs(arcs, half_rows=slice(0, 0))
     t1 = time.perf_counter()
     eecells = CellsAppender(group, ee=True)
     with bar(desc="EE-cells", quiet=quiet, unit="chunk") as progress:

@@ -16,7 +16,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from viscx.arrays import unique_sorted
 from viscx.skeleton.arcs import Arcs, HalfCells
 from viscx.skeleton.eecells import ARC, squares_cells, square_chunks
 from viscx.skeleton.vcells import build_vcells
@@ -46,34 +45,54 @@ def v2_arcs(arcs, ids=slice(None), half_rows=slice(None)):
     being ``ids[i]``, their half-cells the rows ``half_rows`` of ``arcs.half_cells`` (whose
     arcs must be among ``ids``, renumbered so). What a streamed build keeps of V1 once it
     is written, and what a chunk's task gets of it. Ids ascend, so every order of arc ids
-    the builders use is the same in the subset."""
+    the builders use is the same in the subset. ``arcs`` may be :func:`stored_v2_arcs`'s,
+    read from the file: only the rows asked for are read (for ``ids``, those from the
+    first to the last)."""
     hc = arcs.half_cells
     half = {name: getattr(hc, name)[half_rows] for name in HalfCells.__dataclass_fields__}
     if not isinstance(ids, slice):
         half["arc"] = np.searchsorted(ids, half["arc"])
     planar = arcs.planar
-    return Arcs(**{name: getattr(arcs, name)[ids] if name in V2_ARC_ARRAYS else getattr(arcs, name)[:0]
+    return Arcs(**{name: _rows(getattr(arcs, name), ids) if name in V2_ARC_ARRAYS else getattr(arcs, name)[:0]
                    for name in _ARC_ARRAYS},
                 planar=type(planar)(**{name: getattr(planar, name)[:0] for name in planar.__dataclass_fields__}),
                 half_cells=HalfCells(**half))
 
 
+def _rows(values, ids):
+    """``values[ids]`` (``ids`` a slice or (k,) int, ascending) of an array or of an h5py
+    dataset, which then reads only its rows ``ids[0]`` to ``ids[-1]``: the arcs of a chunk
+    of V-cells are a run of consecutive VE arcs (VE arcs are sorted by vertex)."""
+    if isinstance(ids, slice):
+        return values[ids]
+    if not len(ids):
+        return values[:0]
+    lo = int(ids[0])
+    return values[lo: int(ids[-1]) + 1][ids - lo]
+
+
 def stored_v2_arcs(group):
-    """:func:`v2_arcs` of the arcs stored in a ``V1`` group (of a file being written too):
-    only what V2 reads is read."""
+    """What V2 reads of the arcs stored in a ``V1`` group (of a file being written too),
+    read on demand: arcs whose V2_ARC_ARRAYS and half-cells are the group's datasets
+    (h5py; the other arrays and the planar events empty), to be read through
+    :func:`v2_arcs` and :func:`vcell_parts` only, while the file is open. The V-cells'
+    chunks read their own rows of the half-cells and arcs (:func:`vcell_parts`), so the
+    half-cells (78 bytes each) are never in memory all at once; the EE-cells read every
+    arc's V2_ARC_ARRAYS once (:func:`viscx.pipeline.stream_two_cells`)."""
     from viscx.skeleton.nodes import Nodes
 
     planar = group["planar"]
-    return Arcs(**{name: group[name][()] if name in V2_ARC_ARRAYS else group[name][:0] for name in _ARC_ARRAYS},
+    return Arcs(**{name: group[name] if name in V2_ARC_ARRAYS else group[name][:0] for name in _ARC_ARRAYS},
                 planar=Nodes(**{name: planar[name][:0] for name in Nodes.__dataclass_fields__}),
-                half_cells=HalfCells(**{name: group["half_cells"][name][()] for name in HalfCells.__dataclass_fields__}))
+                half_cells=HalfCells(**{name: group["half_cells"][name] for name in HalfCells.__dataclass_fields__}))
 
 
 def vcell_parts(scene, arcs, size=None):
     """The V-cells' chunks: consecutive ranges of generator vertices holding about
     ``size`` (default VCELL_CHUNK) half-cells each (a vertex's half-cells never split; one
     chunk at least), each as the arguments of :func:`vcells_of_part` after the scene,
-    made one at a time.
+    made one at a time. From :func:`stored_v2_arcs`, each chunk reads its own rows of the
+    file.
 
     Yields
     ------
@@ -86,10 +105,10 @@ def vcell_parts(scene, arcs, size=None):
     """
     size = size or VCELL_CHUNK
     hc = arcs.half_cells
-    vertex = hc.vertex
+    vertex = hc.vertex[()]  # (read whole from a file: 8 bytes a half-cell)
     generators = scene.generator_vertices
     if np.any(np.diff(vertex) < 0):  # (not built by build_arcs, e.g. points merged in): one chunk
-        yield arcs, None, 0
+        yield v2_arcs(arcs), None, 0
         return
     n = max(scene.n_vertices, int(vertex[-1]) + 1 if len(vertex) else 0, 1)
     # the first half-cell of every vertex 0..n, and cuts at the vertex holding every size-th one
@@ -117,20 +136,24 @@ def vcells_of_part(scene, part, vertices, shift):
 def eecell_parts(scene, arcs, size=None):
     """The EE-cells' chunks (:func:`viscx.skeleton.eecells.square_chunks`: about ``size``
     (default EECELL_CHUNK) arc-square incidences, every square whole), each as the arguments of
-    :func:`eecells_of_part` after the scene, made one at a time.
+    :func:`eecells_of_part` after the scene, made one at a time. The arcs' rows go along
+    with their incidences through the squares' spill: from :func:`stored_v2_arcs`, the
+    file is read a slice of arcs at a time, and no part of V1 is held whole.
 
     Yields
     ------
     part : Arcs
-        The arcs bounding the chunk's squares (:func:`v2_arcs`).
+        The arcs bounding the chunk's squares (:func:`v2_arcs`, without half-cells).
     squares : ((k,) int, (k,) int, (k,) int)
         The chunk's (arc, e1, e2) incidences, arcs numbered in ``part``.
     ids : (a,) int
         Arc i of ``part`` is arc ``ids[i]`` of the whole build.
     """
-    for arc, e1, e2 in square_chunks(scene, arcs, size or EECELL_CHUNK):
-        ids = unique_sorted(arc)
-        yield v2_arcs(arcs, ids, slice(0, 0)), (np.searchsorted(ids, arc), e1, e2), ids
+    none = v2_arcs(arcs, np.zeros(0, np.int64), slice(0, 0))
+    for arc, e1, e2, *rows in square_chunks(scene, arcs, size or EECELL_CHUNK, carry=V2_ARC_ARRAYS):
+        ids, first = np.unique(arc, return_index=True)
+        part = replace(none, **{name: values[first] for name, values in zip(V2_ARC_ARRAYS, rows)})
+        yield part, (np.searchsorted(ids, arc), e1, e2), ids
 
 
 def eecells_of_part(scene, part, squares, ids):

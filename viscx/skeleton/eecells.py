@@ -1832,7 +1832,7 @@ def build_eecells(scene, arcs, quiet=True):
     return _concatenate_cells(parts)
 
 
-def square_chunks(scene, arcs, size=None):
+def square_chunks(scene, arcs, size=None, carry=()):
     """The arc-square incidences (:func:`arc_squares`) in chunks of about ``size``
     (default SQUARE_CHUNK), each square whole, squares in (e1, e2) order, a square's
     incidences in the order :func:`arc_squares` lists them: what :func:`build_eecells`
@@ -1850,45 +1850,54 @@ def square_chunks(scene, arcs, size=None):
     that whole order (the incidences after a group's last cut wait for the next group),
     so they do not depend on the slices or the groups.
 
+    ``carry`` names per-arc arrays of ``arcs`` whose rows go along with each incidence
+    (spilled with it): arcs read from a file (:func:`viscx.skeleton.chunks.stored_v2_arcs`)
+    are then read one slice at a time and never whole, and a chunk has its arcs' rows.
+
     Yields
     ------
     arc, e1, e2 : (k,) int
         A chunk's incidences.
+    *carried : (k, ...) arrays
+        With ``carry``: the row of each incidence's arc in each array named.
     """
     size = size or SQUARE_CHUNK
     with _SquareSpill(scene) as spill:
         for rows in row_chunks(len(arcs), ARC_SLICE):
-            spill.add(*arc_squares(scene, arcs, rows, blocks=True))
+            arc, e1, e2, block = arc_squares(scene, arcs, rows, blocks=True)
+            spill.add(arc, e1, e2, block, *(getattr(arcs, name)[rows][arc - rows.start] for name in carry))
+            del arc, e1, e2, block
         done, waiting = 0, None  # incidences yielded; the sorted ones after the last cut
-        for arc, e1, e2, block in spill.groups(SQUARE_GROUP):
+        for arc, e1, e2, block, *carried in spill.groups(SQUARE_GROUP):
             key = e1 * (1 << 32) + e2
             by_square = np.argsort(key * 8 + block, kind="stable")  # (blocks: fewer than 8; edges: fewer than 2^28)
-            sorted_ = [arc[by_square], e1[by_square], e2[by_square], key[by_square]]
-            del arc, e1, e2, block, key, by_square
+            sorted_ = [x[by_square] for x in (arc, e1, e2, key, *carried)]
+            del arc, e1, e2, block, key, by_square, carried
             if waiting is not None:  # (their squares come before the group's: smaller e1)
                 sorted_ = [np.concatenate([w, x]) for w, x in zip(waiting, sorted_)]
-            arc, e1, e2, key = sorted_
+            key = sorted_[3]
             square_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
             # cut at the start of the square holding every size-th incidence (counted from the first)
             at = np.arange(-done % size or size, len(key), size)
             cuts = unique_sorted(square_start[np.searchsorted(square_start, at, "right") - 1])
             bounds = np.r_[0, cuts[cuts > 0]]
             for lo, hi in zip(bounds[:-1], bounds[1:]):
-                yield arc[lo:hi], e1[lo:hi], e2[lo:hi]
+                yield tuple(x[lo:hi] for i, x in enumerate(sorted_) if i != 3)
             done += int(bounds[-1])
-            waiting = [x[bounds[-1]:] for x in (arc, e1, e2, key)]
+            waiting = [x[bounds[-1]:] for x in sorted_]
+            del sorted_, key
         if waiting is None:  # no incidence: one empty chunk
             empty = np.zeros(0, np.int64)
-            waiting = [empty] * 4
-        yield tuple(waiting[:3])
+            waiting = [empty] * 4 + [getattr(arcs, name)[:0] for name in carry]
+        yield tuple(x for i, x in enumerate(waiting) if i != 3)
 
 
 class _SquareSpill:
     """Arc-square incidences spilled to an unnamed temporary file slice by slice, each
     slice's rows in order of e1 (stably), and read back by groups of consecutive e1's:
     :func:`square_chunks` holds one slice's or one group's at a time (13 bytes an
-    incidence on disk: arc ids int64, edges int32, blocks int8; read back in the dtypes
-    :func:`arc_squares` gave).
+    incidence on disk: arc ids int64, edges int32, blocks int8, and the rows carried with
+    them in their own dtypes; read back in the dtypes :func:`arc_squares` gave).
 
     ``with _SquareSpill(scene) as spill``: :meth:`add` each slice's, then :meth:`groups`;
     the file is gone on exit.
@@ -1900,7 +1909,7 @@ class _SquareSpill:
         self.n_edges = int(len(scene.half_edges.edge_vertices))
         self.records = []  # per slice: (its offset in the file, (n_edges + 1,) first row of each e1)
         self.counts = np.zeros(self.n_edges, np.int64)
-        self.dtypes = None
+        self.columns = None  # per column: (dtype given, dtype stored, shape of a row)
 
     def __enter__(self):
         import tempfile
@@ -1911,26 +1920,29 @@ class _SquareSpill:
     def __exit__(self, *exc):
         self.file.close()
 
-    def add(self, arc, e1, e2, block):
-        """Spill one slice's incidences (:func:`arc_squares` with ``blocks``)."""
-        self.dtypes = self.dtypes or [x.dtype for x in (arc, e1, e2, block)]
+    def add(self, arc, e1, e2, block, *carried):
+        """Spill one slice's incidences (:func:`arc_squares` with ``blocks``) and the rows
+        ``carried`` with them (arrays of one row per incidence)."""
+        values = (arc, e1, e2, block, *carried)
+        self.columns = self.columns or [(x.dtype, stored, x.shape[1:])
+                                        for x, stored in zip(values, self._STORED + tuple(x.dtype for x in carried))]
         order = np.argsort(e1, kind="stable")
         n = np.bincount(e1, minlength=self.n_edges)
         self.counts += n
         self.file.seek(0, 2)
         self.records.append((self.file.tell(), np.r_[0, np.cumsum(n)]))
-        for stored, values in zip(self._STORED, (arc, e1, e2, block)):
-            values[order].astype(stored, copy=False).tofile(self.file)
+        for (_, stored, _), x in zip(self.columns, values):
+            x[order].astype(stored, copy=False).tofile(self.file)
 
     def groups(self, size):
-        """Yield (arc, e1, e2, block) of whole consecutive e1's, about ``size`` incidences
-        each (an e1 with more on its own), each slice's after the slice before's."""
+        """Yield (arc, e1, e2, block, *carried) of whole consecutive e1's, about ``size``
+        incidences each (an e1 with more on its own), each slice's after the slice before's."""
         ends = np.cumsum(self.counts)
         lo = first = 0
         while len(ends) and first < ends[-1]:
             hi = max(lo + 1, int(np.searchsorted(ends, first + size, "right")))
             parts = zip(*(self._read(record, lo, hi) for record in self.records))
-            yield tuple(np.concatenate(p).astype(dtype, copy=False) for p, dtype in zip(parts, self.dtypes))
+            yield tuple(np.concatenate(p).astype(given, copy=False) for p, (given, _, _) in zip(parts, self.columns))
             lo, first = hi, int(ends[hi - 1])
 
     def _read(self, record, lo, hi):
@@ -1938,10 +1950,10 @@ class _SquareSpill:
         start, offsets = record
         n, row, count = int(offsets[-1]), int(offsets[lo]), int(offsets[hi] - offsets[lo])
         columns = []
-        for stored in self._STORED:
-            item = np.dtype(stored).itemsize
+        for _, stored, shape in self.columns:
+            item = np.dtype(stored).itemsize * int(np.prod(shape))
             self.file.seek(start + row * item)
-            columns.append(np.fromfile(self.file, stored, count))
+            columns.append(np.fromfile(self.file, stored, count * int(np.prod(shape))).reshape(count, *shape))
             start += n * item
         return columns
 
@@ -1949,8 +1961,9 @@ class _SquareSpill:
 #: Arcs whose squares :func:`square_chunks` finds at a time.
 ARC_SLICE = 1 << 18
 
-#: Incidences :func:`square_chunks` puts in order at a time (some 70 bytes each then).
-SQUARE_GROUP = 1 << 22
+#: Incidences :func:`square_chunks` puts in order at a time: some 90 bytes each then, 180
+#: with the arcs' rows V2 carries (:func:`viscx.skeleton.chunks.eecell_parts`), 0.38 GB.
+SQUARE_GROUP = 1 << 21
 
 
 #: Arc-square incidences per chunk of :func:`build_eecells` (random_boxes(1000): ~5 chunks).

@@ -35,16 +35,9 @@ def test_every_golden_file_has_a_scene():
     assert sorted(p.name for p in GOLDEN_DIR.glob("*.h5")) == sorted(GOLDEN.values())
 
 
-@pytest.fixture
-def rebuilt(sample_build):
-    """``rebuilt(scene)``: the build of the sample scene made once per test process (each test
-    here judges it; the determinism tests build the scene again and compare)."""
-    return sample_build
-
-
 @pytest.mark.parametrize("scene", sorted(GOLDEN))
-def test_rebuild_matches_golden(scene, rebuilt, capsys):
-    code, out, err = run(["diff", str(rebuilt(scene)), str(GOLDEN_DIR / GOLDEN[scene])], capsys)
+def test_rebuild_matches_golden(scene, sample_build, capsys):
+    code, out, err = run(["diff", str(sample_build(scene)), str(GOLDEN_DIR / GOLDEN[scene])], capsys)
     assert code == 0, (
         f"the build of sample_scenes/{scene} no longer matches tests/golden/{GOLDEN[scene]}:\n{out}{err}\n"
         "If this change of output is intended, run `make golden` and commit the new golden files "
@@ -71,19 +64,19 @@ def datasets(path):
 # in another process (one thread, another hash seed) and makes the same comparisons
 @pytest.mark.parametrize("scene", [pytest.param(s, marks=pytest.mark.slow) if s == "boxes_on_floor.obj" else s
                                    for s in sorted(GOLDEN)])
-def test_two_builds_are_identical(scene, rebuilt, tmp_path, capsys):
-    first, second = rebuilt(scene), tmp_path / "second.h5"
+def test_two_builds_are_identical(scene, sample_build, tmp_path, capsys):
+    first, second = sample_build(scene), tmp_path / "second.h5"
     assert run(["--quiet", "build", str(SAMPLES / scene), "-o", str(second)], capsys)[0] == 0
     code, out, _ = run(["diff", str(first), str(second), "--rtol", "0", "--atol", "0"], capsys)
     assert code == 0, out
     assert datasets(first) == datasets(second)
 
 
-def test_build_does_not_depend_on_threads_or_hash_seed(rebuilt, tmp_path, capsys):
+def test_build_does_not_depend_on_threads_or_hash_seed(sample_build, tmp_path, capsys):
     """Another process, one thread and another hash seed give the same bytes (no set or dict
     order, no thread-count-dependent reduction leaks into the output)."""
     scene = SAMPLES / "boxes_on_floor.obj"
-    here, there = rebuilt(scene.name), tmp_path / "there.h5"
+    here, there = sample_build(scene.name), tmp_path / "there.h5"
     env = dict(os.environ, PYTHONHASHSEED="12345", NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     command = [sys.executable, "-m", "viscx", "--quiet", "build", str(scene), "-o", str(there)]
     done = subprocess.run(command, env=env, capture_output=True, text=True)

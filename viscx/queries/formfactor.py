@@ -1187,8 +1187,13 @@ def split4(tri):
 def start_triangles(cells, min_size):
     """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), split by
     :func:`split_large`."""
-    return split_large(np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1)
-                                       for c in cells]), min_size)
+    count = np.array([len(c) for c in cells], np.int64)
+    first = np.cumsum(count) - count  # each cell's first vertex in the flat list
+    cell = np.repeat(np.arange(len(cells)), count - 2)  # triangle k of a cell: vertices 0, k + 1, k + 2
+    k = np.arange(len(cell)) - np.repeat(np.cumsum(count - 2) - (count - 2), count - 2)
+    flat = np.concatenate(cells)
+    return split_large(np.stack([flat[first[cell]], flat[first[cell] + k + 1], flat[first[cell] + k + 2]], axis=1),
+                       min_size)
 
 
 def split_large(tri, min_size):

@@ -697,18 +697,24 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
 def _cut_convex(piece, a, d, eps):
     """A convex 2-D polygon (k, 2) cut by the line through ``a`` along ``d`` (unit): its two
     parts (each possibly empty)."""
-    s = (piece[:, 0] - a[0]) * d[1] - (piece[:, 1] - a[1]) * d[0]
+    # Python floats: a piece has a handful of vertices, and numpy's per-call cost would
+    # be most of the work (the same IEEE operations, so the same digits)
+    a0, a1, d0, d1 = float(a[0]), float(a[1]), float(d[0]), float(d[1])
+    pts = piece.tolist()
+    s = [(x - a0) * d1 - (y - a1) * d0 for x, y in pts]
+    k = len(pts)
     out = []
     for sign in (1.0, -1.0):
-        h = sign * s
+        h = [sign * v for v in s]
         part = []
-        for k in range(len(piece)):
-            r = (k + 1) % len(piece)
-            if h[k] >= 0:
-                part.append(piece[k])
-            if (h[k] > 0 and h[r] < 0) or (h[k] < 0 and h[r] > 0):
-                part.append(piece[k] + (piece[r] - piece[k]) * (h[k] / (h[k] - h[r])))
-        part = np.asarray(part).reshape(-1, 2)
+        for i in range(k):
+            r = (i + 1) % k
+            if h[i] >= 0:
+                part.append(pts[i])
+            if (h[i] > 0 and h[r] < 0) or (h[i] < 0 and h[r] > 0):
+                t = h[i] / (h[i] - h[r])
+                part.append([pts[i][0] + (pts[r][0] - pts[i][0]) * t, pts[i][1] + (pts[r][1] - pts[i][1]) * t])
+        part = np.array(part, np.float64).reshape(-1, 2)
         out.append(part if len(part) >= 3 and abs(_area2(part)) > eps * eps else None)
     return out
 
@@ -994,6 +1000,25 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     list of (k, 3) float64
         Convex cells, counter-clockwise about the side's normal.
     """
+    origin, eu, ev, eps, pieces = scene.cached(f"emitter_pieces {int(face)} {int(side)}",
+                                               lambda s: _emitter_pieces(s, face, side))
+
+    def to2(p):
+        return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
+
+    if kinks:
+        kinks = kink_segments(scene, face, side)
+        pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
+        if pieces is None:
+            return None
+    return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+
+
+def _emitter_pieces(scene, face, side):
+    """The cells of :func:`emitter_cells` without the kink cuts, in 2-D: ``(origin, eu, ev,
+    eps, pieces)``, a point y of the plane being ``origin + u eu + v ev`` for a vertex (u, v)
+    of a piece (k, 2) (computed once per side: the row cuts them along its kink lines after
+    its pair cubatures' or closed forms' need them uncut)."""
     n = side * scene.face_normal[face]
     eu, ev = plane_basis(n)
     tri = scene.vertices[scene.triangles[scene.triangle_face == face]]
@@ -1028,12 +1053,7 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
                         out.append(part)
         pieces = out
     pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)])), eps)
-    if kinks:
-        kinks = kink_segments(scene, face, side)
-        pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
-        if pieces is None:
-            return None
-    return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+    return origin, eu, ev, eps, pieces
 
 
 def plane_segments(scene, face, side):
@@ -1167,8 +1187,13 @@ def split4(tri):
 def start_triangles(cells, min_size):
     """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), split by
     :func:`split_large`."""
-    return split_large(np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1)
-                                       for c in cells]), min_size)
+    count = np.array([len(c) for c in cells], np.int64)
+    first = np.cumsum(count) - count  # each cell's first vertex in the flat list
+    cell = np.repeat(np.arange(len(cells)), count - 2)  # triangle k of a cell: vertices 0, k + 1, k + 2
+    k = np.arange(len(cell)) - np.repeat(np.cumsum(count - 2) - (count - 2), count - 2)
+    flat = np.concatenate(cells)
+    return split_large(np.stack([flat[first[cell]], flat[first[cell] + k + 1], flat[first[cell] + k + 2]], axis=1),
+                       min_size)
 
 
 def split_large(tri, min_size):

@@ -43,16 +43,18 @@ and the second term what the occluders hide, by adaptive cubature over triangles
 * I' starts as the emitter's cells (:func:`emitter_cells`): its triangles cut along the
   lines where other faces touch or cross it, across which F(x) jumps; inside a cell the
   integrand is continuous, with kinks along the discontinuity mesh that refinement follows;
-* a triangle's error estimate is |Q(T) − Σ Q(children)| of Radon's degree-5 rule, and the
-  triangles with the largest estimates are split until their sum meets the tolerance.
+* a triangle's error estimate comes from Radon's degree-5 rule on it and on its
+  descendants (:class:`Cubature`, :class:`RowCubature`), and the triangles with the
+  largest estimates are split until their sum meets the tolerance.
 * where the emitter's cells can be cut along its kink lines too (:func:`cubature_cells`,
   as the matrix row's), the integrand is C1 on every cell and the row's two-level
   :class:`RowCubature` integrates the pair (one column); else the three levels of
   :class:`Cubature`.
 
 The reported ``error`` is the contour integral's estimate (two node sets) plus the sum of
-the triangles' estimates: the estimate of the coarser of two rules for the finer one's
-value, so conservative (tests check it against known values). Cost and memory grow with
+the triangles' estimates: an estimate of the actual error made to lie above it, not a
+proven bound (tests check it against closed forms, finer integrals and Monte Carlo;
+benchmarks/pair_honesty.py measures it on furnished rooms). Cost and memory grow with
 the triangles that meet shadows, never with combinations of edges; every kernel call is
 bounded (:data:`CHUNK`, :data:`MAX_CELLS`).
 """

@@ -100,19 +100,3 @@ def test_group_rows_are_cut_along_their_own_pairs_kinks(room, a, b):
         assert list(cols) == list(ref_cols) and np.all(err <= TOL / 10)
         assert np.all(np.abs(val - ref) <= err + ref_err), (f, s, val, ref, err, ref_err)
 
-
-def test_large_rows_of_a_group_query_run_in_parts(room):
-    """desk0 → floor: the desk top's row (the largest of the desk's faces, computed to the
-    floor) runs as SINGLE_PARTS parts, the small panels' whole; the entries are those of
-    the unparted rows within their estimates (``test_reciprocal_entries_equal_the_two_sided_ones``
-    compares the parted query with the two-sided one)."""
-    rows = ff.group_rows(room, room.group_faces("desk0"), 1, room.group_faces("floor"))
-    parts = ff.row_parts(room, rows)
-    area = room.face_area[[f for f, *_ in rows]]
-    assert parts[int(np.argmax(area))] == ff.SINGLE_PARTS
-    assert [p > 1 for p in parts] == list(ff.SINGLE_PARTS * area >= area.sum()) and sum(p > 1 for p in parts) == 1
-    f, s, r, scale = rows[int(np.argmax(area))]
-    whole = ff.emitter_row(room, f, s, r, TOL * scale, sky=False)
-    pieces = [ff.emitter_row(room, f, s, r, TOL * scale, sky=False, part=(k, ff.SINGLE_PARTS)) for k in range(ff.SINGLE_PARTS)]
-    value = sum(p[1].sum() for p in pieces)
-    assert abs(value - whole[1].sum()) <= whole[2].sum() + sum(p[2].sum() for p in pieces)

@@ -2057,8 +2057,7 @@ def contour_form_factor(loops_i, n_i, loops_j, n_j, separate=False):
 # many pairs: faces, groups, the matrix
 
 SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
-#: Parts a group query's large rows are cut into (:func:`row_parts`; the one row of a query
-#: of a single emitting face):
+#: Parts a group query of a single emitting face is cut into (:func:`group_to_group`):
 #: more than the cores, so that the parts' unequal costs even out over the workers (the
 #: office's floor → ceiling at 1e-4: the largest of 2 parts 10.4 CPU s, of 17.8; 6 parts
 #: 1.4–4.6 CPU s each, 18.2 in all, 9.2 on the busier of 2 workers).
@@ -2105,10 +2104,9 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
     Each emitting face side's cells are computed once for all its receivers
     (:func:`emitter_row`), and the pairs it cannot see are left out of its row by the
     vectorised facing test (:func:`seen_receivers`); rows run on ``workers`` processes
-    (default: the CPU count). A row holding a large share of the rows' area (the one row of
-    a floor to a ceiling, a desk top's among its panels') runs as :data:`SINGLE_PARTS` parts
-    (its free cells dealt out, :func:`row_parts`), so that it too uses the cores; the parts
-    depend on the query, never on the workers. ``tol`` bounds the error estimate
+    (default: the CPU count). A query of one row (a floor to a ceiling) runs as
+    :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too uses the cores;
+    the parts depend on the query, never on the workers. ``tol`` bounds the error estimate
     of each face pair."""
     faces_i = np.asarray(sorted({int(i) for i in faces_i}), np.int64)
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
@@ -2127,12 +2125,11 @@ def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=No
     their sum is the entry)."""
     faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
     rows = group_rows(scene, faces_i, side_i, faces_j, reciprocal)
-    parts = row_parts(scene, rows)
-    for (f, s, r, _), n_parts in zip(rows, parts):
-        if n_parts > 1:
-            shared_emitter_work(scene, f, s, r)
-    tasks = [(f, s, r, (k, n_parts)) for (f, s, r, _), n_parts in zip(rows, parts) for k in range(n_parts)]
-    tols = [tol * scale for (*_, scale), n_parts in zip(rows, parts) for _ in range(n_parts)]
+    n_parts = SINGLE_PARTS if len(rows) == 1 else 1
+    if n_parts > 1:
+        shared_emitter_work(scene, *rows[0][:3])
+    tasks = [(f, s, r, (k, n_parts)) for f, s, r, _ in rows for k in range(n_parts)]
+    tols = [tol * scale for *_, scale in rows for _ in range(n_parts)]
     results = _map_rows(emitter_row, scene, tasks, tols, False, workers)
     row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in tasks])
     if reciprocal:
@@ -2183,17 +2180,6 @@ def group_rows(scene, faces_i, side_i, faces_j, reciprocal=True):
         if len(seen):
             rows.append((f, s, seen, np.array([wanted[f, s][int(r)] for r in seen])))
     return rows
-
-
-def row_parts(scene, rows):
-    """list of int: the parts each of a group query's rows (:func:`group_rows`) is cut into:
-    :data:`SINGLE_PARTS` for a row whose face holds at least 1 / SINGLE_PARTS of the rows'
-    area (all of it for a query of one row), else 1. A row's cost grows with its area, and
-    a large row left whole is one task that no other worker can share (the office's
-    desk0 → floor at 1e-6: the desk top's row 29 of 33 CPU s); the parts depend on the
-    query, never on the workers."""
-    area = scene.face_area[np.asarray([f for f, *_ in rows], np.int64)]
-    return [SINGLE_PARTS if SINGLE_PARTS * a >= area.sum() else 1 for a in area]
 
 
 def seen_receivers(scene, face, side, faces):

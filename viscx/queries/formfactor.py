@@ -1132,11 +1132,9 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
     if min_size is None:
         box_lo, box_hi = face_boxes(scene)
         size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
-        key = f"cubature_cells {int(face)} {int(side)}"
-        if receivers is not None:
-            receivers = np.unique(np.asarray(receivers, np.int64))
-            key += " to " + " ".join(str(j) for j in receivers.tolist())
-        return scene.cached(key, lambda s: cubature_cells(s, face, side, size, receivers))
+        receivers = None if receivers is None else np.unique(np.asarray(receivers, np.int64))
+        return scene.cached(_side_key("cubature_cells", face, side, receivers),
+                            lambda s: cubature_cells(s, face, side, size, receivers))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
     limit = min(MAX_KINK_CELLS, 21 * len(tri))
@@ -1151,6 +1149,12 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
         if len(kinked_tri) <= 21 * len(tri):
             return kinked, kinked_tri, True
     return cells, tri, False
+
+
+def _side_key(name, face, side, receivers=None):
+    """The cache key of something of a face side, or of its row to ``receivers`` (k,) int64."""
+    key = f"{name} {int(face)} {int(side)}"
+    return key if receivers is None else key + " to " + " ".join(str(j) for j in np.unique(receivers).tolist())
 
 
 def kink_faces(scene, face, side, receivers):
@@ -2208,10 +2212,8 @@ def shared_emitter_work(scene, face, side, faces):
 def cell_contacts(scene, face, side, receivers=None):
     """:func:`contact_sides` of the :func:`cubature_cells` of a face side (those of a row to
     ``receivers``, default all; cached)."""
-    key = f"cell_contacts {int(face)} {int(side)}"
-    if receivers is not None:
-        key += " to " + " ".join(str(j) for j in np.unique(np.asarray(receivers, np.int64)).tolist())
-    return scene.cached(key, lambda s: contact_sides(s, face, side, cubature_cells(s, face, side, receivers=receivers)[0]))
+    return scene.cached(_side_key("cell_contacts", face, side, receivers),
+                        lambda s: contact_sides(s, face, side, cubature_cells(s, face, side, receivers=receivers)[0]))
 
 
 def facing_sides(scene, face, side, faces):

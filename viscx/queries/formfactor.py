@@ -71,7 +71,7 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
-from viscx.queries.kinks import kink_segments
+from viscx.queries.kinks import face_generators, kink_segments
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -983,7 +983,7 @@ def cut_along(pieces, seg, eps, limit=None):
 MAX_KINK_CELLS = 1_000
 
 
-def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
+def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generators=None):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -996,6 +996,8 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     receivers), so that every integrand is C1 on every cell; None when that would make more
     than ``limit`` cells or the lines are too many to list (in a cluttered scene the lines
     are quadratic in the edges and their arrangement quadratic in the lines).
+    ``generators``: the kink lines of these rows of
+    :func:`viscx.queries.kinks.generator_segments` only (default all; :func:`kink_faces`).
 
     Returns
     -------
@@ -1009,7 +1011,7 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
         return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
 
     if kinks:
-        kinks = kink_segments(scene, face, side)
+        kinks = kink_segments(scene, face, side, generators)
         pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
         if pieces is None:
             return None
@@ -1124,7 +1126,7 @@ def plane_cells(scene, face, side, cells, start):
     return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
-def cubature_cells(scene, face, side, min_size=None):
+def cubature_cells(scene, face, side, min_size=None, receivers=None):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
@@ -1132,6 +1134,13 @@ def cubature_cells(scene, face, side, min_size=None):
     levels (21 triangles each) on the uncut ones; then the uncut cells (three levels:
     :class:`Cubature`, :class:`ThreeLevelRowCubature`). Uncut cells already past that
     many are kept without listing the kink lines at all.
+
+    ``receivers`` (k,) int64: the cells of a row whose columns are the pairs to (both sides
+    of) these faces only, no sky (a group query's row, :func:`emitter_row`), cut along the
+    kink lines of those pairs' integrands only (:func:`kink_faces`): in a furnished room a
+    wall's kink lines of every receiver are thousands (past :data:`MAX_KINK_CELLS`), those
+    of the pairs to a few receivers can be few. Default: every receiver and the sky (the
+    matrix's row).
 
     Returns
     -------
@@ -1145,7 +1154,9 @@ def cubature_cells(scene, face, side, min_size=None):
     if min_size is None:
         box_lo, box_hi = face_boxes(scene)
         size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
-        return scene.cached(f"cubature_cells {int(face)} {int(side)}", lambda s: cubature_cells(s, face, side, size))
+        receivers = None if receivers is None else np.unique(np.asarray(receivers, np.int64))
+        return scene.cached(_side_key("cubature_cells", face, side, receivers),
+                            lambda s: cubature_cells(s, face, side, size, receivers))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
     limit = min(MAX_KINK_CELLS, 21 * len(tri))
@@ -1153,12 +1164,36 @@ def cubature_cells(scene, face, side, min_size=None):
         # cuts only add cells: past the limit before the kink lines are even listed (they
         # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
         return cells, tri, False
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit)
+    generators = None if receivers is None else face_generators(scene, kink_faces(scene, face, side, receivers))
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
         if len(kinked_tri) <= 21 * len(tri):
             return kinked, kinked_tri, True
     return cells, tri, False
+
+
+def _side_key(name, face, side, receivers=None):
+    """The cache key of something of a face side, or of its row to ``receivers`` (k,) int64."""
+    key = f"{name} {int(face)} {int(side)}"
+    return key if receivers is None else key + " to " + " ".join(str(j) for j in np.unique(receivers).tolist())
+
+
+def kink_faces(scene, face, side, receivers):
+    """(k,) int64, sorted: the faces whose edges may make the kinks (D1) of the integrands of
+    the pairs from side ``side`` of a face to the sides of ``receivers`` (k,) int64 it may
+    see: each receiver, the faces lying in its plane (the outlines of its covered cells,
+    holes of the target: :func:`target_holes`) and the faces meeting each pair's shaft
+    (:func:`pair_occluders`, both sides of the receiver). A pair's kernel sees no other
+    face (:meth:`PairSetup.f`), so its integrand kinks only where two edges of these line
+    up; the kink lines of the other edges are those of the other receivers and the sky."""
+    receivers = np.asarray(receivers, np.int64)
+    out = [receivers]
+    for j, t in zip(*facing_sides(scene, face, side, receivers)):
+        out.append(coplanar_faces(scene, int(j)))
+        setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        out.append(np.asarray([o[2] for o in setup.occluders], np.int64))
+    return np.unique(np.concatenate(out))
 
 
 # --------------------------------------------------------------------------------------
@@ -2247,23 +2282,24 @@ def seen_receivers(scene, face, side, faces):
 
 
 def shared_emitter_work(scene, face, side, faces):
-    """Compute (and cache on the scene) what every part of one emitter's row uses: its
-    cells and their contacts (:func:`cubature_cells`, :func:`cell_contacts`,
+    """Compute (and cache on the scene) what every part of one emitter's row to ``faces``
+    (no sky) uses: its cells and their contacts (:func:`cubature_cells`, :func:`cell_contacts`,
     :func:`contact_cells`) and the receivers' covered cells, before the parts are forked:
     they inherit it, and the kernels it loads, instead of each computing it again (the
     office's light1 → floor on 2 workers: 2.7 CPU s cold, 1.6 with this)."""
-    cubature_cells(scene, face, side)
-    cell_contacts(scene, face, side)
+    cubature_cells(scene, face, side, receivers=faces)
+    cell_contacts(scene, face, side, faces)
     contact_cells(scene, face, side)
     for j in np.asarray(faces, np.int64):
         for t in SIDES:
             covered_cells(scene, int(j), t)
 
 
-def cell_contacts(scene, face, side):
-    """:func:`contact_sides` of the :func:`cubature_cells` of a face side (cached)."""
-    return scene.cached(f"cell_contacts {int(face)} {int(side)}",
-                        lambda s: contact_sides(s, face, side, cubature_cells(s, face, side)[0]))
+def cell_contacts(scene, face, side, receivers=None):
+    """:func:`contact_sides` of the :func:`cubature_cells` of a face side (those of a row to
+    ``receivers``, default all; cached)."""
+    return scene.cached(_side_key("cell_contacts", face, side, receivers),
+                        lambda s: contact_sides(s, face, side, cubature_cells(s, face, side, receivers=receivers)[0]))
 
 
 def facing_sides(scene, face, side, faces):
@@ -2406,8 +2442,9 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     closed = closed_form_row(scene, face, side, faces, sky)
     if closed is not None:  # exact terms: all in part 0
         return closed if part[0] == 0 else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {}, 0.0, 0.0)
-    cells, _, kinked = cubature_cells(scene, face, side)
-    contact = cell_contacts(scene, face, side)
+    receivers = None if sky else faces  # cut along the kinks of these pairs only
+    cells, _, kinked = cubature_cells(scene, face, side, receivers=receivers)
+    contact = cell_contacts(scene, face, side, receivers)
     cols, vals, errs, counts = [], [], [], {}
     faces = np.asarray(faces, np.int64)
     tols = np.broadcast_to(np.asarray(tol, np.float64), faces.shape)

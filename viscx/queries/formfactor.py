@@ -2331,8 +2331,23 @@ def facing_sides(scene, face, side, faces):
 def empty_boxes(scene):
     """(b,) bool: for each convex box (:func:`closed_boxes`), whether it is closed and nothing
     is inside it (an open box, one face missing, is never empty: its inner sides see out
-    through the missing face): no other face meets its open interior, and nothing lies on the inner side of
-    one of its faces (docs/queries.md, "Faces lying on faces"). Cached.
+    through the missing face, or, where a face covers that, :func:`box_caps`): no other face
+    meets its open interior, and nothing lies on the inner side of one of its faces
+    (:func:`_nothing_inside`). Cached."""
+
+    def build(scene):
+        face_box, ptr, planes = closed_boxes(scene)
+        return np.array([not np.any(planes[ptr[b]:ptr[b + 1], 4] != 0.0) and _nothing_inside(scene, b)
+                         for b in range(len(ptr) - 1)], bool)
+
+    return scene.cached("empty_boxes", build)
+
+
+def _nothing_inside(scene, b):
+    """Whether no face but box b's own meets the open interior of the convex region bounded
+    by all its planes (:func:`closed_boxes`, the missing face's of an open box included) and
+    nothing lies on the inner side of one of its faces (docs/queries.md, "Faces lying on
+    faces").
 
     A face meets the open interior when a part of positive area is left of it after
     clipping to every plane of the box moved inwards by 1e-9 of the scene's size (a
@@ -2341,41 +2356,95 @@ def empty_boxes(scene):
     normal on g's outward side (the smaller lies on the larger's front, so g's inner side
     can touch only a larger face whose front g's outer side faces): for those few, the
     matrix's own test decides (:func:`contact_cells` of g's inner side is empty)."""
+    face_box, ptr, planes = closed_boxes(scene)
+    tiny = 1e-9 * scene.diagonal
+    box_lo, box_hi = face_boxes(scene)
+    mine = np.flatnonzero(face_box == b)
+    lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
+    # faces whose boxes overlap the box's by more than tiny in every axis
+    near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
+    for k in near[face_box[near] != b]:
+        loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
+        for p in planes[ptr[b]:ptr[b + 1]]:
+            loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
+            if not loops:
+                break
+        if loops and abs(loops_area(loops, scene.face_normal[k])) > tiny * tiny:
+            return False
+    for g in mine:
+        same = coplanar_faces(scene, g)
+        same = same[scene.face_normal[same] @ scene.face_normal[g] > 0]
+        axes = np.abs(scene.face_normal[g]) < 0.5  # the box test in the plane's two widest axes
+        overlap = np.all((box_lo[same] < box_hi[g] - tiny) | ~axes, axis=1) & np.all(
+            (box_hi[same] > box_lo[g] + tiny) | ~axes, axis=1)
+        if np.any(overlap) and len(contact_cells(scene, int(g), -1)[0]):
+            return False
+    return True
+
+
+def box_caps(scene):
+    """For each convex box (:func:`closed_boxes`): ``(g, t, loop)`` where it is an open box
+    whose missing face M lies wholly on side t of one face g (a Cornell block standing on the
+    floor: M is its footprint), no other face overlaps M in its plane, and nothing is inside
+    (:func:`_nothing_inside`, M's plane included); else None. Cached.
+
+    Such a box is closed by g: M ⊂ g, so the box's faces and M bound a convex polyhedron
+    whose open interior no face meets, and a segment between the relative interiors of two
+    of its faces runs inside it (:func:`closed_form_row`); the inner side of a box face sees
+    the other faces' inner sides and side t of g over M (t the side facing into the box),
+    nothing else. ``loop`` (k, 3) float64: M's outline, the box's own vertices in M's plane
+    (the faces' edges along M share them exactly), counter-clockwise about t's normal.
+    M ⊂ g is measured as area(g ∩ M) ≥ (1 − 1e-9) area(M), g's loops clipped to M's sides;
+    another face overlaps M where more than 1e-9 of M's area is left of it so clipped.
+    """
 
     def build(scene):
         face_box, ptr, planes = closed_boxes(scene)
         tiny = 1e-9 * scene.diagonal
-        box_lo, box_hi = face_boxes(scene)
-        out = np.ones(len(ptr) - 1, bool)
+        outline, lo, _ = face_outlines(scene)
+        out = [None] * (len(ptr) - 1)
         for b in range(len(ptr) - 1):
-            if np.any(planes[ptr[b]:ptr[b + 1], 4] != 0.0):
-                out[b] = False  # an open box (a missing face): its inner sides see out
+            box = planes[ptr[b]:ptr[b + 1]]
+            missing = box[:, 4] != 0.0
+            if not np.any(missing):
                 continue
+            n_m, c_m = box[missing][0, :3], float(box[missing][0, 3])
             mine = np.flatnonzero(face_box == b)
-            lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
-            # faces whose boxes overlap the box's by more than tiny in every axis
-            near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
-            for k in near[face_box[near] != b]:
-                loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
-                for p in planes[ptr[b]:ptr[b + 1]]:
-                    loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
+            ids = np.unique(np.concatenate([scene.loop_vertices[scene.loop_offsets[scene.face_loop_offsets[f]]:
+                                                                scene.loop_offsets[scene.face_loop_offsets[f] + 1]]
+                                            for f in mine]))
+            pts = scene.vertices[ids].astype(np.float64)
+            pts = pts[np.abs(pts @ n_m - c_m) <= tiny]
+            # M is convex (a face of a convex box): its vertices in angular order about its
+            # centre, counter-clockwise about −n_m (the normal facing into the box)
+            eu, ev = plane_basis(-n_m)
+            d = pts - pts.mean(axis=0)
+            loop = pts[np.argsort(np.arctan2(d @ ev, d @ eu), kind="stable")]
+            area_m = loops_area([loop], -n_m)
+            if len(loop) < 3 or area_m <= tiny * tiny:
+                continue
+            # the faces in M's plane, and what of each lies over M (clipped to M's sides)
+            flat = np.maximum.reduceat(np.abs(outline @ n_m - c_m), lo) <= tiny
+            flat[mine] = False
+            sides = [(np.cross(-n_m, loop[(k + 1) % len(loop)] - loop[k])) for k in range(len(loop))]
+            over = []
+            for g in np.flatnonzero(flat):
+                loops = oriented_loops(scene.face_loops(g), -n_m)
+                for k, s in enumerate(sides):
+                    s = s / np.linalg.norm(s)
+                    loops = clip_loops(loops, s, float(s @ loop[k]))
                     if not loops:
                         break
-                if loops and abs(loops_area(loops, scene.face_normal[k])) > tiny * tiny:
-                    out[b] = False
-                    break
-            for g in mine if out[b] else ():
-                same = coplanar_faces(scene, g)
-                same = same[scene.face_normal[same] @ scene.face_normal[g] > 0]
-                axes = np.abs(scene.face_normal[g]) < 0.5  # the box test in the plane's two widest axes
-                overlap = np.all((box_lo[same] < box_hi[g] - tiny) | ~axes, axis=1) & np.all(
-                    (box_hi[same] > box_lo[g] + tiny) | ~axes, axis=1)
-                if np.any(overlap) and len(contact_cells(scene, int(g), -1)[0]):
-                    out[b] = False
-                    break
+                a = loops_area(loops, -n_m)
+                if a > 1e-9 * area_m:  # not a sliver of rounding along a side
+                    over.append((int(g), a))
+            if len(over) != 1 or over[0][1] < (1 - 1e-9) * area_m or not _nothing_inside(scene, b):
+                continue
+            g = over[0][0]
+            out[b] = (g, 1 if scene.face_normal[g] @ n_m < 0 else -1, loop)
         return out
 
-    return scene.cached("empty_boxes", build)
+    return scene.cached("box_caps", build)
 
 
 def closed_form_row(scene, face, side, faces, sky=True):
@@ -2387,6 +2456,8 @@ def closed_form_row(scene, face, side, faces, sky=True):
       between the relative interiors of two faces of a convex polyhedron runs in its open
       interior, which no face meets), unoccluded: each F by the exact contour integral
       (:func:`contour_form_factor`), no sky. The row sums to 1 up to that integral's error.
+      Likewise inside an open box closed by the face it stands on (:func:`box_caps`: a
+      Cornell block on the floor), which it sees over the box's missing face only.
     * **Lying wholly on other faces**: the side's cells in contact (:func:`contact_cells`)
       cover it (a cabinet's bottom on the floor, its back on the wall, a desk panel's top
       under the desk top): each point sees the side it lies against with F = 1 and nothing
@@ -2398,16 +2469,23 @@ def closed_form_row(scene, face, side, faces, sky=True):
     area = float(scene.face_area[face])
     face_box = closed_boxes(scene)[0]
     b = face_box[face]
-    if side == -1 and b >= 0 and empty_boxes(scene)[b]:
+    cap = box_caps(scene)[b] if side == -1 and b >= 0 else None
+    if side == -1 and b >= 0 and (empty_boxes(scene)[b] or cap is not None):
         n_i = -scene.face_normal[face]
         loops_i = oriented_loops(scene.face_loops(face), n_i)
         others = np.flatnonzero(face_box == b)
         others = others[(others != face) & np.isin(others, faces)]
-        vals, errs = np.zeros(len(others)), np.zeros(len(others))
-        for k, g in enumerate(others):
-            n_g = -scene.face_normal[g]
-            vals[k], errs[k] = contour_form_factor(loops_i, n_i, oriented_loops(scene.face_loops(g), n_g), n_g)
-        return 2 * others + 1, vals, errs, {"closed": len(others), "none": none - len(others)}, 0.0, 0.0
+        seen = [(2 * int(g) + 1, oriented_loops(scene.face_loops(g), -scene.face_normal[g]), -scene.face_normal[g])
+                for g in others]
+        if cap is not None and np.isin(cap[0], faces):
+            g, t, loop = cap  # the face the open box stands on, over its missing face only
+            seen.append((2 * g + (0 if t > 0 else 1), [loop], t * scene.face_normal[g]))
+        seen.sort(key=lambda c: c[0])
+        cols = np.array([c[0] for c in seen], np.int64)
+        vals, errs = np.zeros(len(seen)), np.zeros(len(seen))
+        for k, (_, loops, n_g) in enumerate(seen):
+            vals[k], errs[k] = contour_form_factor(loops_i, n_i, loops, n_g)
+        return cols, vals, errs, {"closed": len(seen), "none": none - len(seen)}, 0.0, 0.0
     cells, elements = contact_cells(scene, face, side)
     if not len(cells):
         return None

@@ -71,7 +71,7 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
-from viscx.queries.kinks import face_generators, kink_segments
+from viscx.queries.kinks import face_generators, kink_segments, sky_generators
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -1126,7 +1126,7 @@ def plane_cells(scene, face, side, cells, start):
     return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
-def cubature_cells(scene, face, side, min_size=None, receivers=None):
+def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
@@ -1139,8 +1139,10 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
     of) these faces only, no sky (a group query's row, :func:`emitter_row`), cut along the
     kink lines of those pairs' integrands only (:func:`kink_faces`): in a furnished room a
     wall's kink lines of every receiver are thousands (past :data:`MAX_KINK_CELLS`), those
-    of the pairs to a few receivers can be few. Default: every receiver and the sky (the
-    matrix's row).
+    of the pairs to a few receivers can be few. With ``sky`` too, the lines of the sky's
+    integrand as well (:func:`viscx.queries.kinks.sky_generators`): a matrix row that
+    computes only some of its pairs (reciprocity: the Cornell box's ceiling, only its sky).
+    Default: every receiver and the sky (the matrix's row).
 
     Returns
     -------
@@ -1155,8 +1157,8 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
         box_lo, box_hi = face_boxes(scene)
         size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
         receivers = None if receivers is None else np.unique(np.asarray(receivers, np.int64))
-        return scene.cached(_side_key("cubature_cells", face, side, receivers),
-                            lambda s: cubature_cells(s, face, side, size, receivers))
+        return scene.cached(_side_key("cubature_cells", face, side, receivers) + (" and the sky" if sky else ""),
+                            lambda s: cubature_cells(s, face, side, size, receivers, sky))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
     limit = min(MAX_KINK_CELLS, 21 * len(tri))
@@ -1164,7 +1166,11 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
         # cuts only add cells: past the limit before the kink lines are even listed (they
         # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
         return cells, tri, False
-    generators = None if receivers is None else face_generators(scene, kink_faces(scene, face, side, receivers))
+    generators = None
+    if receivers is not None:
+        generators = face_generators(scene, kink_faces(scene, face, side, receivers))
+        if sky:
+            generators = np.union1d(generators, sky_generators(scene, face))
     kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
@@ -3032,7 +3038,10 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
-    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
+    # cut along the kink lines of the columns the row computes only (the others are
+    # integrated with them but not used): the sky's and its pairs', where it leaves some out
+    every = bool(np.isin(others, faces).all())
+    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT, None if every else faces, sky)
     if not kinked:
         # three levels: the grandchildren of triangles twice as long lie as densely as the
         # two-level row's children (Cornell: what a kink-cut start needs to see its small

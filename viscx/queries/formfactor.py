@@ -1126,7 +1126,7 @@ def plane_cells(scene, face, side, cells, start):
     return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
-def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False):
+def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, setups=None):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
@@ -1142,7 +1142,8 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False):
     of the pairs to a few receivers can be few. With ``sky`` too, the lines of the sky's
     integrand as well (:func:`viscx.queries.kinks.sky_generators`): a matrix row that
     computes only some of its pairs (reciprocity: the Cornell box's ceiling, only its sky).
-    Default: every receiver and the sky (the matrix's row).
+    Default: every receiver and the sky (the matrix's row). ``setups``: the row's pair
+    set-ups, for :func:`kink_faces` (with ``min_size`` only: not cached).
 
     Returns
     -------
@@ -1168,7 +1169,7 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False):
         return cells, tri, False
     generators = None
     if receivers is not None:
-        generators = face_generators(scene, kink_faces(scene, face, side, receivers))
+        generators = face_generators(scene, kink_faces(scene, face, side, receivers, setups))
         if sky:
             generators = np.union1d(generators, sky_generators(scene, face))
     kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
@@ -1185,19 +1186,27 @@ def _side_key(name, face, side, receivers=None):
     return key if receivers is None else key + " to " + " ".join(str(j) for j in np.unique(receivers).tolist())
 
 
-def kink_faces(scene, face, side, receivers):
+def kink_faces(scene, face, side, receivers, setups=None):
     """(k,) int64, sorted: the faces whose edges may make the kinks (D1) of the integrands of
     the pairs from side ``side`` of a face to the sides of ``receivers`` (k,) int64 it may
     see: each receiver, the faces lying in its plane (the outlines of its covered cells,
     holes of the target: :func:`target_holes`) and the faces meeting each pair's shaft
     (:func:`pair_occluders`, both sides of the receiver). A pair's kernel sees no other
     face (:meth:`PairSetup.f`), so its integrand kinks only where two edges of these line
-    up; the kink lines of the other edges are those of the other receivers and the sky."""
+    up; the kink lines of the other edges are those of the other receivers and the sky.
+    ``setups``: {(j, t): :class:`PairSetup`} of such pairs the caller has made (a matrix
+    row's), whose occluders are then searched on them (once: the row's shadow search reads
+    them) rather than on new set-ups."""
     receivers = np.asarray(receivers, np.int64)
+    setups = setups or {}
     out = [receivers]
     for j, t in zip(*facing_sides(scene, face, side, receivers)):
         out.append(coplanar_faces(scene, int(j)))
-        setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        setup = setups.get((int(j), int(t)))
+        if setup is None:
+            setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        elif not setup.empty and not setup.occluders_found:
+            setup.find_occluders()
         out.append(np.asarray([o[2] for o in setup.occluders], np.int64))
     return np.unique(np.concatenate(out))
 
@@ -1637,15 +1646,16 @@ class PairSetup:
             or max(float(np.max(l @ n_t)) for l in self.I) - c_t <= tiny
         )
         self.face_t = int(target.face)
-        self.occluders = []
+        self.occluders, self.occluders_found = [], False
         if not self.empty and occluders:
             self.find_occluders()
 
     def find_occluders(self):
         """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
-        here when it needs them first)."""
+        here when it needs them first) and :attr:`occluders_found`."""
         self.occluders = pair_occluders(self.scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t,
                                         {self.face_i, self.face_t})
+        self.occluders_found = True
 
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
@@ -3038,10 +3048,17 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
+    # the row's columns: the sides of the faces it may see or touch, then the sky; the pairs
+    # it computes (their set-ups' cells are not needed: only the pair cubature's start reads them)
+    seen = seen_faces(scene, face, side)
+    width = 2 * len(seen) + 1
+    targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
+               for j, t in zip(fj, sj) if np.isin(j, faces)]
+    setups = {(target.face, t): PairSetup(scene, face, side, target, t, occluders=False) for target, t, _ in targets}
     # cut along the kink lines of the columns the row computes only (the others are
     # integrated with them but not used): the sky's and its pairs', where it leaves some out
     every = bool(np.isin(others, faces).all())
-    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT, None if every else faces, sky)
+    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT, None if every else faces, sky, setups)
     if not kinked:
         # three levels: the grandchildren of triangles twice as long lie as densely as the
         # two-level row's children (Cornell: what a kink-cut start needs to see its small
@@ -3052,26 +3069,19 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
             cells = planed
             tri = start_triangles(cells, extent / THREE_LEVEL_SPLIT)
     cubature = RowCubature if kinked else ThreeLevelRowCubature
-    # the row's columns: the sides of the faces it may see or touch, then the sky
-    seen = seen_faces(scene, face, side)
-    width = 2 * len(seen) + 1
     f0, e0 = np.zeros(width), np.zeros(width)
     wanted = np.zeros(width, bool)
     wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
     wanted[-1] = sky
-    targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
-               for j, t in zip(fj, sj) if np.isin(j, faces)]
     area = float(scene.face_area[face])
     shafts = []  # (setup, column) of the pairs whose occluders the shadow search may ask for
     for target, t, c in targets:
-        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
+        setup = setups[target.face, t]
         if not setup.empty:
             value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
             shafts.append((setup, c))
-    found = set()  # the setups whose occluders are known (found when first asked for)
-
     def live(tri, need):
         """(g, width) bool: an occluder meets the triangle's shaft to the column (tested
         where ``need`` (g, width) bool asks, else False)."""
@@ -3080,9 +3090,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
             rows = np.flatnonzero(need[:, c])
             if not len(rows):
                 continue
-            if c not in found:
+            if not setup.occluders_found:  # found when first asked for
                 setup.find_occluders()
-                found.add(c)
             k = len(setup.occluders)
             if not k:
                 continue

@@ -194,6 +194,33 @@ def test_a_matrix_loads_its_kernels_without_numbas_registries(sample_build, tmp_
             assert np.array_equal(a["formfactors"][name][:], b["formfactors"][name][:]), name
 
 
+def test_numbas_cache_is_patched_only_where_it_is_the_one_expected(monkeypatch):
+    """:func:`viscx.cli.load_cached_kernels_without_registries` replaces numba's
+    ``Cache.load_overload`` only where its code refreshes the contexts and then loads (the
+    layout it was written for), and only once."""
+    from numba.core import caching
+
+    from viscx.cli import load_cached_kernels_without_registries
+
+    def other(self, sig, target_context):
+        return self._load_overload(sig, target_context)
+
+    monkeypatch.setattr(caching.Cache, "load_overload", other)
+    load_cached_kernels_without_registries()
+    assert caching.Cache.load_overload is other
+
+    def expected(self, sig, target_context):
+        target_context.refresh()
+        return self._load_overload(sig, target_context)
+
+    monkeypatch.setattr(caching.Cache, "load_overload", expected)
+    load_cached_kernels_without_registries()
+    patched = caching.Cache.load_overload
+    assert patched is not expected and getattr(patched, "viscx", False)
+    load_cached_kernels_without_registries()
+    assert caching.Cache.load_overload is patched
+
+
 def test_commands_run_with_one_blas_thread_unless_told():
     """The console script sets OPENBLAS_NUM_THREADS=1 (its threads spin on viscx's small
     products) and OMP_WAIT_POLICY=PASSIVE (numba's idle OpenMP threads sleep between kernels)

@@ -164,6 +164,63 @@ def test_a_matrix_imports_no_scipy_linalg_and_numba_still_has_blas(sample_build,
                                                                                                  done.stderr[-2000:])
 
 
+def test_a_matrix_loads_its_kernels_without_numbas_registries(sample_build, tmp_path):
+    """``viscx formfactor matrix`` loads its kernels from numba's cache without refreshing
+    numba's contexts (:func:`viscx.cli.load_cached_kernels_without_registries`): numba's
+    lowering registries (``numba.np.npyimpl``, ``numba.cpython.cmathimpl``) are never
+    imported, the matrix is the one computed with them, and a kernel compiled afterwards in
+    the same process still compiles (numba's compiler refreshes the contexts itself) and
+    runs."""
+    built = str(sample_build("two_triangles.obj"))
+    script = ("import sys\nimport numpy as np\nfrom viscx.cli import main\n"
+              f"try:\n    main(['--quiet', 'formfactor', 'matrix', {built!r}, '-o', {str(tmp_path / 'F.h5')!r}])\n"
+              "except SystemExit as exc:\n    assert exc.code in (0, None), exc.code\n"
+              "light = [m for m in ('numba.np.npyimpl', 'numba.cpython.cmathimpl') if m in sys.modules]\n"
+              "from numba import njit\n"
+              "f = njit(lambda a: np.sort(a)[::-1].copy())\n"
+              "print(light, f(np.array([2.0, 3.0, 1.0])).tolist())")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.stdout.splitlines()[-1] == "[] [3.0, 2.0, 1.0]", (done.stdout[-300:], done.stderr[-2000:])
+    # the same matrix through the API, in a process that never patched numba's cache
+    script = ("from viscx.api import form_factor_matrix\nfrom viscx.formats.formfactors import write_matrix\n"
+              f"from viscx.queries.visibility import open_query\nq = open_query({built!r})\n"
+              f"write_matrix({str(tmp_path / 'G.h5')!r}, form_factor_matrix(q, tol=1e-6), q.scene)")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    import h5py
+
+    with h5py.File(tmp_path / "F.h5") as a, h5py.File(tmp_path / "G.h5") as b:
+        for name in ("indptr", "indices", "data", "error", "sky", "sky_error"):
+            assert np.array_equal(a["formfactors"][name][:], b["formfactors"][name][:]), name
+
+
+def test_numbas_cache_is_patched_only_where_it_is_the_one_expected(monkeypatch):
+    """:func:`viscx.cli.load_cached_kernels_without_registries` replaces numba's
+    ``Cache.load_overload`` only where its code refreshes the contexts and then loads (the
+    layout it was written for), and only once."""
+    from numba.core import caching
+
+    from viscx.cli import load_cached_kernels_without_registries
+
+    def other(self, sig, target_context):
+        return self._load_overload(sig, target_context)
+
+    monkeypatch.setattr(caching.Cache, "load_overload", other)
+    load_cached_kernels_without_registries()
+    assert caching.Cache.load_overload is other
+
+    def expected(self, sig, target_context):
+        target_context.refresh()
+        return self._load_overload(sig, target_context)
+
+    monkeypatch.setattr(caching.Cache, "load_overload", expected)
+    load_cached_kernels_without_registries()
+    patched = caching.Cache.load_overload
+    assert patched is not expected and getattr(patched, "viscx", False)
+    load_cached_kernels_without_registries()
+    assert caching.Cache.load_overload is patched
+
+
 def test_commands_run_with_one_blas_thread_unless_told():
     """The console script sets OPENBLAS_NUM_THREADS=1 (its threads spin on viscx's small
     products) and OMP_WAIT_POLICY=PASSIVE (numba's idle OpenMP threads sleep between kernels)

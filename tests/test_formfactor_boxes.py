@@ -310,15 +310,25 @@ def test_cubature_with_back_face_culling_equals_without(office60, monkeypatch):
     assert culled < sum(lengths)
 
 
-def test_an_open_box_is_never_empty(cornell):
-    """The Cornell blocks are open boxes: their inner sides see the floor through the missing
-    face, so :func:`empty_boxes` calls none of them empty and no inner row of theirs is a
-    closed form over the block's own faces (:func:`closed_form_row`)."""
+def test_an_open_box_is_closed_only_by_a_face_it_stands_on(cornell, open_box_above_floor):
+    """An open box is never :func:`empty_boxes`'s (its inner sides see out through the missing
+    face); it is closed by a face only where its missing face lies wholly on it
+    (:func:`box_caps`). The Cornell blocks stand on the floor: each is capped by the floor's
+    front over its footprint, and their inner rows are closed forms
+    (tests/test_formfactor_closed.py checks them). A box floating above the floor is not
+    capped, and its inner rows go the general way."""
     face_box = ff.closed_boxes(cornell)[0]
     assert (face_box >= 0).sum() == 10 and not ff.empty_boxes(cornell).any()
+    caps = ff.box_caps(cornell)
+    assert len(caps) == 2 and all(c is not None and c[:2] == (0, 1) for c in caps)
     faces = np.arange(cornell.n_faces)
     for f in np.flatnonzero(face_box >= 0):
-        assert ff.closed_form_row(cornell, int(f), -1, faces) is None
+        row = ff.closed_form_row(cornell, int(f), -1, faces)
+        assert row is not None and 0 in row[0] and row[4] == 0.0
+    s = open_box_above_floor
+    assert ff.box_caps(s) == [None] and not ff.empty_boxes(s).any()
+    for f in s.group_faces("box"):
+        assert ff.closed_form_row(s, int(f), -1, np.arange(s.n_faces)) is None
 
 
 def test_covered_cells_under_a_box_need_no_hole(office60, rng):

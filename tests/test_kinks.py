@@ -339,3 +339,64 @@ def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):
     monkeypatch.setattr(kinks, "MAX_KINK_GENERATORS", 10)
     assert kink_segments(cornell, floor, 1) is None
     assert ff.emitter_cells(cornell, floor, 1, kinks=True) is None
+
+
+def test_the_sky_is_seen_beside_no_edge_sky_generators_leaves_out(cornell):
+    """:func:`viscx.queries.kinks.sky_generators` against brute-force rays: from points of
+    the ceiling, the back wall and the light, a ray passing just beside an interior point of
+    an edge it leaves out (in front of the face), on either side, always meets a face; beside
+    the edges it keeps (the open front's rims, the blocks' outlines) some rays reach the sky."""
+    from oracles import first_face_reference
+
+    from viscx.queries.kinks import sky_generators
+
+    s, rng = cornell, np.random.default_rng(7)
+    seg = generator_segments(s)
+    tri = s.triangles
+    for face in (1, 2, 15):
+        n = s.face_normal[face]
+        keep = np.zeros(len(seg), bool)
+        keep[sky_generators(s, face)] = True
+        ahead = (seg @ n - n @ s.face_loops(face)[0][0]).max(axis=1) > 1e-6 * s.diagonal
+        assert np.any(~keep & ahead) and np.any(keep & ahead)
+        corners = s.vertices[tri[s.triangle_face == face]]
+        escaped = 0
+        for k in np.flatnonzero(ahead):
+            w = rng.dirichlet([4, 4, 4], 64)
+            x = np.einsum("gk,gkd->gd", w, corners[rng.integers(0, len(corners), 64)]) + 1e-6 * s.diagonal * n
+            p = seg[k, 0] + rng.uniform(0.05, 0.95, 64)[:, None] * (seg[k, 1] - seg[k, 0])
+            d = p - x
+            across = np.cross(d, seg[k, 1] - seg[k, 0])
+            across /= np.linalg.norm(across, axis=1)[:, None]
+            for sign in (1, -1):
+                aim = p + sign * 1e-4 * np.linalg.norm(d, axis=1)[:, None] * across
+                hit, _, _ = first_face_reference(x, aim - x, np.full(64, 3 * s.diagonal), s.vertices, tri,
+                                                 s.triangle_face)
+                if keep[k]:
+                    escaped += int(np.sum(hit < 0))
+                else:
+                    assert np.all(hit >= 0), (face, k)
+        assert escaped > 0, face
+
+
+def test_rows_cut_along_the_kinks_of_what_they_compute(cornell):
+    """A matrix row that computes only some of its columns (reciprocity: the ceiling only its
+    sky, the floor the ceiling and its sky) is cut along those columns' kink lines
+    (its pairs' :func:`viscx.queries.formfactor.kink_faces` and the sky's
+    :func:`viscx.queries.kinks.sky_generators`): fewer cells than with every line, and its
+    entries within their estimates of the row cut along every line at a tolerance 10 times
+    finer (every entry asked of it: no restriction)."""
+    s = cornell
+    faces = np.arange(s.n_faces)
+    for face in (0, 1):
+        asked = faces[ff.computed_pairs(s, face, faces)]
+        assert len(asked) < s.n_faces - 1
+        every = ff.cubature_cells(s, face, 1)[0]
+        own = ff.cubature_cells(s, face, 1, receivers=asked, sky=True)[0]
+        assert len(own) < 0.8 * len(every)
+        row = ff.row_form_factors(s, face, 1, faces, 1e-4, reciprocal=True)
+        tight = ff.row_form_factors(s, face, 1, faces, 1e-5)
+        ref = dict(zip(tight[0], zip(tight[1], tight[2])))
+        for col, value, err in list(zip(*row[:3])) + [("sky", row[4], row[5])]:
+            f_ref, e_ref = (tight[4], tight[5]) if col == "sky" else ref[col]
+            assert abs(value - f_ref) <= err + e_ref, (face, col)

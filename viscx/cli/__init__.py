@@ -99,6 +99,7 @@ def cli(ctx, quiet):
 
         keep_freed_memory()
         skip_numbas_blas_probe()
+        load_cached_kernels_without_registries()
         report_compilation(not quiet)
         ctx.call_on_close(lambda: report_compilation(False))
 
@@ -127,6 +128,35 @@ def skip_numbas_blas_probe():
         linalg.ensure_blas = probe
     if getattr(arraymath, "ensure_blas", None) is not probe:  # the name it imported, put back too
         arraymath.ensure_blas = probe
+
+
+def load_cached_kernels_without_registries():
+    """Load numba kernels from numba's cache without first refreshing its target and typing
+    contexts. numba's ``Cache.load_overload`` calls ``target_context.refresh()`` before it
+    loads a kernel: on a process's first kernel that imports and installs every registry of
+    typing templates and lowering implementations (~0.2 CPU s; the Cornell matrix at
+    ``--tol 1e-4`` is ~2), which compiling needs and loading machine code does not. What a
+    loaded kernel does need is numba's runtime (NRT: its allocator's symbols for the
+    JIT), so that is initialised instead (``rtsys.initialize``, what ``refresh`` does
+    first). A kernel not in the cache is compiled as before: numba's compiler refreshes
+    the contexts itself. Nothing is done where numba's ``load_overload`` is not the one
+    expected (its code must name ``refresh`` and ``_load_overload``)."""
+    from numba.core import caching
+
+    cache = caching.Cache
+    original = cache.load_overload
+    names = getattr(getattr(original, "__code__", None), "co_names", ())
+    if getattr(original, "viscx", False) or "refresh" not in names or "_load_overload" not in names:
+        return
+    from numba.core.runtime import rtsys
+
+    def load_overload(self, sig, target_context):
+        rtsys.initialize(target_context)
+        with self._guard_against_spurious_io_errors():
+            return self._load_overload(sig, target_context)
+
+    load_overload.viscx = True
+    cache.load_overload = load_overload
 
 
 class Terminated(BaseException):

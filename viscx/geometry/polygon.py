@@ -20,7 +20,7 @@ def newell_normal(points):
     (3,) float
     """
     p = np.asarray(points, dtype=np.float64)
-    q = np.roll(p, -1, axis=0)
+    q = np.concatenate((p[1:], p[:1]))  # np.roll(p, -1, axis=0), without its axis handling
     # p × q by components, the same operations as np.cross (bit-identical), without its
     # axis handling, which costs more than the products on the short loops of faces
     c = np.empty_like(p)

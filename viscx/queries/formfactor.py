@@ -71,7 +71,7 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
-from viscx.queries.kinks import face_generators, kink_segments
+from viscx.queries.kinks import face_generators, kink_segments, sky_generators
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -1126,7 +1126,7 @@ def plane_cells(scene, face, side, cells, start):
     return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
-def cubature_cells(scene, face, side, min_size=None, receivers=None):
+def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, setups=None):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
@@ -1139,8 +1139,11 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
     of) these faces only, no sky (a group query's row, :func:`emitter_row`), cut along the
     kink lines of those pairs' integrands only (:func:`kink_faces`): in a furnished room a
     wall's kink lines of every receiver are thousands (past :data:`MAX_KINK_CELLS`), those
-    of the pairs to a few receivers can be few. Default: every receiver and the sky (the
-    matrix's row).
+    of the pairs to a few receivers can be few. With ``sky`` too, the lines of the sky's
+    integrand as well (:func:`viscx.queries.kinks.sky_generators`): a matrix row that
+    computes only some of its pairs (reciprocity: the Cornell box's ceiling, only its sky).
+    Default: every receiver and the sky (the matrix's row). ``setups``: the row's pair
+    set-ups, for :func:`kink_faces` (with ``min_size`` only: not cached).
 
     Returns
     -------
@@ -1155,8 +1158,8 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
         box_lo, box_hi = face_boxes(scene)
         size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
         receivers = None if receivers is None else np.unique(np.asarray(receivers, np.int64))
-        return scene.cached(_side_key("cubature_cells", face, side, receivers),
-                            lambda s: cubature_cells(s, face, side, size, receivers))
+        return scene.cached(_side_key("cubature_cells", face, side, receivers) + (" and the sky" if sky else ""),
+                            lambda s: cubature_cells(s, face, side, size, receivers, sky))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
     limit = min(MAX_KINK_CELLS, 21 * len(tri))
@@ -1164,7 +1167,11 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None):
         # cuts only add cells: past the limit before the kink lines are even listed (they
         # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
         return cells, tri, False
-    generators = None if receivers is None else face_generators(scene, kink_faces(scene, face, side, receivers))
+    generators = None
+    if receivers is not None:
+        generators = face_generators(scene, kink_faces(scene, face, side, receivers, setups))
+        if sky:
+            generators = np.union1d(generators, sky_generators(scene, face))
     kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
@@ -1179,19 +1186,27 @@ def _side_key(name, face, side, receivers=None):
     return key if receivers is None else key + " to " + " ".join(str(j) for j in np.unique(receivers).tolist())
 
 
-def kink_faces(scene, face, side, receivers):
+def kink_faces(scene, face, side, receivers, setups=None):
     """(k,) int64, sorted: the faces whose edges may make the kinks (D1) of the integrands of
     the pairs from side ``side`` of a face to the sides of ``receivers`` (k,) int64 it may
     see: each receiver, the faces lying in its plane (the outlines of its covered cells,
     holes of the target: :func:`target_holes`) and the faces meeting each pair's shaft
     (:func:`pair_occluders`, both sides of the receiver). A pair's kernel sees no other
     face (:meth:`PairSetup.f`), so its integrand kinks only where two edges of these line
-    up; the kink lines of the other edges are those of the other receivers and the sky."""
+    up; the kink lines of the other edges are those of the other receivers and the sky.
+    ``setups``: {(j, t): :class:`PairSetup`} of such pairs the caller has made (a matrix
+    row's), whose occluders are then searched on them (once: the row's shadow search reads
+    them) rather than on new set-ups."""
     receivers = np.asarray(receivers, np.int64)
+    setups = setups or {}
     out = [receivers]
     for j, t in zip(*facing_sides(scene, face, side, receivers)):
         out.append(coplanar_faces(scene, int(j)))
-        setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        setup = setups.get((int(j), int(t)))
+        if setup is None:
+            setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        elif not setup.empty and not setup.occluders_found:
+            setup.find_occluders()
         out.append(np.asarray([o[2] for o in setup.occluders], np.int64))
     return np.unique(np.concatenate(out))
 
@@ -1631,15 +1646,16 @@ class PairSetup:
             or max(float(np.max(l @ n_t)) for l in self.I) - c_t <= tiny
         )
         self.face_t = int(target.face)
-        self.occluders = []
+        self.occluders, self.occluders_found = [], False
         if not self.empty and occluders:
             self.find_occluders()
 
     def find_occluders(self):
         """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
-        here when it needs them first)."""
+        here when it needs them first) and :attr:`occluders_found`."""
         self.occluders = pair_occluders(self.scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t,
                                         {self.face_i, self.face_t})
+        self.occluders_found = True
 
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
@@ -2331,8 +2347,23 @@ def facing_sides(scene, face, side, faces):
 def empty_boxes(scene):
     """(b,) bool: for each convex box (:func:`closed_boxes`), whether it is closed and nothing
     is inside it (an open box, one face missing, is never empty: its inner sides see out
-    through the missing face): no other face meets its open interior, and nothing lies on the inner side of
-    one of its faces (docs/queries.md, "Faces lying on faces"). Cached.
+    through the missing face, or, where a face covers that, :func:`box_caps`): no other face
+    meets its open interior, and nothing lies on the inner side of one of its faces
+    (:func:`_nothing_inside`). Cached."""
+
+    def build(scene):
+        face_box, ptr, planes = closed_boxes(scene)
+        return np.array([not np.any(planes[ptr[b]:ptr[b + 1], 4] != 0.0) and _nothing_inside(scene, b)
+                         for b in range(len(ptr) - 1)], bool)
+
+    return scene.cached("empty_boxes", build)
+
+
+def _nothing_inside(scene, b):
+    """Whether no face but box b's own meets the open interior of the convex region bounded
+    by all its planes (:func:`closed_boxes`, the missing face's of an open box included) and
+    nothing lies on the inner side of one of its faces (docs/queries.md, "Faces lying on
+    faces").
 
     A face meets the open interior when a part of positive area is left of it after
     clipping to every plane of the box moved inwards by 1e-9 of the scene's size (a
@@ -2341,41 +2372,95 @@ def empty_boxes(scene):
     normal on g's outward side (the smaller lies on the larger's front, so g's inner side
     can touch only a larger face whose front g's outer side faces): for those few, the
     matrix's own test decides (:func:`contact_cells` of g's inner side is empty)."""
+    face_box, ptr, planes = closed_boxes(scene)
+    tiny = 1e-9 * scene.diagonal
+    box_lo, box_hi = face_boxes(scene)
+    mine = np.flatnonzero(face_box == b)
+    lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
+    # faces whose boxes overlap the box's by more than tiny in every axis
+    near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
+    for k in near[face_box[near] != b]:
+        loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
+        for p in planes[ptr[b]:ptr[b + 1]]:
+            loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
+            if not loops:
+                break
+        if loops and abs(loops_area(loops, scene.face_normal[k])) > tiny * tiny:
+            return False
+    for g in mine:
+        same = coplanar_faces(scene, g)
+        same = same[scene.face_normal[same] @ scene.face_normal[g] > 0]
+        axes = np.abs(scene.face_normal[g]) < 0.5  # the box test in the plane's two widest axes
+        overlap = np.all((box_lo[same] < box_hi[g] - tiny) | ~axes, axis=1) & np.all(
+            (box_hi[same] > box_lo[g] + tiny) | ~axes, axis=1)
+        if np.any(overlap) and len(contact_cells(scene, int(g), -1)[0]):
+            return False
+    return True
+
+
+def box_caps(scene):
+    """For each convex box (:func:`closed_boxes`): ``(g, t, loop)`` where it is an open box
+    whose missing face M lies wholly on side t of one face g (a Cornell block standing on the
+    floor: M is its footprint), no other face overlaps M in its plane, and nothing is inside
+    (:func:`_nothing_inside`, M's plane included); else None. Cached.
+
+    Such a box is closed by g: M ⊂ g, so the box's faces and M bound a convex polyhedron
+    whose open interior no face meets, and a segment between the relative interiors of two
+    of its faces runs inside it (:func:`closed_form_row`); the inner side of a box face sees
+    the other faces' inner sides and side t of g over M (t the side facing into the box),
+    nothing else. ``loop`` (k, 3) float64: M's outline, the box's own vertices in M's plane
+    (the faces' edges along M share them exactly), counter-clockwise about t's normal.
+    M ⊂ g is measured as area(g ∩ M) ≥ (1 − 1e-9) area(M), g's loops clipped to M's sides;
+    another face overlaps M where more than 1e-9 of M's area is left of it so clipped.
+    """
 
     def build(scene):
         face_box, ptr, planes = closed_boxes(scene)
         tiny = 1e-9 * scene.diagonal
-        box_lo, box_hi = face_boxes(scene)
-        out = np.ones(len(ptr) - 1, bool)
+        outline, lo, _ = face_outlines(scene)
+        out = [None] * (len(ptr) - 1)
         for b in range(len(ptr) - 1):
-            if np.any(planes[ptr[b]:ptr[b + 1], 4] != 0.0):
-                out[b] = False  # an open box (a missing face): its inner sides see out
+            box = planes[ptr[b]:ptr[b + 1]]
+            missing = box[:, 4] != 0.0
+            if not np.any(missing):
                 continue
+            n_m, c_m = box[missing][0, :3], float(box[missing][0, 3])
             mine = np.flatnonzero(face_box == b)
-            lo, hi = box_lo[mine].min(axis=0), box_hi[mine].max(axis=0)
-            # faces whose boxes overlap the box's by more than tiny in every axis
-            near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
-            for k in near[face_box[near] != b]:
-                loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
-                for p in planes[ptr[b]:ptr[b + 1]]:
-                    loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
+            ids = np.unique(np.concatenate([scene.loop_vertices[scene.loop_offsets[scene.face_loop_offsets[f]]:
+                                                                scene.loop_offsets[scene.face_loop_offsets[f] + 1]]
+                                            for f in mine]))
+            pts = scene.vertices[ids].astype(np.float64)
+            pts = pts[np.abs(pts @ n_m - c_m) <= tiny]
+            # M is convex (a face of a convex box): its vertices in angular order about its
+            # centre, counter-clockwise about −n_m (the normal facing into the box)
+            eu, ev = plane_basis(-n_m)
+            d = pts - pts.mean(axis=0)
+            loop = pts[np.argsort(np.arctan2(d @ ev, d @ eu), kind="stable")]
+            area_m = loops_area([loop], -n_m)
+            if len(loop) < 3 or area_m <= tiny * tiny:
+                continue
+            # the faces in M's plane, and what of each lies over M (clipped to M's sides)
+            flat = np.maximum.reduceat(np.abs(outline @ n_m - c_m), lo) <= tiny
+            flat[mine] = False
+            sides = [(np.cross(-n_m, loop[(k + 1) % len(loop)] - loop[k])) for k in range(len(loop))]
+            over = []
+            for g in np.flatnonzero(flat):
+                loops = oriented_loops(scene.face_loops(g), -n_m)
+                for k, s in enumerate(sides):
+                    s = s / np.linalg.norm(s)
+                    loops = clip_loops(loops, s, float(s @ loop[k]))
                     if not loops:
                         break
-                if loops and abs(loops_area(loops, scene.face_normal[k])) > tiny * tiny:
-                    out[b] = False
-                    break
-            for g in mine if out[b] else ():
-                same = coplanar_faces(scene, g)
-                same = same[scene.face_normal[same] @ scene.face_normal[g] > 0]
-                axes = np.abs(scene.face_normal[g]) < 0.5  # the box test in the plane's two widest axes
-                overlap = np.all((box_lo[same] < box_hi[g] - tiny) | ~axes, axis=1) & np.all(
-                    (box_hi[same] > box_lo[g] + tiny) | ~axes, axis=1)
-                if np.any(overlap) and len(contact_cells(scene, int(g), -1)[0]):
-                    out[b] = False
-                    break
+                a = loops_area(loops, -n_m)
+                if a > 1e-9 * area_m:  # not a sliver of rounding along a side
+                    over.append((int(g), a))
+            if len(over) != 1 or over[0][1] < (1 - 1e-9) * area_m or not _nothing_inside(scene, b):
+                continue
+            g = over[0][0]
+            out[b] = (g, 1 if scene.face_normal[g] @ n_m < 0 else -1, loop)
         return out
 
-    return scene.cached("empty_boxes", build)
+    return scene.cached("box_caps", build)
 
 
 def closed_form_row(scene, face, side, faces, sky=True):
@@ -2387,6 +2472,8 @@ def closed_form_row(scene, face, side, faces, sky=True):
       between the relative interiors of two faces of a convex polyhedron runs in its open
       interior, which no face meets), unoccluded: each F by the exact contour integral
       (:func:`contour_form_factor`), no sky. The row sums to 1 up to that integral's error.
+      Likewise inside an open box closed by the face it stands on (:func:`box_caps`: a
+      Cornell block on the floor), which it sees over the box's missing face only.
     * **Lying wholly on other faces**: the side's cells in contact (:func:`contact_cells`)
       cover it (a cabinet's bottom on the floor, its back on the wall, a desk panel's top
       under the desk top): each point sees the side it lies against with F = 1 and nothing
@@ -2398,16 +2485,23 @@ def closed_form_row(scene, face, side, faces, sky=True):
     area = float(scene.face_area[face])
     face_box = closed_boxes(scene)[0]
     b = face_box[face]
-    if side == -1 and b >= 0 and empty_boxes(scene)[b]:
+    cap = box_caps(scene)[b] if side == -1 and b >= 0 else None
+    if side == -1 and b >= 0 and (empty_boxes(scene)[b] or cap is not None):
         n_i = -scene.face_normal[face]
         loops_i = oriented_loops(scene.face_loops(face), n_i)
         others = np.flatnonzero(face_box == b)
         others = others[(others != face) & np.isin(others, faces)]
-        vals, errs = np.zeros(len(others)), np.zeros(len(others))
-        for k, g in enumerate(others):
-            n_g = -scene.face_normal[g]
-            vals[k], errs[k] = contour_form_factor(loops_i, n_i, oriented_loops(scene.face_loops(g), n_g), n_g)
-        return 2 * others + 1, vals, errs, {"closed": len(others), "none": none - len(others)}, 0.0, 0.0
+        seen = [(2 * int(g) + 1, oriented_loops(scene.face_loops(g), -scene.face_normal[g]), -scene.face_normal[g])
+                for g in others]
+        if cap is not None and np.isin(cap[0], faces):
+            g, t, loop = cap  # the face the open box stands on, over its missing face only
+            seen.append((2 * g + (0 if t > 0 else 1), [loop], t * scene.face_normal[g]))
+        seen.sort(key=lambda c: c[0])
+        cols = np.array([c[0] for c in seen], np.int64)
+        vals, errs = np.zeros(len(seen)), np.zeros(len(seen))
+        for k, (_, loops, n_g) in enumerate(seen):
+            vals[k], errs[k] = contour_form_factor(loops_i, n_i, loops, n_g)
+        return cols, vals, errs, {"closed": len(seen), "none": none - len(seen)}, 0.0, 0.0
     cells, elements = contact_cells(scene, face, side)
     if not len(cells):
         return None
@@ -2954,7 +3048,17 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     others = np.unique(np.concatenate([fj, coplanar_faces(scene, face)])).astype(np.int64)
     extent = np.linalg.norm(np.maximum(box_hi[others], box_hi[face]) - np.minimum(box_lo[others], box_lo[face]),
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
-    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT)
+    # the row's columns: the sides of the faces it may see or touch, then the sky; the pairs
+    # it computes (their set-ups' cells are not needed: only the pair cubature's start reads them)
+    seen = seen_faces(scene, face, side)
+    width = 2 * len(seen) + 1
+    targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
+               for j, t in zip(fj, sj) if np.isin(j, faces)]
+    setups = {(target.face, t): PairSetup(scene, face, side, target, t, occluders=False) for target, t, _ in targets}
+    # cut along the kink lines of the columns the row computes only (the others are
+    # integrated with them but not used): the sky's and its pairs', where it leaves some out
+    every = bool(np.isin(others, faces).all())
+    cells, tri, kinked = cubature_cells(scene, face, side, extent / MIN_SPLIT, None if every else faces, sky, setups)
     if not kinked:
         # three levels: the grandchildren of triangles twice as long lie as densely as the
         # two-level row's children (Cornell: what a kink-cut start needs to see its small
@@ -2965,26 +3069,19 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
             cells = planed
             tri = start_triangles(cells, extent / THREE_LEVEL_SPLIT)
     cubature = RowCubature if kinked else ThreeLevelRowCubature
-    # the row's columns: the sides of the faces it may see or touch, then the sky
-    seen = seen_faces(scene, face, side)
-    width = 2 * len(seen) + 1
     f0, e0 = np.zeros(width), np.zeros(width)
     wanted = np.zeros(width, bool)
     wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
     wanted[-1] = sky
-    targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
-               for j, t in zip(fj, sj) if np.isin(j, faces)]
     area = float(scene.face_area[face])
     shafts = []  # (setup, column) of the pairs whose occluders the shadow search may ask for
     for target, t, c in targets:
-        setup = PairSetup(scene, face, side, target, t, cells=cells, occluders=False)
+        setup = setups[target.face, t]
         if not setup.empty:
             value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
             f0[c], e0[c] = value * scale, err * scale
             shafts.append((setup, c))
-    found = set()  # the setups whose occluders are known (found when first asked for)
-
     def live(tri, need):
         """(g, width) bool: an occluder meets the triangle's shaft to the column (tested
         where ``need`` (g, width) bool asks, else False)."""
@@ -2993,9 +3090,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
             rows = np.flatnonzero(need[:, c])
             if not len(rows):
                 continue
-            if c not in found:
+            if not setup.occluders_found:  # found when first asked for
                 setup.find_occluders()
-                found.add(c)
             k = len(setup.occluders)
             if not k:
                 continue

@@ -72,6 +72,55 @@ def face_generators(scene, faces):
     return np.flatnonzero(np.isin(scene.generator_edges, edges))
 
 
+def sky_generators(scene, face):
+    """(k,) int64, sorted: the rows of :func:`generator_segments` whose lines may make the
+    kinks of the sky's integrand on either side of a face: every generator edge but those
+    the sky is never seen beside from a point of the face.
+
+    The sky column of a row (what x sees of no face) kinks where two edges a and b in one
+    plane Π line up (module docstring): as x crosses Π the strip between their images,
+    ~t wide, changes hands, and the sky's integrand kinks only if the sky owns the strip on
+    one side of Π. The strip runs along both images, so the sky is then seen right beside
+    a and beside b. An edge of exactly two faces f₁, f₂ has the sky beside it from no
+    point x where the plane through x and the edge separates the two faces: then a ray
+    from x passing just beside any interior point of the edge, on either side, meets f₁
+    or f₂ there (or something nearer), never the sky. In the plane across the edge (u its
+    direction, dᵢ the direction into fᵢ across it, mᵢ = dᵢ × u a normal of fᵢ) that is
+    ((x − a) · m₁) ((x − a) · m₂) < 0: one sign for each, affine in x, so it holds on the
+    whole face when it holds at its vertices (within 1e-9 of the scene's size: at most a
+    sliver along the face's outline is left out), for both its sides (it asks where x is,
+    not where it looks). The room's corners seen from inside
+    (a concave dihedral) and a box's edges seen where both its faces face the point are
+    such edges; a free edge (the open front of the Cornell box, a block's bottom) or one
+    on an outline from some point of the side is kept. So the sky's kinks are among the
+    pairs of the edges kept; :func:`viscx.queries.formfactor.cubature_cells` cuts a matrix
+    row along these and its computed pairs' own (:func:`viscx.queries.formfactor.kink_faces`)."""
+    he = scene.half_edges
+    gen = scene.generator_edges
+    count = np.bincount(he.edge, minlength=len(he.edge_vertices))[gen]
+    two = np.flatnonzero(count == 2)
+    if not len(two):
+        return np.arange(len(gen), dtype=np.int64)
+    order = np.argsort(he.edge, kind="stable")
+    first = np.searchsorted(he.edge[order], gen[two])
+    halves = np.stack([order[first], order[first + 1]], axis=1)  # (k, 2) the edge's two half-edges
+    v = scene.vertices.astype(np.float64)
+    a, b = v[he.edge_vertices[gen[two], 0]], v[he.edge_vertices[gen[two], 1]]
+    u = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
+    run = v[he.end[halves]] - v[he.start[halves]]  # (k, 2, 3) each half-edge's direction
+    d = np.cross(scene.face_normal[he.face[halves]].astype(np.float64), run)  # into each face
+    d /= np.linalg.norm(d, axis=2)[:, :, None]
+    m = np.cross(d, u[:, None, :])  # (k, 2, 3)
+    loops = np.concatenate(scene.face_loops(face))
+    h = np.einsum("kid,pd->kip", m, loops) - np.einsum("kid,kd->ki", m, a)[:, :, None]  # (k, 2, p)
+    tiny = 1e-9 * scene.diagonal
+    split = ((h[:, 0].min(axis=1) >= -tiny) & (h[:, 1].max(axis=1) <= tiny)) | (
+        (h[:, 0].max(axis=1) <= tiny) & (h[:, 1].min(axis=1) >= -tiny))
+    keep = np.ones(len(gen), bool)
+    keep[two[split]] = False
+    return np.flatnonzero(keep).astype(np.int64)
+
+
 def _angles(x, t, w):
     """Angles (k, 2) in [0, π] of the points (t, w) (k, 2) seen from (x, 0) of L (k,)."""
     return np.arctan2(w, t - x[:, None])

@@ -472,7 +472,6 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             n_seg += 1
     # closed solids: the outlines of their front faces first (every face of a solid is
     # then done with, unless they did not fit: then each face on its own, below)
-    n_poly = poly_normal.shape[0]
     n_seg, solids = _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, occ_nb,
                                     occ_vid, occ_next, sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b,
                                     seg_p, seg_w, n_seg, buf_a.shape[0])
@@ -620,8 +619,11 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
         n_on, n_act = _slab_edges(on, entry, n_on, u0, u1, seg_a, seg_b, hi_u, slope, act_e, act_v, act_v0, act_v1, 0.0)
         if n_act < 2:
             continue
-        for p in range(n_poly + 1):
-            wind[p] = 0
+        # the scan reads the windings of the polygons of this slab's edges only: those
+        # reset, not all the pair's occluders (a floor point's ~80 slabs against 247
+        # occluders: a sixth of the kernel's time)
+        for q in range(n_act):
+            wind[seg_p[act_e[q]]] = 0
         busy = 0  # occluders with non-zero winding
         visible = False
         top = -1

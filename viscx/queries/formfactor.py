@@ -62,6 +62,7 @@ bounded (:data:`CHUNK`, :data:`MAX_CELLS`).
 import functools
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -1309,6 +1310,43 @@ def kinked_three_level_error(q, kq, gq):
     return np.where(fine > coarse, KINK_GROWTH * fine, np.maximum(fine, coarse / KINK_LEVELS))
 
 
+class Levels(NamedTuple):
+    """Leaf triangles of :class:`Cubature` on their three levels: ``tri`` (g, 3, 3) with
+    their occluder lists (CSR ``ptr`` (g + 1,), ``ids``) and Radon's rule ``q`` (g,); their
+    midpoint children ``K`` (4 g, 3, 3) (rows 4 k … 4 k + 3 those of leaf k) with lists
+    ``kptr, kids`` and rules ``kq`` (4 g,); their grandchildren ``G, gptr, gids, gq`` alike
+    (16 g, rows 16 k … 16 k + 15 those of leaf k)."""
+
+    tri: np.ndarray
+    ptr: np.ndarray
+    ids: np.ndarray
+    q: np.ndarray
+    K: np.ndarray
+    kptr: np.ndarray
+    kids: np.ndarray
+    kq: np.ndarray
+    G: np.ndarray
+    gptr: np.ndarray
+    gids: np.ndarray
+    gq: np.ndarray
+
+    def take(self, rows):
+        """The leaves ``rows`` (k,) int64, with their children and grandchildren."""
+        k_rows = (4 * rows[:, None] + np.arange(4)).reshape(-1)
+        g_rows = (16 * rows[:, None] + np.arange(16)).reshape(-1)
+        return Levels(self.tri[rows], *_sub_lists(self.ptr, self.ids, rows), self.q[rows], self.K[k_rows],
+                      *_sub_lists(self.kptr, self.kids, k_rows), self.kq[k_rows], self.G[g_rows],
+                      *_sub_lists(self.gptr, self.gids, g_rows), self.gq[g_rows])
+
+    def join(self, other):
+        """These leaves, then ``other``'s."""
+        return Levels(np.concatenate([self.tri, other.tri]), *_join_lists(self.ptr, self.ids, other.ptr, other.ids),
+                      np.concatenate([self.q, other.q]), np.concatenate([self.K, other.K]),
+                      *_join_lists(self.kptr, self.kids, other.kptr, other.kids), np.concatenate([self.kq, other.kq]),
+                      np.concatenate([self.G, other.G]), *_join_lists(self.gptr, self.gids, other.gptr, other.gids),
+                      np.concatenate([self.gq, other.gq]))
+
+
 class Cubature:
     """Adaptive cubature of an integrand over triangles, each triangle carrying the list of
     occluders that may matter on it (CSR ``ptr``, ``ids``; an empty list means the integrand
@@ -1407,17 +1445,15 @@ class Cubature:
         return kids.reshape(-1, 4, 3, 3), kptr, kids_ids, q.reshape(-1, 4)
 
     def levels(self, tri, ptr, ids):
-        """The three levels of the triangles (g, 3, 3) with lists (``ptr, ids``), those with
-        an empty list dropped: ``tri, ptr, ids, q`` (g,), their children ``K`` (4 g, 3, 3)
-        (rows 4 k … 4 k + 3 those of triangle k) with their lists ``kptr, kids_ids`` and rules
-        ``kq`` (4 g,), their grandchildren ``G, gptr, gids, gq`` alike (16 g)."""
+        """The :class:`Levels` of the triangles (g, 3, 3) with lists (``ptr, ids``), those
+        with an empty list dropped."""
         live = np.flatnonzero(np.diff(ptr) > 0)
         tri, (ptr, ids) = tri[live], _sub_lists(ptr, ids, live)
         q = self.rule(tri, ptr, ids)
-        K, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
+        K, kptr, kids, kq = self.expand(tri, ptr, ids)
         K, kq = K.reshape(-1, 3, 3), kq.reshape(-1)
-        G, gptr, gids, gq = self.expand(K, kptr, kids_ids)
-        return tri, ptr, ids, q, K, kptr, kids_ids, kq, G.reshape(-1, 3, 3), gptr, gids, gq.reshape(-1)
+        G, gptr, gids, gq = self.expand(K, kptr, kids)
+        return Levels(tri, ptr, ids, q, K, kptr, kids, kq, G.reshape(-1, 3, 3), gptr, gids, gq.reshape(-1))
 
     def integrate(self, tri, candidates, budget, min_size=0.0):
         """∫ over the triangles (g, 3, 3) of the integrand.
@@ -1455,66 +1491,43 @@ class Cubature:
             sptr, sids = _sub_lists(ptr, ids, keep)
             tri = np.concatenate([tri[keep], kids])
             ptr, ids = _join_lists(sptr, sids, kptr, kids_ids)
-        # every leaf carries its rule value q, its 4 children (rows 4 L + c of K) and their
-        # 16 children (rows 16 L + 4 c + d of G), each with its list and rule value
-        tri, ptr, ids, q, K, kptr, kids_ids, kq, G, gptr, gids, gq = self.levels(tri, ptr, ids)
+        leaves = self.levels(tri, ptr, ids)
         # a shadow smaller than the grandchildren's nodes' spacing may lie between all 147
         # nodes of a first triangle whose shaft meets an occluder, and its three levels then
         # agree on nothing seen (office(100), a desk panel → another desk's narrow side at
         # any tol: 1.2e-7 off for an estimate of 1.5e-14): looked for as in the rows
-        seen = levels_seen(q, kq.reshape(-1, 4), gq.reshape(-1, 16))
-        unseen, new = look_for_shadows(tri, seen[:, None], lambda t, need: (np.diff(cull_all(
+        seen = levels_seen(leaves.q, leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
+        unseen, new = look_for_shadows(leaves.tri, seen[:, None], lambda t, need: (np.diff(cull_all(
             self.cull, t, candidates)[0]) > 0)[:, None])
         if len(new):
-            keep = np.flatnonzero(~unseen)
-            k_keep, g_keep = (4 * keep[:, None] + np.arange(4)).reshape(-1), (16 * keep[:, None] + np.arange(16)).reshape(-1)
-            old = (tri[keep], *_sub_lists(ptr, ids, keep), q[keep], K[k_keep], *_sub_lists(kptr, kids_ids, k_keep),
-                   kq[k_keep], G[g_keep], *_sub_lists(gptr, gids, g_keep), gq[g_keep])
-            added = self.levels(new, *cull_all(self.cull, new, candidates))
-            tri, q, K, kq, G, gq = (np.concatenate([old[k], added[k]]) for k in (0, 3, 4, 7, 8, 11))
-            ptr, ids = _join_lists(old[1], old[2], added[1], added[2])
-            kptr, kids_ids = _join_lists(old[5], old[6], added[5], added[6])
-            gptr, gids = _join_lists(old[9], old[10], added[9], added[10])
-        cells = 21 * len(tri)
-        four, sixteen = np.arange(4), np.arange(16)
+            leaves = leaves.take(np.flatnonzero(~unseen)).join(self.levels(new, *cull_all(self.cull, new, candidates)))
+        cells = 21 * len(leaves.tri)
+        four = np.arange(4)
         for _ in range(200):
-            err = self.estimates(tri, ptr, ids, q, kq.reshape(-1, 4), gq.reshape(-1, 16))
+            err = self.estimates(*leaves[:4], leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
             total = float(err.sum())
-            if total <= budget or cells >= MAX_CELLS or not len(tri):
+            if total <= budget or cells >= MAX_CELLS or not len(leaves.tri):
                 break
             # split the leaves with the largest estimates until what is left is half the budget
             order = np.argsort(-err, kind="stable")
             rest = total - np.cumsum(err[order])
             n_split = int(np.searchsorted(-rest, -0.5 * budget)) + 1
-            split = np.zeros(len(tri), bool)
+            split = np.zeros(len(leaves.tri), bool)
             split[order[:n_split]] = True
-            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
             # the split leaves' children become leaves (children with nothing to hide are
             # exactly zero and dropped); their children and grandchildren move up a level,
             # and the grandchildren's children are evaluated
-            child = (4 * rows[:, None] + four).reshape(-1)
-            nptr, nids = _sub_lists(kptr, kids_ids, child)
-            live = np.flatnonzero(np.diff(nptr) > 0)
-            child = child[live]
-            new_tri, new_q = K[child], kq[child]
-            nptr, nids = _sub_lists(kptr, kids_ids, child)
+            child = (4 * np.flatnonzero(split)[:, None] + four).reshape(-1)
+            child = child[np.diff(leaves.kptr)[child] > 0]
             grand = (4 * child[:, None] + four).reshape(-1)
-            new_K, new_kq = G[grand], gq[grand]
-            nkptr, nkids = _sub_lists(gptr, gids, grand)
+            new_K, nkptr, nkids = leaves.G[grand], *_sub_lists(leaves.gptr, leaves.gids, grand)
             new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids)
-            cells += 16 * len(new_tri)
-            k_keep = (4 * keep[:, None] + four).reshape(-1)
-            g_keep = (16 * keep[:, None] + sixteen).reshape(-1)
-            tri = np.concatenate([tri[keep], new_tri])
-            ptr, ids = _join_lists(*_sub_lists(ptr, ids, keep), nptr, nids)
-            q = np.concatenate([q[keep], new_q])
-            K = np.concatenate([K[k_keep], new_K])
-            kptr, kids_ids = _join_lists(*_sub_lists(kptr, kids_ids, k_keep), nkptr, nkids)
-            kq = np.concatenate([kq[k_keep], new_kq])
-            G = np.concatenate([G[g_keep], new_G.reshape(-1, 3, 3)])
-            gptr, gids = _join_lists(*_sub_lists(gptr, gids, g_keep), ngptr, ngids)
-            gq = np.concatenate([gq[g_keep], new_gq.reshape(-1)])
-        kq, gq = kq.reshape(-1, 4), gq.reshape(-1, 16)
+            cells += 16 * len(child)
+            born = Levels(leaves.K[child], *_sub_lists(leaves.kptr, leaves.kids, child), leaves.kq[child], new_K, nkptr,
+                          nkids, leaves.gq[grand], new_G.reshape(-1, 3, 3), ngptr, ngids, new_gq.reshape(-1))
+            leaves = leaves.take(np.flatnonzero(~split)).join(born)
+        tri, ptr, ids, q = leaves[:4]
+        kq, gq = leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16)
         err = self.estimates(tri, ptr, ids, q, kq, gq)
         self.leaves = (tri, ptr, ids, q, kq, gq, err)
         return float(gq.sum()), float(err.sum()), cells

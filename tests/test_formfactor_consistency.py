@@ -76,12 +76,18 @@ def test_cabinet_room_pairs_equal_the_matrix(cabinet_room):
         check_pair(scene, rows, i, j, 1e-4)
 
 
-def test_single_emitter_group_runs_in_parts(tile_cube):
+def test_single_emitter_group_runs_on_threads(tile_cube, monkeypatch):
     """A query of one row (the floor, computing both pairs: the faces' areas are equal and
-    it has the smaller index) runs as SINGLE_PARTS parts (its free cells dealt out): the
-    same value on 1 or 2 workers, equal to the pair query within the estimates."""
+    it has the smaller index) runs in the query's process, its cubatures' kernels on the
+    workers as threads, not as processes: the same value on 1 or 2 workers, equal to the
+    pair query within the estimates."""
     assert [(f, s) for f, s, *_ in ff.group_rows(tile_cube[0], [0], 1, [1, 2])] == [(0, 1)]
     scene, rows = tile_cube
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a query of one row forked workers")
+
+    monkeypatch.setattr(ff, "_map_rows", no_pool)
     one = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=1)
     two = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=2)
     assert one == two
@@ -90,33 +96,28 @@ def test_single_emitter_group_runs_in_parts(tile_cube):
     assert abs(one["F"] - sum(rows[0].get(c, (0.0, 0.0))[0] for c in (2, 3, 4, 5))) <= one["error"] + 2 * TOL
 
 
-def test_single_emitter_parts_share_the_parents_work(monkeypatch):
-    """The parts of one emitter use the cells, their contacts and the receivers' covered
-    cells that the parent computed before forking them (``shared_emitter_work``): no part
-    computes them again (each did, and loaded their kernels, on its own)."""
-    scene = cube_with_a_tile()  # caches of its own
-    receivers = np.array([1, 2, 6], np.int64)
-    ff.shared_emitter_work(scene, 0, 1, receivers)
+@pytest.mark.parametrize("i, j", [(4, 2), (2, 0)])
+def test_three_level_pair_cubature_threads_and_lists(i, j, monkeypatch):
+    """The pair cubature on three levels (``Cubature``: the emitter's cells uncut along its
+    kinks, as on the office's floor) gives the same result, bit for bit, on 1, 2 or 3
+    threads; and only the leaves' children are culled (the shaft test), not the
+    grandchildren, which carry their parents' lists: the triangles culled are fewer than
+    half those evaluated (each evaluated triangle was culled before: as many)."""
+    scene = closed_room(0)
+    culled = []
+    shaft_cull = ff.PairSetup.shaft_cull
 
-    def again(*args, **kwargs):
-        raise AssertionError("computed again in a part")
+    def counted(self, tri, ptr, ids):
+        culled.append(len(tri))
+        return shaft_cull(self, tri, ptr, ids)
 
-    monkeypatch.setattr(ff, "emitter_cells", again)
-    monkeypatch.setattr(ff, "contact_sides", again)
-    cols, F, *_ = ff.emitter_row(scene, 0, 1, receivers, 1e-3, False, (0, ff.SINGLE_PARTS))
-    assert len(cols)
-
-
-def test_parts_are_dealt_pieces_of_the_cells():
-    """A single emitter's parts are dealt the start triangles of its free cells
-    (``part_pieces``), not the cells: more pieces than cells, none larger than the
-    start size (1 / MIN_SPLIT of the face), tiling the free cells (equal area)."""
-    scene = cube_with_a_tile()
-    cells, _, _ = ff.cubature_cells(scene, 0, 1)
-    free = [c for c, k in zip(cells, ff.cell_contacts(scene, 0, 1)) if k < 0]
-    pieces = ff.part_pieces(scene, 0, free)
-    assert len(free) < len(pieces) and ff.SINGLE_PARTS <= len(pieces)
-    lo, hi = ff.face_boxes(scene)
-    assert max(np.sqrt(2 * ff._cell_area(p)) for p in pieces) <= np.linalg.norm(hi[0] - lo[0]) / ff.MIN_SPLIT
-    area = sum(ff._cell_area(c) for c in free)
-    assert abs(sum(ff._cell_area(p) for p in pieces) - area) < 1e-9 * area
+    monkeypatch.setattr(ff.PairSetup, "shaft_cull", counted)
+    out = []
+    for threads in (1, 2, 3):
+        culled.clear()
+        r = ff.pair_form_factor(scene, i, 1, ff.face_target(scene, j), 1, tol=1e-6, cells=ff.emitter_cells(scene, i, 1),
+                                kinked=False, threads=threads)
+        assert r.method == "quadrature" and r.cells > 1000
+        assert sum(culled) < r.cells / 2, (sum(culled), r.cells)
+        out.append((r.F, r.error, r.evaluations, r.cells))
+    assert out[0] == out[1] == out[2]

@@ -918,7 +918,7 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ,
                          occ_loop, occ_poly, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid, occ_nb,
                          occ_vid, occ_next):
@@ -1008,7 +1008,7 @@ def _boxes_apart(pa, pb, poly_pts, lo, hi, tol):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def shaft_boxes_meet(cells, target, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi, tol):
     """The first test of :func:`shaft_meets` only (conservative: a superset of the
     polygons meeting the shaft): the candidates whose bounding box meets the shaft's.
@@ -1024,7 +1024,7 @@ def shaft_boxes_meet(cells, target, cand_cell, cand_poly, poly_pts, poly_lo, pol
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def shaft_meets(cells, cell_normal, target, target_normal, cand_cell, cand_poly, poly_pts, poly_lo, poly_hi,
                 poly_normal, tol):
     """Which candidate polygons meet the interior of the *shaft* of a cell and the target:

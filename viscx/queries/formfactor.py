@@ -72,6 +72,7 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
+from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.queries.kinks import face_generators, kink_segments
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
@@ -1387,11 +1388,12 @@ class Cubature:
         see nothing while its list says they should (:meth:`estimates`).
     """
 
-    def __init__(self, integrand, cull, unresolved=None, unseen=None):
+    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1):
         self.integrand = integrand
         self.cull = cull
         self.unresolved = unresolved
         self.unseen = unseen
+        self.threads = threads
         self.evaluations = 0
         self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, gq, err) of the final triangles
 
@@ -1421,19 +1423,39 @@ class Cubature:
                 err[blind] = np.maximum(err[blind], self.unseen(tri[blind]))
         return err
 
+    def _pieces(self, n):
+        """The slices of ``n`` triangles that one call of the integrand or of the cull takes:
+        as :func:`row_rules`' pieces, shared by :attr:`threads` threads (the integrand and
+        the cull must be thread-safe and release the GIL: ``blocked_form_factors`` and
+        ``shaft_meets`` are ``nogil``); they depend on ``n`` only, and each triangle's
+        values and list on the triangle only, so the result is the same, bit for bit, on
+        any number of threads."""
+        return row_chunks(n, max(1, min(CHUNK, max(ROW_PIECE, -(-n // ROW_PIECES)))))
+
     def rule(self, tri, ptr, ids):
         """(g,) float64: Radon's rule on each triangle (zero where the list is empty)."""
         out = np.zeros(len(tri))
         live = np.flatnonzero(np.diff(ptr) > 0)
         area = triangle_areas(tri)
-        for lo in range(0, len(live), CHUNK):
-            rows = live[lo:lo + CHUNK]
+
+        def piece(s):
+            rows = live[s]
             pts = np.einsum("rk,gkd->grd", RULE_NODES, tri[rows]).reshape(-1, 3)
             values = self.integrand(np.ascontiguousarray(pts), np.repeat(np.arange(len(rows)), 7),
                                     *_sub_lists(ptr, ids, rows))
-            self.evaluations += len(pts)
             out[rows] = values.reshape(-1, 7) @ RULE_WEIGHTS * area[rows]
+            return len(pts)
+
+        self.evaluations += sum(map_chunks(piece, self._pieces(len(live)), self.threads))
         return out
+
+    def culled(self, tri, ptr, ids):
+        """:attr:`cull` of the triangles (g, 3, 3) with lists ``ptr, ids``, piece by piece
+        (:meth:`_pieces`): the same lists."""
+        def piece(s):
+            return self.cull(tri[s], *_sub_lists(ptr, ids, np.arange(s.start, s.stop)))
+
+        return _concat_lists(map_chunks(piece, self._pieces(len(tri)), self.threads))
 
     def expand(self, tri, ptr, ids, cull=True):
         """Children of the triangles, their lists (culled from the parents', or with
@@ -1442,7 +1464,7 @@ class Cubature:
         kids = split4(tri).reshape(-1, 3, 3)
         kptr, kids_ids = _sub_lists(ptr, ids, np.repeat(np.arange(len(tri)), 4))
         if cull:
-            kptr, kids_ids = self.cull(kids, kptr, kids_ids)
+            kptr, kids_ids = self.culled(kids, kptr, kids_ids)
         q = self.rule(kids, kptr, kids_ids)
         return kids.reshape(-1, 4, 3, 3), kptr, kids_ids, q.reshape(-1, 4)
 
@@ -1533,7 +1555,7 @@ class Cubature:
             child = child[np.diff(leaves.kptr)[child] > 0]
             grand = (4 * child[:, None] + four).reshape(-1)
             new_K = leaves.G[grand]
-            nkptr, nkids = self.cull(new_K, *_sub_lists(leaves.gptr, leaves.gids, grand))
+            nkptr, nkids = self.culled(new_K, *_sub_lists(leaves.gptr, leaves.gids, grand))
             new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids, cull=False)
             cells += 16 * len(child)
             born = Levels(leaves.K[child], *_sub_lists(leaves.kptr, leaves.kids, child), leaves.kq[child], new_K, nkptr,
@@ -1588,6 +1610,15 @@ def _sub_lists(ptr, ids, rows):
 def _join_lists(ptr_a, ids_a, ptr_b, ids_b):
     """Two CSR lists one after the other."""
     return np.concatenate([ptr_a[:-1], ptr_b + ptr_a[-1]]).astype(np.int64), np.concatenate([ids_a, ids_b]).astype(np.int64)
+
+
+def _concat_lists(lists):
+    """CSR lists ``[(ptr, ids), ...]`` one after the other, as one ``(ptr, ids)``."""
+    if not lists:
+        return np.zeros(1, np.int64), np.zeros(0, np.int64)
+    ends = np.cumsum([ptr[-1] for ptr, _ in lists])
+    ptr = np.concatenate([[0]] + [p[1:] + e - p[-1] for (p, _), e in zip(lists, ends)])
+    return ptr.astype(np.int64), np.concatenate([ids for _, ids in lists]).astype(np.int64)
 
 
 # --------------------------------------------------------------------------------------
@@ -1881,7 +1912,7 @@ class PairSetup:
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out
 
-    def blocked_integral(self, budget):
+    def blocked_integral(self, budget, threads=1):
         """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature, error estimate ≤
         ``budget`` where :data:`MAX_CELLS` allows: on cells cut along the kink lines the
         two-level :class:`RowCubature` (one column) over the triangles whose shafts meet an
@@ -1920,10 +1951,10 @@ class PairSetup:
                 ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
-            cub = RowCubature(column)
+            cub = RowCubature(column, threads)
             value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
-        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound)
+        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return umbra + value, umbra_err + error, cub.evaluations, cells
 
@@ -1963,8 +1994,8 @@ class PairSetup:
         return v * area, e * area
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1),
-                     kinked=False):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, kinked=False,
+                     threads=1):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -1988,10 +2019,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         by the pairs of one emitter (default: computed here).
     kinked : bool
         ``cells`` are cut along the kink lines (:func:`cubature_cells`).
-    part : (k, K)
-        Only part k of K of the pair (for K processes): the cubature over every K-th free
-        cell from the k-th, to ``tol / K``, and the exact terms in part 0; the K parts'
-        values and estimates add up to the pair's.
+    threads : int
+        Threads the cubature's kernels run on (:class:`Cubature`: the same result on any
+        number).
 
     Returns
     -------
@@ -2008,15 +2038,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         # they lie inside it and do not overlap its holes or each other: non-zero winding
         # and the contour integral take J minus them), but those a box hides anyway
         target = Target(target.loops + target_holes(scene, face_i, target.face, side_t), target.normal, target.face)
-    k_part, n_parts = part
     free = [c for c, k in zip(cells, contact) if k < 0]
-    if n_parts > 1:
-        free = part_pieces(scene, face_i, free)
-    free = free[k_part::n_parts]
-    exact = k_part == 0  # the exact terms once, in part 0
-    tol = tol / n_parts
     touching = 0.0
-    if exact and target.face >= 0:
+    if target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
         touching = sum(abs(_cell_area(c)) for c, k in zip(*lying) if k == element) / float(scene.face_area[face_i])
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked)
@@ -2026,7 +2050,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else
     parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c in lying[0]]
-    for loops, sign in parts if exact else []:
+    for loops, sign in parts:
         a = loops_area(loops, setup.n_i) / setup.area_i
         if not loops or a * setup.area_i <= setup.tiny ** 2:
             continue
@@ -2035,23 +2059,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     if not setup.occluders or not free:
         return PairResult(value, err, "contour", seconds=time.perf_counter() - t0)
     budget = max(tol - err, 0.1 * tol) * setup.area_i
-    hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget)
+    hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget, threads)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
                       evals, n_cells, time.perf_counter() - t0)
-
-
-def part_pieces(scene, face, cells):
-    """The free cells of a face side as the pieces its parts are dealt (:func:`pair_form_factor`
-    with ``part``): their :func:`start_triangles` at 1 / :data:`MIN_SPLIT` of the face's
-    box, as (3, 3) float64 each, so that the parts get similar work where the cells are
-    few and unequal (the office's south wall has 4 free cells of 0.5–18 m²: of 6 parts
-    dealt cells, two got none and one did 36 % of the work). They are pieces the cubature
-    would cut anyway (the same start size as :func:`cubature_cells`'), and cells cut
-    further (kink cells stay C1 on their pieces)."""
-    if not cells:
-        return []
-    box_lo, box_hi = face_boxes(scene)
-    return list(start_triangles(cells, float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT))
 
 
 def _cell_area(cell):
@@ -2173,11 +2183,6 @@ def contour_form_factor(loops_i, n_i, loops_j, n_j, separate=False):
 # many pairs: faces, groups, the matrix
 
 SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
-#: Parts a group query of a single emitting face is cut into (:func:`group_to_group`):
-#: more than the cores, so that the parts' unequal costs even out over the workers (the
-#: office's floor → ceiling at 1e-4: the largest of 2 parts 10.4 CPU s, of 17.8; 6 parts
-#: 1.4–4.6 CPU s each, 18.2 in all, 9.2 on the busier of 2 workers).
-SINGLE_PARTS = 6
 
 
 def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
@@ -2220,10 +2225,10 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
     Each emitting face side's cells are computed once for all its receivers
     (:func:`emitter_row`), and the pairs it cannot see are left out of its row by the
     vectorised facing test (:func:`seen_receivers`); rows run on ``workers`` processes
-    (default: the CPU count). A query of one row (a floor to a ceiling) runs as
-    :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too uses the cores;
-    the parts depend on the query, never on the workers. ``tol`` bounds the error estimate
-    of each face pair."""
+    (default: the CPU count). A query of one row (a floor to a ceiling) runs in this
+    process, its cubatures' kernels on ``workers`` threads (:class:`Cubature`), so that it
+    too uses the cores; the result does not depend on the workers. ``tol`` bounds the
+    error estimate of each face pair."""
     faces_i = np.asarray(sorted({int(i) for i in faces_i}), np.int64)
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
     row, _, val, err = group_entries(scene, faces_i, faces_j, side_i, tol, workers, reciprocal)
@@ -2237,17 +2242,17 @@ def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=No
     """The entries F_(i,side_i)→(j,t) of a group query (:func:`group_to_group`), computed or
     derived: ``(rows, cols (m,) int64, values, errors (m,) float64)``, rows the elements
     ``2 i + (0 front, 1 back)`` of side ``side_i`` of the faces_i, cols those of both sides
-    of the faces_j, j ≠ i (the parts of a row split into parts are entries of their own:
-    their sum is the entry)."""
+    of the faces_j, j ≠ i."""
     faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
     rows = group_rows(scene, faces_i, side_i, faces_j, reciprocal)
-    n_parts = SINGLE_PARTS if len(rows) == 1 else 1
-    if n_parts > 1:
-        shared_emitter_work(scene, *rows[0][:3])
-    tasks = [(f, s, r, (k, n_parts)) for f, s, r, _ in rows for k in range(n_parts)]
-    tols = [tol * scale for *_, scale in rows for _ in range(n_parts)]
-    results = _map_rows(emitter_row, scene, tasks, tols, False, workers)
-    row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in tasks])
+    if len(rows) == 1:
+        # one row (a floor to a ceiling): in this process, its pairs' cubatures on the cores
+        # as threads (the same result on any number), refined to tol as one integral
+        f, s, r, scale = rows[0]
+        results = [emitter_row(scene, f, s, r, tol * scale, False, default_workers(workers))]
+    else:
+        results = _map_rows(emitter_row, scene, [row[:3] for row in rows], [tol * row[3] for row in rows], False, workers)
+    row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in rows])
     if reciprocal:
         row, col, val, err = (np.concatenate(pair) for pair in zip((row, col, val, err),
                                                                       derived_entries(scene, row, col, val, err)))
@@ -2305,20 +2310,6 @@ def seen_receivers(scene, face, side, faces):
     faces = np.asarray(faces, np.int64)
     fj, _ = facing_sides(scene, face, side, faces)
     return faces[np.isin(faces, fj) | np.isin(faces, coplanar_faces(scene, face))]
-
-
-def shared_emitter_work(scene, face, side, faces):
-    """Compute (and cache on the scene) what every part of one emitter's row to ``faces``
-    (no sky) uses: its cells and their contacts (:func:`cubature_cells`, :func:`cell_contacts`,
-    :func:`contact_cells`) and the receivers' covered cells, before the parts are forked:
-    they inherit it, and the kernels it loads, instead of each computing it again (the
-    office's light1 → floor on 2 workers: 2.7 CPU s cold, 1.6 with this)."""
-    cubature_cells(scene, face, side, receivers=faces)
-    cell_contacts(scene, face, side, faces)
-    contact_cells(scene, face, side)
-    for j in np.asarray(faces, np.int64):
-        for t in SIDES:
-            covered_cells(scene, int(j), t)
 
 
 def cell_contacts(scene, face, side, receivers=None):
@@ -2449,12 +2440,12 @@ def closed_form_row(scene, face, side, faces, sky=True):
             rest if sky else 0.0)
 
 
-def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
-    """F from one side of a face to every side of ``faces`` it may see, and to the sky
-    (``part``: that part of each pair, :func:`pair_form_factor`); a side with a closed
-    form (:func:`closed_form_row`) takes it, in part 0. ``tol``: the target on each
+def emitter_row(scene, face, side, faces, tol, sky=True, threads=1):
+    """F from one side of a face to every side of ``faces`` it may see, and to the sky; a
+    side with a closed form (:func:`closed_form_row`) takes it. ``tol``: the target on each
     pair's estimate, one for all or (k,) float64, one per face of ``faces`` (the sky
-    takes the smallest).
+    takes the smallest). ``threads``: what each pair's cubature runs on
+    (:func:`pair_form_factor`).
 
     Returns
     -------
@@ -2466,8 +2457,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     sky, sky_error : float
     """
     closed = closed_form_row(scene, face, side, faces, sky)
-    if closed is not None:  # exact terms: all in part 0
-        return closed if part[0] == 0 else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {}, 0.0, 0.0)
+    if closed is not None:
+        return closed
     receivers = None if sky else faces  # cut along the kinks of these pairs only
     cells, _, kinked = cubature_cells(scene, face, side, receivers=receivers)
     contact = cell_contacts(scene, face, side, receivers)
@@ -2482,7 +2473,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(faces.tolist()))
     for j, t in zip(fj, sj):
         r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=float(tols[faces == j][0]),
-                             cells=cells, contact=contact, part=part, kinked=kinked)
+                             cells=cells, contact=contact, kinked=kinked, threads=threads)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -2492,7 +2483,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     if sky:
         for box in sky_targets(scene):
             r = pair_form_factor(scene, face, side, box, 1, tol=float(np.min(tols, initial=np.max(tol))), cells=cells,
-                                 contact=contact, part=part, kinked=kinked)
+                                 contact=contact, kinked=kinked, threads=threads)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -3083,8 +3074,8 @@ _POOL_SCENE = None
 
 
 def _row_task(args, scene=None):
-    row, face, side, faces, tol, sky, part, options = args
-    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part, **options)
+    row, face, side, faces, tol, sky, options = args
+    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, **options)
 
 
 def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=False):
@@ -3092,9 +3083,8 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     :func:`row_form_factors` all receivers at once) of every (face, side, faces) in
     ``rows`` (each row its own receivers ``faces`` (k,) int64), in that order, on
     ``workers`` processes (forked: they share the scene; the results do not depend on
-    their number). A row given as (face, side, faces, part) is that part of it
-    (``row(..., sky, part)``, :func:`emitter_row`). ``tol``: one for every row, or a list
-    of one per row (for :func:`emitter_row`, each may be one per receiver).
+    their number). ``tol``: one for every row, or a list of one per row (for
+    :func:`emitter_row`, each may be one per receiver).
 
     The costly rows (large faces) go first, so that no worker is left with one at the end.
     With ``threads`` (:func:`row_form_factors`), each row also evaluates its points on as
@@ -3107,13 +3097,11 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    from viscx.parallel import default_workers
-
     global _POOL_SCENE, _ROW_CORES
     workers = min(default_workers(workers), len(rows))
     options = {"threads": workers} if threads and workers > 1 else {}
     tols = tol if isinstance(tol, list) else [tol] * len(rows)
-    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), t, sky, tuple(r[3:]), options)
+    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), t, sky, options)
              for r, t in zip(rows, tols)]
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []

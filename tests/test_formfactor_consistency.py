@@ -96,6 +96,22 @@ def test_single_emitter_group_runs_on_threads(tile_cube, monkeypatch):
     assert abs(one["F"] - sum(rows[0].get(c, (0.0, 0.0))[0] for c in (2, 3, 4, 5))) <= one["error"] + 2 * TOL
 
 
+def test_group_pairs_find_their_occluders_once(monkeypatch):
+    """A group query's row finds each pair's occluders once: its kink lines
+    (``kink_faces``) and its pairs' cubatures (``pair_form_factor``) share them."""
+    scene = cube_with_a_tile()  # caches of its own
+    calls = []
+    pair_occluders = ff.pair_occluders
+
+    def counted(scene, I, n_i, c_i, J, n_t, c_t, exclude):
+        calls.append((tuple(sorted(exclude)), tuple(np.round(n_t, 9))))  # the faces and the target's side
+        return pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude)
+
+    monkeypatch.setattr(ff, "pair_occluders", counted)
+    ff.group_to_group(scene, [0], [1, 2], tol=1e-3, workers=1)
+    assert calls and len(calls) == len(set(calls)), calls
+
+
 @pytest.mark.parametrize("i, j", [(4, 2), (2, 0)])
 def test_three_level_pair_cubature_threads_and_lists(i, j, monkeypatch):
     """The pair cubature on three levels (``Cubature``: the emitter's cells uncut along its

@@ -1193,7 +1193,7 @@ def kink_faces(scene, face, side, receivers):
     out = [receivers]
     for j, t in zip(*facing_sides(scene, face, side, receivers)):
         out.append(coplanar_faces(scene, int(j)))
-        setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t), keep=True)
         out.append(np.asarray([o[2] for o in setup.occluders], np.int64))
     return np.unique(np.concatenate(out))
 
@@ -1663,11 +1663,16 @@ class PairSetup:
 
     ``cells``: :func:`emitter_cells` of (face_i, side_i) when the caller has them (they
     depend on the emitter only), else computed when needed; ``kinked``: they are cut along
-    the kink lines (:func:`cubature_cells`), so the cubature needs two levels only."""
+    the kink lines (:func:`cubature_cells`), so the cubature needs two levels only;
+    ``occluders``: find them now (else :meth:`find_occluders` when needed); ``keep``: keep
+    them on the scene for the next set-up of the same pair of sides (a group query's:
+    :func:`kink_faces` and :func:`pair_form_factor` both need them; a target's holes
+    change neither J's hull nor its box, so not the occluders)."""
 
-    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True, kinked=False):
+    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True, kinked=False, keep=False):
         self.scene = scene
         self.face_i, self.side_i, self._cells, self.kinked = int(face_i), int(side_i), cells, bool(kinked)
+        self.side_t, self.keep = int(side_t), bool(keep)
         self.area_i = float(scene.face_area[face_i])
         n_i = side_i * scene.face_normal[face_i]
         loops_i = oriented_loops(scene.face_loops(face_i), n_i)
@@ -1694,9 +1699,14 @@ class PairSetup:
 
     def find_occluders(self):
         """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
-        here when it needs them first)."""
-        self.occluders = pair_occluders(self.scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t,
-                                        {self.face_i, self.face_t})
+        here when it needs them first; with ``keep``, a face target's are kept on the scene)."""
+        def build(scene):
+            return pair_occluders(scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t, {self.face_i, self.face_t})
+
+        if not self.keep or self.face_t < 0:
+            self.occluders = build(self.scene)
+            return
+        self.occluders = self.scene.cached(f"pair_occluders {self.face_i} {self.side_i} {self.face_t} {self.side_t}", build)
 
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
@@ -2043,7 +2053,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     if target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
         touching = sum(abs(_cell_area(c)) for c, k in zip(*lying) if k == element) / float(scene.face_area[face_i])
-    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked)
+    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked, keep=True)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, 0.0

@@ -137,3 +137,20 @@ def test_three_level_pair_cubature_threads_and_lists(i, j, monkeypatch):
         assert sum(culled) < r.cells / 2, (sum(culled), r.cells)
         out.append((r.F, r.error, r.evaluations, r.cells))
     assert out[0] == out[1] == out[2]
+
+
+def test_three_level_pair_cubature_refines_to_just_under_its_budget(monkeypatch):
+    """A round of the pair cubature splits its worst leaves until REFINE_LEFT (0.9) of the
+    budget is left, not half of it: fewer points for the same tolerance, and the two
+    results within each other's estimates."""
+    scene = closed_room(0)
+    out = {}
+    for left in (0.5, ff.REFINE_LEFT):
+        monkeypatch.setattr(ff, "REFINE_LEFT", left)
+        r = ff.pair_form_factor(scene, 4, 1, ff.face_target(scene, 2), 1, tol=1e-7, cells=ff.emitter_cells(scene, 4, 1),
+                                kinked=False)
+        assert r.error <= 1e-7
+        out[left] = r
+    half, left = out[0.5], out[ff.REFINE_LEFT]
+    assert left.evaluations < 0.95 * half.evaluations, (left.evaluations, half.evaluations)
+    assert abs(left.F - half.F) <= left.error + half.error

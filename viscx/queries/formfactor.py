@@ -1368,8 +1368,8 @@ class Cubature:
     triangle whose 21 rules see nothing while its list is not empty is looked at closer
     (:func:`look_for_shadows`, as the rows do). Refinement is global: while the sum of the
     estimates exceeds the budget, the triangles with the largest estimates are split
-    (their children become leaves, each with its own three levels), so the effort goes
-    where the integrand is rough.
+    (their children become leaves, each with its own three levels) until what is left is
+    :data:`REFINE_LEFT` of the budget, so the effort goes where the integrand is rough.
 
     Parameters
     ----------
@@ -1542,12 +1542,9 @@ class Cubature:
             total = float(err.sum())
             if total <= budget or cells >= MAX_CELLS or not len(leaves.tri):
                 break
-            # split the leaves with the largest estimates until what is left is half the budget
-            order = np.argsort(-err, kind="stable")
-            rest = total - np.cumsum(err[order])
-            n_split = int(np.searchsorted(-rest, -0.5 * budget)) + 1
-            split = np.zeros(len(leaves.tri), bool)
-            split[order[:n_split]] = True
+            # split the leaves with the largest estimates until what is left is REFINE_LEFT
+            # of the budget
+            split = worst_leaves(err[:, None], np.array([total]), [0], np.array([budget]), REFINE_LEFT)
             # the split leaves' children become leaves (children with nothing to hide are
             # exactly zero and dropped); their children and grandchildren move up a level,
             # and the grandchildren's children are evaluated
@@ -2645,10 +2642,13 @@ def look_for_shadows(tri, seen, live):
     return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
 
 
-#: What :class:`RowCubature` leaves of a column's estimate unrefined in a round, as a
-#: fraction of its budget: a refined leaf's estimate mostly goes (a leaf on its rule
-#: trades its null rule, about a degree-2 rule's error, for |Q − S|, about its degree-5
-#: rule's), so the round stops just under the budget rather than at half of it.
+#: What :class:`RowCubature` and :class:`Cubature` leave of a column's estimate unrefined
+#: in a round, as a fraction of its budget: a refined leaf's estimate mostly goes (a leaf
+#: on its rule trades its null rule, about a degree-2 rule's error, for |Q − S|, about
+#: its degree-5 rule's; a split leaf of the three levels its estimate for its children's,
+#: ~1/4 of it across a kink), so the round stops just under the budget rather than at half
+#: of it (which split more leaves than the budget needed: the office's floor → ceiling at
+#: 1e-4, 248,878 points at half, 202,734 at 0.9).
 REFINE_LEFT = 0.9
 
 

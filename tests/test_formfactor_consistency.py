@@ -154,3 +154,46 @@ def test_three_level_pair_cubature_refines_to_just_under_its_budget(monkeypatch)
     half, left = out[0.5], out[ff.REFINE_LEFT]
     assert left.evaluations < 0.95 * half.evaluations, (left.evaluations, half.evaluations)
     assert abs(left.F - half.F) <= left.error + half.error
+
+
+def _floor_ceiling_boxes(boxes):
+    """A 6 × 6 floor (face 0, normal +y), a ceiling 3 above it facing down (face 1) and
+    closed axis-aligned boxes ``(lo, hi)`` between them."""
+    from test_formfactor_queries import scene_of
+
+    quads = [[[0, 0, 0], [0, 0, 6], [6, 0, 6], [6, 0, 0]], [[0, 3, 0], [6, 3, 0], [6, 3, 6], [0, 3, 6]]]
+    for lo, hi in boxes:
+        c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        for q in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
+            quads.append(c[list(q)].tolist())
+    return scene_of([np.asarray(q, float) for q in quads])
+
+
+def test_pair_kernel_leaves_out_a_box_inside_another_box_shadow():
+    """From points under a wide box (a desk top), a small box between it and the ceiling
+    casts its shadow on the ceiling inside the wide box's: the pair kernel leaves it out
+    (``_drop_covered_hulls``), so that the values are those without it, to the bit; from
+    points off to the side, where it casts a shadow of its own, it counts (against the
+    values without it)."""
+    from viscx.geometry.occlusion import _drop_covered_hulls
+
+    wide, small = ((2, 1.0, 2), (4, 1.2, 4)), ((2.9, 2.0, 2.9), (3.1, 2.2, 3.1))
+    both, alone = _floor_ceiling_boxes([wide, small]), _floor_ceiling_boxes([wide])
+    f = {}
+    for name, scene in (("both", both), ("alone", alone)):
+        setup = ff.PairSetup(scene, 0, 1, ff.face_target(scene, 1), 1)
+        assert len(setup.occluders) == (12 if name == "both" else 6)
+        rng = np.random.default_rng(0)
+        under = np.column_stack([rng.uniform(2.6, 3.4, 50), np.zeros(50), rng.uniform(2.6, 3.4, 50)])
+        side = np.column_stack([rng.uniform(5.5, 6.0, 20), np.zeros(20), rng.uniform(0.0, 0.5, 20)])
+        f[name] = setup.f(under), setup.f(side)
+    assert np.array_equal(f["both"][0], f["alone"][0])
+    assert np.all(f["both"][1] < f["alone"][1] - 1e-6)
+    # the rule itself: of two nested counter-clockwise squares (edges after J's 2), the inner goes
+    sq = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    pts = np.concatenate([[[9, 9], [8, 8]], sq + 1, sq * 2.5])  # J's 2 edges, the inner, the outer
+    seg_a, seg_b = pts.copy(), np.concatenate([pts[[1, 0]], np.roll(sq + 1, -1, 0), np.roll(sq * 2.5, -1, 0)])
+    seg_p, seg_w = np.array([0, 0, 1, 1, 1, 1, 2, 2, 2, 2]), np.ones(10, np.int64)
+    first = np.array([2, 6], np.int64)
+    n_seg, n_hulls = _drop_covered_hulls(seg_a, seg_b, seg_p, seg_w, 10, first, 2)
+    assert (n_seg, n_hulls, first[0]) == (6, 1, 2) and np.array_equal(seg_a[2:6], sq * 2.5) and list(seg_p[2:6]) == [2] * 4

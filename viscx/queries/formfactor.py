@@ -1386,6 +1386,9 @@ class Cubature:
         ``unseen(tri) -> (g,) float64``: what the integral over each triangle may be at the
         most (the integrand's bound integrated), the estimate of a triangle whose 21 rules
         see nothing while its list says they should (:meth:`estimates`).
+    threads : int
+        Threads the integrand's and the cull's pieces run on (:meth:`_pieces`: the same
+        result on any number).
     """
 
     def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1):
@@ -1475,7 +1478,7 @@ class Cubature:
         The grandchildren carry their parents' lists, not culled: a list may hold more
         than the integrand needs (a triangle's shaft lies in its parent's), and the kernel
         drops an occluder outside a point's pyramid at the cost of a clip test, while the
-        shaft test of :attr:`cull` costs ~20 times that for the 7 points of a triangle,
+        shaft test of :attr:`cull` costs several times that for the 7 points of a triangle,
         and the grandchildren are 16 of a leaf's 21 triangles (the office's floor →
         ceiling at 1e-4: the shaft tests were a fifth of the time). A grandchild's list is
         culled when it becomes a child, in :meth:`integrate`: the leaves' and children's

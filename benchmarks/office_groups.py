@@ -2,12 +2,13 @@
 error estimate, CPU seconds (the worker processes included) and wall seconds, as
 ``viscx formfactor groups`` computes them (:func:`viscx.queries.formfactor.group_to_group`,
 default workers: one per core). One JSON line per query, with what bounds its wall time on
-quiet cores (the machine may be shared): the CPU seconds of the main process's own work
-(``serial_cpu``: the rows' planning, and for a query of one row its cells and the
-receivers' covered cells, before the workers fork), of each task the workers run (a row:
-a face side and the receivers it computes pairs with, each pair computed from its face of
-smaller area and the other direction derived; or a part of a query's single row), the
-largest of them, and ``quiet_wall_estimate``: the serial part plus the tasks handed out in
+quiet cores (the machine may be shared): the CPU seconds of the main process's own serial
+work (``serial_cpu``: the rows' planning; for a query of one row, which runs in this
+process, everything but its cubatures' kernel pieces), of those pieces (``threaded_cpu``,
+shared by the threads), of each task the workers run (a row of a query of several: a face
+side and the receivers it computes pairs with, each pair computed from its face of smaller
+area and the other direction derived), the largest of them, and ``quiet_wall_estimate``:
+the serial part, plus the pieces spread over the threads, plus the tasks handed out in
 order to the first free of the workers (the command's start-up, ~1 s, not included).
 
     python benchmarks/office_groups.py --polygons 300 --tol 1e-4
@@ -86,21 +87,37 @@ def kernel_costs(scene, n=300, seed=1):
     return out
 
 
-#: Where each finished emitter part of a query is logged by the workers (:func:`timed_part`),
-#: and the library's ``emitter_row`` it times.
-PART_LOG = [None]
+#: Where each finished emitter row of a query is logged (:func:`timed_row`), and the
+#: library's ``emitter_row`` it times.
+ROW_LOG = [None]
 EMITTER_ROW = [None]
+#: The thread CPU seconds of each piece a cubature's kernels ran (:func:`timed_chunks`), and
+#: the library's ``map_chunks`` it wraps.
+PIECES = []
+MAP_CHUNKS = [None]
 
 
-def timed_part(scene, face, side, faces, tol, sky, part=(0, 1)):
-    """:func:`viscx.queries.formfactor.emitter_row` (one row, or one part of it: what a
-    worker of :func:`group_to_group` runs) with its CPU seconds appended to ``PART_LOG``."""
+def timed_row(scene, face, side, faces, tol, sky, threads=1):
+    """:func:`viscx.queries.formfactor.emitter_row` (what a worker of :func:`group_to_group`
+    runs, or the query's process for a query of one row) with its CPU seconds appended to
+    ``ROW_LOG``."""
     c0 = time.process_time()
-    out = EMITTER_ROW[0](scene, face, side, faces, tol, sky, part)
-    with open(PART_LOG[0], "a") as f:
-        f.write(json.dumps({"face": int(face), "side": int(side), "part": list(part), "cpu": round(time.process_time() - c0, 3),
+    out = EMITTER_ROW[0](scene, face, side, faces, tol, sky, threads)
+    with open(ROW_LOG[0], "a") as f:
+        f.write(json.dumps({"face": int(face), "side": int(side), "cpu": round(time.process_time() - c0, 3),
                             "pid": os.getpid()}) + "\n")
     return out
+
+
+def timed_chunks(function, chunks, workers=None, progress=None):
+    """``map_chunks`` with each chunk's thread CPU seconds appended to ``PIECES``."""
+    def timed(chunk):
+        c0 = time.thread_time()
+        out = function(chunk)
+        PIECES.append(time.thread_time() - c0)
+        return out
+
+    return MAP_CHUNKS[0](timed, chunks, workers, progress)
 
 
 def makespan(tasks, workers):
@@ -134,23 +151,28 @@ def main(argv=None):
         return
     pairs = [tuple(p.split(":")) for p in args.pairs] if args.pairs else [(a, b) for a in GROUPS for b in GROUPS if a != b]
     workers = default_workers(args.workers)
-    EMITTER_ROW[0], ff.emitter_row = ff.emitter_row, timed_part  # group_to_group hands its workers this one
-    log = Path(tempfile.mkdtemp()) / "parts.jsonl"
-    PART_LOG[0] = str(log)
+    EMITTER_ROW[0], ff.emitter_row = ff.emitter_row, timed_row  # group_to_group hands its workers this one
+    MAP_CHUNKS[0], ff.map_chunks = ff.map_chunks, timed_chunks
+    log = Path(tempfile.mkdtemp()) / "rows.jsonl"
+    ROW_LOG[0] = str(log)
     for a, b in pairs:
         log.write_text("")
+        PIECES.clear()
         c0, w0, s0 = cpu_seconds(), time.perf_counter(), time.process_time()
         r = group_to_group(scene, scene.group_faces(a), scene.group_faces(b), 1, args.tol, workers=args.workers)
         cpu, wall = cpu_seconds() - c0, time.perf_counter() - w0
-        parts = [json.loads(line) for line in log.read_text().splitlines()]
-        serial = time.process_time() - s0 - sum(p["cpu"] for p in parts if p["pid"] == os.getpid())
-        # the tasks in the order _map_rows hands them out (the largest emitters first)
+        rows = [json.loads(line) for line in log.read_text().splitlines()]
+        threaded = sum(PIECES)  # this process's pieces (a query of one row)
+        serial = time.process_time() - s0 - threaded
+        # the workers' tasks in the order _map_rows hands them out (the largest emitters first)
         area = scene.face_area
-        tasks = [p["cpu"] for p in sorted(parts, key=lambda p: (-area[p["face"]], p["face"], -p["side"], p["part"][0]))]
+        tasks = [p["cpu"] for p in sorted(rows, key=lambda p: (-area[p["face"]], p["face"], -p["side"])) if p["pid"] != os.getpid()]
         print(json.dumps({"from": a, "to": b, "F": r["F"], "error": r["error"], "pairs": r["pairs"], "tol": args.tol,
-                          "cpu": round(cpu, 2), "wall": round(wall, 2), "workers": workers,
-                          "serial_cpu": round(serial, 2), "tasks": len(tasks), "largest_task_cpu": round(max(tasks, default=0.0), 2),
-                          "quiet_wall_estimate": round(serial + makespan(tasks, workers), 2)}), flush=True)
+                          "cpu": round(cpu, 2), "wall": round(wall, 2), "workers": workers, "serial_cpu": round(serial, 2),
+                          "threaded_cpu": round(threaded, 2), "tasks": len(tasks),
+                          "largest_task_cpu": round(max(tasks, default=0.0), 2),
+                          "quiet_wall_estimate": round(serial + threaded / workers + makespan(tasks, workers), 2)}),
+              flush=True)
 
 
 if __name__ == "__main__":

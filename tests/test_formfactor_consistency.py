@@ -76,12 +76,18 @@ def test_cabinet_room_pairs_equal_the_matrix(cabinet_room):
         check_pair(scene, rows, i, j, 1e-4)
 
 
-def test_single_emitter_group_runs_in_parts(tile_cube):
+def test_single_emitter_group_runs_on_threads(tile_cube, monkeypatch):
     """A query of one row (the floor, computing both pairs: the faces' areas are equal and
-    it has the smaller index) runs as SINGLE_PARTS parts (its free cells dealt out): the
-    same value on 1 or 2 workers, equal to the pair query within the estimates."""
+    it has the smaller index) runs in the query's process, its cubatures' kernels on the
+    workers as threads, not as processes: the same value on 1 or 2 workers, equal to the
+    pair query within the estimates."""
     assert [(f, s) for f, s, *_ in ff.group_rows(tile_cube[0], [0], 1, [1, 2])] == [(0, 1)]
     scene, rows = tile_cube
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a query of one row forked workers")
+
+    monkeypatch.setattr(ff, "_map_rows", no_pool)
     one = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=1)
     two = ff.group_to_group(scene, [0], [1, 2], tol=TOL, workers=2)
     assert one == two
@@ -90,33 +96,104 @@ def test_single_emitter_group_runs_in_parts(tile_cube):
     assert abs(one["F"] - sum(rows[0].get(c, (0.0, 0.0))[0] for c in (2, 3, 4, 5))) <= one["error"] + 2 * TOL
 
 
-def test_single_emitter_parts_share_the_parents_work(monkeypatch):
-    """The parts of one emitter use the cells, their contacts and the receivers' covered
-    cells that the parent computed before forking them (``shared_emitter_work``): no part
-    computes them again (each did, and loaded their kernels, on its own)."""
+def test_group_pairs_find_their_occluders_once(monkeypatch):
+    """A group query's row finds each pair's occluders once: its kink lines
+    (``kink_faces``) and its pairs' cubatures (``pair_form_factor``) share them."""
     scene = cube_with_a_tile()  # caches of its own
-    receivers = np.array([1, 2, 6], np.int64)
-    ff.shared_emitter_work(scene, 0, 1, receivers)
+    calls = []
+    pair_occluders = ff.pair_occluders
 
-    def again(*args, **kwargs):
-        raise AssertionError("computed again in a part")
+    def counted(scene, I, n_i, c_i, J, n_t, c_t, exclude):
+        calls.append((tuple(sorted(exclude)), tuple(np.round(n_t, 9))))  # the faces and the target's side
+        return pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude)
 
-    monkeypatch.setattr(ff, "emitter_cells", again)
-    monkeypatch.setattr(ff, "contact_sides", again)
-    cols, F, *_ = ff.emitter_row(scene, 0, 1, receivers, 1e-3, False, (0, ff.SINGLE_PARTS))
-    assert len(cols)
+    monkeypatch.setattr(ff, "pair_occluders", counted)
+    ff.group_to_group(scene, [0], [1, 2], tol=1e-3, workers=1)
+    assert calls and len(calls) == len(set(calls)), calls
 
 
-def test_parts_are_dealt_pieces_of_the_cells():
-    """A single emitter's parts are dealt the start triangles of its free cells
-    (``part_pieces``), not the cells: more pieces than cells, none larger than the
-    start size (1 / MIN_SPLIT of the face), tiling the free cells (equal area)."""
-    scene = cube_with_a_tile()
-    cells, _, _ = ff.cubature_cells(scene, 0, 1)
-    free = [c for c, k in zip(cells, ff.cell_contacts(scene, 0, 1)) if k < 0]
-    pieces = ff.part_pieces(scene, 0, free)
-    assert len(free) < len(pieces) and ff.SINGLE_PARTS <= len(pieces)
-    lo, hi = ff.face_boxes(scene)
-    assert max(np.sqrt(2 * ff._cell_area(p)) for p in pieces) <= np.linalg.norm(hi[0] - lo[0]) / ff.MIN_SPLIT
-    area = sum(ff._cell_area(c) for c in free)
-    assert abs(sum(ff._cell_area(p) for p in pieces) - area) < 1e-9 * area
+@pytest.mark.parametrize("i, j", [(4, 2), (2, 0)])
+def test_three_level_pair_cubature_threads_and_lists(i, j, monkeypatch):
+    """The pair cubature on three levels (``Cubature``: the emitter's cells uncut along its
+    kinks, as on the office's floor) gives the same result, bit for bit, on 1, 2 or 3
+    threads; and only the leaves' children are culled (the shaft test), not the
+    grandchildren, which carry their parents' lists: the triangles culled are fewer than
+    half those evaluated (each evaluated triangle was culled before: as many)."""
+    scene = closed_room(0)
+    culled = []
+    shaft_cull = ff.PairSetup.shaft_cull
+
+    def counted(self, tri, ptr, ids):
+        culled.append(len(tri))
+        return shaft_cull(self, tri, ptr, ids)
+
+    monkeypatch.setattr(ff.PairSetup, "shaft_cull", counted)
+    out = []
+    for threads in (1, 2, 3):
+        culled.clear()
+        r = ff.pair_form_factor(scene, i, 1, ff.face_target(scene, j), 1, tol=1e-6, cells=ff.emitter_cells(scene, i, 1),
+                                kinked=False, threads=threads)
+        assert r.method == "quadrature" and r.cells > 1000
+        assert sum(culled) < r.cells / 2, (sum(culled), r.cells)
+        out.append((r.F, r.error, r.evaluations, r.cells))
+    assert out[0] == out[1] == out[2]
+
+
+def test_three_level_pair_cubature_refines_to_just_under_its_budget(monkeypatch):
+    """A round of the pair cubature splits its worst leaves until REFINE_LEFT (0.9) of the
+    budget is left, not half of it: fewer points for the same tolerance, and the two
+    results within each other's estimates."""
+    scene = closed_room(0)
+    out = {}
+    for left in (0.5, ff.REFINE_LEFT):
+        monkeypatch.setattr(ff, "REFINE_LEFT", left)
+        r = ff.pair_form_factor(scene, 4, 1, ff.face_target(scene, 2), 1, tol=1e-7, cells=ff.emitter_cells(scene, 4, 1),
+                                kinked=False)
+        assert r.error <= 1e-7
+        out[left] = r
+    half, left = out[0.5], out[ff.REFINE_LEFT]
+    assert left.evaluations < 0.95 * half.evaluations, (left.evaluations, half.evaluations)
+    assert abs(left.F - half.F) <= left.error + half.error
+
+
+def _floor_ceiling_boxes(boxes):
+    """A 6 × 6 floor (face 0, normal +y), a ceiling 3 above it facing down (face 1) and
+    closed axis-aligned boxes ``(lo, hi)`` between them."""
+    from test_formfactor_queries import scene_of
+
+    quads = [[[0, 0, 0], [0, 0, 6], [6, 0, 6], [6, 0, 0]], [[0, 3, 0], [6, 3, 0], [6, 3, 6], [0, 3, 6]]]
+    for lo, hi in boxes:
+        c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        for q in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)):
+            quads.append(c[list(q)].tolist())
+    return scene_of([np.asarray(q, float) for q in quads])
+
+
+def test_pair_kernel_leaves_out_a_box_inside_another_box_shadow():
+    """From points under a wide box (a desk top), a small box between it and the ceiling
+    casts its shadow on the ceiling inside the wide box's: the pair kernel leaves it out
+    (``_drop_covered_hulls``), so that the values are those without it, to the bit; from
+    points off to the side, where it casts a shadow of its own, it counts (against the
+    values without it)."""
+    from viscx.geometry.occlusion import _drop_covered_hulls
+
+    wide, small = ((2, 1.0, 2), (4, 1.2, 4)), ((2.9, 2.0, 2.9), (3.1, 2.2, 3.1))
+    both, alone = _floor_ceiling_boxes([wide, small]), _floor_ceiling_boxes([wide])
+    f = {}
+    for name, scene in (("both", both), ("alone", alone)):
+        setup = ff.PairSetup(scene, 0, 1, ff.face_target(scene, 1), 1)
+        assert len(setup.occluders) == (12 if name == "both" else 6)
+        rng = np.random.default_rng(0)
+        under = np.column_stack([rng.uniform(2.6, 3.4, 50), np.zeros(50), rng.uniform(2.6, 3.4, 50)])
+        side = np.column_stack([rng.uniform(5.5, 6.0, 20), np.zeros(20), rng.uniform(0.0, 0.5, 20)])
+        f[name] = setup.f(under), setup.f(side)
+    assert np.array_equal(f["both"][0], f["alone"][0])
+    assert np.all(f["both"][1] < f["alone"][1] - 1e-6)
+    # the rule itself: of two nested counter-clockwise squares (edges after J's 2), the inner goes
+    sq = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    pts = np.concatenate([[[9, 9], [8, 8]], sq + 1, sq * 2.5])  # J's 2 edges, the inner, the outer
+    seg_a, seg_b = pts.copy(), np.concatenate([pts[[1, 0]], np.roll(sq + 1, -1, 0), np.roll(sq * 2.5, -1, 0)])
+    seg_p, seg_w = np.array([0, 0, 1, 1, 1, 1, 2, 2, 2, 2]), np.ones(10, np.int64)
+    first = np.array([2, 6], np.int64)
+    n_seg, n_hulls = _drop_covered_hulls(seg_a, seg_b, seg_p, seg_w, 10, first, 2)
+    assert (n_seg, n_hulls, first[0]) == (6, 1, 2) and np.array_equal(seg_a[2:6], sq * 2.5) and list(seg_p[2:6]) == [2] * 4

@@ -62,6 +62,7 @@ bounded (:data:`CHUNK`, :data:`MAX_CELLS`).
 import functools
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -71,6 +72,7 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
+from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.queries.kinks import face_generators, kink_segments, sky_generators
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
@@ -1204,7 +1206,7 @@ def kink_faces(scene, face, side, receivers, setups=None):
         out.append(coplanar_faces(scene, int(j)))
         setup = setups.get((int(j), int(t)))
         if setup is None:
-            setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+            setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t), keep=True)
         elif not setup.empty and not setup.occluders_found:
             setup.find_occluders()
         out.append(np.asarray([o[2] for o in setup.occluders], np.int64))
@@ -1324,6 +1326,43 @@ def kinked_three_level_error(q, kq, gq):
     return np.where(fine > coarse, KINK_GROWTH * fine, np.maximum(fine, coarse / KINK_LEVELS))
 
 
+class Levels(NamedTuple):
+    """Leaf triangles of :class:`Cubature` on their three levels: ``tri`` (g, 3, 3) with
+    their occluder lists (CSR ``ptr`` (g + 1,), ``ids``) and Radon's rule ``q`` (g,); their
+    midpoint children ``K`` (4 g, 3, 3) (rows 4 k … 4 k + 3 those of leaf k) with lists
+    ``kptr, kids`` and rules ``kq`` (4 g,); their grandchildren ``G, gptr, gids, gq`` alike
+    (16 g, rows 16 k … 16 k + 15 those of leaf k)."""
+
+    tri: np.ndarray
+    ptr: np.ndarray
+    ids: np.ndarray
+    q: np.ndarray
+    K: np.ndarray
+    kptr: np.ndarray
+    kids: np.ndarray
+    kq: np.ndarray
+    G: np.ndarray
+    gptr: np.ndarray
+    gids: np.ndarray
+    gq: np.ndarray
+
+    def take(self, rows):
+        """The leaves ``rows`` (k,) int64, with their children and grandchildren."""
+        k_rows = (4 * rows[:, None] + np.arange(4)).reshape(-1)
+        g_rows = (16 * rows[:, None] + np.arange(16)).reshape(-1)
+        return Levels(self.tri[rows], *_sub_lists(self.ptr, self.ids, rows), self.q[rows], self.K[k_rows],
+                      *_sub_lists(self.kptr, self.kids, k_rows), self.kq[k_rows], self.G[g_rows],
+                      *_sub_lists(self.gptr, self.gids, g_rows), self.gq[g_rows])
+
+    def join(self, other):
+        """These leaves, then ``other``'s."""
+        return Levels(np.concatenate([self.tri, other.tri]), *_join_lists(self.ptr, self.ids, other.ptr, other.ids),
+                      np.concatenate([self.q, other.q]), np.concatenate([self.K, other.K]),
+                      *_join_lists(self.kptr, self.kids, other.kptr, other.kids), np.concatenate([self.kq, other.kq]),
+                      np.concatenate([self.G, other.G]), *_join_lists(self.gptr, self.gids, other.gptr, other.gids),
+                      np.concatenate([self.gq, other.gq]))
+
+
 class Cubature:
     """Adaptive cubature of an integrand over triangles, each triangle carrying the list of
     occluders that may matter on it (CSR ``ptr``, ``ids``; an empty list means the integrand
@@ -1344,8 +1383,8 @@ class Cubature:
     triangle whose 21 rules see nothing while its list is not empty is looked at closer
     (:func:`look_for_shadows`, as the rows do). Refinement is global: while the sum of the
     estimates exceeds the budget, the triangles with the largest estimates are split
-    (their children become leaves, each with its own three levels), so the effort goes
-    where the integrand is rough.
+    (their children become leaves, each with its own three levels) until what is left is
+    :data:`REFINE_LEFT` of the budget, so the effort goes where the integrand is rough.
 
     Parameters
     ----------
@@ -1362,13 +1401,17 @@ class Cubature:
         ``unseen(tri) -> (g,) float64``: what the integral over each triangle may be at the
         most (the integrand's bound integrated), the estimate of a triangle whose 21 rules
         see nothing while its list says they should (:meth:`estimates`).
+    threads : int
+        Threads the integrand's and the cull's pieces run on (:meth:`_pieces`: the same
+        result on any number).
     """
 
-    def __init__(self, integrand, cull, unresolved=None, unseen=None):
+    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1):
         self.integrand = integrand
         self.cull = cull
         self.unresolved = unresolved
         self.unseen = unseen
+        self.threads = threads
         self.evaluations = 0
         self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, gq, err) of the final triangles
 
@@ -1398,41 +1441,71 @@ class Cubature:
                 err[blind] = np.maximum(err[blind], self.unseen(tri[blind]))
         return err
 
+    def _pieces(self, n):
+        """The slices of ``n`` triangles that one call of the integrand or of the cull takes:
+        as :func:`row_rules`' pieces, shared by :attr:`threads` threads (the integrand and
+        the cull must be thread-safe and release the GIL: ``blocked_form_factors`` and
+        ``shaft_meets`` are ``nogil``); they depend on ``n`` only, and each triangle's
+        values and list on the triangle only, so the result is the same, bit for bit, on
+        any number of threads."""
+        return row_chunks(n, max(1, min(CHUNK, max(ROW_PIECE, -(-n // ROW_PIECES)))))
+
     def rule(self, tri, ptr, ids):
         """(g,) float64: Radon's rule on each triangle (zero where the list is empty)."""
         out = np.zeros(len(tri))
         live = np.flatnonzero(np.diff(ptr) > 0)
         area = triangle_areas(tri)
-        for lo in range(0, len(live), CHUNK):
-            rows = live[lo:lo + CHUNK]
+
+        def piece(s):
+            rows = live[s]
             pts = np.einsum("rk,gkd->grd", RULE_NODES, tri[rows]).reshape(-1, 3)
             values = self.integrand(np.ascontiguousarray(pts), np.repeat(np.arange(len(rows)), 7),
                                     *_sub_lists(ptr, ids, rows))
-            self.evaluations += len(pts)
             out[rows] = values.reshape(-1, 7) @ RULE_WEIGHTS * area[rows]
+            return len(pts)
+
+        self.evaluations += sum(map_chunks(piece, self._pieces(len(live)), self.threads))
         return out
 
-    def expand(self, tri, ptr, ids):
-        """Children of the triangles, their lists (culled from the parents') and rule values:
-        ``(kids (g, 4, 3, 3), kptr, kids_ids, q (g, 4))``."""
+    def culled(self, tri, ptr, ids):
+        """:attr:`cull` of the triangles (g, 3, 3) with lists ``ptr, ids``, piece by piece
+        (:meth:`_pieces`): the same lists."""
+        def piece(s):
+            return self.cull(tri[s], *_sub_lists(ptr, ids, np.arange(s.start, s.stop)))
+
+        return _concat_lists(map_chunks(piece, self._pieces(len(tri)), self.threads))
+
+    def expand(self, tri, ptr, ids, cull=True):
+        """Children of the triangles, their lists (culled from the parents', or with
+        ``cull=False`` the parents' own) and rule values: ``(kids (g, 4, 3, 3), kptr,
+        kids_ids, q (g, 4))``."""
         kids = split4(tri).reshape(-1, 3, 3)
-        parent = np.repeat(np.arange(len(tri)), 4)
-        kptr, kids_ids = self.cull(kids, *_sub_lists(ptr, ids, parent))
+        kptr, kids_ids = _sub_lists(ptr, ids, np.repeat(np.arange(len(tri)), 4))
+        if cull:
+            kptr, kids_ids = self.culled(kids, kptr, kids_ids)
         q = self.rule(kids, kptr, kids_ids)
         return kids.reshape(-1, 4, 3, 3), kptr, kids_ids, q.reshape(-1, 4)
 
     def levels(self, tri, ptr, ids):
-        """The three levels of the triangles (g, 3, 3) with lists (``ptr, ids``), those with
-        an empty list dropped: ``tri, ptr, ids, q`` (g,), their children ``K`` (4 g, 3, 3)
-        (rows 4 k … 4 k + 3 those of triangle k) with their lists ``kptr, kids_ids`` and rules
-        ``kq`` (4 g,), their grandchildren ``G, gptr, gids, gq`` alike (16 g)."""
+        """The :class:`Levels` of the triangles (g, 3, 3) with lists (``ptr, ids``), those
+        with an empty list dropped.
+
+        The grandchildren carry their parents' lists, not culled: a list may hold more
+        than the integrand needs (a triangle's shaft lies in its parent's), and the kernel
+        drops an occluder outside a point's pyramid at the cost of a clip test, while the
+        shaft test of :attr:`cull` costs several times that for the 7 points of a triangle,
+        and the grandchildren are 16 of a leaf's 21 triangles (the office's floor →
+        ceiling at 1e-4: the shaft tests were a fifth of the time). A grandchild's list is
+        culled when it becomes a child, in :meth:`integrate`: the leaves' and children's
+        lists are exact (their empty lists say where the integrand is zero, and the
+        estimates read them)."""
         live = np.flatnonzero(np.diff(ptr) > 0)
         tri, (ptr, ids) = tri[live], _sub_lists(ptr, ids, live)
         q = self.rule(tri, ptr, ids)
-        K, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
+        K, kptr, kids, kq = self.expand(tri, ptr, ids)
         K, kq = K.reshape(-1, 3, 3), kq.reshape(-1)
-        G, gptr, gids, gq = self.expand(K, kptr, kids_ids)
-        return tri, ptr, ids, q, K, kptr, kids_ids, kq, G.reshape(-1, 3, 3), gptr, gids, gq.reshape(-1)
+        G, gptr, gids, gq = self.expand(K, kptr, kids, cull=False)
+        return Levels(tri, ptr, ids, q, K, kptr, kids, kq, G.reshape(-1, 3, 3), gptr, gids, gq.reshape(-1))
 
     def integrate(self, tri, candidates, budget, min_size=0.0):
         """∫ over the triangles (g, 3, 3) of the integrand.
@@ -1470,66 +1543,41 @@ class Cubature:
             sptr, sids = _sub_lists(ptr, ids, keep)
             tri = np.concatenate([tri[keep], kids])
             ptr, ids = _join_lists(sptr, sids, kptr, kids_ids)
-        # every leaf carries its rule value q, its 4 children (rows 4 L + c of K) and their
-        # 16 children (rows 16 L + 4 c + d of G), each with its list and rule value
-        tri, ptr, ids, q, K, kptr, kids_ids, kq, G, gptr, gids, gq = self.levels(tri, ptr, ids)
+        leaves = self.levels(tri, ptr, ids)
         # a shadow smaller than the grandchildren's nodes' spacing may lie between all 147
         # nodes of a first triangle whose shaft meets an occluder, and its three levels then
         # agree on nothing seen (office(100), a desk panel → another desk's narrow side at
         # any tol: 1.2e-7 off for an estimate of 1.5e-14): looked for as in the rows
-        seen = levels_seen(q, kq.reshape(-1, 4), gq.reshape(-1, 16))
-        unseen, new = look_for_shadows(tri, seen[:, None], lambda t, need: (np.diff(cull_all(
+        seen = levels_seen(leaves.q, leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
+        unseen, new = look_for_shadows(leaves.tri, seen[:, None], lambda t, need: (np.diff(cull_all(
             self.cull, t, candidates)[0]) > 0)[:, None])
         if len(new):
-            keep = np.flatnonzero(~unseen)
-            k_keep, g_keep = (4 * keep[:, None] + np.arange(4)).reshape(-1), (16 * keep[:, None] + np.arange(16)).reshape(-1)
-            old = (tri[keep], *_sub_lists(ptr, ids, keep), q[keep], K[k_keep], *_sub_lists(kptr, kids_ids, k_keep),
-                   kq[k_keep], G[g_keep], *_sub_lists(gptr, gids, g_keep), gq[g_keep])
-            added = self.levels(new, *cull_all(self.cull, new, candidates))
-            tri, q, K, kq, G, gq = (np.concatenate([old[k], added[k]]) for k in (0, 3, 4, 7, 8, 11))
-            ptr, ids = _join_lists(old[1], old[2], added[1], added[2])
-            kptr, kids_ids = _join_lists(old[5], old[6], added[5], added[6])
-            gptr, gids = _join_lists(old[9], old[10], added[9], added[10])
-        cells = 21 * len(tri)
-        four, sixteen = np.arange(4), np.arange(16)
+            leaves = leaves.take(np.flatnonzero(~unseen)).join(self.levels(new, *cull_all(self.cull, new, candidates)))
+        cells = 21 * len(leaves.tri)
+        four = np.arange(4)
         for _ in range(200):
-            err = self.estimates(tri, ptr, ids, q, kq.reshape(-1, 4), gq.reshape(-1, 16))
+            err = self.estimates(*leaves[:4], leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
             total = float(err.sum())
-            if total <= budget or cells >= MAX_CELLS or not len(tri):
+            if total <= budget or cells >= MAX_CELLS or not len(leaves.tri):
                 break
-            # split the leaves with the largest estimates until what is left is half the budget
-            order = np.argsort(-err, kind="stable")
-            rest = total - np.cumsum(err[order])
-            n_split = int(np.searchsorted(-rest, -0.5 * budget)) + 1
-            split = np.zeros(len(tri), bool)
-            split[order[:n_split]] = True
-            keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
+            # split the leaves with the largest estimates until what is left is REFINE_LEFT
+            # of the budget
+            split = worst_leaves(err[:, None], np.array([total]), [0], np.array([budget]), REFINE_LEFT)
             # the split leaves' children become leaves (children with nothing to hide are
             # exactly zero and dropped); their children and grandchildren move up a level,
             # and the grandchildren's children are evaluated
-            child = (4 * rows[:, None] + four).reshape(-1)
-            nptr, nids = _sub_lists(kptr, kids_ids, child)
-            live = np.flatnonzero(np.diff(nptr) > 0)
-            child = child[live]
-            new_tri, new_q = K[child], kq[child]
-            nptr, nids = _sub_lists(kptr, kids_ids, child)
+            child = (4 * np.flatnonzero(split)[:, None] + four).reshape(-1)
+            child = child[np.diff(leaves.kptr)[child] > 0]
             grand = (4 * child[:, None] + four).reshape(-1)
-            new_K, new_kq = G[grand], gq[grand]
-            nkptr, nkids = _sub_lists(gptr, gids, grand)
-            new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids)
-            cells += 16 * len(new_tri)
-            k_keep = (4 * keep[:, None] + four).reshape(-1)
-            g_keep = (16 * keep[:, None] + sixteen).reshape(-1)
-            tri = np.concatenate([tri[keep], new_tri])
-            ptr, ids = _join_lists(*_sub_lists(ptr, ids, keep), nptr, nids)
-            q = np.concatenate([q[keep], new_q])
-            K = np.concatenate([K[k_keep], new_K])
-            kptr, kids_ids = _join_lists(*_sub_lists(kptr, kids_ids, k_keep), nkptr, nkids)
-            kq = np.concatenate([kq[k_keep], new_kq])
-            G = np.concatenate([G[g_keep], new_G.reshape(-1, 3, 3)])
-            gptr, gids = _join_lists(*_sub_lists(gptr, gids, g_keep), ngptr, ngids)
-            gq = np.concatenate([gq[g_keep], new_gq.reshape(-1)])
-        kq, gq = kq.reshape(-1, 4), gq.reshape(-1, 16)
+            new_K = leaves.G[grand]
+            nkptr, nkids = self.culled(new_K, *_sub_lists(leaves.gptr, leaves.gids, grand))
+            new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids, cull=False)
+            cells += 16 * len(child)
+            born = Levels(leaves.K[child], *_sub_lists(leaves.kptr, leaves.kids, child), leaves.kq[child], new_K, nkptr,
+                          nkids, leaves.gq[grand], new_G.reshape(-1, 3, 3), ngptr, ngids, new_gq.reshape(-1))
+            leaves = leaves.take(np.flatnonzero(~split)).join(born)
+        tri, ptr, ids, q = leaves[:4]
+        kq, gq = leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16)
         err = self.estimates(tri, ptr, ids, q, kq, gq)
         self.leaves = (tri, ptr, ids, q, kq, gq, err)
         return float(gq.sum()), float(err.sum()), cells
@@ -1579,6 +1627,15 @@ def _join_lists(ptr_a, ids_a, ptr_b, ids_b):
     return np.concatenate([ptr_a[:-1], ptr_b + ptr_a[-1]]).astype(np.int64), np.concatenate([ids_a, ids_b]).astype(np.int64)
 
 
+def _concat_lists(lists):
+    """CSR lists ``[(ptr, ids), ...]`` one after the other, as one ``(ptr, ids)``."""
+    if not lists:
+        return np.zeros(1, np.int64), np.zeros(0, np.int64)
+    ends = np.cumsum([ptr[-1] for ptr, _ in lists])
+    ptr = np.concatenate([[0]] + [p[1:] + e - p[-1] for (p, _), e in zip(lists, ends)])
+    return ptr.astype(np.int64), np.concatenate([ids for _, ids in lists]).astype(np.int64)
+
+
 # --------------------------------------------------------------------------------------
 # one pair of sides
 
@@ -1621,11 +1678,16 @@ class PairSetup:
 
     ``cells``: :func:`emitter_cells` of (face_i, side_i) when the caller has them (they
     depend on the emitter only), else computed when needed; ``kinked``: they are cut along
-    the kink lines (:func:`cubature_cells`), so the cubature needs two levels only."""
+    the kink lines (:func:`cubature_cells`), so the cubature needs two levels only;
+    ``occluders``: find them now (else :meth:`find_occluders` when needed); ``keep``: keep
+    them on the scene for the next set-up of the same pair of sides (a group query's:
+    :func:`kink_faces` and :func:`pair_form_factor` both need them; a target's holes
+    change neither J's hull nor its box, so not the occluders)."""
 
-    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True, kinked=False):
+    def __init__(self, scene, face_i, side_i, target, side_t, cells=None, occluders=True, kinked=False, keep=False):
         self.scene = scene
         self.face_i, self.side_i, self._cells, self.kinked = int(face_i), int(side_i), cells, bool(kinked)
+        self.side_t, self.keep = int(side_t), bool(keep)
         self.area_i = float(scene.face_area[face_i])
         n_i = side_i * scene.face_normal[face_i]
         loops_i = oriented_loops(scene.face_loops(face_i), n_i)
@@ -1652,10 +1714,16 @@ class PairSetup:
 
     def find_occluders(self):
         """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
-        here when it needs them first) and :attr:`occluders_found`."""
-        self.occluders = pair_occluders(self.scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t,
-                                        {self.face_i, self.face_t})
+        here when it needs them first; with ``keep``, a face target's are kept on the scene)
+        and :attr:`occluders_found`."""
+        def build(scene):
+            return pair_occluders(scene, self.I, self.n_i, self.c_i, self.J, self.n_t, self.c_t, {self.face_i, self.face_t})
+
         self.occluders_found = True
+        if not self.keep or self.face_t < 0:
+            self.occluders = build(self.scene)
+            return
+        self.occluders = self.scene.cached(f"pair_occluders {self.face_i} {self.side_i} {self.face_t} {self.side_t}", build)
 
     # -- the integrand ------------------------------------------------------------------
     @functools.cached_property
@@ -1871,7 +1939,7 @@ class PairSetup:
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out
 
-    def blocked_integral(self, budget):
+    def blocked_integral(self, budget, threads=1):
         """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature, error estimate ≤
         ``budget`` where :data:`MAX_CELLS` allows: on cells cut along the kink lines the
         two-level :class:`RowCubature` (one column) over the triangles whose shafts meet an
@@ -1910,10 +1978,10 @@ class PairSetup:
                 ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
-            cub = RowCubature(column)
+            cub = RowCubature(column, threads)
             value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
-        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound)
+        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return umbra + value, umbra_err + error, cub.evaluations, cells
 
@@ -1953,8 +2021,8 @@ class PairSetup:
         return v * area, e * area
 
 
-def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, part=(0, 1),
-                     kinked=False):
+def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, kinked=False,
+                     threads=1):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -1978,10 +2046,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         by the pairs of one emitter (default: computed here).
     kinked : bool
         ``cells`` are cut along the kink lines (:func:`cubature_cells`).
-    part : (k, K)
-        Only part k of K of the pair (for K processes): the cubature over every K-th free
-        cell from the k-th, to ``tol / K``, and the exact terms in part 0; the K parts'
-        values and estimates add up to the pair's.
+    threads : int
+        Threads the cubature's kernels run on (:class:`Cubature`: the same result on any
+        number).
 
     Returns
     -------
@@ -1998,25 +2065,19 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         # they lie inside it and do not overlap its holes or each other: non-zero winding
         # and the contour integral take J minus them), but those a box hides anyway
         target = Target(target.loops + target_holes(scene, face_i, target.face, side_t), target.normal, target.face)
-    k_part, n_parts = part
     free = [c for c, k in zip(cells, contact) if k < 0]
-    if n_parts > 1:
-        free = part_pieces(scene, face_i, free)
-    free = free[k_part::n_parts]
-    exact = k_part == 0  # the exact terms once, in part 0
-    tol = tol / n_parts
     touching = 0.0
-    if exact and target.face >= 0:
+    if target.face >= 0:
         element = 2 * target.face + (0 if side_t > 0 else 1)
         touching = sum(abs(_cell_area(c)) for c, k in zip(*lying) if k == element) / float(scene.face_area[face_i])
-    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked)
+    setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked, keep=True)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, 0.0
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else
     parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c in lying[0]]
-    for loops, sign in parts if exact else []:
+    for loops, sign in parts:
         a = loops_area(loops, setup.n_i) / setup.area_i
         if not loops or a * setup.area_i <= setup.tiny ** 2:
             continue
@@ -2025,23 +2086,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     if not setup.occluders or not free:
         return PairResult(value, err, "contour", seconds=time.perf_counter() - t0)
     budget = max(tol - err, 0.1 * tol) * setup.area_i
-    hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget)
+    hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget, threads)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
                       evals, n_cells, time.perf_counter() - t0)
-
-
-def part_pieces(scene, face, cells):
-    """The free cells of a face side as the pieces its parts are dealt (:func:`pair_form_factor`
-    with ``part``): their :func:`start_triangles` at 1 / :data:`MIN_SPLIT` of the face's
-    box, as (3, 3) float64 each, so that the parts get similar work where the cells are
-    few and unequal (the office's south wall has 4 free cells of 0.5–18 m²: of 6 parts
-    dealt cells, two got none and one did 36 % of the work). They are pieces the cubature
-    would cut anyway (the same start size as :func:`cubature_cells`'), and cells cut
-    further (kink cells stay C1 on their pieces)."""
-    if not cells:
-        return []
-    box_lo, box_hi = face_boxes(scene)
-    return list(start_triangles(cells, float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT))
 
 
 def _cell_area(cell):
@@ -2163,11 +2210,6 @@ def contour_form_factor(loops_i, n_i, loops_j, n_j, separate=False):
 # many pairs: faces, groups, the matrix
 
 SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
-#: Parts a group query of a single emitting face is cut into (:func:`group_to_group`):
-#: more than the cores, so that the parts' unequal costs even out over the workers (the
-#: office's floor → ceiling at 1e-4: the largest of 2 parts 10.4 CPU s, of 17.8; 6 parts
-#: 1.4–4.6 CPU s each, 18.2 in all, 9.2 on the busier of 2 workers).
-SINGLE_PARTS = 6
 
 
 def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
@@ -2210,10 +2252,10 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
     Each emitting face side's cells are computed once for all its receivers
     (:func:`emitter_row`), and the pairs it cannot see are left out of its row by the
     vectorised facing test (:func:`seen_receivers`); rows run on ``workers`` processes
-    (default: the CPU count). A query of one row (a floor to a ceiling) runs as
-    :data:`SINGLE_PARTS` parts (its free cells dealt out), so that it too uses the cores;
-    the parts depend on the query, never on the workers. ``tol`` bounds the error estimate
-    of each face pair."""
+    (default: the CPU count). A query of one row (a floor to a ceiling) runs in this
+    process, its cubatures' kernels on ``workers`` threads (:class:`Cubature`), so that it
+    too uses the cores; the result does not depend on the workers. ``tol`` bounds the
+    error estimate of each face pair."""
     faces_i = np.asarray(sorted({int(i) for i in faces_i}), np.int64)
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
     row, _, val, err = group_entries(scene, faces_i, faces_j, side_i, tol, workers, reciprocal)
@@ -2227,17 +2269,17 @@ def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=No
     """The entries F_(i,side_i)→(j,t) of a group query (:func:`group_to_group`), computed or
     derived: ``(rows, cols (m,) int64, values, errors (m,) float64)``, rows the elements
     ``2 i + (0 front, 1 back)`` of side ``side_i`` of the faces_i, cols those of both sides
-    of the faces_j, j ≠ i (the parts of a row split into parts are entries of their own:
-    their sum is the entry)."""
+    of the faces_j, j ≠ i."""
     faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
     rows = group_rows(scene, faces_i, side_i, faces_j, reciprocal)
-    n_parts = SINGLE_PARTS if len(rows) == 1 else 1
-    if n_parts > 1:
-        shared_emitter_work(scene, *rows[0][:3])
-    tasks = [(f, s, r, (k, n_parts)) for f, s, r, _ in rows for k in range(n_parts)]
-    tols = [tol * scale for *_, scale in rows for _ in range(n_parts)]
-    results = _map_rows(emitter_row, scene, tasks, tols, False, workers)
-    row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in tasks])
+    if len(rows) == 1:
+        # one row (a floor to a ceiling): in this process, its pairs' cubatures on the cores
+        # as threads (the same result on any number), refined to tol as one integral
+        f, s, r, scale = rows[0]
+        results = [emitter_row(scene, f, s, r, tol * scale, False, default_workers(workers))]
+    else:
+        results = _map_rows(emitter_row, scene, [row[:3] for row in rows], [tol * row[3] for row in rows], False, workers)
+    row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in rows])
     if reciprocal:
         row, col, val, err = (np.concatenate(pair) for pair in zip((row, col, val, err),
                                                                       derived_entries(scene, row, col, val, err)))
@@ -2295,20 +2337,6 @@ def seen_receivers(scene, face, side, faces):
     faces = np.asarray(faces, np.int64)
     fj, _ = facing_sides(scene, face, side, faces)
     return faces[np.isin(faces, fj) | np.isin(faces, coplanar_faces(scene, face))]
-
-
-def shared_emitter_work(scene, face, side, faces):
-    """Compute (and cache on the scene) what every part of one emitter's row to ``faces``
-    (no sky) uses: its cells and their contacts (:func:`cubature_cells`, :func:`cell_contacts`,
-    :func:`contact_cells`) and the receivers' covered cells, before the parts are forked:
-    they inherit it, and the kernels it loads, instead of each computing it again (the
-    office's light1 → floor on 2 workers: 2.7 CPU s cold, 1.6 with this)."""
-    cubature_cells(scene, face, side, receivers=faces)
-    cell_contacts(scene, face, side, faces)
-    contact_cells(scene, face, side)
-    for j in np.asarray(faces, np.int64):
-        for t in SIDES:
-            covered_cells(scene, int(j), t)
 
 
 def cell_contacts(scene, face, side, receivers=None):
@@ -2517,12 +2545,12 @@ def closed_form_row(scene, face, side, faces, sky=True):
             rest if sky else 0.0)
 
 
-def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
-    """F from one side of a face to every side of ``faces`` it may see, and to the sky
-    (``part``: that part of each pair, :func:`pair_form_factor`); a side with a closed
-    form (:func:`closed_form_row`) takes it, in part 0. ``tol``: the target on each
+def emitter_row(scene, face, side, faces, tol, sky=True, threads=1):
+    """F from one side of a face to every side of ``faces`` it may see, and to the sky; a
+    side with a closed form (:func:`closed_form_row`) takes it. ``tol``: the target on each
     pair's estimate, one for all or (k,) float64, one per face of ``faces`` (the sky
-    takes the smallest).
+    takes the smallest). ``threads``: what each pair's cubature runs on
+    (:func:`pair_form_factor`).
 
     Returns
     -------
@@ -2534,8 +2562,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     sky, sky_error : float
     """
     closed = closed_form_row(scene, face, side, faces, sky)
-    if closed is not None:  # exact terms: all in part 0
-        return closed if part[0] == 0 else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {}, 0.0, 0.0)
+    if closed is not None:
+        return closed
     receivers = None if sky else faces  # cut along the kinks of these pairs only
     cells, _, kinked = cubature_cells(scene, face, side, receivers=receivers)
     contact = cell_contacts(scene, face, side, receivers)
@@ -2550,7 +2578,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(faces.tolist()))
     for j, t in zip(fj, sj):
         r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=float(tols[faces == j][0]),
-                             cells=cells, contact=contact, part=part, kinked=kinked)
+                             cells=cells, contact=contact, kinked=kinked, threads=threads)
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -2560,7 +2588,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     if sky:
         for box in sky_targets(scene):
             r = pair_form_factor(scene, face, side, box, 1, tol=float(np.min(tols, initial=np.max(tol))), cells=cells,
-                                 contact=contact, part=part, kinked=kinked)
+                                 contact=contact, kinked=kinked, threads=threads)
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
@@ -2712,10 +2740,13 @@ def look_for_shadows(tri, seen, live):
     return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
 
 
-#: What :class:`RowCubature` leaves of a column's estimate unrefined in a round, as a
-#: fraction of its budget: a refined leaf's estimate mostly goes (a leaf on its rule
-#: trades its null rule, about a degree-2 rule's error, for |Q − S|, about its degree-5
-#: rule's), so the round stops just under the budget rather than at half of it.
+#: What :class:`RowCubature` and :class:`Cubature` leave of a column's estimate unrefined
+#: in a round, as a fraction of its budget: a refined leaf's estimate mostly goes (a leaf
+#: on its rule trades its null rule, about a degree-2 rule's error, for |Q − S|, about
+#: its degree-5 rule's; a split leaf of the three levels its estimate for its children's,
+#: ~1/4 of it across a kink), so the round stops just under the budget rather than at half
+#: of it (which split more leaves than the budget needed: the office's floor → ceiling at
+#: 1e-4, 248,878 points at half, 202,734 at 0.9).
 REFINE_LEFT = 0.9
 
 
@@ -3153,8 +3184,8 @@ _POOL_SCENE = None
 
 
 def _row_task(args, scene=None):
-    row, face, side, faces, tol, sky, part, options = args
-    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, *part, **options)
+    row, face, side, faces, tol, sky, options = args
+    return row(_POOL_SCENE if scene is None else scene, face, side, faces, tol, sky, **options)
 
 
 def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=False):
@@ -3162,9 +3193,8 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     :func:`row_form_factors` all receivers at once) of every (face, side, faces) in
     ``rows`` (each row its own receivers ``faces`` (k,) int64), in that order, on
     ``workers`` processes (forked: they share the scene; the results do not depend on
-    their number). A row given as (face, side, faces, part) is that part of it
-    (``row(..., sky, part)``, :func:`emitter_row`). ``tol``: one for every row, or a list
-    of one per row (for :func:`emitter_row`, each may be one per receiver).
+    their number). ``tol``: one for every row, or a list of one per row (for
+    :func:`emitter_row`, each may be one per receiver).
 
     The costly rows (large faces) go first, so that no worker is left with one at the end.
     With ``threads`` (:func:`row_form_factors`), each row also evaluates its points on as
@@ -3177,13 +3207,11 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    from viscx.parallel import default_workers
-
     global _POOL_SCENE, _ROW_CORES
     workers = min(default_workers(workers), len(rows))
     options = {"threads": workers} if threads and workers > 1 else {}
     tols = tol if isinstance(tol, list) else [tol] * len(rows)
-    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), t, sky, tuple(r[3:]), options)
+    tasks = [(row, int(r[0]), int(r[1]), np.asarray(r[2], np.int64), t, sky, options)
              for r, t in zip(rows, tols)]
     if workers <= 1 or "fork" not in mp.get_all_start_methods():
         out = []

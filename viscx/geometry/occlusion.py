@@ -1280,23 +1280,6 @@ def _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen,
 
 
 @njit(cache=True)
-def _set_runs(runs, run_o, e, a, b, u0, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
-    """Edge e's runs from u0 on, with owner a above it and b below it (-1 none): side 0 runs
-    for a, side 1 for b, none where both are one owner (the edge is inside its region); a run
-    whose owner changes is flushed (:func:`_flush_owner`) at u0 and a new one opened."""
-    for kk in range(2):
-        o = (a if kk == 0 else b) if a != b else -1
-        if run_o[e, kk] == o:
-            continue
-        if run_o[e, kk] >= 0:
-            runs[e, kk, 1] = u0
-            _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-        if o >= 0:
-            run_o[e, kk] = o
-            runs[e, kk, 0] = u0
-
-
-@njit(cache=True)
 def _cover_key(p):
     """A 64-bit key of polygon p (splitmix64 of p): the XOR of the keys of a set of covering
     polygons tells, but for a 2^-64 chance, whether two sets are equal."""
@@ -1688,8 +1671,18 @@ def _sweep_slabs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, n_se
             for q in range(q0, min(q1 + 2, n_act)):
                 e = act[q]
                 stamp[e] = slab
-                _set_runs(runs, run_o, e, own[q - 1] if q > 0 else -1, own[q] if q < n_act - 1 else -1, u0, seg_a,
-                          slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+                a = own[q - 1] if q > 0 else -1
+                b = own[q] if q < n_act - 1 else -1
+                for kk in range(2):
+                    o = (a if kk == 0 else b) if a != b else -1
+                    if run_o[e, kk] == o:
+                        continue
+                    if run_o[e, kk] >= 0:
+                        runs[e, kk, 1] = u0
+                        _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+                    if o >= 0:
+                        run_o[e, kk] = o
+                        runs[e, kk, 0] = u0
             if contiguous:
                 # edges that ended at u0: their runs end there
                 for r in range(lo, prev_n - s):
@@ -2105,8 +2098,18 @@ def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u,
         for r in range(n_touch):
             e = touch[r]
             q = pos[e]
-            _set_runs(runs, run_o, e, own[act[q - 1]] if q > 0 else -1, own[e] if q < n_act - 1 else -1, u0, seg_a,
-                      slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+            a = own[act[q - 1]] if q > 0 else -1
+            b = own[e] if q < n_act - 1 else -1
+            for kk in range(2):
+                o = (a if kk == 0 else b) if a != b else -1
+                if run_o[e, kk] == o:
+                    continue
+                if run_o[e, kk] >= 0:
+                    runs[e, kk, 1] = u0
+                    _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+                if o >= 0:
+                    run_o[e, kk] = o
+                    runs[e, kk, 0] = u0
         swept = True
         last_u1 = u1
         slab += 1

@@ -113,7 +113,19 @@ def cosine_directions(normals, rng):
     return (r * np.cos(phi))[:, None] * a + (r * np.sin(phi))[:, None] * b + np.sqrt(1 - u1)[:, None] * normals
 
 
-def form_factor_monte_carlo(scene, faces, side, k, seed=0, chunk=1 << 20):
+def in_convex_cells(points, cells, normal, tol=1e-12):
+    """(n,) int64: for each point (n, 3) in the plane of the convex cells (list of (k, 3),
+    wound either way about ``normal``), the first cell it lies in (boundary included), -1
+    none."""
+    out = np.full(len(points), -1, np.int64)
+    for c, cell in enumerate(cells):
+        side = np.stack([np.cross(b - a, points - a) @ normal for a, b in zip(cell, np.roll(cell, -1, axis=0))])
+        inside = np.all(side >= -tol, axis=0) | np.all(side <= tol, axis=0)
+        out[(out < 0) & inside] = c
+    return out
+
+
+def form_factor_monte_carlo(scene, faces, side, k, seed=0, chunk=1 << 20, lying=None):
     """Form factors from one side of a set of faces to every face side and the sky, by ``k``
     cosine-weighted rays from area-uniform points of the faces (embree first hits), in
     batches of ``chunk`` rays. Independent of viscx's exact code: only the ray caster.
@@ -129,6 +141,13 @@ def form_factor_monte_carlo(scene, faces, side, k, seed=0, chunk=1 << 20):
     side : int
     k : int
     seed : int
+    lying : (cells, elements), optional
+        For one emitting face: its parts lying on other faces (convex cells (k, 3) in its
+        plane, and the element ``2 j + (0 front, 1 back)`` each lies on). A point of such a
+        cell sees that side only (viscx's convention, docs/queries.md "Faces lying on
+        faces"): its ray counts there, where a ray cast from it would pass through the face
+        it lies on (tmin) into what is behind (a box's inside, and through its bottom's
+        tie with the floor onto the floor).
 
     Returns
     -------
@@ -152,6 +171,9 @@ def form_factor_monte_carlo(scene, faces, side, k, seed=0, chunk=1 << 20):
         back = np.einsum("ij,ij->i", d[hit], scene.face_normal[face[hit]]) > 0
         slot = np.full(m, 2 * scene.n_faces)
         slot[hit] = 2 * face[hit] + back
+        if lying is not None and len(lying[0]):
+            cell = in_convex_cells(p, lying[0], n[0])
+            slot[cell >= 0] = np.asarray(lying[1])[cell[cell >= 0]]
         counts += np.bincount(slot, minlength=len(counts))
     F = counts / k
     return F, np.sqrt(F * (1 - F) / k)

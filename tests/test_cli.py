@@ -148,6 +148,22 @@ def test_help_imports_no_numeric_library():
         assert done.stdout.splitlines()[-1] == "[]", (argv, done.stdout[-300:], done.stderr)
 
 
+def test_a_matrix_imports_no_scipy_linalg_and_numba_still_has_blas(sample_build, tmp_path):
+    """``viscx formfactor matrix`` loads its kernels without numba's BLAS probe, which
+    imported scipy.linalg (~0.16 CPU s; :func:`viscx.cli.skip_numbas_blas_probe`), and
+    numba still records BLAS as there, with its own probe back in place for the kernels
+    that use it."""
+    script = ("import sys\nfrom viscx.cli import main\n"
+              f"try:\n    main(['--quiet', 'formfactor', 'matrix', {str(sample_build('two_triangles.obj'))!r}, "
+              f"'-o', {str(tmp_path / 'F.h5')!r}])\nexcept SystemExit as exc:\n    assert exc.code in (0, None), exc.code\n"
+              "import numba.np.arraymath as am, numba.np.linalg as la\n"
+              "print('scipy.linalg' in sys.modules, am._HAVE_BLAS, am.ensure_blas is la.ensure_blas, "
+              "la.ensure_blas.__module__)")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.stdout.splitlines()[-1].split() == ["False", "True", "True", "numba.np.linalg"], (done.stdout[-300:],
+                                                                                                 done.stderr[-2000:])
+
+
 def test_commands_run_with_one_blas_thread_unless_told():
     """The console script sets OPENBLAS_NUM_THREADS=1 (its threads spin on viscx's small
     products) and OMP_WAIT_POLICY=PASSIVE (numba's idle OpenMP threads sleep between kernels)

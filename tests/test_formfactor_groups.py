@@ -79,3 +79,24 @@ def test_floor_to_desk_against_monte_carlo(room):
     mc = float(est[np.concatenate([2 * desk, 2 * desk + 1])].sum())
     sigma = np.sqrt(mc * (1 - mc) / 1_000_000)
     assert abs(g["F"] - mc) < 4 * sigma + g["error"], (g, mc, sigma)
+
+
+@pytest.mark.parametrize("a, b", [("ceiling", "divider0"), ("wall_west", "wall_south")])
+def test_group_rows_are_cut_along_their_own_pairs_kinks(room, a, b):
+    """A group query's row is cut along the kink lines of its own pairs only (``kink_faces``:
+    the receivers, the faces lying on them, the faces in the pairs' shafts; the pair kernel
+    sees no other face). The rows of these queries (the divider's front to the ceiling, the
+    west wall to the south wall), past the limit with every receiver's kink lines (three
+    levels), are cut along their own (two levels); each entry is within its estimate plus
+    the reference's of the matrix's row (``row_form_factors``: ``point_views``, every
+    receiver's kink lines) at a tol 10 times finer."""
+    rows = ff.group_rows(room, room.group_faces(a), 1, room.group_faces(b))
+    cut = [(f, s, r) for f, s, r, _ in rows if ff.cubature_cells(room, f, s, receivers=r)[2]
+           and not ff.cubature_cells(room, f, s)[2]]
+    assert cut
+    for f, s, r in cut:
+        cols, val, err, *_ = ff.emitter_row(room, f, s, r, TOL / 10, sky=False)
+        ref_cols, ref, ref_err, *_ = ff.row_form_factors(room, f, s, r, TOL / 100, sky=False)
+        assert list(cols) == list(ref_cols) and np.all(err <= TOL / 10)
+        assert np.all(np.abs(val - ref) <= err + ref_err), (f, s, val, ref, err, ref_err)
+

@@ -98,9 +98,35 @@ def cli(ctx, quiet):
         from viscx.progress import report_compilation
 
         keep_freed_memory()
-
+        skip_numbas_blas_probe()
         report_compilation(not quiet)
         ctx.call_on_close(lambda: report_compilation(False))
+
+
+def skip_numbas_blas_probe():
+    """Import numba's array functions (``numba.np.arraymath``) without the probe it runs
+    when imported: ``_HAVE_BLAS = _check_blas()``, which imports ``scipy.linalg`` (~0.16 CPU
+    s, half of numba's start-up; the whole Cornell matrix at ``--tol 1e-4`` is ~2) only to
+    learn whether BLAS is there. scipy is a dependency of viscx, so the answer is yes, which
+    is what the module records without the probe; the probe's function is put back at once,
+    so a kernel that does use BLAS (``np.dot``) still imports scipy and checks it when it
+    compiles. numba loads the module on the first kernel a command calls (its registries),
+    so doing it here costs nothing more (~0.05 CPU s on a command that calls none). Nothing
+    is done where the module is already loaded or numba's layout is not the one expected."""
+    if "numba.np.arraymath" in sys.modules:
+        return
+    import numba.np.linalg as linalg
+
+    probe = getattr(linalg, "ensure_blas", None)
+    if probe is None:
+        return
+    linalg.ensure_blas = lambda: None
+    try:
+        import numba.np.arraymath as arraymath
+    finally:
+        linalg.ensure_blas = probe
+    if getattr(arraymath, "ensure_blas", None) is not probe:  # the name it imported, put back too
+        arraymath.ensure_blas = probe
 
 
 class Terminated(BaseException):

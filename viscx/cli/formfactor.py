@@ -116,7 +116,10 @@ def point(ctx, file, point, normal, to_face, to_group, output, fmt):
 def faces(ctx, file, from_face, from_side, to_face, tol, output, fmt):
     """F from one side of face I to face J: the unoccluded double contour integral less
     what the occluders hide, by adaptive cubature of an exact integrand (the visible part
-    of J from each point); the output reports the error estimate reached.
+    of J from each point), refined until the error estimate is within --tol. The output
+    reports that estimate ("error", per side of J and summed): an estimate of |F − exact
+    F|, made to lie above it (checked against finer computations and Monte Carlo), not a
+    proven bound; docs/queries.md says how it is made.
 
     \b
     viscx formfactor faces cornell.h5 --from-face 0 --to-face 15

@@ -20,6 +20,8 @@ angle of a polygon in front of x is positive. Polygons that cross the plane of
 x must be clipped to its front half-space first (:func:`clip_to_hemisphere`).
 """
 
+import functools
+
 import numpy as np
 
 from viscx.geometry.polygon import newell_normal
@@ -123,32 +125,48 @@ def clip_to_hemisphere(loop, point, normal):
 _GL = {n: np.polynomial.legendre.leggauss(n) for n in (6, 10)}
 
 
-def _grade(levels):
-    """(levels + 2,) float: panel ends on [0, 1/2], halving toward 0 ``levels`` times
-    (0, 2^-(levels+1), …, 1/4, 1/2)."""
-    return np.concatenate([[0.0], 0.5 ** np.arange(levels + 1, 1, -1), [0.5]])
+@functools.lru_cache(maxsize=None)
+def _panel_grade(level_lo, level_hi):
+    """(m,) float, read-only: panel ends on [0, 1], halving toward 0 ``level_lo`` times and
+    toward 1 ``level_hi`` times (0, 2^-(level_lo+1), …, 1/4, 1/2, 3/4, …, 1 − 2^-(level_hi+1), 1);
+    cached: the levels are small integers (:data:`LEVELS` at most)."""
+    def grade(levels):  # (levels + 2,): 0, 2^-(levels+1), …, 1/4, 1/2
+        return np.concatenate([[0.0], 0.5 ** np.arange(levels + 1, 1, -1), [0.5]])
+
+    g = np.concatenate([grade(level_lo), 1 - grade(level_hi)[-2::-1]])
+    g.flags.writeable = False
+    return g
 
 
-def _graded_nodes(knots, levels, order=10):
-    """Quadrature nodes and weights on [knots[0], knots[-1]]: Gauss–Legendre panels on each
-    interval between consecutive knots, refined geometrically toward both its ends, toward
+def _graded_panels(knots, levels):
+    """The Gauss–Legendre panels of every edge of a polygon: on each interval between
+    consecutive knots of an edge, panels refined geometrically toward both its ends, toward
     knot k ``levels[k]`` times (where the integrand may be singular: the ends of the edge
     and every interior cut; a knot far from the other polygon needs fewer levels, see
-    :func:`_knot_levels`). Intervals shorter than 1e-14 of the whole are skipped."""
+    :func:`_knot_levels`). Intervals shorter than 1e-14 of the edge are skipped. ``knots``,
+    ``levels``: one (k,) array per edge. Returns the panels' ends ``lo, hi`` (p,) float64
+    and their edge (p,) int64, edge by edge."""
+    lo, hi, edge = [], [], []
+    for e, (t, lev) in enumerate(zip(knots, levels)):
+        span = t[-1] - t[0]
+        for k in range(len(t) - 1):
+            if t[k + 1] - t[k] <= 1e-14 * span:
+                continue
+            ends = t[k] + (t[k + 1] - t[k]) * _panel_grade(int(lev[k]), int(lev[k + 1]))
+            lo.append(ends[:-1])
+            hi.append(ends[1:])
+            edge.append(np.full(len(ends) - 1, e, np.int64))
+    if not lo:
+        return np.zeros(0), np.zeros(0), np.zeros(0, np.int64)
+    return np.concatenate(lo), np.concatenate(hi), np.concatenate(edge)
+
+
+def _panel_nodes(lo, hi, order):
+    """Gauss–Legendre nodes and weights of ``order`` points on each panel [lo, hi] (p,):
+    (p · order,) each, panel by panel."""
     x_gl, w_gl = _GL[order]
-    a, b = [], []
-    span = knots[-1] - knots[0]
-    for k in range(len(knots) - 1):
-        lo, hi = knots[k], knots[k + 1]
-        if hi - lo <= 1e-14 * span:
-            continue
-        g = np.concatenate([_grade(levels[k]), 1 - _grade(levels[k + 1])[-2::-1]])
-        ends = lo + (hi - lo) * g
-        a.append(ends[:-1])
-        b.append(ends[1:])
-    a, b = np.concatenate(a), np.concatenate(b)
-    half = (b - a) / 2
-    nodes = (a + half)[:, None] + half[:, None] * x_gl[None, :]
+    half = (hi - lo) / 2
+    nodes = (lo + half)[:, None] + half[:, None] * x_gl[None, :]
     weights = half[:, None] * w_gl[None, :]
     return nodes.ravel(), weights.ravel()
 
@@ -309,26 +327,31 @@ def polygon_to_polygon_orders(loops_i, normal_i, loops_j, normal_j, orders=(10,)
     sizes = np.cumsum([len(t) for t in knots])[:-1]
     points = np.concatenate([a0[k] + t[:, None] * u_a[k] for k, t in enumerate(knots)]) if knots else np.zeros((0, 3))
     levels = np.split(_knot_levels(points, p, q, np.concatenate(spans) if spans else np.zeros(0)), sizes)
-    for order in orders:
-        xs, ws, ids = [], [], []
-        for k in range(len(a0)):
-            s, w = _graded_nodes(knots[k], levels[k], order)
-            xs.append(a0[k] + s[:, None] * u_a[k])
-            ws.append(w)
-            ids.append(np.full(len(s), k))
-        x, w, edge = np.concatenate(xs), np.concatenate(ws), np.concatenate(ids)
-        per = np.zeros((len(a0), len(b0)), x.dtype)  # Σ_nodes of a  w ∫_b ln r
-        mag = np.zeros((len(a0), len(b0)))  # Σ_nodes of a  |w| (|G(L − t0)| + |G(−t0)|)
-        step = max(1, _BLOCK // max(len(b0), 1))
-        for lo in range(0, len(x), step):
-            sl = slice(lo, lo + step)
-            value, terms = _log_distance_integral(x[sl], b0, u_b, len_b)
-            e = edge[sl]
-            starts = np.flatnonzero(np.concatenate([[True], e[1:] != e[:-1]]))  # the nodes run edge by edge
-            per[e[starts]] += np.add.reduceat(w[sl, None] * value, starts, axis=0)
-            mag[e[starts]] += np.add.reduceat(np.abs(w[sl, None]) * terms, starts, axis=0)
-        out.append((cos_ab * per).sum() / (2 * np.pi * area_i))  # float64, or wider when given
-        size = max(size, float((np.abs(cos_ab) * mag).sum()) / (2 * np.pi * area_i))
+    # the nodes of every order at once (the same panels), run by run: row o · na + k of
+    # per / mag sums order o's nodes on edge k of i
+    p_lo, p_hi, p_edge = _graded_panels(knots, levels)
+    xs, ws, runs = [], [], []
+    for o, order in enumerate(orders):
+        s, w = _panel_nodes(p_lo, p_hi, order)
+        edge = np.repeat(p_edge, order)
+        xs.append(a0[edge] + s[:, None] * u_a[edge])
+        ws.append(w)
+        runs.append(o * len(a0) + edge)
+    x, w, run = (np.concatenate(v) for v in (xs, ws, runs))
+    per = np.zeros((len(orders) * len(a0), len(b0)), x.dtype)  # Σ_nodes of a  w ∫_b ln r
+    mag = np.zeros((len(orders) * len(a0), len(b0)))  # Σ_nodes of a  |w| (|G(L − t0)| + |G(−t0)|)
+    step = max(1, _BLOCK // max(len(b0), 1))
+    for lo in range(0, len(x), step):
+        sl = slice(lo, lo + step)
+        value, terms = _log_distance_integral(x[sl], b0, u_b, len_b)
+        e = run[sl]
+        starts = np.flatnonzero(np.concatenate([[True], e[1:] != e[:-1]]))  # the nodes run edge by edge
+        per[e[starts]] += np.add.reduceat(w[sl, None] * value, starts, axis=0)
+        mag[e[starts]] += np.add.reduceat(np.abs(w[sl, None]) * terms, starts, axis=0)
+    for o in range(len(orders)):
+        rows = slice(o * len(a0), (o + 1) * len(a0))
+        out.append((cos_ab * per[rows]).sum() / (2 * np.pi * area_i))  # float64, or wider when given
+        size = max(size, float((np.abs(cos_ab) * mag[rows]).sum()) / (2 * np.pi * area_i))
     return np.array(out), 64 * np.finfo(np.float64).eps * size
 
 

@@ -43,16 +43,18 @@ and the second term what the occluders hide, by adaptive cubature over triangles
 * I' starts as the emitter's cells (:func:`emitter_cells`): its triangles cut along the
   lines where other faces touch or cross it, across which F(x) jumps; inside a cell the
   integrand is continuous, with kinks along the discontinuity mesh that refinement follows;
-* a triangle's error estimate is |Q(T) − Σ Q(children)| of Radon's degree-5 rule, and the
-  triangles with the largest estimates are split until their sum meets the tolerance.
+* a triangle's error estimate comes from Radon's degree-5 rule on it and on its
+  descendants (:class:`Cubature`, :class:`RowCubature`), and the triangles with the
+  largest estimates are split until their sum meets the tolerance.
 * where the emitter's cells can be cut along its kink lines too (:func:`cubature_cells`,
   as the matrix row's), the integrand is C1 on every cell and the row's two-level
   :class:`RowCubature` integrates the pair (one column); else the three levels of
   :class:`Cubature`.
 
 The reported ``error`` is the contour integral's estimate (two node sets) plus the sum of
-the triangles' estimates: the estimate of the coarser of two rules for the finer one's
-value, so conservative (tests check it against known values). Cost and memory grow with
+the triangles' estimates: an estimate of the actual error made to lie above it, not a
+proven bound (tests check it against closed forms, finer integrals and Monte Carlo;
+benchmarks/pair_honesty.py measures it on furnished rooms). Cost and memory grow with
 the triangles that meet shadows, never with combinations of edges; every kernel call is
 bounded (:data:`CHUNK`, :data:`MAX_CELLS`).
 """
@@ -69,7 +71,7 @@ from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, poly
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
-from viscx.queries.kinks import kink_segments
+from viscx.queries.kinks import face_generators, kink_segments
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -697,18 +699,24 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
 def _cut_convex(piece, a, d, eps):
     """A convex 2-D polygon (k, 2) cut by the line through ``a`` along ``d`` (unit): its two
     parts (each possibly empty)."""
-    s = (piece[:, 0] - a[0]) * d[1] - (piece[:, 1] - a[1]) * d[0]
+    # Python floats: a piece has a handful of vertices, and numpy's per-call cost would
+    # be most of the work (the same IEEE operations, so the same digits)
+    a0, a1, d0, d1 = float(a[0]), float(a[1]), float(d[0]), float(d[1])
+    pts = piece.tolist()
+    s = [(x - a0) * d1 - (y - a1) * d0 for x, y in pts]
+    k = len(pts)
     out = []
     for sign in (1.0, -1.0):
-        h = sign * s
+        h = [sign * v for v in s]
         part = []
-        for k in range(len(piece)):
-            r = (k + 1) % len(piece)
-            if h[k] >= 0:
-                part.append(piece[k])
-            if (h[k] > 0 and h[r] < 0) or (h[k] < 0 and h[r] > 0):
-                part.append(piece[k] + (piece[r] - piece[k]) * (h[k] / (h[k] - h[r])))
-        part = np.asarray(part).reshape(-1, 2)
+        for i in range(k):
+            r = (i + 1) % k
+            if h[i] >= 0:
+                part.append(pts[i])
+            if (h[i] > 0 and h[r] < 0) or (h[i] < 0 and h[r] > 0):
+                t = h[i] / (h[i] - h[r])
+                part.append([pts[i][0] + (pts[r][0] - pts[i][0]) * t, pts[i][1] + (pts[r][1] - pts[i][1]) * t])
+        part = np.array(part, np.float64).reshape(-1, 2)
         out.append(part if len(part) >= 3 and abs(_area2(part)) > eps * eps else None)
     return out
 
@@ -975,7 +983,7 @@ def cut_along(pieces, seg, eps, limit=None):
 MAX_KINK_CELLS = 1_000
 
 
-def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
+def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generators=None):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -988,12 +996,33 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
     receivers), so that every integrand is C1 on every cell; None when that would make more
     than ``limit`` cells or the lines are too many to list (in a cluttered scene the lines
     are quadratic in the edges and their arrangement quadratic in the lines).
+    ``generators``: the kink lines of these rows of
+    :func:`viscx.queries.kinks.generator_segments` only (default all; :func:`kink_faces`).
 
     Returns
     -------
     list of (k, 3) float64
         Convex cells, counter-clockwise about the side's normal.
     """
+    origin, eu, ev, eps, pieces = scene.cached(f"emitter_pieces {int(face)} {int(side)}",
+                                               lambda s: _emitter_pieces(s, face, side))
+
+    def to2(p):
+        return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
+
+    if kinks:
+        kinks = kink_segments(scene, face, side, generators)
+        pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
+        if pieces is None:
+            return None
+    return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+
+
+def _emitter_pieces(scene, face, side):
+    """The cells of :func:`emitter_cells` without the kink cuts, in 2-D: ``(origin, eu, ev,
+    eps, pieces)``, a point y of the plane being ``origin + u eu + v ev`` for a vertex (u, v)
+    of a piece (k, 2) (computed once per side: the row cuts them along its kink lines after
+    its pair cubatures' or closed forms' need them uncut)."""
     n = side * scene.face_normal[face]
     eu, ev = plane_basis(n)
     tri = scene.vertices[scene.triangles[scene.triangle_face == face]]
@@ -1028,12 +1057,7 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS):
                         out.append(part)
         pieces = out
     pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), _loop_segments(n_h, lines)])), eps)
-    if kinks:
-        kinks = kink_segments(scene, face, side)
-        pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
-        if pieces is None:
-            return None
-    return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+    return origin, eu, ev, eps, pieces
 
 
 def plane_segments(scene, face, side):
@@ -1102,7 +1126,7 @@ def plane_cells(scene, face, side, cells, start):
     return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
-def cubature_cells(scene, face, side, min_size=None):
+def cubature_cells(scene, face, side, min_size=None, receivers=None):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
@@ -1110,6 +1134,13 @@ def cubature_cells(scene, face, side, min_size=None):
     levels (21 triangles each) on the uncut ones; then the uncut cells (three levels:
     :class:`Cubature`, :class:`ThreeLevelRowCubature`). Uncut cells already past that
     many are kept without listing the kink lines at all.
+
+    ``receivers`` (k,) int64: the cells of a row whose columns are the pairs to (both sides
+    of) these faces only, no sky (a group query's row, :func:`emitter_row`), cut along the
+    kink lines of those pairs' integrands only (:func:`kink_faces`): in a furnished room a
+    wall's kink lines of every receiver are thousands (past :data:`MAX_KINK_CELLS`), those
+    of the pairs to a few receivers can be few. Default: every receiver and the sky (the
+    matrix's row).
 
     Returns
     -------
@@ -1123,7 +1154,9 @@ def cubature_cells(scene, face, side, min_size=None):
     if min_size is None:
         box_lo, box_hi = face_boxes(scene)
         size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
-        return scene.cached(f"cubature_cells {int(face)} {int(side)}", lambda s: cubature_cells(s, face, side, size))
+        receivers = None if receivers is None else np.unique(np.asarray(receivers, np.int64))
+        return scene.cached(_side_key("cubature_cells", face, side, receivers),
+                            lambda s: cubature_cells(s, face, side, size, receivers))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
     limit = min(MAX_KINK_CELLS, 21 * len(tri))
@@ -1131,12 +1164,36 @@ def cubature_cells(scene, face, side, min_size=None):
         # cuts only add cells: past the limit before the kink lines are even listed (they
         # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
         return cells, tri, False
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit)
+    generators = None if receivers is None else face_generators(scene, kink_faces(scene, face, side, receivers))
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
         if len(kinked_tri) <= 21 * len(tri):
             return kinked, kinked_tri, True
     return cells, tri, False
+
+
+def _side_key(name, face, side, receivers=None):
+    """The cache key of something of a face side, or of its row to ``receivers`` (k,) int64."""
+    key = f"{name} {int(face)} {int(side)}"
+    return key if receivers is None else key + " to " + " ".join(str(j) for j in np.unique(receivers).tolist())
+
+
+def kink_faces(scene, face, side, receivers):
+    """(k,) int64, sorted: the faces whose edges may make the kinks (D1) of the integrands of
+    the pairs from side ``side`` of a face to the sides of ``receivers`` (k,) int64 it may
+    see: each receiver, the faces lying in its plane (the outlines of its covered cells,
+    holes of the target: :func:`target_holes`) and the faces meeting each pair's shaft
+    (:func:`pair_occluders`, both sides of the receiver). A pair's kernel sees no other
+    face (:meth:`PairSetup.f`), so its integrand kinks only where two edges of these line
+    up; the kink lines of the other edges are those of the other receivers and the sky."""
+    receivers = np.asarray(receivers, np.int64)
+    out = [receivers]
+    for j, t in zip(*facing_sides(scene, face, side, receivers)):
+        out.append(coplanar_faces(scene, int(j)))
+        setup = PairSetup(scene, face, side, face_target(scene, int(j)), int(t))
+        out.append(np.asarray([o[2] for o in setup.occluders], np.int64))
+    return np.unique(np.concatenate(out))
 
 
 # --------------------------------------------------------------------------------------
@@ -1167,8 +1224,13 @@ def split4(tri):
 def start_triangles(cells, min_size):
     """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), split by
     :func:`split_large`."""
-    return split_large(np.concatenate([np.stack([np.repeat(c[:1], len(c) - 2, axis=0), c[1:-1], c[2:]], axis=1)
-                                       for c in cells]), min_size)
+    count = np.array([len(c) for c in cells], np.int64)
+    first = np.cumsum(count) - count  # each cell's first vertex in the flat list
+    cell = np.repeat(np.arange(len(cells)), count - 2)  # triangle k of a cell: vertices 0, k + 1, k + 2
+    k = np.arange(len(cell)) - np.repeat(np.cumsum(count - 2) - (count - 2), count - 2)
+    flat = np.concatenate(cells)
+    return split_large(np.stack([flat[first[cell]], flat[first[cell] + k + 1], flat[first[cell] + k + 2]], axis=1),
+                       min_size)
 
 
 def split_large(tri, min_size):
@@ -1190,9 +1252,11 @@ def triangle_areas(tri):
 
 
 def three_level_error(q, kq, gq):
-    """The error estimate of the sum of a triangle's 16 grandchildren, and that sum: the
-    change from its 4 children to them, at least 1/64 of the change from its own rule to
-    its children (:class:`Cubature`). Works column by column alike.
+    """The error estimate of the sum of a triangle's 16 grandchildren on the smooth model,
+    and that sum: the change from its 4 children to them, at least 1/64 of the change from
+    its own rule to its children. Too optimistic where a kink line crosses the triangle
+    (:func:`kinked_three_level_error`, which the three-level cubatures use); kept as the
+    model the tests show failing there. Works column by column alike.
 
     Parameters
     ----------
@@ -1208,8 +1272,8 @@ def three_level_error(q, kq, gq):
     return np.maximum(np.abs(k_sum - g_sum), np.abs(q - k_sum) / 64), g_sum
 
 
-#: The error model of a triangle a kink line (D1) may cross (the rows on three levels, whose
-#: cells are not cut along their kinks): the degree-5 rule's error on a triangle the line
+#: The error model of a triangle a kink line (D1) may cross (the rows and pairs on three
+#: levels, whose cells are not cut along their kinks): the degree-5 rule's error on a triangle the line
 #: crosses is ~ slope jump × h³, and the crossed triangles double from one level to the
 #: next, so each level's error is ~1/4 of the one before (against 1/64 where the integrand
 #: is smooth). Then ``|Q − K| ≈ 3 err(K) = 12 err(G)``: G's error is at least
@@ -1226,7 +1290,7 @@ KINK_GROWTH = 4
 
 
 def kinked_three_level_error(q, kq, gq):
-    """(g, R) float64: the error estimate of the sum of each triangle's 16 grandchildren, on
+    """(g,) or (g, R) float64: the error estimate of the sum of each triangle's 16 grandchildren, on
     the kink model (:data:`KINK_LEVELS`, :data:`KINK_GROWTH`): ``max(|K − G|, |Q − K| / 12)``,
     or ``4 |K − G|`` where the change grows from level to level. :func:`three_level_error`'s
     ``|Q − K| / 64`` is the smooth model's: where a kink crosses a triangle, K and G can
@@ -1236,9 +1300,9 @@ def kinked_three_level_error(q, kq, gq):
 
     Parameters
     ----------
-    q : (g, R) float
-    kq : (g, 4, R) float
-    gq : (g, 16, R) float
+    q : (g,) or (g, R) float
+    kq : (g, 4) or (g, 4, R) float
+    gq : (g, 16) or (g, 16, R) float
     """
     k_sum, g_sum = kq.sum(axis=1), gq.sum(axis=1)
     coarse, fine = np.abs(q - k_sum), np.abs(k_sum - g_sum)
@@ -1252,15 +1316,21 @@ class Cubature:
 
     Each triangle T (a leaf) is evaluated on three levels: Radon's degree-5 rule on T, on
     its four midpoint children and on their sixteen children, whose sum is the value used.
-    Its error estimate is the change from the children to the grandchildren (conservative
-    where the integrand is smooth: the grandchildren's error is ~1/64 of it), at least 1/64
-    of the change from T to its children. Two levels are not enough: a kink of the integrand
-    (a line of the emitter's discontinuity mesh) that only clips a corner of T lies between
-    the nodes of T and of its children alike, and the two can agree to 1e-12 while both are
-    off (the Cornell light → floor: 5e-8 off for an estimate of 9e-9; the grandchildren
-    see it). Refinement is global: while the sum of the estimates exceeds the budget, the
-    triangles with the largest estimates are split (their children become leaves, each
-    with its own three levels), so the effort goes where the integrand is rough.
+    The cells it is given are not cut along the kink lines (else the pair takes the
+    two-level :class:`RowCubature`), so its error estimate is the kink model's, as the
+    rows' on three levels (:func:`kinked_three_level_error`): the change from the children
+    to the grandchildren, at least 1/12 of the change from T to its children (across a
+    kink each level's error is ~1/4 of the one before, not the smooth 1/64: office(100), a
+    divider's narrow side → the floor it stands on at tol 1e-4 was 1.2e-7 off for an
+    estimate of 6.3e-8 with 1/64), four times the last change where it grows. Two levels
+    are not enough: a kink that only clips a corner of T lies between the nodes of T and
+    of its children alike, and the two can agree to 1e-12 while both are off (the Cornell
+    light → floor: 5e-8 off for an estimate of 9e-9; the grandchildren see it). A first
+    triangle whose 21 rules see nothing while its list is not empty is looked at closer
+    (:func:`look_for_shadows`, as the rows do). Refinement is global: while the sum of the
+    estimates exceeds the budget, the triangles with the largest estimates are split
+    (their children become leaves, each with its own three levels), so the effort goes
+    where the integrand is rough.
 
     Parameters
     ----------
@@ -1273,26 +1343,44 @@ class Cubature:
     unresolved : callable, optional
         ``unresolved(tri, ptr, ids) -> (g,) float64``: a bound on what the rule may miss on
         each triangle, too large for what its occluders may do in it (:meth:`estimates`).
+    unseen : callable, optional
+        ``unseen(tri) -> (g,) float64``: what the integral over each triangle may be at the
+        most (the integrand's bound integrated), the estimate of a triangle whose 21 rules
+        see nothing while its list says they should (:meth:`estimates`).
     """
 
-    def __init__(self, integrand, cull, unresolved=None):
+    def __init__(self, integrand, cull, unresolved=None, unseen=None):
         self.integrand = integrand
         self.cull = cull
         self.unresolved = unresolved
+        self.unseen = unseen
         self.evaluations = 0
         self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, gq, err) of the final triangles
 
     def estimates(self, tri, ptr, ids, q, kq, gq):
         """(g,) float64: each triangle's error estimate for the sum of its 16 grandchildren
-        (``gq`` (g, 16)): the change from its 4 children (``kq`` (g, 4)) to them, at least
-        1/64 of the change from its own rule ``q`` to its children (what a smooth integrand
-        gives: when the two finer levels agree by accident, a feature the coarser level saw
-        is not forgotten), and at least what the ``unresolved`` callback says a feature
-        smaller than the rule can see may hide in it (at most the triangle's area: the
-        integrand's values lie in [0, 1])."""
-        err, _ = three_level_error(q, kq, gq)
+        (``gq`` (g, 16)): :func:`kinked_three_level_error` of its rule ``q``, its 4 children's
+        (``kq`` (g, 4)) and theirs (when the two finer levels agree by accident, a feature
+        the coarser level saw is not forgotten), and at least what the ``unresolved``
+        callback says a feature smaller than the rule can see may hide in it (at most the
+        triangle's area: the integrand's values lie in [0, 1]).
+
+        A triangle whose 21 rules see nothing (as :func:`look_for_shadows` says) while its
+        list is not empty gets the ``unseen`` bound: its shaft meets an occluder, so a
+        shadow lies between its nodes (the shaft test is exact for a convex target: some
+        segment from the triangle to J' is blocked), and nothing the nodes saw says how
+        large (office(100), a desk panel → another desk's narrow top side: after the search
+        for shadows, leaves 0.015 m² wide still saw nothing of a shadow worth 1.2e-8 each,
+        and at tol 1e-8 the pair was 3.3e-8 off for an estimate of 6.9e-9). Such a triangle
+        is split until its children see the shadow or their shafts miss the occluders."""
+        err = kinked_three_level_error(q, kq, gq)
         if self.unresolved is not None and len(tri):
             err = np.maximum(err, np.minimum(self.unresolved(tri, ptr, ids), triangle_areas(tri)))
+        if self.unseen is not None and len(tri):
+            seen = levels_seen(q, kq, gq)
+            blind = np.flatnonzero((seen <= UNSEEN * triangle_areas(tri)) & (np.diff(ptr) > 0))
+            if len(blind):
+                err[blind] = np.maximum(err[blind], self.unseen(tri[blind]))
         return err
 
     def rule(self, tri, ptr, ids):
@@ -1317,6 +1405,19 @@ class Cubature:
         kptr, kids_ids = self.cull(kids, *_sub_lists(ptr, ids, parent))
         q = self.rule(kids, kptr, kids_ids)
         return kids.reshape(-1, 4, 3, 3), kptr, kids_ids, q.reshape(-1, 4)
+
+    def levels(self, tri, ptr, ids):
+        """The three levels of the triangles (g, 3, 3) with lists (``ptr, ids``), those with
+        an empty list dropped: ``tri, ptr, ids, q`` (g,), their children ``K`` (4 g, 3, 3)
+        (rows 4 k … 4 k + 3 those of triangle k) with their lists ``kptr, kids_ids`` and rules
+        ``kq`` (4 g,), their grandchildren ``G, gptr, gids, gq`` alike (16 g)."""
+        live = np.flatnonzero(np.diff(ptr) > 0)
+        tri, (ptr, ids) = tri[live], _sub_lists(ptr, ids, live)
+        q = self.rule(tri, ptr, ids)
+        K, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
+        K, kq = K.reshape(-1, 3, 3), kq.reshape(-1)
+        G, gptr, gids, gq = self.expand(K, kptr, kids_ids)
+        return tri, ptr, ids, q, K, kptr, kids_ids, kq, G.reshape(-1, 3, 3), gptr, gids, gq.reshape(-1)
 
     def integrate(self, tri, candidates, budget, min_size=0.0):
         """∫ over the triangles (g, 3, 3) of the integrand.
@@ -1354,15 +1455,26 @@ class Cubature:
             sptr, sids = _sub_lists(ptr, ids, keep)
             tri = np.concatenate([tri[keep], kids])
             ptr, ids = _join_lists(sptr, sids, kptr, kids_ids)
-        live = np.flatnonzero(np.diff(ptr) > 0)
-        tri, (ptr, ids) = tri[live], _sub_lists(ptr, ids, live)
         # every leaf carries its rule value q, its 4 children (rows 4 L + c of K) and their
         # 16 children (rows 16 L + 4 c + d of G), each with its list and rule value
-        q = self.rule(tri, ptr, ids)
-        K, kptr, kids_ids, kq = self.expand(tri, ptr, ids)
-        K, kq = K.reshape(-1, 3, 3), kq.reshape(-1)
-        G, gptr, gids, gq = self.expand(K, kptr, kids_ids)
-        G, gq = G.reshape(-1, 3, 3), gq.reshape(-1)
+        tri, ptr, ids, q, K, kptr, kids_ids, kq, G, gptr, gids, gq = self.levels(tri, ptr, ids)
+        # a shadow smaller than the grandchildren's nodes' spacing may lie between all 147
+        # nodes of a first triangle whose shaft meets an occluder, and its three levels then
+        # agree on nothing seen (office(100), a desk panel → another desk's narrow side at
+        # any tol: 1.2e-7 off for an estimate of 1.5e-14): looked for as in the rows
+        seen = levels_seen(q, kq.reshape(-1, 4), gq.reshape(-1, 16))
+        unseen, new = look_for_shadows(tri, seen[:, None], lambda t, need: (np.diff(cull_all(
+            self.cull, t, candidates)[0]) > 0)[:, None])
+        if len(new):
+            keep = np.flatnonzero(~unseen)
+            k_keep, g_keep = (4 * keep[:, None] + np.arange(4)).reshape(-1), (16 * keep[:, None] + np.arange(16)).reshape(-1)
+            old = (tri[keep], *_sub_lists(ptr, ids, keep), q[keep], K[k_keep], *_sub_lists(kptr, kids_ids, k_keep),
+                   kq[k_keep], G[g_keep], *_sub_lists(gptr, gids, g_keep), gq[g_keep])
+            added = self.levels(new, *cull_all(self.cull, new, candidates))
+            tri, q, K, kq, G, gq = (np.concatenate([old[k], added[k]]) for k in (0, 3, 4, 7, 8, 11))
+            ptr, ids = _join_lists(old[1], old[2], added[1], added[2])
+            kptr, kids_ids = _join_lists(old[5], old[6], added[5], added[6])
+            gptr, gids = _join_lists(old[9], old[10], added[9], added[10])
         cells = 21 * len(tri)
         four, sixteen = np.arange(4), np.arange(16)
         for _ in range(200):
@@ -1785,7 +1897,7 @@ class PairSetup:
             cub = RowCubature(column)
             value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
-        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved)
+        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return umbra + value, umbra_err + error, cub.evaluations, cells
 
@@ -1805,6 +1917,15 @@ class PairSetup:
         hull = np.ascontiguousarray(self.frame[6])
         return umbra_triangles(np.ascontiguousarray(tri), hull, np.asarray(self.n_t, np.float64), float(self.c_t), eu, ev,
                                heights, sec_ptr, sec, 10 * self.tiny)
+
+    def unoccluded_bound(self, tri):
+        """(g,) float64: about the most ∫_T F(x → J') dx can be over each triangle (g, 3, 3)
+        of I', and so the most its occluders can hide: its area times the largest
+        unoccluded F(x → J') at its corners and centroid (F(x → J') is smooth on I': no
+        occlusion in it)."""
+        pts = np.concatenate([tri, tri.mean(axis=1, keepdims=True)], axis=1).reshape(-1, 3)
+        f = point_to_polygon(pts, np.broadcast_to(self.n_i, pts.shape), self.J).reshape(len(tri), 4)
+        return triangle_areas(tri) * f.max(axis=1)
 
     def unoccluded_integral(self, tri):
         """∫ F(x → J') dx over the triangles (g, 3, 3) of I' (disjoint): the contour integral
@@ -2161,23 +2282,24 @@ def seen_receivers(scene, face, side, faces):
 
 
 def shared_emitter_work(scene, face, side, faces):
-    """Compute (and cache on the scene) what every part of one emitter's row uses: its
-    cells and their contacts (:func:`cubature_cells`, :func:`cell_contacts`,
+    """Compute (and cache on the scene) what every part of one emitter's row to ``faces``
+    (no sky) uses: its cells and their contacts (:func:`cubature_cells`, :func:`cell_contacts`,
     :func:`contact_cells`) and the receivers' covered cells, before the parts are forked:
     they inherit it, and the kernels it loads, instead of each computing it again (the
     office's light1 → floor on 2 workers: 2.7 CPU s cold, 1.6 with this)."""
-    cubature_cells(scene, face, side)
-    cell_contacts(scene, face, side)
+    cubature_cells(scene, face, side, receivers=faces)
+    cell_contacts(scene, face, side, faces)
     contact_cells(scene, face, side)
     for j in np.asarray(faces, np.int64):
         for t in SIDES:
             covered_cells(scene, int(j), t)
 
 
-def cell_contacts(scene, face, side):
-    """:func:`contact_sides` of the :func:`cubature_cells` of a face side (cached)."""
-    return scene.cached(f"cell_contacts {int(face)} {int(side)}",
-                        lambda s: contact_sides(s, face, side, cubature_cells(s, face, side)[0]))
+def cell_contacts(scene, face, side, receivers=None):
+    """:func:`contact_sides` of the :func:`cubature_cells` of a face side (those of a row to
+    ``receivers``, default all; cached)."""
+    return scene.cached(_side_key("cell_contacts", face, side, receivers),
+                        lambda s: contact_sides(s, face, side, cubature_cells(s, face, side, receivers=receivers)[0]))
 
 
 def facing_sides(scene, face, side, faces):
@@ -2320,8 +2442,9 @@ def emitter_row(scene, face, side, faces, tol, sky=True, part=(0, 1)):
     closed = closed_form_row(scene, face, side, faces, sky)
     if closed is not None:  # exact terms: all in part 0
         return closed if part[0] == 0 else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {}, 0.0, 0.0)
-    cells, _, kinked = cubature_cells(scene, face, side)
-    contact = cell_contacts(scene, face, side)
+    receivers = None if sky else faces  # cut along the kinks of these pairs only
+    cells, _, kinked = cubature_cells(scene, face, side, receivers=receivers)
+    contact = cell_contacts(scene, face, side, receivers)
     cols, vals, errs, counts = [], [], [], {}
     faces = np.asarray(faces, np.int64)
     tols = np.broadcast_to(np.asarray(tol, np.float64), faces.shape)
@@ -2455,6 +2578,18 @@ def row_rules(cubature, tri, width, weights):
     return out
 
 
+#: A triangle's rules "see nothing" of a column where the sum of their absolute values
+#: (and estimates) is at most this times its area (the integrands lie in [0, 1]).
+UNSEEN = 1e-10
+
+
+def levels_seen(q, kq, gq):
+    """(g,) or (g, R) float64: what the 21 rules of each triangle's three levels see of the
+    integrand (q (g[, R]), kq (g, 4[, R]), gq (g, 16[, R])): the sum of their absolute
+    values, to compare with :data:`UNSEEN` times its area."""
+    return np.abs(q) + np.abs(kq).sum(axis=1) + np.abs(gq).sum(axis=1)
+
+
 def look_for_shadows(tri, seen, live):
     """Where a small shadow may lie between the nodes of the first triangles (g, 3, 3): a
     column an occluder may hide on a triangle (``live``, its shaft test) whose nodes see
@@ -2471,7 +2606,7 @@ def look_for_shadows(tri, seen, live):
     new : (h, 3, 3) float64
         What replaces them (the children, then the grandchildren).
     """
-    blind = seen <= 1e-10 * triangle_areas(tri)[:, None]
+    blind = seen <= UNSEEN * triangle_areas(tri)[:, None]
     ask = np.flatnonzero(np.any(blind, axis=1))  # the shaft tests only where they matter
     blind[ask] &= live(tri[ask], blind[ask])
     unseen = np.any(blind, axis=1)
@@ -2677,7 +2812,7 @@ class ThreeLevelRowCubature:
         q, K, kq, G, gq = self.levels(tri, width)
         if live is not None:
             # what each first triangle's 21 rules see of each column
-            seen = np.abs(q) + np.abs(kq).reshape(-1, 4, width).sum(axis=1) + np.abs(gq).reshape(-1, 16, width).sum(axis=1)
+            seen = levels_seen(q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
             unseen, new = look_for_shadows(tri, seen, live)
             if len(new):
                 keep = ~unseen

@@ -64,15 +64,26 @@ def generator_segments(scene):
                         lambda s: s.vertices[s.half_edges.edge_vertices[s.generator_edges]].astype(np.float64))
 
 
+def face_generators(scene, faces):
+    """(k,) int64, sorted: the rows of :func:`generator_segments` that are edges of one of
+    ``faces`` (k,) int64."""
+    he = scene.half_edges
+    edges = np.unique(he.edge[np.isin(he.face, np.asarray(faces, np.int64))])
+    return np.flatnonzero(np.isin(scene.generator_edges, edges))
+
+
 def _angles(x, t, w):
     """Angles (k, 2) in [0, π] of the points (t, w) (k, 2) seen from (x, 0) of L (k,)."""
     return np.arctan2(w, t - x[:, None])
 
 
-def kink_segments(scene, face, side):
+def kink_segments(scene, face, side, generators=None):
     """The D1 lines of side ``side`` of a face (module docstring): pieces of the lines where
     the plane of two coplanar edges in front of the side crosses its plane, where the two
-    edges line up seen from the point.
+    edges line up seen from the point. ``generators``: only the pairs of these rows of
+    :func:`generator_segments` (k,) int64 (default all): an integrand whose kernel sees
+    only some faces (a pair's receiver and the occluders in its shaft) kinks only where
+    two of their edges line up.
 
     Returns
     -------
@@ -82,6 +93,8 @@ def kink_segments(scene, face, side):
         :data:`MAX_KINK_GENERATORS` segments in front of the side.
     """
     seg = generator_segments(scene)
+    if generators is not None:
+        seg = seg[np.asarray(generators, np.int64)]
     n = side * scene.face_normal[face]
     c = float(n @ scene.face_loops(face)[0][0])
     tiny = 1e-9 * scene.diagonal

@@ -80,6 +80,10 @@ STEEP = 1e3
 #: polygon are off by a few ulps (~1e-15), and so are two edges from one vertex at a slab's
 #: middle when the slab is ~1e-14 wide (64 SNAP: a margin over what was seen, ~1e-14).
 ORDER_NOISE = 4 * SNAP
+#: Distance in u (in the wedge's plane) from a slab's left side within which two edges close
+#: there whose lines meet are taken to meet at it (:func:`_above`): far beyond rounding of
+#: a vertex (~1e-13 / the slopes' difference), far below any slab that matters.
+ORDER_MEET = 1e-9
 #: Edges in a wedge from which :func:`_sweep_runs` (output-sensitive, more work per event)
 #: is used instead of :func:`_sweep_slabs` (work per slab in the number of active edges, less
 #: per event): office(300) ~ even, office(1000) 1.4x faster, the Cornell box 0.6x slower.
@@ -1429,19 +1433,42 @@ def _height(seg_a, slope, e, u):
 
 
 @njit(cache=True)
-def _above(seg_a, seg_b, slope, e, f, ve, u):
-    """Whether edge e (height ``ve`` at u, the middle of a slab) goes above edge f in the
-    sweep's order over the slab. Heights closer than :data:`ORDER_NOISE` are rounding: the
-    edges meet at the slab's left side (they start at one vertex, or cross at the break, and a
-    narrow slab's middle is too near to tell them apart there), and to its right the one of
-    greater slope is above; edges collinear within :data:`SNAP` keep the order they had (they
-    do not cross). The order is kept from slab to slab and changed only at events
-    (:func:`_sweep_runs`), so it must be right at the first slab. (Not exact for edges
-    parallel within ORDER_NOISE but not collinear within SNAP: ~2e-13 of F seen on office(1000).)"""
-    vf = _height(seg_a, slope, f, u)
-    if abs(ve - vf) > ORDER_NOISE * (1.0 + abs(slope[e]) + abs(slope[f])):
+def _above(seg_a, seg_b, slope, e, f, ve, u0, u1):
+    """Whether edge e (height ``ve`` at the middle of the slab [u0, u1]) goes above edge f in
+    the sweep's order over the slab. The order is kept from slab to slab and changed only at
+    events (:func:`_sweep_runs`), so it must be right for as long as the two edges go on side
+    by side, not only in this slab; the crossings at u0 (within SNAP after it) have been made,
+    so two edges do not cross inside the slab. And it must be a total order: edges starting
+    at one break are placed one after the other by binary search.
+
+    Heights at the middle apart by more than :data:`ORDER_NOISE` tell. Closer, the edges are:
+
+    - collinear within :data:`SNAP`, each on the other's line: they keep the order they had
+      (they do not cross; an edge shorter than SNAP at a corner of the wedge lies on every
+      line through that corner, but not the other way round);
+    - meeting at u0: within ORDER_NOISE there, their lines meeting within :data:`ORDER_MEET`
+      of it (a common vertex, a crossing at the break; the vertices of clipped, projected
+      polygons are off by up to ~1e-13 at a corner of the wedge, so their heights at a
+      narrow slab are rounding): their slopes tell, the greater above to the right (a total
+      order on a fan of edges from one point, however short the edges);
+    - else apart at u0, or nearly parallel, or converging to u1 (their slopes are rounding
+      there): their height difference at the side of the slab where it is larger tells.
+
+    (The slopes' rule alone, whenever the heights were within ORDER_NOISE, put F on the
+    wrong side of nearly parallel or converging pairs for good, up to 3e-13 of a point's
+    hemisphere on office(1000).)"""
+    vf = _height(seg_a, slope, f, 0.5 * (u0 + u1))
+    noise = ORDER_NOISE * (1.0 + abs(slope[e]) + abs(slope[f]))
+    if abs(ve - vf) > noise:
         return ve > vf
-    return slope[e] > slope[f] and not _collinear(seg_a, seg_b, e, f, SNAP)
+    if _collinear(seg_a, seg_b, e, f, SNAP) and _collinear(seg_a, seg_b, f, e, SNAP):
+        return False
+    ds = slope[e] - slope[f]
+    d0 = _height(seg_a, slope, e, u0) - _height(seg_a, slope, f, u0)
+    if abs(d0) <= min(noise, abs(ds) * ORDER_MEET):
+        return ds > 0.0
+    d1 = _height(seg_a, slope, e, u1) - _height(seg_a, slope, f, u1)
+    return d0 > 0.0 if abs(d0) >= abs(d1) else d1 > 0.0
 
 
 @njit(cache=True)
@@ -1829,9 +1856,9 @@ def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u,
                             _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
                     n = succ[e]
                     if (n < 0 or alive[n] != 0 or seg_w[n] != seg_w[e] or not lo_u[n] < um < hi_u[n]
-                            or (w > 0 and _above(seg_a, seg_b, slope, n, act[w - 1], _height(seg_a, slope, n, um), um))
+                            or (w > 0 and _above(seg_a, seg_b, slope, n, act[w - 1], _height(seg_a, slope, n, um), u0, u1))
                             or (r + 1 < n_act and (alive[act[r + 1]] != 1 or _above(
-                                seg_a, seg_b, slope, act[r + 1], n, _height(seg_a, slope, act[r + 1], um), um)))):
+                                seg_a, seg_b, slope, act[r + 1], n, _height(seg_a, slope, act[r + 1], um), u0, u1)))):
                         gap = True
                         continue
                     # the polygon's boundary goes on through the vertex, the same way in u: the
@@ -1900,7 +1927,7 @@ def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u,
                 e = act[q]
                 ve = _height(seg_a, slope, e, um)
                 j = q
-                while j > a and _above(seg_a, seg_b, slope, e, act[j - 1], ve, um):
+                while j > a and _above(seg_a, seg_b, slope, e, act[j - 1], ve, u0, u1):
                     act[j] = act[j - 1]
                     j -= 1
                 act[j] = e
@@ -1941,7 +1968,7 @@ def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u,
             lo, hi = 0, n_act
             while lo < hi:
                 mid = (lo + hi) >> 1
-                if _above(seg_a, seg_b, slope, e, act[mid], ve, um):
+                if _above(seg_a, seg_b, slope, e, act[mid], ve, u0, u1):
                     hi = mid
                 else:
                     lo = mid + 1

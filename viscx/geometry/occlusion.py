@@ -1283,6 +1283,24 @@ def _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen,
     run_o[e, k] = -1
 
 
+@njit(cache=True, inline="always")
+def _set_runs(runs, run_o, e, a, b, u0, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
+    """Edge e's runs from u0 on, with owner a above it and b below it (-1 none): side 0 runs
+    for a, side 1 for b, none where both are one owner (the edge is inside its region); a run
+    whose owner changes is flushed (:func:`_flush_owner`) at u0 and a new one opened. Inlined
+    in both sweeps (numba's ``inline``): called, it cost them 20 % (office(1000), Cornell)."""
+    for kk in range(2):
+        o = (a if kk == 0 else b) if a != b else -1
+        if run_o[e, kk] == o:
+            continue
+        if run_o[e, kk] >= 0:
+            runs[e, kk, 1] = u0
+            _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+        if o >= 0:
+            run_o[e, kk] = o
+            runs[e, kk, 0] = u0
+
+
 @njit(cache=True)
 def _cover_key(p):
     """A 64-bit key of polygon p (splitmix64 of p): the XOR of the keys of a set of covering
@@ -1698,18 +1716,8 @@ def _sweep_slabs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, n_se
             for q in range(q0, min(q1 + 2, n_act)):
                 e = act[q]
                 stamp[e] = slab
-                a = own[q - 1] if q > 0 else -1
-                b = own[q] if q < n_act - 1 else -1
-                for kk in range(2):
-                    o = (a if kk == 0 else b) if a != b else -1
-                    if run_o[e, kk] == o:
-                        continue
-                    if run_o[e, kk] >= 0:
-                        runs[e, kk, 1] = u0
-                        _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-                    if o >= 0:
-                        run_o[e, kk] = o
-                        runs[e, kk, 0] = u0
+                _set_runs(runs, run_o, e, own[q - 1] if q > 0 else -1, own[q] if q < n_act - 1 else -1, u0, seg_a,
+                          slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
             if contiguous:
                 # edges that ended at u0: their runs end there
                 for r in range(lo, prev_n - s):
@@ -2125,18 +2133,8 @@ def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u,
         for r in range(n_touch):
             e = touch[r]
             q = pos[e]
-            a = own[act[q - 1]] if q > 0 else -1
-            b = own[e] if q < n_act - 1 else -1
-            for kk in range(2):
-                o = (a if kk == 0 else b) if a != b else -1
-                if run_o[e, kk] == o:
-                    continue
-                if run_o[e, kk] >= 0:
-                    runs[e, kk, 1] = u0
-                    _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-                if o >= 0:
-                    run_o[e, kk] = o
-                    runs[e, kk, 0] = u0
+            _set_runs(runs, run_o, e, own[act[q - 1]] if q > 0 else -1, own[e] if q < n_act - 1 else -1, u0, seg_a,
+                      slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
         swept = True
         last_u1 = u1
         slab += 1

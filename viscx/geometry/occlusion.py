@@ -2165,7 +2165,9 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     edge ends; with fewer than :data:`SWEEP_RUNS_FROM` edges, :func:`_sweep_slabs` is cheaper.
     With a vertical edge, every slab is swept whole and summed as trapezoids
     (:func:`_sweep_slabs`). ``sweep_kind`` (:func:`point_views`) chooses: 0 by size, 1 whole slabs
-    always (the plain sweep, the tests' reference), 2 :func:`_sweep_runs` always.
+    always (the plain sweep, the tests' reference), 2 :func:`_sweep_runs` always, None the slab
+    sweep only: a compiled version without the crossings' and the loops' records that only
+    :func:`_sweep_runs` reads (numba prunes the branches on None), for scenes too small for it.
 
     ``fw`` (7, e) float64, ``iw`` (5, e) int64, ``runs`` (e, 2, 2) float64, ``run_o`` (e, 2)
     int64, ``rim`` (e,) int64, ``sw``, ``skey`` (:func:`_sweep_runs`) and ``cover_w`` (P,) int64
@@ -2201,7 +2203,8 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
             k = first + q + 1 if q + 1 < n_in else first
             seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
             seg_p[first + q] = p
-            loop_next[first + q] = k
+            if sweep_kind is not None:  # (only the runs' sweep reads it)
+                loop_next[first + q] = k
         for q in range(n_in):  # an edge with both ends on one plane lies on the frustum's side
             rim[first + q] = rim[first + q] & rim[first + q + 1 if q + 1 < n_in else first]
         n_seg += n_in
@@ -2256,11 +2259,12 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
                 brk = _grow(brk, n_brk)
                 brk[n_brk] = u
                 n_brk += 1
-                cross = _grow(cross, n_cross)
-                cross_e = _grow_int(cross_e, n_cross)
-                cross[n_cross] = u
-                cross_e[n_cross, 0], cross_e[n_cross, 1] = by_lo[r], by_lo[r2]
-                n_cross += 1
+                if sweep_kind is not None:  # (only the runs' sweep reads them)
+                    cross = _grow(cross, n_cross)
+                    cross_e = _grow_int(cross_e, n_cross)
+                    cross[n_cross] = u
+                    cross_e[n_cross, 0], cross_e[n_cross, 1] = by_lo[r], by_lo[r2]
+                    n_cross += 1
     us = np.sort(brk[:n_brk])
     n_brk = _snap_breaks(us, n_brk, SNAP)
     slope = fw[6]
@@ -2271,8 +2275,12 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
         if seg_w[by_lo[r]] != 0:
             live[n_live] = by_lo[r]
             n_live += 1
-    has_vertical = sweep_kind == 1 or _has_vertical(seg_a, seg_b, seg_w, n_seg)
-    if has_vertical or (n_live < SWEEP_RUNS_FROM and sweep_kind != 2):
+    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
+    by_runs = False
+    if sweep_kind is not None:
+        has_vertical = has_vertical or sweep_kind == 1
+        by_runs = not has_vertical and (n_live >= SWEEP_RUNS_FROM or sweep_kind == 2)
+    if not by_runs:
         _sweep_slabs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, n_seg, hi_u, lo_u, slope, live, n_live,
                      has_vertical, poly_normal, side, rank, col, seen, wind, cover, runs, run_o, p0, p1, fw[2:5],
                      sw[:14], skey[0])
@@ -2343,60 +2351,10 @@ def _wedges(n_i, eu, ev):
 
 
 @njit(cache=True, nogil=True)
-def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
-                box_planes, sweep_kind=0):
-    """What each point of an emitter sees of every polygon side, and what is hidden of it:
-    a from-point hidden-surface computation over the whole scene at once, so that a matrix
-    row costs one evaluation per point, not one per receiver.
-
-    For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
-    seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
-    back). The front hemisphere is cut into :data:`WEDGES` = 3 pointed cones through x (120°
-    of azimuth each, from the horizon to n_i: fewer pieces to clip and sweep than the five
-    faces of a hemicube, 57 → 45 µs a point on the Cornell matrix; :func:`_wedges`); in each,
-    the polygons are clipped, projected centrally and swept (:func:`_wedge_view`): every
-    trapezoid of the sweep goes to the nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
-    depends only on the solid angle, so the projected region gives the same value).
-
-    Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
-    smaller lies on the larger's front. A point of the larger's front inside the smaller
-    sees the smaller's side facing it with F = 1 and nothing else, and so does a point of
-    the smaller's side against the larger (it sees the larger's front); seen from elsewhere,
-    the smaller covers the larger on the larger's front side, the larger the smaller on
-    its back side.
-
-    Returns ``hidden`` (m, 2P + 1) float64: for every column, ``F(x → polygon side clipped
-    to the front hemisphere) − F(x → its visible part)`` (≥ 0 up to rounding; −1 at a
-    contact column, whose unoccluded F is 0), and last what x sees of no polygon (the sky:
-    1 − Σ seen, F to the whole hemisphere being 1).
-
-    Parameters
-    ----------
-    points : (m, 3) float64
-    n_i, eu, ev : (3,) float64
-        The emitting side's unit normal and a right-handed basis of its plane.
-    pts : (n, 3) float64
-        Loop vertices; loop L at ``pts[loop_lo[L]:loop_hi[L]]`` of polygon ``loop_poly[L]``
-        (non-decreasing), outer loops counter-clockwise about the polygon's normal, holes
-        clockwise.
-    poly_normal : (P, 3) float64; poly_c : (P,) float64
-        Planes ``poly_normal[p] · y = poly_c[p]``.
-    rank : (P,) int64
-        Order of the polygons by area (0 the smallest): which of two overlapping polygons in
-        one plane lies on the other.
-    skip : int
-        The emitter's polygon (never seen).
-    tiny : float
-        Distance below which x counts as in a polygon's plane.
-    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 5) float64
-        The closed convex box of each polygon (-1 none) and the boxes' planes
-        (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
-        outside of are not swept (:func:`_outside`; their front faces hide them: what x
-        sees of them is 0, all of their unoccluded F is hidden).
-    sweep_kind : int
-        Which sweep (:func:`_wedge_view`): 0 by the number of edges (the default), 1 every slab
-        whole (the plain sweep, a reference for tests), 2 the output-sensitive one always.
-    """
+def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box,
+                 box_ptr, box_planes, sweep_kind):
+    """The kernel of :func:`point_views`; ``sweep_kind`` None or an int: numba compiles one version
+    each (with None, none of the records only :func:`_sweep_runs` reads: :func:`_wedge_view`)."""
     P = poly_normal.shape[0]
     n_loops = loop_lo.shape[0]
     first = np.zeros(P + 1, np.int64)
@@ -2405,10 +2363,9 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     for p in range(P):
         first[p + 1] += first[p]
     kmax = 3
-    emax = 1
     for L in range(n_loops):
         kmax = max(kmax, loop_hi[L] - loop_lo[L])
-        emax += loop_hi[L] - loop_lo[L] + 5
+    emax = _edge_room(loop_lo, loop_hi)
     kmax += 8
     seg_a, seg_b = np.empty((emax, 2)), np.empty((emax, 2))
     seg_p, seg_w = np.empty(emax, np.int64), np.empty(emax, np.int64)
@@ -2491,3 +2448,76 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
                 seen[col[p]] = 0.0
         hidden[i, 2 * P] = max(sky, 0.0)
     return hidden
+
+
+@njit(cache=True)
+def _edge_room(loop_lo, loop_hi):
+    """Room for the projected edges of one wedge (int): a loop clipped to the frustum has at
+    most its edges and 5 more."""
+    emax = 1
+    for L in range(loop_lo.shape[0]):
+        emax += loop_hi[L] - loop_lo[L] + 5
+    return emax
+
+
+def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
+                box_planes, sweep_kind=0):
+    """What each point of an emitter sees of every polygon side, and what is hidden of it:
+    a from-point hidden-surface computation over the whole scene at once, so that a matrix
+    row costs one evaluation per point, not one per receiver.
+
+    For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
+    seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
+    back). The front hemisphere is cut into :data:`WEDGES` = 3 pointed cones through x (120°
+    of azimuth each, from the horizon to n_i: fewer pieces to clip and sweep than the five
+    faces of a hemicube, 57 → 45 µs a point on the Cornell matrix; :func:`_wedges`); in each,
+    the polygons are clipped, projected centrally and swept (:func:`_wedge_view`): every
+    trapezoid of the sweep goes to the nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
+    depends only on the solid angle, so the projected region gives the same value).
+
+    Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
+    smaller lies on the larger's front. A point of the larger's front inside the smaller
+    sees the smaller's side facing it with F = 1 and nothing else, and so does a point of
+    the smaller's side against the larger (it sees the larger's front); seen from elsewhere,
+    the smaller covers the larger on the larger's front side, the larger the smaller on
+    its back side.
+
+    Returns ``hidden`` (m, 2P + 1) float64: for every column, ``F(x → polygon side clipped
+    to the front hemisphere) − F(x → its visible part)`` (≥ 0 up to rounding; −1 at a
+    contact column, whose unoccluded F is 0), and last what x sees of no polygon (the sky:
+    1 − Σ seen, F to the whole hemisphere being 1).
+
+    Parameters
+    ----------
+    points : (m, 3) float64
+    n_i, eu, ev : (3,) float64
+        The emitting side's unit normal and a right-handed basis of its plane.
+    pts : (n, 3) float64
+        Loop vertices; loop L at ``pts[loop_lo[L]:loop_hi[L]]`` of polygon ``loop_poly[L]``
+        (non-decreasing), outer loops counter-clockwise about the polygon's normal, holes
+        clockwise.
+    poly_normal : (P, 3) float64; poly_c : (P,) float64
+        Planes ``poly_normal[p] · y = poly_c[p]``.
+    rank : (P,) int64
+        Order of the polygons by area (0 the smallest): which of two overlapping polygons in
+        one plane lies on the other.
+    skip : int
+        The emitter's polygon (never seen).
+    tiny : float
+        Distance below which x counts as in a polygon's plane.
+    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 5) float64
+        The closed convex box of each polygon (-1 none) and the boxes' planes
+        (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
+        outside of are not swept (:func:`_outside`; their front faces hide them: what x
+        sees of them is 0, all of their unoccluded F is hidden).
+    sweep_kind : int
+        Which sweep (:func:`_wedge_view`): 0 by the number of edges (the default), 1 every slab
+        whole (the plain sweep, a reference for tests), 2 the output-sensitive one always.
+        With 0 and fewer edges in the whole scene than :data:`SWEEP_RUNS_FROM` (the Cornell
+        box), the kernel compiled without :func:`_sweep_runs`' records runs (``None``): the
+        crossings' records in the loop over edge pairs cost the slab sweep ~8 % there.
+    """
+    if sweep_kind == 0 and _edge_room(loop_lo, loop_hi) <= SWEEP_RUNS_FROM:
+        sweep_kind = None  # no wedge reaches SWEEP_RUNS_FROM edges
+    return _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny,
+                        poly_box, box_ptr, box_planes, sweep_kind)

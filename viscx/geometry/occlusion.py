@@ -2352,9 +2352,10 @@ def _wedges(n_i, eu, ev):
 
 @njit(cache=True, nogil=True)
 def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box,
-                 box_ptr, box_planes, sweep_kind):
+                 box_ptr, box_planes, sweep_kind, emax):
     """The kernel of :func:`point_views`; ``sweep_kind`` None or an int: numba compiles one version
-    each (with None, none of the records only :func:`_sweep_runs` reads: :func:`_wedge_view`)."""
+    each (with None, none of the records only :func:`_sweep_runs` reads: :func:`_wedge_view`);
+    ``emax`` the room for one wedge's projected edges."""
     P = poly_normal.shape[0]
     n_loops = loop_lo.shape[0]
     first = np.zeros(P + 1, np.int64)
@@ -2365,7 +2366,6 @@ def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_nor
     kmax = 3
     for L in range(n_loops):
         kmax = max(kmax, loop_hi[L] - loop_lo[L])
-    emax = _edge_room(loop_lo, loop_hi)
     kmax += 8
     seg_a, seg_b = np.empty((emax, 2)), np.empty((emax, 2))
     seg_p, seg_w = np.empty(emax, np.int64), np.empty(emax, np.int64)
@@ -2450,16 +2450,6 @@ def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_nor
     return hidden
 
 
-@njit(cache=True)
-def _edge_room(loop_lo, loop_hi):
-    """Room for the projected edges of one wedge (int): a loop clipped to the frustum has at
-    most its edges and 5 more."""
-    emax = 1
-    for L in range(loop_lo.shape[0]):
-        emax += loop_hi[L] - loop_lo[L] + 5
-    return emax
-
-
 def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
                 box_planes, sweep_kind=0):
     """What each point of an emitter sees of every polygon side, and what is hidden of it:
@@ -2517,7 +2507,9 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         box), the kernel compiled without :func:`_sweep_runs`' records runs (``None``): the
         crossings' records in the loop over edge pairs cost the slab sweep ~8 % there.
     """
-    if sweep_kind == 0 and _edge_room(loop_lo, loop_hi) <= SWEEP_RUNS_FROM:
+    # room for one wedge's projected edges: a loop clipped to the frustum has at most 5 more
+    emax = 1 + int(np.sum(loop_hi - loop_lo)) + 5 * loop_lo.shape[0]
+    if sweep_kind == 0 and emax <= SWEEP_RUNS_FROM:
         sweep_kind = None  # no wedge reaches SWEEP_RUNS_FROM edges
     return _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny,
-                        poly_box, box_ptr, box_planes, sweep_kind)
+                        poly_box, box_ptr, box_planes, sweep_kind, emax)

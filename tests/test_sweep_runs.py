@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from conftest import soup
 
+from viscx.geometry import occlusion
 from viscx.geometry.occlusion import point_views
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
@@ -29,10 +30,14 @@ def _points(scene, face, n, rng):
     return np.ascontiguousarray(np.einsum("gk,gkd->gd", w, tri[rng.integers(0, len(tri), n)]))
 
 
-def _both(scene, face, points):
+def _args(scene, face, points):
     n_i = scene.face_normal[face]
     eu, ev = plane_basis(n_i)
-    args = (points, n_i, eu, ev, *ff.scene_polygons(scene), int(face), 1e-9 * scene.diagonal, *ff.closed_boxes(scene))
+    return (points, n_i, eu, ev, *ff.scene_polygons(scene), int(face), 1e-9 * scene.diagonal, *ff.closed_boxes(scene))
+
+
+def _both(scene, face, points):
+    args = _args(scene, face, points)
     return point_views(*args, 2), point_views(*args, 1)
 
 
@@ -52,6 +57,25 @@ def test_sweep_runs_equals_the_plain_sweep_on_the_cornell_box(cornell, rng):
     for face in range(cornell.n_faces):
         a, b = _both(cornell, face, _points(cornell, face, 12, rng))
         assert np.abs(a - b).max() < 1e-13, face
+
+
+def test_small_scenes_take_the_kernel_without_the_runs_records(cornell, rng, monkeypatch):
+    """Fewer edges in all than SWEEP_RUNS_FROM (the Cornell box): point_views runs the kernel
+    compiled without _sweep_runs' records (sweep_kind None), and it gives bit for bit what the
+    one with them gives choosing by size (0)."""
+    kernel, calls = occlusion._point_views, []
+
+    def spy(*args):
+        calls.append(args[-2:])
+        return kernel(*args)
+
+    monkeypatch.setattr(occlusion, "_point_views", spy)
+    for face in (0, cornell.n_faces - 1):
+        args = _args(cornell, face, _points(cornell, face, 12, rng))
+        h = point_views(*args)
+        kind, emax = calls[-1]
+        assert kind is None and emax <= occlusion.SWEEP_RUNS_FROM
+        assert np.array_equal(h, kernel(*args, 0, emax)), face
 
 
 @pytest.mark.parametrize("seed, face", [(2, 5), (3, 10), (32, 11), (35, 7), (38, 10)])

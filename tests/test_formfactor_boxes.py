@@ -369,13 +369,15 @@ def _clip_half_plane(poly, n, c):
     return np.array(out)
 
 
-def test_point_views_steep_edge_against_the_shadow(boxes_on_floor):
+@pytest.mark.parametrize("sweep", [0, 2])
+def test_point_views_steep_edge_against_the_shadow(boxes_on_floor, sweep):
     """A point of a box's side from which an edge of the floor projects nearly vertical in
     one of point_views' wedges (dv/du ~ 2e6), crossed by the edges of a panel standing on
     the floor: what the panel hides of the floor is its shadow from x (the panel's foot and
     the rays from x's foot through its ends: its top is above x), clipped to the floor, F by
     Lambert's contour sum. The sweep placed the steep edge's runs by their rounded u: 5e-12
-    off, until the wedge's 2-D basis is turned away from steep edges (STEEP)."""
+    off, until the wedge's 2-D basis is turned away from steep edges (STEEP). Both sweeps
+    (``sweep_kind`` 2: the output-sensitive one, used from SWEEP_RUNS_FROM edges)."""
     s = boxes_on_floor
     emitter, panel = 2, 18
     x = np.array([4.020630893958552, 2.0074638197203583, 3.627165377330768])
@@ -410,5 +412,6 @@ def test_point_views_steep_edge_against_the_shadow(boxes_on_floor):
     sub = soup(np.concatenate([s.face_loops(f)[0] for f in keep]), [[4 * k + i for i in range(4)] for k in range(3)],
                [0, 1, 2], ["floor", "emitter", "panel"])
     sub = build_scene(sub)
-    h = point_views(x[None], n_i, eu, ev, *ff.scene_polygons(sub), 1, 1e-9 * sub.diagonal, *ff.closed_boxes(sub))
+    h = point_views(x[None], n_i, eu, ev, *ff.scene_polygons(sub), 1, 1e-9 * sub.diagonal, *ff.closed_boxes(sub),
+                    sweep)
     assert abs(h[0, 0] - ref) < 1e-14

@@ -75,6 +75,20 @@ RIM = 1e-13
 #: directions (:func:`_turn_from_steep`; n edges leave a gap of at least π / n, so the
 #: steepest is then below ~0.64 n); below STEEP the gaps stay under ~2e-13, ~1e-15 of F.
 STEEP = 1e3
+#: Heights (at a slab's middle, relative to 1 + the two slopes) closer than this are rounding in
+#: the order of :func:`_sweep_runs` (:func:`_above`): the vertices of a clipped, projected
+#: polygon are off by a few ulps (~1e-15), and so are two edges from one vertex at a slab's
+#: middle when the slab is ~1e-14 wide (64 SNAP: a margin over what was seen, ~1e-14).
+ORDER_NOISE = 4 * SNAP
+#: Distance in u (in the wedge's plane) from a slab's left side within which two edges close
+#: there whose lines meet are taken to meet at it (:func:`_above`): far beyond rounding of
+#: a vertex (~1e-13 / the slopes' difference), far below any slab that matters.
+ORDER_MEET = 1e-9
+#: Edges in a wedge from which :func:`_sweep_runs` (output-sensitive, more work per event)
+#: is used instead of :func:`_sweep_slabs` (work per slab in the number of active edges, less
+#: per event): office(300) ~ even, office(1000) 1.47x faster (4.8 against 7.1 ms a point, load ~1.1),
+#: the Cornell box 0.6x slower; 150, 250 and 700 edges no better (office(300), office(1000)).
+SWEEP_RUNS_FROM = 400
 
 
 @njit(cache=True)
@@ -1330,6 +1344,24 @@ def _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen,
     run_o[e, k] = -1
 
 
+@njit(cache=True, inline="always")
+def _set_runs(runs, run_o, e, a, b, u0, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1):
+    """Edge e's runs from u0 on, with owner a above it and b below it (-1 none): side 0 runs
+    for a, side 1 for b, none where both are one owner (the edge is inside its region); a run
+    whose owner changes is flushed (:func:`_flush_owner`) at u0 and a new one opened. Inlined
+    in both sweeps (numba's ``inline``): called, it cost them 20 % (office(1000), Cornell)."""
+    for kk in range(2):
+        o = (a if kk == 0 else b) if a != b else -1
+        if run_o[e, kk] == o:
+            continue
+        if run_o[e, kk] >= 0:
+            runs[e, kk, 1] = u0
+            _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+        if o >= 0:
+            run_o[e, kk] = o
+            runs[e, kk, 0] = u0
+
+
 @njit(cache=True)
 def _cover_key(p):
     """A 64-bit key of polygon p (splitmix64 of p): the XOR of the keys of a set of covering
@@ -1463,115 +1495,152 @@ def _coplanar(poly_normal, side, p, q):
 
 
 @njit(cache=True)
-def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
-                side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w,
-                runs, run_o, rim):
-    """Add to ``seen`` the visible part of every polygon through one wedge around x (the
-    frustum ``planes`` through x, inward normals; :func:`_wedges`): each polygon clipped to
-    the frustum and projected centrally on the wedge's plane, the slab sweep of
-    :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
-    nearest along the ray through its centre (polygons do not cross: the front-most one of
-    those covering a trapezoid is the same all over it).
+def _grow_int(a, n):
+    """``a`` (k, ...) int64 with room for row n (twice as long, the rows kept)."""
+    if n < a.shape[0]:
+        return a
+    shape = (2 * a.shape[0] + 16,) + a.shape[1:]
+    b = np.empty(shape, np.int64)
+    b[:a.shape[0]] = a
+    return b
 
-    The sweep is event-local: from one slab to the next only the edges at the break change
-    (ending, starting, swapping), so only the regions between the first and the last changed
-    position are redone (winding, covering polygons, owner); a region above them has the same
-    edges above it, one below the same edges below it (a vertical line crosses a closed
-    outline with net winding 0), hence the same covering polygons and owner (if sure: a
-    sliver between coincident edges, thinner than ``MEMO_GAP``, is searched again). An
-    edge's runs (its owner above on side 0, below on side 1) stay open while its neighbouring
-    owners do and are summed (Lambert) once, when they change or the edge ends. With a
-    vertical edge, every slab is swept whole and summed as trapezoids.
 
-    ``fw`` (8, e) float64, ``iw`` (14, e) int64, ``key_w`` (e,) uint64, ``runs`` (e, 2, 2)
-    float64, ``run_o`` (e, 2) int64 and ``rim`` (e,) int64 are work arrays (allocated once per :func:`point_views`
-    call), e at least the number of projected edges."""
-    n_seg = 0
-    for L in range(loop_lo.shape[0]):
-        p = loop_poly[L]
-        if not use[p]:
-            continue
-        n_in = _clip_to_frustum(pts, loop_lo[L], loop_hi[L], x, planes, n_planes, buf_a, buf_b)
-        if n_in < 3:
-            continue
-        first = n_seg
-        for q in range(n_in):
-            dx, dy, dz = buf_a[q, 0] - x[0], buf_a[q, 1] - x[1], buf_a[q, 2] - x[2]
-            den = dx * fc[0] + dy * fc[1] + dz * fc[2]
-            if den <= 1e-300:
-                den = 1e-300  # x itself (a polygon through the apex)
-            seg_a[first + q, 0] = (dx * fa[0] + dy * fa[1] + dz * fa[2]) / den
-            seg_a[first + q, 1] = (dx * fb[0] + dy * fb[1] + dz * fb[2]) / den
-            # the frustum's planes the vertex lies on (bits; within RIM of its distance)
-            size = RIM * np.sqrt(dx * dx + dy * dy + dz * dz)
-            bits = 0
-            for k in range(n_planes):
-                pk = planes[k]
-                if abs(dx * pk[0] + dy * pk[1] + dz * pk[2]) <= size * np.sqrt(pk[0] * pk[0] + pk[1] * pk[1] + pk[2] * pk[2]):
-                    bits |= 1 << k
-            rim[first + q] = bits
-        for q in range(n_in):
-            k = first + q + 1 if q + 1 < n_in else first
-            seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
-            seg_p[first + q] = p
-        for q in range(n_in):  # an edge with both ends on one plane lies on the frustum's side
-            rim[first + q] = rim[first + q] & rim[first + q + 1 if q + 1 < n_in else first]
-        n_seg += n_in
-    if n_seg == 0:
-        return brk
-    lo_u, hi_u = fw[0], fw[1]
-    if _steepest(seg_a, seg_b, n_seg) > STEEP:
-        fa, fb = _turn_from_steep(seg_a, seg_b, n_seg, fa, fb, lo_u)
-    # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
-    n_brk = 0
-    for e in range(n_seg):
-        if seg_a[e, 0] > seg_b[e, 0]:
-            seg_w[e] = 1
-        elif seg_a[e, 0] < seg_b[e, 0]:
-            seg_w[e] = -1
-        else:
-            seg_w[e] = 0
-        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
-        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
-        brk = _grow(brk, n_brk)
-        brk[n_brk] = seg_a[e, 0]
-        n_brk += 1
-    # crossings of edges of different polygons: edges by their left ends, each against the
-    # ones starting before it ends (their u and v ranges, polygon and weight copied in that
-    # order first: the inner loop reads consecutive memory)
-    by_lo = np.argsort(lo_u[:n_seg])
-    s_lo, s_hi, s_vlo, s_vhi = fw[2], fw[3], fw[4], fw[5]
-    s_p = iw[0]  # -1: a vertical edge (no crossing counted)
-    for r in range(n_seg):
-        e = by_lo[r]
-        s_lo[r], s_hi[r] = lo_u[e], hi_u[e]
-        s_vlo[r], s_vhi[r] = min(seg_a[e, 1], seg_b[e, 1]), max(seg_a[e, 1], seg_b[e, 1])
-        # (an edge on the frustum's side crosses none inside it: every other lies in the frustum)
-        s_p[r] = seg_p[e] if seg_w[e] != 0 and rim[e] == 0 else -1
-    for r in range(n_seg):
-        pe = s_p[r]
-        if pe < 0:
-            continue
-        he, vlo, vhi = s_hi[r], s_vlo[r], s_vhi[r]
-        for r2 in range(r + 1, n_seg):
-            if s_lo[r2] > he:
-                break
-            pf = s_p[r2]
-            if pf == pe or pf < 0:
-                continue
-            # v ranges apart: no crossing (the common case, tested before the call)
-            if vhi < s_vlo[r2] or s_vhi[r2] < vlo:
-                continue
-            u = _crossing_u(seg_a, seg_b, by_lo[r], by_lo[r2])
-            if u == u and not _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
-                brk = _grow(brk, n_brk)
-                brk[n_brk] = u
-                n_brk += 1
-    us = np.sort(brk[:n_brk])
-    n_brk = _snap_breaks(us, n_brk, SNAP)
-    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
-    slope = fw[6]
-    _slopes(seg_a, seg_b, n_seg, slope)
+@njit(cache=True)
+def _height(seg_a, slope, e, u):
+    """Height v of edge e's line at u (the one formula of the sweep: equal heights compare equal)."""
+    return seg_a[e, 1] + (u - seg_a[e, 0]) * slope[e]
+
+
+@njit(cache=True)
+def _above(seg_a, seg_b, slope, e, f, ve, u0, u1):
+    """Whether edge e (height ``ve`` at the middle of the slab [u0, u1]) goes above edge f in
+    the sweep's order over the slab. The order is kept from slab to slab and changed only at
+    events (:func:`_sweep_runs`), so it must be right for as long as the two edges go on side
+    by side, not only in this slab; the crossings at u0 (within SNAP after it) have been made,
+    so two edges do not cross inside the slab. And it must be a total order: edges starting
+    at one break are placed one after the other by binary search.
+
+    Heights at the middle apart by more than :data:`ORDER_NOISE` tell. Closer, the edges are:
+
+    - collinear within :data:`SNAP`, each on the other's line: they keep the order they had
+      (they do not cross; an edge shorter than SNAP at a corner of the wedge lies on every
+      line through that corner, but not the other way round);
+    - meeting at u0: within ORDER_NOISE there, their lines meeting within :data:`ORDER_MEET`
+      of it (a common vertex, a crossing at the break; the vertices of clipped, projected
+      polygons are off by up to ~1e-13 at a corner of the wedge, so their heights at a
+      narrow slab are rounding): their slopes tell, the greater above to the right (a total
+      order on a fan of edges from one point, however short the edges);
+    - else apart at u0, or nearly parallel, or converging to u1 (their slopes are rounding
+      there): their height difference at the side of the slab where it is larger tells.
+
+    (The slopes' rule alone, whenever the heights were within ORDER_NOISE, put F on the
+    wrong side of nearly parallel or converging pairs for good, up to 3e-13 of a point's
+    hemisphere on office(1000).)"""
+    vf = _height(seg_a, slope, f, 0.5 * (u0 + u1))
+    noise = ORDER_NOISE * (1.0 + abs(slope[e]) + abs(slope[f]))
+    if abs(ve - vf) > noise:
+        return ve > vf
+    if _collinear(seg_a, seg_b, e, f, SNAP) and _collinear(seg_a, seg_b, f, e, SNAP):
+        return False
+    ds = slope[e] - slope[f]
+    d0 = _height(seg_a, slope, e, u0) - _height(seg_a, slope, f, u0)
+    if abs(d0) <= min(noise, abs(ds) * ORDER_MEET):
+        return ds > 0.0
+    d1 = _height(seg_a, slope, e, u1) - _height(seg_a, slope, f, u1)
+    return d0 > 0.0 if abs(d0) >= abs(d1) else d1 > 0.0
+
+
+@njit(cache=True)
+def _heap_push(heap_k, heap_i, n, key, e, version):
+    """Push (key, edge e, version) on the binary min-heap ``heap_k[:n]`` (keys, float64),
+    ``heap_i[:n]`` ((e, version) rows, int64); returns the new size (the caller has made room)."""
+    j = n
+    while j > 0:
+        i = (j - 1) >> 1
+        if heap_k[i] <= key:
+            break
+        heap_k[j], heap_i[j, 0], heap_i[j, 1] = heap_k[i], heap_i[i, 0], heap_i[i, 1]
+        j = i
+    heap_k[j], heap_i[j, 0], heap_i[j, 1] = key, e, version
+    return n + 1
+
+
+@njit(cache=True)
+def _heap_pop(heap_k, heap_i, n):
+    """Remove the least key of the heap of :func:`_heap_push`; returns the new size."""
+    n -= 1
+    key, e, version = heap_k[n], heap_i[n, 0], heap_i[n, 1]
+    j = 0
+    while True:
+        c = 2 * j + 1
+        if c >= n:
+            break
+        if c + 1 < n and heap_k[c + 1] < heap_k[c]:
+            c += 1
+        if heap_k[c] >= key:
+            break
+        heap_k[j], heap_i[j, 0], heap_i[j, 1] = heap_k[c], heap_i[c, 0], heap_i[c, 1]
+        j = c
+    if n > 0:
+        heap_k[j], heap_i[j, 0], heap_i[j, 1] = key, e, version
+    return n
+
+
+@njit(cache=True)
+def _pinched(act, n_act, q, seg_a, slope, u, mark, dirty, n_dirty, slab):
+    """Mark (``mark``, ``dirty``: :func:`_sweep_runs`) the regions next to edge position q,
+    up and down, while they are thinner than :data:`MEMO_GAP` at u; returns the new count."""
+    h = _height(seg_a, slope, act[q], u)
+    j = q - 1
+    while j >= 0:
+        g = _height(seg_a, slope, act[j], u)
+        if g - h > MEMO_GAP:
+            break
+        if mark[act[j]] != slab:
+            mark[act[j]] = slab
+            dirty[n_dirty] = act[j]
+            n_dirty += 1
+        h = g
+        j -= 1
+    h = _height(seg_a, slope, act[q], u)
+    j = q + 1
+    while j < n_act:
+        g = _height(seg_a, slope, act[j], u)
+        if h - g > MEMO_GAP:
+            break
+        if mark[act[j - 1]] != slab:
+            mark[act[j - 1]] = slab
+            dirty[n_dirty] = act[j - 1]
+            n_dirty += 1
+        h = g
+        j += 1
+    return n_dirty
+
+
+@njit(cache=True)
+def _solid_from(seg_a, slope, e, f, u1):
+    """About the u (a little before) from which the region between edge e (above) and edge f
+    (below), thinner than :data:`MEMO_GAP` somewhere in a slab ending at u1, is thicker than it
+    at a slab's left side (their height difference is linear in u); inf if they do not part."""
+    ds = slope[e] - slope[f]
+    if not ds > 0.0:
+        return np.inf
+    t1 = _height(seg_a, slope, e, u1) - _height(seg_a, slope, f, u1)
+    return u1 + 0.999999 * (MEMO_GAP - t1) / ds - 1e-12
+
+
+@njit(cache=True)
+def _sweep_slabs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, n_seg, hi_u, lo_u, slope, live, n_live,
+                 has_vertical, poly_normal, side, rank, col, seen, wind, cover, runs, run_o, p0, p1, fw, iw, key_w):
+    """The sweep of :func:`_wedge_view` slab by slab: in each slab the active edges sorted
+    (:func:`_slab_edges`, the last slab's order kept) and the regions between the first and the
+    last edge that changed decided again (the others keep their owners); for a few active
+    edges (the Cornell box's ~5-10) the cheaper one, :func:`_sweep_runs` the one for many.
+    With ``has_vertical`` (a vertical edge: the vertical sides of neighbouring slabs do not
+    cancel) every region of every slab is searched and whole trapezoids are summed: also the
+    plain sweep both are checked against (``sweep_kind`` = 1 of :func:`point_views`).
+
+    ``fw`` (3, e) float64, ``iw`` (14, e) int64 and ``key_w`` (e,) uint64 are work arrays."""
     # runs: per edge, bottom/top side: the current run's u range; run_o: its owner (-1 none)
     run_o[:n_seg] = -1
     # the owner of the region below each edge in the last slab, with the edge below it and
@@ -1582,16 +1651,10 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     memo_below, memo_owner, memo_slab = iw[1], iw[2], iw[3]
     memo_key = key_w
     memo_slab[:n_seg] = -2
-    live = iw[4]
-    n_live = 0
-    for r in range(n_seg):
-        if seg_w[by_lo[r]] != 0:
-            live[n_live] = by_lo[r]
-            n_live += 1
     on = iw[5]
     entry = iw[6]  # the order in which each edge entered the sweep
     act = iw[7]
-    act_v, act_v0, act_v1 = fw[7], fw[2], fw[3]  # (s_lo, s_hi are done with)
+    act_v, act_v0, act_v1 = fw[0], fw[1], fw[2]
     nxt = 0
     n_on = 0
     d = np.empty(3)
@@ -1600,7 +1663,7 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     prev_sure = iw[11]  # per region: 1 one covering polygon (or none),
     sure = iw[12]  # 2 more and solid, 0 a sliver (its owner is rounding)
     keep = iw[13]  # per region: its owner kept from the last slab
-    stamp = iw[0]  # (s_p is done with)
+    stamp = iw[0]
     stamp[:n_seg] = -1
     prev_n = 0
     slab = 0  # slabs swept so far
@@ -1714,18 +1777,8 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
             for q in range(q0, min(q1 + 2, n_act)):
                 e = act[q]
                 stamp[e] = slab
-                a = own[q - 1] if q > 0 else -1
-                b = own[q] if q < n_act - 1 else -1
-                for kk in range(2):
-                    o = (a if kk == 0 else b) if a != b else -1
-                    if run_o[e, kk] == o:
-                        continue
-                    if run_o[e, kk] >= 0:
-                        runs[e, kk, 1] = u0
-                        _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-                    if o >= 0:
-                        run_o[e, kk] = o
-                        runs[e, kk, 0] = u0
+                _set_runs(runs, run_o, e, own[q - 1] if q > 0 else -1, own[q] if q < n_act - 1 else -1, u0, seg_a,
+                          slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
             if contiguous:
                 # edges that ended at u0: their runs end there
                 for r in range(lo, prev_n - s):
@@ -1788,7 +1841,524 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
                 if run_o[e, k] >= 0:
                     runs[e, k, 1] = last_u1
                     _flush_owner(runs, run_o, e, k, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
-    return brk
+
+
+@njit(cache=True)
+def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u, hi_u, slope, live, n_live, cross,
+                cross_e, n_cross, poly_normal, side, rank, col, seen, cover, cover_w, runs, run_o, p0, p1, sw, skey,
+                pool, heap_k, heap_i):
+    """The sweep of :func:`_wedge_view` without a vertical edge, output-sensitive: the
+    active edges' order is kept from slab to slab and changed only at the events of each
+    break (edges ending, crossings, edges starting), and only the regions next to an event
+    are decided again; every other region keeps its covering polygons and its owner, and
+    the runs of its edges go on.
+
+    - Order: the edges ending at a break are dropped; each crossing at it re-sorts the edges
+      between its two (by height at the slab's middle, :func:`_above`: those are the edges
+      through the crossing point); the edges starting are placed by binary search. The order
+      is the one :func:`_slab_edges` would give (edges do not cross inside a slab).
+    - Regions are named by their top edge: the region below edge e (down to ``below[e]``)
+      has its covering polygons with their winding (stored in ``pool``), their key
+      (:func:`_cover_key`) and its owner. A region whose two edges stay neighbours is the
+      same open region (no edge passes through it), so all of these hold. A new region's
+      covering polygons are those of the region above it, with the polygon of the edge
+      between them added or dropped (its winding changes by the edge's weight).
+    - Owners: one covering polygon (or none) is sure; with more, the nearest one
+      (:func:`_nearest`) is sure while the region is solid (thicker than :data:`MEMO_GAP` at
+      both sides of the slab), searched again in every slab where it is not (a sliver's owner
+      is rounding). A heap holds, per region not sure for good, the u where that check is due.
+    - Runs (:func:`_flush_owner`) are opened and closed only on the edges next to a region
+      decided again, and when an edge ends.
+
+    ``sw`` (16, e) int64 and ``skey`` (2, e) uint64 are work arrays, ``cover``/``cover_w``
+    (P,) int64; ``pool`` (k, 2), ``heap_k`` (k,) and ``heap_i`` (k, 2) grow (returned)."""
+    act, pos, alive, by_hi = sw[0], sw[1], sw[2], sw[3]  # alive: 0 out, 1 in the order, 2 ending
+    own, sure, below, version = sw[4], sw[5], sw[6], sw[7]  # per region, by its top edge
+    cov_at, cov_n = sw[8], sw[9]  # its covering polygons: pool[cov_at : cov_at + cov_n]
+    memo_below, memo_owner, memo_gen = sw[10], sw[11], sw[12]
+    mark, dirty, span = sw[13], sw[14], sw[15]  # regions to decide: the slab their top edge was marked in
+    tmark, touch = sw[16], sw[17]  # edges whose runs to update: the same
+    succ = sw[18]  # the edge that goes on from each edge's right end (its loop's next in u)
+    key_of, memo_key = skey[0], skey[1]
+    order = np.argsort(hi_u[live[:n_live]])
+    for r in range(n_live):
+        e = live[r]
+        by_hi[r] = live[order[r]]
+        alive[e] = 0
+        mark[e] = -1
+        tmark[e] = -1
+        memo_gen[e] = -1
+        version[e] = 0
+    by_cross = np.argsort(cross[:n_cross])
+    d = np.empty(3)
+    n_act, nxt, nend, ncx = 0, 0, 0, 0
+    n_pool, n_heap = 0, 0
+    gen = 0  # memos of an older generation (before a gap) do not hold
+    reset = True  # every region to be decided (the first slab, or after a gap)
+    swept = False  # whether the last slab had regions
+    last_u1 = np.nan
+    slab = 0
+    for k in range(n_brk - 1):
+        u0, u1 = us[k], us[k + 1]
+        if not u1 > u0:
+            continue
+        um = 0.5 * (u0 + u1)
+        n_dirty, n_touch = 0, 0
+        # 1. edges ending: dropped; their runs end at u0, the edges each side are new neighbours
+        ending = False
+        while nend < n_live and hi_u[by_hi[nend]] <= um:
+            e = by_hi[nend]
+            nend += 1
+            if alive[e] == 1:
+                alive[e] = 2
+                ending = True
+        if ending:
+            w = 0
+            gap = False
+            for r in range(n_act):
+                e = act[r]
+                if alive[e] == 2:
+                    alive[e] = 0
+                    for kk in range(2):
+                        if run_o[e, kk] >= 0:
+                            runs[e, kk, 1] = u0
+                            _flush_owner(runs, run_o, e, kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+                    n = succ[e]
+                    if (n < 0 or alive[n] != 0 or seg_w[n] != seg_w[e] or not lo_u[n] < um < hi_u[n]
+                            or (w > 0 and _above(seg_a, seg_b, slope, n, act[w - 1], _height(seg_a, slope, n, um), u0, u1))
+                            or (r + 1 < n_act and (alive[act[r + 1]] != 1 or _above(
+                                seg_a, seg_b, slope, act[r + 1], n, _height(seg_a, slope, act[r + 1], um), u0, u1)))):
+                        gap = True
+                        continue
+                    # the polygon's boundary goes on through the vertex, the same way in u: the
+                    # next edge takes this one's place, and the regions each side stay the same
+                    alive[n] = 1
+                    own[n], sure[n], below[n], version[n] = own[e], sure[e], below[e], version[e] + 1
+                    cov_at[n], cov_n[n], key_of[n] = cov_at[e], cov_n[e], key_of[e]
+                    memo_gen[n], memo_below[n], memo_owner[n], memo_key[n] = (memo_gen[e], memo_below[e],
+                                                                              memo_owner[e], memo_key[e])
+                    if w > 0:
+                        below[act[w - 1]] = n
+                    tmark[n] = slab
+                    touch[n_touch] = n
+                    n_touch += 1
+                    if sure[n] == 0 and mark[n] != slab:  # (a sliver: decided again)
+                        mark[n] = slab
+                        dirty[n_dirty] = n
+                        n_dirty += 1
+                    e = n
+                if gap:
+                    gap = False
+                    if w > 0 and mark[act[w - 1]] != slab:
+                        mark[act[w - 1]] = slab
+                        dirty[n_dirty] = act[w - 1]
+                        n_dirty += 1
+                    if w == 0 and mark[e] != slab:  # the top edge now (for the walk below)
+                        mark[e] = slab
+                        dirty[n_dirty] = e
+                        n_dirty += 1
+                act[w] = e
+                pos[e] = w
+                w += 1
+            if gap and w > 0 and mark[act[w - 1]] != slab:  # the lowest edge: no region below it now
+                mark[act[w - 1]] = slab
+                dirty[n_dirty] = act[w - 1]
+                n_dirty += 1
+            n_act = w
+        # 2. crossings at this break: the edges between the two of each (those through the
+        # crossing point) re-sorted, spans that overlap merged
+        n_span = 0
+        while ncx < n_cross and cross[by_cross[ncx]] < u1:
+            c = by_cross[ncx]
+            ncx += 1
+            e, f = cross_e[c, 0], cross_e[c, 1]
+            if alive[e] == 1 and alive[f] == 1:
+                a, b = min(pos[e], pos[f]), max(pos[e], pos[f])
+                j = n_span
+                while j > 0 and span[2 * j - 2] > a:  # by first position (few)
+                    span[2 * j], span[2 * j + 1] = span[2 * j - 2], span[2 * j - 1]
+                    j -= 1
+                span[2 * j], span[2 * j + 1] = a, b
+                n_span += 1
+                if 2 * n_span + 2 > span.shape[0]:  # (many crossings at one break: one span)
+                    for r in range(n_span):
+                        span[1] = max(span[1], span[2 * r + 1])
+                    n_span = 1
+        r = 0
+        while r < n_span:
+            a, b = span[2 * r], span[2 * r + 1]
+            r += 1
+            while r < n_span and span[2 * r] <= b:
+                b = max(b, span[2 * r + 1])
+                r += 1
+            top = act[a]
+            for q in range(a + 1, b + 1):  # insertion sort: only the crossing edges move
+                e = act[q]
+                ve = _height(seg_a, slope, e, um)
+                j = q
+                while j > a and _above(seg_a, seg_b, slope, e, act[j - 1], ve, u0, u1):
+                    act[j] = act[j - 1]
+                    j -= 1
+                act[j] = e
+            if b == a + 1 and act[a] != top:
+                # two edges swap: the regions above and below them stay (the region below
+                # moves from the lower edge, f, to the other, e); the one between is new
+                f, e = act[a], act[b]
+                own[e], sure[e], below[e], version[e] = own[f], sure[f], below[f], version[e] + 1
+                cov_at[e], cov_n[e], key_of[e] = cov_at[f], cov_n[f], key_of[f]
+                memo_gen[e], memo_below[e], memo_owner[e], memo_key[e] = (memo_gen[f], memo_below[f],
+                                                                          memo_owner[f], memo_key[f])
+                pos[f], pos[e] = a, b
+                if a > 0:
+                    below[act[a - 1]] = f
+                if (sure[e] == 0 or mark[f] == slab) and mark[e] != slab:  # (a sliver, or changed)
+                    mark[e] = slab
+                    dirty[n_dirty] = e
+                    n_dirty += 1
+                if mark[f] != slab:
+                    mark[f] = slab
+                    dirty[n_dirty] = f
+                    n_dirty += 1
+                continue
+            for q in range(max(a - 1, 0), b + 1):
+                e = act[q]
+                pos[e] = q
+                if mark[e] != slab:
+                    mark[e] = slab
+                    dirty[n_dirty] = e
+                    n_dirty += 1
+        # 3. edges starting: placed by binary search (below the edges they tie with)
+        while nxt < n_live and lo_u[live[nxt]] < um:
+            e = live[nxt]
+            nxt += 1
+            if hi_u[e] <= um or alive[e] == 1:
+                continue  # shorter than SNAP (in no slab), or in its edge's place already
+            ve = _height(seg_a, slope, e, um)
+            lo, hi = 0, n_act
+            while lo < hi:
+                mid = (lo + hi) >> 1
+                if _above(seg_a, seg_b, slope, e, act[mid], ve, u0, u1):
+                    hi = mid
+                else:
+                    lo = mid + 1
+            for q in range(n_act, lo, -1):
+                act[q] = act[q - 1]
+                pos[act[q]] = q
+            act[lo] = e
+            pos[e] = lo
+            alive[e] = 1
+            n_act += 1
+            for f in (act[lo - 1] if lo > 0 else -1, e):
+                if f >= 0 and mark[f] != slab:
+                    mark[f] = slab
+                    dirty[n_dirty] = f
+                    n_dirty += 1
+        if n_act < 2:
+            # no region: every open run ends where the last slab with regions did
+            if swept:
+                for r in range(n_act):
+                    for kk in range(2):
+                        if run_o[act[r], kk] >= 0:
+                            runs[act[r], kk, 1] = last_u1
+                            _flush_owner(runs, run_o, act[r], kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen,
+                                         p0, p1)
+            swept = False
+            reset = True
+            slab += 1
+            continue
+        if reset:
+            gen += 1
+            for r in range(n_act):
+                e = act[r]
+                if mark[e] != slab:
+                    mark[e] = slab
+                    dirty[n_dirty] = e
+                    n_dirty += 1
+            reset = False
+        else:
+            # regions pinched at u0 next to an event (their two edges meet there: on one
+            # line, or within MEMO_GAP) may be covered otherwise than before though their
+            # edges did not change (a vertex at u0 lying on coincident edges: a polygon starts,
+            # ends or turns across them), and all below inherit their covering polygons
+            for r in range(n_dirty):
+                n_dirty = _pinched(act, n_act, pos[dirty[r]], seg_a, slope, u0, mark, dirty, n_dirty, slab)
+        # 4. slivers that may be solid now: their owners searched again
+        while n_heap > 0 and heap_k[0] <= u1:
+            e, v = heap_i[0, 0], heap_i[0, 1]
+            n_heap = _heap_pop(heap_k, heap_i, n_heap)
+            if alive[e] != 1 or version[e] != v or mark[e] == slab:
+                continue  # a region gone, or decided again anyway
+            q = pos[e]
+            if q >= n_act - 1 or act[q + 1] != below[e]:
+                continue
+            f = below[e]
+            if not min(_height(seg_a, slope, e, u0) - _height(seg_a, slope, f, u0),
+                       _height(seg_a, slope, e, u1) - _height(seg_a, slope, f, u1)) > MEMO_GAP:
+                # not yet: due at the next slab (not again in this loop)
+                if n_heap >= heap_k.shape[0]:
+                    if n_heap >= heap_k.shape[0]:
+                        heap_k = _grow(heap_k, n_heap)
+                        heap_i = _grow_int(heap_i, n_heap)
+                n_heap = _heap_push(heap_k, heap_i, n_heap, np.nextafter(u1, np.inf), e, v)
+                continue
+            mark[e] = slab
+            dirty[n_dirty] = e
+            n_dirty += 1
+        # 5. the regions below the marked edges, top down; then the runs of their edges
+        n_q = 0
+        for r in range(n_dirty):
+            e = dirty[r]
+            if alive[e] == 1 and pos[e] < n_act - 1:
+                span[n_q] = pos[e]
+                n_q += 1
+        span[:n_q].sort()
+        for r in range(n_q):
+            q = span[r]
+            e, f = act[q], act[q + 1]
+            n_cover = 0
+            key = np.uint64(0)
+            if q > 0:
+                a = act[q - 1]
+                n_cover = cov_n[a]
+                for t in range(n_cover):
+                    cover[t] = pool[cov_at[a] + t, 0]
+                    cover_w[t] = pool[cov_at[a] + t, 1]
+                key = key_of[a]
+            p = seg_p[e]
+            t = 0
+            while t < n_cover and cover[t] != p:
+                t += 1
+            if t == n_cover:
+                cover[t] = p
+                cover_w[t] = seg_w[e]
+                n_cover += 1
+                key ^= _cover_key(p)
+            else:
+                cover_w[t] += seg_w[e]
+                if cover_w[t] == 0:
+                    cover[t] = cover[n_cover - 1]
+                    cover_w[t] = cover_w[n_cover - 1]
+                    n_cover -= 1
+                    key ^= _cover_key(p)
+            if n_pool + n_cover >= pool.shape[0]:
+                pool = _grow_int(pool, n_pool + n_cover)
+            cov_at[e], cov_n[e], key_of[e] = n_pool, n_cover, key
+            for t in range(n_cover):
+                pool[n_pool + t, 0] = cover[t]
+                pool[n_pool + t, 1] = cover_w[t]
+            n_pool += n_cover
+            now = -1
+            solid = False
+            if n_cover == 1:
+                now = cover[0]
+            elif n_cover > 1:
+                solid = min(_height(seg_a, slope, e, u0) - _height(seg_a, slope, f, u0),
+                            _height(seg_a, slope, e, u1) - _height(seg_a, slope, f, u1)) > MEMO_GAP
+                if solid and memo_gen[e] == gen and memo_below[e] == f and memo_key[e] == key:
+                    now = memo_owner[e]
+                else:
+                    vm = 0.5 * (_height(seg_a, slope, e, um) + _height(seg_a, slope, f, um))
+                    for c in range(3):
+                        d[c] = fc[c] + um * fa[c] + vm * fb[c]
+                    now = _nearest(cover, n_cover, d, poly_normal, side, rank)
+                memo_gen[e] = gen if solid else -1
+                memo_below[e] = f
+                memo_key[e] = key
+                memo_owner[e] = now
+            else:
+                memo_gen[e] = -1
+            own[e] = now
+            below[e] = f
+            version[e] += 1
+            sure[e] = 1 if n_cover <= 1 else (2 if solid else 0)
+            if sure[e] == 0:
+                due = _solid_from(seg_a, slope, e, f, u1)
+                if due < np.inf:
+                    if n_heap >= heap_k.shape[0]:
+                        heap_k = _grow(heap_k, n_heap)
+                        heap_i = _grow_int(heap_i, n_heap)
+                    n_heap = _heap_push(heap_k, heap_i, n_heap, due, e, version[e])
+            for g in (e, f):
+                if tmark[g] != slab:
+                    tmark[g] = slab
+                    touch[n_touch] = g
+                    n_touch += 1
+        # the runs of the edges of those regions (side 0: the owner above, side 1: below; none
+        # between two regions of one owner), and of an edge left at the top or the bottom
+        for r in range(n_dirty):
+            e = dirty[r]
+            if alive[e] == 1 and pos[e] == n_act - 1 and tmark[e] != slab:
+                tmark[e] = slab
+                touch[n_touch] = e
+                n_touch += 1
+        for r in range(n_touch):
+            e = touch[r]
+            q = pos[e]
+            _set_runs(runs, run_o, e, own[act[q - 1]] if q > 0 else -1, own[e] if q < n_act - 1 else -1, u0, seg_a,
+                      slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+        swept = True
+        last_u1 = u1
+        slab += 1
+    for r in range(n_act):
+        for kk in range(2):
+            if run_o[act[r], kk] >= 0:
+                runs[act[r], kk, 1] = last_u1
+                _flush_owner(runs, run_o, act[r], kk, seg_a, slope, x, n_i, fa, fb, fc, col, seen, p0, p1)
+    return pool, heap_k, heap_i
+
+
+@njit(cache=True)
+def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
+                side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, cover_w, p0, p1, fw, iw,
+                runs, run_o, rim, sw, skey, cross, cross_e, pool, heap_k, heap_i, sweep_kind):
+    """Add to ``seen`` the visible part of every polygon through one wedge around x (the
+    frustum ``planes`` through x, inward normals; :func:`_wedges`): each polygon clipped to
+    the frustum and projected centrally on the wedge's plane, the slab sweep of
+    :func:`_visible_one`, and in each trapezoid between two consecutive edges the polygon
+    nearest along the ray through its centre (polygons do not cross: the front-most one of
+    those covering a trapezoid is the same all over it).
+
+    The sweep is output-sensitive (:func:`_sweep_runs`): from one break to the next only the
+    edges at the break change (ending, crossing, starting), and only the regions next to them
+    are decided again; an edge's runs (its owner above on side 0, below on side 1) stay open
+    while its neighbouring owners do and are summed (Lambert) once, when they change or the
+    edge ends; with fewer than :data:`SWEEP_RUNS_FROM` edges, :func:`_sweep_slabs` is cheaper.
+    With a vertical edge, every slab is swept whole and summed as trapezoids
+    (:func:`_sweep_slabs`). ``sweep_kind`` (:func:`point_views`) chooses: 0 by size, 1 whole slabs
+    always (the plain sweep, the tests' reference), 2 :func:`_sweep_runs` always, None the slab
+    sweep only: a compiled version without the crossings' and the loops' records that only
+    :func:`_sweep_runs` reads (numba prunes the branches on None), for scenes too small for it.
+
+    ``fw`` (7, e) float64, ``iw`` (5, e) int64, ``runs`` (e, 2, 2) float64, ``run_o`` (e, 2)
+    int64, ``rim`` (e,) int64, ``sw``, ``skey`` (:func:`_sweep_runs`) and ``cover_w`` (P,) int64
+    are work arrays (allocated once per :func:`point_views` call), e at least the number of
+    projected edges; ``brk``, ``cross`` (k,) float64, ``cross_e`` (k, 2) int64 (the crossings'
+    u and edges), ``pool``, ``heap_k`` and ``heap_i`` grow, and are returned."""
+    n_seg = 0
+    loop_next = iw[5]  # the next edge of each edge's loop
+    for L in range(loop_lo.shape[0]):
+        p = loop_poly[L]
+        if not use[p]:
+            continue
+        n_in = _clip_to_frustum(pts, loop_lo[L], loop_hi[L], x, planes, n_planes, buf_a, buf_b)
+        if n_in < 3:
+            continue
+        first = n_seg
+        for q in range(n_in):
+            dx, dy, dz = buf_a[q, 0] - x[0], buf_a[q, 1] - x[1], buf_a[q, 2] - x[2]
+            den = dx * fc[0] + dy * fc[1] + dz * fc[2]
+            if den <= 1e-300:
+                den = 1e-300  # x itself (a polygon through the apex)
+            seg_a[first + q, 0] = (dx * fa[0] + dy * fa[1] + dz * fa[2]) / den
+            seg_a[first + q, 1] = (dx * fb[0] + dy * fb[1] + dz * fb[2]) / den
+            # the frustum's planes the vertex lies on (bits; within RIM of its distance)
+            size = RIM * np.sqrt(dx * dx + dy * dy + dz * dz)
+            bits = 0
+            for k in range(n_planes):
+                pk = planes[k]
+                if abs(dx * pk[0] + dy * pk[1] + dz * pk[2]) <= size * np.sqrt(pk[0] * pk[0] + pk[1] * pk[1] + pk[2] * pk[2]):
+                    bits |= 1 << k
+            rim[first + q] = bits
+        for q in range(n_in):
+            k = first + q + 1 if q + 1 < n_in else first
+            seg_b[first + q, 0], seg_b[first + q, 1] = seg_a[k, 0], seg_a[k, 1]
+            seg_p[first + q] = p
+            if sweep_kind is not None:  # (only the runs' sweep reads it)
+                loop_next[first + q] = k
+        for q in range(n_in):  # an edge with both ends on one plane lies on the frustum's side
+            rim[first + q] = rim[first + q] & rim[first + q + 1 if q + 1 < n_in else first]
+        n_seg += n_in
+    if n_seg == 0:
+        return brk, cross, cross_e, pool, heap_k, heap_i
+    lo_u, hi_u = fw[0], fw[1]
+    if _steepest(seg_a, seg_b, n_seg) > STEEP:
+        fa, fb = _turn_from_steep(seg_a, seg_b, n_seg, fa, fb, lo_u)
+    # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
+    n_brk = 0
+    for e in range(n_seg):
+        if seg_a[e, 0] > seg_b[e, 0]:
+            seg_w[e] = 1
+        elif seg_a[e, 0] < seg_b[e, 0]:
+            seg_w[e] = -1
+        else:
+            seg_w[e] = 0
+        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
+        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
+        brk = _grow(brk, n_brk)
+        brk[n_brk] = seg_a[e, 0]
+        n_brk += 1
+    # crossings of edges of different polygons: edges by their left ends, each against the
+    # ones starting before it ends (their u and v ranges, polygon and weight copied in that
+    # order first: the inner loop reads consecutive memory)
+    by_lo = np.argsort(lo_u[:n_seg])
+    s_lo, s_hi, s_vlo, s_vhi = fw[2], fw[3], fw[4], fw[5]
+    s_p = iw[0]  # -1: a vertical edge (no crossing counted)
+    n_cross = 0
+    for r in range(n_seg):
+        e = by_lo[r]
+        s_lo[r], s_hi[r] = lo_u[e], hi_u[e]
+        s_vlo[r], s_vhi[r] = min(seg_a[e, 1], seg_b[e, 1]), max(seg_a[e, 1], seg_b[e, 1])
+        # (an edge on the frustum's side crosses none inside it: every other lies in the frustum)
+        s_p[r] = seg_p[e] if seg_w[e] != 0 and rim[e] == 0 else -1
+    for r in range(n_seg):
+        pe = s_p[r]
+        if pe < 0:
+            continue
+        he, vlo, vhi = s_hi[r], s_vlo[r], s_vhi[r]
+        for r2 in range(r + 1, n_seg):
+            if s_lo[r2] > he:
+                break
+            pf = s_p[r2]
+            if pf == pe or pf < 0:
+                continue
+            # v ranges apart: no crossing (the common case, tested before the call)
+            if vhi < s_vlo[r2] or s_vhi[r2] < vlo:
+                continue
+            u = _crossing_u(seg_a, seg_b, by_lo[r], by_lo[r2])
+            if u == u and not _collinear(seg_a, seg_b, by_lo[r], by_lo[r2], SNAP):
+                brk = _grow(brk, n_brk)
+                brk[n_brk] = u
+                n_brk += 1
+                if sweep_kind is not None:  # (only the runs' sweep reads them)
+                    cross = _grow(cross, n_cross)
+                    cross_e = _grow_int(cross_e, n_cross)
+                    cross[n_cross] = u
+                    cross_e[n_cross, 0], cross_e[n_cross, 1] = by_lo[r], by_lo[r2]
+                    n_cross += 1
+    us = np.sort(brk[:n_brk])
+    n_brk = _snap_breaks(us, n_brk, SNAP)
+    slope = fw[6]
+    _slopes(seg_a, seg_b, n_seg, slope)
+    live = iw[1]  # the edges that bound slabs (not vertical), by their left ends
+    n_live = 0
+    for r in range(n_seg):
+        if seg_w[by_lo[r]] != 0:
+            live[n_live] = by_lo[r]
+            n_live += 1
+    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
+    by_runs = False
+    if sweep_kind is not None:
+        has_vertical = has_vertical or sweep_kind == 1
+        by_runs = not has_vertical and (n_live >= SWEEP_RUNS_FROM or sweep_kind == 2)
+    if not by_runs:
+        _sweep_slabs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, n_seg, hi_u, lo_u, slope, live, n_live,
+                     has_vertical, poly_normal, side, rank, col, seen, wind, cover, runs, run_o, p0, p1, fw[2:5],
+                     sw[:14], skey[0])
+        return brk, cross, cross_e, pool, heap_k, heap_i
+    # each edge's successor in u: the loop's next edge (a→b left to right) or its previous one
+    # (right to left) when it goes on the same way, -1 else
+    succ = sw[18]
+    succ[:n_seg] = -1
+    for e in range(n_seg):
+        if seg_w[e] < 0 and seg_w[loop_next[e]] < 0:
+            succ[e] = loop_next[e]
+        elif seg_w[e] > 0 and seg_w[loop_next[e]] > 0:
+            succ[loop_next[e]] = e
+    run_o[:n_seg] = -1
+    pool, heap_k, heap_i = _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u, hi_u, slope,
+                                       live, n_live, cross, cross_e, n_cross, poly_normal, side, rank, col, seen,
+                                       cover, cover_w, runs, run_o, p0, p1, sw, skey, pool, heap_k, heap_i)
+    return brk, cross, cross_e, pool, heap_k, heap_i
 
 
 @njit(cache=True)
@@ -1841,57 +2411,11 @@ def _wedges(n_i, eu, ev):
 
 
 @njit(cache=True, nogil=True)
-def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
-                box_planes):
-    """What each point of an emitter sees of every polygon side, and what is hidden of it:
-    a from-point hidden-surface computation over the whole scene at once, so that a matrix
-    row costs one evaluation per point, not one per receiver.
-
-    For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
-    seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
-    back). The front hemisphere is cut into :data:`WEDGES` = 3 pointed cones through x (120°
-    of azimuth each, from the horizon to n_i: fewer pieces to clip and sweep than the five
-    faces of a hemicube, 57 → 45 µs a point on the Cornell matrix; :func:`_wedges`); in each,
-    the polygons are clipped, projected centrally and swept (:func:`_wedge_view`): every
-    trapezoid of the sweep goes to the nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
-    depends only on the solid angle, so the projected region gives the same value).
-
-    Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
-    smaller lies on the larger's front. A point of the larger's front inside the smaller
-    sees the smaller's side facing it with F = 1 and nothing else, and so does a point of
-    the smaller's side against the larger (it sees the larger's front); seen from elsewhere,
-    the smaller covers the larger on the larger's front side, the larger the smaller on
-    its back side.
-
-    Returns ``hidden`` (m, 2P + 1) float64: for every column, ``F(x → polygon side clipped
-    to the front hemisphere) − F(x → its visible part)`` (≥ 0 up to rounding; −1 at a
-    contact column, whose unoccluded F is 0), and last what x sees of no polygon (the sky:
-    1 − Σ seen, F to the whole hemisphere being 1).
-
-    Parameters
-    ----------
-    points : (m, 3) float64
-    n_i, eu, ev : (3,) float64
-        The emitting side's unit normal and a right-handed basis of its plane.
-    pts : (n, 3) float64
-        Loop vertices; loop L at ``pts[loop_lo[L]:loop_hi[L]]`` of polygon ``loop_poly[L]``
-        (non-decreasing), outer loops counter-clockwise about the polygon's normal, holes
-        clockwise.
-    poly_normal : (P, 3) float64; poly_c : (P,) float64
-        Planes ``poly_normal[p] · y = poly_c[p]``.
-    rank : (P,) int64
-        Order of the polygons by area (0 the smallest): which of two overlapping polygons in
-        one plane lies on the other.
-    skip : int
-        The emitter's polygon (never seen).
-    tiny : float
-        Distance below which x counts as in a polygon's plane.
-    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 5) float64
-        The closed convex box of each polygon (-1 none) and the boxes' planes
-        (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
-        outside of are not swept (:func:`_outside`; their front faces hide them: what x
-        sees of them is 0, all of their unoccluded F is hidden).
-    """
+def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box,
+                 box_ptr, box_planes, sweep_kind, emax):
+    """The kernel of :func:`point_views`; ``sweep_kind`` None or an int: numba compiles one version
+    each (with None, none of the records only :func:`_sweep_runs` reads: :func:`_wedge_view`);
+    ``emax`` the room for one wedge's projected edges."""
     P = poly_normal.shape[0]
     n_loops = loop_lo.shape[0]
     first = np.zeros(P + 1, np.int64)
@@ -1900,10 +2424,8 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     for p in range(P):
         first[p + 1] += first[p]
     kmax = 3
-    emax = 1
     for L in range(n_loops):
         kmax = max(kmax, loop_hi[L] - loop_lo[L])
-        emax += loop_hi[L] - loop_lo[L] + 5
     kmax += 8
     seg_a, seg_b = np.empty((emax, 2)), np.empty((emax, 2))
     seg_p, seg_w = np.empty(emax, np.int64), np.empty(emax, np.int64)
@@ -1918,8 +2440,11 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     box_state = np.zeros(box_ptr.shape[0], np.int64)
     seen = np.zeros(2 * P)
     p0, p1 = np.empty(3), np.empty(3)
-    fw, iw, key_w = np.empty((8, emax)), np.empty((14, emax), np.int64), np.empty(emax, np.uint64)
+    fw, iw = np.empty((7, emax)), np.empty((6, emax), np.int64)
     runs, run_o, rim = np.empty((emax, 2, 2)), np.empty((emax, 2), np.int64), np.empty(emax, np.int64)
+    sw, skey, cover_w = np.empty((19, emax), np.int64), np.empty((2, emax), np.uint64), np.empty(P, np.int64)
+    cross, cross_e = np.empty(emax), np.empty((emax, 2), np.int64)
+    pool, heap_k, heap_i = np.empty((4 * emax, 2), np.int64), np.empty(emax), np.empty((emax, 2), np.int64)
     frames, planes = _wedges(n_i, eu, ev)
     hidden = np.zeros((points.shape[0], 2 * P + 1))
     for i in range(points.shape[0]):
@@ -1970,9 +2495,11 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
             sweep[p] = use[p] and not (side[p] < 0 and _outside(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
         box_state[:] = 0
         for k in range(WEDGES):
-            brk = _wedge_view(x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 3, pts, loop_lo, loop_hi,
-                                 loop_poly, poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w,
-                                 buf_a, buf_b, brk, wind, cover, p0, p1, fw, iw, key_w, runs, run_o, rim)
+            brk, cross, cross_e, pool, heap_k, heap_i = _wedge_view(
+                x, n_i, frames[k, 0], frames[k, 1], frames[k, 2], planes[k], 3, pts, loop_lo, loop_hi, loop_poly,
+                poly_normal, poly_c, rank, side, sweep, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind,
+                cover, cover_w, p0, p1, fw, iw, runs, run_o, rim, sw, skey, cross, cross_e, pool, heap_k, heap_i,
+                sweep_kind)
         sky = 1.0
         for p in range(P):
             if use[p]:
@@ -1981,3 +2508,68 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
                 seen[col[p]] = 0.0
         hidden[i, 2 * P] = max(sky, 0.0)
     return hidden
+
+
+def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
+                box_planes, sweep_kind=0):
+    """What each point of an emitter sees of every polygon side, and what is hidden of it:
+    a from-point hidden-surface computation over the whole scene at once, so that a matrix
+    row costs one evaluation per point, not one per receiver.
+
+    For x (normal n_i, the emitting side), every polygon p (but ``skip``, the emitter) is
+    seen from side s = sign(n_p · x − c_p) (column ``2 p`` for its front, ``2 p + 1`` its
+    back). The front hemisphere is cut into :data:`WEDGES` = 3 pointed cones through x (120°
+    of azimuth each, from the horizon to n_i: fewer pieces to clip and sweep than the five
+    faces of a hemicube, 57 → 45 µs a point on the Cornell matrix; :func:`_wedges`); in each,
+    the polygons are clipped, projected centrally and swept (:func:`_wedge_view`): every
+    trapezoid of the sweep goes to the nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
+    depends only on the solid angle, so the projected region gives the same value).
+
+    Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
+    smaller lies on the larger's front. A point of the larger's front inside the smaller
+    sees the smaller's side facing it with F = 1 and nothing else, and so does a point of
+    the smaller's side against the larger (it sees the larger's front); seen from elsewhere,
+    the smaller covers the larger on the larger's front side, the larger the smaller on
+    its back side.
+
+    Returns ``hidden`` (m, 2P + 1) float64: for every column, ``F(x → polygon side clipped
+    to the front hemisphere) − F(x → its visible part)`` (≥ 0 up to rounding; −1 at a
+    contact column, whose unoccluded F is 0), and last what x sees of no polygon (the sky:
+    1 − Σ seen, F to the whole hemisphere being 1).
+
+    Parameters
+    ----------
+    points : (m, 3) float64
+    n_i, eu, ev : (3,) float64
+        The emitting side's unit normal and a right-handed basis of its plane.
+    pts : (n, 3) float64
+        Loop vertices; loop L at ``pts[loop_lo[L]:loop_hi[L]]`` of polygon ``loop_poly[L]``
+        (non-decreasing), outer loops counter-clockwise about the polygon's normal, holes
+        clockwise.
+    poly_normal : (P, 3) float64; poly_c : (P,) float64
+        Planes ``poly_normal[p] · y = poly_c[p]``.
+    rank : (P,) int64
+        Order of the polygons by area (0 the smallest): which of two overlapping polygons in
+        one plane lies on the other.
+    skip : int
+        The emitter's polygon (never seen).
+    tiny : float
+        Distance below which x counts as in a polygon's plane.
+    poly_box, box_ptr, box_planes : (P,) int64, (b + 1,) int64, (k, 5) float64
+        The closed convex box of each polygon (-1 none) and the boxes' planes
+        (:func:`viscx.queries.formfactor.closed_boxes`): the back faces of a box x is
+        outside of are not swept (:func:`_outside`; their front faces hide them: what x
+        sees of them is 0, all of their unoccluded F is hidden).
+    sweep_kind : int
+        Which sweep (:func:`_wedge_view`): 0 by the number of edges (the default), 1 every slab
+        whole (the plain sweep, a reference for tests), 2 the output-sensitive one always.
+        With 0 and fewer edges in the whole scene than :data:`SWEEP_RUNS_FROM` (the Cornell
+        box), the kernel compiled without :func:`_sweep_runs`' records runs (``None``): the
+        crossings' records in the loop over edge pairs cost the slab sweep ~8 % there.
+    """
+    # room for one wedge's projected edges: a loop clipped to the frustum has at most 5 more
+    emax = 1 + int(np.sum(loop_hi - loop_lo)) + 5 * loop_lo.shape[0]
+    if sweep_kind == 0 and emax <= SWEEP_RUNS_FROM:
+        sweep_kind = None  # no wedge reaches SWEEP_RUNS_FROM edges
+    return _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny,
+                        poly_box, box_ptr, box_planes, sweep_kind, emax)

@@ -74,15 +74,17 @@ def row_classes(scene):
 ROW_LOG = [None]
 
 
-def timed_row(scene, face, side, faces, tol, sky, threads=1):
-    """:func:`viscx.queries.formfactor.row_form_factors` with its CPU seconds in ``counts``:
+def timed_row(scene, face, side, faces, tol, sky, threads=1, reciprocal=True):
+    """:func:`viscx.queries.formfactor.row_form_factors` (each pair from its smaller face, as
+    the CLI's matrix: ``reciprocal``) with its CPU seconds in ``counts``:
     ``cpu`` all of the row's threads, ``serial`` its calling thread's alone (with threads,
     its points run on the others, so this is the part no other core can take; a line in
     ``ROW_LOG`` too, so that a run stopped early still says what it did)."""
     from viscx.queries.formfactor import row_form_factors
 
     c0, s0 = time.process_time(), time.thread_time()
-    cols, vals, errs, counts, sky_v, sky_e = row_form_factors(scene, face, side, faces, tol, sky, threads)
+    cols, vals, errs, counts, sky_v, sky_e = row_form_factors(scene, face, side, faces, tol, sky, reciprocal=reciprocal,
+                                                              threads=threads)
     cpu, serial = time.process_time() - c0, time.thread_time() - s0
     if ROW_LOG[0]:
         with open(ROW_LOG[0], "a") as f:
@@ -159,7 +161,7 @@ def main(argv=None):
         results = ff._map_rows(timed_row, scene, [(f, s, faces) for f, s in rows], args.tol, True, args.workers,
                                progress=lambda: progress.update(1), threads=True)
     wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
-    m = ff.assemble_matrix(scene, results, args.tol, wall)
+    m = ff.assemble_matrix(scene, results, args.tol, wall, reciprocal=True)
     per = {}
     for (f, s), r in zip(rows, results):
         per.setdefault(classes[(f, s)], []).append(r[3]["cpu"])

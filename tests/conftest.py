@@ -85,6 +85,27 @@ def sample_scene_paths():
     return sorted(p for p in SAMPLES.glob("*") if p.suffix.lower() in (".obj", ".ply"))
 
 
+@pytest.fixture(scope="module")
+def office60():
+    """The 58-polygon furnished office (benchmarks/buildings.py), built once a module (a
+    module's own ``office60`` takes precedence)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from buildings import office
+
+    from viscx.scene import build_scene
+
+    return build_scene(office(60, seed=0))
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    """The sample Cornell box as a scene, loaded once a module (a module's own ``cornell``,
+    a built file in some, takes precedence)."""
+    from viscx.scene import load_scene
+
+    return load_scene(ROOT / "sample_scenes" / "cornell_box.obj")
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

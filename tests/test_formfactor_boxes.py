@@ -5,31 +5,16 @@ back faces of boxes they lie wholly outside of. Each is exact; the reference is 
 kernels with every face swept on its own (``no_boxes``), which tests/test_formfactor_rows.py
 and tests/test_formfactor_queries.py check against the V-cells and each other."""
 
-import sys
-
 import numpy as np
 import pytest
-from conftest import ROOT, soup
+from conftest import soup
 from random_scenes import random_boxes
 
 from viscx.geometry.formfactor import point_to_polygon
 from viscx.geometry.occlusion import _clip_to_frustum, _outside_box, _wedges, point_views
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
-from viscx.scene import build_scene, load_scene
-
-sys.path.insert(0, str(ROOT / "benchmarks"))
-from buildings import office  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def office60():
-    return build_scene(office(60, seed=0))
-
-
-@pytest.fixture(scope="module")
-def cornell():
-    return load_scene(ROOT / "sample_scenes" / "cornell_box.obj")
+from viscx.scene import build_scene
 
 
 @pytest.fixture(scope="module")

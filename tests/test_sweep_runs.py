@@ -6,9 +6,6 @@ break and coincident events (the Cornell box's blocks, touching furniture: desks
 panels, cabinets on the floor, coplanar faces meeting at an edge, faces lying on faces),
 collinear and touching edges, and a steep edge (a turned basis)."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from conftest import soup
@@ -17,11 +14,7 @@ from viscx.geometry import occlusion
 from viscx.geometry.occlusion import point_views
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
-from viscx.scene import build_scene, load_scene
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
-from buildings import office  # noqa: E402
+from viscx.scene import build_scene
 
 
 def _points(scene, face, n, rng):
@@ -39,16 +32,6 @@ def _args(scene, face, points):
 def _both(scene, face, points):
     args = _args(scene, face, points)
     return point_views(*args, 2), point_views(*args, 1)
-
-
-@pytest.fixture(scope="module")
-def office60():
-    return build_scene(office(60, seed=0))
-
-
-@pytest.fixture(scope="module")
-def cornell():
-    return load_scene(ROOT / "sample_scenes" / "cornell_box.obj")
 
 
 def test_sweep_runs_equals_the_plain_sweep_on_the_cornell_box(cornell, rng):

@@ -621,21 +621,9 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     if n_hulls and j_loop.shape[0] > 2:
         n_seg = _drop_shadowed_holes(j_loop, seg_a, seg_b, seg_p, seg_w, n_seg, box_list, n_hulls)
     # winding weights: an edge running right to left adds its polygon's sign below it
-    n_brk = 0
     lo_u = np.empty(n_seg)
     hi_u = np.empty(n_seg)
-    for e in range(n_seg):
-        if seg_a[e, 0] > seg_b[e, 0]:
-            pass
-        elif seg_a[e, 0] < seg_b[e, 0]:
-            seg_w[e] = -seg_w[e]
-        else:
-            seg_w[e] = 0
-        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
-        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
-        brk = _grow(brk, n_brk)
-        brk[n_brk] = seg_a[e, 0]
-        n_brk += 1
+    brk, n_brk = _edge_windings(seg_a, seg_b, seg_w, n_seg, lo_u, hi_u, brk)
     # crossings of edges of different polygons: edges by their left ends, each against the
     # ones starting before it ends (each pair once, its crossing computed from the lower id)
     by_lo = np.argsort(lo_u, kind="mergesort")  # stable: ties by edge id
@@ -1327,6 +1315,29 @@ def _grow(a, n):
     b = np.empty(2 * a.shape[0] + 16)
     b[:a.shape[0]] = a
     return b
+
+
+@njit(cache=True, inline="always")
+def _edge_windings(seg_a, seg_b, seg_w, n_seg, lo_u, hi_u, brk):
+    """The sweep's edges (projected, u across the slabs) readied for it: each weight
+    ``seg_w`` (n,) its polygon's sign, kept where the edge runs right to left (it adds the
+    sign below it), negated left to right, 0 vertical (it bounds no slab); ``lo_u, hi_u``
+    (n,) float its u range; each left end a break (``brk`` grown as needed). Returns
+    ``brk, n_brk``."""
+    n_brk = 0
+    for e in range(n_seg):
+        if seg_a[e, 0] > seg_b[e, 0]:
+            pass
+        elif seg_a[e, 0] < seg_b[e, 0]:
+            seg_w[e] = -seg_w[e]
+        else:
+            seg_w[e] = 0
+        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
+        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
+        brk = _grow(brk, n_brk)
+        brk[n_brk] = seg_a[e, 0]
+        n_brk += 1
+    return brk, n_brk
 
 
 @njit(cache=True)
@@ -2274,19 +2285,8 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     if _steepest(seg_a, seg_b, n_seg) > STEEP:
         fa, fb = _turn_from_steep(seg_a, seg_b, n_seg, fa, fb, lo_u)
     # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
-    n_brk = 0
-    for e in range(n_seg):
-        if seg_a[e, 0] > seg_b[e, 0]:
-            seg_w[e] = 1
-        elif seg_a[e, 0] < seg_b[e, 0]:
-            seg_w[e] = -1
-        else:
-            seg_w[e] = 0
-        lo_u[e] = min(seg_a[e, 0], seg_b[e, 0])
-        hi_u[e] = max(seg_a[e, 0], seg_b[e, 0])
-        brk = _grow(brk, n_brk)
-        brk[n_brk] = seg_a[e, 0]
-        n_brk += 1
+    seg_w[:n_seg] = 1
+    brk, n_brk = _edge_windings(seg_a, seg_b, seg_w, n_seg, lo_u, hi_u, brk)
     # crossings of edges of different polygons: edges by their left ends, each against the
     # ones starting before it ends (their u and v ranges, polygon and weight copied in that
     # order first: the inner loop reads consecutive memory)

@@ -9,13 +9,20 @@ shared by the threads), of each task the workers run (a row of a query of severa
 side and the receivers it computes pairs with, each pair computed from its face of smaller
 area and the other direction derived), the largest of them, and ``quiet_wall_estimate``:
 the serial part, plus the pieces spread over the threads, plus the tasks handed out in
-order to the first free of the workers (the command's start-up, ~1 s, not included).
+order to the first free of the workers, those still running once none is left sharing the
+cores (their kernel pieces run on threads; the command's start-up, ~1 s, not included).
 
     python benchmarks/office_groups.py --polygons 300 --tol 1e-4
     python benchmarks/office_groups.py --pairs floor:light1 wall_west:wall_east
 
 Without ``--pairs``: every ordered pair of the groups ``floor, ceiling, wall_*,
 light1..4, desk0, cabinet0, divider0`` (the other desks and cabinets are alike).
+
+``--rounds``: each refinement round of the pairs' three-level cubatures on standard error
+(leaves, points so far, the estimate and its parts): how fast the estimate falls with the
+points (docs/queries.md, "At the default tol").
+
+    python benchmarks/office_groups.py --tol 1e-6 --pairs wall_west:wall_east --rounds
 
 ``--kernels``: the per-point cost (CPU µs) of the two from-point kernels on this office
 instead: ``point_views`` from the floor (a matrix row's integrand) and the pair kernel
@@ -122,12 +129,42 @@ def timed_chunks(function, chunks, workers=None, progress=None):
 
 def makespan(tasks, workers):
     """Wall time of ``tasks`` (CPU seconds, in the order they are handed out) on ``workers``
-    quiet cores, each task to the first worker free."""
-    free = [0.0] * workers
-    for t in tasks:
-        k = free.index(min(free))
-        free[k] += t
-    return max(free)
+    quiet cores, each task to the first worker free, and once none is left to hand out the
+    tasks still running sharing the cores (a group query's rows run their kernel pieces on
+    threads holding the pool's core tokens; their serial parts are taken as nil)."""
+    queue, running, wall = list(tasks), [], 0.0
+    while queue or running:
+        while queue and len(running) < workers:
+            running.append(queue.pop(0))
+        rate = 1.0 if queue else workers / len(running)  # cores per running task
+        step = min(running) / rate
+        wall += step
+        running = [t - step * rate for t in running if t - step * rate > 1e-12]
+    return wall
+
+
+#: The three-level cubature's error model, and each round's log (:func:`logged_estimates`).
+ESTIMATES = [None]
+
+
+def logged_estimates(self, tri, ptr, ids, q, kq, gq):
+    """``Cubature.estimates`` printing, on standard error, each round's leaves, points so
+    far and estimate (absolute, area × F) with its parts: leaves whose change grows
+    (``4 |K − G|``), the others' ``|K − G|`` and ``|Q − K| / 12`` where each is the larger,
+    and what the ``unresolved`` and ``unseen`` bounds add."""
+    import numpy as np
+
+    from viscx.queries import formfactor as ff
+
+    err = ESTIMATES[0](self, tri, ptr, ids, q, kq, gq)
+    kink = ff.kinked_three_level_error(q, kq, gq)
+    coarse, fine = np.abs(q - kq.sum(axis=1)), np.abs(kq.sum(axis=1) - gq.sum(axis=1))
+    grow = fine > coarse
+    print(json.dumps({"leaves": len(tri), "points": self.evaluations, "estimate": float(err.sum()),
+                      "grows": float(kink[grow].sum()), "fine": float(fine[~grow & (fine >= coarse / ff.KINK_LEVELS)].sum()),
+                      "coarse": float(kink[~grow & (fine < coarse / ff.KINK_LEVELS)].sum()),
+                      "bounds": float((err - kink).sum())}), file=sys.stderr, flush=True)
+    return err
 
 
 def main(argv=None):
@@ -144,7 +181,11 @@ def main(argv=None):
     parser.add_argument("--pairs", nargs="*", default=None, metavar="FROM:TO")
     parser.add_argument("--kernels", action="store_true", help="per-point cost of the kernels instead")
     parser.add_argument("--workers", type=int, default=None, help="default: one per core")
+    parser.add_argument("--rounds", action="store_true",
+                        help="log each refinement round of the three-level pair cubature on standard error")
     args = parser.parse_args(argv)
+    if args.rounds:
+        ESTIMATES[0], ff.Cubature.estimates = ff.Cubature.estimates, logged_estimates
     scene = build_scene(office(args.polygons, seed=0))
     if args.kernels:
         print(json.dumps(kernel_costs(scene)), flush=True)

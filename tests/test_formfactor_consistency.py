@@ -96,6 +96,27 @@ def test_single_emitter_group_runs_on_threads(tile_cube, monkeypatch):
     assert abs(one["F"] - sum(rows[0].get(c, (0.0, 0.0))[0] for c in (2, 3, 4, 5))) <= one["error"] + 2 * TOL
 
 
+def test_group_rows_share_the_cores_as_threads(tile_cube, monkeypatch):
+    """A query of several rows runs them on processes and each row's cubature pieces on
+    threads holding the pool's core tokens (``_map_rows(threads=True)``): a large row (a
+    desk top's underside → the floor) takes the cores the other rows leave when they are
+    done. The same value on 1 and 2 workers."""
+    scene, _ = tile_cube
+    assert len(ff.group_rows(scene, [0, 1], 1, [1, 6, 2])) > 1
+    asked = []
+    map_rows = ff._map_rows
+
+    def recorded(*args, **kwargs):
+        asked.append(kwargs.get("threads", False))
+        return map_rows(*args, **kwargs)
+
+    monkeypatch.setattr(ff, "_map_rows", recorded)
+    one = ff.group_to_group(scene, [0, 1], [1, 6, 2], tol=TOL, workers=1)
+    two = ff.group_to_group(scene, [0, 1], [1, 6, 2], tol=TOL, workers=2)
+    assert asked == [True, True]
+    assert one == two
+
+
 def test_group_pairs_find_their_occluders_once(monkeypatch):
     """A group query's row finds each pair's occluders once: its kink lines
     (``kink_faces``) and its pairs' cubatures (``pair_form_factor``) share them."""

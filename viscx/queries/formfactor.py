@@ -59,6 +59,7 @@ the triangles that meet shadows, never with combinations of edges; every kernel 
 bounded (:data:`CHUNK`, :data:`MAX_CELLS`).
 """
 
+import contextlib
 import functools
 import time
 from dataclasses import dataclass
@@ -1447,7 +1448,8 @@ class Cubature:
         the cull must be thread-safe and release the GIL: ``blocked_form_factors`` and
         ``shaft_meets`` are ``nogil``); they depend on ``n`` only, and each triangle's
         values and list on the triangle only, so the result is the same, bit for bit, on
-        any number of threads."""
+        any number of threads. In a pool of rows (a group query's, :func:`_map_rows`) each
+        piece holds one of the pool's core tokens (:func:`row_core`), as the rows' do."""
         return row_chunks(n, max(1, min(CHUNK, max(ROW_PIECE, -(-n // ROW_PIECES)))))
 
     def rule(self, tri, ptr, ids):
@@ -1459,8 +1461,9 @@ class Cubature:
         def piece(s):
             rows = live[s]
             pts = np.einsum("rk,gkd->grd", RULE_NODES, tri[rows]).reshape(-1, 3)
-            values = self.integrand(np.ascontiguousarray(pts), np.repeat(np.arange(len(rows)), 7),
-                                    *_sub_lists(ptr, ids, rows))
+            group, lists = np.repeat(np.arange(len(rows)), 7), _sub_lists(ptr, ids, rows)
+            with row_core():
+                values = self.integrand(np.ascontiguousarray(pts), group, *lists)
             out[rows] = values.reshape(-1, 7) @ RULE_WEIGHTS * area[rows]
             return len(pts)
 
@@ -1471,7 +1474,9 @@ class Cubature:
         """:attr:`cull` of the triangles (g, 3, 3) with lists ``ptr, ids``, piece by piece
         (:meth:`_pieces`): the same lists."""
         def piece(s):
-            return self.cull(tri[s], *_sub_lists(ptr, ids, np.arange(s.start, s.stop)))
+            lists = _sub_lists(ptr, ids, np.arange(s.start, s.stop))
+            with row_core():
+                return self.cull(tri[s], *lists)
 
         return _concat_lists(map_chunks(piece, self._pieces(len(tri)), self.threads))
 
@@ -2278,7 +2283,11 @@ def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=No
         f, s, r, scale = rows[0]
         results = [emitter_row(scene, f, s, r, tol * scale, False, default_workers(workers))]
     else:
-        results = _map_rows(emitter_row, scene, [row[:3] for row in rows], [tol * row[3] for row in rows], False, workers)
+        # the rows on processes, each row's pieces on threads holding the pool's core tokens:
+        # the largest row (the desk top's underside → the floor) takes the cores the others
+        # leave when they are done
+        results = _map_rows(emitter_row, scene, [row[:3] for row in rows], [tol * row[3] for row in rows], False, workers,
+                            threads=True)
     row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in rows])
     if reciprocal:
         row, col, val, err = (np.concatenate(pair) for pair in zip((row, col, val, err),
@@ -2662,6 +2671,12 @@ ROW_PIECE, ROW_PIECES = 16, 32
 _ROW_CORES = None
 
 
+def row_core():
+    """One of the pool's core tokens (:data:`_ROW_CORES`) while a kernel piece runs, or
+    nothing outside a pool."""
+    return _ROW_CORES if _ROW_CORES is not None else contextlib.nullcontext()
+
+
 def row_rules(cubature, tri, width, weights):
     """Rules on Radon's 7 nodes of each triangle for a vector integrand, in pieces that bound
     the memory of one integrand call: ``(len(weights), g, R)`` float64, each ``weights``
@@ -2678,19 +2693,16 @@ def row_rules(cubature, tri, width, weights):
     (:data:`_ROW_CORES`), so that the kernels of all the rows together keep as many cores
     busy as there are workers, no more: a row's threads get the cores when the other rows
     are done."""
-    from contextlib import nullcontext
-
     from viscx.parallel import map_chunks, row_chunks
 
     out = np.zeros((len(weights), len(tri), width))
     area = triangle_areas(tri)
     chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1)), max(ROW_PIECE, -(-len(tri) // ROW_PIECES))))
-    cores = _ROW_CORES if _ROW_CORES is not None else nullcontext()
 
     def piece(s):
         part = tri[s]
         pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
-        with cores:
+        with row_core():
             values = cubature.integrand(np.ascontiguousarray(pts), part).reshape(len(part), 7, -1)
         for k, w in enumerate(weights):
             out[k, s] = np.einsum("grc,r->gc", values, w) * area[s, None]
@@ -3197,7 +3209,8 @@ def _map_rows(row, scene, rows, tol, sky, workers=None, progress=None, threads=F
     :func:`emitter_row`, each may be one per receiver).
 
     The costly rows (large faces) go first, so that no worker is left with one at the end.
-    With ``threads`` (:func:`row_form_factors`), each row also evaluates its points on as
+    With ``threads`` (:func:`row_form_factors`, and :func:`emitter_row` whose pairs'
+    cubatures do likewise: :meth:`Cubature._pieces`), each row also evaluates its points on as
     many threads as there are workers, each piece of points holding one of ``workers``
     core tokens shared by the processes (:func:`row_rules`): while every worker has a row,
     each row's kernels run on about one core; once the queue is empty, the rows still

@@ -420,6 +420,8 @@ def _spheres(pts, loop_lo, loop_hi, first, poly_box, n_boxes):
     box_r = np.zeros(max(n_boxes, 1))
     count = np.zeros(max(n_boxes, 1))
     for p in range(P):
+        if first[p] == first[p + 1]:
+            continue  # (no loop: never swept)
         m = 0
         for q in range(loop_lo[first[p]], loop_hi[first[p]]):
             for c in range(3):
@@ -440,7 +442,7 @@ def _spheres(pts, loop_lo, loop_hi, first, poly_box, n_boxes):
             box_o[b, c] /= count[b]
     for p in range(P):
         b = poly_box[p]
-        if b < 0:
+        if b < 0 or first[p] == first[p + 1]:
             continue
         for q in range(loop_lo[first[p]], loop_hi[first[p]]):
             d = np.sqrt((pts[q, 0] - box_o[b, 0]) ** 2 + (pts[q, 1] - box_o[b, 1]) ** 2 + (pts[q, 2] - box_o[b, 2]) ** 2)

@@ -103,6 +103,17 @@ def _seen(scene, face, x, hidden, name):
     return point_to_polygon(x, n_i, loops)[0] - hidden[2 * j + (0 if front else 1)]
 
 
+def _with_and_without(scene, face, k, rng):
+    """The largest difference of ``point_views`` with the cull from without it at k random
+    points of the face, and the points."""
+    tri = scene.vertices[scene.triangles[scene.triangle_face == face]]
+    w = rng.dirichlet([1, 1, 1], k)
+    pts = np.einsum("gk,gkd->gd", w, tri[rng.integers(0, len(tri), k)])
+    a = point_views(*_args(scene, face, pts), cull_from=0)
+    b = point_views(*_args(scene, face, pts), cull_from=NEVER)
+    return np.abs(a - b).max(), pts
+
+
 def test_the_cull_leaves_out_the_hidden_faces_only(occluder_scene):
     """From X: A and C (and O's back faces' neighbours below) are left out, B (a 1e-3 sliver
     past the shadow's edge), D (touching O, reaching out), E (lying on O's top face) are kept,
@@ -133,14 +144,7 @@ def test_the_cull_leaves_out_the_hidden_faces_only(occluder_scene):
 def test_the_cull_changes_nothing_around_an_occluder(occluder_scene, emitter, rng):
     """500 points of each emitter, the box's shadow falling on and past the faces around it:
     every column and the sky the same with the cull as with every face swept (1e-13)."""
-    s = occluder_scene
-    face = _face(s, emitter)
-    tri = s.vertices[s.triangles[s.triangle_face == face]]
-    w = rng.dirichlet([1, 1, 1], 500)
-    pts = np.einsum("gk,gkd->gd", w, tri[rng.integers(0, len(tri), 500)])
-    a = point_views(*_args(s, face, pts), cull_from=0)
-    b = point_views(*_args(s, face, pts), cull_from=NEVER)
-    assert np.abs(a - b).max() <= 1e-13
+    assert _with_and_without(occluder_scene, _face(occluder_scene, emitter), 500, rng)[0] <= 1e-13
 
 
 def test_the_cull_on_the_office_and_rotated_boxes(office60, rng):
@@ -151,11 +155,7 @@ def test_the_cull_on_the_office_and_rotated_boxes(office60, rng):
     cases = [(office60, _face(office60, g)) for g in ("floor", "wall_north", "desk0", "cabinet0")] + [(boxes, 0), (boxes, 3)]
     left_out = 0
     for s, face in cases:
-        tri = s.vertices[s.triangles[s.triangle_face == face]]
-        w = rng.dirichlet([1, 1, 1], 200)
-        pts = np.einsum("gk,gkd->gd", w, tri[rng.integers(0, len(tri), 200)])
-        a = point_views(*_args(s, face, pts), cull_from=0)
-        b = point_views(*_args(s, face, pts), cull_from=NEVER)
-        assert np.abs(a - b).max() <= 1e-13
+        diff, pts = _with_and_without(s, face, 200, rng)
+        assert diff <= 1e-13
         left_out += sum(len(_culled(s, face, x)) for x in pts[:20])
     assert left_out > 100

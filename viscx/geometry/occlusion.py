@@ -355,7 +355,10 @@ def _casters(x, box_ptr, box_planes, box_state, tiny, score, s_x, casters):
         if shut:
             casters[n] = b
             n += 1
-    order = np.argsort(-score[casters[:n]], kind="mergesort")
+    key = np.empty(n)
+    for r in range(n):
+        key[r] = -score[casters[r]]  # (a loop: an array expression would tie the cached kernel to numba's registries)
+    order = np.argsort(key, kind="mergesort")
     casters[:n] = casters[:n][order]
     return n
 

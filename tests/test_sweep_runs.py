@@ -49,16 +49,16 @@ def test_small_scenes_take_the_kernel_without_the_runs_records(cornell, rng, mon
     kernel, calls = occlusion._point_views, []
 
     def spy(*args):
-        calls.append(args[-2:])
+        calls.append(args[-3:])
         return kernel(*args)
 
     monkeypatch.setattr(occlusion, "_point_views", spy)
     for face in (0, cornell.n_faces - 1):
         args = _args(cornell, face, _points(cornell, face, 12, rng))
         h = point_views(*args)
-        kind, emax = calls[-1]
+        kind, emax, cull_from = calls[-1]
         assert kind is None and emax <= occlusion.SWEEP_RUNS_FROM
-        assert np.array_equal(h, kernel(*args, 0, emax)), face
+        assert np.array_equal(h, kernel(*args, 0, emax, cull_from)), face
 
 
 @pytest.mark.parametrize("seed, face", [(2, 5), (3, 10), (32, 11), (35, 7), (38, 10)])

@@ -89,6 +89,11 @@ ORDER_MEET = 1e-9
 #: per event): office(300) ~ even, office(1000) 1.47x faster (4.8 against 7.1 ms a point, load ~1.1),
 #: the Cornell box 0.6x slower; 150, 250 and 700 edges no better (office(300), office(1000)).
 SWEEP_RUNS_FROM = 400
+#: Faces to sweep at a point (in front of it, not a box's back faces) from which :func:`_point_views`
+#: first leaves out those in a box's shadow (:func:`_cull_shadowed`): office(1000) 1.7-1.85x faster a
+#: point, office(300) 1.5x, office(100) 1.1x, office(60) even (61 against 63 µs); the Cornell box (16
+#: faces) never culls (culling there gave the same speed, its outputs 3e-14 apart).
+CULL_FROM = 32
 
 
 @njit(cache=True)
@@ -329,6 +334,167 @@ def _outside(x, b, box_state, box_ptr, box_planes, tiny):
     if box_state[b] == 0:
         box_state[b] = 1 if _outside_box(x, box_planes, box_ptr[b], box_ptr[b + 1], tiny) else 2
     return box_state[b] == 1
+
+
+@njit(cache=True)
+def _casters(x, box_ptr, box_planes, box_state, tiny, score, s_x, casters):
+    """The boxes that cast a shadow from x (:func:`_in_shadow`), the largest ``score`` first:
+    ``casters[:n]`` (n returned). A box casts one when x is outside it (:func:`_outside`) and
+    behind or on the plane of its missing face, if open (a ray could enter it there: no shadow
+    is claimed). ``s_x`` (k,) float64 gets the signed distances n · x − c of x to the planes of
+    every box x is outside of."""
+    n = 0
+    for b in range(box_ptr.shape[0] - 1):
+        if not _outside(x, b, box_state, box_ptr, box_planes, tiny):
+            continue
+        shut = True
+        for k in range(box_ptr[b], box_ptr[b + 1]):
+            s = box_planes[k, 0] * x[0] + box_planes[k, 1] * x[1] + box_planes[k, 2] * x[2] - box_planes[k, 3]
+            s_x[k] = s
+            if box_planes[k, 4] != 0.0 and s > 0.0:
+                shut = False
+        if shut:
+            casters[n] = b
+            n += 1
+    key = np.empty(n)
+    for r in range(n):
+        key[r] = -score[casters[r]]  # (a loop: an array expression would tie the cached kernel to numba's registries)
+    order = np.argsort(key, kind="mergesort")
+    casters[:n] = casters[:n][order]
+    return n
+
+
+@njit(cache=True)
+def _in_shadow(pts, loop_lo, loop_hi, first, last, k0, k1, box_planes, s_x, margin, s_v, low):
+    """Whether a polygon (loops ``first:last``) lies in the shadow of the convex box with the
+    planes ``box_planes[k0:k1]`` (outward; ``s_x`` their n · x − c, x outside the box) with
+    no part of it seen: nothing of it is seen from x, so the sweep can leave it out.
+
+    The shadow S = {y : the segment x y meets the box} is convex (the cone from x over the
+    box, behind each front plane — a plane x is in front of: a ray from x enters the box
+    through the last front plane it crosses, Cyrus–Beck), so the polygon's convex hull H lies
+    in it when its vertices do: v is in S when it is behind or on every front plane (the
+    segment reaches the box before v: t_in = max over front planes of s_x / (s_x − s_v) ≤ 1)
+    and the segment's entry point x + t_in (v − x) is behind or on every other plane. A point
+    of H strictly inside S is hidden (its ray has entered the box's interior before it), and
+    then so is H's whole relative interior (a convex set in a convex one, with one point in
+    its interior), which leaves at most H's outline seen: no area. H's vertices' centroid is
+    strictly inside S when some vertex lies more than ``margin`` behind each front plane (H
+    in S; the centroid on the cone's side would put H in a plane through x, a polygon seen
+    edge-on, which the kernel never sweeps). That excludes a polygon lying on a front face,
+    which is seen: in the shadow's boundary, not inside it. The tests are the signs of the
+    rounded planes' distances (no tolerance: a vertex rounded into S is within ~1e-15 of it).
+    ``s_v`` (m,), ``low`` (m,) float64 work arrays (m ≥ k1 − k0)."""
+    m = k1 - k0
+    for j in range(m):
+        low[j] = 0.0
+    for L in range(first, last):
+        for q in range(loop_lo[L], loop_hi[L]):
+            t_in = 0.0
+            for j in range(m):
+                k = k0 + j
+                s = box_planes[k, 0] * pts[q, 0] + box_planes[k, 1] * pts[q, 1] + box_planes[k, 2] * pts[q, 2] \
+                    - box_planes[k, 3]
+                if s_x[k] > 0.0:
+                    if s > 0.0:
+                        return False  # in front of a front plane: the segment misses the box
+                    t_in = max(t_in, s_x[k] / (s_x[k] - s))
+                    low[j] = min(low[j], s)
+                s_v[j] = s
+            for j in range(m):
+                k = k0 + j
+                if s_x[k] <= 0.0 and s_x[k] + t_in * (s_v[j] - s_x[k]) > 0.0:
+                    return False  # the segment enters the front planes' region beside the box
+    for j in range(m):
+        if s_x[k0 + j] > 0.0 and low[j] >= -margin:
+            return False  # the polygon lies on a front face (or within margin of its plane)
+    return True
+
+
+@njit(cache=True)
+def _spheres(pts, loop_lo, loop_hi, first, poly_box, n_boxes):
+    """Each polygon's vertex centroid ``poly_o`` (P, 3) and each box's bounding sphere
+    (centre ``box_o`` (b, 3), the centroid of its faces' vertices, radius ``box_r`` (b,), −1 for
+    a box none of whose faces is given) float64. Of a box some faces only may be given (a
+    matrix row's, those with a point ahead of its plane): the sphere holds those, and so the
+    part of the box ahead, all a ray of the front hemisphere can meet."""
+    P = first.shape[0] - 1
+    poly_o = np.zeros((P, 3))
+    box_o = np.zeros((max(n_boxes, 1), 3))
+    box_r = np.zeros(max(n_boxes, 1))
+    count = np.zeros(max(n_boxes, 1))
+    for p in range(P):
+        if first[p] == first[p + 1]:
+            continue  # (no loop: never swept)
+        m = 0
+        for q in range(loop_lo[first[p]], loop_hi[first[p]]):
+            for c in range(3):
+                poly_o[p, c] += pts[q, c]
+            m += 1
+        b = poly_box[p]
+        for c in range(3):
+            if b >= 0:
+                box_o[b, c] += poly_o[p, c]
+            poly_o[p, c] /= m
+        if b >= 0:
+            count[b] += m
+    for b in range(n_boxes):
+        if count[b] == 0:
+            box_r[b] = -1.0  # none of its faces given (all behind the emitter's plane): casts nothing
+            continue
+        for c in range(3):
+            box_o[b, c] /= count[b]
+    for p in range(P):
+        b = poly_box[p]
+        if b < 0 or first[p] == first[p + 1]:
+            continue
+        for q in range(loop_lo[first[p]], loop_hi[first[p]]):
+            d = np.sqrt((pts[q, 0] - box_o[b, 0]) ** 2 + (pts[q, 1] - box_o[b, 1]) ** 2 + (pts[q, 2] - box_o[b, 2]) ** 2)
+            box_r[b] = max(box_r[b], d * (1.0 + 1e-12))
+    return poly_o, box_o, box_r
+
+
+@njit(cache=True)
+def _cull_shadowed(x, sweep, pts, loop_lo, loop_hi, first, poly_box, poly_o, box_ptr, box_planes, box_o, box_r, box_state,
+                   tiny, score, s_x, casters, cast_w, s_v, low):
+    """Leave out of ``sweep`` every polygon in the shadow of a box from x (:func:`_in_shadow`),
+    trying the boxes by decreasing ``score``. A polygon in a box's shadow has its centroid in
+    the cone from x around the box's bounding sphere, and no nearer to x than the sphere: the
+    pairs that fail either are not tested further."""
+    n_cast = _casters(x, box_ptr, box_planes, box_state, tiny, score, s_x, casters)
+    m = 0
+    for r in range(n_cast):
+        b = casters[r]
+        if box_r[b] < 0.0:
+            continue
+        wx, wy, wz = box_o[b, 0] - x[0], box_o[b, 1] - x[1], box_o[b, 2] - x[2]
+        d2 = wx * wx + wy * wy + wz * wz
+        rr = box_r[b] * box_r[b]
+        casters[m] = b
+        if d2 <= rr:  # x in the sphere (outside the box): its cone is every direction
+            cast_w[m, 0], cast_w[m, 1], cast_w[m, 2], cast_w[m, 3], cast_w[m, 4] = 0.0, 0.0, 0.0, -1.0, 0.0
+        else:
+            d = np.sqrt(d2)
+            cast_w[m, 0], cast_w[m, 1], cast_w[m, 2] = wx / d, wy / d, wz / d
+            cast_w[m, 3] = np.sqrt(1.0 - rr / d2) - 1e-9  # cos of the cone's half-angle, less a margin
+            cast_w[m, 4] = (d - box_r[b]) * (1.0 - 1e-9)
+        m += 1
+    for p in range(first.shape[0] - 1):
+        if not sweep[p]:
+            continue
+        ux, uy, uz = poly_o[p, 0] - x[0], poly_o[p, 1] - x[1], poly_o[p, 2] - x[2]
+        du = np.sqrt(ux * ux + uy * uy + uz * uz)
+        if du == 0.0:
+            continue
+        ux, uy, uz = ux / du, uy / du, uz / du
+        for r in range(m):
+            if ux * cast_w[r, 0] + uy * cast_w[r, 1] + uz * cast_w[r, 2] < cast_w[r, 3] or du < cast_w[r, 4]:
+                continue
+            b = casters[r]
+            if b != poly_box[p] and _in_shadow(pts, loop_lo, loop_hi, first[p], first[p + 1], box_ptr[b], box_ptr[b + 1],
+                                               box_planes, s_x, tiny, s_v, low):
+                sweep[p] = False
+                break
 
 
 @njit(cache=True)
@@ -2444,10 +2610,10 @@ def _wedges(n_i, eu, ev):
 
 @njit(cache=True, nogil=True)
 def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box,
-                 box_ptr, box_planes, sweep_kind, emax):
+                 box_ptr, box_planes, sweep_kind, emax, cull_from):
     """The kernel of :func:`point_views`; ``sweep_kind`` None or an int: numba compiles one version
     each (with None, none of the records only :func:`_sweep_runs` reads: :func:`_wedge_view`);
-    ``emax`` the room for one wedge's projected edges."""
+    ``emax`` the room for one wedge's projected edges; ``cull_from`` :data:`CULL_FROM`."""
     P = poly_normal.shape[0]
     n_loops = loop_lo.shape[0]
     first = np.zeros(P + 1, np.int64)
@@ -2470,6 +2636,14 @@ def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_nor
     use = np.zeros(P, np.bool_)
     sweep = np.zeros(P, np.bool_)
     box_state = np.zeros(box_ptr.shape[0], np.int64)
+    n_boxes = box_ptr.shape[0] - 1
+    score, casters, s_x = np.zeros(max(n_boxes, 1)), np.empty(max(n_boxes, 1), np.int64), np.empty(box_planes.shape[0])
+    k_box = 1
+    for b in range(n_boxes):
+        k_box = max(k_box, box_ptr[b + 1] - box_ptr[b])
+    s_v, low = np.empty(k_box), np.empty(k_box)
+    poly_o, box_o, box_r = _spheres(pts, loop_lo, loop_hi, first, poly_box, n_boxes)
+    cast_w = np.empty((max(n_boxes, 1), 5))
     seen = np.zeros(2 * P)
     p0, p1 = np.empty(3), np.empty(3)
     fw, iw = np.empty((7, emax)), np.empty((6, emax), np.int64)
@@ -2523,8 +2697,19 @@ def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_nor
         if contact >= 0:
             hidden[i, contact] = -1.0  # it sees that side only: all else it would see is hidden
             continue
+        n_sweep = 0
         for p in range(P):
             sweep[p] = use[p] and not (side[p] < 0 and _outside(x, poly_box[p], box_state, box_ptr, box_planes, tiny))
+            n_sweep += sweep[p]
+        if n_sweep >= cull_from and n_boxes > 0:
+            # the faces in a box's shadow are not swept (:func:`_in_shadow`): the boxes that
+            # look largest (their front faces' unoccluded F) are tried first
+            score[:] = 0.0
+            for p in range(P):
+                if use[p] and side[p] > 0 and poly_box[p] >= 0:
+                    score[poly_box[p]] += hidden[i, col[p]]
+            _cull_shadowed(x, sweep, pts, loop_lo, loop_hi, first, poly_box, poly_o, box_ptr, box_planes, box_o, box_r,
+                           box_state, tiny, score, s_x, casters, cast_w, s_v, low)
         box_state[:] = 0
         for k in range(WEDGES):
             brk, cross, cross_e, pool, heap_k, heap_i = _wedge_view(
@@ -2543,7 +2728,7 @@ def _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_nor
 
 
 def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny, poly_box, box_ptr,
-                box_planes, sweep_kind=0):
+                box_planes, sweep_kind=0, cull_from=None):
     """What each point of an emitter sees of every polygon side, and what is hidden of it:
     a from-point hidden-surface computation over the whole scene at once, so that a matrix
     row costs one evaluation per point, not one per receiver.
@@ -2556,6 +2741,11 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
     the polygons are clipped, projected centrally and swept (:func:`_wedge_view`): every
     trapezoid of the sweep goes to the nearest polygon covering it, and F to it is Lambert's contour sum of the trapezoid (F
     depends only on the solid angle, so the projected region gives the same value).
+
+    What a point sees follows what hides it: before the sweep, every face that lies in the
+    shadow of a closed convex box from x (the box's front faces hide it: :func:`_in_shadow`,
+    exact) is left out of it, and all of its F is hidden (office(1000): of ~213 faces to
+    sweep a point, ~96 left out, of the ~119 seen nowhere; :func:`_cull_shadowed`).
 
     Faces lying on faces (docs/queries.md): of two overlapping polygons in one plane, the
     smaller lies on the larger's front. A point of the larger's front inside the smaller
@@ -2598,10 +2788,13 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         With 0 and fewer edges in the whole scene than :data:`SWEEP_RUNS_FROM` (the Cornell
         box), the kernel compiled without :func:`_sweep_runs`' records runs (``None``): the
         crossings' records in the loop over edge pairs cost the slab sweep ~8 % there.
+    cull_from : int, optional
+        The number of faces to sweep at a point from which those in a box's shadow are left
+        out first (default :data:`CULL_FROM`; the tests compare with a number never reached).
     """
     # room for one wedge's projected edges: a loop clipped to the frustum has at most 5 more
     emax = 1 + int(np.sum(loop_hi - loop_lo)) + 5 * loop_lo.shape[0]
     if sweep_kind == 0 and emax <= SWEEP_RUNS_FROM:
         sweep_kind = None  # no wedge reaches SWEEP_RUNS_FROM edges
     return _point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank, skip, tiny,
-                        poly_box, box_ptr, box_planes, sweep_kind, emax)
+                        poly_box, box_ptr, box_planes, sweep_kind, emax, CULL_FROM if cull_from is None else int(cull_from))

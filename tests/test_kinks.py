@@ -288,7 +288,7 @@ def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
     cub = ff.RowCubature(integrand)
     q, e = cub.rule(tri, 1)
     assert q[0, 0] == 0.0 and e[0, 0] == 0.0 and live(tri)[0, 0]  # the nodes miss it
-    new, nq, _ = cub._look_for_shadows(tri, q, e, live, 1)
+    new, nq, _, _ = cub._look_for_shadows(tri, q, e, live, 1)
     assert len(new) == 3 + 4
     assert nq.sum() > 0  # seen now
     assert np.allclose(ff.triangle_areas(new).sum(), 0.5)
@@ -319,9 +319,51 @@ def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
 
     F, E = entry()
     assert abs(F - ref["F"]) <= E + ref["error"]
-    monkeypatch.setattr(ff, "look_for_shadows", lambda tri, seen, live: (np.zeros(len(tri), bool), np.zeros((0, 3, 3))))
+    monkeypatch.setattr(ff, "shadow_triangles", lambda tri, blind, live: (np.zeros(len(tri), bool), np.zeros((0, 3, 3))))
     F, E = entry()
     assert abs(F - ref["F"]) > 100 * (E + ref["error"])  # without the search: the shadow unseen
+
+
+def test_an_unseen_shadow_of_a_small_far_receiver_is_bounded_not_looked_for(monkeypatch):
+    """The tile of the test above hovering between the nodes, the receiver above a 0.02
+    square (F ≈ 9.6e-5 from the floor, 1.0e-8 of it hidden) at tol 1e-3: the shadow search's bound (the hidden
+    part lies between 0 and F(x → J), whose integral over the triangles where the column is
+    unseen is at most the pair's whole contour term, :func:`viscx.queries.formfactor.
+    unseen_shadow_bound`) is within a quarter of the budget, so the triangles are not split
+    for it (fewer points) and the bound is the
+    entry's estimate there: within it of the pair's F at 1e-9. Settled without the bound
+    in the estimate (the search skipped, nothing added) the entry is off by more than 10
+    times its estimate and the reference's, as without the search; and looked for (the bound switched off) it
+    costs more points for an entry within its estimate too."""
+    monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
+    cx = cy = 0.665  # farthest from the nodes of the first triangles' three levels
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    receiver = [[0.49, 0.49, 1], [0.49, 0.51, 1], [0.51, 0.51, 1], [0.51, 0.49, 1]]  # facing down: element 2
+    tile = [[cx - 0.005, cy - 0.005, 0.03], [cx + 0.005, cy - 0.005, 0.03], [cx + 0.005, cy + 0.005, 0.03],
+            [cx - 0.005, cy + 0.005, 0.03]]
+    scene = scene_of([floor, receiver, tile])
+    faces = np.arange(scene.n_faces)
+    ref = ff.face_to_face(scene, 0, 1, side_i=1, tol=1e-9)
+    unoccluded = ff.face_to_face(scene_of([floor, receiver]), 0, 1, side_i=1, tol=1e-9)["F"]
+    assert 1e-9 < unoccluded - ref["F"] and unoccluded < 0.25e-3  # a shadow, and a bound within the share
+
+    def entry():
+        cols, F, E, counts, *_ = ff.row_form_factors(scene, 0, 1, faces, 1e-3)
+        (k,) = np.flatnonzero(cols == 2)
+        return F[k], E[k], counts["evaluations"]
+
+    F, E, points = entry()
+    assert abs(F - ref["F"]) <= E + ref["error"]
+    with monkeypatch.context() as m:
+        m.setattr(ff, "SHADOW_BOUND", -1.0)  # no bound: looked for
+        F1, E1, points1 = entry()
+    assert points1 > points and abs(F1 - ref["F"]) <= E1 + ref["error"]
+    # settled without its bound in the estimate: dishonest
+    bound = ff.unseen_shadow_bound
+    monkeypatch.setattr(ff, "unseen_shadow_bound", lambda *a: (lambda tri, blind, seen: (
+        bound(*a)(tri, blind, seen)[0], np.zeros(blind.shape[1]))))
+    F, E, _ = entry()
+    assert abs(F - ref["F"]) > 10 * (E + ref["error"])  # 1.0e-8 off for 1.2e-15 (+ the reference's 4e-10)
 
 
 def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):

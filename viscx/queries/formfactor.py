@@ -2836,7 +2836,9 @@ class RowCubature:
     and where the columns' shaft tests say an occluder may hide a column on a first
     triangle whose nodes see nothing of it, that triangle starts at its children, and
     those whose shafts still meet such an occluder at their own children (the node
-    density of three levels, there only; :meth:`_look_for_shadows`).
+    density of three levels, there only; :meth:`_look_for_shadows`), unless an upper
+    bound of what it may hide there is within a quarter of the column's budget
+    (:func:`unseen_shadow_bound`: the bound is then its estimate there).
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
     largest estimates are refined (until what is left is :data:`REFINE_LEFT` of its
@@ -2963,8 +2965,9 @@ class ThreeLevelRowCubature:
     A shadow smaller than the grandchildren's nodes' spacing may fall between all 147 nodes
     of a first triangle, and its three levels then agree on nothing seen (office(100), a
     desk side's row at 1e-4: an entry 4.2e-8 off for an estimate of 2.9e-14): the first
-    triangles go through :func:`look_for_shadows`, as :class:`RowCubature`'s, each new
-    triangle on its own three levels. (A kink near a triangle's edge is the other thing
+    triangles go through the shadow search of :class:`RowCubature` (:func:`blind_columns`,
+    :func:`unseen_shadow_bound`, :func:`shadow_triangles`), each new triangle on its own
+    three levels. (A kink near a triangle's edge is the other thing
     three levels miss: :func:`plane_cells`.)
 
     Parameters

@@ -294,6 +294,20 @@ def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
     assert np.allclose(ff.triangle_areas(new).sum(), 0.5)
 
 
+def tile_under_receiver(half, tile=True):
+    """The polygons of a unit floor, a square receiver of half-width ``half`` 1 above its
+    centre (facing down: element 2) and (with ``tile``) a 0.01 tile hovering 0.03 over the
+    floor at the point farthest from every node of the 21 rules of the floor's first
+    triangles (0.031 from the nearest, found on a 181² grid)."""
+    c = 0.665
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    lo, hi = 0.5 - half, 0.5 + half
+    receiver = [[lo, lo, 1], [lo, hi, 1], [hi, hi, 1], [hi, lo, 1]]
+    square = [[c - 0.005, c - 0.005, 0.03], [c + 0.005, c - 0.005, 0.03], [c + 0.005, c + 0.005, 0.03],
+              [c - 0.005, c + 0.005, 0.03]]
+    return [floor, receiver, square] if tile else [floor, receiver]
+
+
 def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
     """A row on three levels (:class:`ThreeLevelRowCubature`, forced by no kink cells
     allowed) looks for shadows between its nodes as :class:`RowCubature` does: a small tile
@@ -302,12 +316,7 @@ def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
     above. Without the search the floor → receiver entry is 1.2e-6 off for an estimate of
     1.3e-15 at tol 1e-4; with it, within its estimate of the pair's F at 1e-9."""
     monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
-    cx = cy = 0.665  # farthest from the nodes (found on a 181² grid)
-    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
-    receiver = [[0.4, 0.4, 1], [0.4, 0.6, 1], [0.6, 0.6, 1], [0.6, 0.4, 1]]  # facing down: element 2
-    tile = [[cx - 0.005, cy - 0.005, 0.03], [cx + 0.005, cy - 0.005, 0.03], [cx + 0.005, cy + 0.005, 0.03],
-            [cx - 0.005, cy + 0.005, 0.03]]
-    scene = scene_of([floor, receiver, tile])
+    scene = scene_of(tile_under_receiver(0.1))
     faces = np.arange(scene.n_faces)
     ref = ff.face_to_face(scene, 0, 1, side_i=1, tol=1e-9)
 
@@ -325,26 +334,21 @@ def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
 
 
 def test_an_unseen_shadow_of_a_small_far_receiver_is_bounded_not_looked_for(monkeypatch):
-    """The tile of the test above hovering between the nodes, the receiver above a 0.02
-    square (F ≈ 9.6e-5 from the floor, 1.0e-8 of it hidden) at tol 1e-3: the shadow search's bound (the hidden
-    part lies between 0 and F(x → J), whose integral over the triangles where the column is
-    unseen is at most the pair's whole contour term, :func:`viscx.queries.formfactor.
-    unseen_shadow_bound`) is within a quarter of the budget, so the triangles are not split
-    for it (fewer points) and the bound is the
-    entry's estimate there: within it of the pair's F at 1e-9. Settled without the bound
-    in the estimate (the search skipped, nothing added) the entry is off by more than 10
-    times its estimate and the reference's, as without the search; and looked for (the bound switched off) it
-    costs more points for an entry within its estimate too."""
+    """The tile of the test above hovering between the nodes under a receiver of 0.02 square
+    (F ≈ 9.6e-5 from the floor, 1.0e-8 of it hidden) at tol 1e-3: the shadow search's bound
+    (the hidden part lies between 0 and F(x → J), whose integral over the triangles where
+    the column is unseen is at most the pair's whole contour term,
+    :func:`viscx.queries.formfactor.unseen_shadow_bound`) is within a quarter of the
+    budget, so the triangles are not split for it (fewer points) and the bound is the
+    entry's estimate there: within it of the pair's F at 1e-9. Settled without the bound in
+    the estimate (the search skipped, nothing added) the entry is off by more than 10 times
+    its estimate and the reference's, as without the search; looked for (the bound switched
+    off) it costs more points for an entry within its estimate too."""
     monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
-    cx = cy = 0.665  # farthest from the nodes of the first triangles' three levels
-    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
-    receiver = [[0.49, 0.49, 1], [0.49, 0.51, 1], [0.51, 0.51, 1], [0.51, 0.49, 1]]  # facing down: element 2
-    tile = [[cx - 0.005, cy - 0.005, 0.03], [cx + 0.005, cy - 0.005, 0.03], [cx + 0.005, cy + 0.005, 0.03],
-            [cx - 0.005, cy + 0.005, 0.03]]
-    scene = scene_of([floor, receiver, tile])
+    scene = scene_of(tile_under_receiver(0.01))
     faces = np.arange(scene.n_faces)
     ref = ff.face_to_face(scene, 0, 1, side_i=1, tol=1e-9)
-    unoccluded = ff.face_to_face(scene_of([floor, receiver]), 0, 1, side_i=1, tol=1e-9)["F"]
+    unoccluded = ff.face_to_face(scene_of(tile_under_receiver(0.01, tile=False)), 0, 1, side_i=1, tol=1e-9)["F"]
     assert 1e-9 < unoccluded - ref["F"] and unoccluded < 0.25e-3  # a shadow, and a bound within the share
 
     def entry():

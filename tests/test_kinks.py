@@ -333,6 +333,35 @@ def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
     assert abs(F - ref["F"]) > 100 * (E + ref["error"])  # without the search: the shadow unseen
 
 
+def test_front_unoccluded_against_the_point_form_factor():
+    """The exact bound of the shadow search (:func:`viscx.queries.formfactor.front_unoccluded`):
+    ∫ F(x → J') over triangles of a floor straddling the plane of a wall piece standing on
+    it (F is 0 behind it), against a Radon rule on 4,096 sub-triangles of each of the exact
+    point-to-polygon F (set to 0 behind the plane), within the rule's change from 1,024. The contour integral of the whole
+    triangles, unclipped, is not it."""
+    from viscx.geometry.formfactor import point_to_polygon
+
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    wall = [[0.5, 0.2, 0.1], [0.5, 0.2, 0.6], [0.5, 0.8, 0.6], [0.5, 0.8, 0.1]]  # facing -x
+    scene = scene_of([floor, wall])
+    setup = ff.PairSetup(scene, 0, 1, ff.face_target(scene, 1), 1, occluders=False)
+    tri = np.array([[[0.3, 0.1, 0], [0.7, 0.3, 0], [0.4, 0.9, 0]], [[0.45, 0.4, 0], [0.6, 0.45, 0], [0.5, 0.6, 0]]])
+    value, error = ff.front_unoccluded(setup, tri)
+
+    def oracle(levels):
+        fine = tri
+        for _ in range(levels):
+            fine = ff.split4(fine).reshape(-1, 3, 3)
+        pts = np.einsum("rk,gkd->grd", ff.RULE_NODES, fine).reshape(-1, 3)
+        f = point_to_polygon(pts, np.broadcast_to(setup.n_i, pts.shape), setup.J) * (pts @ setup.n_t >= setup.c_t)
+        return float((f.reshape(len(fine), 7) @ ff.RULE_WEIGHTS) @ ff.triangle_areas(fine))
+
+    coarse, fine = oracle(5), oracle(6)  # the kink along the wall's plane: the rule converges as h³
+    assert fine > 1e-3 and abs(value - fine) <= error + abs(fine - coarse) < 2e-5 * fine
+    whole = setup.unoccluded_integral(tri)[0]
+    assert abs(whole - fine) > 1e-4
+
+
 def test_an_unseen_shadow_of_a_small_far_receiver_is_bounded_not_looked_for(monkeypatch):
     """The tile of the test above hovering between the nodes under a receiver of 0.02 square
     (F ≈ 9.6e-5 from the floor, 1.0e-8 of it hidden) at tol 1e-3: the shadow search's bound

@@ -2763,20 +2763,31 @@ def shadow_triangles(tri, blind, live):
 SHADOW_BOUND = 0.25
 
 
-def unseen_shadow_bound(scene, pairs, f0, e0, area, budget):
+def front_unoccluded(setup, tri):
+    """∫ F(x → J') dx over the parts of the triangles (g, 3, 3) of the emitter's plane in
+    front of J (where the pair's I' is: ``n_t · y ≥ c_t + tiny``; F(x → J') is 0 behind):
+    the contour integral of those parts (:meth:`PairSetup.unoccluded_integral`, exact),
+    ``(value, error)`` in area × F."""
+    front = [part for t in tri for part in clip_loops([t], setup.n_t, setup.c_t + setup.tiny)]
+    return setup.unoccluded_integral(start_triangles(front, 0.0)) if front else (0.0, 0.0)
+
+
+def unseen_shadow_bound(scene, shafts, f0, e0, area, budget):
     """``bound(tri, blind, seen) -> blind, spent`` for the row cubatures' shadow search:
     where a column's nodes on a first triangle see nothing of it but an occluder meets the
     triangle's shaft to it (``blind`` (g, R) bool, :func:`blind_columns`), the hidden part
-    there lies between 0 and the unoccluded integrand F(x → J) ≥ 0, so the rules' value
-    (``seen`` (g, R): ≤ 1e-10 of the area) is off by at most ``seen`` plus ∫ F(x → J) over
+    there lies between 0 and the unoccluded integrand F(x → J') ≥ 0, so the rules' value
+    (``seen`` (g, R): ≤ 1e-10 of the area) is off by at most ``seen`` plus ∫ F(x → J') over
     those triangles. That integral is at most the whole pair's, ``(F⁰ + its error) × A_i``
     (``f0``, ``e0`` (R,) in F, ``area`` A_i), and at most Σ area(T) min(1, A_J / (π d²)) with
     d the distance between the boxes of T and J (F(x → J) = (1/π) ∫_J cos cos / r² ≤
-    A_J / (π d²)). Where this bound is at most :data:`SHADOW_BOUND` of the column's
-    ``budget`` (R,) (in ∫ units), it is the column's estimate there (``spent`` (R,)) and its
-    triangles are not split for it: a far or small receiver (a desk panel across the room)
-    is settled exactly where the shadow search (16 grandchildren on their own three levels
-    each) would cost most. ``pairs``: (face j, column c) of the columns searched."""
+    A_J / (π d²)); where neither is small enough, it is the contour integral over the
+    triangles' parts in front of J (:meth:`PairSetup.unoccluded_integral`, exact). Where the
+    bound is at most :data:`SHADOW_BOUND` of the column's ``budget`` (R,) (in ∫ units), it
+    is the column's estimate there (``spent`` (R,)) and its triangles are not split for it:
+    a far or small receiver (a desk panel across the room) is settled where the shadow
+    search (16 grandchildren on their own three levels each) would cost most.
+    ``shafts``: (:class:`PairSetup`, column c) of the columns searched."""
     box_lo, box_hi = face_boxes(scene)
 
     def bound(tri, blind, seen):
@@ -2784,17 +2795,20 @@ def unseen_shadow_bound(scene, pairs, f0, e0, area, budget):
         spent = np.zeros(blind.shape[1])
         lo, hi = tri.min(axis=1), tri.max(axis=1)
         a = triangle_areas(tri)
-        for j, c in pairs:
+        for setup, c in shafts:
             rows = np.flatnonzero(blind[:, c])
             if not len(rows):
                 continue
+            j, allowed = setup.face_t, SHADOW_BOUND * budget[c] - float(seen[rows, c].sum())
             gap = np.maximum(0.0, np.maximum(box_lo[j] - hi[rows], lo[rows] - box_hi[j]))
             with np.errstate(divide="ignore"):
                 near = a[rows] * np.minimum(1.0, scene.face_area[j] / (np.pi * np.einsum("ij,ij->i", gap, gap)))
-            b = min((f0[c] + e0[c]) * area, float(near.sum())) + float(seen[rows, c].sum())
-            if b <= SHADOW_BOUND * budget[c]:
+            b = min((f0[c] + e0[c]) * area, float(near.sum()))
+            if b > allowed:
+                b = sum(front_unoccluded(setup, tri[rows]))
+            if b <= allowed:
                 blind[rows, c] = False
-                spent[c] = b
+                spent[c] = b + float(seen[rows, c].sum())
         return blind, spent
 
     return bound
@@ -3218,7 +3232,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
 
     budget = np.where(wanted, np.maximum(tol - e0, 0.1 * tol) * area, np.inf)
     cub = cubature(hidden, threads)
-    bound = unseen_shadow_bound(scene, [(setup.face_t, c) for setup, c in shafts], f0, e0, area, budget)
+    bound = unseen_shadow_bound(scene, shafts, f0, e0, area, budget)
     h, h_err, _ = cub.integrate(tri, budget, live, bound)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden

@@ -302,10 +302,12 @@ def test_three_level_rows_on_the_kink_model(monkeypatch):
     """office(100)'s cabinet side 64 and desk-top edge 41 (on three levels, their kinks
     uncut), at tol 1e-4 against the rows 4 times finer at 1e-7: every entry within its
     estimate plus the reference's. On the smooth model (``|Q − K| / 64`` at the least,
-    :func:`viscx.queries.formfactor.three_level_error`) four were not (64 → 41+: 2.7e-7 off
-    for 1.7e-7 and → 44+, a shadow first seen by the grandchildren; 41 → 3+, a wall: 4.9e-8
-    for 3.3e-8 and → 16+, the children and grandchildren agreeing by chance across a kink):
-    :func:`viscx.queries.formfactor.kinked_three_level_error`."""
+    :func:`viscx.queries.formfactor.three_level_error`) three are not (64 → 44+, a shadow
+    first seen by the grandchildren; 41 → 3+, a wall: 4.9e-8 for 3.3e-8 and → 16+, the
+    children and grandchildren agreeing by chance across a kink):
+    :func:`viscx.queries.formfactor.kinked_three_level_error`. (64 → 41+, 2.7e-7 off for
+    1.7e-7 on the smooth model before, is within its estimate since an unseen shadow's
+    bound is part of it: :func:`viscx.queries.formfactor.unseen_shadow_bound`.)"""
     scene = build_scene(office(100, seed=0))
     faces = np.arange(scene.n_faces)
 
@@ -324,7 +326,7 @@ def test_three_level_rows_on_the_kink_model(monkeypatch):
 
     assert beyond(64) == set() and beyond(41) == set()
     monkeypatch.setattr(ff.ThreeLevelRowCubature, "estimates", lambda self, tri, q, kq, gq: ff.three_level_error(q, kq, gq)[0])
-    assert beyond(64) == {82, 88} and beyond(41) == {6, 32}
+    assert beyond(64) == {88} and beyond(41) == {6, 32}
 
 
 

@@ -1065,7 +1065,10 @@ def _emitter_pieces(scene, face, side):
 def plane_segments(scene, face, side):
     """(s, 2, 3) float64: the lines where the planes of the faces in front of side ``side``
     of a face cross it (each plane once, as a segment across the face), those of the
-    faces that have vertices more than 1e-9 of the scene's size on both sides of it. On
+    faces that have vertices more than 1e-9 of the scene's size on both sides of it and a
+    vertex that far ahead of the side's plane (a face behind the plane, touching it, as a
+    desk's panels under its front edge, is never seen from the side and hides nothing in
+    front of it: no column kinks along its plane). On
     such a line a face turns edge-on: F to it goes to 0 there like the distance and its
     shadow's edges pass over each other, so every column it sees or hides has a kink
     (D1) along the whole line (the planes' kink lines of :func:`viscx.queries.kinks.kink_segments`,

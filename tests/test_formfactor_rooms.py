@@ -144,6 +144,46 @@ def test_three_level_row_cut_along_the_planes_crossing_it(monkeypatch):
     assert {51, 87} <= set(beyond())
 
 
+def test_planes_of_faces_behind_the_side_cut_nothing(office60):
+    """office(60)'s desk0 front edge (face 20, 1.4 × 0.03 m) is crossed by the planes of its
+    own panels' sides (faces 23 and 28), which lie behind its plane and touch it: never seen
+    from its front side and hiding nothing in front of it, they kink no column, and
+    :func:`viscx.queries.formfactor.plane_segments` leaves their lines out (a face needs a
+    vertex ahead of the side's plane; they were cut along before: 2 of its 4 lines).
+    Oracle: the kernel at points all over the face (on both sides of those lines), every
+    face swept on its own, with and without the two faces: every other column the same,
+    theirs 0."""
+    from viscx.geometry.occlusion import point_views
+    from viscx.geometry.polygon import plane_basis
+
+    scene, face = office60, 20
+    outline, lo, hi = ff.face_outlines(scene)
+    seg = ff.plane_segments(scene, face, 1)
+    for f in (23, 28):
+        n, c = scene.face_normal[f], float(scene.face_normal[f] @ outline[lo[f]])
+        h = outline[lo[face]:hi[face]] @ n - c
+        assert h.max() > 0.01 and h.min() < -0.01  # the plane crosses the face
+        assert np.all(np.abs(seg @ n - c).max(axis=1) > 1e-6)  # no line of it
+    seen = ff.seen_faces(scene, face, 1)
+    assert {23, 28} <= set(seen.tolist())
+    rng = np.random.default_rng(5)
+    tri = scene.vertices[scene.triangles[scene.triangle_face == face]]
+    w = rng.dirichlet(np.ones(3), 400)
+    pts = np.ascontiguousarray(np.einsum("gk,gkd->gd", w, tri[rng.integers(len(tri), size=400)]))
+    n_i = scene.face_normal[face]
+    eu, ev = plane_basis(n_i)
+    _, box_ptr, box_planes = ff.closed_boxes(scene)
+
+    def views(keep):
+        return point_views(pts, n_i, eu, ev, *ff.polygon_subset(scene, keep), int(np.searchsorted(keep, face)),
+                           1e-9 * scene.diagonal, np.full(len(keep), -1, np.int64), box_ptr, box_planes)
+
+    every, without = views(seen), views(seen[~np.isin(seen, [23, 28])])
+    theirs = np.repeat(np.isin(seen, [23, 28]), 2)  # their columns (both sides), the sky last
+    assert np.abs(every[:, :-1][:, theirs]).max() <= 1e-12
+    assert np.abs(np.column_stack([every[:, :-1][:, ~theirs], every[:, -1]]) - without).max() <= 1e-12
+
+
 def hidden_faces(soup):
     """Polygons lying inside another polygon of the same plane with the opposite normal
     (a cabinet's back on its wall, a box's bottom on the floor, a panel's top under the
@@ -262,10 +302,12 @@ def test_three_level_rows_on_the_kink_model(monkeypatch):
     """office(100)'s cabinet side 64 and desk-top edge 41 (on three levels, their kinks
     uncut), at tol 1e-4 against the rows 4 times finer at 1e-7: every entry within its
     estimate plus the reference's. On the smooth model (``|Q − K| / 64`` at the least,
-    :func:`viscx.queries.formfactor.three_level_error`) four were not (64 → 41+: 2.7e-7 off
-    for 1.7e-7 and → 44+, a shadow first seen by the grandchildren; 41 → 3+, a wall: 4.9e-8
-    for 3.3e-8 and → 16+, the children and grandchildren agreeing by chance across a kink):
-    :func:`viscx.queries.formfactor.kinked_three_level_error`."""
+    :func:`viscx.queries.formfactor.three_level_error`) three are not (64 → 44+, a shadow
+    first seen by the grandchildren; 41 → 3+, a wall: 4.9e-8 for 3.3e-8 and → 16+, the
+    children and grandchildren agreeing by chance across a kink):
+    :func:`viscx.queries.formfactor.kinked_three_level_error`. (64 → 41+, 2.7e-7 off for
+    1.7e-7 on the smooth model before, is within its estimate since an unseen shadow's
+    bound is part of it: :func:`viscx.queries.formfactor.unseen_shadow_bound`.)"""
     scene = build_scene(office(100, seed=0))
     faces = np.arange(scene.n_faces)
 
@@ -284,7 +326,7 @@ def test_three_level_rows_on_the_kink_model(monkeypatch):
 
     assert beyond(64) == set() and beyond(41) == set()
     monkeypatch.setattr(ff.ThreeLevelRowCubature, "estimates", lambda self, tri, q, kq, gq: ff.three_level_error(q, kq, gq)[0])
-    assert beyond(64) == {82, 88} and beyond(41) == {6, 32}
+    assert beyond(64) == {88} and beyond(41) == {6, 32}
 
 
 

@@ -288,10 +288,24 @@ def test_a_shadow_between_the_nodes_is_looked_for_where_the_shafts_say():
     cub = ff.RowCubature(integrand)
     q, e = cub.rule(tri, 1)
     assert q[0, 0] == 0.0 and e[0, 0] == 0.0 and live(tri)[0, 0]  # the nodes miss it
-    new, nq, _ = cub._look_for_shadows(tri, q, e, live, 1)
+    new, nq, _, _ = cub._look_for_shadows(tri, q, e, live, 1)
     assert len(new) == 3 + 4
     assert nq.sum() > 0  # seen now
     assert np.allclose(ff.triangle_areas(new).sum(), 0.5)
+
+
+def tile_under_receiver(half, tile=True):
+    """The polygons of a unit floor, a square receiver of half-width ``half`` 1 above its
+    centre (facing down: element 2) and (with ``tile``) a 0.01 tile hovering 0.03 over the
+    floor at the point farthest from every node of the 21 rules of the floor's first
+    triangles (0.031 from the nearest, found on a 181² grid)."""
+    c = 0.665
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    lo, hi = 0.5 - half, 0.5 + half
+    receiver = [[lo, lo, 1], [lo, hi, 1], [hi, hi, 1], [hi, lo, 1]]
+    square = [[c - 0.005, c - 0.005, 0.03], [c + 0.005, c - 0.005, 0.03], [c + 0.005, c + 0.005, 0.03],
+              [c - 0.005, c + 0.005, 0.03]]
+    return [floor, receiver, square] if tile else [floor, receiver]
 
 
 def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
@@ -302,12 +316,7 @@ def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
     above. Without the search the floor → receiver entry is 1.2e-6 off for an estimate of
     1.3e-15 at tol 1e-4; with it, within its estimate of the pair's F at 1e-9."""
     monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
-    cx = cy = 0.665  # farthest from the nodes (found on a 181² grid)
-    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
-    receiver = [[0.4, 0.4, 1], [0.4, 0.6, 1], [0.6, 0.6, 1], [0.6, 0.4, 1]]  # facing down: element 2
-    tile = [[cx - 0.005, cy - 0.005, 0.03], [cx + 0.005, cy - 0.005, 0.03], [cx + 0.005, cy + 0.005, 0.03],
-            [cx - 0.005, cy + 0.005, 0.03]]
-    scene = scene_of([floor, receiver, tile])
+    scene = scene_of(tile_under_receiver(0.1))
     faces = np.arange(scene.n_faces)
     ref = ff.face_to_face(scene, 0, 1, side_i=1, tol=1e-9)
 
@@ -319,9 +328,75 @@ def test_a_shadow_between_the_three_level_nodes_is_looked_for(monkeypatch):
 
     F, E = entry()
     assert abs(F - ref["F"]) <= E + ref["error"]
-    monkeypatch.setattr(ff, "look_for_shadows", lambda tri, seen, live: (np.zeros(len(tri), bool), np.zeros((0, 3, 3))))
+    monkeypatch.setattr(ff, "shadow_triangles", lambda tri, blind, live: (np.zeros(len(tri), bool), np.zeros((0, 3, 3))))
     F, E = entry()
     assert abs(F - ref["F"]) > 100 * (E + ref["error"])  # without the search: the shadow unseen
+
+
+def test_front_unoccluded_against_the_point_form_factor():
+    """The exact bound of the shadow search (:func:`viscx.queries.formfactor.front_unoccluded`):
+    ∫ F(x → J') over triangles of a floor straddling the plane of a wall piece standing on
+    it (F is 0 behind it), against a Radon rule on 4,096 sub-triangles of each of the exact
+    point-to-polygon F (set to 0 behind the plane), within the rule's change from 1,024. The contour integral of the whole
+    triangles, unclipped, is not it."""
+    from viscx.geometry.formfactor import point_to_polygon
+
+    floor = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    wall = [[0.5, 0.2, 0.1], [0.5, 0.2, 0.6], [0.5, 0.8, 0.6], [0.5, 0.8, 0.1]]  # facing -x
+    scene = scene_of([floor, wall])
+    setup = ff.PairSetup(scene, 0, 1, ff.face_target(scene, 1), 1, occluders=False)
+    tri = np.array([[[0.3, 0.1, 0], [0.7, 0.3, 0], [0.4, 0.9, 0]], [[0.45, 0.4, 0], [0.6, 0.45, 0], [0.5, 0.6, 0]]])
+    value, error = ff.front_unoccluded(setup, tri)
+
+    def oracle(levels):
+        fine = tri
+        for _ in range(levels):
+            fine = ff.split4(fine).reshape(-1, 3, 3)
+        pts = np.einsum("rk,gkd->grd", ff.RULE_NODES, fine).reshape(-1, 3)
+        f = point_to_polygon(pts, np.broadcast_to(setup.n_i, pts.shape), setup.J) * (pts @ setup.n_t >= setup.c_t)
+        return float((f.reshape(len(fine), 7) @ ff.RULE_WEIGHTS) @ ff.triangle_areas(fine))
+
+    coarse, fine = oracle(5), oracle(6)  # the kink along the wall's plane: the rule converges as h³
+    assert fine > 1e-3 and abs(value - fine) <= error + abs(fine - coarse) < 2e-5 * fine
+    whole = setup.unoccluded_integral(tri)[0]
+    assert abs(whole - fine) > 1e-4
+
+
+def test_an_unseen_shadow_of_a_small_far_receiver_is_bounded_not_looked_for(monkeypatch):
+    """The tile of the test above hovering between the nodes under a receiver of 0.02 square
+    (F ≈ 9.6e-5 from the floor, 1.0e-8 of it hidden) at tol 1e-3: the shadow search's bound
+    (the hidden part lies between 0 and F(x → J), whose integral over the triangles where
+    the column is unseen is at most the pair's whole contour term,
+    :func:`viscx.queries.formfactor.unseen_shadow_bound`) is within a quarter of the
+    budget, so the triangles are not split for it (fewer points) and the bound is the
+    entry's estimate there: within it of the pair's F at 1e-9. Settled without the bound in
+    the estimate (the search skipped, nothing added) the entry is off by more than 10 times
+    its estimate and the reference's, as without the search; looked for (the bound switched
+    off) it costs more points for an entry within its estimate too."""
+    monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
+    scene = scene_of(tile_under_receiver(0.01))
+    faces = np.arange(scene.n_faces)
+    ref = ff.face_to_face(scene, 0, 1, side_i=1, tol=1e-9)
+    unoccluded = ff.face_to_face(scene_of(tile_under_receiver(0.01, tile=False)), 0, 1, side_i=1, tol=1e-9)["F"]
+    assert 1e-9 < unoccluded - ref["F"] and unoccluded < 0.25e-3  # a shadow, and a bound within the share
+
+    def entry():
+        cols, F, E, counts, *_ = ff.row_form_factors(scene, 0, 1, faces, 1e-3)
+        (k,) = np.flatnonzero(cols == 2)
+        return F[k], E[k], counts["evaluations"]
+
+    F, E, points = entry()
+    assert abs(F - ref["F"]) <= E + ref["error"]
+    with monkeypatch.context() as m:
+        m.setattr(ff, "SHADOW_BOUND", -1.0)  # no bound: looked for
+        F1, E1, points1 = entry()
+    assert points1 > points and abs(F1 - ref["F"]) <= E1 + ref["error"]
+    # settled without its bound in the estimate: dishonest
+    bound = ff.unseen_shadow_bound
+    monkeypatch.setattr(ff, "unseen_shadow_bound", lambda *a: (lambda tri, blind, seen: (
+        bound(*a)(tri, blind, seen)[0], np.zeros(blind.shape[1]))))
+    F, E, _ = entry()
+    assert abs(F - ref["F"]) > 10 * (E + ref["error"])  # 1.0e-8 off for 1.2e-15 (+ the reference's 4e-10)
 
 
 def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):

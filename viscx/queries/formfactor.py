@@ -1066,7 +1066,10 @@ def _emitter_pieces(scene, face, side):
 def plane_segments(scene, face, side):
     """(s, 2, 3) float64: the lines where the planes of the faces in front of side ``side``
     of a face cross it (each plane once, as a segment across the face), those of the
-    faces that have vertices more than 1e-9 of the scene's size on both sides of it. On
+    faces that have vertices more than 1e-9 of the scene's size on both sides of it and a
+    vertex that far ahead of the side's plane (a face behind the plane, touching it, as a
+    desk's panels under its front edge, is never seen from the side and hides nothing in
+    front of it: no column kinks along its plane). On
     such a line a face turns edge-on: F to it goes to 0 there like the distance and its
     shadow's edges pass over each other, so every column it sees or hides has a kink
     (D1) along the whole line (the planes' kink lines of :func:`viscx.queries.kinks.kink_segments`,
@@ -1074,8 +1077,10 @@ def plane_segments(scene, face, side):
     outline, lo, hi = face_outlines(scene)
     tiny = 1e-9 * scene.diagonal
     mine = outline[lo[face]:hi[face]]
+    n_i = side * scene.face_normal[face]
+    ahead = np.maximum.reduceat(outline @ n_i, lo) - float(n_i @ mine[0]) > tiny
     others = seen_faces(scene, face, side)
-    others = others[others != face]
+    others = others[(others != face) & ahead[others]]
     normal = scene.face_normal[others]
     c = np.einsum("fj,fj->f", normal, outline[lo[others]])
     h = mine @ normal.T - c
@@ -2728,10 +2733,10 @@ def look_for_shadows(tri, seen, live):
     """Where a small shadow may lie between the nodes of the first triangles (g, 3, 3): a
     column an occluder may hide on a triangle (``live``, its shaft test) whose nodes see
     nothing of it (``seen`` (g, R): what the rules and their estimates say, ≤ 1e-10 × the
-    triangle's area). Such a triangle is replaced by its 4 children, and each child whose
-    shaft still meets an occluder of such a column by its own 4 children (the node density
-    four times finer where the shadow may be; on the other children the column is exactly
-    0). ``live(tri, need) -> (g, R) bool`` is asked only where ``need`` is set.
+    triangle's area: :func:`blind_columns`). Such a triangle is replaced by its 4 children,
+    and each child whose shaft still meets an occluder of such a column by its own 4
+    children (:func:`shadow_triangles`). ``live(tri, need) -> (g, R) bool`` is asked only
+    where ``need`` is set.
 
     Returns
     -------
@@ -2740,9 +2745,25 @@ def look_for_shadows(tri, seen, live):
     new : (h, 3, 3) float64
         What replaces them (the children, then the grandchildren).
     """
+    return shadow_triangles(tri, blind_columns(tri, seen, live), live)
+
+
+def blind_columns(tri, seen, live):
+    """(g, R) bool: the columns an occluder may hide on each triangle (g, 3, 3) (``live``,
+    its shaft test, asked only where the nodes see nothing) whose nodes see nothing of them
+    (``seen`` (g, R) ≤ :data:`UNSEEN` × the triangle's area)."""
     blind = seen <= UNSEEN * triangle_areas(tri)[:, None]
     ask = np.flatnonzero(np.any(blind, axis=1))  # the shaft tests only where they matter
     blind[ask] &= live(tri[ask], blind[ask])
+    return blind
+
+
+def shadow_triangles(tri, blind, live):
+    """The triangles (g, 3, 3) with a ``blind`` (g, R) column replaced by their 4 children,
+    and each child whose shaft still meets an occluder of such a column by its own 4
+    children (the node density four times finer where the shadow may be; on the other
+    children the column is exactly 0): ``unseen`` (g,) bool, the triangles replaced, and
+    ``new`` (h, 3, 3), what replaces them (:func:`look_for_shadows`)."""
     unseen = np.any(blind, axis=1)
     if not np.any(unseen):
         return unseen, np.zeros((0, 3, 3))
@@ -2750,6 +2771,62 @@ def look_for_shadows(tri, seen, live):
     need = np.repeat(blind[unseen], 4, axis=0)
     deeper = np.any(live(kids, need) & need, axis=1)
     return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
+
+
+#: The share of a column's budget that an upper bound of its unseen shadows may take, where
+#: it settles them, instead of looking for them (:func:`unseen_shadow_bound`).
+SHADOW_BOUND = 0.25
+
+
+def front_unoccluded(setup, tri):
+    """∫ F(x → J') dx over the parts of the triangles (g, 3, 3) of the emitter's plane in
+    front of J (where the pair's I' is: ``n_t · y ≥ c_t + tiny``; F(x → J') is 0 behind):
+    the contour integral of those parts (:meth:`PairSetup.unoccluded_integral`, exact),
+    ``(value, error)`` in area × F."""
+    front = [part for t in tri for part in clip_loops([t], setup.n_t, setup.c_t + setup.tiny)]
+    return setup.unoccluded_integral(start_triangles(front, 0.0)) if front else (0.0, 0.0)
+
+
+def unseen_shadow_bound(scene, shafts, f0, e0, area, budget):
+    """``bound(tri, blind, seen) -> blind, spent`` for the row cubatures' shadow search:
+    where a column's nodes on a first triangle see nothing of it but an occluder meets the
+    triangle's shaft to it (``blind`` (g, R) bool, :func:`blind_columns`), the hidden part
+    there lies between 0 and the unoccluded integrand F(x → J') ≥ 0, so the rules' value
+    (``seen`` (g, R): ≤ 1e-10 of the area) is off by at most ``seen`` plus ∫ F(x → J') over
+    those triangles. That integral is at most the whole pair's, ``(F⁰ + its error) × A_i``
+    (``f0``, ``e0`` (R,) in F, ``area`` A_i), and at most Σ area(T) min(1, A_J / (π d²)) with
+    d the distance between the boxes of T and J (F(x → J) = (1/π) ∫_J cos cos / r² ≤
+    A_J / (π d²)); where neither is small enough, it is the contour integral over the
+    triangles' parts in front of J (:meth:`PairSetup.unoccluded_integral`, exact). Where the
+    bound is at most :data:`SHADOW_BOUND` of the column's ``budget`` (R,) (in ∫ units), it
+    is the column's estimate there (``spent`` (R,)) and its triangles are not split for it:
+    a far or small receiver (a desk panel across the room) is settled where the shadow
+    search (16 grandchildren on their own three levels each) would cost most.
+    ``shafts``: (:class:`PairSetup`, column c) of the columns searched."""
+    box_lo, box_hi = face_boxes(scene)
+
+    def bound(tri, blind, seen):
+        blind = blind.copy()
+        spent = np.zeros(blind.shape[1])
+        lo, hi = tri.min(axis=1), tri.max(axis=1)
+        a = triangle_areas(tri)
+        for setup, c in shafts:
+            rows = np.flatnonzero(blind[:, c])
+            if not len(rows):
+                continue
+            j, allowed = setup.face_t, SHADOW_BOUND * budget[c] - float(seen[rows, c].sum())
+            gap = np.maximum(0.0, np.maximum(box_lo[j] - hi[rows], lo[rows] - box_hi[j]))
+            with np.errstate(divide="ignore"):
+                near = a[rows] * np.minimum(1.0, scene.face_area[j] / (np.pi * np.einsum("ij,ij->i", gap, gap)))
+            b = min((f0[c] + e0[c]) * area, float(near.sum()))
+            if b > allowed:
+                b = sum(front_unoccluded(setup, tri[rows]))
+            if b <= allowed:
+                blind[rows, c] = False
+                spent[c] = b + float(seen[rows, c].sum())
+        return blind, spent
+
+    return bound
 
 
 #: What :class:`RowCubature` and :class:`Cubature` leave of a column's estimate unrefined
@@ -2788,7 +2865,9 @@ class RowCubature:
     and where the columns' shaft tests say an occluder may hide a column on a first
     triangle whose nodes see nothing of it, that triangle starts at its children, and
     those whose shafts still meet such an occluder at their own children (the node
-    density of three levels, there only; :meth:`_look_for_shadows`).
+    density of three levels, there only; :meth:`_look_for_shadows`), unless an upper
+    bound of what it may hide there is within a quarter of the column's budget
+    (:func:`unseen_shadow_bound`: the bound is then its estimate there).
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
     largest estimates are refined (until what is left is :data:`REFINE_LEFT` of its
@@ -2816,16 +2895,20 @@ class RowCubature:
         q, e = row_rules(self, tri, width, (RULE_WEIGHTS, NULL_RULE))
         return q, np.abs(e)
 
-    def integrate(self, tri, budget, live=None):
+    def integrate(self, tri, budget, live=None, bound=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
         ``budget`` (R,) the targets on the columns' estimates; ``live(tri, need) -> (g, R)
         bool``, where an occluder may hide the column (its shaft test), asked only where
-        ``need`` (g, R) bool is set (elsewhere it may say anything). Returns ``value,
-        error`` (R,) and the triangles evaluated."""
+        ``need`` (g, R) bool is set (elsewhere it may say anything); ``bound(tri, blind,
+        seen) -> blind, spent``, the columns whose unseen shadows an upper bound settles
+        (:func:`unseen_shadow_bound`). Returns ``value, error`` (R,) and the triangles
+        evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
+        spent = np.zeros(width)
         if live is not None:
-            tri, q, e = self._look_for_shadows(tri, q, e, live, width)
+            tri, q, e, spent = self._look_for_shadows(tri, q, e, live, width, bound)
+            budget = budget - spent
         # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
         K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
         kid_of = np.full(len(tri), -1, np.int64)
@@ -2866,17 +2949,21 @@ class RowCubature:
                 K, kq, ke = K[idx], kq[idx], ke[idx]
                 kid_of[live] = np.arange(len(live))
         value, err = self._leaves(q, e, kid_of, kq)
-        return value.sum(axis=0), err.sum(axis=0), cells
+        return value.sum(axis=0), err.sum(axis=0) + spent, cells
 
-    def _look_for_shadows(self, tri, q, e, live, width):
+    def _look_for_shadows(self, tri, q, e, live, width, bound=None):
         """:func:`look_for_shadows` on the first triangles, whose rules and null rules are
-        ``q, e`` (g, R): the new triangles on their rules. Returns the new ``tri, q, e``."""
-        unseen, new = look_for_shadows(tri, np.abs(q) + e, live)
+        ``q, e`` (g, R), but for the columns ``bound`` settles: the new triangles on their
+        rules. Returns the new ``tri, q, e`` and the bounds spent (R,)."""
+        seen = np.abs(q) + e
+        blind = blind_columns(tri, seen, live)
+        blind, spent = (blind, np.zeros(width)) if bound is None else bound(tri, blind, seen)
+        unseen, new = shadow_triangles(tri, blind, live)
         if not len(new):
-            return tri, q, e
+            return tri, q, e, spent
         nq, ne = self.rule(new, width)
         return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
-                np.concatenate([e[~unseen], ne]))
+                np.concatenate([e[~unseen], ne]), spent)
 
     @staticmethod
     def _leaves(q, e, kid_of, kq):
@@ -2907,8 +2994,9 @@ class ThreeLevelRowCubature:
     A shadow smaller than the grandchildren's nodes' spacing may fall between all 147 nodes
     of a first triangle, and its three levels then agree on nothing seen (office(100), a
     desk side's row at 1e-4: an entry 4.2e-8 off for an estimate of 2.9e-14): the first
-    triangles go through :func:`look_for_shadows`, as :class:`RowCubature`'s, each new
-    triangle on its own three levels. (A kink near a triangle's edge is the other thing
+    triangles go through the shadow search of :class:`RowCubature` (:func:`blind_columns`,
+    :func:`unseen_shadow_bound`, :func:`shadow_triangles`), each new triangle on its own
+    three levels. (A kink near a triangle's edge is the other thing
     three levels miss: :func:`plane_cells`.)
 
     Parameters
@@ -2940,17 +3028,22 @@ class ThreeLevelRowCubature:
         """(g, R): :func:`kinked_three_level_error` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""
         return kinked_three_level_error(q, kq, gq)
 
-    def integrate(self, tri, budget, live=None):
+    def integrate(self, tri, budget, live=None, bound=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
-        ``budget`` (R,) the targets on the columns' estimates; ``live`` the shaft test of
-        :meth:`RowCubature.integrate`. Returns ``value, error`` (R,) and the triangles
-        evaluated."""
+        ``budget`` (R,) the targets on the columns' estimates; ``live`` and ``bound`` the
+        shaft test and the unseen shadows' bound of :meth:`RowCubature.integrate`. Returns
+        ``value, error`` (R,) and the triangles evaluated."""
         width = len(budget)
         q, K, kq, G, gq = self.levels(tri, width)
+        spent = np.zeros(width)
         if live is not None:
             # what each first triangle's 21 rules see of each column
             seen = levels_seen(q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
-            unseen, new = look_for_shadows(tri, seen, live)
+            blind = blind_columns(tri, seen, live)
+            if bound is not None:
+                blind, spent = bound(tri, blind, seen)
+                budget = budget - spent
+            unseen, new = shadow_triangles(tri, blind, live)
             if len(new):
                 keep = ~unseen
                 nq, nK, nkq, nG, ngq = self.levels(new, width)
@@ -2982,7 +3075,7 @@ class ThreeLevelRowCubature:
             G = np.concatenate([G[g_keep], new_G])
             gq = np.concatenate([gq[g_keep], new_gq])
         err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
-        return gq.sum(axis=0), err.sum(axis=0), cells
+        return gq.sum(axis=0), err.sum(axis=0) + spent, cells
 
 
 def coplanar_faces(scene, face):
@@ -3154,7 +3247,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
 
     budget = np.where(wanted, np.maximum(tol - e0, 0.1 * tol) * area, np.inf)
     cub = cubature(hidden, threads)
-    h, h_err, _ = cub.integrate(tri, budget, live)
+    bound = unseen_shadow_bound(scene, shafts, f0, e0, area, budget)
+    h, h_err, _ = cub.integrate(tri, budget, live, bound)
     F, E = f0 - h / area, e0 + h_err / area
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted[-1] = False

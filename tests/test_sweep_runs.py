@@ -121,3 +121,32 @@ def test_sweep_runs_orders_nearly_parallel_edges_by_their_heights(meet):
                 h = point_views(*args, kind)[0]
                 worst[kind] = max(worst[kind], np.abs(h[:-1]).max())
     assert np.all(worst < 2e-15), worst
+
+
+def test_sweep_runs_sees_rounding_crossings_on_the_frustums_side():
+    """office(1000, seed=0)'s face 213 (a shelf's top, facing +z) and the three faces that
+    made its points see 0.186 of sky in a closed room: the wall y = 0, and a panel's two
+    faces back to back in the plane y = 0.69, 1.1e-4 in front of the points, whose top edge
+    lies in the shelf's plane. Clipped to a wedge, the panel's faces are slivers on the
+    frustum's side (the horizon), their vertices off by ~1e-11 (they are 1e-4 away); the
+    wall's edge leaving the wedge's corner there crossed them by that rounding, and the
+    runs' sweep, not told (no crossing was looked for on the frustum's sides), kept it below
+    them for good: the wall's F went to the sky. The oracle: the panel lies below the
+    horizon and hides nothing, so every hidden column is 0 (to rounding), with every sweep."""
+    v = [[12.413541, 0.69, 3.998746], [13.113541, 0.69, 3.998746], [13.113541, 0.72, 3.998746],
+         [12.413541, 0.72, 3.998746], [0.0, 0.0, 0.0], [0.0, 0.0, 14.40703], [19.209373, 0.0, 14.40703],
+         [19.209373, 0.0, 0.0], [12.413541, 0.69, 2.598746], [13.113541, 0.69, 2.598746],
+         [12.413541, 0.69, 3.968746], [13.113541, 0.69, 3.968746]]
+    s = build_scene(soup(v, [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 1, 0], [0, 1, 11, 10]], [0, 1, 2, 2],
+                         ["shelf", "wall", "panel"]))
+    pts = np.array([[12.81078034759500994, 0.6901112281365682222, 3.998745999999999690],
+                    [13.03314483885757724, 0.6914089766637581125, 3.998745999999999690]])
+    n_i = s.face_normal[0]
+    eu, ev = plane_basis(n_i)
+    args = (pts, n_i, eu, ev, *ff.scene_polygons(s), 0, 1e-9 * s.diagonal, *ff.closed_boxes(s))
+    for kind in range(3):
+        h = point_views(*args, kind)
+        # (the slabs' event-local sweep, kind 0 here, leaves 1.5e-13 in the slivers of the
+        # panel's ~1e-11 rounding; the runs' sweep left 0.186)
+        assert np.abs(h[:, :-1]).max() < 1e-12, kind
+        assert np.all(h[:, -1] > 0.54), kind  # the sky: 1 − F to the wall (~0.46)

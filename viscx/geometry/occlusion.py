@@ -2511,9 +2511,10 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
         # an edge on the frustum's side crosses none inside it (every other lies in the
         # frustum) but by rounding: the slab sweep, which sorts every slab, does without
         # those crossings; the runs' sweep keeps its order from break to break and must see
-        # every change of it, a rounding crossing too (an edge leaving a wedge's corner
-        # crossed a sliver on the frustum's side 1e-11 from the corner, unseen, and kept
-        # below it: 0.18 of F to the sky on office(1000), tests/test_sweep_runs.py)
+        # every change of it, a rounding crossing too (a face clipped 1e-4 from the point,
+        # its vertices off by 1e-11 of their distance, crossed a wall's edge on the wedge's
+        # side 1e-11 from its corner, unseen: the wall's edge stayed below the face's for
+        # good, 0.186 of F to the sky on office(1000), tests/test_sweep_runs.py)
         s_p[r] = seg_p[e] if seg_w[e] != 0 and (by_runs or rim[e] == 0) else -1
     for r in range(n_seg):
         pe = s_p[r]

@@ -62,8 +62,9 @@ ORDER_TIE = 2e-15
 #: within which :func:`_wedge_view` takes a vertex for one on it (a vertex the clipping
 #: made there is within ~1e-16): an edge with both ends on one such plane lies on the
 #: frustum's side, and no other edge (all in the frustum) crosses it but by rounding, so its
-#: crossings are not looked for (with the whole-frustum copy, ~59 → ~57 µs a point on the
-#: Cornell box).
+#: crossings are not looked for by the slab sweep, which sorts every slab (with the
+#: whole-frustum copy, ~59 → ~57 µs a point on the Cornell box); :func:`_sweep_runs` needs
+#: them (:func:`_wedge_view`).
 RIM = 1e-13
 #: Slope (|dv/du| in a wedge's 2-D basis) above which an edge is steep. The sweep
 #: places the ends of an edge's runs by their u (:func:`_flush_owner`), and a steep edge's
@@ -2485,10 +2486,21 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     # winding weights (+1 right to left, -1 left to right, 0 vertical: bounds no slab)
     seg_w[:n_seg] = 1
     brk, n_brk = _edge_windings(seg_a, seg_b, seg_w, n_seg, lo_u, hi_u, brk)
+    by_lo = np.argsort(lo_u[:n_seg])
+    live = iw[1]  # the edges that bound slabs (not vertical), by their left ends
+    n_live = 0
+    for r in range(n_seg):
+        if seg_w[by_lo[r]] != 0:
+            live[n_live] = by_lo[r]
+            n_live += 1
+    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
+    by_runs = False
+    if sweep_kind is not None:
+        has_vertical = has_vertical or sweep_kind == 1
+        by_runs = not has_vertical and (n_live >= SWEEP_RUNS_FROM or sweep_kind == 2)
     # crossings of edges of different polygons: edges by their left ends, each against the
     # ones starting before it ends (their u and v ranges, polygon and weight copied in that
     # order first: the inner loop reads consecutive memory)
-    by_lo = np.argsort(lo_u[:n_seg])
     s_lo, s_hi, s_vlo, s_vhi = fw[2], fw[3], fw[4], fw[5]
     s_p = iw[0]  # -1: a vertical edge (no crossing counted)
     n_cross = 0
@@ -2496,8 +2508,14 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
         e = by_lo[r]
         s_lo[r], s_hi[r] = lo_u[e], hi_u[e]
         s_vlo[r], s_vhi[r] = min(seg_a[e, 1], seg_b[e, 1]), max(seg_a[e, 1], seg_b[e, 1])
-        # (an edge on the frustum's side crosses none inside it: every other lies in the frustum)
-        s_p[r] = seg_p[e] if seg_w[e] != 0 and rim[e] == 0 else -1
+        # an edge on the frustum's side crosses none inside it (every other lies in the
+        # frustum) but by rounding: the slab sweep, which sorts every slab, does without
+        # those crossings; the runs' sweep keeps its order from break to break and must see
+        # every change of it, a rounding crossing too (a face clipped 1e-4 from the point,
+        # its vertices off by 1e-11 of their distance, crossed a wall's edge on the wedge's
+        # side 1e-11 from its corner, unseen: the wall's edge stayed below the face's for
+        # good, 0.186 of F to the sky on office(1000), tests/test_sweep_runs.py)
+        s_p[r] = seg_p[e] if seg_w[e] != 0 and (by_runs or rim[e] == 0) else -1
     for r in range(n_seg):
         pe = s_p[r]
         if pe < 0:
@@ -2527,17 +2545,6 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     n_brk = _snap_breaks(us, n_brk, SNAP)
     slope = fw[6]
     _slopes(seg_a, seg_b, n_seg, slope)
-    live = iw[1]  # the edges that bound slabs (not vertical), by their left ends
-    n_live = 0
-    for r in range(n_seg):
-        if seg_w[by_lo[r]] != 0:
-            live[n_live] = by_lo[r]
-            n_live += 1
-    has_vertical = _has_vertical(seg_a, seg_b, seg_w, n_seg)
-    by_runs = False
-    if sweep_kind is not None:
-        has_vertical = has_vertical or sweep_kind == 1
-        by_runs = not has_vertical and (n_live >= SWEEP_RUNS_FROM or sweep_kind == 2)
     if not by_runs:
         _sweep_slabs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, n_seg, hi_u, lo_u, slope, live, n_live,
                      has_vertical, poly_normal, side, rank, col, seen, wind, cover, runs, run_o, p0, p1, fw[2:5],

@@ -1559,7 +1559,7 @@ class Cubature:
         # agree on nothing seen (office(100), a desk panel → another desk's narrow side at
         # any tol: 1.2e-7 off for an estimate of 1.5e-14): looked for as in the rows
         seen = levels_seen(leaves.q, leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
-        unseen, new = look_for_shadows(leaves.tri, seen[:, None], lambda t, need: (np.diff(cull_all(
+        unseen, new, _ = look_for_shadows(leaves.tri, seen[:, None], lambda t, need: (np.diff(cull_all(
             self.cull, t, candidates)[0]) > 0)[:, None])
         if len(new):
             leaves = leaves.take(np.flatnonzero(~unseen)).join(self.levels(new, *cull_all(self.cull, new, candidates)))
@@ -2729,14 +2729,15 @@ def levels_seen(q, kq, gq):
     return np.abs(q) + np.abs(kq).sum(axis=1) + np.abs(gq).sum(axis=1)
 
 
-def look_for_shadows(tri, seen, live):
+def look_for_shadows(tri, seen, live, bound=None):
     """Where a small shadow may lie between the nodes of the first triangles (g, 3, 3): a
     column an occluder may hide on a triangle (``live``, its shaft test) whose nodes see
     nothing of it (``seen`` (g, R): what the rules and their estimates say, ≤ 1e-10 × the
     triangle's area: :func:`blind_columns`). Such a triangle is replaced by its 4 children,
     and each child whose shaft still meets an occluder of such a column by its own 4
-    children (:func:`shadow_triangles`). ``live(tri, need) -> (g, R) bool`` is asked only
-    where ``need`` is set.
+    children (:func:`shadow_triangles`), but for the columns ``bound(tri, blind, seen) ->
+    blind, spent`` settles by an upper bound (:func:`unseen_shadow_bound`). ``live(tri,
+    need) -> (g, R) bool`` is asked only where ``need`` is set.
 
     Returns
     -------
@@ -2744,8 +2745,12 @@ def look_for_shadows(tri, seen, live):
         The triangles replaced.
     new : (h, 3, 3) float64
         What replaces them (the children, then the grandchildren).
+    spent : (R,) float64
+        The bounds taken as the columns' estimates instead (0 without ``bound``).
     """
-    return shadow_triangles(tri, blind_columns(tri, seen, live), live)
+    blind = blind_columns(tri, seen, live)
+    blind, spent = (blind, np.zeros(seen.shape[1])) if bound is None else bound(tri, blind, seen)
+    return (*shadow_triangles(tri, blind, live), spent)
 
 
 def blind_columns(tri, seen, live):
@@ -2814,7 +2819,8 @@ def unseen_shadow_bound(scene, shafts, f0, e0, area, budget):
             rows = np.flatnonzero(blind[:, c])
             if not len(rows):
                 continue
-            j, allowed = setup.face_t, SHADOW_BOUND * budget[c] - float(seen[rows, c].sum())
+            j, there = setup.face_t, float(seen[rows, c].sum())
+            allowed = SHADOW_BOUND * budget[c] - there
             gap = np.maximum(0.0, np.maximum(box_lo[j] - hi[rows], lo[rows] - box_hi[j]))
             with np.errstate(divide="ignore"):
                 near = a[rows] * np.minimum(1.0, scene.face_area[j] / (np.pi * np.einsum("ij,ij->i", gap, gap)))
@@ -2823,7 +2829,7 @@ def unseen_shadow_bound(scene, shafts, f0, e0, area, budget):
                 b = sum(front_unoccluded(setup, tri[rows]))
             if b <= allowed:
                 blind[rows, c] = False
-                spent[c] = b + float(seen[rows, c].sum())
+                spent[c] = b + there
         return blind, spent
 
     return bound
@@ -2953,12 +2959,9 @@ class RowCubature:
 
     def _look_for_shadows(self, tri, q, e, live, width, bound=None):
         """:func:`look_for_shadows` on the first triangles, whose rules and null rules are
-        ``q, e`` (g, R), but for the columns ``bound`` settles: the new triangles on their
-        rules. Returns the new ``tri, q, e`` and the bounds spent (R,)."""
-        seen = np.abs(q) + e
-        blind = blind_columns(tri, seen, live)
-        blind, spent = (blind, np.zeros(width)) if bound is None else bound(tri, blind, seen)
-        unseen, new = shadow_triangles(tri, blind, live)
+        ``q, e`` (g, R): the new triangles on their rules. Returns the new ``tri, q, e``
+        and the bounds spent (R,)."""
+        unseen, new, spent = look_for_shadows(tri, np.abs(q) + e, live, bound)
         if not len(new):
             return tri, q, e, spent
         nq, ne = self.rule(new, width)
@@ -3039,11 +3042,8 @@ class ThreeLevelRowCubature:
         if live is not None:
             # what each first triangle's 21 rules see of each column
             seen = levels_seen(q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
-            blind = blind_columns(tri, seen, live)
-            if bound is not None:
-                blind, spent = bound(tri, blind, seen)
-                budget = budget - spent
-            unseen, new = shadow_triangles(tri, blind, live)
+            unseen, new, spent = look_for_shadows(tri, seen, live, bound)
+            budget = budget - spent
             if len(new):
                 keep = ~unseen
                 nq, nK, nkq, nG, ngq = self.levels(new, width)

@@ -3461,7 +3461,10 @@ class Matrix:
     reciprocal : bool
         Each pair computed once, in the rows of its smaller face, and the other direction
         derived (:func:`computed_pairs`): the reciprocity error is then 0 by construction
-        (up to rounding), and row sums are the check.
+        (up to rounding), and row sums are the check. Entries taken from a closed room's
+        row sum (:func:`summation_column`, ``method_counts["summation"]``) have the sum of
+        that row's other estimates as theirs, which may pass ``tol``, and that row's sum
+        checks nothing.
     """
 
     indptr: np.ndarray

@@ -153,15 +153,16 @@ def main(argv=None):
             print(json.dumps({"class": k, "rows": len(rows), "sampled": len(pick), "mean_cpu": round(float(np.mean(cpu)), 3),
                               "extrapolated_cpu": round(float(np.mean(cpu)) * len(rows), 1)}), flush=True)
         return
-    rows = [(f, s) for f in range(scene.n_faces) for s in ff.SIDES]
     c0, w0 = cpu_seconds(), time.perf_counter()
+    tasks, summation = ff.matrix_rows(scene)  # as the CLI's matrix: a closed room's floor row from its sum
+    rows = [(f, s) for f, s, _ in tasks]
     from viscx.progress import bar
 
     with bar(total=len(rows), desc="form factors", quiet=False, unit="side") as progress:
-        results = ff._map_rows(timed_row, scene, [(f, s, faces) for f, s in rows], args.tol, True, args.workers,
+        results = ff._map_rows(timed_row, scene, tasks, args.tol, True, args.workers,
                                progress=lambda: progress.update(1), threads=True)
     wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
-    m = ff.assemble_matrix(scene, results, args.tol, wall, reciprocal=True)
+    m = ff.assemble_matrix(scene, results, args.tol, wall, reciprocal=True, summation=summation)
     per = {}
     for (f, s), r in zip(rows, results):
         per.setdefault(classes[(f, s)], []).append(r[3]["cpu"])

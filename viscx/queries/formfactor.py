@@ -423,6 +423,72 @@ def closed_solids(scene):
     return scene.cached("closed_solids", build)
 
 
+#: Rooms of more faces are not looked at by :func:`enclosed_sides` (a pass over every
+#: vertex per plane of the room).
+MAX_ROOM_FACES = 256
+
+#: What share of a face may lie behind a room's plane (by the bound −h_min / (h_max − h_min)
+#: on its heights over it) and still count as in the room: rounding (a panel standing on
+#: the floor: −1e-17 against 0.72 m); the sky such a sliver could see is below any tol.
+ROOM_SLIVER = 1e-12
+
+
+def enclosed_sides(scene):
+    """(2 f,) bool, element ``2 f`` the front of face f and ``2 f + 1`` its back: the sides
+    whose sky term is 0 by construction, those inside a closed room.
+
+    A room here is a :func:`closed_solids` solid whose normals point into it and which is
+    convex (each of its faces in front of or on every plane of the others): the office's
+    shell. Being closed and consistently oriented, its faces cover the whole boundary of
+    the convex solid their planes bound. A face with every vertex in front of every plane
+    of a room lies in it (a planar polygon lies in the convex hull of its vertices). A point
+    of its relative interior not in a plane of the room is strictly inside, and every ray
+    from it leaves the bounded room through one of its faces, which stops it: no sky. A
+    face in a plane of the room (all its vertices within 1e-9 of the scene's size of it: a
+    room's own face, a poster on a wall) has its side facing in enclosed too (its rays run
+    in the room); its side facing out is not (it lies on the room's face: the plane meets
+    the convex room in that face only; :func:`closed_form_row`). A face not in a plane but
+    with a vertex behind it lies partly outside the room: it counts as in only if that
+    part is at most ``ROOM_SLIVER`` of it (rounding), else neither side is enclosed (a
+    poster crossing its wall's plane within 1e-9 sees the sky past it). Rooms of more than
+    ``MAX_ROOM_FACES`` faces are not looked at. Cached."""
+
+    def build(scene):
+        n = scene.n_faces
+        out = np.zeros(2 * n, bool)
+        face_solid, outward, _ = closed_solids(scene)
+        tiny = 1e-9 * scene.diagonal
+        outline, lo, _ = face_outlines(scene)
+        for s in np.flatnonzero(outward < 0):
+            room = np.flatnonzero(face_solid == s)
+            if len(room) > MAX_ROOM_FACES:
+                continue
+            inside = np.ones(n, bool)
+            facing_out = np.zeros(2 * n, bool)
+            for f in room:
+                # each face's heights over the plane (its normal points into the room)
+                n_r = scene.face_normal[f].astype(np.float64)
+                h = outline @ n_r - float(scene.face_offset[f])
+                low, high = np.minimum.reduceat(h, lo), np.maximum.reduceat(h, lo)
+                flat = (low >= -tiny) & (high <= tiny)
+                inside &= flat | (low >= -ROOM_SLIVER * (high - low))
+                # the flat faces' side facing out of the room: the front (element 2 g) where
+                # its normal goes against the plane's, else the back
+                g = np.flatnonzero(flat)
+                facing_out[2 * g + (scene.face_normal[g] @ n_r > 0)] = True
+            if inside[room].all():  # convex
+                out |= np.repeat(inside, 2) & ~facing_out
+        return out
+
+    return scene.cached("enclosed_sides", build)
+
+
+def may_see_sky(scene, face, side):
+    """Whether a face side's sky term must be computed: False for a side inside a closed
+    room (:func:`enclosed_sides`), whose sky term is 0 exactly."""
+    return not enclosed_sides(scene)[2 * int(face) + (0 if side > 0 else 1)]
+
+
 def _outside_solids(scene, n, c, tiny):
     """(s,) bool: the :func:`closed_solids` whose normals point out and that lie in the
     closed front half-space ``n · y >= c`` (within ``tiny``) of an emitter's plane: every
@@ -2575,6 +2641,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1):
         Pairs per method.
     sky, sky_error : float
     """
+    sky = sky and may_see_sky(scene, face, side)
     closed = closed_form_row(scene, face, side, faces, sky)
     if closed is not None:
         return closed
@@ -3169,13 +3236,20 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     faces = np.asarray(faces, np.int64)
     if reciprocal:
         faces = faces[computed_pairs(scene, face, faces)]
+    sky = sky and may_see_sky(scene, face, side)
     closed = closed_form_row(scene, face, side, faces, sky)
     if closed is not None:
         return closed
+    none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {"none": 2 * len(faces) - 2 * int(np.isin(face, faces))})
+    seen = seen_faces(scene, face, side)
+    if not sky and not np.isin(seen[seen != face], faces).any():
+        # nothing asked of this side (a closed room's ceiling: its pair with the floor is the
+        # floor's, its sky 0)
+        return none + (0.0, 0.0)
     fj, sj = facing_sides(scene, face, side, np.arange(n, dtype=np.int64))
     if not len(fj) and not len(coplanar_faces(scene, face)):
         # nothing in front of the side and nothing lying on it: it sees the sky, exactly
-        return (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), {"none": 2 * len(faces)}, 1.0 if sky else 0.0, 0.0)
+        return none + (1.0 if sky else 0.0, 0.0)
     # the first triangles no larger than 1 / MIN_SPLIT of the smallest box holding the
     # emitter and a receiver, as the pair cubature's (4 times larger, the Cornell matrix
     # at 1e-4 took half the time, but 3 of 376 entries were off by more than their
@@ -3186,7 +3260,6 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
                             axis=1).min(initial=float(np.linalg.norm(box_hi[face] - box_lo[face])))
     # the row's columns: the sides of the faces it may see or touch, then the sky; the pairs
     # it computes (their set-ups' cells are not needed: only the pair cubature's start reads them)
-    seen = seen_faces(scene, face, side)
     width = 2 * len(seen) + 1
     targets = [(face_target(scene, int(j)), int(t), 2 * int(np.searchsorted(seen, j)) + (0 if t > 0 else 1))
                for j, t in zip(fj, sj) if np.isin(j, faces)]
@@ -3271,6 +3344,31 @@ def computed_pairs(scene, face, faces):
     area = scene.face_area
     faces = np.asarray(faces, np.int64)
     return (area[faces] > area[face]) | ((area[faces] == area[face]) & (faces > face))
+
+
+def summation_column(scene, face, side):
+    """The element (``2 j`` front, ``2 j + 1`` back) whose form factor from a side of a face
+    the matrix takes from the row's sum instead of computing it, or -1.
+
+    A side inside a closed room (:func:`enclosed_sides`) sees no sky, so its row sums to 1
+    exactly (radiosity's summation rule): ``F_ik = 1 − Σ_(j ≠ k) F_ij``. Where the matrix
+    computes one pair only in this row (:func:`computed_pairs`: every other entry is
+    derived from the rows of smaller faces) and the side may see one side k of that face
+    only, F_ik follows from the derived entries, its error estimate their estimates' sum
+    (:func:`assemble_matrix`). The office's floor: its only computed pair is the one with
+    the ceiling (same area, smaller index), the dearest pair of the matrix (a 1,006-face
+    office's floor → ceiling: every piece of furniture hides some ceiling from every
+    point of the floor; 274 CPU s by the pair cubature at 1e-4, more than 10 min by the
+    row's). That row's sum is then 1 by construction and checks nothing; the ceiling's
+    row, which derives F_ki from it by reciprocity, still sums its own entries."""
+    if may_see_sky(scene, face, side):
+        return -1
+    faces = np.arange(scene.n_faces, dtype=np.int64)
+    mine = faces[computed_pairs(scene, face, faces)]
+    fj, sj = facing_sides(scene, face, side, mine)
+    if len(fj) != 1 or np.isin(coplanar_faces(scene, face), mine).any():
+        return -1
+    return 2 * int(fj[0]) + (0 if sj[0] > 0 else 1)
 
 
 def load_row_kernels(scene):
@@ -3363,7 +3461,10 @@ class Matrix:
     reciprocal : bool
         Each pair computed once, in the rows of its smaller face, and the other direction
         derived (:func:`computed_pairs`): the reciprocity error is then 0 by construction
-        (up to rounding), and row sums are the check.
+        (up to rounding), and row sums are the check. Entries taken from a closed room's
+        row sum (:func:`summation_column`, ``method_counts["summation"]``) have the sum of
+        that row's other estimates as theirs, which may pass ``tol``, and that row's sum
+        checks nothing.
     """
 
     indptr: np.ndarray
@@ -3428,28 +3529,43 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciproc
     faces first; a row's points on the cores the others leave idle, :func:`_map_rows`),
     with a progress bar. With ``reciprocal`` (the default) each pair is computed in the
     rows of its smaller face and the other direction derived, ``A_a F_ab = A_b F_ba``
-    (:func:`computed_pairs`); without, every entry is computed on its own and reciprocity
+    (:func:`computed_pairs`), and a closed room's row of one pair takes it from its sum
+    (:func:`summation_column`); without, every entry is computed on its own and reciprocity
     is a measurement (the oracle the tests compare the two with). The result does not
     depend on ``workers``, to the bit."""
     from viscx.progress import bar
 
     t0 = time.perf_counter()
     n = scene.n_faces
-    faces = np.arange(n, dtype=np.int64)
-    rows = [(i, s, faces) for i in range(n) for s in SIDES]
+    rows, summation = matrix_rows(scene, reciprocal)
     row = functools.partial(row_form_factors, reciprocal=True) if reciprocal else row_form_factors
     load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row, scene, rows, tol, True, workers,
                             progress=lambda: progress.update(1), threads=True)
-    return assemble_matrix(scene, results, tol, time.perf_counter() - t0, reciprocal)
+    return assemble_matrix(scene, results, tol, time.perf_counter() - t0, reciprocal, summation)
 
 
-def assemble_matrix(scene, results, tol, seconds, reciprocal=False):
+def matrix_rows(scene, reciprocal=True):
+    """The matrix's rows: ``([(face, side, receivers (k,) int64)], summation (2n,) int64)``,
+    one per side (face 0 front, face 0 back, face 1 front, ...), and per side the element
+    its sum gives (:func:`summation_column`, with ``reciprocal``; -1 for none), left out of
+    its receivers: such a row computes no pair (its sky is 0: enclosed)."""
+    n = scene.n_faces
+    faces = np.arange(n, dtype=np.int64)
+    sides = [(i, s) for i in range(n) for s in SIDES]
+    summation = np.array([summation_column(scene, i, s) if reciprocal else -1 for i, s in sides], np.int64)
+    return [(i, s, faces if c < 0 else faces[faces != c // 2]) for (i, s), c in zip(sides, summation)], summation
+
+
+def assemble_matrix(scene, results, tol, seconds, reciprocal=False, summation=None):
     """The :class:`Matrix` of the rows ``results`` (what :func:`emitter_row` returns, one per
     side: face 0 front, face 0 back, face 1 front, ...). With ``reciprocal``, the rows hold
     only the pairs they compute (:func:`computed_pairs`), and each entry gives the other
-    direction (:func:`derived_entries`)."""
+    direction (:func:`derived_entries`). ``summation`` (2n,) int64: per row, the element
+    whose entry its sum gives (:func:`summation_column`), -1 for none; those entries are
+    added, row by row from the smallest face up (an entry taken so is the larger face's,
+    never needed by a smaller face's sum), with their derived directions."""
     counts = {}
     for r in results:
         for k, v in r[3].items():
@@ -3458,6 +3574,22 @@ def assemble_matrix(scene, results, tol, seconds, reciprocal=False):
     if reciprocal:
         derived = derived_entries(scene, rows, cols, vals, errs)
         rows, cols, vals, errs = (np.concatenate(pair) for pair in zip((rows, cols, vals, errs), derived))
+        taken = np.flatnonzero(np.asarray(summation if summation is not None else [], np.int64) >= 0)
+        for r in taken[np.lexsort([taken, scene.face_area[taken // 2]])]:
+            c = int(summation[r])
+            mine = rows == r
+            assert not np.any(mine & (cols == c)), "a row's summation entry was computed too"
+            # F_rc = 1 − Σ of the row's other entries − its sky (0: enclosed); an F outside
+            # [0, 1] is clamped, the error widened by as much
+            value = 1.0 - float(vals[mine].sum()) - results[r][4]
+            err = float(errs[mine].sum()) + results[r][5]
+            clamped = min(max(value, 0.0), 1.0)
+            value, err = clamped, err + abs(value - clamped)
+            ratio = scene.face_area[r // 2] / scene.face_area[c // 2]
+            rows, cols = np.append(rows, [r, c]), np.append(cols, [c, r])
+            vals, errs = np.append(vals, [value, value * ratio]), np.append(errs, [err, err * ratio])
+        if len(taken):
+            counts["summation"] = int(len(taken))
         order = np.lexsort([cols, rows])
         rows, cols, vals, errs = rows[order], cols[order], vals[order], errs[order]
         counts["derived"] = int(len(derived[0]))

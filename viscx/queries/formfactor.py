@@ -3585,9 +3585,9 @@ def assemble_matrix(scene, results, tol, seconds, reciprocal=False, summation=No
             err = float(errs[mine].sum()) + results[r][5]
             clamped = min(max(value, 0.0), 1.0)
             value, err = clamped, err + abs(value - clamped)
-            ratio = scene.face_area[r // 2] / scene.face_area[c // 2]
-            rows, cols = np.append(rows, [r, c]), np.append(cols, [c, r])
-            vals, errs = np.append(vals, [value, value * ratio]), np.append(errs, [err, err * ratio])
+            entry = (np.array([r]), np.array([c]), np.array([value]), np.array([err]))
+            rows, cols, vals, errs = (np.concatenate(k) for k in zip((rows, cols, vals, errs), entry,
+                                                                     derived_entries(scene, *entry)))
         if len(taken):
             counts["summation"] = int(len(taken))
         order = np.lexsort([cols, rows])

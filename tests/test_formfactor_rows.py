@@ -346,3 +346,27 @@ def test_contour_terms_are_shared_by_both_orders_only_where_unclipped(cornell):
             got[i, j] = ff.pair_contour(fresh, st, (i, 1, j, 1))
         answers.append(got)
     assert answers[0] == answers[1]
+
+
+def test_three_levels_share_the_middle_childs_centroid(rng):
+    """:meth:`ThreeLevelRowCubature.levels` evaluates a middle child's centroid once, as its
+    parent's (142 points a triangle, not 147): its three levels equal those of every node
+    evaluated (:func:`ff.row_rules` on each level) to rounding, and no point is asked twice."""
+    asked = []
+
+    def integrand(points, tri):
+        asked.append(points.copy())
+        x, y, z = points.T
+        return np.stack([np.exp(x) * np.cos(2 * y) + z ** 3, 1.0 + 0 * x], axis=1)
+
+    tri = rng.uniform(-1, 1, (5, 3, 3))
+    cub = ff.ThreeLevelRowCubature(integrand)
+    q, K, kq, G, gq = cub.levels(tri, 2)
+    assert cub.evaluations == 142 * len(tri)
+    pts = np.concatenate(asked)
+    assert len(np.unique(np.round(pts, 12), axis=0)) == len(pts)
+    plain = ff.ThreeLevelRowCubature(integrand)
+    for level, got in ((tri, q), (K, kq), (G, gq)):
+        want = plain.rule(level, 2)
+        assert np.abs(got - want).max() <= 1e-15 * np.abs(want).max()
+    assert plain.evaluations == 147 * len(tri)

@@ -204,7 +204,7 @@ def test_rows_with_too_many_kink_cells_use_three_levels(box_room, monkeypatch):
     kinked = floor_row(box_room, 1e-4)
     calls = []
     monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)
-    monkeypatch.setattr(ff.ThreeLevelRowCubature, "rule", lambda self, *a, _r=ff.ThreeLevelRowCubature.rule:
+    monkeypatch.setattr(ff.ThreeLevelRowCubature, "levels", lambda self, *a, _r=ff.ThreeLevelRowCubature.levels:
                         calls.append(1) or _r(self, *a))
     plain = ff.row_form_factors(box_room, 0, 1, faces, 1e-4)
     assert calls and list(plain[0]) == list(kinked[0])

@@ -85,11 +85,16 @@ ORDER_NOISE = 4 * SNAP
 #: there whose lines meet are taken to meet at it (:func:`_above`): far beyond rounding of
 #: a vertex (~1e-13 / the slopes' difference), far below any slab that matters.
 ORDER_MEET = 1e-9
-#: Edges in a wedge from which :func:`_sweep_runs` (output-sensitive, more work per event)
-#: is used instead of :func:`_sweep_slabs` (work per slab in the number of active edges, less
-#: per event): office(300) ~ even, office(1000) 1.47x faster (4.8 against 7.1 ms a point, load ~1.1),
-#: the Cornell box 0.6x slower; 150, 250 and 700 edges no better (office(300), office(1000)).
+#: Edges in the whole scene (the room of one wedge's projected edges, :func:`point_views`)
+#: from which the kernel is compiled with :func:`_sweep_runs`; below (the Cornell box, where
+#: it is 0.6x slower), the kernel without its records runs (``sweep_kind`` None).
 SWEEP_RUNS_FROM = 400
+#: Mean active edges a slab from which a wedge is swept by :func:`_sweep_runs`
+#: (output-sensitive: work per event, the regions next to it) instead of :func:`_sweep_slabs`
+#: (work per slab in its active edges): the density, not the number of edges, says which is
+#: cheaper. Against 400 edges a wedge before: office(1000) points 7-9 % faster, office(300)'s
+#: 6-12 % (2026-11-28; 8 and 32 about as good, 64 worse than 400 edges).
+RUNS_DENSITY = 16
 #: Faces to sweep at a point (in front of it, not a box's back faces) from which :func:`_point_views`
 #: first leaves out those in a box's shadow (:func:`_cull_shadowed`): office(1000) 1.7-1.85x faster a
 #: point, office(300) 1.5x, office(100) 1.1x, office(60) even (61 against 63 µs); the Cornell box (16
@@ -2418,6 +2423,25 @@ def _sweep_runs(x, n_i, fa, fb, fc, us, n_brk, seg_a, seg_b, seg_p, seg_w, lo_u,
 
 
 @njit(cache=True)
+def _slab_density(lo_u, hi_u, live, n_live):
+    """The mean number of edges a slab of the sweep crosses, over the slabs that start at the
+    edges' left ends (the crossings' breaks not counted): each edge ``live[:n_live]`` (sorted by
+    ``lo_u``) spans the left ends between its own ends (a binary search each)."""
+    spans = 0
+    for r in range(n_live):
+        e = live[r]
+        lo, hi = r + 1, n_live
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if lo_u[live[mid]] < hi_u[e]:
+                lo = mid + 1
+            else:
+                hi = mid
+        spans += lo - r - 1
+    return spans / max(n_live, 1)
+
+
+@njit(cache=True)
 def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loop_poly, poly_normal, poly_c, rank,
                 side, use, col, seen, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, cover, cover_w, p0, p1, fw, iw,
                 runs, run_o, rim, sw, skey, cross, cross_e, pool, heap_k, heap_i, sweep_kind):
@@ -2432,7 +2456,8 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     edges at the break change (ending, crossing, starting), and only the regions next to them
     are decided again; an edge's runs (its owner above on side 0, below on side 1) stay open
     while its neighbouring owners do and are summed (Lambert) once, when they change or the
-    edge ends; with fewer than :data:`SWEEP_RUNS_FROM` edges, :func:`_sweep_slabs` is cheaper.
+    edge ends; where a slab crosses fewer than :data:`RUNS_DENSITY` edges on the mean
+    (:func:`_slab_density`), :func:`_sweep_slabs` is cheaper.
     With a vertical edge, every slab is swept whole and summed as trapezoids
     (:func:`_sweep_slabs`). ``sweep_kind`` (:func:`point_views`) chooses: 0 by size, 1 whole slabs
     always (the plain sweep, the tests' reference), 2 :func:`_sweep_runs` always, None the slab
@@ -2497,7 +2522,7 @@ def _wedge_view(x, n_i, fa, fb, fc, planes, n_planes, pts, loop_lo, loop_hi, loo
     by_runs = False
     if sweep_kind is not None:
         has_vertical = has_vertical or sweep_kind == 1
-        by_runs = not has_vertical and (n_live >= SWEEP_RUNS_FROM or sweep_kind == 2)
+        by_runs = not has_vertical and (sweep_kind == 2 or _slab_density(lo_u, hi_u, live, n_live) >= RUNS_DENSITY)
     # crossings of edges of different polygons: edges by their left ends, each against the
     # ones starting before it ends (their u and v ranges, polygon and weight copied in that
     # order first: the inner loop reads consecutive memory)
@@ -2790,7 +2815,7 @@ def point_views(points, n_i, eu, ev, pts, loop_lo, loop_hi, loop_poly, poly_norm
         outside of are not swept (:func:`_outside`; their front faces hide them: what x
         sees of them is 0, all of their unoccluded F is hidden).
     sweep_kind : int
-        Which sweep (:func:`_wedge_view`): 0 by the number of edges (the default), 1 every slab
+        Which sweep (:func:`_wedge_view`): 0 by the edges' density (the default), 1 every slab
         whole (the plain sweep, a reference for tests), 2 the output-sensitive one always.
         With 0 and fewer edges in the whole scene than :data:`SWEEP_RUNS_FROM` (the Cornell
         box), the kernel compiled without :func:`_sweep_runs`' records runs (``None``): the

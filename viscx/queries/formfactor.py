@@ -1302,6 +1302,14 @@ MAX_CELLS = 200_000
 CHUNK = 20_000
 
 
+def _middle_of(g):
+    """(4 g,) int64: for the children of g triangles (:func:`split4`), the parent whose
+    centroid each shares (the middle child, the last of four), -1 for the others."""
+    out = np.full((g, 4), -1, np.int64)
+    out[:, 3] = np.arange(g)
+    return out.reshape(-1)
+
+
 def split4(tri):
     """(g, 3, 3) triangles → (g, 4, 3, 3): the four halves-by-midpoints of each (same orientation)."""
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
@@ -2749,12 +2757,17 @@ def row_core():
     return _ROW_CORES if _ROW_CORES is not None else contextlib.nullcontext()
 
 
-def row_rules(cubature, tri, width, weights):
+def row_rules(cubature, tri, width, weights, centres=None, centre_of=None, keep_centres=False):
     """Rules on Radon's 7 nodes of each triangle for a vector integrand, in pieces that bound
     the memory of one integrand call: ``(len(weights), g, R)`` float64, each ``weights``
     (7,) summed over the nodes and scaled by the area (``cubature.integrand(points, tri)``
-    is called with the piece's triangles, points 7 k … 7 k + 6 in triangle k;
-    ``cubature.evaluations`` counts the points).
+    is called with the piece's triangles and the nodes not known, in their order: nodes
+    7 k … 7 k + 6 in triangle k; ``cubature.evaluations`` counts the points).
+
+    The first node is the centroid, which a triangle's middle child (the last of
+    :func:`split4`) shares with it: where ``centre_of`` (g,) int64 is ≥ 0, the integrand at
+    triangle k's centroid is ``centres[centre_of[k]]`` (R,), not evaluated again. With
+    ``keep_centres``, also returns the integrand at every centroid, ``(g, R)`` float64.
 
     The pieces run on ``cubature.threads`` threads (:func:`viscx.parallel.map_chunks`; the
     integrand must be thread-safe and release the GIL: ``point_views`` is ``nogil``), so
@@ -2768,20 +2781,30 @@ def row_rules(cubature, tri, width, weights):
     from viscx.parallel import map_chunks, row_chunks
 
     out = np.zeros((len(weights), len(tri), width))
+    kept = np.zeros((len(tri), width)) if keep_centres else None
     area = triangle_areas(tri)
     chunk = max(1, min(CHUNK, 4_000_000 // (7 * max(width, 1)), max(ROW_PIECE, -(-len(tri) // ROW_PIECES))))
 
     def piece(s):
         part = tri[s]
-        pts = np.einsum("rk,gkd->grd", RULE_NODES, part).reshape(-1, 3)
+        pts = np.einsum("rk,gkd->grd", RULE_NODES, part)
+        need = np.ones((len(part), 7), bool)
+        if centre_of is not None:
+            known = centre_of[s] >= 0
+            need[known, 0] = False
+        values = np.empty((len(part), 7, width))
         with row_core():
-            values = cubature.integrand(np.ascontiguousarray(pts), part).reshape(len(part), 7, -1)
+            values[need] = cubature.integrand(np.ascontiguousarray(pts[need]), part)
+        if centre_of is not None:
+            values[known, 0] = centres[centre_of[s][known]]
         for k, w in enumerate(weights):
             out[k, s] = np.einsum("grc,r->gc", values, w) * area[s, None]
-        return len(pts)
+        if keep_centres:
+            kept[s] = values[:, 0]
+        return int(need.sum())
 
     cubature.evaluations += sum(map_chunks(piece, row_chunks(len(tri), chunk), getattr(cubature, "threads", 1)))
-    return out
+    return (out, kept) if keep_centres else out
 
 
 #: A triangle's rules "see nothing" of a column where the sum of their absolute values
@@ -3089,10 +3112,14 @@ class ThreeLevelRowCubature:
     def levels(self, tri, width):
         """The three levels of the triangles (g, 3, 3): ``q`` (g, R), their children ``K``
         (4 g, 3, 3) (rows 4 k … 4 k + 3 those of triangle k) and rules ``kq`` (4 g, R), their
-        grandchildren ``G`` (16 g, 3, 3) and rules ``gq`` (16 g, R)."""
+        grandchildren ``G`` (16 g, 3, 3) and rules ``gq`` (16 g, R). A middle child's
+        centroid is its parent's (:func:`row_rules`): 142 points a triangle, not 147."""
         K = split4(tri).reshape(-1, 3, 3)
         G = split4(K).reshape(-1, 3, 3)
-        return self.rule(tri, width), K, self.rule(K, width), G, self.rule(G, width)
+        (q,), centres = row_rules(self, tri, width, (RULE_WEIGHTS,), keep_centres=True)
+        (kq,), kid_centres = row_rules(self, K, width, (RULE_WEIGHTS,), centres, _middle_of(len(tri)), True)
+        (gq,) = row_rules(self, G, width, (RULE_WEIGHTS,), kid_centres, _middle_of(len(K)))
+        return q, K, kq, G, gq
 
     def estimates(self, tri, q, kq, gq):
         """(g, R): :func:`kinked_three_level_error` per column (q (g, R), kq (g, 4, R), gq (g, 16, R))."""

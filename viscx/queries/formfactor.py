@@ -1782,6 +1782,7 @@ class PairSetup:
         tiny = 1e-9 * scene.diagonal
         self.tiny = tiny
         self.n_i, self.c_i, self.n_t, self.c_t = n_i, c_i, n_t, c_t
+        self._loops_i = loops_i
         self.I = clip_loops(loops_i, n_t, c_t + tiny)
         self.J = clip_loops(loops_t, n_i, c_i)
         self.empty = (
@@ -1795,6 +1796,21 @@ class PairSetup:
         self.occluders, self.occluders_found = [], False
         if not self.empty and occluders:
             self.find_occluders()
+
+    def clip_bound(self):
+        """An upper bound, in F, of what clipping the emitter ``tiny`` off the target's plane
+        leaves out (I' is I in front of the plane by more than tiny: the contour integral
+        is not taken, and the kernels see no column, where a point lies within tiny of a
+        polygon's plane). The strip of I within tiny in front of the plane, area ΔA, lies
+        where faces share an edge (a cabinet's side on the floor); a point there sees at
+        most F = (1 − n_i · n_t) / 2 of anything in the plane (all of its side facing the
+        point), so the bound is that times ΔA / A_i: 0 where no vertex of I lies within
+        tiny of the plane, ~1e-9 on the office's pairs meeting at an edge."""
+        h = min(float(np.min(l @ self.n_t)) for l in self._loops_i) - self.c_t
+        if h > self.tiny or not self.I:
+            return 0.0
+        strip = loops_area(clip_loops(self._loops_i, self.n_t, self.c_t), self.n_i) - loops_area(self.I, self.n_i)
+        return max(0.0, 0.5 * (1.0 - float(self.n_i @ self.n_t))) * max(strip, 0.0) / self.area_i
 
     def find_occluders(self):
         """Set :attr:`occluders` (:func:`pair_occluders`; a setup made without them gets them
@@ -2157,7 +2173,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked, keep=True)
     if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
-    value, err = touching, 0.0
+    value, err = touching, setup.clip_bound()
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else
     parts = [(setup.I, 1.0)] + [(clip_loops([c], setup.n_t, setup.c_t + setup.tiny), -1.0) for c in lying[0]]
@@ -3316,7 +3332,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
         if not setup.empty:
             value, err = pair_contour(scene, setup, (face, side, target.face, t))
             scale = loops_area(setup.I, setup.n_i) / area
-            f0[c], e0[c] = value * scale, err * scale
+            f0[c], e0[c] = value * scale, err * scale + setup.clip_bound()
             shafts.append((setup, c))
     def live(tri, need):
         """(g, width) bool: an occluder meets the triangle's shaft to the column (tested

@@ -92,8 +92,9 @@ SWEEP_RUNS_FROM = 400
 #: Mean active edges a slab from which a wedge is swept by :func:`_sweep_runs`
 #: (output-sensitive: work per event, the regions next to it) instead of :func:`_sweep_slabs`
 #: (work per slab in its active edges): the density, not the number of edges, says which is
-#: cheaper. Against 400 edges a wedge before: office(1000) points 7-9 % faster, office(300)'s
-#: 6-12 % (2026-11-28; 8 and 32 about as good, 64 worse than 400 edges).
+#: cheaper. Against 400 edges a wedge before (2026-11-28): office(1000) points 7-9 % faster,
+#: office(300)'s 6-12 %, one process on idle cores; with both cores busy, as in a matrix,
+#: ~3 % (the whole office(1000) matrix too). 8 and 32 about as good, 64 worse than 400 edges.
 RUNS_DENSITY = 16
 #: Faces to sweep at a point (in front of it, not a box's back faces) from which :func:`_point_views`
 #: first leaves out those in a box's shadow (:func:`_cull_shadowed`): office(1000) 1.7-1.85x faster a

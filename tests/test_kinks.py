@@ -416,6 +416,92 @@ def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):
     assert ff.emitter_cells(cornell, floor, 1, kinks=True) is None
 
 
+def test_kink_lines_stop_once_the_caller_has_too_many(cornell, monkeypatch):
+    """``past`` is asked of the lines of the pairs listed so far, each time their number
+    has doubled: the lines asked are pieces of the whole list's (pairs only add lines), the
+    list is the same when it never says stop, and None at its first True."""
+    from viscx.queries import kinks
+
+    floor = int(cornell.group_faces("floor")[0])
+    whole = kink_segments(cornell, floor, 1)
+    monkeypatch.setattr(kinks, "FIRST_BLOCK", 7)
+    asked = []
+    assert np.array_equal(kink_segments(cornell, floor, 1, past=lambda seg: asked.append(seg) or False), whole)
+    assert len(asked) >= 2 and len(asked[-1]) < len(whole)
+    for seg in asked:
+        for end in seg.reshape(-1, 3):
+            assert _distance_to_segments(end, whole) <= 1e-9 * cornell.diagonal
+    calls = []
+    assert kink_segments(cornell, floor, 1, past=lambda seg: calls.append(1) or True) is None
+    assert calls == [1]
+
+
+def test_emitter_cells_stop_cutting_past_the_limit_as_the_whole_cut_would(cornell, monkeypatch):
+    """The kinked cells are None as soon as the lines of the first pairs cut past the limit
+    (:func:`viscx.queries.formfactor.emitter_cells`), and exactly when cutting along all the
+    lines would be: on each side of the limit, the Cornell floor's cells as before."""
+    from viscx.queries import kinks
+
+    floor = int(cornell.group_faces("floor")[0])
+    full = ff.emitter_cells(cornell, floor, 1, kinks=True, limit=10 ** 6)  # one block: no early stop
+    monkeypatch.setattr(kinks, "FIRST_BLOCK", 7)
+    listed = []
+    pair_kinks = kinks._pair_kinks
+    monkeypatch.setattr(kinks, "_pair_kinks", lambda *a: listed.append(len(a[-1])) or pair_kinks(*a))
+    same = ff.emitter_cells(cornell, floor, 1, kinks=True, limit=len(full))
+    assert len(same) == len(full) and all(np.array_equal(a, b) for a, b in zip(same, full))
+    everything = sum(listed)
+    listed.clear()
+    assert ff.emitter_cells(cornell, floor, 1, kinks=True, limit=len(full) - 1) is None
+    listed.clear()
+    assert ff.emitter_cells(cornell, floor, 1, kinks=True, limit=len(full) // 4) is None
+    assert 0 < sum(listed) < everything  # stopped before all the pairs were listed
+
+
+def test_rows_keep_or_cut_their_cells_as_along_all_their_lines(office60, monkeypatch):
+    """A matrix row's cells (:func:`viscx.queries.formfactor.cubature_cells` with its
+    computed receivers and the sky) are those of the rule without its short cuts: cut along
+    the lines of all its generators (:func:`viscx.queries.formfactor.kink_faces`, the sky's),
+    listed whole, when that makes few enough cells, else uncut. The short cuts (the
+    receivers' own lines tried first, the lines tried as the pairs are listed) decide some
+    sides of the furnished room before listing them all, the same way."""
+    from viscx.queries import kinks
+    from viscx.queries.kinks import face_generators, sky_generators
+
+    scene = office60
+    faces = np.arange(scene.n_faces, dtype=np.int64)
+    seen = {True: 0, False: 0, "before kink_faces": 0}
+    kink_faces = ff.kink_faces
+    asked = []
+    monkeypatch.setattr(ff, "kink_faces", lambda *a: asked.append(1) or kink_faces(*a))
+    for face in range(0, scene.n_faces, 3):
+        for side in (1, -1):
+            mine = faces[ff.computed_pairs(scene, face, faces)]
+            if not len(ff.facing_sides(scene, face, side, mine)[0]):
+                continue
+            size = 0.3
+            sky = ff.may_see_sky(scene, face, side)
+            asked.clear()
+            cells, tri, kinked = ff.cubature_cells(scene, face, side, size, mine, sky)
+            seen["before kink_faces"] += not asked
+            with monkeypatch.context() as m:
+                m.setattr(kinks, "FIRST_BLOCK", 1 << 40)  # every pair in one block: nothing asked early
+                m.setattr(kinks, "PAIR_BLOCK", 1 << 40)
+                plain = ff.emitter_cells(scene, face, side)
+                start = ff.start_triangles(plain, size)
+                limit = min(ff.MAX_KINK_CELLS, 21 * len(start))
+                gen = face_generators(scene, kink_faces(scene, face, side, mine))
+                if sky:
+                    gen = np.union1d(gen, sky_generators(scene, face))
+                whole = None if len(plain) > limit else ff.emitter_cells(scene, face, side, True, limit, gen)
+            expect = whole is not None and len(ff.start_triangles(whole, size)) <= 21 * len(start)
+            assert kinked == expect, (face, side)
+            want = whole if expect else plain
+            assert len(cells) == len(want) and all(np.array_equal(a, b) for a, b in zip(cells, want))
+            seen[kinked] += 1
+    assert seen[True] >= 3 and seen[False] >= 3 and seen["before kink_faces"] >= 3, seen
+
+
 def test_the_sky_is_seen_beside_no_edge_sky_generators_leaves_out(cornell):
     """:func:`viscx.queries.kinks.sky_generators` against brute-force rays: from points of
     the ceiling, the back wall and the light, a ray passing just beside an interior point of

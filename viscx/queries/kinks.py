@@ -56,6 +56,10 @@ from viscx.arrays import unique_rows
 MAX_KINK_GENERATORS = 8_000
 #: Pairs tested at once (memory linear in it).
 PAIR_BLOCK = 1 << 19
+#: The first block's pairs: the blocks double from it up to :data:`PAIR_BLOCK`, so that a
+#: caller that only needs to know whether the lines are too many
+#: (:func:`kink_segments`' ``past``) learns it from the first few.
+FIRST_BLOCK = 1 << 15
 
 
 def generator_segments(scene):
@@ -126,7 +130,7 @@ def _angles(x, t, w):
     return np.arctan2(w, t - x[:, None])
 
 
-def kink_segments(scene, face, side, generators=None):
+def kink_segments(scene, face, side, generators=None, past=None):
     """The D1 lines of side ``side`` of a face (module docstring): pieces of the lines where
     the plane of two coplanar edges in front of the side crosses its plane, where the two
     edges line up seen from the point. ``generators``: only the pairs of these rows of
@@ -134,12 +138,20 @@ def kink_segments(scene, face, side, generators=None):
     only some faces (a pair's receiver and the occluders in its shaft) kinks only where
     two of their edges line up.
 
+    ``past(segments (s, 2, 3)) -> bool``: whether these lines are already too many for the
+    caller (:func:`viscx.queries.formfactor.emitter_cells`: they cut the face into more
+    cells than its limit), asked of the lines of the pairs listed so far each time their
+    number has doubled; True gives None at once. Lines are only added as pairs are: in a
+    furnished room a box side's pairs are a million, their lines 10⁵, and the first
+    :data:`FIRST_BLOCK` pairs' lines are already past the row's limit (office(1000): 1–3
+    CPU s a row saved; a row whose lines are few lists them all, and gets the same ones).
+
     Returns
     -------
     (s, 2, 3) float64 or None
         Segments in the face's plane (their ends at most twice the scene's diagonal from
         the face: a piece running to infinity is cut there); None past
-        :data:`MAX_KINK_GENERATORS` segments in front of the side.
+        :data:`MAX_KINK_GENERATORS` segments in front of the side, or when ``past`` says so.
     """
     seg = generator_segments(scene)
     if generators is not None:
@@ -160,29 +172,39 @@ def kink_segments(scene, face, side, generators=None):
     q[cut1, 1] = p[cut1, 1] + (p[cut1, 0] - p[cut1, 1]) * (hi[cut1] / (hi[cut1] - lo[cut1]))[:, None]
     d = p[:, 1] - p[:, 0]
     u = d / np.linalg.norm(d, axis=1)[:, None]
+    centre = np.mean(scene.face_loops(face)[0], axis=0)
     starts, ends = [np.zeros((0, 3))], [np.zeros((0, 3))]
-    for a, b in _pair_blocks(len(p), PAIR_BLOCK):
+    done, asked = 0, 0
+    total = len(p) * (len(p) - 1) // 2
+    for a, b in _pair_blocks(len(p), PAIR_BLOCK, FIRST_BLOCK):
         s0, s1 = _pair_kinks(scene, face, n, c, tiny, p, q, u, a, b)
         starts.append(s0)
         ends.append(s1)
-    return merge_collinear(np.concatenate(starts), np.concatenate(ends),
-                           np.mean(scene.face_loops(face)[0], axis=0), scene.diagonal)
+        done += len(a)
+        if past is not None and done < total and done >= 2 * asked:
+            asked = done
+            if past(merge_collinear(np.concatenate(starts), np.concatenate(ends), centre, scene.diagonal)):
+                return None
+    return merge_collinear(np.concatenate(starts), np.concatenate(ends), centre, scene.diagonal)
 
 
-def _pair_blocks(g, size):
+def _pair_blocks(g, size, first=None):
     """The pairs a < b of ``g`` segments as ``(a, b)`` (k,) int64 blocks of about ``size``
-    pairs (whole rows a), so that memory stays linear in the block, not quadratic in g."""
+    pairs (whole rows a), so that memory stays linear in the block, not quadratic in g;
+    with ``first``, the blocks start at about that many pairs and double up to ``size``."""
     a0 = 0
+    block = size if first is None else min(first, size)
     while a0 < g - 1:
         a1 = a0 + 1
         count = g - 1 - a0
-        while a1 < g - 1 and count + (g - 1 - a1) <= size:
+        while a1 < g - 1 and count + (g - 1 - a1) <= block:
             count += g - 1 - a1
             a1 += 1
         a = np.repeat(np.arange(a0, a1), g - 1 - np.arange(a0, a1))
         b = np.concatenate([np.arange(i + 1, g) for i in range(a0, a1)])
         yield a, b
         a0 = a1
+        block = min(2 * block, size)
 
 
 def _pair_kinks(scene, face, n, c, tiny, p, q, u, a, b):

@@ -1646,7 +1646,7 @@ class Cubature:
         # agree on nothing seen (office(100), a desk panel → another desk's narrow side at
         # any tol: 1.2e-7 off for an estimate of 1.5e-14): looked for as in the rows
         seen = levels_seen(leaves.q, leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
-        unseen, new, _ = look_for_shadows(leaves.tri, seen[:, None], lambda t, need: (np.diff(cull_all(
+        unseen, new, _, _ = look_for_shadows(leaves.tri, seen[:, None], lambda t, need: (np.diff(cull_all(
             self.cull, t, candidates)[0]) > 0)[:, None])
         if len(new):
             leaves = leaves.take(np.flatnonzero(~unseen)).join(self.levels(new, *cull_all(self.cull, new, candidates)))
@@ -2864,6 +2864,9 @@ def look_for_shadows(tri, seen, live, bound=None):
         The triangles replaced.
     new : (h, 3, 3) float64
         What replaces them (the children, then the grandchildren).
+    whole : (m,) int64
+        The children kept whole (``new[:m]``), as positions among the replaced triangles'
+        children (child ``k`` is ``split4``'s child ``k % 4`` of the ``k // 4``-th).
     spent : (R,) float64
         The bounds taken as the columns' estimates instead (0 without ``bound``).
     """
@@ -2886,15 +2889,16 @@ def shadow_triangles(tri, blind, live):
     """The triangles (g, 3, 3) with a ``blind`` (g, R) column replaced by their 4 children,
     and each child whose shaft still meets an occluder of such a column by its own 4
     children (the node density four times finer where the shadow may be; on the other
-    children the column is exactly 0): ``unseen`` (g,) bool, the triangles replaced, and
-    ``new`` (h, 3, 3), what replaces them (:func:`look_for_shadows`)."""
+    children the column is exactly 0): ``unseen`` (g,) bool, the triangles replaced,
+    ``new`` (h, 3, 3), what replaces them, and ``whole`` (m,) int64, the children kept
+    whole (:func:`look_for_shadows`)."""
     unseen = np.any(blind, axis=1)
     if not np.any(unseen):
-        return unseen, np.zeros((0, 3, 3))
+        return unseen, np.zeros((0, 3, 3)), np.zeros(0, np.int64)
     kids = split4(tri[unseen]).reshape(-1, 3, 3)
     need = np.repeat(blind[unseen], 4, axis=0)
     deeper = np.any(live(kids, need) & need, axis=1)
-    return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)])
+    return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)]), np.flatnonzero(~deeper)
 
 
 #: The share of a column's budget that an upper bound of its unseen shadows may take, where
@@ -3080,7 +3084,7 @@ class RowCubature:
         """:func:`look_for_shadows` on the first triangles, whose rules and null rules are
         ``q, e`` (g, R): the new triangles on their rules. Returns the new ``tri, q, e``
         and the bounds spent (R,)."""
-        unseen, new, spent = look_for_shadows(tri, np.abs(q) + e, live, bound)
+        unseen, new, _, spent = look_for_shadows(tri, np.abs(q) + e, live, bound)
         if not len(new):
             return tri, q, e, spent
         nq, ne = self.rule(new, width)
@@ -3118,7 +3122,8 @@ class ThreeLevelRowCubature:
     desk side's row at 1e-4: an entry 4.2e-8 off for an estimate of 2.9e-14): the first
     triangles go through the shadow search of :class:`RowCubature` (:func:`blind_columns`,
     :func:`unseen_shadow_bound`, :func:`shadow_triangles`), each new triangle on its own
-    three levels. (A kink near a triangle's edge is the other thing
+    three levels (a child kept whole has its first triangle's two finer levels as its
+    first two: only its grandchildren are evaluated). (A kink near a triangle's edge is the other thing
     three levels miss: :func:`plane_cells`.)
 
     Parameters
@@ -3162,20 +3167,28 @@ class ThreeLevelRowCubature:
         width = len(budget)
         q, K, kq, G, gq = self.levels(tri, width)
         spent = np.zeros(width)
+        four = np.arange(4)
         if live is not None:
             # what each first triangle's 21 rules see of each column
             seen = levels_seen(q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
-            unseen, new, spent = look_for_shadows(tri, seen, live, bound)
+            unseen, new, whole, spent = look_for_shadows(tri, seen, live, bound)
             budget = budget - spent
             if len(new):
                 keep = ~unseen
-                nq, nK, nkq, nG, ngq = self.levels(new, width)
+                # a child kept whole is a row of K: its rule and its children's are the
+                # first triangle's second and third levels, and only its grandchildren are
+                # new (112 points, not 142); the grandchildren of the others on their own
+                kid = (4 * np.flatnonzero(unseen)[:, None] + four).reshape(-1)[whole]
+                kid_K = (4 * kid[:, None] + four).reshape(-1)
+                kid_G = split4(G[kid_K]).reshape(-1, 3, 3)
+                kid_gq = self.rule(kid_G, width)
+                nq, nK, nkq, nG, ngq = self.levels(new[len(whole):], width)
                 k_keep, g_keep = np.repeat(keep, 4), np.repeat(keep, 16)
-                tri, q = np.concatenate([tri[keep], new]), np.concatenate([q[keep], nq])
-                K, kq = np.concatenate([K[k_keep], nK]), np.concatenate([kq[k_keep], nkq])
-                G, gq = np.concatenate([G[g_keep], nG]), np.concatenate([gq[g_keep], ngq])
+                tri = np.concatenate([tri[keep], K[kid], new[len(whole):]])
+                q = np.concatenate([q[keep], kq[kid], nq])
+                K, kq = np.concatenate([K[k_keep], G[kid_K], nK]), np.concatenate([kq[k_keep], gq[kid_K], nkq])
+                G, gq = np.concatenate([G[g_keep], kid_G, nG]), np.concatenate([gq[g_keep], kid_gq, ngq])
         cells = 21 * len(tri)
-        four = np.arange(4)
         for _ in range(200):
             err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
             total = err.sum(axis=0)

@@ -1331,6 +1331,13 @@ def split4(tri):
                      np.stack([bc, ca, ab], 1)], axis=1)
 
 
+def child_rows(rows, k=4):
+    """(len(rows) k,) int64: where the children of the triangles ``rows`` (m,) int64 lie in
+    an array holding k children per triangle, each triangle's consecutively (:func:`split4`'s
+    order for k = 4, their children's for k = 16)."""
+    return (k * np.asarray(rows, np.int64)[:, None] + np.arange(k)).reshape(-1)
+
+
 def start_triangles(cells, min_size):
     """The cells (list of convex (k, 3)) fanned into triangles (g, 3, 3), split by
     :func:`split_large`."""
@@ -1441,8 +1448,7 @@ class Levels(NamedTuple):
 
     def take(self, rows):
         """The leaves ``rows`` (k,) int64, with their children and grandchildren."""
-        k_rows = (4 * rows[:, None] + np.arange(4)).reshape(-1)
-        g_rows = (16 * rows[:, None] + np.arange(16)).reshape(-1)
+        k_rows, g_rows = child_rows(rows), child_rows(rows, 16)
         return Levels(self.tri[rows], *_sub_lists(self.ptr, self.ids, rows), self.q[rows], self.K[k_rows],
                       *_sub_lists(self.kptr, self.kids, k_rows), self.kq[k_rows], self.G[g_rows],
                       *_sub_lists(self.gptr, self.gids, g_rows), self.gq[g_rows])
@@ -1651,7 +1657,6 @@ class Cubature:
         if len(new):
             leaves = leaves.take(np.flatnonzero(~unseen)).join(self.levels(new, *cull_all(self.cull, new, candidates)))
         cells = 21 * len(leaves.tri)
-        four = np.arange(4)
         for _ in range(200):
             err = self.estimates(*leaves[:4], leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
             total = float(err.sum())
@@ -1663,9 +1668,9 @@ class Cubature:
             # the split leaves' children become leaves (children with nothing to hide are
             # exactly zero and dropped); their children and grandchildren move up a level,
             # and the grandchildren's children are evaluated
-            child = (4 * np.flatnonzero(split)[:, None] + four).reshape(-1)
+            child = child_rows(np.flatnonzero(split))
             child = child[np.diff(leaves.kptr)[child] > 0]
-            grand = (4 * child[:, None] + four).reshape(-1)
+            grand = child_rows(child)
             new_K = leaves.G[grand]
             nkptr, nkids = self.culled(new_K, *_sub_lists(leaves.gptr, leaves.gids, grand))
             new_G, ngptr, ngids, new_gq = self.expand(new_K, nkptr, nkids, cull=False)
@@ -3042,7 +3047,6 @@ class RowCubature:
         K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
         kid_of = np.full(len(tri), -1, np.int64)
         cells = len(tri)
-        four = np.arange(4)
         for _ in range(400):
             value, err = self._leaves(q, e, kid_of, kq)
             total = err.sum(axis=0)
@@ -3061,7 +3065,7 @@ class RowCubature:
             # leaves with their children: replaced by them
             split = pick & deep
             if np.any(split):
-                rows = (4 * kid_of[split][:, None] + four).reshape(-1)
+                rows = child_rows(kid_of[split])
                 # the children share their parent's estimate |Q − S| (which bounds the error
                 # of S, the sum of their rules) in proportion to their null rules: the total
                 # stays what it was, and the next round deepens the children that carry most
@@ -3074,7 +3078,7 @@ class RowCubature:
                 kid_of = np.concatenate([kid_of[keep], np.full(len(rows), -1, np.int64)])
                 # drop the children no leaf refers to any more (bounded memory)
                 live = np.flatnonzero(kid_of >= 0)
-                idx = (4 * kid_of[live][:, None] + four).reshape(-1)
+                idx = child_rows(kid_of[live])
                 K, kq, ke = K[idx], kq[idx], ke[idx]
                 kid_of[live] = np.arange(len(live))
         value, err = self._leaves(q, e, kid_of, kq)
@@ -3167,7 +3171,6 @@ class ThreeLevelRowCubature:
         width = len(budget)
         q, K, kq, G, gq = self.levels(tri, width)
         spent = np.zeros(width)
-        four = np.arange(4)
         if live is not None:
             # what each first triangle's 21 rules see of each column
             seen = levels_seen(q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
@@ -3178,13 +3181,14 @@ class ThreeLevelRowCubature:
                 # a child kept whole is a row of K: its rule and its children's are the
                 # first triangle's second and third levels, and only its grandchildren are
                 # new (112 points, not 142); the grandchildren of the others on their own
-                kid = (4 * np.flatnonzero(unseen)[:, None] + four).reshape(-1)[whole]
-                kid_K = (4 * kid[:, None] + four).reshape(-1)
+                kid = child_rows(np.flatnonzero(unseen))[whole]
+                kid_K = child_rows(kid)
                 kid_G = split4(G[kid_K]).reshape(-1, 3, 3)
                 kid_gq = self.rule(kid_G, width)
-                nq, nK, nkq, nG, ngq = self.levels(new[len(whole):], width)
+                grandkids = new[len(whole):]
+                nq, nK, nkq, nG, ngq = self.levels(grandkids, width)
                 k_keep, g_keep = np.repeat(keep, 4), np.repeat(keep, 16)
-                tri = np.concatenate([tri[keep], K[kid], new[len(whole):]])
+                tri = np.concatenate([tri[keep], K[kid], grandkids])
                 q = np.concatenate([q[keep], kq[kid], nq])
                 K, kq = np.concatenate([K[k_keep], G[kid_K], nK]), np.concatenate([kq[k_keep], gq[kid_K], nkq])
                 G, gq = np.concatenate([G[g_keep], kid_G, nG]), np.concatenate([gq[g_keep], kid_gq, ngq])
@@ -3197,13 +3201,12 @@ class ThreeLevelRowCubature:
                 break
             split = worst_leaves(err, total, over, budget)
             keep, rows = np.flatnonzero(~split), np.flatnonzero(split)
-            child = (4 * rows[:, None] + four).reshape(-1)
-            grand = (4 * child[:, None] + four).reshape(-1)
+            child = child_rows(rows)
+            grand = child_rows(child)
             new_G = split4(G[grand]).reshape(-1, 3, 3)
             new_gq = self.rule(new_G, width)
             cells += 16 * len(child)
-            k_keep = (4 * keep[:, None] + four).reshape(-1)
-            g_keep = (16 * keep[:, None] + np.arange(16)).reshape(-1)
+            k_keep, g_keep = child_rows(keep), child_rows(keep, 16)
             tri = np.concatenate([tri[keep], K[child]])
             q = np.concatenate([q[keep], kq[child]])
             K = np.concatenate([K[k_keep], G[grand]])

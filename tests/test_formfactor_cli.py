@@ -94,3 +94,51 @@ def test_every_help_has_a_shell_example():
         assert examples, f"'viscx {' '.join(path)} --help' shows no example"
         if path[:1] == ["formfactor"] and len(path) == 2:
             assert all(e.startswith(f"viscx formfactor {path[1]} ") or e.startswith("viscx build") for e in examples)
+
+
+def loud(argv, capsys):
+    """``run`` without ``--quiet``: the warnings shown."""
+    with pytest.raises(SystemExit) as exc:
+        main([*map(str, argv)])
+    out, err = capsys.readouterr()
+    return exc.value.code, out, err
+
+
+@pytest.mark.parametrize("argv", [
+    ["groups", CORNELL, "--from-group", "floor", "--to-group", "light"],
+    ["faces", CORNELL, "--from-face", "15", "--to-face", "0"],
+])
+def test_a_pair_stopped_at_its_cap_says_so(argv, monkeypatch, capsys):
+    """A pair whose refinement stops at MAX_CELLS before its estimate is within --tol: the
+    record says ``tol_reached`` false, its error above tol, and one warning line says so
+    (none with --quiet); at the same tol with the cap as shipped, the estimate is within
+    tol and nothing is said."""
+    from viscx.queries import formfactor as ff
+
+    code, out, err = loud(["formfactor", *argv, "--tol", "1e-7"], capsys)
+    record = json.loads(out)
+    assert code == 0 and record["tol_reached"] is True and record["error"] <= 2 * 1e-7 and "warning" not in err, err
+    monkeypatch.setattr(ff, "MAX_CELLS", 20)
+    code, out, err = loud(["formfactor", *argv, "--tol", "1e-9"], capsys)
+    record = json.loads(out)
+    assert code == 0 and record["tol_reached"] is False and record["error"] > 1e-9
+    lines = [line for line in err.splitlines() if "warning" in line]
+    assert len(lines) == 1 and "above --tol 1e-09" in lines[0] and "20 triangles" in lines[0], err
+    code, out, err = run(["formfactor", *argv, "--tol", "1e-9"], capsys)
+    assert code == 0 and json.loads(out)["tol_reached"] is False and err == "", err
+
+
+def test_matrix_entries_above_tol_are_counted(tmp_path, monkeypatch, capsys):
+    """The matrix's summary reports its largest estimate; where entries stop above --tol
+    (the rows' cap made small) one warning line counts them."""
+    from viscx.formats.formfactors import read_matrix
+    from viscx.queries import formfactor as ff
+
+    monkeypatch.setattr(ff, "MAX_CELLS", 20)
+    code, out, err = loud(["formfactor", "matrix", CORNELL, "--tol", "1e-9", "-o", tmp_path / "F.h5"], capsys)
+    assert code == 0
+    m = read_matrix(tmp_path / "F.h5")
+    above = int((m["error"] > 1e-9 * (1 + 1e-9)).sum() + (m["sky_error"] > 1e-9 * (1 + 1e-9)).sum())
+    lines = [line for line in err.splitlines() if "warning" in line]
+    assert above > 0 and len(lines) == 1 and lines[0].startswith(f"viscx: warning: {above} entries'"), err
+    assert json.loads(out)["max_error_estimate"] > 1e-9

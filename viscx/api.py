@@ -280,10 +280,12 @@ def form_factor(query, to_face=None, to_group=None, point=None, normal=None, fro
         if from_face == to_face:
             raise ParameterError("{from_face} and {to_face} are the same face (a planar face does not see itself)")
         r = ff.face_to_face(scene, int(from_face), int(to_face), side_i=side, tol=tol)
-        record = {"F": r["F"], "error": r["error"], **source, "from_side": from_side, **target, "sides": r["sides"]}
+        record = {"F": r["F"], "error": r["error"], **source, "from_side": from_side, **target, "sides": r["sides"],
+                  "tol_reached": r["tol_reached"]}
     else:
         r = ff.group_to_group(scene, [int(f) for f in sources], [int(f) for f in faces], side_i=side, tol=tol)
-        record = {"F": r["F"], "error": r["error"], **source, "from_side": from_side, **target, "pairs": r["pairs"]}
+        record = {"F": r["F"], "error": r["error"], **source, "from_side": from_side, **target, "pairs": r["pairs"],
+                  "tol_reached": r["tol_reached"]}
     record["tol"] = tol
     record["seconds"] = round(time.perf_counter() - t0, 4)
     return FormFactor(record["F"], record["error"], record)

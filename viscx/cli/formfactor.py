@@ -79,6 +79,11 @@ def _write(ctx, file, fmt, output, **form):
     write_result(record, output, fmt)
     if not record.get("complete", True) and not quiet(ctx):
         click.echo("viscx: warning: some of the point's V-cells are incomplete; see docs/queries.md", err=True)
+    if record.get("tol_reached") is False and not quiet(ctx):
+        from viscx.queries.formfactor import MAX_CELLS
+
+        click.echo(f"viscx: warning: a pair's error estimate is above --tol {record['tol']:g}: its refinement "
+                   f"stopped at {MAX_CELLS:,} triangles ('error' says how far it got)", err=True)
 
 
 @formfactor.command(short_help="Exact F from a differential area to a face or a group.")
@@ -174,6 +179,8 @@ def matrix(ctx, file, tol, output, fmt):
     viscx formfactor matrix two.h5 -o F.h5
     viscx formfactor matrix two.h5 --tol 1e-7 -o F.csv
     """
+    import numpy as np
+
     from viscx.api import form_factor_matrix
     from viscx.formats.formfactors import write_export, write_matrix
     from viscx.formats.queries import write_result
@@ -184,3 +191,8 @@ def matrix(ctx, file, tol, output, fmt):
     plain = str(output).lower().endswith((".npz", ".csv"))
     summary = (write_export if plain else write_matrix)(output, m, q.scene)
     write_result({"matrix": str(output), **summary}, None, fmt)
+    above = int(np.count_nonzero(m.error > m.tol * (1 + 1e-9)) + np.count_nonzero(m.sky_error > m.tol * (1 + 1e-9)))
+    if above and not quiet(ctx):
+        click.echo(f"viscx: warning: {above} entries' error estimates are above --tol {m.tol:g} (the largest "
+                   f"{summary['max_error_estimate']:.2g}): a row stopped at its cap of triangles, or an entry is a "
+                   f"closed room's row sum, whose estimate is the sum of the row's", err=True)

@@ -2330,13 +2330,21 @@ def contour_form_factor(loops_i, n_i, loops_j, n_j, separate=False):
 SIDES = (1, -1)  # element 2 f + 0: front of face f, 2 f + 1: its back
 
 
+def tol_reached(errors, tol):
+    """Whether every error estimate ``errors`` (k,) float64 is within ``tol`` (to 1e-9 of it,
+    for the rounding of a derived entry's scaled estimate): False where a refinement
+    stopped at :data:`MAX_CELLS` first, its estimate saying how far from ``tol`` it got."""
+    return bool(np.all(np.asarray(errors, np.float64) <= tol * (1 + 1e-9)))
+
+
 def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
     """F from one side of face i to face j (both of its sides).
 
     Returns
     -------
     dict
-        ``F``, ``error``, per-side ``sides`` (front/back of j: F, error, method, ...).
+        ``F``, ``error``, per-side ``sides`` (front/back of j: F, error, method, ...) and
+        ``tol_reached`` (:func:`tol_reached` of the two sides' estimates).
     """
     target = face_target(scene, target_face)
     cells, _, kinked = cubature_cells(scene, face_i, side_i)
@@ -2348,6 +2356,7 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
         "sides": {name: _pair_dict(p) for name, p in parts.items()},
+        "tol_reached": tol_reached([p.error for p in parts.values()], tol),
     }
 
 
@@ -2373,14 +2382,16 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
     (default: the CPU count). A query of one row (a floor to a ceiling) runs in this
     process, its cubatures' kernels on ``workers`` threads (:class:`Cubature`), so that it
     too uses the cores; the result does not depend on the workers. ``tol`` bounds the
-    error estimate of each face pair."""
+    error estimate of each face pair (``tol_reached``: every entry's is within it,
+    :func:`tol_reached`)."""
     faces_i = np.asarray(sorted({int(i) for i in faces_i}), np.int64)
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
     row, _, val, err = group_entries(scene, faces_i, faces_j, side_i, tol, workers, reciprocal)
     area = scene.face_area[row // 2]
     a = float(scene.face_area[faces_i].sum())
     pairs = len(faces_i) * len(faces_j) - int(np.isin(faces_i, faces_j).sum())
-    return {"F": float(np.sum(area * val)) / a, "error": float(np.sum(area * err)) / a, "pairs": int(pairs)}
+    return {"F": float(np.sum(area * val)) / a, "error": float(np.sum(area * err)) / a, "pairs": int(pairs),
+            "tol_reached": tol_reached(err, tol)}
 
 
 def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True):

@@ -140,5 +140,5 @@ def test_matrix_entries_above_tol_are_counted(tmp_path, monkeypatch, capsys):
     m = read_matrix(tmp_path / "F.h5")
     above = int((m["error"] > 1e-9 * (1 + 1e-9)).sum() + (m["sky_error"] > 1e-9 * (1 + 1e-9)).sum())
     lines = [line for line in err.splitlines() if "warning" in line]
-    assert above > 0 and len(lines) == 1 and lines[0].startswith(f"viscx: warning: {above} entries'"), err
+    assert above > 0 and len(lines) == 1 and lines[0].startswith(f"viscx: warning: {above} of the matrix's error estimates"), err
     assert json.loads(out)["max_error_estimate"] > 1e-9

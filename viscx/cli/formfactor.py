@@ -193,6 +193,6 @@ def matrix(ctx, file, tol, output, fmt):
     write_result({"matrix": str(output), **summary}, None, fmt)
     above = int(np.count_nonzero(m.error > m.tol * (1 + 1e-9)) + np.count_nonzero(m.sky_error > m.tol * (1 + 1e-9)))
     if above and not quiet(ctx):
-        click.echo(f"viscx: warning: {above} entries' error estimates are above --tol {m.tol:g} (the largest "
+        click.echo(f"viscx: warning: {above} of the matrix's error estimates are above --tol {m.tol:g} (the largest "
                    f"{summary['max_error_estimate']:.2g}): a row stopped at its cap of triangles, or an entry is a "
                    f"closed room's row sum, whose estimate is the sum of the row's", err=True)

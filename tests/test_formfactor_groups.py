@@ -100,3 +100,29 @@ def test_group_rows_are_cut_along_their_own_pairs_kinks(room, a, b):
         assert list(cols) == list(ref_cols) and np.all(err <= TOL / 10)
         assert np.all(np.abs(val - ref) <= err + ref_err), (f, s, val, ref, err, ref_err)
 
+
+
+@pytest.mark.parametrize("a, b, unit", [("wall_west", "wall_east", "points"), ("desk0", "floor", "rows")])
+def test_progress_lines_leave_the_answer_alone(room, a, b, unit, monkeypatch, capsys):
+    """Unless quiet, a group query shows its progress (log lines here, stderr being no
+    terminal): a query of one row its points and its pair's estimate against its target
+    after each refinement round, down to at most 1 at the end; a query of several rows the
+    rows done. The answer is the quiet one's, bit for bit."""
+    import viscx.progress as progress
+
+    fa, fb = room.group_faces(a), room.group_faces(b)
+    assert (len(ff.group_rows(room, fa, 1, fb)) == 1) == (unit == "points")
+    quiet = ff.group_to_group(room, fa, fb, tol=TOL, workers=1)
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(progress, "QUIET_START", 0.0)
+    monkeypatch.setattr(progress, "LOG_EVERY", 0.0)
+    loud = ff.group_to_group(room, fa, fb, tol=TOL, workers=1, quiet=False)
+    assert loud == quiet
+    lines = [line for line in capsys.readouterr().err.splitlines() if "form factors:" in line]
+    assert lines and all(unit in line for line in lines), lines
+    if unit == "points":
+        ratios = [float(line.split("estimate ")[1].split(" ×")[0]) for line in lines]
+        counts = [int(line.split("form factors: ")[1].split(" points")[0]) for line in lines]
+        assert ratios[-1] <= 1 < ratios[0] and counts == sorted(counts) and counts[-1] > 0, lines
+    else:
+        assert lines[-1].split("form factors: ")[1].startswith(f"{len(ff.group_rows(room, fa, 1, fb))}/"), lines

@@ -104,13 +104,14 @@ class Complex(BuiltComplex):
         return shadows(self, light)[1]
 
     def formfactor(self, to_face=None, to_group=None, point=None, normal=None, from_face=None, from_group=None,
-                   from_side="front", tol=None):
+                   from_side="front", tol=None, quiet=True):
         """A form factor (:func:`form_factor`): from a differential area (``point``,
         ``normal``; exact), or from a side of a face or a group (``from_face`` /
         ``from_group``, ``from_side``; error estimate below ``tol``) to a face or a group
-        (``to_face`` / ``to_group``, both sides). Returns :class:`FormFactor`."""
+        (``to_face`` / ``to_group``, both sides); a progress bar unless ``quiet``. Returns
+        :class:`FormFactor`."""
         return form_factor(self, to_face=to_face, to_group=to_group, point=point, normal=normal, from_face=from_face,
-                           from_group=from_group, from_side=from_side, tol=tol)
+                           from_group=from_group, from_side=from_side, tol=tol, quiet=quiet)
 
     def formfactor_matrix(self, tol=None, quiet=True):
         """Every pair of face sides, sparse, with the sky term (:func:`form_factor_matrix`).
@@ -219,7 +220,7 @@ def _side(from_side):
 
 
 def form_factor(query, to_face=None, to_group=None, point=None, normal=None, from_face=None, from_group=None,
-                from_side="front", tol=None):
+                from_side="front", tol=None, quiet=True):
     """A form factor from a complex (Hoberock et al. §7.4; method in docs/queries.md).
 
     Three forms, by the source given:
@@ -245,6 +246,8 @@ def form_factor(query, to_face=None, to_group=None, point=None, normal=None, fro
     tol : float, optional
         Target on each polygon pair's absolute error estimate (default
         :data:`viscx.queries.formfactor.DEFAULT_TOL`).
+    quiet : bool
+        No progress bar (the faces' and groups' cubatures).
 
     Returns
     -------
@@ -279,11 +282,12 @@ def form_factor(query, to_face=None, to_group=None, point=None, normal=None, fro
     if from_face is not None and to_face is not None:
         if from_face == to_face:
             raise ParameterError("{from_face} and {to_face} are the same face (a planar face does not see itself)")
-        r = ff.face_to_face(scene, int(from_face), int(to_face), side_i=side, tol=tol)
+        r = ff.face_to_face(scene, int(from_face), int(to_face), side_i=side, tol=tol, quiet=quiet)
         record = {"F": r["F"], "error": r["error"], **source, "from_side": from_side, **target, "sides": r["sides"],
                   "tol_reached": r["tol_reached"]}
     else:
-        r = ff.group_to_group(scene, [int(f) for f in sources], [int(f) for f in faces], side_i=side, tol=tol)
+        r = ff.group_to_group(scene, [int(f) for f in sources], [int(f) for f in faces], side_i=side, tol=tol,
+                              quiet=quiet)
         record = {"F": r["F"], "error": r["error"], **source, "from_side": from_side, **target, "pairs": r["pairs"],
                   "tol_reached": r["tol_reached"]}
     record["tol"] = tol

@@ -75,7 +75,7 @@ def _write(ctx, file, fmt, output, **form):
     from viscx.queries.visibility import open_query
 
     fmt = output_format(output, fmt)
-    record = form_factor(open_query(file), **form).record
+    record = form_factor(open_query(file), **form, quiet=quiet(ctx)).record
     write_result(record, output, fmt)
     if not record.get("complete", True) and not quiet(ctx):
         click.echo("viscx: warning: some of the point's V-cells are incomplete; see docs/queries.md", err=True)

@@ -1503,14 +1503,19 @@ class Cubature:
     threads : int
         Threads the integrand's and the cull's pieces run on (:meth:`_pieces`: the same
         result on any number).
+    progress : callable, optional
+        ``progress(points, ratio)``, told after each refinement round the points evaluated
+        so far and the summed estimate over the budget (a progress bar's; the result does
+        not depend on it).
     """
 
-    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1):
+    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1, progress=None):
         self.integrand = integrand
         self.cull = cull
         self.unresolved = unresolved
         self.unseen = unseen
         self.threads = threads
+        self.progress = progress
         self.evaluations = 0
         self.leaves = None  # after integrate: (tri, ptr, ids, q, kq, gq, err) of the final triangles
 
@@ -1660,6 +1665,8 @@ class Cubature:
         for _ in range(200):
             err = self.estimates(*leaves[:4], leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
             total = float(err.sum())
+            if self.progress is not None:
+                self.progress(self.evaluations, total / budget if budget > 0 else np.inf)
             if total <= budget or cells >= MAX_CELLS or not len(leaves.tri):
                 break
             # split the leaves with the largest estimates until what is left is REFINE_LEFT
@@ -2057,12 +2064,12 @@ class PairSetup:
         np.maximum.at(out, cell[hit], 2 * above[occ[hit]] * size[cell[hit]])
         return out
 
-    def blocked_integral(self, budget, threads=1):
+    def blocked_integral(self, budget, threads=1, progress=None):
         """∫_{I'} (F(x → J') − F(x → visible J')) dx by adaptive cubature, error estimate ≤
         ``budget`` where :data:`MAX_CELLS` allows: on cells cut along the kink lines the
         two-level :class:`RowCubature` (one column) over the triangles whose shafts meet an
         occluder (elsewhere the integrand is zero, exactly), else the three-level
-        :class:`Cubature`.
+        :class:`Cubature`. ``progress``: the cubature's (:class:`Cubature`).
 
         Returns
         -------
@@ -2096,10 +2103,10 @@ class PairSetup:
                 ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
-            cub = RowCubature(column, threads)
+            cub = RowCubature(column, threads, progress)
             value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
-        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads)
+        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads, progress)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return umbra + value, umbra_err + error, cub.evaluations, cells
 
@@ -2140,7 +2147,7 @@ class PairSetup:
 
 
 def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, kinked=False,
-                     threads=1):
+                     threads=1, progress=None):
     """F from side ``side_i`` (+1 front, -1 back) of face i to side ``side_t`` of a target.
 
     The unoccluded form factor of I' and J' by the contour integral (exact), minus what the
@@ -2167,6 +2174,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     threads : int
         Threads the cubature's kernels run on (:class:`Cubature`: the same result on any
         number).
+    progress : callable, optional
+        ``progress(points, ratio)`` after each of the cubature's refinement rounds
+        (:class:`Cubature`).
 
     Returns
     -------
@@ -2204,7 +2214,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     if not setup.occluders or not free:
         return PairResult(value, err, "contour", seconds=time.perf_counter() - t0)
     budget = max(tol - err, 0.1 * tol) * setup.area_i
-    hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget, threads)
+    hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget, threads, progress)
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
                       evals, n_cells, time.perf_counter() - t0)
 
@@ -2337,8 +2347,9 @@ def tol_reached(errors, tol):
     return bool(np.all(np.asarray(errors, np.float64) <= tol * (1 + 1e-9)))
 
 
-def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
-    """F from one side of face i to face j (both of its sides).
+def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, quiet=True):
+    """F from one side of face i to face j (both of its sides; a progress bar of their
+    cubatures' points unless ``quiet``, :func:`pair_bar`).
 
     Returns
     -------
@@ -2346,12 +2357,17 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL):
         ``F``, ``error``, per-side ``sides`` (front/back of j: F, error, method, ...) and
         ``tol_reached`` (:func:`tol_reached` of the two sides' estimates).
     """
+    from viscx.progress import bar
+
     target = face_target(scene, target_face)
     cells, _, kinked = cubature_cells(scene, face_i, side_i)
     contact = contact_sides(scene, face_i, side_i, cells)
     parts = {}
-    for name, t in (("front", 1), ("back", -1)):
-        parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact, kinked=kinked)
+    with bar(desc="form factors", quiet=quiet, unit="point") as progress:
+        show = pair_bar(progress)
+        for k, (name, t) in enumerate((("front", 1), ("back", -1))):
+            parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact,
+                                           kinked=kinked, progress=_pair_progress(show, k, 2))
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -2365,7 +2381,7 @@ def _pair_dict(p):
             "evaluations": int(p.evaluations), "cells": int(p.cells), "seconds": round(p.seconds, 4)}
 
 
-def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True):
+def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True, quiet=True):
     """Area-weighted F from side ``side_i`` of the faces_i to (both sides of) the faces_j:
     ``Σ_i A_i Σ_j F_ij / Σ_i A_i``. A face in both sets does not see itself (planar).
 
@@ -2383,10 +2399,11 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
     process, its cubatures' kernels on ``workers`` threads (:class:`Cubature`), so that it
     too uses the cores; the result does not depend on the workers. ``tol`` bounds the
     error estimate of each face pair (``tol_reached``: every entry's is within it,
-    :func:`tol_reached`)."""
+    :func:`tol_reached`). Unless ``quiet``, a progress bar: the rows done, or the one
+    row's points and its pair's estimate against its target (:func:`pair_bar`)."""
     faces_i = np.asarray(sorted({int(i) for i in faces_i}), np.int64)
     faces_j = np.asarray(sorted({int(j) for j in faces_j}), np.int64)
-    row, _, val, err = group_entries(scene, faces_i, faces_j, side_i, tol, workers, reciprocal)
+    row, _, val, err = group_entries(scene, faces_i, faces_j, side_i, tol, workers, reciprocal, quiet)
     area = scene.face_area[row // 2]
     a = float(scene.face_area[faces_i].sum())
     pairs = len(faces_i) * len(faces_j) - int(np.isin(faces_i, faces_j).sum())
@@ -2394,24 +2411,28 @@ def group_to_group(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=N
             "tol_reached": tol_reached(err, tol)}
 
 
-def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True):
+def group_entries(scene, faces_i, faces_j, side_i=1, tol=DEFAULT_TOL, workers=None, reciprocal=True, quiet=True):
     """The entries F_(i,side_i)→(j,t) of a group query (:func:`group_to_group`), computed or
     derived: ``(rows, cols (m,) int64, values, errors (m,) float64)``, rows the elements
     ``2 i + (0 front, 1 back)`` of side ``side_i`` of the faces_i, cols those of both sides
-    of the faces_j, j ≠ i."""
+    of the faces_j, j ≠ i; a progress bar unless ``quiet``."""
+    from viscx.progress import bar
+
     faces_i, faces_j = np.asarray(faces_i, np.int64), np.asarray(faces_j, np.int64)
     rows = group_rows(scene, faces_i, side_i, faces_j, reciprocal)
     if len(rows) == 1:
         # one row (a floor to a ceiling): in this process, its pairs' cubatures on the cores
         # as threads (the same result on any number), refined to tol as one integral
         f, s, r, scale = rows[0]
-        results = [emitter_row(scene, f, s, r, tol * scale, False, default_workers(workers))]
+        with bar(desc="form factors", quiet=quiet, unit="point") as progress:
+            results = [emitter_row(scene, f, s, r, tol * scale, False, default_workers(workers), pair_bar(progress))]
     else:
         # the rows on processes, each row's pieces on threads holding the pool's core tokens:
         # the largest row (the desk top's underside → the floor) takes the cores the others
         # leave when they are done
-        results = _map_rows(emitter_row, scene, [row[:3] for row in rows], [tol * row[3] for row in rows], False, workers,
-                            threads=True)
+        with bar(total=len(rows), desc="form factors", quiet=quiet, unit="row") as progress:
+            results = _map_rows(emitter_row, scene, [row[:3] for row in rows], [tol * row[3] for row in rows], False,
+                                workers, progress=lambda: progress.update(1), threads=True)
     row, col, val, err = row_entries(results, [2 * f + (0 if s > 0 else 1) for f, s, *_ in rows])
     if reciprocal:
         row, col, val, err = (np.concatenate(pair) for pair in zip((row, col, val, err),
@@ -2678,12 +2699,15 @@ def closed_form_row(scene, face, side, faces, sky=True):
             rest if sky else 0.0)
 
 
-def emitter_row(scene, face, side, faces, tol, sky=True, threads=1):
+def emitter_row(scene, face, side, faces, tol, sky=True, threads=1, progress=None):
     """F from one side of a face to every side of ``faces`` it may see, and to the sky; a
     side with a closed form (:func:`closed_form_row`) takes it. ``tol``: the target on each
     pair's estimate, one for all or (k,) float64, one per face of ``faces`` (the sky
     takes the smallest). ``threads``: what each pair's cubature runs on
-    (:func:`pair_form_factor`).
+    (:func:`pair_form_factor`). ``progress``: ``progress(pair, pairs, points, ratio)``
+    after each refinement round of each pair's cubature (the pair's number, how many,
+    its points so far and its estimate over its target: a progress bar's,
+    :func:`pair_bar`).
 
     Returns
     -------
@@ -2710,9 +2734,11 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1):
     touched = touched[np.isin(touched // 2, faces)]
     fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(faces.tolist()))
-    for j, t in zip(fj, sj):
+    pairs = len(fj) + (len(sky_targets(scene)) if sky else 0)
+    for k, (j, t) in enumerate(zip(fj, sj)):
         r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=float(tols[faces == j][0]),
-                             cells=cells, contact=contact, kinked=kinked, threads=threads)
+                             cells=cells, contact=contact, kinked=kinked, threads=threads,
+                             progress=_pair_progress(progress, k, pairs))
         counts[r.method] = counts.get(r.method, 0) + 1
         if r.method != "none" and r.F != 0.0:
             cols.append(2 * int(j) + (0 if t > 0 else 1))
@@ -2720,13 +2746,34 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1):
             errs.append(r.error)
     sky_v, sky_e = 0.0, 0.0
     if sky:
-        for box in sky_targets(scene):
+        for k, box in enumerate(sky_targets(scene)):
             r = pair_form_factor(scene, face, side, box, 1, tol=float(np.min(tols, initial=np.max(tol))), cells=cells,
-                                 contact=contact, kinked=kinked, threads=threads)
+                                 contact=contact, kinked=kinked, threads=threads,
+                                 progress=_pair_progress(progress, len(fj) + k, pairs))
             counts["sky " + r.method] = counts.get("sky " + r.method, 0) + 1
             sky_v += r.F
             sky_e += r.error
     return np.asarray(cols, np.int64), np.asarray(vals, np.float64), np.asarray(errs, np.float64), counts, sky_v, sky_e
+
+
+def _pair_progress(progress, pair, pairs):
+    """A cubature's ``progress(points, ratio)`` for pair ``pair`` of ``pairs`` of a row's
+    ``progress(pair, pairs, points, ratio)`` (None without one)."""
+    return None if progress is None else functools.partial(progress, pair, pairs)
+
+
+def pair_bar(bar):
+    """A row's ``progress(pair, pairs, points, ratio)`` (:func:`emitter_row`) that counts
+    the points evaluated on a progress bar (:func:`viscx.progress.bar`) and shows the pair
+    and how far its estimate is from its target."""
+    last = {}
+
+    def progress(pair, pairs, points, ratio):
+        bar.set_postfix_str(f"pair {pair + 1} of {pairs}: estimate {ratio:.3g} × its target")
+        bar.update(points - last.get(pair, 0))
+        last[pair] = points
+
+    return progress
 
 
 # --------------------------------------------------------------------------------------
@@ -3028,12 +3075,15 @@ class RowCubature:
     threads : int
         Threads the integrand's calls run on (:func:`row_rules`; the result does not
         depend on them).
+    progress : callable, optional
+        As :class:`Cubature`'s, the ratio the largest of the columns'.
     """
 
-    def __init__(self, integrand, threads=1):
+    def __init__(self, integrand, threads=1, progress=None):
         self.integrand = integrand
         self.evaluations = 0
         self.threads = threads
+        self.progress = progress
 
     def rule(self, tri, width):
         """Radon's rule on each triangle and its null-rule estimate: ``q, e`` (g, R) float64."""
@@ -3062,6 +3112,9 @@ class RowCubature:
             value, err = self._leaves(q, e, kid_of, kq)
             total = err.sum(axis=0)
             over = np.flatnonzero(total > budget)
+            if self.progress is not None:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    self.progress(self.evaluations, float(np.max(np.where(budget > 0, total / budget, np.inf))))
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
             pick = worst_leaves(err, total, over, budget, REFINE_LEFT)

@@ -24,6 +24,17 @@ points (docs/queries.md, "At the default tol").
 
     python benchmarks/office_groups.py --tol 1e-6 --pairs wall_west:wall_east --rounds
 
+``--cli FILE``: the command line instead, as a user runs it: ``viscx --quiet formfactor
+groups FILE --from-group A --to-group B --tol T``, one process per query (start-up
+included), its wall seconds and CPU seconds (user + sys of the process and its workers),
+stopped after ``--cap`` seconds (``"capped": true``); FILE an office built by viscx:
+
+    python benchmarks/buildings.py office -n 300 -o office300.obj
+    viscx build office300.obj -o office300.h5
+    python benchmarks/office_groups.py --cli office300.h5 --tol 1e-6 --cap 30
+
+Time it on quiet cores: the 10 s a query is meant to take is wall time on 2 cores.
+
 ``--kernels``: the per-point cost (CPU µs) of the two from-point kernels on this office
 instead: ``point_views`` from the floor (a matrix row's integrand) and the pair kernel
 (``blocked_form_factors``, all the pair's occluders, J's covered cells as holes as the
@@ -167,6 +178,28 @@ def logged_estimates(self, tri, ptr, ids, q, kq, gq):
     return err
 
 
+def cli_queries(path, pairs, tol, cap):
+    """Each group query of ``pairs`` [(from, to)] on the command line, one process each
+    (module docstring, ``--cli``): one JSON line per query."""
+    import subprocess
+
+    for a, b in pairs:
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        w0 = time.perf_counter()
+        argv = [sys.executable, "-m", "viscx", "--quiet", "formfactor", "groups", str(path), "--from-group", a,
+                "--to-group", b, "--tol", repr(tol)]
+        try:
+            done = subprocess.run(argv, capture_output=True, text=True, timeout=cap)
+            record, capped = (json.loads(done.stdout) if done.returncode == 0 else {"stderr": done.stderr.strip()}), False
+        except subprocess.TimeoutExpired:
+            record, capped = {}, True
+        wall = time.perf_counter() - w0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+        print(json.dumps({"from": a, "to": b, "tol": tol, "wall": round(wall, 2), "cpu": round(cpu, 2), "capped": capped,
+                          **{k: record[k] for k in ("F", "error", "tol_reached", "stderr") if k in record}}), flush=True)
+
+
 def main(argv=None):
     from buildings import office
 
@@ -180,17 +213,22 @@ def main(argv=None):
     parser.add_argument("--tol", type=float, default=1e-4)
     parser.add_argument("--pairs", nargs="*", default=None, metavar="FROM:TO")
     parser.add_argument("--kernels", action="store_true", help="per-point cost of the kernels instead")
+    parser.add_argument("--cli", default=None, metavar="FILE", help="time the command line on this built office instead")
+    parser.add_argument("--cap", type=float, default=None, help="--cli: stop a query after this many seconds")
     parser.add_argument("--workers", type=int, default=None, help="default: one per core")
     parser.add_argument("--rounds", action="store_true",
                         help="log each refinement round of the three-level pair cubature on standard error")
     args = parser.parse_args(argv)
+    pairs = [tuple(p.split(":")) for p in args.pairs] if args.pairs else [(a, b) for a in GROUPS for b in GROUPS if a != b]
+    if args.cli:
+        cli_queries(args.cli, pairs, args.tol, args.cap)
+        return
     if args.rounds:
         ESTIMATES[0], ff.Cubature.estimates = ff.Cubature.estimates, logged_estimates
     scene = build_scene(office(args.polygons, seed=0))
     if args.kernels:
         print(json.dumps(kernel_costs(scene)), flush=True)
         return
-    pairs = [tuple(p.split(":")) for p in args.pairs] if args.pairs else [(a, b) for a in GROUPS for b in GROUPS if a != b]
     workers = default_workers(args.workers)
     EMITTER_ROW[0], ff.emitter_row = ff.emitter_row, timed_row  # group_to_group hands its workers this one
     MAP_CHUNKS[0], ff.map_chunks = ff.map_chunks, timed_chunks

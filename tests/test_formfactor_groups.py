@@ -126,3 +126,23 @@ def test_progress_lines_leave_the_answer_alone(room, a, b, unit, monkeypatch, ca
         assert ratios[-1] <= 1 < ratios[0] and counts == sorted(counts) and counts[-1] > 0, lines
     else:
         assert lines[-1].split("form factors: ")[1].startswith(f"{len(ff.group_rows(room, fa, 1, fb))}/"), lines
+
+
+def test_group_form_factors_are_invariant_under_a_rotation(room):
+    """The room turned by a generic rotation (no face along an axis: the boxes' and cells'
+    axis-aligned bounds, the emitters' plane bases and start triangles all differ) and
+    moved: every query's F within the two estimates of the upright room's."""
+    import dataclasses
+
+    soup = furnished_room(n_desks=1, n_cabinets=1, n_dividers=1, n_lights=1, size=(4, 3, 3), seed=0)
+    a, b, c = 0.37, 1.13, -0.71
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
+    turned = build_scene(dataclasses.replace(soup, vertices=np.asarray(soup.vertices) @ (rz @ ry @ rx).T + [3.1, -2.2, 0.7]))
+    assert turned.n_faces == room.n_faces
+    for a, b in [("floor", "ceiling"), ("floor", "desk0"), ("desk0", "floor"), ("wall_west", "divider0"),
+                 ("light1", "cabinet0"), ("wall_north", "wall_south")]:
+        f0, f1 = (ff.group_to_group(s, s.group_faces(a), s.group_faces(b), tol=TOL, workers=1) for s in (room, turned))
+        assert f0["pairs"] == f1["pairs"] and f0["F"] > 0, (a, b)
+        assert abs(f0["F"] - f1["F"]) <= f0["error"] + f1["error"] + 1e-12, (a, b, f0, f1)

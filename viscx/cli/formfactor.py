@@ -184,6 +184,7 @@ def matrix(ctx, file, tol, output, fmt):
     from viscx.api import form_factor_matrix
     from viscx.formats.formfactors import write_export, write_matrix
     from viscx.formats.queries import write_result
+    from viscx.queries.formfactor import estimates_above
     from viscx.queries.visibility import open_query
 
     q = open_query(file)
@@ -191,7 +192,7 @@ def matrix(ctx, file, tol, output, fmt):
     plain = str(output).lower().endswith((".npz", ".csv"))
     summary = (write_export if plain else write_matrix)(output, m, q.scene)
     write_result({"matrix": str(output), **summary}, None, fmt)
-    above = int(np.count_nonzero(m.error > m.tol * (1 + 1e-9)) + np.count_nonzero(m.sky_error > m.tol * (1 + 1e-9)))
+    above = estimates_above(np.concatenate([m.error, m.sky_error]), m.tol)
     if above and not quiet(ctx):
         click.echo(f"viscx: warning: {above} of the matrix's error estimates are above --tol {m.tol:g} (the largest "
                    f"{summary['max_error_estimate']:.2g}): a row stopped at its cap of triangles, or an entry is a "

@@ -58,24 +58,6 @@ def pair_setup(scene, group_i, group_j):
     return (fi, side, fj, st, setup) if not setup.empty and setup.occluders else None
 
 
-def clip_to_box(a, b, lo, hi):
-    """The parts of the 2-D segments ``a, b`` (k, 2) float inside the box ``lo, hi`` (2,)
-    float (Liang–Barsky): ``(a, b, kept)``, the clipped ends of the kept ones and ``kept``
-    (k,) bool."""
-    d = b - a
-    t0, t1 = np.zeros(len(a)), np.ones(len(a))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for k in range(2):
-            ta, tb = (lo[k] - a[:, k]) / d[:, k], (hi[k] - a[:, k]) / d[:, k]
-            flat = np.abs(d[:, k]) < 1e-15
-            inside = (a[:, k] >= lo[k]) & (a[:, k] <= hi[k])
-            t0 = np.maximum(t0, np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb)))
-            t1 = np.minimum(t1, np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb)))
-    kept = t1 > t0 + 1e-9
-    a, d, t0, t1 = a[kept], d[kept], t0[kept], t1[kept]
-    return a + t0[:, None] * d, a + t1[:, None] * d, kept
-
-
 def kink_weights(scene, fi, side, fj, setup):
     """The emitter's candidate kink segments and their measured jumps (module docstring).
 
@@ -96,7 +78,10 @@ def kink_weights(scene, fi, side, fj, setup):
         scene, ff.kink_faces(scene, fi, side, [fj]))))
     two = np.stack([(segs - origin) @ eu, (segs - origin) @ ev], axis=-1)
     corners = np.concatenate(pieces)
-    a, b, _ = clip_to_box(two[:, 0], two[:, 1], corners.min(axis=0) + 1e-3, corners.max(axis=0) - 1e-3)
+    t0, t1 = ff.box_clip(two, corners.min(axis=0) + 1e-3, corners.max(axis=0) - 1e-3)
+    kept = t1 > t0 + 1e-9
+    d = two[kept, 1] - two[kept, 0]
+    a, b = two[kept, 0] + t0[kept, None] * d, two[kept, 0] + t1[kept, None] * d
     d = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
     normal = np.stack([-d[:, 1], d[:, 0]], axis=1)
     jumps = []

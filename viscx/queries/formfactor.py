@@ -987,8 +987,16 @@ def _padded(pieces):
 
 def _meets_box(seg, lo, hi, eps):
     """(s,) bool: the 2-D segments (s, 2, 2) with more than ``eps`` of their length inside
-    the box [lo, hi] (Liang–Barsky clipping, all at once): the others cut no piece inside
-    it (a kink line of a cluttered room mostly runs far from a small face)."""
+    the box [lo, hi] (:func:`box_clip`): the others cut no piece inside it (a kink line of
+    a cluttered room mostly runs far from a small face)."""
+    t0, t1 = box_clip(seg, lo, hi)
+    return (t1 - t0) * np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > eps
+
+
+def box_clip(seg, lo, hi):
+    """Where the 2-D segments ``seg`` (s, 2, 2) float64 run inside the box ``[lo, hi]`` (2,)
+    (Liang–Barsky clipping, all at once): ``t0, t1`` (s,) float64, the part ``seg[:, 0] +
+    t (seg[:, 1] − seg[:, 0])`` for t in [t0, t1]; t1 < t0 where a segment misses it."""
     a, d = seg[:, 0], seg[:, 1] - seg[:, 0]
     t0, t1 = np.zeros(len(seg)), np.ones(len(seg))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -998,7 +1006,7 @@ def _meets_box(seg, lo, hi, eps):
             t0 = np.where(flat, t0, np.maximum(t0, np.minimum(ta, tb)))
             t1 = np.where(flat, t1, np.minimum(t1, np.maximum(ta, tb)))
             t1 = np.where(flat & ((a[:, k] < lo[k]) | (a[:, k] > hi[k])), -1.0, t1)
-    return (t1 - t0) * np.linalg.norm(d, axis=1) > eps
+    return t0, t1
 
 
 def cut_along(pieces, seg, eps, limit=None):
@@ -1666,7 +1674,7 @@ class Cubature:
             err = self.estimates(*leaves[:4], leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
             total = float(err.sum())
             if self.progress is not None:
-                self.progress(self.evaluations, total / budget if budget > 0 else np.inf)
+                self.progress(self.evaluations, estimate_ratio(total, budget))
             if total <= budget or cells >= MAX_CELLS or not len(leaves.tri):
                 break
             # split the leaves with the largest estimates until what is left is REFINE_LEFT
@@ -2741,7 +2749,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1, progress=Non
     touched = touched[np.isin(touched // 2, faces)]
     fj, sj = np.concatenate([fj, touched // 2]), np.concatenate([sj, 1 - 2 * (touched % 2)])
     counts["none"] = 2 * len(faces) - len(fj) - 2 * int(face in set(faces.tolist()))
-    pairs = len(fj) + (len(sky_targets(scene)) if sky else 0)
+    boxes = sky_targets(scene) if sky else []
+    pairs = len(fj) + len(boxes)
     for k, (j, t) in enumerate(zip(fj, sj)):
         r = pair_form_factor(scene, face, side, face_target(scene, int(j)), int(t), tol=float(tols[faces == j][0]),
                              cells=cells, contact=contact, kinked=kinked, threads=threads,
@@ -2753,7 +2762,7 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1, progress=Non
             errs.append(r.error)
     sky_v, sky_e = 0.0, 0.0
     if sky:
-        for k, box in enumerate(sky_targets(scene)):
+        for k, box in enumerate(boxes):
             r = pair_form_factor(scene, face, side, box, 1, tol=float(np.min(tols, initial=np.max(tol))), cells=cells,
                                  contact=contact, kinked=kinked, threads=threads,
                                  progress=_pair_progress(progress, len(fj) + k, pairs))
@@ -2761,6 +2770,15 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1, progress=Non
             sky_v += r.F
             sky_e += r.error
     return np.asarray(cols, np.int64), np.asarray(vals, np.float64), np.asarray(errs, np.float64), counts, sky_v, sky_e
+
+
+def estimate_ratio(total, budget):
+    """What a cubature's ``progress`` is told: its summed estimate over its budget, the
+    largest of its columns' (``total``, ``budget``: float or (R,) float64; inf where a
+    budget is 0)."""
+    total, budget = np.asarray(total, np.float64), np.asarray(budget, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.max(np.where(budget > 0, total / budget, np.inf)))
 
 
 def _pair_progress(progress, pair, pairs):
@@ -3120,8 +3138,7 @@ class RowCubature:
             total = err.sum(axis=0)
             over = np.flatnonzero(total > budget)
             if self.progress is not None:
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    self.progress(self.evaluations, float(np.max(np.where(budget > 0, total / budget, np.inf))))
+                self.progress(self.evaluations, estimate_ratio(total, budget))
             if not len(over) or cells >= MAX_CELLS or not len(tri):
                 break
             pick = worst_leaves(err, total, over, budget, REFINE_LEFT)

@@ -2252,7 +2252,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         Target on the error estimate (absolute, in F).
     cells, contact : list, (c,) int64, optional
         :func:`cubature_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
-        by the pairs of one emitter (default: computed here).
+        by the pairs of one row (default: those cut along this pair's kink lines, cached).
     kinked : bool
         ``cells`` are cut along the kink lines (:func:`cubature_cells`).
     threads : int
@@ -2268,7 +2268,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     """
     t0 = time.perf_counter()
     if cells is None:
-        cells, _, kinked = cubature_cells(scene, face_i, side_i)
+        # cut along the kinks of this pair only (as a group query's row of one receiver)
+        receivers = None if target.face < 0 else [target.face]
+        cells, _, kinked = cubature_cells(scene, face_i, side_i, receivers=receivers, pairs=receivers is not None)
+        contact = cell_contacts(scene, face_i, side_i, receivers, pairs=receivers is not None)
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
     lying = contact_cells(scene, face_i, side_i)  # the exact terms: uncut, fewer contour integrals
@@ -2451,15 +2454,12 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, quiet=Tr
     from viscx.progress import bar
 
     target = face_target(scene, target_face)
-    # cut along the kinks of this pair only (as a group query's row of one receiver)
-    cells, _, kinked = cubature_cells(scene, face_i, side_i, receivers=[target_face], pairs=True)
-    contact = cell_contacts(scene, face_i, side_i, [target_face], pairs=True)
     parts = {}
     with bar(desc="form factors", quiet=quiet, unit="point") as progress:
         show = pair_bar(progress)
         for k, (name, t) in enumerate((("front", 1), ("back", -1))):
-            parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact,
-                                           kinked=kinked, progress=_pair_progress(show, k, 2))
+            parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol,
+                                           progress=_pair_progress(show, k, 2))
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -3111,10 +3111,14 @@ def cut_hidden(scene, n_i, tri, hidden, lines, sees):
     def to2(p):
         return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
 
-    rows = np.flatnonzero(hidden)
     eps = 1e-8 * scene.diagonal
+    seg = to2(lines)
+    crossing = lines_crossing(seg, to2(tri[hidden]), eps)  # (s, r) bool
+    rows = np.flatnonzero(hidden)[crossing.any(axis=0)]
+    if not len(rows):
+        return replaced, np.zeros((0, 3, 3))
     pieces = [t if _area2(t) > 0 else t[::-1] for t in to2(tri[rows])]
-    cut = cut_along(pieces, to2(lines), eps, MAX_GAP_PIECES + len(pieces))
+    cut = cut_along(pieces, seg[crossing.any(axis=1)], eps, MAX_GAP_PIECES + len(pieces))
     if cut is None or len(cut) == len(pieces):
         return replaced, np.zeros((0, 3, 3))
     # each piece's triangle, by its centre (the triangles are disjoint)
@@ -3128,11 +3132,54 @@ def cut_hidden(scene, n_i, tri, hidden, lines, sees):
     ask = np.flatnonzero(split[parent])
     if not len(ask):
         return replaced, np.zeros((0, 3, 3))
+    lit = ask[sees(origin + centre[ask, :1] * eu + centre[ask, 1:] * ev) > UNSEEN]
+    if not len(lit):
+        return replaced, np.zeros((0, 3, 3))
     seen = np.zeros(len(pieces), bool)
-    seen[parent[ask[sees(origin + centre[ask, :1] * eu + centre[ask, 1:] * ev) > UNSEEN]]] = True
+    seen[parent[lit]] = True
     replaced[rows[seen]] = True
-    cells = [origin + p[:, :1] * eu + p[:, 1:] * ev for p, k in zip(cut, parent) if seen[k]]
-    return replaced, start_triangles(cells, 0.0) if cells else np.zeros((0, 3, 3))
+    # those triangles cut again along the lines that bound a piece seen from only: the
+    # seen pieces stay whole, the rest of the triangle in fewer pieces (every piece on
+    # three levels: along all the lines, a wall's triangle behind a cabinet made hundreds)
+    seg = seg[crossing.any(axis=1)]
+    edges = np.concatenate([np.stack([cut[k], np.roll(cut[k], -1, axis=0)], axis=1) for k in lit])  # (e, 2, 2)
+    bounding = lines_along(seg, edges, eps)
+    out = cut_along([pieces[k] for k in np.flatnonzero(seen)], seg[bounding], eps)
+    cells = [origin + p[:, :1] * eu + p[:, 1:] * ev for p in out]
+    return replaced, start_triangles(cells, 0.0)
+
+
+def lines_along(seg, edges, eps):
+    """(s,) bool: the segments (s, 2, 2) whose lines hold one of the edges (e, 2, 2) (both
+    ends within ``eps`` of the line) of a plane."""
+    d = seg[:, 1] - seg[:, 0]
+    d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    out = np.zeros(len(seg), bool)
+    for end in (0, 1):
+        rel = edges[None, :, end] - seg[:, None, 0]  # (s, e, 2)
+        dist = np.abs(rel[..., 0] * d[:, None, 1] - rel[..., 1] * d[:, None, 0])
+        on = dist <= 10 * eps
+        out_e = on if end == 0 else out_e & on
+    return out_e.any(axis=1)
+
+
+def lines_crossing(seg, tri, eps, block=1 << 22):
+    """(s, r) bool: which segments (s, 2, 2) may cut which triangles (r, 3, 2) of a plane:
+    their line leaves corners more than ``eps`` on both sides and the triangle's extent
+    along it overlaps the segment (a superset of the cuts of :func:`cut_along`, by blocks
+    of segments of at most ``block`` corner tests)."""
+    out = np.zeros((len(seg), len(tri)), bool)
+    step = max(1, block // max(3 * len(tri), 1))
+    for lo in range(0, len(seg), step):
+        a, b = seg[lo:lo + step, 0], seg[lo:lo + step, 1]
+        length = np.linalg.norm(b - a, axis=1)
+        d = (b - a) / np.maximum(length, 1e-300)[:, None]
+        rel = tri[None] - a[:, None, None]  # (s, r, 3, 2)
+        side = rel[..., 0] * d[:, None, None, 1] - rel[..., 1] * d[:, None, None, 0]
+        along = np.einsum("srkj,sj->srk", rel, d)
+        out[lo:lo + step] = ((side.max(axis=2) > eps) & (side.min(axis=2) < -eps) & (along.max(axis=2) > eps)
+                             & (along.min(axis=2) < length[:, None] - eps) & (length[:, None] > eps))
+    return out
 
 
 #: The share of a column's budget that an upper bound of its unseen shadows may take, where
@@ -3638,7 +3685,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
         # nodes, on the pair cubature, which cuts those triangles along their lines only
         # (cut along the lines of all of them, the row's points multiply: office(300),
         # desk5's panel end at 1e-4, 284 → 191,700)
-        redo, spent = gap_columns(shafts, budget, *cub.first)
+        redo, spent = gap_columns(shafts, budget, h_err, *cub.first)
         E += spent / area
         for setup, c in redo:
             r = pair_form_factor(scene, face, side, face_target(scene, setup.face_t), setup.side_t, tol, threads=threads)
@@ -3654,7 +3701,7 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
 
 
-def gap_columns(shafts, budget, tri, q, kq, gq):
+def gap_columns(shafts, budget, used, tri, q, kq, gq):
     """The pairs of a row whose receiver may be seen through a gap between the nodes of its
     first triangles: ``(redo, spent)``.
 
@@ -3662,11 +3709,13 @@ def gap_columns(shafts, budget, tri, q, kq, gq):
     (g, 3, 3) from whose nodes its receiver is wholly hidden (:meth:`PairSetup.hidden_at_nodes`
     of the column's rules ``q`` (g, R), ``kq`` (g, 4, R), ``gq`` (g, 16, R)). What a gap
     there can add is at most ∫ F(x → J') over them (their rules of it, F being smooth
-    there, and the change from their children's); where that is within :data:`SHADOW_BOUND` of the column's ``budget`` (R,) (in ∫
-    units), it is the column's estimate there (``spent`` (R,), as the unseen shadows'
-    bound: a far or small receiver), else the triangles are cut along the pair's critical
-    lines, and the pair is to be redone (``redo``, [(setup, column)]) where the receiver
-    is seen from a piece (:func:`cut_hidden`)."""
+    there, and the change from their children's); where that is within what the column's
+    estimate ``used`` (R,) leaves of its ``budget`` (R,) (in ∫ units; at least
+    :data:`SHADOW_BOUND` of it), it is added to the estimate (``spent`` (R,), as the
+    unseen shadows' bound: a far or small receiver, or a column refined well below its
+    tol), else the triangles are cut along the pair's critical lines, and the pair is to
+    be redone (``redo``, [(setup, column)]) where the receiver is seen from a piece
+    (:func:`cut_hidden`)."""
     redo, spent = [], np.zeros(len(budget))
     area = triangle_areas(tri)
     for setup, c in shafts:
@@ -3683,7 +3732,7 @@ def gap_columns(shafts, budget, tri, q, kq, gq):
         # and the change from their children's
         grand, kids = f0[hidden, 5:].sum(axis=1), f0[hidden, 1:5].sum(axis=1)
         most = float(np.sum(grand + np.abs(kids - grand)))
-        if most <= SHADOW_BOUND * budget[c]:
+        if most <= max(SHADOW_BOUND * budget[c], budget[c] - used[c]):
             spent[c] += most
         elif np.any(cut_hidden(setup.scene, setup.n_i, tri[blind], np.ones(len(blind), bool), setup.kink_lines,
                                setup.f)[0]):

@@ -509,25 +509,6 @@ def test_a_visible_band_between_the_nodes_is_not_missed(office300, band, monkeyp
     assert _three_levels(scene, emitter, receiver, 1, 1e-8).F < 1e-9
 
 
-@pytest.mark.parametrize("band", BANDS[:1], ids=["panel end to cabinet"])
-def test_a_matrix_row_finds_the_band_too(office300, band, monkeypatch):
-    """The matrix's row of the same emitter (its three-level row cubature over all the
-    receivers: the row's kink lines are too many to cut it along) finds the band as well:
-    the pairs whose receiver its first triangles' nodes see wholly hidden, and which a piece
-    between the pair's critical lines sees, are redone on the pair cubature
-    (:func:`viscx.queries.formfactor.gap_columns`). Without that the row said 0 ± 2.9e-10
-    at 1e-4 (and the 1e-6 row 2.226e-6 ± 3.0e-7, 1.8e-8 off)."""
-    emitter, _, receiver, _, _, _, expected = band
-    faces = np.arange(office300.n_faces)
-    cols, vals, errs, counts, *_ = ff.row_form_factors(office300, emitter, 1, faces, 1e-4)
-    k = cols // 2 == receiver
-    assert counts["gaps"] >= 1
-    assert abs(vals[k].sum() - expected) <= errs[k].sum() + 1e-13, (vals[k].sum(), errs[k].sum())
-    monkeypatch.setattr(ff, "gap_columns", lambda shafts, budget, *first: ([], np.zeros(len(budget))))
-    cols, vals, errs, *_ = ff.row_form_factors(office300, emitter, 1, faces, 1e-4)
-    assert vals[cols // 2 == receiver].sum() < 1e-9
-
-
 #: office(300) pairs of desk sides whose query was beyond its estimate on three levels (its
 #: cells the matrix row's, uncut), and F by a product Gauss–Legendre quadrature of the pair's
 #: kernel over the emitter (8 points on each of 32 × 800 equal panels; within 1e-13, 2e-12

@@ -3448,9 +3448,7 @@ class ThreeLevelRowCubature:
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
         ``budget`` (R,) the targets on the columns' estimates; ``live`` and ``bound`` the
         shaft test and the unseen shadows' bound of :meth:`RowCubature.integrate`. Returns
-        ``value, error`` (R,) and the triangles evaluated; :attr:`first` keeps the first
-        triangles' three levels after the shadow search, ``(tri (g, 3, 3), q (g, R), kq
-        (g, 4, R), gq (g, 16, R))`` (:func:`gap_columns` reads them)."""
+        ``value, error`` (R,) and the triangles evaluated."""
         width = len(budget)
         q, K, kq, G, gq = self.levels(tri, width)
         spent = np.zeros(width)
@@ -3475,7 +3473,6 @@ class ThreeLevelRowCubature:
                 q = np.concatenate([q[keep], kq[kid], nq])
                 K, kq = np.concatenate([K[k_keep], G[kid_K], nK]), np.concatenate([kq[k_keep], gq[kid_K], nkq])
                 G, gq = np.concatenate([G[g_keep], kid_G, nG]), np.concatenate([gq[g_keep], kid_gq, ngq])
-        self.first = (tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
         cells = 21 * len(tri)
         for _ in range(200):
             err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
@@ -3679,65 +3676,14 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     bound = unseen_shadow_bound(scene, shafts, f0, e0, area, budget)
     h, h_err, _ = cub.integrate(tri, budget, live, bound)
     F, E = f0 - h / area, e0 + h_err / area
-    counts = {}
-    if not kinked:
-        # the pairs whose receivers may be seen through a gap between the first triangles'
-        # nodes, on the pair cubature, which cuts those triangles along their lines only
-        # (cut along the lines of all of them, the row's points multiply: office(300),
-        # desk5's panel end at 1e-4, 284 → 191,700)
-        redo, spent = gap_columns(shafts, budget, h_err, *cub.first)
-        E += spent / area
-        for setup, c in redo:
-            r = pair_form_factor(scene, face, side, face_target(scene, setup.face_t), setup.side_t, tol, threads=threads)
-            F[c], E[c] = r.F, r.error
-            counts["gaps"] = counts.get("gaps", 0) + 1
     F[-1] = h[-1] / area  # the sky's column holds what is seen of it, not what is hidden
     wanted[-1] = False
     cols = np.flatnonzero(wanted & (F != 0.0))
-    counts.update({"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
-                   "evaluations": int(cub.evaluations)})
+    counts = {"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
+              "evaluations": int(cub.evaluations)}
     sky_v, sky_e = (float(F[-1]), float(E[-1])) if sky else (0.0, 0.0)
     element = (2 * seen[:, None] + np.arange(2)).reshape(-1)  # the scene's element of each column (but the sky)
     return element[cols].astype(np.int64), F[cols], E[cols], counts, sky_v, sky_e
-
-
-def gap_columns(shafts, budget, used, tri, q, kq, gq):
-    """The pairs of a row whose receiver may be seen through a gap between the nodes of its
-    first triangles: ``(redo, spent)``.
-
-    For each pair (``shafts``: :class:`PairSetup` and column), the first triangles ``tri``
-    (g, 3, 3) from whose nodes its receiver is wholly hidden (:meth:`PairSetup.hidden_at_nodes`
-    of the column's rules ``q`` (g, R), ``kq`` (g, 4, R), ``gq`` (g, 16, R)). What a gap
-    there can add is at most ∫ F(x → J') over them (their rules of it, F being smooth
-    there, and the change from their children's); where that is within what the column's
-    estimate ``used`` (R,) leaves of its ``budget`` (R,) (in ∫ units; at least
-    :data:`SHADOW_BOUND` of it), it is added to the estimate (``spent`` (R,), as the
-    unseen shadows' bound: a far or small receiver, or a column refined well below its
-    tol), else the triangles are cut along the pair's critical lines, and the pair is to
-    be redone (``redo``, [(setup, column)]) where the receiver is seen from a piece
-    (:func:`cut_hidden`)."""
-    redo, spent = [], np.zeros(len(budget))
-    area = triangle_areas(tri)
-    for setup, c in shafts:
-        rules = np.concatenate([q[:, c:c + 1], kq[:, :, c], gq[:, :, c]], axis=1)
-        ask = np.flatnonzero(rules.sum(axis=1) > UNSEEN * area)  # something hidden at the nodes
-        if not len(ask):
-            continue
-        f0 = setup.unoccluded_rules(tri[ask])
-        hidden = wholly_hidden(rules[ask], f0, area[ask])
-        if not np.any(hidden):
-            continue
-        blind = ask[hidden]
-        # ∫ F(x → J') over them: their grandchildren's rules, smooth (no occlusion in it),
-        # and the change from their children's
-        grand, kids = f0[hidden, 5:].sum(axis=1), f0[hidden, 1:5].sum(axis=1)
-        most = float(np.sum(grand + np.abs(kids - grand)))
-        if most <= max(SHADOW_BOUND * budget[c], budget[c] - used[c]):
-            spent[c] += most
-        elif np.any(cut_hidden(setup.scene, setup.n_i, tri[blind], np.ones(len(blind), bool), setup.kink_lines,
-                               setup.f)[0]):
-            redo.append((setup, c))
-    return redo, spent
 
 
 def computed_pairs(scene, face, faces):

@@ -558,3 +558,27 @@ def test_pairs_cut_along_kinks_are_honest(cornell):
     r = ff.pair_form_factor(cornell, 2, 1, ff.face_target(cornell, 3), 1, tol=1e-8)
     assert r.method == "quadrature" and r.error <= 1e-8
     assert abs(r.F - 0.159547200512) <= r.error - 5e-10
+
+
+def test_cut_hidden_replaces_only_the_triangles_whose_pieces_see(cornell):
+    """:func:`viscx.queries.formfactor.cut_hidden` on two unit triangles of the plane z = 0
+    from whose nodes a receiver is hidden, one crossed by a critical line (y = 0.95) near
+    its top corner, the other by none: the crossed one is replaced by its pieces (which
+    tile it: the same area, every piece on one side of the line) where a piece's centre
+    sees the receiver (``sees``: y > 0.95), and kept where none does; the other is kept
+    whatever it sees."""
+    n = np.array([0.0, 0.0, 1.0])
+    tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[2, 0, 0], [3, 0, 0], [2, 0.5, 0]]], np.float64)
+    lines = np.array([[[-5, 0.95, 0], [5, 0.95, 0]]], np.float64)
+    hidden = np.array([True, True])
+    replaced, new = ff.cut_hidden(cornell, n, tri, hidden, lines, lambda p: (p[:, 1] > 0.95).astype(float))
+    assert replaced.tolist() == [True, False]
+    assert abs(ff.triangle_areas(new).sum() - 0.5) < 1e-12
+    centre_y = new[:, :, 1].mean(axis=1)
+    assert np.all((new[:, :, 1] >= 0.95 - 1e-12).all(axis=1) | (new[:, :, 1] <= 0.95 + 1e-12).all(axis=1))
+    assert np.any(centre_y > 0.95) and np.any(centre_y < 0.95)
+    replaced, new = ff.cut_hidden(cornell, n, tri, hidden, lines, lambda p: np.zeros(len(p)))
+    assert not replaced.any() and not len(new)
+    replaced, _ = ff.cut_hidden(cornell, n, tri, np.array([False, True]), lines, lambda p: np.ones(len(p)))
+    assert not replaced.any()  # the line crosses only the triangle not asked about
+    assert not ff.cut_hidden(cornell, n, tri, hidden, None, lambda p: np.ones(len(p)))[0].any()

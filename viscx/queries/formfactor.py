@@ -1211,7 +1211,7 @@ def plane_cells(scene, face, side, cells, start):
     return None if pieces is None else [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
 
 
-def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, setups=None):
+def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, setups=None, pairs=False):
     """The cells every cubature of side ``side`` of a face integrates over (the row's and
     each pair's): :func:`emitter_cells` cut along the kink lines, so that every integrand is
     C1 on every cell and two levels give an honest estimate (:class:`RowCubature`), unless
@@ -1232,7 +1232,14 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, 
     integrand as well (:func:`viscx.queries.kinks.sky_generators`): a matrix row that
     computes only some of its pairs (reciprocity: the Cornell box's ceiling, only its sky).
     Default: every receiver and the sky (the matrix's row). ``setups``: the row's pair
-    set-ups, for :func:`kink_faces` (with ``min_size`` only: not cached).
+    set-ups, for :func:`kink_faces` (with ``min_size`` only: not cached). ``pairs``: the
+    cells are for pair cubatures (:func:`emitter_row`, :func:`face_to_face`), whose kernels
+    see one pair's faces and cost a fraction of a row's point: cut along the kink lines up
+    to :data:`PAIR_KINK_START` start triangles, however few the uncut cells have (a desk
+    top's 3 cm end, two uncut triangles: the three levels on them were 1.8e-6 off for an
+    estimate of 7.7e-7 to desk3's panel end at tol 1e-6, and missed the band 7.7 mm wide
+    from which desk8's top's end sees desk3's panel side; cut, 40 and 134 cells, 546 and
+    1,862 points, each within its estimate of a quadrature of the pair's kernel).
 
     Returns
     -------
@@ -1247,11 +1254,13 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, 
         box_lo, box_hi = face_boxes(scene)
         size = float(np.linalg.norm(box_hi[face] - box_lo[face])) / MIN_SPLIT
         receivers = None if receivers is None else np.unique(np.asarray(receivers, np.int64))
-        return scene.cached(_side_key("cubature_cells", face, side, receivers) + (" and the sky" if sky else ""),
-                            lambda s: cubature_cells(s, face, side, size, receivers, sky))
+        return scene.cached(_side_key("cubature_cells", face, side, receivers) + (" and the sky" if sky else "")
+                            + (" for pairs" if pairs else ""),
+                            lambda s: cubature_cells(s, face, side, size, receivers, sky, pairs=pairs))
     cells = emitter_cells(scene, face, side)
     tri = start_triangles(cells, min_size)
-    limit = min(MAX_KINK_CELLS, 21 * len(tri))
+    start = max(21 * len(tri), PAIR_KINK_START if pairs else 0)
+    limit = min(MAX_KINK_CELLS, start)
     if len(cells) > limit:
         # cuts only add cells: past the limit before the kink lines are even listed (they
         # are quadratic in the edges in front: the bunny's floor, 3,466 cells, 5,500 edges)
@@ -1270,9 +1279,14 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, 
     kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
     if kinked is not None:
         kinked_tri = start_triangles(kinked, min_size)
-        if len(kinked_tri) <= 21 * len(tri):
+        if len(kinked_tri) <= start:
             return kinked, kinked_tri, True
     return cells, tri, False
+
+
+#: Start triangles up to which the cells of pair cubatures are cut along their kink lines
+#: whatever the uncut cells' count (:func:`cubature_cells` with ``pairs``).
+PAIR_KINK_START = 400
 
 
 def _side_key(name, face, side, receivers=None):
@@ -1515,13 +1529,19 @@ class Cubature:
         ``progress(points, ratio)``, told after each refinement round the points evaluated
         so far and the summed estimate over the budget (a progress bar's; the result does
         not depend on it).
+    gaps : callable, optional
+        ``gaps(tri, q, kq, gq) -> (hidden (g,) bool, new (h, 3, 3))``: the first triangles
+        (with their three levels' rule values) from whose nodes the integrand says the
+        target is wholly hidden, where it may yet be seen through a gap between the nodes,
+        and the triangles that replace them (:meth:`PairSetup.gaps`).
     """
 
-    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1, progress=None):
+    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1, progress=None, gaps=None):
         self.integrand = integrand
         self.cull = cull
         self.unresolved = unresolved
         self.unseen = unseen
+        self.gaps = gaps
         self.threads = threads
         self.progress = progress
         self.evaluations = 0
@@ -1669,6 +1689,16 @@ class Cubature:
             self.cull, t, candidates)[0]) > 0)[:, None])
         if len(new):
             leaves = leaves.take(np.flatnonzero(~unseen)).join(self.levels(new, *cull_all(self.cull, new, candidates)))
+        # the dual: a target seen through a gap between all the nodes of a first triangle
+        # from which they see it wholly hidden (office(300), a desk panel's end → a cabinet
+        # seen over another desk only from a 5 mm band along the panel's top edge: 0 ± 3e-10
+        # for 2.2e-6)
+        if self.gaps is not None and len(leaves.tri):
+            hidden, new = self.gaps(leaves.tri, leaves.q, leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
+            if np.any(hidden):
+                leaves = leaves.take(np.flatnonzero(~hidden))
+                if len(new):
+                    leaves = leaves.join(self.levels(new, *cull_all(self.cull, new, candidates)))
         cells = 21 * len(leaves.tri)
         for _ in range(200):
             err = self.estimates(*leaves[:4], leaves.kq.reshape(-1, 4), leaves.gq.reshape(-1, 16))
@@ -2114,9 +2144,55 @@ class PairSetup:
             cub = RowCubature(column, threads, progress)
             value, error, cells = cub.integrate(tri, np.array([budget]), live)
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
-        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads, progress)
+        cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads, progress,
+                       self.gaps)
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return umbra + value, umbra_err + error, cub.evaluations, cells
+
+    def gaps(self, tri, q, kq, gq):
+        """The first triangles (g, 3, 3) of the three-level cubature from whose 147 nodes J'
+        is wholly hidden (:meth:`hidden_at_nodes` of their rules ``q`` (g,), ``kq`` (g, 4),
+        ``gq`` (g, 16)), cut along the pair's critical lines crossing them
+        (:func:`cut_hidden`): ``(hidden (g,) bool, new (h, 3, 3))``, the triangles replaced
+        and what replaces them."""
+        hidden = self.hidden_at_nodes(tri, np.concatenate([q[:, None], kq, gq], axis=1))
+        if not np.any(hidden):
+            return hidden, np.zeros((0, 3, 3))
+        return cut_hidden(self.scene, self.n_i, tri, hidden, self.kink_lines, self.f)
+
+    def hidden_at_nodes(self, tri, rules):
+        """(g,) bool: :func:`wholly_hidden` of the triangles (g, 3, 3) of I', by the 21 rules
+        of the hidden part ``rules`` (g, 21) and of the unoccluded F(x → J')
+        (:meth:`unoccluded_rules`)."""
+        return wholly_hidden(rules, self.unoccluded_rules(tri), triangle_areas(tri))
+
+    def unoccluded_rules(self, tri):
+        """(g, 21) float64: Radon's rule of the unoccluded F(x → J') (:func:`point_to_polygon`)
+        on each triangle (g, 3, 3) of I', its 4 children and 16 grandchildren (those of
+        :meth:`Cubature.levels`), in ∫ units."""
+        kids = split4(tri).reshape(-1, 3, 3)
+        grand = split4(kids).reshape(-1, 3, 3)
+
+        def rule(t):  # (m, 3, 3) -> (m,)
+            pts = np.einsum("rk,gkd->grd", RULE_NODES, t).reshape(-1, 3)
+            f = point_to_polygon(pts, np.broadcast_to(self.n_i, pts.shape), self.J)
+            return f.reshape(-1, 7) @ RULE_WEIGHTS * triangle_areas(t)
+
+        return np.concatenate([rule(tri)[:, None], rule(kids).reshape(-1, 4), rule(grand).reshape(-1, 16)], axis=1)
+
+    @functools.cached_property
+    def kink_lines(self):
+        """(s, 2, 3) float64 or None: the pair's critical lines on I: where two edges of the
+        faces its kernel sees (J, the faces lying in J's plane, the occluders) line up
+        (:func:`kink_segments`; None where they are too many to list, or for a sky target,
+        whose edges are no scene's)."""
+        if self.face_t < 0:
+            return None
+        if not self.occluders_found:
+            self.find_occluders()
+        faces = np.concatenate([[self.face_t], coplanar_faces(self.scene, self.face_t),
+                                self._occluder_faces[self._occluder_faces >= 0]])
+        return kink_segments(self.scene, self.face_i, self.side_i, face_generators(self.scene, np.unique(faces)))
 
     def umbra(self, tri):
         """(g,) bool: the triangles (g, 3, 3) of I' from every point of which a closed solid
@@ -2176,7 +2252,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         Target on the error estimate (absolute, in F).
     cells, contact : list, (c,) int64, optional
         :func:`cubature_cells` of (face_i, side_i) and their :func:`contact_sides`, shared
-        by the pairs of one emitter (default: computed here).
+        by the pairs of one row (default: those cut along this pair's kink lines, cached).
     kinked : bool
         ``cells`` are cut along the kink lines (:func:`cubature_cells`).
     threads : int
@@ -2192,7 +2268,10 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     """
     t0 = time.perf_counter()
     if cells is None:
-        cells, _, kinked = cubature_cells(scene, face_i, side_i)
+        # cut along the kinks of this pair only (as a group query's row of one receiver)
+        receivers = None if target.face < 0 else [target.face]
+        cells, _, kinked = cubature_cells(scene, face_i, side_i, receivers=receivers, pairs=receivers is not None)
+        contact = cell_contacts(scene, face_i, side_i, receivers, pairs=receivers is not None)
     if contact is None:
         contact = contact_sides(scene, face_i, side_i, cells)
     lying = contact_cells(scene, face_i, side_i)  # the exact terms: uncut, fewer contour integrals
@@ -2375,14 +2454,12 @@ def face_to_face(scene, face_i, target_face, side_i=1, tol=DEFAULT_TOL, quiet=Tr
     from viscx.progress import bar
 
     target = face_target(scene, target_face)
-    cells, _, kinked = cubature_cells(scene, face_i, side_i)
-    contact = contact_sides(scene, face_i, side_i, cells)
     parts = {}
     with bar(desc="form factors", quiet=quiet, unit="point") as progress:
         show = pair_bar(progress)
         for k, (name, t) in enumerate((("front", 1), ("back", -1))):
-            parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol, cells=cells, contact=contact,
-                                           kinked=kinked, progress=_pair_progress(show, k, 2))
+            parts[name] = pair_form_factor(scene, face_i, side_i, target, t, tol=tol,
+                                           progress=_pair_progress(show, k, 2))
     return {
         "F": float(sum(p.F for p in parts.values())),
         "error": float(sum(p.error for p in parts.values())),
@@ -2508,11 +2585,12 @@ def seen_receivers(scene, face, side, faces):
     return faces[np.isin(faces, fj) | np.isin(faces, coplanar_faces(scene, face))]
 
 
-def cell_contacts(scene, face, side, receivers=None):
+def cell_contacts(scene, face, side, receivers=None, pairs=False):
     """:func:`contact_sides` of the :func:`cubature_cells` of a face side (those of a row to
-    ``receivers``, default all; cached)."""
-    return scene.cached(_side_key("cell_contacts", face, side, receivers),
-                        lambda s: contact_sides(s, face, side, cubature_cells(s, face, side, receivers=receivers)[0]))
+    ``receivers``, default all, and for ``pairs``; cached)."""
+    return scene.cached(_side_key("cell_contacts", face, side, receivers) + (" for pairs" if pairs else ""),
+                        lambda s: contact_sides(s, face, side,
+                                                cubature_cells(s, face, side, receivers=receivers, pairs=pairs)[0]))
 
 
 def facing_sides(scene, face, side, faces):
@@ -2738,8 +2816,8 @@ def emitter_row(scene, face, side, faces, tol, sky=True, threads=1, progress=Non
     if closed is not None:
         return closed
     receivers = None if sky else faces  # cut along the kinks of these pairs only
-    cells, _, kinked = cubature_cells(scene, face, side, receivers=receivers)
-    contact = cell_contacts(scene, face, side, receivers)
+    cells, _, kinked = cubature_cells(scene, face, side, receivers=receivers, pairs=True)
+    contact = cell_contacts(scene, face, side, receivers, pairs=True)
     cols, vals, errs, counts = [], [], [], {}
     faces = np.asarray(faces, np.int64)
     tols = np.broadcast_to(np.asarray(tol, np.float64), faces.shape)
@@ -2987,6 +3065,121 @@ def shadow_triangles(tri, blind, live):
     need = np.repeat(blind[unseen], 4, axis=0)
     deeper = np.any(live(kids, need) & need, axis=1)
     return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)]), np.flatnonzero(~deeper)
+
+
+def wholly_hidden(rules, unoccluded, area):
+    """(g,) bool: the triangles from whose 147 nodes (Radon's rule on each, its 4 children
+    and 16 grandchildren) a receiver is wholly hidden: the 21 rules of the hidden part
+    ``rules`` (g, 21) equal those of the unoccluded F(x → J') ``unoccluded`` (g, 21), which
+    are not 0 (the integrands lie in [0, 1] and the rules' weights are positive, so equal
+    sums are equal values at every node, to :data:`UNSEEN` times the area ``area`` (g,))."""
+    return (np.abs(unoccluded - rules).sum(axis=1) <= UNSEEN * area) & (unoccluded.sum(axis=1) > UNSEEN * area)
+
+
+#: Pieces beyond which the first triangles that see J' wholly hidden at their nodes are not
+#: cut along the pair's critical lines (:func:`cut_hidden`).
+MAX_GAP_PIECES = 1_000
+
+
+def cut_hidden(scene, n_i, tri, hidden, lines, sees):
+    """The first triangles (g, 3, 3) of an emitter (normal ``n_i``) from whose nodes a
+    receiver is wholly hidden (``hidden`` (g,) bool, :meth:`PairSetup.hidden_at_nodes`),
+    cut along the critical lines ``lines`` (s, 2, 3) of the pair (:meth:`PairSetup.kink_lines`)
+    where it is seen from a piece: ``(replaced (g,) bool, new (h, 3, 3))``.
+
+    The receiver may yet be seen through a gap between the nodes (office(300): desk5's
+    3 cm panel end sees cabinet3's front over desk4's top only from a band 7 mm wide
+    along its top edge, and its first triangles' nodes lie 17 mm and more from it).
+    Where J' is seen from one point of a triangle and not from another, the segments to
+    J' change their occluders, and the edges of where they do are the pair's critical
+    lines (there, the line where desk4's top edge and J's top edge line up), or curves
+    where three edges line up, across which F is C1 and whose seen part, as it opens,
+    grows like the cube of the distance. So a triangle is cut along every line crossing
+    it, and where J' is seen from the centre of a piece (``sees(points (m, 3)) -> (m,)``,
+    F to the seen part of J', above :data:`UNSEEN`) it is replaced by its pieces, fanned
+    into triangles (each then on three levels, with nodes of its own, which no line
+    crosses); elsewhere, as where no line crosses it, J' is taken as hidden on the whole
+    triangle, as its nodes say. Where the lines are too many to list (``lines`` None) or
+    cut the triangles into more than :data:`MAX_GAP_PIECES` pieces, nothing is replaced
+    (docs/queries.md, "Not done yet")."""
+    replaced = np.zeros(len(tri), bool)
+    if lines is None or not len(lines) or not np.any(hidden):
+        return replaced, np.zeros((0, 3, 3))
+    eu, ev = plane_basis(n_i)
+    origin = tri[0, 0]
+
+    def to2(p):
+        return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
+
+    eps = 1e-8 * scene.diagonal
+    seg = to2(lines)
+    crossing = lines_crossing(seg, to2(tri[hidden]), eps)  # (s, r) bool
+    rows = np.flatnonzero(hidden)[crossing.any(axis=0)]
+    if not len(rows):
+        return replaced, np.zeros((0, 3, 3))
+    pieces = [t if _area2(t) > 0 else t[::-1] for t in to2(tri[rows])]
+    cut = cut_along(pieces, seg[crossing.any(axis=1)], eps, MAX_GAP_PIECES + len(pieces))
+    if cut is None or len(cut) == len(pieces):
+        return replaced, np.zeros((0, 3, 3))
+    # each piece's triangle, by its centre (the triangles are disjoint)
+    centre = np.array([p.mean(axis=0) for p in cut])
+    corner = np.array(pieces)  # (r, 3, 2), counter-clockwise
+    edge = np.roll(corner, -1, axis=1) - corner
+    rel = centre[:, None, None, :] - corner[None]
+    inside = np.all(edge[None, ..., 0] * rel[..., 1] - edge[None, ..., 1] * rel[..., 0] >= -eps * eps, axis=2)
+    parent = np.argmax(inside, axis=1)
+    split = np.bincount(parent, minlength=len(pieces)) > 1
+    ask = np.flatnonzero(split[parent])
+    if not len(ask):
+        return replaced, np.zeros((0, 3, 3))
+    lit = ask[sees(origin + centre[ask, :1] * eu + centre[ask, 1:] * ev) > UNSEEN]
+    if not len(lit):
+        return replaced, np.zeros((0, 3, 3))
+    seen = np.zeros(len(pieces), bool)
+    seen[parent[lit]] = True
+    replaced[rows[seen]] = True
+    # those triangles cut again along the lines that bound a piece seen from only: the
+    # seen pieces stay whole, the rest of the triangle in fewer pieces (every piece on
+    # three levels: along all the lines, a wall's triangle behind a cabinet made hundreds)
+    seg = seg[crossing.any(axis=1)]
+    edges = np.concatenate([np.stack([cut[k], np.roll(cut[k], -1, axis=0)], axis=1) for k in lit])  # (e, 2, 2)
+    bounding = lines_along(seg, edges, eps)
+    out = cut_along([pieces[k] for k in np.flatnonzero(seen)], seg[bounding], eps)
+    cells = [origin + p[:, :1] * eu + p[:, 1:] * ev for p in out]
+    return replaced, start_triangles(cells, 0.0)
+
+
+def lines_along(seg, edges, eps):
+    """(s,) bool: the segments (s, 2, 2) whose lines hold one of the edges (e, 2, 2) (both
+    ends within ``eps`` of the line) of a plane."""
+    d = seg[:, 1] - seg[:, 0]
+    d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    out = np.zeros(len(seg), bool)
+    for end in (0, 1):
+        rel = edges[None, :, end] - seg[:, None, 0]  # (s, e, 2)
+        dist = np.abs(rel[..., 0] * d[:, None, 1] - rel[..., 1] * d[:, None, 0])
+        on = dist <= 10 * eps
+        out_e = on if end == 0 else out_e & on
+    return out_e.any(axis=1)
+
+
+def lines_crossing(seg, tri, eps, block=1 << 22):
+    """(s, r) bool: which segments (s, 2, 2) may cut which triangles (r, 3, 2) of a plane:
+    their line leaves corners more than ``eps`` on both sides and the triangle's extent
+    along it overlaps the segment (a superset of the cuts of :func:`cut_along`, by blocks
+    of segments of at most ``block`` corner tests)."""
+    out = np.zeros((len(seg), len(tri)), bool)
+    step = max(1, block // max(3 * len(tri), 1))
+    for lo in range(0, len(seg), step):
+        a, b = seg[lo:lo + step, 0], seg[lo:lo + step, 1]
+        length = np.linalg.norm(b - a, axis=1)
+        d = (b - a) / np.maximum(length, 1e-300)[:, None]
+        rel = tri[None] - a[:, None, None]  # (s, r, 3, 2)
+        side = rel[..., 0] * d[:, None, None, 1] - rel[..., 1] * d[:, None, None, 0]
+        along = np.einsum("srkj,sj->srk", rel, d)
+        out[lo:lo + step] = ((side.max(axis=2) > eps) & (side.min(axis=2) < -eps) & (along.max(axis=2) > eps)
+                             & (along.min(axis=2) < length[:, None] - eps) & (length[:, None] > eps))
+    return out
 
 
 #: The share of a column's budget that an upper bound of its unseen shadows may take, where

@@ -2161,24 +2161,30 @@ class PairSetup:
         return cut_hidden(self.scene, self.n_i, tri, hidden, self.kink_lines, self.f)
 
     def hidden_at_nodes(self, tri, rules):
-        """(g,) bool: :func:`wholly_hidden` of the triangles (g, 3, 3) of I', by the 21 rules
-        of the hidden part ``rules`` (g, 21) and of the unoccluded F(x → J')
-        (:meth:`unoccluded_rules`)."""
-        return wholly_hidden(rules, self.unoccluded_rules(tri), triangle_areas(tri))
+        """(g,) bool: the triangles (g, 3, 3) of I' from whose 147 nodes (Radon's rule on
+        each, its 4 children and 16 grandchildren, as :meth:`Cubature.levels`) J' is
+        wholly hidden: the 21 rules of the hidden part ``rules`` (g, 21) equal those of the
+        unoccluded F(x → J') (:func:`point_to_polygon`), which are not 0 (the integrands lie
+        in [0, 1] and the rules' weights are positive, so equal sums are equal values at
+        every node, to :data:`UNSEEN` times the area). The finer levels are evaluated only
+        on the triangles whose own rule already agrees."""
+        area = triangle_areas(tri)
 
-    def unoccluded_rules(self, tri):
-        """(g, 21) float64: Radon's rule of the unoccluded F(x → J') (:func:`point_to_polygon`)
-        on each triangle (g, 3, 3) of I', its 4 children and 16 grandchildren (those of
-        :meth:`Cubature.levels`), in ∫ units."""
-        kids = split4(tri).reshape(-1, 3, 3)
-        grand = split4(kids).reshape(-1, 3, 3)
-
-        def rule(t):  # (m, 3, 3) -> (m,)
+        def rule(t):  # (m, 3, 3) -> (m,): Radon's rule of F(x → J'), in ∫ units
             pts = np.einsum("rk,gkd->grd", RULE_NODES, t).reshape(-1, 3)
             f = point_to_polygon(pts, np.broadcast_to(self.n_i, pts.shape), self.J)
             return f.reshape(-1, 7) @ RULE_WEIGHTS * triangle_areas(t)
 
-        return np.concatenate([rule(tri)[:, None], rule(kids).reshape(-1, 4), rule(grand).reshape(-1, 16)], axis=1)
+        own = rule(tri)
+        out = np.zeros(len(tri), bool)
+        ask = np.flatnonzero(np.abs(own - rules[:, 0]) <= UNSEEN * area)  # else the sum of 21 is past it
+        if not len(ask):
+            return out
+        kids = split4(tri[ask]).reshape(-1, 3, 3)
+        grand = split4(kids).reshape(-1, 3, 3)
+        f0 = np.concatenate([own[ask, None], rule(kids).reshape(-1, 4), rule(grand).reshape(-1, 16)], axis=1)
+        out[ask] = (np.abs(f0 - rules[ask]).sum(axis=1) <= UNSEEN * area[ask]) & (f0.sum(axis=1) > UNSEEN * area[ask])
+        return out
 
     @functools.cached_property
     def kink_lines(self):
@@ -3067,15 +3073,6 @@ def shadow_triangles(tri, blind, live):
     return unseen, np.concatenate([kids[~deeper], split4(kids[deeper]).reshape(-1, 3, 3)]), np.flatnonzero(~deeper)
 
 
-def wholly_hidden(rules, unoccluded, area):
-    """(g,) bool: the triangles from whose 147 nodes (Radon's rule on each, its 4 children
-    and 16 grandchildren) a receiver is wholly hidden: the 21 rules of the hidden part
-    ``rules`` (g, 21) equal those of the unoccluded F(x → J') ``unoccluded`` (g, 21), which
-    are not 0 (the integrands lie in [0, 1] and the rules' weights are positive, so equal
-    sums are equal values at every node, to :data:`UNSEEN` times the area ``area`` (g,))."""
-    return (np.abs(unoccluded - rules).sum(axis=1) <= UNSEEN * area) & (unoccluded.sum(axis=1) > UNSEEN * area)
-
-
 #: Pieces beyond which the first triangles that see J' wholly hidden at their nodes are not
 #: cut along the pair's critical lines (:func:`cut_hidden`).
 MAX_GAP_PIECES = 1_000
@@ -3150,17 +3147,13 @@ def cut_hidden(scene, n_i, tri, hidden, lines, sees):
 
 
 def lines_along(seg, edges, eps):
-    """(s,) bool: the segments (s, 2, 2) whose lines hold one of the edges (e, 2, 2) (both
-    ends within ``eps`` of the line) of a plane."""
+    """(s,) bool: the segments (s, 2, 2) whose lines hold one of the edges (e, 2, 2) of a
+    plane (both its ends within 10 ``eps`` of the line)."""
     d = seg[:, 1] - seg[:, 0]
     d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
-    out = np.zeros(len(seg), bool)
-    for end in (0, 1):
-        rel = edges[None, :, end] - seg[:, None, 0]  # (s, e, 2)
-        dist = np.abs(rel[..., 0] * d[:, None, 1] - rel[..., 1] * d[:, None, 0])
-        on = dist <= 10 * eps
-        out_e = on if end == 0 else out_e & on
-    return out_e.any(axis=1)
+    rel = edges[None] - seg[:, None, None, 0]  # (s, e, 2 ends, 2)
+    dist = np.abs(rel[..., 0] * d[:, None, None, 1] - rel[..., 1] * d[:, None, None, 0])
+    return (dist <= 10 * eps).all(axis=2).any(axis=1)
 
 
 def lines_crossing(seg, tri, eps, block=1 << 22):

@@ -3165,6 +3165,15 @@ def cut_hidden(scene, n_i, tri, hidden, lines, sees):
     return search.cells(search.bounding(sees(search.points) > UNSEEN))
 
 
+def _counter_clockwise(corners):
+    """2-D triangles (r, 3, 2) float64, each turned counter-clockwise (in place)."""
+    c = corners
+    flip = c[:, 0, 0] * (c[:, 1, 1] - c[:, 2, 1]) + c[:, 1, 0] * (c[:, 2, 1] - c[:, 0, 1]) + c[:, 2, 0] * (
+        c[:, 0, 1] - c[:, 1, 1]) <= 0
+    c[flip] = c[flip, ::-1]
+    return c
+
+
 @dataclass
 class GapSearch:
     """The pieces of :func:`cut_hidden`: the triangles wholly hidden at their nodes, in 2-D
@@ -3205,10 +3214,7 @@ class GapSearch:
         rows = np.flatnonzero(hidden)[crossing.any(axis=0)]
         if not len(rows):
             return None
-        corners = to2(tri[rows])
-        flip = corners[:, 0, 0] * (corners[:, 1, 1] - corners[:, 2, 1]) + corners[:, 1, 0] * (
-            corners[:, 2, 1] - corners[:, 0, 1]) + corners[:, 2, 0] * (corners[:, 0, 1] - corners[:, 1, 1]) <= 0
-        corners[flip] = corners[flip, ::-1]
+        corners = _counter_clockwise(to2(tri[rows]))
         seg = seg[crossing.any(axis=1)]
         verts, ptr, owner = cut_flat(corners.reshape(-1, 2), np.arange(0, 3 * len(rows) + 1, 3), seg, eps,
                                      MAX_GAP_PIECES + len(rows))
@@ -3255,10 +3261,7 @@ class GapSearch:
         rows = np.array(sorted(lines), np.int64)
         replaced[rows] = True
         rel = self.tri[rows] - self.origin
-        corners = np.stack([rel @ self.eu, rel @ self.ev], axis=-1)  # (r, 3, 2)
-        flip = corners[:, 0, 0] * (corners[:, 1, 1] - corners[:, 2, 1]) + corners[:, 1, 0] * (
-            corners[:, 2, 1] - corners[:, 0, 1]) + corners[:, 2, 0] * (corners[:, 0, 1] - corners[:, 1, 1]) <= 0
-        corners[flip] = corners[flip, ::-1]
+        corners = _counter_clockwise(np.stack([rel @ self.eu, rel @ self.ev], axis=-1))  # (r, 3, 2)
         cells = []
         for corner, r in zip(corners, rows):
             seg = lines[r] if isinstance(lines[r], np.ndarray) else np.concatenate(lines[r])

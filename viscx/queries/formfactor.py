@@ -69,6 +69,7 @@ import numpy as np
 
 from viscx.arrays import graph_components
 from viscx.errors import ViscxError
+from viscx.geometry.arrangement import cut_pieces, flat_to_pieces, piece_centres, pieces_to_flat
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
 from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_boxes_meet, shaft_meets,
                                      umbra_triangles, visible_form_factors)
@@ -973,18 +974,6 @@ def _clip_convex(piece, poly, eps):
     return outside, rest
 
 
-def _padded(pieces):
-    """Convex 2-D pieces as one array (N, K, 2), each repeated from its last vertex up to K,
-    and the index of each vertex's successor (N, K)."""
-    count = np.array([len(p) for p in pieces], np.int64)
-    k = int(count.max())
-    idx = np.minimum(np.arange(k)[None, :], count[:, None] - 1)
-    flat = np.concatenate(pieces)
-    start = np.concatenate([[0], np.cumsum(count)[:-1]])
-    nxt = np.where(np.arange(k)[None, :] + 1 < count[:, None], np.arange(k)[None, :] + 1, 0)
-    return flat[start[:, None] + idx], nxt
-
-
 def _meets_box(seg, lo, hi, eps):
     """(s,) bool: the 2-D segments (s, 2, 2) with more than ``eps`` of their length inside
     the box [lo, hi] (:func:`box_clip`): the others cut no piece inside it (a kink line of
@@ -1013,7 +1002,7 @@ def cut_along(pieces, seg, eps, limit=None):
     """Convex 2-D pieces (list of (k, 2), counter-clockwise) cut along segments (s, 2, 2):
     a piece is cut by the line of a segment when the line crosses its interior (more than
     ``eps`` either side) along a chord that overlaps the segment by more than ``eps``;
-    segment after segment, each tested against all the pieces at once (the parts of a cut
+    segment after segment (:func:`viscx.geometry.arrangement.cut_pieces`: the parts of a cut
     piece take its place in the list). None when there would be more than ``limit`` pieces.
 
     Returns
@@ -1023,34 +1012,25 @@ def cut_along(pieces, seg, eps, limit=None):
     pieces = list(pieces)
     if not len(seg) or not pieces:
         return pieces
-    seg = seg[_meets_box(seg, np.min([p.min(axis=0) for p in pieces], axis=0) - eps,
-                         np.max([p.max(axis=0) for p in pieces], axis=0) + eps, eps)]
-    v, nxt = _padded(pieces)
-    rows = np.arange(len(pieces))[:, None]
-    for a, b in seg:
-        length = float(np.linalg.norm(b - a))
-        if length <= eps:
-            continue
-        d = (b - a) / length
-        rel = v - a
-        s = rel[..., 0] * d[1] - rel[..., 1] * d[0]  # (N, K): side of the line
-        t = rel @ d  # along the segment
-        s_r, t_r = s[rows, nxt], t[rows, nxt]
-        cross = ((s > 0) != (s_r > 0)) & (s != s_r)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tc = t + (t_r - t) * s / (s - s_r)
-        lo = np.maximum(np.where(cross, tc, np.inf).min(axis=1), 0.0)
-        hi = np.minimum(np.where(cross, tc, -np.inf).max(axis=1), length)
-        hit = np.flatnonzero((s.max(axis=1) > eps) & (s.min(axis=1) < -eps) & (hi - lo > eps))
-        if not len(hit):
-            continue
-        for i in hit[::-1]:
-            pieces[i:i + 1] = [q for q in _cut_convex(pieces[i], a, d, eps) if q is not None]
-        if limit is not None and len(pieces) > limit:
-            return None
-        v, nxt = _padded(pieces)
-        rows = np.arange(len(pieces))[:, None]
-    return pieces
+    verts, ptr, _ = cut_flat(*pieces_to_flat(pieces), seg, eps, limit)
+    return None if verts is None else flat_to_pieces(verts, ptr)
+
+
+def cut_flat(verts, ptr, seg, eps, limit=None, owner=None):
+    """:func:`cut_along` on flat pieces (``verts`` (V, 2) float64, ``ptr`` (N + 1,) int64:
+    :mod:`viscx.geometry.arrangement`): ``(verts, ptr, owner)``, ``owner`` (N',) int64 the
+    piece each part was cut from (or the label ``owner`` (N,) gave it); ``(None, None,
+    None)`` past ``limit`` pieces."""
+    owner = np.arange(len(ptr) - 1, dtype=np.int64) if owner is None else np.asarray(owner, np.int64)
+    if not len(seg) or len(ptr) < 2:
+        return verts, ptr, owner
+    seg = np.asarray(seg, np.float64)
+    seg = np.ascontiguousarray(seg[_meets_box(seg, verts.min(axis=0) - eps, verts.max(axis=0) + eps, eps)])
+    # each length as the vector's own norm (the digits the cuts always had)
+    length = np.array([np.linalg.norm(b - a) for a, b in seg], np.float64)
+    verts, ptr, owner, complete = cut_pieces(np.ascontiguousarray(verts, np.float64), np.asarray(ptr, np.int64), owner,
+                                             seg, length, float(eps), -1 if limit is None else int(limit))
+    return (verts, ptr, owner) if complete else (None, None, None)
 
 
 #: Cells beyond which an emitter is not cut along its kink lines (:func:`emitter_cells`):
@@ -2151,14 +2131,26 @@ class PairSetup:
 
     def gaps(self, tri, q, kq, gq):
         """The first triangles (g, 3, 3) of the three-level cubature from whose 147 nodes J'
-        is wholly hidden (:meth:`hidden_at_nodes` of their rules ``q`` (g,), ``kq`` (g, 4),
+        is wholly hidden (:meth:`gap_candidates` of their rules ``q`` (g,), ``kq`` (g, 4),
         ``gq`` (g, 16)), cut along the pair's critical lines crossing them
         (:func:`cut_hidden`): ``(hidden (g,) bool, new (h, 3, 3))``, the triangles replaced
         and what replaces them."""
-        hidden = self.hidden_at_nodes(tri, np.concatenate([q[:, None], kq, gq], axis=1))
+        hidden = self.gap_candidates(tri, np.concatenate([q[:, None], kq, gq], axis=1))
         if not np.any(hidden):
             return hidden, np.zeros((0, 3, 3))
-        return cut_hidden(self.scene, self.n_i, tri, hidden, self.kink_lines, self.f)
+        return cut_hidden(self.scene, self.n_i, tri, hidden, self.gap_lines(tri[hidden]), self.f)
+
+    def gap_candidates(self, tri, rules):
+        """(g,) bool: the triangles (g, 3, 3) from whose nodes J' is wholly hidden
+        (:meth:`hidden_at_nodes`, ``rules`` (g, 21)) but not shown hidden from the whole
+        triangle by one occluder or a closed solid (:meth:`face_umbra`, :meth:`umbra`):
+        where J' may yet be seen through a gap between the nodes."""
+        out = self.hidden_at_nodes(tri, rules)
+        for umbra in (self.face_umbra, self.umbra):
+            rows = np.flatnonzero(out)
+            if len(rows):
+                out[rows] = ~umbra(tri[rows])
+        return out
 
     def hidden_at_nodes(self, tri, rules):
         """(g,) bool: the triangles (g, 3, 3) of I' from whose 147 nodes (Radon's rule on
@@ -2185,6 +2177,21 @@ class PairSetup:
         f0 = np.concatenate([own[ask, None], rule(kids).reshape(-1, 4), rule(grand).reshape(-1, 16)], axis=1)
         out[ask] = (np.abs(f0 - rules[ask]).sum(axis=1) <= UNSEEN * area[ask]) & (f0.sum(axis=1) > UNSEEN * area[ask])
         return out
+
+    def gap_lines(self, tri):
+        """(s, 2, 3) float64 or None: :attr:`kink_lines` of the faces that can hide J' from
+        the triangles (g, 3, 3) of I' only: J, the faces in its plane, and the occluders
+        meeting one of their shafts to J' (:meth:`shaft_cull`; an occluder outside them
+        changes what no point of the triangles sees, and the lines are quadratic in the
+        edges)."""
+        if self.face_t < 0:
+            return None
+        if not self.occluders_found:
+            self.find_occluders()
+        ids = cull_all(self.shaft_cull, tri, np.arange(len(self.occluders)))[1] if len(self.occluders) else []
+        occ = self._occluder_faces[np.unique(ids).astype(np.int64)]
+        faces = np.concatenate([[self.face_t], coplanar_faces(self.scene, self.face_t), occ[occ >= 0]])
+        return kink_segments(self.scene, self.face_i, self.side_i, face_generators(self.scene, np.unique(faces)))
 
     @functools.cached_property
     def kink_lines(self):
@@ -2216,6 +2223,58 @@ class PairSetup:
         hull = np.ascontiguousarray(self.frame[6])
         return umbra_triangles(np.ascontiguousarray(tri), hull, np.asarray(self.n_t, np.float64), float(self.c_t), eu, ev,
                                heights, sec_ptr, sec, 10 * self.tiny)
+
+    def face_umbra(self, tri):
+        """(g,) bool: the triangles (g, 3, 3) of I' from every point of which one occluder
+        hides the whole of J' (a desk's top over the floor beneath it): a convex occluder
+        without holes whose plane strictly separates the triangle from J', and which holds
+        every point where a segment from a corner of the triangle to a corner of J's hull
+        crosses that plane (such crossings of any segment from the triangle to J' are
+        convex combinations of these, so all lie in the occluder); conservative (the
+        points at least tiny inside)."""
+        out = np.zeros(len(tri), bool)
+        if not len(tri):
+            return out
+        loop, inward, reach, normal, c = self._convex_occluders
+        if not len(c):
+            return out
+        hull = self.frame[6]  # J's convex hull (m, 3)
+        h_j = hull @ normal.T - c  # (m, P)
+        side = np.where(np.all(h_j < -self.tiny, axis=0), 1.0, np.where(np.all(h_j > self.tiny, axis=0), -1.0, 0.0))
+        h_t = np.einsum("gkd,pd->gpk", tri, normal) - c[None, :, None]  # (g, P, 3)
+        g, o = np.nonzero(np.all(side[None, :, None] * h_t > self.tiny, axis=2) & (side != 0)[None])
+        for lo in range(0, len(g), 4096):  # bounded memory
+            gi, oi = g[lo:lo + 4096], o[lo:lo + 4096]
+            a, b = h_t[gi, oi][:, :, None, None], h_j.T[oi][:, None, :, None]  # (k, 3, 1, 1), (k, 1, m, 1)
+            x = (a * hull[None, None] - b * tri[gi][:, :, None]) / (a - b)  # (k, 3, m, 3) on the plane
+            depth = np.einsum("ktmvd,kvd->ktmv", x[:, :, :, None, :] - loop[oi][:, None, None], inward[oi])
+            inside = np.all((depth >= reach[oi][:, None, None]).reshape(len(gi), -1), axis=1)
+            out[gi[inside]] = True
+        return out
+
+    @functools.cached_property
+    def _convex_occluders(self):
+        """The occluders :meth:`face_umbra` may use (convex, one loop): ``loop`` (P, V, 3)
+        their corners (the last repeated up to V), ``inward`` (P, V, 3) each edge's normal
+        into the polygon (length the edge's), ``reach`` (P, V) tiny times that length,
+        ``normal`` (P, 3), ``c`` (P,) their planes."""
+        if not self.occluders_found:
+            self.find_occluders()
+        keep = []
+        for loops, normal, _ in self.occluders:
+            if len(loops) != 1 or len(loops[0]) < 3:
+                continue
+            edge = np.roll(loops[0], -1, axis=0) - loops[0]
+            inward = np.cross(normal, edge)  # the outer loop runs counter-clockwise about normal
+            if np.all(np.einsum("kd,kd->k", np.roll(inward, -1, axis=0), edge) <= 0):  # left turns only: convex
+                keep.append((loops[0], inward, np.asarray(normal, np.float64)))
+        if not keep:
+            return np.zeros((0, 1, 3)), np.zeros((0, 1, 3)), np.zeros((0, 1)), np.zeros((0, 3)), np.zeros(0)
+        v = max(len(k[0]) for k in keep)
+        loop = np.stack([np.concatenate([k[0], np.repeat(k[0][-1:], v - len(k[0]), axis=0)]) for k in keep])
+        inward = np.stack([np.concatenate([k[1], np.zeros((v - len(k[1]), 3))]) for k in keep])
+        normal = np.stack([k[2] for k in keep])
+        return loop, inward, self.tiny * np.linalg.norm(inward, axis=2), normal, np.einsum("pd,pd->p", normal, loop[:, 0])
 
     def unoccluded_bound(self, tri):
         """(g,) float64: about the most ∫_T F(x → J') dx can be over each triangle (g, 3, 3)
@@ -3093,67 +3152,158 @@ def cut_hidden(scene, n_i, tri, hidden, lines, sees):
     where three edges line up, across which F is C1 and whose seen part, as it opens,
     grows like the cube of the distance. So a triangle is cut along every line crossing
     it, and where J' is seen from the centre of a piece (``sees(points (m, 3)) -> (m,)``,
-    F to the seen part of J', above :data:`UNSEEN`) it is replaced by its pieces, fanned
-    into triangles (each then on three levels, with nodes of its own, which no line
-    crosses); elsewhere, as where no line crosses it, J' is taken as hidden on the whole
-    triangle, as its nodes say. Where the lines are too many to list (``lines`` None) or
+    F to the seen part of J', above :data:`UNSEEN`) it is replaced by pieces in which the
+    region of the seen pieces has its own (cut along that region's outline,
+    :meth:`GapSearch.bounding`), fanned into triangles (each then on three levels, with
+    nodes of its own); elsewhere, as where no line crosses it, J' is taken as hidden on
+    the whole triangle, as its nodes say. Where the lines are too many to list (``lines`` None) or
     cut the triangles into more than :data:`MAX_GAP_PIECES` pieces, nothing is replaced
     (docs/queries.md, "Not done yet")."""
-    replaced = np.zeros(len(tri), bool)
-    if lines is None or not len(lines) or not np.any(hidden):
-        return replaced, np.zeros((0, 3, 3))
-    eu, ev = plane_basis(n_i)
-    origin = tri[0, 0]
-
-    def to2(p):
-        return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
-
-    eps = 1e-8 * scene.diagonal
-    seg = to2(lines)
-    crossing = lines_crossing(seg, to2(tri[hidden]), eps)  # (s, r) bool
-    rows = np.flatnonzero(hidden)[crossing.any(axis=0)]
-    if not len(rows):
-        return replaced, np.zeros((0, 3, 3))
-    pieces = [t if _area2(t) > 0 else t[::-1] for t in to2(tri[rows])]
-    cut = cut_along(pieces, seg[crossing.any(axis=1)], eps, MAX_GAP_PIECES + len(pieces))
-    if cut is None or len(cut) == len(pieces):
-        return replaced, np.zeros((0, 3, 3))
-    # each piece's triangle, by its centre (the triangles are disjoint)
-    centre = np.array([p.mean(axis=0) for p in cut])
-    corner = np.array(pieces)  # (r, 3, 2), counter-clockwise
-    edge = np.roll(corner, -1, axis=1) - corner
-    rel = centre[:, None, None, :] - corner[None]
-    inside = np.all(edge[None, ..., 0] * rel[..., 1] - edge[None, ..., 1] * rel[..., 0] >= -eps * eps, axis=2)
-    parent = np.argmax(inside, axis=1)
-    split = np.bincount(parent, minlength=len(pieces)) > 1
-    ask = np.flatnonzero(split[parent])
-    if not len(ask):
-        return replaced, np.zeros((0, 3, 3))
-    lit = ask[sees(origin + centre[ask, :1] * eu + centre[ask, 1:] * ev) > UNSEEN]
-    if not len(lit):
-        return replaced, np.zeros((0, 3, 3))
-    seen = np.zeros(len(pieces), bool)
-    seen[parent[lit]] = True
-    replaced[rows[seen]] = True
-    # those triangles cut again along the lines that bound a piece seen from only: the
-    # seen pieces stay whole, the rest of the triangle in fewer pieces (every piece on
-    # three levels: along all the lines, a wall's triangle behind a cabinet made hundreds)
-    seg = seg[crossing.any(axis=1)]
-    edges = np.concatenate([np.stack([cut[k], np.roll(cut[k], -1, axis=0)], axis=1) for k in lit])  # (e, 2, 2)
-    bounding = lines_along(seg, edges, eps)
-    out = cut_along([pieces[k] for k in np.flatnonzero(seen)], seg[bounding], eps)
-    cells = [origin + p[:, :1] * eu + p[:, 1:] * ev for p in out]
-    return replaced, start_triangles(cells, 0.0)
+    search = GapSearch.start(scene, n_i, tri, hidden, lines)
+    if search is None:
+        return np.zeros(len(tri), bool), np.zeros((0, 3, 3))
+    return search.cells(search.bounding(sees(search.points) > UNSEEN))
 
 
-def lines_along(seg, edges, eps):
-    """(s,) bool: the segments (s, 2, 2) whose lines hold one of the edges (e, 2, 2) of a
-    plane (both its ends within 10 ``eps`` of the line)."""
-    d = seg[:, 1] - seg[:, 0]
-    d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
-    rel = edges[None] - seg[:, None, None, 0]  # (s, e, 2 ends, 2)
-    dist = np.abs(rel[..., 0] * d[:, None, None, 1] - rel[..., 1] * d[:, None, None, 0])
-    return (dist <= 10 * eps).all(axis=2).any(axis=1)
+def _counter_clockwise(corners):
+    """2-D triangles (r, 3, 2) float64, each turned counter-clockwise (in place)."""
+    c = corners
+    flip = c[:, 0, 0] * (c[:, 1, 1] - c[:, 2, 1]) + c[:, 1, 0] * (c[:, 2, 1] - c[:, 0, 1]) + c[:, 2, 0] * (
+        c[:, 0, 1] - c[:, 1, 1]) <= 0
+    c[flip] = c[flip, ::-1]
+    return c
+
+
+@dataclass
+class GapSearch:
+    """The pieces of :func:`cut_hidden`: the triangles wholly hidden at their nodes, in 2-D
+    (the emitter's plane, ``origin + u eu + v ev``), cut along the lines crossing them, and
+    the centres of the pieces to ask. A matrix row asks every column's at once
+    (:func:`row_gaps`)."""
+
+    tri: np.ndarray  # (g, 3, 3) the first triangles
+    origin: np.ndarray  # (3,)
+    eu: np.ndarray  # (3,)
+    ev: np.ndarray  # (3,)
+    eps: float
+    rows: np.ndarray  # (r,) the triangles cut
+    corners: np.ndarray  # (r, 3, 2) them in 2-D, counter-clockwise
+    seg: np.ndarray  # (s, 2, 2) the lines crossing them
+    verts: np.ndarray  # the pieces (:mod:`viscx.geometry.arrangement`)
+    ptr: np.ndarray
+    owner: np.ndarray  # (N,) each piece's triangle, a position in rows
+    ask: np.ndarray  # (a,) the pieces of the triangles cut in two or more
+    points: np.ndarray  # (a, 3) their centres
+
+    @classmethod
+    def start(cls, scene, n_i, tri, hidden, lines):
+        """The search on the triangles ``hidden`` (g,) bool of ``tri`` (g, 3, 3), along the
+        lines (s, 2, 3); None where nothing is to be asked (no line crosses them, or the
+        pieces would be more than :data:`MAX_GAP_PIECES`)."""
+        if lines is None or not len(lines) or not np.any(hidden):
+            return None
+        eu, ev = plane_basis(n_i)
+        origin = tri[0, 0]
+        eps = 1e-8 * scene.diagonal
+
+        def to2(p):
+            return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
+
+        seg = to2(lines)
+        crossing = lines_crossing(seg, to2(tri[hidden]), eps)  # (s, r) bool
+        rows = np.flatnonzero(hidden)[crossing.any(axis=0)]
+        if not len(rows):
+            return None
+        corners = _counter_clockwise(to2(tri[rows]))
+        seg = seg[crossing.any(axis=1)]
+        verts, ptr, owner = cut_flat(corners.reshape(-1, 2), np.arange(0, 3 * len(rows) + 1, 3), seg, eps,
+                                     MAX_GAP_PIECES + len(rows))
+        if verts is None or len(owner) == len(rows):
+            return None
+        ask = np.flatnonzero((np.bincount(owner, minlength=len(rows)) > 1)[owner])
+        centre = piece_centres(verts, ptr)[ask]
+        points = origin + centre[:, :1] * eu + centre[:, 1:] * ev
+        return cls(tri, origin, eu, ev, eps, rows, corners, seg, verts, ptr, owner, ask, points)
+
+    def bounding(self, lit):
+        """Where the target is seen from the centres ``lit`` (a,) bool of the pieces asked:
+        ``{triangle: (b, 2, 2)}``, the triangles to replace and the outline of the region
+        their seen pieces make (the edges of a seen piece with no seen piece across them).
+        A triangle cut along these segments keeps that region in pieces of its own and the
+        rest in few (cut along the whole lines, the seen band of office(300)'s wall 16
+        behind a desk took 424 triangles, every one then on three levels)."""
+        lit = self.ask[lit]
+        out = {}
+        for r in np.unique(self.owner[lit]):
+            mine = lit[self.owner[lit] == r]
+            idx = np.concatenate([np.arange(self.ptr[k], self.ptr[k + 1]) for k in mine])
+            nxt = np.concatenate([np.roll(np.arange(self.ptr[k], self.ptr[k + 1]), -1) for k in mine])
+            a, b = self.verts[idx], self.verts[nxt]  # (e, 2) each, the pieces counter-clockwise
+            d = b - a
+            outward = np.stack([d[:, 1], -d[:, 0]], axis=1) / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+            probe = 0.5 * (a + b) + 10 * self.eps * outward  # just across each edge
+            across = np.zeros(len(probe), bool)
+            for k in mine:
+                p = self.verts[self.ptr[k]:self.ptr[k + 1]]
+                e = np.roll(p, -1, axis=0) - p
+                rel = probe[:, None, :] - p[None]
+                across |= np.all(e[None, :, 0] * rel[..., 1] - e[None, :, 1] * rel[..., 0] > 0, axis=1)
+            out[int(self.rows[r])] = np.stack([a, b], axis=1)[~across]
+        return out
+
+    def cells(self, lines):
+        """``(replaced (g,) bool, new (h, 3, 3))``: the triangles ``lines`` names, each cut
+        along its lines (:meth:`bounding`'s; a row's, of all its columns' searches on the
+        same triangles: ``{triangle: [(b, 2, 2), ...]}``), fanned into triangles."""
+        replaced = np.zeros(len(self.tri), bool)
+        if not lines:
+            return replaced, np.zeros((0, 3, 3))
+        rows = np.array(sorted(lines), np.int64)
+        replaced[rows] = True
+        rel = self.tri[rows] - self.origin
+        corners = _counter_clockwise(np.stack([rel @ self.eu, rel @ self.ev], axis=-1))  # (r, 3, 2)
+        cells = []
+        for corner, r in zip(corners, rows):
+            seg = lines[r] if isinstance(lines[r], np.ndarray) else np.concatenate(lines[r])
+            verts, ptr, _ = cut_flat(corner, np.array([0, 3]), seg, self.eps)
+            flat = self.origin + verts[:, :1] * self.eu + verts[:, 1:] * self.ev
+            cells += [flat[ptr[k]:ptr[k + 1]] for k in range(len(ptr) - 1)]
+        return replaced, start_triangles(cells, 0.0)
+
+
+def row_gaps(scene, n_i, tri, q, kq, gq, shafts):
+    """:meth:`PairSetup.gaps` for every column of a three-level matrix row: the first
+    triangles (g, 3, 3) (their rules ``q`` (g, R), ``kq`` (g, 4, R), ``gq`` (g, 16, R))
+    from whose nodes a pair's receiver may be seen through a gap
+    (:meth:`PairSetup.gap_candidates`), cut along the pair's critical lines crossing them
+    (:meth:`PairSetup.gap_lines`, :class:`GapSearch`), the centres of the pieces asked
+    with the pair's kernel (:meth:`PairSetup.f`). Each triangle where some column is seen
+    from a piece is cut along the outlines of such pieces, all its columns' together.
+
+    ``shafts``: the row's pairs, ``(setup, column)``. Returns ``(replaced (g,) bool, new
+    (h, 3, 3))`` as :meth:`PairSetup.gaps`."""
+    area = triangle_areas(tri)
+    seen = levels_seen(q, kq, gq)
+    lines, search = {}, None
+    for setup, c in shafts:
+        rows = np.flatnonzero(seen[:, c] > UNSEEN * area)
+        if not len(rows):
+            continue
+        rows = rows[setup.gap_candidates(tri[rows], np.concatenate([q[rows, None, c], kq[rows, :, c], gq[rows, :, c]],
+                                                                   axis=1))]
+        if not len(rows):
+            continue
+        hidden = np.zeros(len(tri), bool)
+        hidden[rows] = True
+        found = GapSearch.start(scene, n_i, tri, hidden, setup.gap_lines(tri[rows]))
+        if found is None:
+            continue
+        search = found
+        for r, seg in found.bounding(setup.f(found.points) > UNSEEN).items():
+            lines.setdefault(r, []).append(seg)
+    if search is None:
+        return np.zeros(len(tri), bool), np.zeros((0, 3, 3))
+    return search.cells(lines)
 
 
 def lines_crossing(seg, tri, eps, block=1 << 22):
@@ -3402,7 +3552,10 @@ class ThreeLevelRowCubature:
     :func:`unseen_shadow_bound`, :func:`shadow_triangles`), each new triangle on its own
     three levels (a child kept whole has its first triangle's two finer levels as its
     first two: only its grandchildren are evaluated). (A kink near a triangle's edge is the other thing
-    three levels miss: :func:`plane_cells`.)
+    three levels miss: :func:`plane_cells`.) The dual, a receiver seen through a gap
+    between all the nodes of a first triangle from which they see it wholly hidden, is
+    looked for next (``gaps``: :func:`row_gaps`), and the triangles where it is seen
+    replaced, each new one on its own three levels.
 
     Parameters
     ----------
@@ -3410,12 +3563,16 @@ class ThreeLevelRowCubature:
         ``integrand(points (m, 3), tri (g, 3, 3)) -> (m, R) float64`` (:func:`row_rules`).
     threads : int
         As :class:`RowCubature`'s.
+    gaps : callable, optional
+        ``gaps(tri, q (g, R), kq (g, 4, R), gq (g, 16, R)) -> (replaced (g,) bool, new (h, 3,
+        3))``: :func:`row_gaps` of the row.
     """
 
-    def __init__(self, integrand, threads=1):
+    def __init__(self, integrand, threads=1, gaps=None):
         self.integrand = integrand
         self.evaluations = 0
         self.threads = threads
+        self.gaps = gaps
 
     def rule(self, tri, width):
         """(g, R) float64: Radon's rule on each triangle."""
@@ -3466,6 +3623,15 @@ class ThreeLevelRowCubature:
                 q = np.concatenate([q[keep], kq[kid], nq])
                 K, kq = np.concatenate([K[k_keep], G[kid_K], nK]), np.concatenate([kq[k_keep], gq[kid_K], nkq])
                 G, gq = np.concatenate([G[g_keep], kid_G, nG]), np.concatenate([gq[g_keep], kid_gq, ngq])
+        if self.gaps is not None and len(tri):
+            replaced, new = self.gaps(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
+            if np.any(replaced):
+                keep = ~replaced
+                k_keep, g_keep = np.repeat(keep, 4), np.repeat(keep, 16)
+                nq, nK, nkq, nG, ngq = self.levels(new, width)
+                tri, q = np.concatenate([tri[keep], new]), np.concatenate([q[keep], nq])
+                K, kq = np.concatenate([K[k_keep], nK]), np.concatenate([kq[k_keep], nkq])
+                G, gq = np.concatenate([G[g_keep], nG]), np.concatenate([gq[g_keep], ngq])
         cells = 21 * len(tri)
         for _ in range(200):
             err = self.estimates(tri, q, kq.reshape(-1, 4, width), gq.reshape(-1, 16, width))
@@ -3555,7 +3721,7 @@ def _unclipped(setup):
             and min(float(np.min(l @ setup.n_i)) for l in setup.J) - setup.c_i > setup.tiny)
 
 
-def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, threads=1):
+def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, threads=1, gap_search=False):
     """F from one side of a face to every side of ``faces`` and to the sky, all receivers at
     once: ``F_c = F⁰_c − (1/A_i) ∫_I hidden_c(x) dx`` for every column c, F⁰ the exact
     contour integral of the pair (I', J') where they face each other (:class:`PairSetup`),
@@ -3574,7 +3740,10 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     refined nor searched for shadows. With ``reciprocal``, only the faces of ``faces`` this
     side computes the pairs of (:func:`computed_pairs`) are asked for: :func:`assemble_matrix`
     derives the others. The row's points are evaluated on ``threads`` threads
-    (:func:`row_rules`: the same result on any number).
+    (:func:`row_rules`: the same result on any number). With ``gap_search``, a
+    three-level row looks for receivers seen through gaps between the nodes of its first
+    triangles (:func:`row_gaps`: honest estimates there, at a cost; docs/queries.md, "Not
+    done yet").
 
     Returns what :func:`emitter_row` returns.
     """
@@ -3623,7 +3792,6 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
         if planed is not None:
             cells = planed
             tri = start_triangles(cells, extent / THREE_LEVEL_SPLIT)
-    cubature = RowCubature if kinked else ThreeLevelRowCubature
     f0, e0 = np.zeros(width), np.zeros(width)
     wanted = np.zeros(width, bool)
     wanted[:-1] = np.repeat(np.isin(seen, faces) & (seen != face), 2)
@@ -3665,7 +3833,11 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
         return point_views(points, n_i, eu, ev, *polygons, own, tiny, *boxes)
 
     budget = np.where(wanted, np.maximum(tol - e0, 0.1 * tol) * area, np.inf)
-    cub = cubature(hidden, threads)
+    if kinked:
+        cub = RowCubature(hidden, threads)
+    else:
+        gaps = (lambda tri, q, kq, gq: row_gaps(scene, n_i, tri, q, kq, gq, shafts)) if gap_search else None
+        cub = ThreeLevelRowCubature(hidden, threads, gaps)
     bound = unseen_shadow_bound(scene, shafts, f0, e0, area, budget)
     h, h_err, _ = cub.integrate(tri, budget, live, bound)
     F, E = f0 - h / area, e0 + h_err / area
@@ -3868,7 +4040,7 @@ class Matrix:
         }
 
 
-def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciprocal=True):
+def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciprocal=True, gap_search=False):
     """F between every pair of sides, plus every side's sky term: one
     :func:`row_form_factors` per side (the sides with a closed form by it,
     :func:`closed_form_row`), on ``workers`` processes (default: the CPU count; the largest
@@ -3877,14 +4049,15 @@ def form_factor_matrix(scene, tol=MATRIX_TOL, quiet=True, workers=None, reciproc
     rows of its smaller face and the other direction derived, ``A_a F_ab = A_b F_ba``
     (:func:`computed_pairs`), and a closed room's row of one pair takes it from its sum
     (:func:`summation_column`); without, every entry is computed on its own and reciprocity
-    is a measurement (the oracle the tests compare the two with). The result does not
-    depend on ``workers``, to the bit."""
+    is a measurement (the oracle the tests compare the two with). ``gap_search``: the
+    rows' (:func:`row_form_factors`). The result does not depend on ``workers``, to the
+    bit."""
     from viscx.progress import bar
 
     t0 = time.perf_counter()
     n = scene.n_faces
     rows, summation = matrix_rows(scene, reciprocal)
-    row = functools.partial(row_form_factors, reciprocal=True) if reciprocal else row_form_factors
+    row = functools.partial(row_form_factors, reciprocal=reciprocal, gap_search=gap_search)
     load_row_kernels(scene)  # once here, not once in each forked worker
     with bar(total=2 * n, desc="form factors", quiet=quiet, unit="side") as progress:
         results = _map_rows(row, scene, rows, tol, True, workers,

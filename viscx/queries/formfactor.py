@@ -2179,11 +2179,12 @@ class PairSetup:
         return out
 
     def gap_lines(self, tri):
-        """(s, 2, 3) float64 or None: :attr:`kink_lines` of the faces that can hide J' from
-        the triangles (g, 3, 3) of I' only: J, the faces in its plane, and the occluders
-        meeting one of their shafts to J' (:meth:`shaft_cull`; an occluder outside them
-        changes what no point of the triangles sees, and the lines are quadratic in the
-        edges)."""
+        """(s, 2, 3) float64 or None: the pair's critical lines on I for the triangles
+        (g, 3, 3) of I': where two edges of the faces that can hide J' from them line up
+        (:func:`kink_segments`): J, the faces lying in J's plane, and the occluders meeting
+        one of their shafts to J' (:meth:`shaft_cull`; an occluder outside them changes what
+        no point of the triangles sees, and the lines are quadratic in the edges). None
+        where they are too many to list, or for a sky target, whose edges are no scene's."""
         if self.face_t < 0:
             return None
         if not self.occluders_found:
@@ -2191,20 +2192,6 @@ class PairSetup:
         ids = cull_all(self.shaft_cull, tri, np.arange(len(self.occluders)))[1] if len(self.occluders) else []
         occ = self._occluder_faces[np.unique(ids).astype(np.int64)]
         faces = np.concatenate([[self.face_t], coplanar_faces(self.scene, self.face_t), occ[occ >= 0]])
-        return kink_segments(self.scene, self.face_i, self.side_i, face_generators(self.scene, np.unique(faces)))
-
-    @functools.cached_property
-    def kink_lines(self):
-        """(s, 2, 3) float64 or None: the pair's critical lines on I: where two edges of the
-        faces its kernel sees (J, the faces lying in J's plane, the occluders) line up
-        (:func:`kink_segments`; None where they are too many to list, or for a sky target,
-        whose edges are no scene's)."""
-        if self.face_t < 0:
-            return None
-        if not self.occluders_found:
-            self.find_occluders()
-        faces = np.concatenate([[self.face_t], coplanar_faces(self.scene, self.face_t),
-                                self._occluder_faces[self._occluder_faces >= 0]])
         return kink_segments(self.scene, self.face_i, self.side_i, face_generators(self.scene, np.unique(faces)))
 
     def umbra(self, tri):
@@ -3140,7 +3127,7 @@ MAX_GAP_PIECES = 1_000
 def cut_hidden(scene, n_i, tri, hidden, lines, sees):
     """The first triangles (g, 3, 3) of an emitter (normal ``n_i``) from whose nodes a
     receiver is wholly hidden (``hidden`` (g,) bool, :meth:`PairSetup.hidden_at_nodes`),
-    cut along the critical lines ``lines`` (s, 2, 3) of the pair (:meth:`PairSetup.kink_lines`)
+    cut along the critical lines ``lines`` (s, 2, 3) of the pair (:meth:`PairSetup.gap_lines`)
     where it is seen from a piece: ``(replaced (g,) bool, new (h, 3, 3))``.
 
     The receiver may yet be seen through a gap between the nodes (office(300): desk5's

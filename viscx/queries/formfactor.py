@@ -753,13 +753,40 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
     outline, o_lo, o_hi = face_outlines(scene)
     meets = shaft_meets(hull_i[None], n_i[None], hull_j, np.asarray(n_t, np.float64), np.zeros(len(near), np.int64),
                         near.astype(np.int64), outline, o_lo, o_hi, scene.face_normal.astype(np.float64), tol)
+    hits = near[meets]
+    # a face with no vertex behind either plane is its own clipped part: its cached loops,
+    # clipped in Python only where a plane cuts it (office(1000): most of a pair's occluders
+    # are not; the heights as Sutherland–Hodgman takes them, (y − n c) · n)
+    whole, loop_faces = face_loops_oriented(scene)
+    ahead = np.ones(len(hits), bool)
+    for n, c in ((n_i, c_i), (n_t, c_t)):
+        rel = outline - np.asarray(n, np.float64) * c
+        h = rel[:, 0] * n[0] + rel[:, 1] * n[1] + rel[:, 2] * n[2]
+        ahead &= np.minimum.reduceat(h, o_lo)[hits] >= 0
     clipped = []
-    for k in near[meets]:
+    for k, free in zip(hits, ahead):
         nk = scene.face_normal[k]
+        if free:
+            loops = loop_faces[k]
+            if whole[k] > tol * tol:
+                clipped.append((loops, nk, int(k)))
+            continue
         loops = clip_loops(clip_loops(oriented_loops(scene.face_loops(k), nk), n_i, c_i), n_t, c_t)
         if loops and abs(loops_area(loops, nk)) > tol * tol:
             clipped.append((loops, nk, int(k)))
     return clipped
+
+
+def face_loops_oriented(scene):
+    """Every face's loops as :func:`oriented_loops` about its normal, and their areas
+    ``|loops_area|`` (f,) float64: ``(areas, [loops per face])``, cached (the occluders of
+    the pairs, :func:`pair_occluders`, that no plane clips)."""
+
+    def build(scene):
+        loops = [oriented_loops(scene.face_loops(k), scene.face_normal[k]) for k in range(scene.n_faces)]
+        return np.array([abs(loops_area(l, scene.face_normal[k])) for k, l in enumerate(loops)]), loops
+
+    return scene.cached("face_loops_oriented", build)
 
 
 # --------------------------------------------------------------------------------------
@@ -2246,14 +2273,18 @@ class PairSetup:
         ``normal`` (P, 3), ``c`` (P,) their planes."""
         if not self.occluders_found:
             self.find_occluders()
+        unclipped = face_loops_oriented(self.scene)[1]
+        known = self.scene.cached("convex_occluder_faces", lambda scene: {})  # face -> _convex_loop
         keep = []
-        for loops, normal, _ in self.occluders:
-            if len(loops) != 1 or len(loops[0]) < 3:
-                continue
-            edge = np.roll(loops[0], -1, axis=0) - loops[0]
-            inward = np.cross(normal, edge)  # the outer loop runs counter-clockwise about normal
-            if np.all(np.einsum("kd,kd->k", np.roll(inward, -1, axis=0), edge) <= 0):  # left turns only: convex
-                keep.append((loops[0], inward, np.asarray(normal, np.float64)))
+        for loops, normal, face in self.occluders:
+            if loops is unclipped[face]:  # a whole face (pair_occluders): once per scene
+                if face not in known:
+                    known[face] = _convex_loop(loops, normal)
+                entry = known[face]
+            else:
+                entry = _convex_loop(loops, normal)
+            if entry is not None:
+                keep.append(entry)
         if not keep:
             return np.zeros((0, 1, 3)), np.zeros((0, 1, 3)), np.zeros((0, 1)), np.zeros((0, 3)), np.zeros(0)
         v = max(len(k[0]) for k in keep)
@@ -2279,6 +2310,19 @@ class PairSetup:
         area = float(triangle_areas(tri).sum())
         v, e = contour_form_factor(list(tri), self.n_i, self.J, self.n_t, separate=True)
         return v * area, e * area
+
+
+def _convex_loop(loops, normal):
+    """``(loop (V, 3), inward (V, 3), normal (3,))`` of an occluder that is one convex loop
+    (counter-clockwise about ``normal``; ``inward`` each edge's normal into the polygon,
+    the edge's length), else None (:meth:`PairSetup._convex_occluders`)."""
+    if len(loops) != 1 or len(loops[0]) < 3:
+        return None
+    edge = np.roll(loops[0], -1, axis=0) - loops[0]
+    inward = np.cross(normal, edge)  # the outer loop runs counter-clockwise about normal
+    if np.all(np.einsum("kd,kd->k", np.roll(inward, -1, axis=0), edge) <= 0):  # left turns only: convex
+        return loops[0], inward, np.asarray(normal, np.float64)
+    return None
 
 
 def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, kinked=False,
@@ -3332,11 +3376,14 @@ def row_gaps(scene, n_i, tri, q, kq, gq, shafts, budget):
     with the pair's kernel (:meth:`PairSetup.f`). Each triangle where some column is seen
     from a piece is cut along the outlines of such pieces, all its columns' together.
 
-    A column seen from pieces of some triangles is settled by a bound instead where it is
-    small: its rules there count J' as hidden at every point, so they are off by what is
-    seen of it, at most ∫ F(x → J') dx over those triangles (the contour integral of
-    their parts in front of J, :func:`front_unoccluded`); where that is at most
-    :data:`SHADOW_BOUND` of the column's ``budget`` (R,) (in ∫ units, what the shadow
+    A column seen from some pieces is settled by a bound instead where it is small: its
+    rules there count J' as hidden at every point, so they are off by what is seen of it
+    from the pieces whose centres see it (between the lines J' is seen from all of a piece
+    or none of it, but across curves where three edges line up, beyond which the seen
+    part grows like the cube of the distance: :func:`cut_hidden`), at most ∫ F(x → J') dx
+    over those pieces (:meth:`GapSearch.lit_triangles`; the contour integral of their
+    parts in front of J, :func:`front_unoccluded`); where that is at most
+    :data:`GAP_BOUND` of the column's ``budget`` (R,) (in ∫ units, what the shadow
     search left), it is the column's estimate there and its triangles are not cut for it,
     unless another column's cuts them anyway (office(300) at 1e-4: the row of desk3's
     panel end (face 129) settles its two such columns, bounds of 7.9e-9 and 2.1e-7 against
@@ -3372,9 +3419,9 @@ def row_gaps(scene, n_i, tri, q, kq, gq, shafts, budget):
     # the triangles cut: those of the columns a bound does not settle, each along the
     # outlines of all the columns seen from its pieces (a column settled on some other
     # triangle keeps its bound for all of them)
-    cut = {r for c, outlines, bound in lit_columns if bound > SHADOW_BOUND * budget[c] for r in outlines}
+    cut = {r for c, outlines, bound in lit_columns if bound > GAP_BOUND * budget[c] for r in outlines}
     for c, outlines, bound in lit_columns:
-        if bound <= SHADOW_BOUND * budget[c] and not cut.issuperset(outlines):
+        if bound <= GAP_BOUND * budget[c] and not cut.issuperset(outlines):
             spent[c] += bound
             continue
         for r, seg in outlines.items():
@@ -3387,6 +3434,10 @@ def row_gaps(scene, n_i, tri, q, kq, gq, shafts, budget):
 #: The share of a column's budget that an upper bound of its unseen shadows may take, where
 #: it settles them, instead of looking for them (:func:`unseen_shadow_bound`).
 SHADOW_BOUND = 0.25
+#: The share of a column's budget (what the shadow search left) that a bound of what is
+#: seen of it through gaps may take, where it settles them, instead of cutting the
+#: triangles along them (:func:`row_gaps`).
+GAP_BOUND = 0.25
 
 
 def front_unoccluded(setup, tri):

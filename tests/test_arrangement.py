@@ -6,7 +6,7 @@ segment runs over it, and each part labelled with the piece it was cut from."""
 import numpy as np
 import pytest
 
-from viscx.geometry.arrangement import cut_pieces, flat_to_pieces, piece_centres, pieces_to_flat
+from viscx.geometry.arrangement import cut_pieces, flat_to_pieces, piece_centres, pieces_to_flat, segments_crossing
 from viscx.queries.formfactor import cut_along, cut_flat
 
 
@@ -92,3 +92,43 @@ def test_limit_and_labels():
                                                                                  [0.975]]))
     # a segment shorter than eps cuts nothing; one whose chord misses the piece neither
     assert len(cut_along([square], np.array([[[0.5, -1.0], [0.5, -0.5]]]), 1e-9)) == 1
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_segments_crossing_is_what_it_says_and_a_superset_of_the_cuts(seed):
+    """segments_crossing against a plain loop over its predicate (the line leaves corners
+    more than eps on both sides, the triangle's extent along it overlaps the segment by
+    more than eps), on random segments and triangles, segments along triangles' edges and
+    through their corners among them; and every triangle that cut_pieces cuts with a
+    segment is one it names (what the gap search relies on)."""
+    rng = np.random.default_rng(seed)
+    tri = rng.uniform(0, 1, (40, 3, 2))
+    seg = rng.uniform(-0.2, 1.2, (200, 2, 2))
+    seg[:20] = tri[:20, :2]  # along an edge
+    seg[20:40, 0] = tri[20:40, 0]  # from a corner
+    seg[40:45, 1] = seg[40:45, 0]  # of no length
+    eps = 1e-9
+    got = segments_crossing(seg, tri, eps)
+    want = np.zeros_like(got)
+    for i, (a, b) in enumerate(seg):
+        length = float(np.hypot(*(b - a)))
+        if not length > eps:
+            continue
+        d = (b - a) / length
+        for r, t in enumerate(tri):
+            side = [float(d[0] * (p - a)[1] - d[1] * (p - a)[0]) for p in t]
+            along = [float(np.dot(p - a, d)) for p in t]
+            want[i, r] = max(side) > eps and min(side) < -eps and max(along) > eps and min(along) < length - eps
+    assert np.array_equal(got, want)
+    assert 0 < got.sum() < got.size and not got[:20].diagonal().any() and not got[40:45].any()
+    for i in range(len(seg)):
+        for r in range(len(tri)):
+            verts, ptr = pieces_to_flat([tri[r][::1 if _ccw(tri[r]) else -1]])
+            length = np.array([np.hypot(*(seg[i, 1] - seg[i, 0]))])
+            _, parts, _, _ = cut_pieces(verts, ptr, np.zeros(1, np.int64), seg[i:i + 1], length, eps, 10)
+            if len(parts) > 2:
+                assert got[i, r], (i, r)
+
+
+def _ccw(t):
+    return (t[1, 0] - t[0, 0]) * (t[2, 1] - t[0, 1]) - (t[1, 1] - t[0, 1]) * (t[2, 0] - t[0, 0]) > 0

@@ -400,3 +400,79 @@ def test_point_views_steep_edge_against_the_shadow(boxes_on_floor, sweep):
     h = point_views(x[None], n_i, eu, ev, *ff.scene_polygons(sub), 1, 1e-9 * sub.diagonal, *ff.closed_boxes(sub),
                     sweep)
     assert abs(h[0, 0] - ref) < 1e-14
+
+
+def _facing_pairs(scene, monkeypatch):
+    """Every pair of face sides that face each other by their vertices (the test of
+    :func:`ff.facing_sides` without :func:`ff.box_hidden`), and which of them box_hidden
+    calls hidden: ``(face, side, faces (k,), sides (k,), hidden (k,))`` per emitter side."""
+    hidden_by_box = ff.box_hidden
+    with monkeypatch.context() as m:
+        m.setattr(ff, "box_hidden", lambda scene, face, side, faces, sides: np.zeros(len(faces), bool))
+        raw = [(f, s, *ff.facing_sides(scene, f, s, np.arange(scene.n_faces))) for f in range(scene.n_faces)
+               for s in (1, -1)]
+    return [(f, s, fj, sj, hidden_by_box(scene, f, s, fj, sj)) for f, s, fj, sj in raw]
+
+
+def _free_segments(scene, pairs, rng, k=12):
+    """For pairs ``(i, s, j, t)`` of face sides, ``k`` × ``k`` segments from random points
+    of side s of face i to random points of side t of face j, each point moved 1e-6 of the
+    scene's size off its face to its side, the segments with each end in front of the
+    other's side kept, and the points lying against another face left out (a point of the
+    floor under a cabinet's bottom: moved off the floor, it would be inside the cabinet;
+    docs/queries.md, "Faces lying on faces"). Returns (kept, free): how many segments, and
+    how many meet no triangle of the scene (brute force, tests/oracles.py)."""
+    from oracles import segment_hits_reference
+
+    vertices = scene.vertices.astype(np.float64)
+    delta = 1e-6 * scene.diagonal
+
+    def off(face, normal):  # k points of the face moved off it, those lying on nothing
+        p = face_points(scene, face, k, rng)
+        others = scene.triangles[scene.triangle_face != face]
+        hit, _ = segment_hits_reference(p + 2 * delta * normal, p - 2 * delta * normal, vertices, others)
+        return p[~hit.any(axis=1)] + delta * normal
+
+    starts, ends = [], []
+    for i, s, j, t in pairs:
+        n_i, n_t = s * scene.face_normal[i], t * scene.face_normal[j]
+        x, y = off(i, n_i), off(j, n_t)
+        a, b = np.repeat(x, len(y), axis=0), np.tile(y, (len(x), 1))
+        ok = ((b - a) @ n_i > 0) & ((a - b) @ n_t > 0)
+        starts.append(a[ok])
+        ends.append(b[ok])
+    starts, ends = np.concatenate(starts), np.concatenate(ends)
+    free = 0
+    for lo in range(0, len(starts), 4000):
+        hit, _ = segment_hits_reference(starts[lo:lo + 4000], ends[lo:lo + 4000], vertices, scene.triangles)
+        free += int(np.sum(~hit.any(axis=1)))
+    return len(starts), free
+
+
+def test_box_hidden_pairs_see_nothing(office60, monkeypatch):
+    """ff.box_hidden: the inner side of a box's face and a face outside the box see nothing
+    of each other. Of office60's facing pairs of sides, most are such (every desk's,
+    cabinet's and divider's inner sides seen from the room, and from inside a box the
+    faces outside it); on 200 of them, no segment between random points of the two sides
+    is free (brute-force segment tests); on 200 pairs it does not name, some are (the
+    oracle finds free segments where there are). The pair cubature returns 0 exactly for
+    them, with no estimate."""
+    rng = np.random.default_rng(7)
+    rows = _facing_pairs(office60, monkeypatch)
+    hidden = [(f, s, int(j), int(t)) for f, s, fj, sj, h in rows for j, t in zip(fj[h], sj[h])]
+    seen = [(f, s, int(j), int(t)) for f, s, fj, sj, h in rows for j, t in zip(fj[~h], sj[~h])]
+    assert len(hidden) > 2 * len(seen) > 1000
+    # both directions of a pair are named together, and only inner sides (backs) of box faces
+    named = set(hidden)
+    assert all((j, t, f, s) in named for f, s, j, t in hidden)
+    face_box = ff.closed_boxes(office60)[0]
+    assert all((t < 0 and face_box[j] >= 0) or (s < 0 and face_box[f] >= 0) for f, s, j, t in hidden)
+    pick = rng.choice(len(hidden), 200, replace=False)
+    kept, free = _free_segments(office60, [hidden[k] for k in pick], rng)
+    assert kept > 5000 and free == 0
+    pick = rng.choice(len(seen), 200, replace=False)
+    kept, free = _free_segments(office60, [seen[k] for k in pick], rng)
+    assert kept > 5000 and free > 0.1 * kept
+    for f, s, j, t in [hidden[k] for k in rng.choice(len(hidden), 5, replace=False)]:
+        r = ff.pair_form_factor(office60, f, s, ff.face_target(office60, j), t)
+        assert (r.F, r.error, r.method) == (0.0, 0.0, "none")

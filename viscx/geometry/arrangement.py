@@ -153,6 +153,32 @@ def cut_pieces(verts, ptr, owner, seg, length, eps, limit):
     return verts, ptr, owner, True
 
 
+@njit(cache=True, nogil=True)
+def segments_crossing(seg, tri, eps):
+    """(s, r) bool: which segments ``seg`` (s, 2, 2) float64 may cut which triangles ``tri``
+    (r, 3, 2) float64: the segment's line leaves corners more than ``eps`` on both sides,
+    and the triangle's extent along the line overlaps the segment by more than ``eps`` (a
+    superset of the cuts of :func:`cut_pieces`, which asks the same of the chord)."""
+    out = np.zeros((seg.shape[0], tri.shape[0]), np.bool_)
+    for i in range(seg.shape[0]):
+        ax, ay = seg[i, 0, 0], seg[i, 0, 1]
+        ex, ey = seg[i, 1, 0] - ax, seg[i, 1, 1] - ay
+        length = np.sqrt(ex * ex + ey * ey)
+        if not length > eps:
+            continue
+        dx, dy = ex / length, ey / length
+        for r in range(tri.shape[0]):
+            s_lo, s_hi, t_lo, t_hi = np.inf, -np.inf, np.inf, -np.inf
+            for k in range(3):
+                rx, ry = tri[r, k, 0] - ax, tri[r, k, 1] - ay
+                side = rx * dy - ry * dx
+                along = rx * dx + ry * dy
+                s_lo, s_hi = min(s_lo, side), max(s_hi, side)
+                t_lo, t_hi = min(t_lo, along), max(t_hi, along)
+            out[i, r] = s_hi > eps and s_lo < -eps and t_hi > eps and t_lo < length - eps
+    return out
+
+
 def pieces_to_flat(pieces):
     """A list of (k, 2) pieces as ``verts`` (V, 2) float64 and ``ptr`` (N + 1,) int64."""
     if not len(pieces):

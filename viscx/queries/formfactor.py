@@ -771,7 +771,7 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
             if whole[k] > tol * tol:
                 clipped.append((loops, nk, int(k)))
             continue
-        loops = clip_loops(clip_loops(oriented_loops(scene.face_loops(k), nk), n_i, c_i), n_t, c_t)
+        loops = clip_loops(clip_loops(loop_faces[k], n_i, c_i), n_t, c_t)
         if loops and abs(loops_area(loops, nk)) > tol * tol:
             clipped.append((loops, nk, int(k)))
     return clipped
@@ -779,8 +779,9 @@ def pair_occluders(scene, I, n_i, c_i, J, n_t, c_t, exclude):
 
 def face_loops_oriented(scene):
     """Every face's loops as :func:`oriented_loops` about its normal, and their areas
-    ``|loops_area|`` (f,) float64: ``(areas, [loops per face])``, cached (the occluders of
-    the pairs, :func:`pair_occluders`, that no plane clips)."""
+    ``|loops_area|`` (f,) float64: ``(areas, [loops per face])``, cached (the kernels'
+    polygons, :func:`scene_polygons`, and a pair's occluders, :func:`pair_occluders`,
+    as they are where no plane clips them). Read only."""
 
     def build(scene):
         loops = [oriented_loops(scene.face_loops(k), scene.face_normal[k]) for k in range(scene.n_faces)]
@@ -2811,7 +2812,7 @@ def _nothing_inside(scene, b):
     # faces whose boxes overlap the box's by more than tiny in every axis
     near = np.flatnonzero(np.all(box_lo < hi - tiny, axis=1) & np.all(box_hi > lo + tiny, axis=1))
     for k in near[face_box[near] != b]:
-        loops = oriented_loops(scene.face_loops(k), scene.face_normal[k])
+        loops = face_loops_oriented(scene)[1][k]
         for p in planes[ptr[b]:ptr[b + 1]]:
             loops = clip_loops(loops, -p[:3], -(p[3] - tiny))
             if not loops:
@@ -3045,8 +3046,7 @@ def scene_polygons(scene):
     of the faces by area, the smallest first)."""
 
     def build(scene):
-        polys = [(oriented_loops(scene.face_loops(f), scene.face_normal[f]), scene.face_normal[f])
-                 for f in range(scene.n_faces)]
+        polys = [(loops, scene.face_normal[f]) for f, loops in enumerate(face_loops_oriented(scene)[1])]
         loops = [(np.asarray(loop, np.float64), p) for p, (ls, _) in enumerate(polys) for loop in ls]
         sizes = np.array([len(l) for l, _ in loops], np.int64)
         hi = np.cumsum(sizes)
@@ -3256,6 +3256,11 @@ def cut_hidden(scene, n_i, tri, hidden, lines, sees):
     return search.cells(search.bounding(sees(search.points) > UNSEEN))
 
 
+def _in_plane(origin, eu, ev, uv):
+    """(m, 3) float64: the points ``origin + u eu + v ev`` of ``uv`` (m, 2) (:class:`GapSearch`'s plane)."""
+    return origin + uv[:, :1] * eu + uv[:, 1:] * ev
+
+
 def _counter_clockwise(corners):
     """2-D triangles (r, 3, 2) float64, each turned counter-clockwise (in place)."""
     c = corners
@@ -3312,7 +3317,7 @@ class GapSearch:
             return None
         ask = np.flatnonzero((np.bincount(owner, minlength=len(rows)) > 1)[owner])
         centre = piece_centres(verts, ptr)[ask]
-        points = origin + centre[:, :1] * eu + centre[:, 1:] * ev
+        points = _in_plane(origin, eu, ev, centre)
         return cls(tri, origin, eu, ev, eps, rows, seg, verts, ptr, owner, ask, points)
 
     def bounding(self, lit):
@@ -3345,7 +3350,7 @@ class GapSearch:
         """(h, 3, 3): the pieces asked whose centres see the target (``lit`` (a,) bool),
         fanned into triangles."""
         pieces = self.ask[lit]
-        flat = self.origin + self.verts[:, :1] * self.eu + self.verts[:, 1:] * self.ev
+        flat = _in_plane(self.origin, self.eu, self.ev, self.verts)
         return start_triangles([flat[self.ptr[k]:self.ptr[k + 1]] for k in pieces], 0.0)
 
     def cells(self, lines):
@@ -3362,7 +3367,7 @@ class GapSearch:
         cells = []
         for corner, r in zip(corners, rows):
             verts, ptr, _ = cut_flat(corner, np.array([0, 3]), lines[r], self.eps)
-            flat = self.origin + verts[:, :1] * self.eu + verts[:, 1:] * self.ev
+            flat = _in_plane(self.origin, self.eu, self.ev, verts)
             cells += [flat[ptr[k]:ptr[k + 1]] for k in range(len(ptr) - 1)]
         return replaced, start_triangles(cells, 0.0)
 

@@ -444,6 +444,55 @@ def test_an_unseen_shadow_of_a_small_far_receiver_is_bounded_not_looked_for(monk
     assert abs(F - ref["F"]) > 10 * (E + ref["error"])  # 1.0e-8 off for 1.2e-15 (+ the reference's 4e-10)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_merge_collinear_is_the_union_of_each_lines_pieces(seed):
+    """:func:`viscx.queries.kinks.merge_collinear` against a plain interval union: pieces
+    drawn on a few known lines (each given either way round, some overlapping, touching,
+    nested, or apart by less or more than the 1e-9 join), per line the union of their
+    spans, compared as sets of end points."""
+    from viscx.queries.kinks import merge_collinear
+
+    rng = np.random.default_rng(seed)
+    scale = 10.0
+    gap = 1e-9 * scale
+    dirs = rng.standard_normal((6, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    dirs[0] = [1.0, 0.0, 0.0]
+    dirs[1] = [0.0, -1.0, 0.0]  # turned round: lines keep one direction
+    points = rng.uniform(-3, 3, (6, 3))
+    points[2] = points[3] + 0.5 * np.cross(dirs[3], [0.0, 0.0, 1.0])  # two parallel lines
+    dirs[2] = dirs[3]
+    k = int(rng.integers(50, 400))
+    line = rng.integers(0, 6, k)
+    t0 = rng.integers(-8, 8, k) * 0.5
+    t1 = t0 + rng.choice([0.25, 0.5, 1.0, 2.0], k) - rng.choice([0.0, 0.5 * gap, 50 * gap], k)  # short of a start
+    a = points[line] + t0[:, None] * dirs[line]
+    b = points[line] + t1[:, None] * dirs[line]
+    swap = rng.random(k) < 0.5
+    a[swap], b[swap] = b[swap].copy(), a[swap].copy()
+    want = []
+    for r in np.unique(line):
+        spans = sorted(zip(t0[line == r], t1[line == r]))
+        lo, hi = spans[0]
+        for x, y in spans[1:] + [(np.inf, np.inf)]:
+            if x > hi + gap:
+                want.append(_ends_in_order(np.stack([points[r] + lo * dirs[r], points[r] + hi * dirs[r]])))
+                lo, hi = x, y
+            else:
+                hi = max(hi, y)
+    got = merge_collinear(a, b, np.zeros(3), scale)
+    assert got.shape == (len(want), 2, 3)
+    key = lambda s: tuple(np.round(s.ravel(), 6))
+    want, got = sorted(want, key=key), sorted(map(_ends_in_order, got), key=key)
+    for w, g in zip(want, got):
+        assert np.allclose(g, w, rtol=0, atol=1e-12)
+
+
+def _ends_in_order(seg):
+    """A segment (2, 3) with its ends in lexicographic order."""
+    return seg if tuple(seg[0]) <= tuple(seg[1]) else seg[::-1]
+
+
 def test_kink_pairs_in_blocks_and_past_the_cap(cornell, monkeypatch):
     """The segment pairs are tested in blocks of whole rows (memory linear in the block, not
     quadratic in the segments: the 122,892-triangle spheres listed 1.7 · 10¹⁰ pairs at
@@ -492,7 +541,7 @@ def test_emitter_cells_stop_cutting_past_the_limit_as_the_whole_cut_would(cornel
     monkeypatch.setattr(kinks, "FIRST_BLOCK", 7)
     listed = []
     pair_kinks = kinks._pair_kinks
-    monkeypatch.setattr(kinks, "_pair_kinks", lambda *a: listed.append(len(a[-1])) or pair_kinks(*a))
+    monkeypatch.setattr(kinks, "_pair_kinks", lambda *a: listed.append(a[-1] - a[-2]) or pair_kinks(*a))
     same = ff.emitter_cells(cornell, floor, 1, kinks=True, limit=len(full))
     assert len(same) == len(full) and all(np.array_equal(a, b) for a, b in zip(same, full))
     everything = sum(listed)

@@ -45,8 +45,7 @@ discontinuity mesh of a light leaves out, and because a row needs the D1 lines o
 """
 
 import numpy as np
-
-from viscx.arrays import unique_rows
+from numba import njit
 
 
 #: More generator segments in front of a face than this: no kink lines (None), the caller
@@ -176,11 +175,12 @@ def kink_segments(scene, face, side, generators=None, past=None):
     starts, ends = [np.zeros((0, 3))], [np.zeros((0, 3))]
     done, asked = 0, 0
     total = len(p) * (len(p) - 1) // 2
-    for a, b in _pair_blocks(len(p), PAIR_BLOCK, FIRST_BLOCK):
-        s0, s1 = _pair_kinks(scene, face, n, c, tiny, p, q, u, a, b)
+    far = 2.0 * scene.diagonal
+    for a0, a1 in _row_blocks(len(p), PAIR_BLOCK, FIRST_BLOCK):
+        s0, s1 = _pair_kinks(n, c, tiny, p, q, u, centre, far, a0, a1)
         starts.append(s0)
         ends.append(s1)
-        done += len(a)
+        done += (a1 - a0) * (2 * len(p) - a0 - a1 - 1) // 2
         if past is not None and done < total and done >= 2 * asked:
             asked = done
             if past(merge_collinear(np.concatenate(starts), np.concatenate(ends), centre, scene.diagonal)):
@@ -188,10 +188,11 @@ def kink_segments(scene, face, side, generators=None, past=None):
     return merge_collinear(np.concatenate(starts), np.concatenate(ends), centre, scene.diagonal)
 
 
-def _pair_blocks(g, size, first=None):
-    """The pairs a < b of ``g`` segments as ``(a, b)`` (k,) int64 blocks of about ``size``
-    pairs (whole rows a), so that memory stays linear in the block, not quadratic in g;
-    with ``first``, the blocks start at about that many pairs and double up to ``size``."""
+def _row_blocks(g, size, first=None):
+    """The pairs a < b of ``g`` segments as blocks ``(a0, a1)`` of whole rows a in
+    [a0, a1) (each with its pairs b > a), of about ``size`` pairs, so that memory stays
+    linear in the block, not quadratic in g; with ``first``, the blocks start at about that
+    many pairs and double up to ``size``."""
     a0 = 0
     block = size if first is None else min(first, size)
     while a0 < g - 1:
@@ -200,63 +201,127 @@ def _pair_blocks(g, size, first=None):
         while a1 < g - 1 and count + (g - 1 - a1) <= block:
             count += g - 1 - a1
             a1 += 1
-        a = np.repeat(np.arange(a0, a1), g - 1 - np.arange(a0, a1))
-        b = np.concatenate([np.arange(i + 1, g) for i in range(a0, a1)])
-        yield a, b
+        yield a0, a1
         a0 = a1
         block = min(2 * block, size)
 
 
-def _pair_kinks(scene, face, n, c, tiny, p, q, u, a, b):
+def _pair_kinks(n, c, tiny, p, q, u, centre, far, a0, a1):
     """The pieces ``(starts, ends)`` (s, 3) float64 each of the D1 lines of the segment
-    pairs ``(a[i], b[i])`` (:func:`kink_segments`; ``p`` the segments, ``q`` them clipped to
-    the front half-space, ``u`` their directions)."""
-    # the plane of the two (unclipped) lines: normal ua × ub, or ua × (pb − pa) when parallel
-    w0 = p[b, 0] - p[a, 0]
-    m = np.cross(u[a], u[b])
-    par = np.linalg.norm(m, axis=1) < 1e-9
-    m[par] = np.cross(u[a[par]], w0[par])
-    mn = np.linalg.norm(m, axis=1)
-    ok = mn > tiny
-    m[ok] /= mn[ok, None]
-    ok &= np.abs(np.einsum("ij,ij->i", w0, m)) <= tiny
-    ok &= np.abs(np.einsum("ij,ij->i", p[b, 1] - p[a, 0], m)) <= tiny
-    dl = np.cross(m, n)  # L's direction
-    dn = np.linalg.norm(dl, axis=1)
-    ok &= dn > 1e-9  # Π is not I's plane (nor parallel to it)
-    a, b, m, dl = a[ok], b[ok], m[ok], dl[ok] / dn[ok, None]
-    if not len(a):
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    up = np.cross(m, dl)  # in Π, across L, pointing away from I (up · n > 0)
-    up *= np.sign(np.einsum("ij,j->i", up, n))[:, None]
-    s = np.einsum("ij,j->i", up, n)  # sin of the angle between Π and I's plane
-    # 2-D coordinates in Π: t = y · dl, w = height / s (the origin o on L with o · dl = 0)
-    ends = np.stack([q[a], q[b]], axis=1)  # (k, 2 edges, 2 ends, 3)
-    t = np.einsum("kxyd,kd->kxy", ends, dl)
-    w = np.maximum(np.einsum("kxyd,d->kxy", ends, n) - c, 0.0) / s[:, None, None]
-    # o: the point of L with o · dl = 0 (pa = o + t dl + w up for a's first end pa)
-    pa = ends[:, 0, 0]
-    o = pa - t[:, 0, 0, None] * dl - w[:, 0, 0, None] * up
-    # breakpoints: L ∩ the line through an end of a and an end of b
-    ta, wa = t[:, 0][:, :, None], w[:, 0][:, :, None]
-    tb, wb = t[:, 1][:, None, :], w[:, 1][:, None, :]
-    dw = wb - wa
-    with np.errstate(divide="ignore", invalid="ignore"):
-        br = np.where(np.abs(dw) > tiny, ta - wa * (tb - ta) / dw, np.nan).reshape(-1, 4)
-    # pieces of L between the breakpoints, from far before to far after the face
-    ref = np.mean(scene.face_loops(face)[0], axis=0) @ dl.T  # (k,) the face's centre along L
-    far = 2.0 * scene.diagonal
-    br = np.clip(br, (ref - far)[:, None], (ref + far)[:, None])
-    grid = np.sort(np.concatenate([(ref - far)[:, None], br, (ref + far)[:, None]], axis=1), axis=1)
-    grid = np.where(np.isnan(grid), (ref + far)[:, None], grid)  # NaNs sort last: no piece
-    t0, t1 = grid[:, :-1], grid[:, 1:]
-    mid = 0.5 * (t0 + t1)  # (k, 5)
-    ang_a = np.sort(np.arctan2(w[:, 0][:, None, :], t[:, 0][:, None, :] - mid[:, :, None]), axis=2)
-    ang_b = np.sort(np.arctan2(w[:, 1][:, None, :], t[:, 1][:, None, :] - mid[:, :, None]), axis=2)
-    overlap = np.minimum(ang_a[..., 1], ang_b[..., 1]) - np.maximum(ang_a[..., 0], ang_b[..., 0])
-    live = (overlap > 1e-12) & (t1 - t0 > tiny)
-    k, j = np.nonzero(live)
-    return o[k] + t0[k, j, None] * dl[k], o[k] + t1[k, j, None] * dl[k]
+    pairs (a, b), a in [a0, a1) and b > a (:func:`kink_segments`; ``p`` (g, 2, 3) the
+    segments, ``q`` them clipped to the front half-space, ``u`` (g, 3) their directions;
+    ``centre`` (3,) the face's, ``far`` how far along L from it a piece may run)."""
+    return _pair_kinks_compiled(np.asarray(n, np.float64), float(c), float(tiny), p, q, u, centre, float(far), int(a0), int(a1))
+
+
+@njit(cache=True, nogil=True)
+def _dot(x, y):
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+
+
+@njit(cache=True, nogil=True)
+def _cross(x, y, out):
+    out[0] = x[1] * y[2] - x[2] * y[1]
+    out[1] = x[2] * y[0] - x[0] * y[2]
+    out[2] = x[0] * y[1] - x[1] * y[0]
+
+
+@njit(cache=True, nogil=True)
+def _pair_kinks_compiled(n, c, tiny, p, q, u, centre, far, a0, a1):
+    g = len(p)
+    cap = 1024
+    starts = np.empty((cap, 3))
+    ends = np.empty((cap, 3))
+    k = 0
+    m, dl, up, w0, w1, o = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3))
+    t = np.empty((2, 2))
+    w = np.empty((2, 2))
+    grid = np.empty(6)
+    for a in range(a0, a1):
+        for b in range(a + 1, g):
+            # the plane Π of the two (unclipped) lines: normal ua × ub, or ua × (pb − pa)
+            # when they are parallel
+            for d in range(3):
+                w0[d] = p[b, 0, d] - p[a, 0, d]
+                w1[d] = p[b, 1, d] - p[a, 0, d]
+            _cross(u[a], u[b], m)
+            if np.sqrt(_dot(m, m)) < 1e-9:
+                _cross(u[a], w0, m)
+            mn = np.sqrt(_dot(m, m))
+            if not mn > tiny:
+                continue
+            for d in range(3):
+                m[d] /= mn
+            if abs(_dot(w0, m)) > tiny or abs(_dot(w1, m)) > tiny:
+                continue  # not in one plane
+            _cross(m, n, dl)  # L's direction
+            dn = np.sqrt(_dot(dl, dl))
+            if not dn > 1e-9:
+                continue  # Π is I's plane, or parallel to it
+            for d in range(3):
+                dl[d] /= dn
+            _cross(m, dl, up)  # in Π, across L, pointing away from I (up · n > 0)
+            sg = np.sign(_dot(up, n))
+            for d in range(3):
+                up[d] *= sg
+            s = _dot(up, n)  # sin of the angle between Π and I's plane
+            # 2-D coordinates in Π: t = y · dl, w = height / s
+            for x in range(2):
+                e = a if x == 0 else b
+                for y in range(2):
+                    t[x, y] = _dot(q[e, y], dl)
+                    w[x, y] = max(_dot(q[e, y], n) - c, 0.0) / s
+            # o: the point of L with o · dl = 0
+            for d in range(3):
+                o[d] = q[a, 0, d] - t[0, 0] * dl[d] - w[0, 0] * up[d]
+            # breakpoints: L ∩ the line through an end of a and an end of b, clipped to
+            # far before and after the face's centre along L (NaN: none)
+            ref = _dot(centre, dl)
+            lo, hi = ref - far, ref + far
+            grid[0] = lo
+            for i in range(2):
+                for j in range(2):
+                    dw = w[1, j] - w[0, i]
+                    v = t[0, i] - w[0, i] * (t[1, j] - t[0, i]) / dw if abs(dw) > tiny else np.nan
+                    grid[1 + 2 * i + j] = min(max(v, lo), hi) if v == v else np.nan
+            grid[5] = hi
+            # sorted, the NaNs last and then the far end: no piece
+            for i in range(1, 6):
+                v = grid[i]
+                j = i
+                while j > 0 and (grid[j - 1] != grid[j - 1] or (v == v and grid[j - 1] > v)):
+                    grid[j] = grid[j - 1]
+                    j -= 1
+                grid[j] = v
+            for i in range(6):
+                if grid[i] != grid[i]:
+                    grid[i] = hi
+            for j in range(5):
+                t0, t1 = grid[j], grid[j + 1]
+                if not t1 - t0 > tiny:
+                    continue
+                mid = 0.5 * (t0 + t1)
+                # each piece kept where, from its middle, the angular intervals of a and b overlap
+                p0, p1 = np.arctan2(w[0, 0], t[0, 0] - mid), np.arctan2(w[0, 1], t[0, 1] - mid)
+                r0, r1 = np.arctan2(w[1, 0], t[1, 0] - mid), np.arctan2(w[1, 1], t[1, 1] - mid)
+                if not min(max(p0, p1), max(r0, r1)) - max(min(p0, p1), min(r0, r1)) > 1e-12:
+                    continue
+                if k == cap:
+                    cap *= 2
+                    starts = _grown(starts, cap)
+                    ends = _grown(ends, cap)
+                for d in range(3):
+                    starts[k, d] = o[d] + t0 * dl[d]
+                    ends[k, d] = o[d] + t1 * dl[d]
+                k += 1
+    return starts[:k].copy(), ends[:k].copy()
+
+
+@njit(cache=True, nogil=True)
+def _grown(x, cap):
+    out = np.empty((cap, x.shape[1]))
+    out[:len(x)] = x
+    return out
 
 
 def merge_collinear(a, b, centre, scale):
@@ -267,27 +332,137 @@ def merge_collinear(a, b, centre, scale):
     Returns
     -------
     (s, 2, 3) float64
+        The lines in the order of their keys (direction, then foot, rounded), each line's
+        pieces in order along it.
     """
     if not len(a):
         return np.zeros((0, 2, 3))
-    d = b - a
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    # one direction per line: the first non-zero coordinate positive
-    first = np.argmax(np.abs(d) > 1e-12, axis=1)
-    d *= np.sign(d[np.arange(len(d)), first])[:, None]
-    foot = a + np.einsum("kj,kj->k", centre - a, d)[:, None] * d  # the line's point nearest the centre
-    key = np.round(np.concatenate([d, (foot - centre) / scale], axis=1) * 1e9).astype(np.int64)
-    _, line = unique_rows(key)
-    ta, tb = np.einsum("kj,kj->k", a - foot, d), np.einsum("kj,kj->k", b - foot, d)
-    t0, t1 = np.minimum(ta, tb), np.maximum(ta, tb)
-    order = np.lexsort((t0, line))
-    line, t0, t1, d, foot = line[order], t0[order], t1[order], d[order], foot[order]
-    # a piece starts a new run where its line changes or it begins past the run's end so far
-    big = 4.0 * (np.abs(t1).max() + np.abs(t0).max() + 1.0)
-    reach = np.maximum.accumulate(t1 + big * line)  # the running end within each line
-    start = np.ones(len(t0), bool)
-    start[1:] = (line[1:] != line[:-1]) | (t0[1:] + big * line[1:] > reach[:-1] + 1e-9 * scale)
-    lo = t0[start]
-    hi = np.maximum.reduceat(t1, np.flatnonzero(start))
-    d, foot = d[start], foot[start]
-    return np.stack([foot + lo[:, None] * d, foot + hi[:, None] * d], axis=1)
+    a, b = np.ascontiguousarray(a, np.float64), np.ascontiguousarray(b, np.float64)
+    d, foot, key, t0, t1 = _line_keys(a, b, np.asarray(centre, np.float64), float(scale))
+    line, first = _line_ids(key)
+    rank = np.empty(len(first), np.int64)
+    rank[np.lexsort(key[first].T[::-1])] = np.arange(len(first))
+    return _merged_runs(rank[line], len(first), d, foot, t0, t1, 1e-9 * scale)
+
+
+@njit(cache=True, nogil=True)
+def _line_keys(a, b, centre, scale):
+    """Each segment's line: its direction d (the first non-zero coordinate positive), its
+    point nearest ``centre`` (the foot), the two rounded to 1e-9 (of ``scale``) as the
+    line's key (k, 6) int64, and the segment's span t0 ≤ t1 along d from the foot."""
+    k = len(a)
+    d = np.empty((k, 3))
+    foot = np.empty((k, 3))
+    key = np.empty((k, 6), np.int64)
+    t0 = np.empty(k)
+    t1 = np.empty(k)
+    for i in range(k):
+        for j in range(3):
+            d[i, j] = b[i, j] - a[i, j]
+        norm = np.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
+        first = 0
+        for j in range(3):
+            d[i, j] /= norm
+        for j in range(3):
+            if abs(d[i, j]) > 1e-12:
+                first = j
+                break
+        sg = np.sign(d[i, first])
+        for j in range(3):
+            d[i, j] *= sg
+        s = (centre[0] - a[i, 0]) * d[i, 0] + (centre[1] - a[i, 1]) * d[i, 1] + (centre[2] - a[i, 2]) * d[i, 2]
+        for j in range(3):
+            foot[i, j] = a[i, j] + s * d[i, j]
+            key[i, j] = np.int64(np.rint(d[i, j] * 1e9))
+            key[i, 3 + j] = np.int64(np.rint((foot[i, j] - centre[j]) / scale * 1e9))
+        ta = (a[i, 0] - foot[i, 0]) * d[i, 0] + (a[i, 1] - foot[i, 1]) * d[i, 1] + (a[i, 2] - foot[i, 2]) * d[i, 2]
+        tb = (b[i, 0] - foot[i, 0]) * d[i, 0] + (b[i, 1] - foot[i, 1]) * d[i, 1] + (b[i, 2] - foot[i, 2]) * d[i, 2]
+        t0[i] = min(ta, tb)
+        t1[i] = max(ta, tb)
+    return d, foot, key, t0, t1
+
+
+@njit(cache=True, nogil=True)
+def _line_ids(key):
+    """Equal rows of ``key`` (k, 6) int64 as one line: each row's line (k,) int64, numbered
+    in order of first appearance, and the first row of each (L,) int64 (a hash table)."""
+    k = len(key)
+    size = 1
+    while size < 2 * k:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    line = np.empty(k, np.int64)
+    first = np.empty(k, np.int64)
+    n = 0
+    for i in range(k):
+        h = np.uint64(1469598103934665603)
+        for j in range(6):
+            h = (h ^ np.uint64(key[i, j])) * np.uint64(1099511628211)
+        slot = np.int64(h >> np.uint64(16)) & (size - 1)
+        while True:
+            r = table[slot]
+            if r < 0:
+                table[slot] = n
+                first[n] = i
+                line[i] = n
+                n += 1
+                break
+            f = first[r]
+            same = True
+            for j in range(6):
+                if key[f, j] != key[i, j]:
+                    same = False
+                    break
+            if same:
+                line[i] = r
+                break
+            slot = (slot + 1) & (size - 1)
+    return line, first[:n].copy()
+
+
+@njit(cache=True, nogil=True)
+def _merged_runs(line, lines, d, foot, t0, t1, gap):
+    """The union of each line's pieces (:func:`merge_collinear`): the pieces grouped by
+    ``line`` (k,) int64 in [0, lines) in that order, along each line by t0 (ties in input
+    order); a piece starts a new run where it begins more than ``gap`` past the run's end
+    so far. Each run is ``foot + [t0, max t1] d`` of its first piece."""
+    k = len(line)
+    count = np.zeros(lines + 1, np.int64)
+    for i in range(k):
+        count[line[i] + 1] += 1
+    for r in range(lines):
+        count[r + 1] += count[r]
+    order = np.empty(k, np.int64)
+    fill = count[:-1].copy()
+    for i in range(k):
+        order[fill[line[i]]] = i
+        fill[line[i]] += 1
+    out = np.empty((k, 2, 3))
+    m = 0
+    for r in range(lines):
+        # along t0, ties in input order (most lines have few pieces: insertion sort)
+        if count[r + 1] - count[r] > 16:
+            mine = order[count[r]:count[r + 1]]
+            order[count[r]:count[r + 1]] = mine[np.argsort(t0[mine], kind="mergesort")]
+        else:
+            for x in range(count[r] + 1, count[r + 1]):
+                i = order[x]
+                y = x
+                while y > count[r] and t0[order[y - 1]] > t0[i]:
+                    order[y] = order[y - 1]
+                    y -= 1
+                order[y] = i
+        i = order[count[r]]
+        lo, hi = t0[i], t1[i]
+        for x in range(count[r] + 1, count[r + 1] + 1):
+            if x < count[r + 1] and not t0[order[x]] > hi + gap:
+                hi = max(hi, t1[order[x]])
+                continue
+            for j in range(3):
+                out[m, 0, j] = foot[i, j] + lo * d[i, j]
+                out[m, 1, j] = foot[i, j] + hi * d[i, j]
+            m += 1
+            if x < count[r + 1]:
+                i = order[x]
+                lo, hi = t0[i], t1[i]
+    return out[:m].copy()

@@ -75,7 +75,7 @@ from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_b
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.parallel import default_workers, map_chunks, row_chunks
-from viscx.queries.kinks import face_generators, kink_segments, sky_generators
+from viscx.queries.kinks import face_generators, kink_segments, load_kink_kernels, sky_generators
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -4016,13 +4016,16 @@ def load_row_kernels(scene):
     """Load (or compile) the numba kernels of :func:`row_form_factors` with the types its
     calls have, on no points: a parent that does so before forking its workers loads them
     once (~0.4 CPU s on the Cornell box) instead of once per worker (every kernel a row
-    calls: `NUMBA_DEBUG_CACHE=1` shows each loaded once in a matrix)."""
+    calls, the kink lines' and the cuts' too: `NUMBA_DEBUG_CACHE=1` shows each loaded
+    once in a matrix)."""
     n_i = np.asarray(scene.face_normal[0], np.float64)
     eu, ev = plane_basis(n_i)
     point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, *closed_boxes(scene))
     none_i, none_f = np.zeros(0, np.int64), np.zeros((0, 3))
     shaft_meets(np.zeros((0, 3, 3)), none_f, none_f, n_i, none_i, none_i, none_f, none_i, none_i, none_f, 1.0)
     shaft_boxes_meet(np.zeros((0, 3, 3)), none_f, none_i, none_i, none_f, none_i, none_i, 1.0)
+    cut_pieces(np.zeros((0, 2)), np.zeros(1, np.int64), none_i, np.zeros((0, 2, 2)), np.zeros(0), 1.0, -1)
+    load_kink_kernels()
 
 
 _POOL_SCENE = None

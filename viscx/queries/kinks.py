@@ -188,6 +188,15 @@ def kink_segments(scene, face, side, generators=None, past=None):
     return merge_collinear(np.concatenate(starts), np.concatenate(ends), centre, scene.diagonal)
 
 
+def load_kink_kernels():
+    """Load (or compile) this module's numba kernels with the types :func:`kink_segments`
+    calls them with, on nothing (a matrix's parent before it forks: once, not once in each
+    worker; ~0.07 CPU s a process)."""
+    none = np.zeros((0, 2, 3))
+    _pair_kinks(np.array([0.0, 0.0, 1.0]), 0.0, 1.0, none, none, np.zeros((0, 3)), np.zeros(3), 1.0, 0, 0)
+    merge_collinear(np.zeros((1, 3)), np.ones((1, 3)), np.zeros(3), 1.0)
+
+
 def _row_blocks(g, size, first=None):
     """The pairs a < b of ``g`` segments as blocks ``(a0, a1)`` of whole rows a in
     [a0, a1) (each with its pairs b > a), of about ``size`` pairs, so that memory stays
@@ -211,7 +220,8 @@ def _pair_kinks(n, c, tiny, p, q, u, centre, far, a0, a1):
     pairs (a, b), a in [a0, a1) and b > a (:func:`kink_segments`; ``p`` (g, 2, 3) the
     segments, ``q`` them clipped to the front half-space, ``u`` (g, 3) their directions;
     ``centre`` (3,) the face's, ``far`` how far along L from it a piece may run)."""
-    return _pair_kinks_compiled(np.asarray(n, np.float64), float(c), float(tiny), p, q, u, centre, float(far), int(a0), int(a1))
+    return _pair_kinks_compiled(np.asarray(n, np.float64), float(c), float(tiny), p, q, u, np.asarray(centre, np.float64),
+                                float(far), int(a0), int(a1))
 
 
 @njit(cache=True, nogil=True)

@@ -4016,14 +4016,24 @@ def load_row_kernels(scene):
     """Load (or compile) the numba kernels of :func:`row_form_factors` with the types its
     calls have, on no points: a parent that does so before forking its workers loads them
     once (~0.4 CPU s on the Cornell box) instead of once per worker (every kernel a row
-    calls, the kink lines' and the cuts' too: `NUMBA_DEBUG_CACHE=1` shows each loaded
-    once in a matrix)."""
+    calls, the kink lines', the cuts' and the searches' too: `NUMBA_DEBUG_CACHE=1` shows
+    each loaded once in a matrix). :mod:`viscx.warmup` calls it through its matrix, so
+    that those are compiled at install, the room's versions of :func:`point_views` too."""
     n_i = np.asarray(scene.face_normal[0], np.float64)
     eu, ev = plane_basis(n_i)
-    point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, *closed_boxes(scene))
+    face_box, box_ptr, box_planes = closed_boxes(scene)
+    point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, face_box, box_ptr, box_planes)
+    # a row of few faces sweeps without the runs' records (point_views): its version too
+    one = np.zeros(1, np.int64)
+    point_views(np.zeros((0, 3)), n_i, eu, ev, *polygon_subset(scene, one), 0, 1.0, np.ascontiguousarray(face_box[one]),
+                box_ptr, box_planes)
     none_i, none_f = np.zeros(0, np.int64), np.zeros((0, 3))
     shaft_meets(np.zeros((0, 3, 3)), none_f, none_f, n_i, none_i, none_i, none_f, none_i, none_i, none_f, 1.0)
     shaft_boxes_meet(np.zeros((0, 3, 3)), none_f, none_i, none_i, none_f, none_i, none_i, 1.0)
+    # the shadow and gap searches' (PairSetup.umbra, GapSearch) and the cells' cuts
+    umbra_triangles(np.zeros((0, 3, 3)), none_f, n_i, 0.0, eu, ev, np.zeros(0), np.zeros(1, np.int64), np.zeros((0, 4)),
+                    1.0)
+    segments_crossing(np.zeros((0, 2, 2)), np.zeros((0, 3, 2)), 1.0)
     cut_pieces(np.zeros((0, 2)), np.zeros(1, np.int64), none_i, np.zeros((0, 2, 2)), np.zeros(0), 1.0, -1)
     load_kink_kernels()
 

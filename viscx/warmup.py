@@ -123,24 +123,11 @@ def warm_up_flatland(folder):
         move(complex_, 1, 0.25, -0.1)
 
 
-def room_point_views(scene):
-    """Compile the version of :func:`viscx.geometry.occlusion.point_views` that rooms of
-    more than ``SWEEP_RUNS_FROM`` projected edges sweep with (its runs' records; the small
-    scenes here take the other), on no points."""
-    from viscx.geometry.occlusion import point_views
-    from viscx.geometry.polygon import plane_basis
-    from viscx.queries.formfactor import closed_boxes, scene_polygons
-
-    n_i = np.asarray(scene.face_normal[0], np.float64)
-    eu, ev = plane_basis(n_i)
-    point_views(np.zeros((0, 3)), n_i, eu, ev, *scene_polygons(scene), 0, 1.0, *closed_boxes(scene), sweep_kind=2)
-
-
 def warm_up():
     """Run every kernel once; returns the seconds it took."""
     from viscx.pipeline import build_file
     from viscx.queries.discontinuities import open_discontinuities
-    from viscx.queries.formfactor import face_to_face, form_factor_matrix, point_to_faces
+    from viscx.queries.formfactor import face_to_face, form_factor_matrix, load_row_kernels, point_to_faces
     from viscx.queries.shadows import shadows
     from viscx.queries.visibility import open_query, view_from
     from viscx.render.camera import Camera
@@ -162,7 +149,7 @@ def warm_up():
         matrix = Path(folder) / "matrix.obj"
         matrix.write_text(MATRIX)
         form_factor_matrix(load_scene(matrix), tol=1e-3, workers=1)  # in this process: its cache, not a fork's
-        room_point_views(load_scene(matrix))
+        load_row_kernels(load_scene(matrix), every_sweep=True)  # a room's sweep too
         scene, mesh = open_discontinuities(h5, light_group="light")
         camera = Camera([2.0, 1.5, -4.0], [2.0, 1.0, 2.0], [0, 1, 0], 45.0, 24, 24)
         for options in ({}, {"samples": 40}, {"reference": 2}):

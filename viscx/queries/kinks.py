@@ -47,6 +47,8 @@ discontinuity mesh of a light leaves out, and because a row needs the D1 lines o
 import numpy as np
 from numba import njit
 
+from viscx.geometry.vec3 import axpy, cross, div, dot, row, set_row, sub
+
 
 #: More generator segments in front of a face than this: no kink lines (None), the caller
 #: keeps the cells without them. Their pairs are quadratic in number (10⁸ past 14,000), and
@@ -225,68 +227,54 @@ def _pair_kinks(n, c, tiny, p, q, u, centre, far, a0, a1):
 
 
 @njit(cache=True, nogil=True)
-def _dot(x, y):
-    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
-
-
-@njit(cache=True, nogil=True)
-def _cross(x, y, out):
-    out[0] = x[1] * y[2] - x[2] * y[1]
-    out[1] = x[2] * y[0] - x[0] * y[2]
-    out[2] = x[0] * y[1] - x[1] * y[0]
-
-
-@njit(cache=True, nogil=True)
 def _pair_kinks_compiled(n, c, tiny, p, q, u, centre, far, a0, a1):
     g = len(p)
     cap = 1024
     starts = np.empty((cap, 3))
     ends = np.empty((cap, 3))
     k = 0
-    m, dl, up, w0, w1, o = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3))
     t = np.empty((2, 2))
     w = np.empty((2, 2))
     grid = np.empty(6)
+    nv = (n[0], n[1], n[2])
     for a in range(a0, a1):
+        pa, ua = _end(p, a, 0), row(u, a)
         for b in range(a + 1, g):
             # the plane Π of the two (unclipped) lines: normal ua × ub, or ua × (pb − pa)
             # when they are parallel
-            for d in range(3):
-                w0[d] = p[b, 0, d] - p[a, 0, d]
-                w1[d] = p[b, 1, d] - p[a, 0, d]
-            _cross(u[a], u[b], m)
-            if np.sqrt(_dot(m, m)) < 1e-9:
-                _cross(u[a], w0, m)
-            mn = np.sqrt(_dot(m, m))
+            w0, w1 = sub(_end(p, b, 0), pa), sub(_end(p, b, 1), pa)
+            m = cross(ua, row(u, b))
+            if np.sqrt(dot(m, m)) < 1e-9:
+                m = cross(ua, w0)
+            mn = np.sqrt(dot(m, m))
             if not mn > tiny:
                 continue
-            for d in range(3):
-                m[d] /= mn
-            if abs(_dot(w0, m)) > tiny or abs(_dot(w1, m)) > tiny:
+            m = div(m, mn)
+            if abs(dot(w0, m)) > tiny or abs(dot(w1, m)) > tiny:
                 continue  # not in one plane
-            _cross(m, n, dl)  # L's direction
-            dn = np.sqrt(_dot(dl, dl))
+            dl = cross(m, nv)  # L's direction
+            dn = np.sqrt(dot(dl, dl))
             if not dn > 1e-9:
                 continue  # Π is I's plane, or parallel to it
-            for d in range(3):
-                dl[d] /= dn
-            _cross(m, dl, up)  # in Π, across L, pointing away from I (up · n > 0)
-            sg = np.sign(_dot(up, n))
-            for d in range(3):
-                up[d] *= sg
-            s = _dot(up, n)  # sin of the angle between Π and I's plane
+            dl = div(dl, dn)
+            up = cross(m, dl)  # in Π, across L, pointing away from I (up · n > 0)
+            sg = np.sign(dot(up, nv))
+            up = (up[0] * sg, up[1] * sg, up[2] * sg)
+            s = dot(up, nv)  # sin of the angle between Π and I's plane
             # 2-D coordinates in Π: t = y · dl, w = height / s
             for x in range(2):
                 e = a if x == 0 else b
                 for y in range(2):
-                    t[x, y] = _dot(q[e, y], dl)
-                    w[x, y] = max(_dot(q[e, y], n) - c, 0.0) / s
+                    end = _end(q, e, y)
+                    t[x, y] = dot(end, dl)
+                    w[x, y] = max(dot(end, nv) - c, 0.0) / s
             # o: the point of L with o · dl = 0
-            for d in range(3):
-                o[d] = q[a, 0, d] - t[0, 0] * dl[d] - w[0, 0] * up[d]
+            qa = _end(q, a, 0)
+            o = (qa[0] - t[0, 0] * dl[0] - w[0, 0] * up[0], qa[1] - t[0, 0] * dl[1] - w[0, 0] * up[1],
+                 qa[2] - t[0, 0] * dl[2] - w[0, 0] * up[2])
             # breakpoints: L ∩ the line through an end of a and an end of b, clipped to
             # far before and after the face's centre along L (NaN: none)
-            ref = _dot(centre, dl)
+            ref = dot((centre[0], centre[1], centre[2]), dl)
             lo, hi = ref - far, ref + far
             grid[0] = lo
             for i in range(2):
@@ -320,11 +308,16 @@ def _pair_kinks_compiled(n, c, tiny, p, q, u, centre, far, a0, a1):
                     cap *= 2
                     starts = _grown(starts, cap)
                     ends = _grown(ends, cap)
-                for d in range(3):
-                    starts[k, d] = o[d] + t0 * dl[d]
-                    ends[k, d] = o[d] + t1 * dl[d]
+                set_row(starts, k, axpy(o, t0, dl))
+                set_row(ends, k, axpy(o, t1, dl))
                 k += 1
     return starts[:k].copy(), ends[:k].copy()
+
+
+@njit(cache=True, nogil=True)
+def _end(seg, i, j):
+    """End j of segment i of ``seg`` (k, 2, 3) as a tuple."""
+    return (seg[i, j, 0], seg[i, j, 1], seg[i, j, 2])
 
 
 @njit(cache=True, nogil=True)

@@ -193,6 +193,8 @@ from numba import njit
 
 from viscx.arrays import row_norms, unique_rows
 from viscx.geometry.lines import line_through_point_and_two_lines, lines_through_four_lines
+from viscx.geometry.vec3 import add as _add, axpy as _axpy, cross as _cross, div as _div, dot as _dot
+from viscx.geometry.vec3 import row as _row, row4 as _row4, set_row as _set_row, sub as _sub
 from viscx.grid import bin_boxes, cell_of
 from viscx.parallel import map_chunks
 from viscx.progress import bar
@@ -565,62 +567,6 @@ class _Grid:
     def fill(self, a, b):
         """CSR lists (offsets, items) of the segments ab in each cell."""
         return bin_boxes(self.lo, self.cell, self.dims, np.minimum(a, b), np.maximum(a, b))
-
-
-@njit(cache=True, nogil=True)
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-# Small vectors are tuples in the kernels (no heap allocation in the hot loops); the
-# helpers do numpy's operations in numpy's order, so the floats are the same. Rows of
-# arrays are read into tuples (:func:`_row`), never taken as views: each view of an
-# array costs an atomic update of the array's reference count, and the scan threads
-# share the arrays, so those updates contend (they made the hull scans several times
-# slower).
-
-
-@njit(cache=True, nogil=True)
-def _row(x, i):
-    """Row i of an (n, 3) array as a tuple."""
-    return (x[i, 0], x[i, 1], x[i, 2])
-
-
-@njit(cache=True, nogil=True)
-def _row4(x, i):
-    """Row i of an (n, 4) array as a tuple."""
-    return (x[i, 0], x[i, 1], x[i, 2], x[i, 3])
-
-
-@njit(cache=True, nogil=True)
-def _set_row(x, i, v):
-    x[i, 0], x[i, 1], x[i, 2] = v[0], v[1], v[2]
-
-
-@njit(cache=True, nogil=True)
-def _cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@njit(cache=True, nogil=True)
-def _sub(a, b):
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-@njit(cache=True, nogil=True)
-def _add(a, b):
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-@njit(cache=True, nogil=True)
-def _axpy(p, s, d):
-    """p + s d."""
-    return (p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2])
-
-
-@njit(cache=True, nogil=True)
-def _div(a, s):
-    return (a[0] / s, a[1] / s, a[2] / s)
 
 
 @njit(cache=True, nogil=True)

@@ -3920,8 +3920,8 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     estimate; at 1e-4 1.05 times the rows' CPU on office(300), 1.155 on office(1000)).
     A three-level row's computed column that is mostly hidden (:func:`mostly_hidden`: seen
     from a few nodes, perhaps through a band between them) is the pair's query instead
-    (:func:`pair_form_factor` at ``tol``, cut along the pair's own kink lines), counted
-    as ``"mostly hidden"``.
+    where that is cut along the pair's own kink lines (:func:`pair_form_factor` at
+    ``tol``), counted as ``"mostly hidden"``.
 
     Returns what :func:`emitter_row` returns.
     """
@@ -4027,13 +4027,15 @@ def row_form_factors(scene, face, side, faces, tol, sky=True, reciprocal=False, 
     taken = 0
     if not kinked:
         # a mostly hidden column's three levels do not bound a band seen between their
-        # nodes; the pair's query cuts along its own kink lines (docs/queries.md)
+        # nodes; the pair's query does where it cuts along its own kink lines (on three
+        # levels too, it starts on coarser triangles than the row: docs/queries.md)
         by_column = {c: (target, t) for target, t, c in targets}
         for c in np.flatnonzero(wanted & mostly_hidden(F, f0)):
             target, t = by_column[int(c)]
-            pair = pair_form_factor(scene, face, side, target, t, tol, threads=threads)
-            F[c], E[c] = pair.F, pair.error
-            taken += 1
+            if cubature_cells(scene, face, side, receivers=[target.face], pairs=True)[2]:
+                pair = pair_form_factor(scene, face, side, target, t, tol, threads=threads)
+                F[c], E[c] = pair.F, pair.error
+                taken += 1
     cols = np.flatnonzero(wanted & (F != 0.0))
     counts = {"contour": int(np.sum(wanted & (f0 != 0) & (h == 0))), "quadrature": int(np.sum(wanted & (h != 0))),
               "evaluations": int(cub.evaluations), "mostly hidden": taken}

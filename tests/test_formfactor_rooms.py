@@ -609,7 +609,8 @@ def test_a_mostly_hidden_pair_is_confirmed_on_finer_first_triangles(office300, m
     half as long until the change is within the new estimate
     (:func:`viscx.queries.formfactor.confirm_mostly_hidden`): within its estimate of an
     independent product Gauss quadrature of the pair's kernel (:data:`PANEL_TO_WALL`,
-    checked here on 32 × 32 panels to 1e-9), at 1e-6 and at 1e-4."""
+    checked here on 32 × 32 panels to 1e-9), at 1e-6 and at 1e-4. Its progress counts the
+    points of all the integrals, never going back."""
     emitter, wall, reference = PANEL_TO_WALL
     assert office300.group_names[office300.face_group[emitter]] == "desk0"
     assert office300.group_names[office300.face_group[wall]] == "wall_west"
@@ -620,12 +621,14 @@ def test_a_mostly_hidden_pair_is_confirmed_on_finer_first_triangles(office300, m
     _, _, kinked = ff.cubature_cells(office300, emitter, 1, receivers=[wall], pairs=True)
     assert not kinked  # the pair's kink lines cut its side into too many cells
 
-    def pair(tol):
-        return ff.pair_form_factor(office300, emitter, 1, ff.face_target(office300, wall), 1, tol)
+    def pair(tol, progress=None):
+        return ff.pair_form_factor(office300, emitter, 1, ff.face_target(office300, wall), 1, tol, progress=progress)
 
     for tol in (1e-6, 1e-4):
-        r = pair(tol)
+        told = []
+        r = pair(tol, lambda points, ratio: told.append(points))
         assert abs(r.F - reference) <= r.error, (tol, r.F, r.error)
+        assert np.all(np.diff(told) >= 0) and told[-1] == r.evaluations > 294, (told, r.evaluations)
     monkeypatch.setattr(ff, "CONFIRM_HALVINGS", 0)
     r = pair(1e-6)
     assert abs(r.F - reference) > 1.5 * r.error, (r.F, r.error)

@@ -2408,9 +2408,9 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
     budget = max(tol - err, 0.1 * tol) * setup.area_i
     hidden, hidden_err, evals, n_cells = setup.blocked_integral(budget, threads, progress)
     if not setup.kinked:
-        hidden, hidden_err, more, more_cells = confirm_mostly_hidden(setup, value, hidden, hidden_err, budget, threads,
-                                                                     progress)
-        evals, n_cells = evals + more, n_cells + more_cells
+        hidden, hidden_err, evals, more_cells = confirm_mostly_hidden(setup, value, hidden, hidden_err, budget, threads,
+                                                                      progress, evals)
+        n_cells += more_cells
     return PairResult(value - hidden / setup.area_i, err + hidden_err / setup.area_i, "quadrature", len(setup.occluders),
                       evals, n_cells, time.perf_counter() - t0)
 
@@ -2430,36 +2430,46 @@ def mostly_hidden(F, F0):
     return (F > UNSEEN) & (F < THIN_BAND * F0)
 
 
-def confirm_mostly_hidden(setup, F0, hidden, err, budget, threads=1, progress=None):
-    """A three-level pair's hidden integral (``hidden``, ``err``: :meth:`PairSetup.blocked_integral`,
-    in area × F), confirmed where the pair is mostly hidden (:func:`mostly_hidden`; ``F0``
-    its unoccluded F): integrated again on first triangles half as long (four times as
-    many, the nodes twice as dense), until the change is within the new integral's
-    estimate, at most :data:`CONFIRM_HALVINGS` times; the last is kept, its estimate at
-    least the last change (as if the change were all the coarser one's error: a loose
-    estimate before does not vouch for a tight one after). The first triangles are 1 / :data:`MIN_SPLIT` of the
-    pair's box, metres wide when J' is a wall, and what their nodes see of it through
-    the gaps between furniture is then a few of their 147 values (office(300), desk0's
-    side panel → the west wall: 3.3214e-6 ± 1.3e-7 at 1e-6 on 2 first triangles,
+def confirm_mostly_hidden(setup, F0, hidden, err, budget, threads=1, progress=None, evaluations=0):
+    """A three-level pair's hidden integral (``hidden``, ``err``:
+    :meth:`PairSetup.blocked_integral`, in area × F, of ``evaluations`` points), confirmed
+    where the pair is mostly hidden (:func:`mostly_hidden`; ``F0`` its unoccluded F):
+    integrated again on first triangles half as long (four times as many, the nodes twice
+    as dense), until the change is within the new integral's estimate, at most
+    :data:`CONFIRM_HALVINGS` times; the last is kept, its estimate at least the last
+    change (as if the change were all the coarser one's error: a loose estimate before
+    does not vouch for a tight one after). The first triangles are 1 / :data:`MIN_SPLIT`
+    of the pair's box, metres wide when J' is a wall, and what their nodes see of it
+    through the gaps between furniture is then a few of their 147 values (office(300),
+    desk0's side panel → the west wall: 3.3214e-6 ± 1.3e-7 at 1e-6 on 2 first triangles,
     3.0501e-6 ± 7.6e-8 on 8 and 3.0550e-6 ± 7.0e-8 on 32, the oracle 3.05173e-6).
+    ``progress(points, ratio)`` is told the points of all the integrals so far.
 
     Returns
     -------
     hidden, err : float
-    evaluations, cells : int
-        Those of the integrals added.
+    evaluations : int
+        The points of all the integrals.
+    cells : int
+        The triangles of the integrals added.
     """
-    area, evals, cells = setup.area_i, 0, 0
+    area, cells = setup.area_i, 0
     halvings = 0
     while mostly_hidden(F0 - hidden / area, F0) and halvings < CONFIRM_HALVINGS:
         halvings += 1
-        again, again_err, e, c = setup.blocked_integral(budget, threads, progress, halvings)
-        evals, cells = evals + e, cells + c
+        told = None if progress is None else functools.partial(_told_after, progress, evaluations)
+        again, again_err, e, c = setup.blocked_integral(budget, threads, told, halvings)
+        evaluations, cells = evaluations + e, cells + c
         change = abs(again - hidden)
         hidden, err = again, max(again_err, change)
         if change <= again_err:
             break
-    return hidden, err, evals, cells
+    return hidden, err, evaluations, cells
+
+
+def _told_after(progress, before, points, ratio):
+    """``progress(before + points, ratio)``: a cubature's points after ``before`` others."""
+    progress(before + points, ratio)
 
 
 def _cell_area(cell):

@@ -269,12 +269,10 @@ def _pair_kinks_compiled(n, c, tiny, p, q, u, centre, far, a0, a1):
                     t[x, y] = dot(end, dl)
                     w[x, y] = max(dot(end, nv) - c, 0.0) / s
             # o: the point of L with o · dl = 0
-            qa = _end(q, a, 0)
-            o = (qa[0] - t[0, 0] * dl[0] - w[0, 0] * up[0], qa[1] - t[0, 0] * dl[1] - w[0, 0] * up[1],
-                 qa[2] - t[0, 0] * dl[2] - w[0, 0] * up[2])
+            o = axpy(axpy(_end(q, a, 0), -t[0, 0], dl), -w[0, 0], up)
             # breakpoints: L ∩ the line through an end of a and an end of b, clipped to
             # far before and after the face's centre along L (NaN: none)
-            ref = dot((centre[0], centre[1], centre[2]), dl)
+            ref = dot(centre, dl)
             lo, hi = ref - far, ref + far
             grid[0] = lo
             for i in range(2):

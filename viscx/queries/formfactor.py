@@ -2152,12 +2152,9 @@ class PairSetup:
                 ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
-            corners = np.concatenate(self.J)
-            area_j, lo_j, hi_j = loops_area(self.J, self.n_t), corners.min(axis=0), corners.max(axis=0)
-
             def blind_bound(tri, need):
-                # what is hidden is at most F(x → J') (:func:`far_bound`)
-                return far_bound(tri, area_j, lo_j, hi_j)[:, None]
+                # what is hidden is at most F(x → J'), as on three levels (Cubature.estimates)
+                return self.unoccluded_bound(tri)[:, None]
 
             cub = RowCubature(column, threads, progress)
             value, error, cells = cub.integrate(tri, np.array([budget]), live, blind_bound=blind_bound)
@@ -3528,17 +3525,6 @@ def front_unoccluded(setup, tri):
     return setup.unoccluded_integral(start_triangles(front, 0.0)) if front else (0.0, 0.0)
 
 
-def far_bound(tri, area_j, lo_j, hi_j):
-    """(g,) float64: an upper bound of ∫ F(x → J) dx over each triangle (g, 3, 3), its area
-    times min(1, A_J / (π d²)), d the distance between the triangle's box and J's
-    (``lo_j``, ``hi_j`` (3,) float64; ``area_j`` A_J): F(x → J) = (1/π) ∫_J cos cos / r² ≤
-    A_J / (π d²), and F ≤ 1."""
-    lo, hi = tri.min(axis=1), tri.max(axis=1)
-    gap = np.maximum(0.0, np.maximum(lo_j - hi, lo - hi_j))
-    with np.errstate(divide="ignore"):
-        return triangle_areas(tri) * np.minimum(1.0, area_j / (np.pi * np.einsum("ij,ij->i", gap, gap)))
-
-
 def unseen_shadow_bound(scene, shafts, f0, e0, area, budget):
     """``bound(tri, blind, seen) -> blind, spent`` for the row cubatures' shadow search:
     where a column's nodes on a first triangle see nothing of it but an occluder meets the
@@ -3560,13 +3546,17 @@ def unseen_shadow_bound(scene, shafts, f0, e0, area, budget):
     def bound(tri, blind, seen):
         blind = blind.copy()
         spent = np.zeros(blind.shape[1])
+        lo, hi = tri.min(axis=1), tri.max(axis=1)
+        a = triangle_areas(tri)
         for setup, c in shafts:
             rows = np.flatnonzero(blind[:, c])
             if not len(rows):
                 continue
             j, there = setup.face_t, float(seen[rows, c].sum())
             allowed = SHADOW_BOUND * budget[c] - there
-            near = far_bound(tri[rows], scene.face_area[j], box_lo[j], box_hi[j])
+            gap = np.maximum(0.0, np.maximum(box_lo[j] - hi[rows], lo[rows] - box_hi[j]))
+            with np.errstate(divide="ignore"):
+                near = a[rows] * np.minimum(1.0, scene.face_area[j] / (np.pi * np.einsum("ij,ij->i", gap, gap)))
             b = min((f0[c] + e0[c]) * area, float(near.sum()))
             if b > allowed:
                 b = sum(front_unoccluded(setup, tri[rows]))

@@ -2152,8 +2152,12 @@ class PairSetup:
                 ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
+            def blind_bound(tri, need):
+                # what is hidden is at most F(x → J'), as on three levels (Cubature.estimates)
+                return self.unoccluded_bound(tri)[:, None]
+
             cub = RowCubature(column, threads, progress)
-            value, error, cells = cub.integrate(tri, np.array([budget]), live)
+            value, error, cells = cub.integrate(tri, np.array([budget]), live, blind_bound=blind_bound)
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads, progress,
                        self.gaps)
@@ -3602,7 +3606,14 @@ class RowCubature:
     those whose shafts still meet such an occluder at their own children (the node
     density of three levels, there only; :meth:`_look_for_shadows`), unless an upper
     bound of what it may hide there is within a quarter of the column's budget
-    (:func:`unseen_shadow_bound`: the bound is then its estimate there).
+    (:func:`unseen_shadow_bound`: the bound is then its estimate there). A triangle the
+    search or a refinement makes whose nodes still see nothing of a column while its
+    shaft meets an occluder is *blind* there: its rule's 0 may miss a shadow between all
+    its nodes (a window sill's top beside the wall's end, which hides the light from a
+    wedge whose apex is the sill's corner: at every size the corner's triangle has no
+    node in it), so it carries ``blind_bound``'s upper bound of what may be hidden there
+    as its estimate (nothing refines a leaf whose estimate is 0), until the bounds are
+    within the budget.
 
     While some column's summed estimate exceeds its budget, that column's leaves with the
     largest estimates are refined (until what is left is :data:`REFINE_LEFT` of its
@@ -3633,26 +3644,29 @@ class RowCubature:
         q, e = row_rules(self, tri, width, (RULE_WEIGHTS, NULL_RULE))
         return q, np.abs(e)
 
-    def integrate(self, tri, budget, live=None, bound=None):
+    def integrate(self, tri, budget, live=None, bound=None, blind_bound=None):
         """∫ over the triangles (g, 3, 3) of every column (:func:`start_triangles`);
         ``budget`` (R,) the targets on the columns' estimates; ``live(tri, need) -> (g, R)
         bool``, where an occluder may hide the column (its shaft test), asked only where
         ``need`` (g, R) bool is set (elsewhere it may say anything); ``bound(tri, blind,
         seen) -> blind, spent``, the columns whose unseen shadows an upper bound settles
-        (:func:`unseen_shadow_bound`). Returns ``value, error`` (R,) and the triangles
-        evaluated."""
+        (:func:`unseen_shadow_bound`); ``blind_bound(tri, need) -> (g, R)``, upper bounds
+        of the integrand's integral over the triangles (asked where ``need`` is set) for
+        the blind leaves (without it they count as their rules say). Returns ``value,
+        error`` (R,) and the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
         spent = np.zeros(width)
+        b = np.zeros((len(tri), width))  # each leaf's blind bound (0: not blind)
         if live is not None:
-            tri, q, e, spent = self._look_for_shadows(tri, q, e, live, width, bound)
+            tri, q, e, b, spent = self._look_for_shadows(tri, q, e, live, width, bound, blind_bound)
             budget = budget - spent
-        # leaves with their children: K (4 per leaf), kq, ke; -1 in kid_of where not evaluated
-        K, kq, ke = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width))
+        # leaves with their children: K (4 per leaf), kq, ke, kb; -1 in kid_of where not evaluated
+        K, kq, ke, kb = np.zeros((0, 3, 3)), np.zeros((0, width)), np.zeros((0, width)), np.zeros((0, width))
         kid_of = np.full(len(tri), -1, np.int64)
         cells = len(tri)
         for _ in range(400):
-            value, err = self._leaves(q, e, kid_of, kq)
+            value, err = self._leaves(q, e, b, kid_of, kq, kb)
             total = err.sum(axis=0)
             over = np.flatnonzero(total > budget)
             if self.progress is not None:
@@ -3665,9 +3679,11 @@ class RowCubature:
             grow = np.flatnonzero(pick & ~deep)
             new_K = split4(tri[grow]).reshape(-1, 3, 3)
             new_kq, new_ke = self.rule(new_K, width)
+            new_kb = self._blind(new_K, new_kq, new_ke, live, blind_bound)
             cells += len(new_K)
             kid_of[grow] = len(K) // 4 + np.arange(len(grow))
             K, kq, ke = np.concatenate([K, new_K]), np.concatenate([kq, new_kq]), np.concatenate([ke, new_ke])
+            kb = np.concatenate([kb, new_kb])
             # leaves with their children: replaced by them
             split = pick & deep
             if np.any(split):
@@ -3681,35 +3697,54 @@ class RowCubature:
                 keep = ~split
                 tri = np.concatenate([tri[keep], K[rows]])
                 q, e = np.concatenate([q[keep], kq[rows]]), np.concatenate([e[keep], kid_e])
+                b = np.concatenate([b[keep], kb[rows]])
                 kid_of = np.concatenate([kid_of[keep], np.full(len(rows), -1, np.int64)])
                 # drop the children no leaf refers to any more (bounded memory)
-                live = np.flatnonzero(kid_of >= 0)
-                idx = child_rows(kid_of[live])
-                K, kq, ke = K[idx], kq[idx], ke[idx]
-                kid_of[live] = np.arange(len(live))
-        value, err = self._leaves(q, e, kid_of, kq)
+                held = np.flatnonzero(kid_of >= 0)
+                idx = child_rows(kid_of[held])
+                K, kq, ke, kb = K[idx], kq[idx], ke[idx], kb[idx]
+                kid_of[held] = np.arange(len(held))
+        value, err = self._leaves(q, e, b, kid_of, kq, kb)
         return value.sum(axis=0), err.sum(axis=0) + spent, cells
 
-    def _look_for_shadows(self, tri, q, e, live, width, bound=None):
+    def _look_for_shadows(self, tri, q, e, live, width, bound=None, blind_bound=None):
         """:func:`look_for_shadows` on the first triangles, whose rules and null rules are
-        ``q, e`` (g, R): the new triangles on their rules. Returns the new ``tri, q, e``
-        and the bounds spent (R,)."""
+        ``q, e`` (g, R): the new triangles on their rules. Returns the new ``tri, q, e``,
+        their blind bounds (:meth:`_blind`) and the bounds spent (R,)."""
         unseen, new, _, spent = look_for_shadows(tri, np.abs(q) + e, live, bound)
         if not len(new):
-            return tri, q, e, spent
+            return tri, q, e, np.zeros(q.shape), spent
         nq, ne = self.rule(new, width)
+        nb = self._blind(new, nq, ne, live, blind_bound)
         return (np.concatenate([tri[~unseen], new]), np.concatenate([q[~unseen], nq]),
-                np.concatenate([e[~unseen], ne]), spent)
+                np.concatenate([e[~unseen], ne]), np.concatenate([np.zeros(((~unseen).sum(), width)), nb]), spent)
 
     @staticmethod
-    def _leaves(q, e, kid_of, kq):
-        """Each leaf's value and estimate (g, R): S and |Q − S| where its children are known,
-        else Q and its null-rule estimate."""
-        value, err = q.copy(), e.copy()
+    def _blind(tri, q, e, live, blind_bound):
+        """(g, R) float64: the blind bounds of triangles (g, 3, 3) on their rules ``q, e``:
+        where their nodes see nothing of a column (:func:`blind_columns`) while an occluder
+        meets their shaft to it (``live``), ``blind_bound``'s bound; else 0."""
+        out = np.zeros(q.shape)
+        if blind_bound is None or live is None:
+            return out
+        blind = np.abs(q) + e <= UNSEEN * triangle_areas(tri)[:, None]
+        ask = np.flatnonzero(np.any(blind, axis=1))
+        if len(ask):
+            blind[ask] &= live(tri[ask], blind[ask])
+            out[blind] = blind_bound(tri, blind)[blind]
+        return out
+
+    @staticmethod
+    def _leaves(q, e, b, kid_of, kq, kb):
+        """Each leaf's value and estimate (g, R): S and |Q − S| plus its blind children's
+        bounds where its children are known, else Q and its null-rule estimate plus its
+        own blind bound (``b``, ``kb``: :meth:`_blind`)."""
+        value, err = q.copy(), e + b
         deep = np.flatnonzero(kid_of >= 0)
         if len(deep):
             s = kq.reshape(-1, 4, q.shape[1])[kid_of[deep]].sum(axis=1)
-            value[deep], err[deep] = s, np.abs(q[deep] - s)
+            value[deep] = s
+            err[deep] = np.abs(q[deep] - s) + kb.reshape(-1, 4, q.shape[1])[kid_of[deep]].sum(axis=1)
         return value, err
 
 

@@ -318,7 +318,7 @@ def test_a_shadow_the_search_misses_is_bounded_until_found(centre, radius):
     exact = np.pi * radius ** 2 / 3
     tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
     value, error, _ = ff.RowCubature(integrand).integrate(tri, np.array([1e-3 * exact]), live,
-                                                          blind_bound=lambda t, need: ff.triangle_areas(t)[:, None])
+                                                          blind_bound=lambda t: ff.triangle_areas(t)[:, None])
     assert abs(value[0] - exact) <= error[0] <= 1e-3 * exact
     value, error, _ = ff.RowCubature(integrand).integrate(tri, np.array([1e-3 * exact]), live)
     assert value[0] == 0.0 and error[0] == 0.0  # without the bounds: missed, and said to be exact

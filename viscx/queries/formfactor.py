@@ -2152,12 +2152,10 @@ class PairSetup:
                 ptr, _ = cull_all(self.shaft_cull, tri, np.arange(k))
                 return (np.diff(ptr) > 0)[:, None]
 
-            def blind_bound(tri, need):
-                # what is hidden is at most F(x → J'), as on three levels (Cubature.estimates)
-                return self.unoccluded_bound(tri)[:, None]
-
+            # a blind leaf hides at most F(x → J'), as on three levels (Cubature.estimates)
             cub = RowCubature(column, threads, progress)
-            value, error, cells = cub.integrate(tri, np.array([budget]), live, blind_bound=blind_bound)
+            value, error, cells = cub.integrate(tri, np.array([budget]), live,
+                                                blind_bound=lambda t: self.unoccluded_bound(t)[:, None])
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads, progress,
                        self.gaps)
@@ -3650,9 +3648,9 @@ class RowCubature:
         bool``, where an occluder may hide the column (its shaft test), asked only where
         ``need`` (g, R) bool is set (elsewhere it may say anything); ``bound(tri, blind,
         seen) -> blind, spent``, the columns whose unseen shadows an upper bound settles
-        (:func:`unseen_shadow_bound`); ``blind_bound(tri, need) -> (g, R)``, upper bounds
-        of the integrand's integral over the triangles (asked where ``need`` is set) for
-        the blind leaves (without it they count as their rules say). Returns ``value,
+        (:func:`unseen_shadow_bound`); ``blind_bound(tri) -> (g, R)``, upper bounds of
+        each column's integral over the triangles, for the blind leaves (without it they
+        count as their rules say). Returns ``value,
         error`` (R,) and the triangles evaluated."""
         width = len(budget)
         q, e = self.rule(tri, width)
@@ -3727,11 +3725,10 @@ class RowCubature:
         out = np.zeros(q.shape)
         if blind_bound is None or live is None:
             return out
-        blind = np.abs(q) + e <= UNSEEN * triangle_areas(tri)[:, None]
-        ask = np.flatnonzero(np.any(blind, axis=1))
-        if len(ask):
-            blind[ask] &= live(tri[ask], blind[ask])
-            out[blind] = blind_bound(tri, blind)[blind]
+        blind = blind_columns(tri, np.abs(q) + e, live)
+        rows = np.flatnonzero(np.any(blind, axis=1))  # the bound only where it is taken
+        if len(rows):
+            out[rows] = np.where(blind[rows], blind_bound(tri[rows]), 0.0)
         return out
 
     @staticmethod

@@ -75,7 +75,7 @@ from viscx.geometry.occlusion import (blocked_form_factors, point_views, shaft_b
                                      umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, plane_basis
 from viscx.parallel import default_workers, map_chunks, row_chunks
-from viscx.queries.kinks import face_generators, kink_segments, load_kink_kernels, sky_generators
+from viscx.queries.kinks import apex_segments, face_generators, kink_segments, load_kink_kernels, sky_generators
 
 #: Default target on the absolute error of one form factor (a pair, a group) ...
 DEFAULT_TOL = 1e-6
@@ -1067,7 +1067,7 @@ def cut_flat(verts, ptr, seg, eps, limit=None, owner=None):
 MAX_KINK_CELLS = 1_000
 
 
-def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generators=None):
+def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generators=None, apexes=None):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -1084,6 +1084,9 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generato
     when they alone make more cells than ``limit`` the rest are not listed: cuts only add
     cells. ``generators``: the kink lines of these rows of
     :func:`viscx.queries.kinks.generator_segments` only (default all; :func:`kink_faces`).
+    ``apexes`` (r,) int64: with ``kinks`` and ``generators``, cut along the lines through
+    the points where those edges touch the face too, to the corners of these receivers
+    (:func:`viscx.queries.kinks.apex_segments`).
 
     Returns
     -------
@@ -1099,6 +1102,8 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generato
     if kinks:
         kinks = kink_segments(scene, face, side, generators,
                               lambda seg: cut_along(pieces, to2(seg), eps, limit) is None)
+        if kinks is not None and apexes is not None:
+            kinks = np.concatenate([kinks, apex_segments(scene, face, side, generators, apexes)])
         pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
         if pieces is None:
             return None
@@ -1283,11 +1288,14 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, 
         generators = face_generators(scene, kink_faces(scene, face, side, receivers, setups))
         if sky:
             generators = np.union1d(generators, sky_generators(scene, face))
-    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators)
-    if kinked is not None:
-        kinked_tri = start_triangles(kinked, min_size)
-        if len(kinked_tri) <= start:
-            return kinked, kinked_tri, True
+    # a pair's cells are cut along the lines through its apexes too, unless they make the
+    # cells too many: then along the kink lines alone
+    for apexes in ([receivers, None] if pairs and receivers is not None else [None]):
+        kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators, apexes=apexes)
+        if kinked is not None:
+            kinked_tri = start_triangles(kinked, min_size)
+            if len(kinked_tri) <= start:
+                return kinked, kinked_tri, True
     return cells, tri, False
 
 

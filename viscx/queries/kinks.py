@@ -42,6 +42,11 @@ because the integrands also kink where two *occluders'* edges line up (the sky c
 behind the Cornell blocks, whose vertical edges line up with the walls'), which the
 discontinuity mesh of a light leaves out, and because a row needs the D1 lines only
 (its D2 traces would multiply the cells for nothing: the integrand is C1 across them).
+
+But one bundle of D2 lines: where an edge touches the face at a point P (a jamb's edge at
+a sill's corner), its VE lines all meet at P and the integrands are functions of the
+direction from P alone there, the same picture at every size; a pair's cells are cut
+along those (:func:`apex_segments`), so that every cell at P is a sector.
 """
 
 import numpy as np
@@ -124,6 +129,114 @@ def sky_generators(scene, face):
     keep = np.ones(len(gen), bool)
     keep[two[split]] = False
     return np.flatnonzero(keep).astype(np.int64)
+
+
+def apex_segments(scene, face, side, generators, receivers):
+    """The D2 lines of side ``side`` of a face that meet at an *apex*: a point P of the
+    face (its closed outline) that a generator edge e with a part in front of the side
+    touches or crosses (a jamb's edge at a window sill's corner, a box's edge on the floor).
+
+    Seen from x near P, e's image tends to the great circle of the plane through e and the
+    direction of x from P, so every integrand tends to a function g of that direction
+    alone: it is homogeneous of degree 0 about P, and its events there are the lines through
+    P where e lines up with a corner of what x sees (VE planes of e and a vertex v: D2
+    away from P, all meeting at P). On a triangle with a vertex at P the picture is then the
+    same at every size: a shadow wedge thinner than the angle between its nodes is missed by
+    the triangle, its corner child and theirs (a sill's corner: the wall beside it hid the
+    light from a wedge of 11–14° along the sill's edge, whose triangles, 6 times longer than
+    wide, never had a node in it; a pair query was 2.7 times its estimate off at the default
+    tol). Cut along these lines, every cell at P is a sector on which g is smooth.
+
+    The vertices v taken: the ends in front of the side of the ``generators`` (k,) int64
+    (rows of :func:`generator_segments`) that a receiver of ``receivers`` (r,) int64 is
+    seen through from P (the ray from P through v meets the receiver at or past v: its own
+    vertices and those of what may hide it; a corner of what is seen where an occluder's
+    edge crosses a receiver's is left out). The line of (e, v) on the face is the half-line
+    from P on the side of e away from v, up to where the segment from x to v passes e's far
+    end (the shadow of that end: past it x sees v beside e, not across it).
+
+    Returns
+    -------
+    (s, 2, 3) float64
+        Segments from the apexes, in the face's plane.
+    """
+    seg = generator_segments(scene)[np.asarray(generators, np.int64)]
+    n = side * scene.face_normal[face].astype(np.float64)
+    c = float(n @ scene.face_loops(face)[0][0])
+    tiny = 1e-9 * scene.diagonal
+    h = seg @ n - c  # (g, 2)
+    touch = np.flatnonzero((h.min(axis=1) <= tiny) & (h.max(axis=1) > tiny))
+    if not len(touch):
+        return np.zeros((0, 2, 3))
+    seg, h = seg[touch], h[touch]
+    top = np.argmax(h, axis=1)
+    far_end = seg[np.arange(len(seg)), top]
+    low, high = h.min(axis=1), h.max(axis=1)
+    near_end = seg[np.arange(len(seg)), 1 - top]
+    t = np.where(low >= -tiny, 0.0, -low / (high - low))
+    apex = near_end + (far_end - near_end) * t[:, None]  # (t, 3) where e meets the face's plane
+    keep = _on_face(scene, face, apex, 1e-8 * scene.diagonal)
+    apex, far_end, high = apex[keep], far_end[keep], high[keep]
+    ends = generator_segments(scene)[np.asarray(generators, np.int64)].reshape(-1, 3)
+    v = np.unique(ends[ends @ n - c > tiny], axis=0)  # (m, 3)
+    if not len(apex) or not len(v):
+        return np.zeros((0, 2, 3))
+    hv = v @ n - c
+    # x on the face's plane in line with v and the point q of e at height min(h_top, h_v / 2):
+    # on the (e, v) line, on the side of e away from v (q lies between x and v)
+    hq = np.minimum(high[:, None], 0.5 * hv[None, :])  # (t, m)
+    q = apex[:, None, :] + (far_end - apex)[:, None, :] * (hq / high[:, None])[:, :, None]
+    x = v[None] + (q - v[None]) * (hv / (hv - hq))[:, :, None]
+    d = x - apex[:, None, :]
+    length = np.linalg.norm(d, axis=2)
+    seen = np.zeros(length.shape, bool)
+    for j in np.asarray(receivers, np.int64):
+        seen |= _seen_through(scene, int(j), apex, v)
+    ok = seen & (length > tiny)
+    # where x sees v past e's far end: the line from v through that end
+    past = high[:, None] < hv[None, :]
+    stop = v[None] + (far_end[:, None, :] - v[None]) * (hv / np.where(past, hv - high[:, None], 1.0))[:, :, None]
+    far = 2.0 * scene.diagonal
+    end = np.where(past[:, :, None], stop, apex[:, None, :] + d * (far / np.maximum(length, tiny))[:, :, None])
+    start = np.broadcast_to(apex[:, None, :], end.shape)
+    return np.stack([start[ok], end[ok]], axis=1)
+
+
+def _on_face(scene, face, points, eps):
+    """(p,) bool: the points (p, 3) (in the face's plane) within ``eps`` of the face's
+    triangles (closed)."""
+    tri = scene.vertices[scene.triangles[scene.triangle_face == face]].astype(np.float64)
+    return np.any(_in_triangles(points, tri, eps), axis=1)
+
+
+def _in_triangles(points, tri, eps):
+    """(p, k) bool: whether each point (p, 3) lies in each triangle (k, 3, 3) (in its
+    plane) up to ``eps``: on the inner side of every edge's line or within ``eps`` of it."""
+    a, b = tri, np.roll(tri, -1, axis=1)  # (k, 3, 3) each edge
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    inward = np.cross(normal[:, None, :], b - a)  # (k, 3, 3)
+    inward /= np.linalg.norm(inward, axis=2)[:, :, None]
+    dist = np.einsum("ked,pd->pke", inward, points) - np.einsum("ked,ked->ke", inward, a)[None]
+    return np.all(dist >= -eps, axis=2)
+
+
+def _seen_through(scene, j, apex, v):
+    """(t, m) bool: whether face j is met by the ray from each apex (t, 3) through each
+    vertex v (m, 3) at or past v (within 1e-9 of the ray's length: its own vertices)."""
+    normal = scene.face_normal[j].astype(np.float64)
+    c = float(normal @ scene.face_loops(j)[0][0])
+    d = v[None] - apex[:, None, :]  # (t, m, 3)
+    along = d @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (c - apex @ normal)[:, None] / along
+    hit = np.isfinite(s) & (s >= 1 - 1e-9)
+    if not np.any(hit):
+        return hit
+    where = apex[:, None, :] + d * np.where(hit, s, 0.0)[:, :, None]
+    tri = scene.vertices[scene.triangles[scene.triangle_face == j]].astype(np.float64)
+    inside = np.any(_in_triangles(where.reshape(-1, 3), tri, 1e-8 * scene.diagonal), axis=1)
+    return hit & inside.reshape(hit.shape)
 
 
 def _angles(x, t, w):

@@ -181,25 +181,24 @@ def apex_segments(scene, face, side, generators, receivers):
     v = np.unique(ends[ends @ n - c > tiny], axis=0)  # (m, 3)
     if not len(apex) or not len(v):
         return np.zeros((0, 2, 3))
+    seen = np.zeros((len(apex), len(v)), bool)
+    for j in np.asarray(receivers, np.int64):
+        seen |= _seen_through(scene, int(j), apex, v)
+    a, k = np.nonzero(seen)  # the (apex, vertex) pairs whose lines are cut
+    apex, far_end, high, v = apex[a], far_end[a], high[a], v[k]
     hv = v @ n - c
     # x on the face's plane in line with v and the point q of e at height min(h_top, h_v / 2):
     # on the (e, v) line, on the side of e away from v (q lies between x and v)
-    hq = np.minimum(high[:, None], 0.5 * hv[None, :])  # (t, m)
-    q = apex[:, None, :] + (far_end - apex)[:, None, :] * (hq / high[:, None])[:, :, None]
-    x = v[None] + (q - v[None]) * (hv / (hv - hq))[:, :, None]
-    d = x - apex[:, None, :]
-    length = np.linalg.norm(d, axis=2)
-    seen = np.zeros(length.shape, bool)
-    for j in np.asarray(receivers, np.int64):
-        seen |= _seen_through(scene, int(j), apex, v)
-    ok = seen & (length > tiny)
+    hq = np.minimum(high, 0.5 * hv)
+    q = apex + (far_end - apex) * (hq / high)[:, None]
+    d = v + (q - v) * (hv / (hv - hq))[:, None] - apex
+    length = np.linalg.norm(d, axis=1)
     # where x sees v past e's far end: the line from v through that end
-    past = high[:, None] < hv[None, :]
-    stop = v[None] + (far_end[:, None, :] - v[None]) * (hv / np.where(past, hv - high[:, None], 1.0))[:, :, None]
-    far = 2.0 * scene.diagonal
-    end = np.where(past[:, :, None], stop, apex[:, None, :] + d * (far / np.maximum(length, tiny))[:, :, None])
-    start = np.broadcast_to(apex[:, None, :], end.shape)
-    return np.stack([start[ok], end[ok]], axis=1)
+    past = high < hv
+    stop = v + (far_end - v) * (hv / np.where(past, hv - high, 1.0))[:, None]
+    end = np.where(past[:, None], stop, apex + d * (2.0 * scene.diagonal / np.maximum(length, tiny))[:, None])
+    ok = length > tiny
+    return np.stack([apex[ok], end[ok]], axis=1)
 
 
 def _on_face(scene, face, points, eps):
@@ -223,20 +222,24 @@ def _in_triangles(points, tri, eps):
 
 def _seen_through(scene, j, apex, v):
     """(t, m) bool: whether face j is met by the ray from each apex (t, 3) through each
-    vertex v (m, 3) at or past v (within 1e-9 of the ray's length: its own vertices)."""
+    vertex v (m, 3) at or past v (within 1e-9 of the ray's length: its own vertices); by
+    blocks of apexes (memory linear in the block: a floor's apexes × the ends in front)."""
     normal = scene.face_normal[j].astype(np.float64)
     c = float(normal @ scene.face_loops(j)[0][0])
-    d = v[None] - apex[:, None, :]  # (t, m, 3)
-    along = d @ normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (c - apex @ normal)[:, None] / along
-    hit = np.isfinite(s) & (s >= 1 - 1e-9)
-    if not np.any(hit):
-        return hit
-    where = apex[:, None, :] + d * np.where(hit, s, 0.0)[:, :, None]
     tri = scene.vertices[scene.triangles[scene.triangle_face == j]].astype(np.float64)
-    inside = np.any(_in_triangles(where.reshape(-1, 3), tri, 1e-8 * scene.diagonal), axis=1)
-    return hit & inside.reshape(hit.shape)
+    out = np.zeros((len(apex), len(v)), bool)
+    block = max(1, (1 << 18) // max(1, len(v) * len(tri)))
+    for b in range(0, len(apex), block):
+        p = apex[b:b + block]
+        d = v[None] - p[:, None, :]  # (t, m, 3)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (c - p @ normal)[:, None] / (d @ normal)
+        hit = np.isfinite(s) & (s >= 1 - 1e-9)
+        if np.any(hit):
+            where = (p[:, None, :] + d * np.where(hit, s, 0.0)[:, :, None])[hit]
+            hit[hit] = np.any(_in_triangles(where, tri, 1e-8 * scene.diagonal), axis=1)
+            out[b:b + block] = hit
+    return out
 
 
 def _angles(x, t, w):

@@ -125,6 +125,28 @@ def in_convex_cells(points, cells, normal, tol=1e-12):
     return out
 
 
+def rectangle_product_gauss(kernel, lo, hi, edges, points=8, skip=None, chunk=200_000):
+    """∫ over an axis-aligned rectangle [lo, hi] (3,) float (one axis flat) of ``kernel``
+    (points (n, 3) -> (n,) float), over the rectangle's area: product Gauss–Legendre rules
+    of ``points`` points on the panels between ``edges``, {axis: (k,) float from lo to hi}
+    for its two other axes. ``skip(points) -> (n,) bool``: points whose value counts 0 (an
+    emitter's parts lying on other faces, which see only those: put their outlines among
+    the edges, or the integrand jumps inside a panel). An oracle independent of viscx's
+    cubature (its nodes, levels, cuts and estimates); converged where two panel counts
+    agree."""
+    g, w = np.polynomial.legendre.leggauss(points)
+    (a, ea), (b, eb) = sorted(edges.items())
+    nodes = [(0.5 * (e[1:] - e[:-1])[:, None] * g + 0.5 * (e[1:] + e[:-1])[:, None]).ravel() for e in (ea, eb)]
+    weights = [(0.5 * (e[1:] - e[:-1])[:, None] * w).ravel() for e in (ea, eb)]
+    pa, pb = np.meshgrid(*nodes, indexing="ij")
+    pts = np.tile(np.asarray(lo, np.float64), (pa.size, 1))
+    pts[:, a], pts[:, b] = pa.ravel(), pb.ravel()
+    values = np.concatenate([kernel(pts[k:k + chunk]) for k in range(0, len(pts), chunk)])
+    if skip is not None:
+        values = np.where(skip(pts), 0.0, values)
+    return float(np.outer(*weights).ravel() @ values) / float((hi[a] - lo[a]) * (hi[b] - lo[b]))
+
+
 def form_factor_monte_carlo(scene, faces, side, k, seed=0, chunk=1 << 20, lying=None):
     """Form factors from one side of a set of faces to every face side and the sky, by ``k``
     cosine-weighted rays from area-uniform points of the faces (embree first hits), in

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import ROOT
-from oracles import form_factor_monte_carlo
+from oracles import form_factor_monte_carlo, rectangle_product_gauss
 
 from viscx.queries import formfactor as ff
 from viscx.queries.kinks import apex_segments, face_generators
@@ -443,23 +443,11 @@ def office300():
 
 
 def _product_gauss(setup, lo, hi, along, across, edges, points):
-    """∫ over the rectangle [lo, hi] of a face (axis-aligned) of the pair's point kernel
-    (:meth:`viscx.queries.formfactor.PairSetup.f`), by product Gauss–Legendre rules of
-    ``points`` points on the panels between ``edges`` along axis ``along`` times 64 equal
-    panels on axis ``across``, over the rectangle's area: an oracle independent of the
-    cubature (its nodes, levels, cuts and estimates)."""
-    g, w = np.polynomial.legendre.leggauss(points)
-    e = np.linspace(lo[across], hi[across], 65)
-    xs = (0.5 * (e[1:] - e[:-1])[:, None] * g + 0.5 * (e[1:] + e[:-1])[:, None]).ravel()
-    wx = (0.5 * (e[1:] - e[:-1])[:, None] * w).ravel()
-    total = 0.0
-    for a, b in zip(edges[:-1], edges[1:]):
-        ys, wy = 0.5 * (b - a) * g + 0.5 * (b + a), 0.5 * (b - a) * w
-        px, py = np.meshgrid(xs, ys)
-        pts = np.tile(lo, (px.size, 1))
-        pts[:, across], pts[:, along] = px.ravel(), py.ravel()
-        total += float(np.outer(wy, wx).ravel() @ setup.f(pts))
-    return total / float(np.prod([hi[d] - lo[d] for d in (along, across)]))
+    """The pair's point kernel (:meth:`viscx.queries.formfactor.PairSetup.f`) over the
+    rectangle [lo, hi] of a face by :func:`oracles.rectangle_product_gauss`, on the panels
+    between ``edges`` along axis ``along`` times 64 equal panels on axis ``across``."""
+    return rectangle_product_gauss(setup.f, lo, hi, {along: edges, across: np.linspace(lo[across], hi[across], 65)},
+                                   points)
 
 
 #: office(300) pairs whose receiver is seen only from a thin band of the emitter along one

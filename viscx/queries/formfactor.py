@@ -1067,7 +1067,7 @@ def cut_flat(verts, ptr, seg, eps, limit=None, owner=None):
 MAX_KINK_CELLS = 1_000
 
 
-def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generators=None, apexes=None):
+def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generators=None, apexes=None, fits=None):
     """Side ``side`` of a face cut into convex cells along its contact segments
     (:func:`contact_segments`) and graded towards the outlines that hover over it: the
     face's triangles, each cut by the line of every segment that crosses its interior, so
@@ -1086,7 +1086,9 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generato
     :func:`viscx.queries.kinks.generator_segments` only (default all; :func:`kink_faces`).
     ``apexes`` (r,) int64: with ``kinks`` and ``generators``, cut along the lines through
     the points where those edges touch the face too, to the corners of these receivers
-    (:func:`viscx.queries.kinks.apex_segments`).
+    (:func:`viscx.queries.kinks.apex_segments`), unless that makes more than ``limit``
+    cells or cells ``fits(cells) -> bool`` refuses: then along the kink lines alone (listed
+    once for both).
 
     Returns
     -------
@@ -1099,15 +1101,23 @@ def emitter_cells(scene, face, side, kinks=False, limit=MAX_KINK_CELLS, generato
     def to2(p):
         return np.stack([(p - origin) @ eu, (p - origin) @ ev], axis=-1)
 
+    def to3(pieces):
+        return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+
     if kinks:
         kinks = kink_segments(scene, face, side, generators,
                               lambda seg: cut_along(pieces, to2(seg), eps, limit) is None)
-        if kinks is not None and apexes is not None:
-            kinks = np.concatenate([kinks, apex_segments(scene, face, side, generators, apexes)])
-        pieces = None if kinks is None else cut_along(pieces, to2(kinks), eps, limit)
+        if kinks is None:
+            return None
+        extra = np.zeros((0, 2, 3)) if apexes is None else apex_segments(scene, face, side, generators, apexes)
+        if len(extra):
+            cut = cut_along(pieces, to2(np.concatenate([kinks, extra])), eps, limit)
+            if cut is not None and (fits is None or fits(to3(cut))):
+                return to3(cut)
+        pieces = cut_along(pieces, to2(kinks), eps, limit)
         if pieces is None:
             return None
-    return [origin + p[:, :1] * eu + p[:, 1:] * ev for p in pieces]
+    return to3(pieces)
 
 
 def _emitter_pieces(scene, face, side):
@@ -1290,12 +1300,13 @@ def cubature_cells(scene, face, side, min_size=None, receivers=None, sky=False, 
             generators = np.union1d(generators, sky_generators(scene, face))
     # a pair's cells are cut along the lines through its apexes too, unless they make the
     # cells too many: then along the kink lines alone
-    for apexes in ([receivers, None] if pairs and receivers is not None else [None]):
-        kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators, apexes=apexes)
-        if kinked is not None:
-            kinked_tri = start_triangles(kinked, min_size)
-            if len(kinked_tri) <= start:
-                return kinked, kinked_tri, True
+    kinked = emitter_cells(scene, face, side, kinks=True, limit=limit, generators=generators,
+                           apexes=receivers if pairs and receivers is not None else None,
+                           fits=lambda c: len(start_triangles(c, min_size)) <= start)
+    if kinked is not None:
+        kinked_tri = start_triangles(kinked, min_size)
+        if len(kinked_tri) <= start:
+            return kinked, kinked_tri, True
     return cells, tri, False
 
 

@@ -160,15 +160,15 @@ def apex_segments(scene, face, side, generators, receivers):
     (s, 2, 3) float64
         Segments from the apexes, in the face's plane.
     """
-    seg = generator_segments(scene)[np.asarray(generators, np.int64)]
+    generator = generator_segments(scene)[np.asarray(generators, np.int64)]
     n = side * scene.face_normal[face].astype(np.float64)
     c = float(n @ scene.face_loops(face)[0][0])
     tiny = 1e-9 * scene.diagonal
-    h = seg @ n - c  # (g, 2)
-    touch = np.flatnonzero((h.min(axis=1) <= tiny) & (h.max(axis=1) > tiny))
+    height = generator @ n - c  # (g, 2)
+    touch = np.flatnonzero((height.min(axis=1) <= tiny) & (height.max(axis=1) > tiny))
     if not len(touch):
         return np.zeros((0, 2, 3))
-    seg, h = seg[touch], h[touch]
+    seg, h = generator[touch], height[touch]
     top = np.argmax(h, axis=1)
     far_end = seg[np.arange(len(seg)), top]
     low, high = h.min(axis=1), h.max(axis=1)
@@ -177,8 +177,7 @@ def apex_segments(scene, face, side, generators, receivers):
     apex = near_end + (far_end - near_end) * t[:, None]  # (t, 3) where e meets the face's plane
     keep = _on_face(scene, face, apex, 1e-8 * scene.diagonal)
     apex, far_end, high = apex[keep], far_end[keep], high[keep]
-    ends = generator_segments(scene)[np.asarray(generators, np.int64)].reshape(-1, 3)
-    v = np.unique(ends[ends @ n - c > tiny], axis=0)  # (m, 3)
+    v = np.unique(generator.reshape(-1, 3)[height.ravel() > tiny], axis=0)  # (m, 3) the ends in front
     if not len(apex) or not len(v):
         return np.zeros((0, 2, 3))
     seen = np.zeros((len(apex), len(v)), bool)

@@ -298,6 +298,42 @@ def floor_plan(rooms=(2, 2), room_size=(5.0, 4.0), height=3.0, wall=0.2, doors=T
     return b.soup()
 
 
+def pv_field(rows=6, length=20.0, width=2.0, tilt=25.0, pitch=5.0, height=1.5, posts=4, post=0.1, margin=10.0):
+    """Rows of tilted PV panels over the ground, on posts: the regular layout of a solar
+    field, for bifacial view factors (a panel's back → the ground, its front → the sky).
+
+    Each row is one two-sided quad (group ``row0`` …) ``length`` along x and ``width`` up
+    the slope, tilted by ``tilt`` degrees about x, its upper edge towards -z (its front
+    faces the sky and +z, the next row's back), its centre line ``height`` above the
+    ground at z = k · pitch. Under each row stand
+    ``posts`` boxes ``post`` wide on the ground (group ``post0`` … per row), each ending
+    2 cm under the panel above its top: hovering edges, and the posts' feet touching the
+    ground. The ground is one quad reaching ``margin`` past the field (group ``ground``).
+
+    >>> pv_field(rows=2, posts=1).n_polygons  # ground + 2 panels + 2 × 6 post faces
+    15
+    """
+    b = _Builder()
+    t = np.radians(tilt)
+    up = np.array([0.0, np.sin(t), -np.cos(t)])  # up the slope, towards -z
+    x0, x1 = -margin, length + margin
+    z0, z1 = -margin - width, (rows - 1) * pitch + margin + width
+    b.quad([[x0, 0, z0], [x0, 0, z1], [x1, 0, z1], [x1, 0, z0]], "ground")
+    for k in range(rows):
+        c = np.array([0.0, height, k * pitch])
+        lo, hi = c - 0.5 * width * up, c + 0.5 * width * up
+        # counter-clockwise seen from the front (the sky): x, then up the slope
+        b.quad([[0.0, lo[1], lo[2]], [length, lo[1], lo[2]], [length, hi[1], hi[2]], [0.0, hi[1], hi[2]]], f"row{k}")
+    for k in range(rows):
+        for p in range(posts):
+            x = (p + 0.5) * length / posts - post / 2
+            z = k * pitch - post / 2
+            # the panel's underside above the post's top: lowest where z is largest
+            top = height - (z + post - k * pitch) * np.tan(t) - 0.02
+            b.box([x, 0.0, z], [x + post, round(top, 6), z + post], f"post{k}")
+    return b.soup()
+
+
 def write_obj(soup, path):
     """Write a soup as OBJ, one ``o`` group per group name (vertices as written, 6 decimals)."""
     lines = ["# viscx benchmark scene (benchmarks/buildings.py)"]
@@ -321,12 +357,14 @@ if __name__ == "__main__":
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("kind", choices=["office", "plan"])
+    parser.add_argument("kind", choices=["office", "plan", "pv"])
     parser.add_argument("-n", "--polygons", type=int, default=300, help="office: about this many polygons")
     parser.add_argument("--rooms", type=int, nargs=2, default=(2, 2), help="plan: rooms along x and z")
+    parser.add_argument("--pv-rows", type=int, default=6, help="pv: rows of panels")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("-o", "--output", required=True)
     args = parser.parse_args()
-    soup = office(args.polygons, args.seed) if args.kind == "office" else floor_plan(tuple(args.rooms), seed=args.seed)
+    soup = {"office": lambda: office(args.polygons, args.seed), "plan": lambda: floor_plan(tuple(args.rooms), seed=args.seed),
+            "pv": lambda: pv_field(rows=args.pv_rows)}[args.kind]()
     write_obj(soup, args.output)
     print(f"{args.output}: {soup.n_polygons} polygons")

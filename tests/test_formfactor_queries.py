@@ -491,6 +491,80 @@ def test_hovering_light_reciprocity_ceiling_floor(cornell, tol):
     assert abs(down.F - up.F) <= down.error + up.error
 
 
+def post_under_a_panel():
+    """A 2 × 2 panel at y = 1 facing down, the floor (4 × 4, facing up) and a post on it
+    (x in [0.5, 1.5], z in [0.9, 1.1]) whose top slopes down from 2 cm under the panel at
+    x = 0.5 to 30 cm under it at x = 1.5: the top's edges along x rise away from the panel
+    (a PV panel's post seen in the panel's frame, where the panel is tilted and the post's
+    top level)."""
+    return [[[0, 1, 0], [2, 1, 0], [2, 1, 2], [0, 1, 2]], [[-1, 0, -1], [-1, 0, 3], [3, 0, 3], [3, 0, -1]],
+            [[0.5, 0.98, 0.9], [0.5, 0.98, 1.1], [1.5, 0.7, 1.1], [1.5, 0.7, 0.9]],  # top
+            [[0.5, 0, 0.9], [0.5, 0, 1.1], [0.5, 0.98, 1.1], [0.5, 0.98, 0.9]],
+            [[1.5, 0, 0.9], [1.5, 0.7, 0.9], [1.5, 0.7, 1.1], [1.5, 0, 1.1]],
+            [[0.5, 0, 0.9], [0.5, 0.98, 0.9], [1.5, 0.7, 0.9], [1.5, 0, 0.9]],
+            [[0.5, 0, 1.1], [1.5, 0, 1.1], [1.5, 0.7, 1.1], [0.5, 0.98, 1.1]],
+            [[0.5, 0, 0.9], [1.5, 0, 0.9], [1.5, 0, 1.1], [0.5, 0, 1.1]]]
+
+
+def test_an_edge_rising_away_hovers_near_its_low_end_only(monkeypatch):
+    """What a rule may miss where an occluder's outline crosses a cubature triangle
+    (:meth:`PairSetup.unresolved`) is 2 h × its size, h the outline's height above the
+    emitter *where it crosses*: a triangle of size 0.11 across the post top's edge along
+    x at x in [1.25, 1.35], where the edge is 0.23–0.26 under the panel (more than half
+    the triangle's size: the rule sees its shadow's edge), gets nothing; one at x in
+    [0.55, 0.65], where it is 3.4–6.2 cm under the panel, gets 2 × 0.034 × its size. With
+    the post's lowest vertex for every edge (as before), both got 2 × 0.02 × size: on a
+    PV row's back over 4 posts, along the projections of every edge of the posts, and
+    the pair → the ground stopped at MAX_CELLS with an estimate of 6e-3 at tol 1e-3
+    (docs/queries.md, "A PV field"). The pair on three levels (its cells uncut) agrees
+    with the pair on its kink-cut cells within the two estimates."""
+    scene = scene_of(post_under_a_panel())
+    assert scene.face_normal[0][1] < -0.99 and scene.face_normal[1][1] > 0.99
+    setup = ff.PairSetup(scene, 0, 1, ff.face_target(scene, 1), 1)
+    k = len(setup.occluders)
+    far = np.array([[1.25, 1.0, 0.85], [1.35, 1.0, 0.85], [1.3, 1.0, 0.95]])
+    near = far - [0.7, 0.0, 0.0]
+    tri = np.stack([far, near])
+    ptr, ids = np.array([0, k, 2 * k], np.int64), np.tile(np.arange(k, dtype=np.int64), 2)
+    size = np.hypot(0.05, 0.1)  # the longest side
+    assert setup.unresolved(tri, ptr, ids) == pytest.approx([0.0, 2 * 0.034 * size], rel=1e-9)
+    # the knock-out: every edge at its occluder's lowest vertex's height
+    heights = type(setup)._heights.func(setup)
+    above = heights[0]
+    monkeypatch.setitem(setup.__dict__, "_heights", heights[:3] + (np.broadcast_to(above[:, None], heights[3].shape),) * 2)
+    assert setup.unresolved(tri, ptr, ids) == pytest.approx([2 * 0.02 * size] * 2, rel=1e-9)
+    monkeypatch.undo()
+    cut = ff.pair_form_factor(scene, 0, 1, ff.face_target(scene, 1), 1, tol=1e-6)
+    monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)  # three levels on the uncut cells
+    three = ff.pair_form_factor(scene_of(post_under_a_panel()), 0, 1, ff.face_target(scene, 1), 1, tol=1e-5)
+    assert cut.error <= 1e-6 and three.error <= 1e-5
+    assert abs(cut.F - three.F) <= cut.error + three.error, (cut, three)
+
+
+def test_a_short_hovering_edge_grades_its_own_band_only(monkeypatch):
+    """The post top's edge at x = 0.5, 2 cm under the panel for z in [0.9, 1.1], hovers
+    (its height is under a quarter of its length): the panel's cells are graded towards
+    it by strips 2 cm wide either side (:func:`viscx.queries.formfactor.hover_segments`).
+    Cut first across the band at its ends (``_loop_caps``: z = 0.88 and 1.12), the strips
+    stop there; without, they ran on across the panel (to z = 2), fanned into triangles
+    40 times longer than wide, and the pair on three levels took 3.5 times the points at
+    tol 1e-5 (108,234 against 31,325), for the same F within the estimates."""
+    scene = scene_of(post_under_a_panel())
+    strips = [c for c in ff.emitter_cells(scene, 0, 1) if abs(c.mean(axis=0)[0] - 0.5) < 0.03]
+    assert len(strips) == 2
+    assert all(c[:, 2].min() >= 0.88 - 1e-12 and c[:, 2].max() <= 1.12 + 1e-12 for c in strips)
+    monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)  # three levels on the uncut cells
+    capped = ff.pair_form_factor(scene, 0, 1, ff.face_target(scene, 1), 1, tol=1e-5)
+    monkeypatch.setattr(ff, "_loop_caps", lambda n, loops: np.zeros((0, 2, 3)))
+    fresh = scene_of(post_under_a_panel())
+    strips = [c for c in ff.emitter_cells(fresh, 0, 1) if abs(c.mean(axis=0)[0] - 0.5) < 0.03]
+    assert max(c[:, 2].max() for c in strips) == pytest.approx(2.0)
+    uncapped = ff.pair_form_factor(fresh, 0, 1, ff.face_target(fresh, 1), 1, tol=1e-5)
+    assert capped.error <= 1e-5 and uncapped.error <= 1e-5
+    assert abs(capped.F - uncapped.F) <= capped.error + uncapped.error
+    assert capped.evaluations < 0.5 * uncapped.evaluations, (capped.evaluations, uncapped.evaluations)
+
+
 # --------------------------------------------------------------------------------------
 # the three-level error estimate
 

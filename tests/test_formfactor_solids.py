@@ -91,7 +91,8 @@ def test_inner_edges_leave_the_estimate_alone(scene, monkeypatch):
     """A cubature triangle under the underside's ridge, which crosses it: the rule may miss
     nothing there (what :meth:`PairSetup.unresolved` adds for a hovering outline), since the
     ridge is between two faces the whole triangle is in front of; without the rule it adds
-    2 h × the triangle's size."""
+    2 h × the triangle's size, h the ridge's height where it crosses the triangle (0.05, not
+    the underside's lowest corner's 0.02)."""
     floor, light = int(scene.group_faces("floor")[0]), int(scene.group_faces("light")[0])
     tri = np.array([[[4.5, 0.0, 5.5], [5.5, 0.0, 4.5], [5.5, 0.0, 5.5]]])
     setup = ff.PairSetup(scene, floor, 1, ff.face_target(scene, light), 1)
@@ -99,7 +100,7 @@ def test_inner_edges_leave_the_estimate_alone(scene, monkeypatch):
     ptr, ids = np.array([0, k], np.int64), np.arange(k, dtype=np.int64)
     assert setup.unresolved(tri, ptr, ids).tolist() == [0.0]
     monkeypatch.setattr(ff, "inner_solid_edges", lambda scene, n, c, tiny, faces, pos, points: np.zeros(len(faces), bool))
-    assert setup.unresolved(tri, ptr, ids)[0] == pytest.approx(2 * 0.02 * np.sqrt(2))
+    assert setup.unresolved(tri, ptr, ids)[0] == pytest.approx(2 * 0.05 * np.sqrt(2))
 
 
 @pytest.fixture(scope="module")

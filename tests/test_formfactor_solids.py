@@ -245,3 +245,41 @@ def test_umbra_parity_keeps_a_section_hole_out():
     got = umbra_triangles(tri, hull, n, 0.0, eu, ev, np.array([5.0]), np.array([0, len(seg)], np.int64),
                           np.asarray(seg, np.float64), 1e-9)
     assert dict(zip(centres, got.tolist())) == {"hole": False, "ring": True, "beyond": False, "edge": False}
+
+
+def test_blind_only_where_the_exact_shaft_meets_the_solid(scene):
+    """A floor triangle in a corner, whose shaft to the light passes over the solid: its
+    list culled from a parent's keeps the solid's faces (their boxes meet the shaft's), the
+    exact test drops them all, and no segment from the triangle to the light meets the
+    solid (the brute-force segment oracle). Its rules see nothing hidden, so it would be
+    *blind* (a shadow between its nodes, bounded by what the light gives it); the unseen
+    bound is taken only where the exact test keeps an occluder. Without the exact test
+    the bunny's floor → light stopped at MAX_CELLS with an estimate of 6.6e-3 at tol
+    1e-4 (19,419 blind leaves out to 25 m from the bunny); with it, 9.3e-5 in 0.88 M
+    points."""
+    from oracles import segment_hits_reference
+
+    floor, light = int(scene.group_faces("floor")[0]), int(scene.group_faces("light")[0])
+    setup = ff.PairSetup(scene, floor, 1, ff.face_target(scene, light), 1)
+    tri = np.array([[[9.5, 0.0, 9.5], [10.0, 0.0, 9.5], [9.75, 0.0, 10.0]]])  # over the solid: 2.27 up at least
+    # a list culled from a parent's: fewer than all the pair's occluders (the solid's faces)
+    solid = np.arange(1, len(setup.occluders), dtype=np.int64)
+    assert np.all(setup.kernel["poly_solid"][solid] >= 0)
+    ptr, ids = np.array([0, len(solid)], np.int64), solid
+    assert len(setup.shaft_cull(tri, ptr, ids)[1]) > 0  # the boxes' superset
+    assert len(setup.shaft_cull(tri, ptr, ids, exact=True)[1]) == 0
+    rng = np.random.default_rng(5)
+    starts = np.einsum("pk,kd->pd", rng.dirichlet(np.ones(3), 40), tri[0])
+    corners = scene.face_loops(light)[0]
+    uv = rng.uniform(0.0, 1.0, (40, 2))
+    ends = corners[0] + uv[:, :1] * (corners[1] - corners[0]) + uv[:, 1:] * (corners[3] - corners[0])
+    faces = scene.triangles[np.isin(scene.triangle_face, scene.group_faces("solid"))]
+    a, b = np.repeat(starts, len(ends), axis=0), np.tile(ends, (len(starts), 1))
+    hit, _ = segment_hits_reference(a, b, scene.vertices, faces)
+    assert not hit.any()
+    nothing = (np.zeros(1), np.zeros((1, 4)), np.zeros((1, 16)))
+    rough = ff.Cubature(setup.blocked, setup.shaft_cull, unseen=setup.unoccluded_bound)
+    assert rough.estimates(tri, ptr, ids, *nothing)[0] > 0  # the knock-out: counted blind
+    cub = ff.Cubature(setup.blocked, setup.shaft_cull, unseen=setup.unoccluded_bound,
+                      exact=lambda t, p, i: setup.shaft_cull(t, p, i, exact=True))
+    assert cub.estimates(tri, ptr, ids, *nothing).tolist() == [0.0]

@@ -1587,9 +1587,10 @@ class Cubature:
         and the triangles that replace them (:meth:`PairSetup.gaps`).
     """
 
-    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1, progress=None, gaps=None):
+    def __init__(self, integrand, cull, unresolved=None, unseen=None, threads=1, progress=None, gaps=None, exact=None):
         self.integrand = integrand
         self.cull = cull
+        self.exact = exact
         self.unresolved = unresolved
         self.unseen = unseen
         self.gaps = gaps
@@ -1613,13 +1614,20 @@ class Cubature:
         large (office(100), a desk panel → another desk's narrow top side: after the search
         for shadows, leaves 0.015 m² wide still saw nothing of a shadow worth 1.2e-8 each,
         and at tol 1e-8 the pair was 3.3e-8 off for an estimate of 6.9e-9). Such a triangle
-        is split until its children see the shadow or their shafts miss the occluders."""
+        is split until its children see the shadow or their shafts miss the occluders.
+        A list culled from its parent's may hold more than meets the shaft (``cull`` keeps
+        a closed solid's faces where their boxes meet it); the ``exact`` cull, where given,
+        says which blind triangles' shafts do meet an occluder (the bunny's floor → light:
+        19,419 of its 23,689 leaves at 1e-4 were counted blind on such lists, out to 25 m
+        from the bunny, and the pair stopped at MAX_CELLS with an estimate of 6.6e-3)."""
         err = kinked_three_level_error(q, kq, gq)
         if self.unresolved is not None and len(tri):
             err = np.maximum(err, np.minimum(self.unresolved(tri, ptr, ids), triangle_areas(tri)))
         if self.unseen is not None and len(tri):
             seen = levels_seen(q, kq, gq)
             blind = np.flatnonzero((seen <= UNSEEN * triangle_areas(tri)) & (np.diff(ptr) > 0))
+            if len(blind) and self.exact is not None:
+                blind = blind[np.diff(self.exact(tri[blind], *_sub_lists(ptr, ids, blind))[0]) > 0]
             if len(blind):
                 err[blind] = np.maximum(err[blind], self.unseen(tri[blind]))
         return err
@@ -2048,7 +2056,7 @@ class PairSetup:
             out.append(np.stack([np.repeat(cell[:1], len(k), axis=0), cell[k], cell[k + 1]], axis=1))
         return np.concatenate(out) if out else np.zeros((0, 3, 3))
 
-    def shaft_cull(self, tri, ptr, ids):
+    def shaft_cull(self, tri, ptr, ids, exact=False):
         """Each triangle's occluders (CSR ``ptr, ids`` into :attr:`occluders`) reduced to the
         ones meeting its shaft to J' (:func:`viscx.geometry.occlusion.shaft_meets`) that are
         not back faces of a closed box outside of which the whole triangle lies
@@ -2058,14 +2066,15 @@ class PairSetup:
         (:func:`viscx.geometry.occlusion.shaft_boxes_meet`): a superset, as exact (a face
         that misses the shaft hides nothing), and the kernel's cost grows little with them
         (their outline is what it sweeps) while the full test of the hundreds of bunny
-        triangles in each shaft was most of the cubature's time."""
+        triangles in each shaft was most of the cubature's time. With ``exact``, every
+        occluder by the full test: the lists of the triangles whose shafts meet one."""
         pts, lo, hi, normals = self.occluder_outlines
         counts = np.diff(ptr)
         cell = np.repeat(np.arange(len(tri)), counts)
         keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
         cell, ids = cell[keep], ids[keep]
         tri = np.ascontiguousarray(tri)
-        rough = (self.kernel["poly_solid"][ids] >= 0) & (counts[cell] < len(self.occluders))
+        rough = (self.kernel["poly_solid"][ids] >= 0) & (counts[cell] < len(self.occluders)) & (not exact)
         meets = np.empty(len(ids), bool)
         meets[rough] = shaft_boxes_meet(tri, self.frame[6], cell[rough], ids[rough], pts, lo, hi, self.tiny)
         # (np.tile: a writable copy even for one triangle, as a broadcast one is not: one kernel signature)
@@ -2215,7 +2224,7 @@ class PairSetup:
                                                 blind_bound=lambda t: self.unoccluded_bound(t)[:, None])
             return umbra + float(value[0]), umbra_err + float(error[0]), cub.evaluations, cells
         cub = Cubature(self.blocked, self.shaft_cull, self.unresolved, self.unoccluded_bound, threads, progress,
-                       self.gaps)
+                       self.gaps, functools.partial(self.shaft_cull, exact=True))
         value, error, cells = cub.integrate(tri, np.arange(len(self.occluders)), budget, min_size)
         return umbra + value, umbra_err + error, cub.evaluations, cells
 

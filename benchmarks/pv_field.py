@@ -73,12 +73,10 @@ def main(argv=None):
             # area-weighted over the emitters: rays in proportion to their areas
             area = scene.face_area[emitters]
             mc, var = 0.0, 0.0
+            cols = np.concatenate([[2 * j, 2 * j + 1] for j in receivers])
             for f, a in zip(emitters, area):
-                F, sigma = form_factor_monte_carlo(scene, [f], side, max(1, int(args.rays * a / area.sum())),
-                                                   seed=args.seed)
-                cols = np.concatenate([[2 * j, 2 * j + 1] for j in receivers])
-                p = float(F[cols].sum())
                 n = max(1, int(args.rays * a / area.sum()))
+                p = float(form_factor_monte_carlo(scene, [f], side, n, seed=args.seed)[0][cols].sum())
                 mc += a * p / area.sum()
                 var += (a / area.sum()) ** 2 * p * (1 - p) / n
             sigma = float(np.sqrt(var))

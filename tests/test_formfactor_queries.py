@@ -545,7 +545,7 @@ def test_a_short_hovering_edge_grades_its_own_band_only(monkeypatch):
     """The post top's edge at x = 0.5, 2 cm under the panel for z in [0.9, 1.1], hovers
     (its height is under a quarter of its length): the panel's cells are graded towards
     it by strips 2 cm wide either side (:func:`viscx.queries.formfactor.hover_segments`).
-    Cut first across the band at its ends (``_loop_caps``: z = 0.88 and 1.12), the strips
+    Cut first across the band at its ends (the caps of ``_loop_segments``: z = 0.88 and 1.12), the strips
     stop there; without, they ran on across the panel (to z = 2), fanned into triangles
     40 times longer than wide, and the pair on three levels took 3.5 times the points at
     tol 1e-5 (108,234 against 31,325), for the same F within the estimates."""
@@ -555,7 +555,8 @@ def test_a_short_hovering_edge_grades_its_own_band_only(monkeypatch):
     assert all(c[:, 2].min() >= 0.88 - 1e-12 and c[:, 2].max() <= 1.12 + 1e-12 for c in strips)
     monkeypatch.setattr(ff, "MAX_KINK_CELLS", 0)  # three levels on the uncut cells
     capped = ff.pair_form_factor(scene, 0, 1, ff.face_target(scene, 1), 1, tol=1e-5)
-    monkeypatch.setattr(ff, "_loop_caps", lambda n, loops: np.zeros((0, 2, 3)))
+    loop_segments = ff._loop_segments
+    monkeypatch.setattr(ff, "_loop_segments", lambda n, loops: (np.zeros((0, 2, 3)), loop_segments(n, loops)[1]))
     fresh = scene_of(post_under_a_panel())
     strips = [c for c in ff.emitter_cells(fresh, 0, 1) if abs(c.mean(axis=0)[0] - 0.5) < 0.03]
     assert max(c[:, 2].max() for c in strips) == pytest.approx(2.0)

@@ -919,7 +919,7 @@ def hover_segments(scene, face, side):
     in it, as contact lines (:func:`contact_segments`) are for true discontinuities. The
     offsets run past the edge's ends by their distance, so that the cells near a corner are
     graded in both directions; :func:`emitter_cells` cuts across each band at its ends
-    first (:func:`_loop_caps`), so that its strips end there. (It grades a convex outline
+    first (the caps of :func:`_loop_segments`), so that its strips end there. (It grades a convex outline
     that hovers all round by rings instead: :func:`hover_rings`.)
 
     Returns
@@ -927,44 +927,34 @@ def hover_segments(scene, face, side):
     (s, 2, 3) float64
     """
     n, loops = _hovering_loops(scene, face, side)
-    return _loop_segments(n, loops)
-
-
-def _loop_caps(n, loops):
-    """(s, 2, 3) float64: for each hovering edge of :func:`_loop_segments`, the segments
-    across its graded band (as wide as its largest offset either side) at the band's two
-    ends. Cut before the band's lines (:func:`_emitter_pieces`), they keep the graded
-    strips along the edge: a line cuts the cells its segment crosses along their whole
-    chord, and without them a PV post's 10 cm top edge 2 cm under a 20 m row made strips
-    1.8 cm wide across the whole row, fanned into triangles 1,000 times longer than wide
-    (slivers: split in four, they stay so)."""
-    out = []
-    for proj, hover, low, length in loops:
-        nxt = np.roll(proj, -1, axis=0)
-        for p, q, h, ell in zip(proj[hover], nxt[hover], low[hover], length[hover]):
-            offsets = _offsets(h, ell)
-            if not offsets:
-                continue
-            m = offsets[-1]
-            d = (q - p) / np.linalg.norm(q - p)
-            across = np.cross(n, d)
-            for end in (p - m * d, q + m * d):
-                out.append((end - m * across, end + m * across))
-    return np.asarray(out, np.float64).reshape(-1, 2, 3)
+    return _loop_segments(n, loops)[1]
 
 
 def _loop_segments(n, loops):
-    out = []
+    """The graded bands of the hovering edges of ``loops`` (:func:`_hovering_loops`) on
+    the plane of normal ``n``: ``(caps, lines)``, (s, 2, 3) float64 each. ``lines``: each
+    edge and its parallels at ±h·g^k (:func:`hover_segments`). ``caps``: the segments
+    across each band (as wide as its largest offset either side) at its two ends. Cut
+    before the lines (:func:`_emitter_pieces`), they keep the graded strips along the
+    edge: a line cuts the cells its segment crosses along their whole chord, and without
+    them a PV post's 10 cm top edge 2 cm under a 20 m row made strips 1.8 cm wide across
+    the whole row, fanned into triangles 1,000 times longer than wide (slivers: split in
+    four, they stay so)."""
+    caps, lines = [], []
     for proj, hover, low, length in loops:
         nxt = np.roll(proj, -1, axis=0)
         for p, q, h, ell in zip(proj[hover], nxt[hover], low[hover], length[hover]):
             d = (q - p) / np.linalg.norm(q - p)
             across = np.cross(n, d)
-            out.append((p, q))
-            for off in _offsets(h, ell):
+            offsets = _offsets(h, ell)
+            if offsets:
+                m = offsets[-1]
+                caps += [(end - m * across, end + m * across) for end in (p - m * d, q + m * d)]
+            lines.append((p, q))
+            for off in offsets:
                 for sgn in (1.0, -1.0):
-                    out.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
-    return np.asarray(out, np.float64).reshape(-1, 2, 3)
+                    lines.append((p - off * d + sgn * off * across, q + off * d + sgn * off * across))
+    return tuple(np.asarray(x, np.float64).reshape(-1, 2, 3) for x in (caps, lines))
 
 
 def _offset_polygon(poly, s):
@@ -1182,8 +1172,8 @@ def _emitter_pieces(scene, face, side):
                     if part is not None:
                         out.append(part)
         pieces = out
-    pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), _loop_caps(n_h, lines),
-                                                   _loop_segments(n_h, lines)])), eps)
+    caps, bands = _loop_segments(n_h, lines)
+    pieces = cut_along(pieces, to2(np.concatenate([contact_segments(scene, face, side), caps, bands])), eps)
     return origin, eu, ev, eps, pieces
 
 

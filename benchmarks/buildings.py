@@ -334,6 +334,52 @@ def pv_field(rows=6, length=20.0, width=2.0, tilt=25.0, pitch=5.0, height=1.5, p
     return b.soup()
 
 
+def shelving(units=3, bays=2, levels=4, bay=1.0, depth=0.4, height=2.0, board=0.02, upright=0.02, pitch=1.8,
+             back=True, size=(8.0, 3.0, 7.0), n_lights=2):
+    """A store room of shelving units: the regular layout of a library, a shop or a
+    warehouse, whose boards touch their uprights along whole faces.
+
+    Each unit (group ``shelf0`` …) runs along x from x = 1: ``bays + 1`` uprights
+    (``upright`` thick, ``depth`` deep, ``height`` tall) standing on the floor, in each
+    bay ``levels`` boards (``board`` thick) spanning between the uprights' inner faces
+    (their end faces lie on them) and flush with their fronts and backs (coplanar faces
+    meeting at an edge), the lowest 0.1 m up, the others evenly above it; a top board
+    resting on the uprights' tops; with ``back``, a back panel 1 cm thick touching the
+    uprights' and boards' backs. Unit 0 stands with its back against the south wall
+    (z = 0), the others free-standing at a ``pitch`` along z. The room is a closed shell
+    ``size`` = (x, y, z) with ``n_lights`` light quads (``light1`` …) 2 cm under the
+    ceiling over the aisles.
+
+    >>> shelving(units=1, bays=1, levels=1, n_lights=1).n_polygons  # 6 + 1 + 6 × (2 + 1 + 1 + 1)
+    37
+    """
+    b = _Builder()
+    width, room_h, room_d = size
+    _shell(b, width, room_h, room_d)
+    skin = 0.01 if back else 0.0
+    x_end = 1.0 + bays * bay + (bays + 1) * upright
+    for k in range(units):
+        z0 = skin + k * pitch
+        z1 = z0 + depth
+        name = f"shelf{k}"
+        xs = [1.0 + i * (bay + upright) for i in range(bays + 1)]
+        for x in xs:
+            b.box([x, 0.0, z0], [x + upright, height, z1], name)
+        ys = [0.1 + i * (height - 0.1) / levels for i in range(levels)]
+        for x in xs[:-1]:
+            for y in ys:
+                b.box([x + upright, y, z0], [x + upright + bay, y + board, z1], name)
+        b.box([1.0, height, z0], [x_end, height + board, z1], name)
+        if back:
+            b.box([1.0, 0.0, z0 - skin], [x_end, height, z0], name)
+    aisle = [skin + k * pitch + depth + (pitch - depth) / 2 for k in range(units)]
+    for k in range(n_lights):
+        cz = aisle[k % len(aisle)]
+        cx = 1.0 + (x_end - 1.0) * (k // len(aisle) + 0.5) / max(1, -(-n_lights // len(aisle)))
+        _light(b, (cx, cz), (0.6, 0.15), room_h - 0.02, f"light{k + 1}")
+    return b.soup()
+
+
 def write_obj(soup, path):
     """Write a soup as OBJ, one ``o`` group per group name (vertices as written, 6 decimals)."""
     lines = ["# viscx benchmark scene (benchmarks/buildings.py)"]
@@ -357,7 +403,7 @@ if __name__ == "__main__":
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("kind", choices=["office", "plan", "pv"])
+    parser.add_argument("kind", choices=["office", "plan", "pv", "shelves"])
     parser.add_argument("-n", "--polygons", type=int, default=300, help="office: about this many polygons")
     parser.add_argument("--rooms", type=int, nargs=2, default=(2, 2), help="plan: rooms along x and z")
     parser.add_argument("--pv-rows", type=int, default=6, help="pv: rows of panels")
@@ -365,6 +411,6 @@ if __name__ == "__main__":
     parser.add_argument("-o", "--output", required=True)
     args = parser.parse_args()
     soup = {"office": lambda: office(args.polygons, args.seed), "plan": lambda: floor_plan(tuple(args.rooms), seed=args.seed),
-            "pv": lambda: pv_field(rows=args.pv_rows)}[args.kind]()
+            "pv": lambda: pv_field(rows=args.pv_rows), "shelves": lambda: shelving()}[args.kind]()
     write_obj(soup, args.output)
     print(f"{args.output}: {soup.n_polygons} polygons")

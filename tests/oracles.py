@@ -118,10 +118,22 @@ def in_convex_cells(points, cells, normal, tol=1e-12):
     wound either way about ``normal``), the first cell it lies in (boundary included), -1
     none."""
     out = np.full(len(points), -1, np.int64)
+    if not len(points):
+        return out
+    # each cell tests only the points in its span along the points' widest axis (a wall
+    # with a shelf's back on it has 1,225 cells: all against all took minutes a 10⁶ rays)
+    axis = int(np.argmax(np.ptp(points, axis=0)))
+    order = np.argsort(points[:, axis], kind="stable")
+    key = points[order, axis]
+    slack = 1e-9 * (float(np.ptp(points, axis=0).max()) + 1.0)
     for c, cell in enumerate(cells):
-        side = np.stack([np.cross(b - a, points - a) @ normal for a, b in zip(cell, np.roll(cell, -1, axis=0))])
+        lo, hi = np.searchsorted(key, [cell[:, axis].min() - slack, cell[:, axis].max() + slack])
+        idx = order[lo:hi]
+        idx = idx[out[idx] < 0]
+        p = points[idx]
+        side = np.stack([np.cross(b - a, p - a) @ normal for a, b in zip(cell, np.roll(cell, -1, axis=0))])
         inside = np.all(side >= -tol, axis=0) | np.all(side <= tol, axis=0)
-        out[(out < 0) & inside] = c
+        out[idx[inside]] = c
     return out
 
 

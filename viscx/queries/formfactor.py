@@ -2300,6 +2300,23 @@ class PairSetup:
         return umbra_triangles(np.ascontiguousarray(tri), hull, np.asarray(self.n_t, np.float64), float(self.c_t), eu, ev,
                                heights, sec_ptr, sec, 10 * self.tiny)
 
+    def hidden_whole(self):
+        """Whether J' is hidden from every point of I' by one occluder or a closed solid:
+        :meth:`face_umbra` or :meth:`umbra` of each triangle of the convex hull of I' (they
+        hold every point of it). A shelf board's underside sees nothing of the next unit's
+        back panel, behind its own: office-like scenes have hundreds of such pairs in a
+        group query, each a cubature of F(x → J') − F(x → visible J') to rounding."""
+        hull = convex_outline(self.I, self.n_i)
+        if len(hull) < 3:
+            return False
+        k = np.arange(1, len(hull) - 1)
+        tri = np.stack([np.repeat(hull[:1], len(k), axis=0), hull[k], hull[k + 1]], axis=1)
+        hidden = self.face_umbra(tri)
+        rest = np.flatnonzero(~hidden)
+        if len(rest):
+            hidden[rest] = self.umbra(tri[rest])
+        return bool(hidden.all())
+
     def face_umbra(self, tri):
         """(g,) bool: the triangles (g, 3, 3) of I' from every point of which one occluder
         hides the whole of J' (a desk's top over the floor beneath it): a convex occluder
@@ -2340,9 +2357,11 @@ class PairSetup:
         known = self.scene.cached("convex_occluder_faces", lambda scene: {})  # face -> _convex_loop
         keep = []
         for loops, normal, face in self.occluders:
-            if loops is unclipped[face]:  # a whole face (pair_occluders): once per scene
+            # the whole face: it hides where its clipped part does, and more where the clip
+            # was I's plane (the segments grazing it there hide nothing but fail the test)
+            if face >= 0:
                 if face not in known:
-                    known[face] = _convex_loop(loops, normal)
+                    known[face] = _convex_loop(unclipped[face], normal)
                 entry = known[face]
             else:
                 entry = _convex_loop(loops, normal)
@@ -2449,7 +2468,7 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         # a box's inner side and a face outside the box: nothing seen, exactly
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked, keep=True)
-    if setup.empty:
+    if setup.empty or (setup.occluders and setup.hidden_whole()):
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     value, err = touching, setup.clip_bound()
     # the emitter's part I' (all its cells) by the contour integral, less its cells in

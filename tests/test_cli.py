@@ -341,3 +341,50 @@ def test_a_signal_while_the_handler_arranges_its_delivery_is_delivered_again(mon
     assert inside[0].f_code is cli._on_signal.__code__
     assert cli._in_numba(inside[0])  # a stack holding the handler: not raised there
     assert not cli._in_numba(sys._getframe())
+
+
+def test_kernel_cache_files_change_one_process_at_a_time(tmp_path, monkeypatch):
+    """Two saves of two signatures of one kernel at once (a cold cache, two processes
+    compiling it): with numba's own ``IndexDataCacheFile.save`` both read an empty index,
+    both name their data file ``.1``, and the index keeps one signature, whose file may
+    hold the other's code (numba issues #4807 and #10128: a segfault when it is called).
+    With :func:`viscx.cli.lock_kernel_cache_files` each signature reads back its own
+    data. The two saves overlap for sure: reading the index pauses 0.2 s. (Threads, each
+    with its own open lock file: ``flock`` locks them against each other as it does two
+    processes.)"""
+    import threading
+    import time
+
+    from numba.core import caching
+
+    from viscx.cli import lock_kernel_cache_files
+
+    cache_file = caching.IndexDataCacheFile
+    for name in ("save", "load"):  # numba's own (a command run in this process locked them)
+        monkeypatch.setattr(cache_file, name, getattr(getattr(cache_file, name), "__wrapped__", getattr(cache_file, name)))
+    read = cache_file._load_index
+
+    def slow_read(self):
+        index = read(self)
+        time.sleep(0.2)
+        return index
+
+    monkeypatch.setattr(cache_file, "_load_index", slow_read)
+
+    def race(path):
+        path.mkdir()
+        files = [cache_file(str(path), "kernel", ("source", 1)) for _ in range(2)]
+        saves = [threading.Thread(target=f.save, args=(key, key.upper())) for f, key in zip(files, "ab")]
+        for t in saves:
+            t.start()
+        for t in saves:
+            t.join()
+        return {key: cache_file(str(path), "kernel", ("source", 1)).load(key) for key in "ab"}
+
+    assert race(tmp_path / "numba") != {"a": "A", "b": "B"}
+    lock_kernel_cache_files()
+    assert getattr(cache_file.save, "viscx", False) and getattr(cache_file.load, "viscx", False)
+    assert race(tmp_path / "locked") == {"a": "A", "b": "B"}
+    first = cache_file.save
+    lock_kernel_cache_files()  # once only
+    assert cache_file.save is first

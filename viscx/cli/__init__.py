@@ -8,6 +8,7 @@ error, 2 bad input or usage (one line on stderr, never a traceback),
 130 interrupted, 143 terminated.
 """
 
+import functools
 import importlib
 import os
 import signal
@@ -100,6 +101,7 @@ def cli(ctx, quiet):
         keep_freed_memory()
         skip_numbas_blas_probe()
         load_cached_kernels_without_registries()
+        lock_kernel_cache_files()
         report_compilation(not quiet)
         ctx.call_on_close(lambda: report_compilation(False))
 
@@ -128,6 +130,50 @@ def skip_numbas_blas_probe():
         linalg.ensure_blas = probe
     if getattr(arraymath, "ensure_blas", None) is not probe:  # the name it imported, put back too
         arraymath.ensure_blas = probe
+
+
+def lock_kernel_cache_files():
+    """Make numba's cache files of a kernel change one process at a time. numba's
+    ``IndexDataCacheFile.save`` reads the kernel's index, names a data file after the
+    entries it holds, writes the index, then the data: two processes compiling two
+    signatures of one kernel at once (a cold cache: the first commands after a plain
+    ``pip install``, or their worker processes) both name theirs ``.1``, the index keeps
+    one signature and the data file the other's machine code, and the next process to
+    load that signature calls the wrong code and crashes (numba issues #4807 and #10128;
+    seen here: a segfault in ``point_views`` after two workers of a group query compiled
+    it). A load between a save's index and its data reads the data file's previous
+    content just as well. So each save holds an exclusive ``flock`` on a lock file beside
+    the index, and each load a shared one. Nothing is done where numba's methods are not
+    the ones expected, nor without ``fcntl`` (Windows)."""
+    try:
+        import fcntl
+    except ImportError:
+        return
+    from numba.core import caching
+
+    cache_file = caching.IndexDataCacheFile
+    expected = {"save": "_save_index", "load": "_load_index"}
+    methods = {name: getattr(cache_file, name, None) for name in expected}
+    if any(getattr(m, "viscx", False) or need not in getattr(getattr(m, "__code__", None), "co_names", ())
+           for m, need in zip(methods.values(), expected.values())):
+        return
+
+    def locked(method, mode):
+        @functools.wraps(method)
+        def run(self, *args):
+            try:
+                handle = open(self._index_path + ".lock", "a")
+            except OSError:  # a read-only cache directory: nothing to race with
+                return method(self, *args)
+            with handle:
+                fcntl.flock(handle, mode)  # released when the handle closes
+                return method(self, *args)
+
+        run.viscx = True
+        return run
+
+    cache_file.save = locked(methods["save"], fcntl.LOCK_EX)
+    cache_file.load = locked(methods["load"], fcntl.LOCK_SH)
 
 
 def load_cached_kernels_without_registries():

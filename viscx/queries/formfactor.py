@@ -2378,18 +2378,12 @@ class PairSetup:
         ``normal`` (P, 3), ``c`` (P,) their planes."""
         if not self.occluders_found:
             self.find_occluders()
-        unclipped = face_loops_oriented(self.scene)[1]
-        known = self.scene.cached("convex_occluder_faces", lambda scene: {})  # face -> _convex_loop
+        whole = convex_face_loops(self.scene)
         keep = []
         for loops, normal, face in self.occluders:
             # the whole face: it hides where its clipped part does, and more where the clip
             # was I's plane (the segments grazing it there hide nothing but fail the test)
-            if face >= 0:
-                if face not in known:
-                    known[face] = _convex_loop(unclipped[face], normal)
-                entry = known[face]
-            else:
-                entry = _convex_loop(loops, normal)
+            entry = whole[face] if face >= 0 else _convex_loop(loops, normal)
             if entry is not None:
                 keep.append(entry)
         if not keep:
@@ -2417,6 +2411,32 @@ class PairSetup:
         area = float(triangle_areas(tri).sum())
         v, e = contour_form_factor(list(tri), self.n_i, self.J, self.n_t, separate=True)
         return v * area, e * area
+
+
+def convex_face_loops(scene):
+    """Per face, :func:`_convex_loop` of its whole loops about its normal (None for a face
+    with holes or not convex), for all faces at once, by their vertex counts (a scanned
+    mesh's 10⁵ triangles: one call each took 0.25 ms), cached."""
+
+    def build(scene):
+        loops = face_loops_oriented(scene)[1]
+        out = [None] * scene.n_faces
+        by_size = {}
+        for f in range(scene.n_faces):
+            if len(loops[f]) == 1 and len(loops[f][0]) >= 3:
+                by_size.setdefault(len(loops[f][0]), []).append(f)
+        for faces in by_size.values():
+            faces = np.asarray(faces, np.int64)
+            pts = np.stack([loops[f][0] for f in faces])  # (n, k, 3)
+            normal = scene.face_normal[faces].astype(np.float64)
+            edge = np.roll(pts, -1, axis=1) - pts
+            inward = np.cross(normal[:, None, :], edge)  # the outer loop runs counter-clockwise
+            convex = np.all(np.einsum("nkd,nkd->nk", np.roll(inward, -1, axis=1), edge) <= 0, axis=1)
+            for f, p, w, n in zip(faces[convex], pts[convex], inward[convex], normal[convex]):
+                out[f] = (p, w, n)
+        return out
+
+    return scene.cached("convex_face_loops", build)
 
 
 def _convex_loop(loops, normal):

@@ -43,7 +43,10 @@ def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0, quad_light=False):
     faces = np.concatenate([m.faces + o for m, o in zip(meshes, offsets)])
     groups = np.concatenate([np.full(len(m.faces), i) for i, m in enumerate(meshes)])
     if quad_light:  # the room's triangles by their inward normal: floor (+y), ceiling (-y), walls
-        up = room.face_normals[:, 1]
+        # (from the winding: trimesh keeps the outward face_normals after invert())
+        t = room.triangles
+        n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        up = n[:, 1] / np.linalg.norm(n, axis=1)
         groups[: len(room.faces)] = np.where(up > 0.5, 0, np.where(up < -0.5, len(names), len(names) + 1))
         names = ["floor"] + names[1:] + ["ceiling", "walls"]
     soup = PolygonSoup(

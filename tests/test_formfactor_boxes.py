@@ -272,6 +272,60 @@ def test_back_faces_rule(office60):
     assert not ff.back_faces(s, under, np.zeros(len(cab), np.int64), cab, tiny).any()
 
 
+def test_back_faces_of_a_many_faced_solid_in_bounded_memory():
+    """An icosphere of 5,120 faces above a floor is one closed convex box
+    (:func:`viscx.queries.formfactor.closed_boxes`). back_faces used to test every
+    (triangle, face) pair against all of its box's planes at once, (pairs, planes, 5)
+    float64: 21 GB for these 20 floor triangles against the sphere (and 36.7 GB, a
+    MemoryError, for a light → the floor in a room of six 20,480-face spheres, where 10⁷
+    rays take seconds). Now the box's planes once per (triangle, box) pair, in blocks of
+    :data:`PLANE_BLOCK`: the same answers as the rule per pair (the faces behind which the
+    whole triangle lies, of a box it is outside of), in a few MB (tracemalloc)."""
+    import resource
+    import tracemalloc
+
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+    v = np.concatenate([sphere.vertices + [0.0, 2.0, 0.0], [[-5, 0, -5], [-5, 0, 5], [5, 0, 5], [5, 0, -5]]])
+    polygons = sphere.faces.tolist() + [[len(v) - 4, len(v) - 3, len(v) - 2, len(v) - 1]]
+    scene = build_scene(soup(v, polygons, [0] * len(sphere.faces) + [1], ["sphere", "floor"]))
+    face_box, ptr, planes = ff.closed_boxes(scene)
+    faces = np.flatnonzero(face_box >= 0)
+    assert len(ptr) == 2 and len(faces) == len(sphere.faces) == ptr[1]
+    rng = np.random.default_rng(1)
+    corner = rng.uniform(-4, 4, (20, 3)) * [1, 0, 1]
+    # small: the traces of 5,120 planes on the floor are dense, and a triangle straddling
+    # one of them drops nothing of the sphere
+    tri = corner[:, None, :] + [[0, 0, 0], [1e-3, 0, 0], [0, 0, 1e-3]]
+    cell, pair_faces = np.repeat(np.arange(20), len(faces)), np.tile(faces, 20)
+    tiny = 1e-9 * scene.diagonal
+    # (the dense version would ask for ~10 GB: a MemoryError under a limit 1 GB above what
+    # this process maps now, not the machine's out-of-memory killer)
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    with open("/proc/self/status") as status:
+        mapped = next(int(line.split()[1]) * 1024 for line in status if line.startswith("VmSize:"))
+    limit = mapped + (1 << 30)
+    resource.setrlimit(resource.RLIMIT_AS, (limit if hard == resource.RLIM_INFINITY else min(limit, hard), hard))
+    tracemalloc.start()
+    try:
+        drop = ff.back_faces(scene, tri, cell, pair_faces, tiny)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    assert peak < 64e6, peak
+    # the rule, per pair: behind the face; each plane of the box with the whole triangle on
+    # or behind it, or more than 2 tiny in front (one at least)
+    h = np.einsum("gvj,pj->gpv", tri, planes[:, :3]) - planes[:, 3][None, :, None]  # (20, planes, 3)
+    front = np.all(h > 2 * tiny, axis=2)
+    outside = np.all(front | np.all(h <= 0, axis=2), axis=1) & np.any(front, axis=1)  # (20,)
+    own = np.einsum("cvj,cj->cv", tri[cell], scene.face_normal[pair_faces]) - scene.face_offset[pair_faces][:, None]
+    assert np.array_equal(drop, outside[cell] & np.all(own < -tiny, axis=1))
+    dropped = np.bincount(cell[drop], minlength=20)
+    assert np.sum(dropped > len(faces) // 4) >= 10  # the sphere's far side from most triangles
+
+
 def test_cubature_with_back_face_culling_equals_without(office60, monkeypatch):
     """The pair cubature with the triangles' back faces dropped gives the same F (the
     integrand is the same at every point) and needs shorter lists."""

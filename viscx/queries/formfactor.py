@@ -2513,8 +2513,13 @@ def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cel
         # a box's inner side and a face outside the box: nothing seen, exactly
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
     setup = PairSetup(scene, face_i, side_i, target, side_t, cells=free, kinked=kinked, keep=True)
-    if setup.empty or (setup.occluders and setup.hidden_whole()):
+    if setup.empty:
         return PairResult(touching, 0.0, "contact" if touching else "none", seconds=time.perf_counter() - t0)
+    if setup.occluders and setup.hidden_whole():
+        # I' sees nothing of J'; what the strip of I within tiny of J's plane (not in I')
+        # may see is still its estimate
+        return PairResult(touching, setup.clip_bound(), "contact" if touching else "none",
+                          seconds=time.perf_counter() - t0)
     value, err = touching, setup.clip_bound()
     # the emitter's part I' (all its cells) by the contour integral, less its cells in
     # contact, which see nothing else

@@ -6,8 +6,9 @@ front → the next row and its back → the row behind (the rows' mutual shading
 ground → that row's posts; each a ``viscx formfactor groups`` query
 (:func:`viscx.queries.formfactor.group_to_group`) at ``--tol``, timed (CPU s of this
 process and its workers), against cosine-weighted Monte Carlo rays from the emitting side
-(tests/oracles.py ``form_factor_monte_carlo``, embree first hits; ``--rays``): the
-difference in units of the two uncertainties together, √(σ² + estimate²).
+(benchmarks/group_oracle.py ``monte_carlo``: embree first hits, a post's foot on the ground
+counted as viscx counts a face lying on a face; ``--rays``): the difference in units of
+the two uncertainties together, √(σ² + estimate²).
 
     python benchmarks/pv_field.py --rows 6 --tol 1e-6 --rays 10000000
 
@@ -16,7 +17,6 @@ Prints one JSON line per query and nothing else.
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -26,12 +26,6 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
-
-
-def cpu_seconds():
-    """CPU seconds of this process and its finished children."""
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
 
 
 def queries(scene, middle):
@@ -56,7 +50,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     from buildings import pv_field
-    from oracles import form_factor_monte_carlo
+    from group_oracle import cpu_seconds, monte_carlo
 
     from viscx.queries import formfactor as ff
     from viscx.scene import build_scene
@@ -70,16 +64,7 @@ def main(argv=None):
         record = {"query": name, "F": r["F"], "error": r["error"], "tol_reached": r["tol_reached"],
                   "tol": args.tol, "cpu": round(cpu_seconds() - start, 2)}
         if args.rays:
-            # area-weighted over the emitters: rays in proportion to their areas
-            area = scene.face_area[emitters]
-            mc, var = 0.0, 0.0
-            cols = np.concatenate([[2 * j, 2 * j + 1] for j in receivers])
-            for f, a in zip(emitters, area):
-                n = max(1, int(args.rays * a / area.sum()))
-                p = float(form_factor_monte_carlo(scene, [f], side, n, seed=args.seed)[0][cols].sum())
-                mc += a * p / area.sum()
-                var += (a / area.sum()) ** 2 * p * (1 - p) / n
-            sigma = float(np.sqrt(var))
+            mc, sigma = monte_carlo(scene, np.asarray(emitters, np.int64), side, receivers, args.rays, args.seed)
             record.update(monte_carlo=mc, sigma=sigma,
                           z=(r["F"] - mc) / float(np.sqrt(sigma ** 2 + r["error"] ** 2)))
         print(json.dumps(record), flush=True)

@@ -674,14 +674,15 @@ def back_faces(scene, tri, cell, faces, tiny):
     pair, where = np.unique(cell[boxed] * len(ptr) + face_box[faces[boxed]], return_inverse=True)
     pc, pb = pair // len(ptr), pair % len(ptr)
     ok = np.zeros(len(pair), bool)
-    ends = np.cumsum(ptr[pb + 1] - ptr[pb])
+    count = ptr[pb + 1] - ptr[pb]
+    ends = np.cumsum(count)
     start = 0
     while start < len(pair):  # blocks of at most PLANE_BLOCK planes (one pair at least)
         base = int(ends[start - 1]) if start else 0
         stop = max(start + 1, int(np.searchsorted(ends, base + PLANE_BLOCK, side="right")))
         rows, first = _plane_ranges(ptr, pb[start:stop])
         p = planes[rows]  # (t, 5)
-        owner = np.repeat(pc[start:stop], ptr[pb[start:stop] + 1] - ptr[pb[start:stop]])
+        owner = np.repeat(pc[start:stop], count[start:stop])
         h = np.einsum("tvj,tj->tv", tri[owner], p[:, :3]) - p[:, 3][:, None]  # (t, 3)
         missing = p[:, 4] != 0.0  # an open box's missing face: x on or behind its plane
         front = np.all(h > 2 * tiny, axis=1) & ~missing
@@ -2334,8 +2335,7 @@ class PairSetup:
         hull = convex_outline(self.I, self.n_i)
         if len(hull) < 3:
             return False
-        k = np.arange(1, len(hull) - 1)
-        tri = np.stack([np.repeat(hull[:1], len(k), axis=0), hull[k], hull[k + 1]], axis=1)
+        tri = start_triangles([hull], 0.0)
         hidden = self.face_umbra(tri)
         rest = np.flatnonzero(~hidden)
         if len(rest):
@@ -2427,16 +2427,23 @@ def convex_face_loops(scene):
                 by_size.setdefault(len(loops[f][0]), []).append(f)
         for faces in by_size.values():
             faces = np.asarray(faces, np.int64)
-            pts = np.stack([loops[f][0] for f in faces])  # (n, k, 3)
+            pts = np.stack([loops[f][0] for f in faces])
             normal = scene.face_normal[faces].astype(np.float64)
-            edge = np.roll(pts, -1, axis=1) - pts
-            inward = np.cross(normal[:, None, :], edge)  # the outer loop runs counter-clockwise
-            convex = np.all(np.einsum("nkd,nkd->nk", np.roll(inward, -1, axis=1), edge) <= 0, axis=1)
+            inward, convex = _convex_loops(pts, normal)
             for f, p, w, n in zip(faces[convex], pts[convex], inward[convex], normal[convex]):
                 out[f] = (p, w, n)
         return out
 
     return scene.cached("convex_face_loops", build)
+
+
+def _convex_loops(pts, normal):
+    """Loops ``pts`` (n, k, 3), counter-clockwise about their ``normal`` (n, 3): each edge's
+    normal into the polygon, the edge's length, ``inward`` (n, k, 3), and whether the loop
+    is convex (left turns only) ``(n,) bool``."""
+    edge = np.roll(pts, -1, axis=1) - pts
+    inward = np.cross(normal[:, None, :], edge)
+    return inward, np.all(np.einsum("nkd,nkd->nk", np.roll(inward, -1, axis=1), edge) <= 0, axis=1)
 
 
 def _convex_loop(loops, normal):
@@ -2445,11 +2452,9 @@ def _convex_loop(loops, normal):
     the edge's length), else None (:meth:`PairSetup._convex_occluders`)."""
     if len(loops) != 1 or len(loops[0]) < 3:
         return None
-    edge = np.roll(loops[0], -1, axis=0) - loops[0]
-    inward = np.cross(normal, edge)  # the outer loop runs counter-clockwise about normal
-    if np.all(np.einsum("kd,kd->k", np.roll(inward, -1, axis=0), edge) <= 0):  # left turns only: convex
-        return loops[0], inward, np.asarray(normal, np.float64)
-    return None
+    normal = np.asarray(normal, np.float64)
+    inward, convex = _convex_loops(np.asarray(loops[0])[None], normal[None])
+    return (loops[0], inward[0], normal) if convex[0] else None
 
 
 def pair_form_factor(scene, face_i, side_i, target, side_t, tol=DEFAULT_TOL, cells=None, contact=None, kinked=False,

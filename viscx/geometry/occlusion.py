@@ -522,17 +522,50 @@ def _project(buf, n_in, x, hx, n_j, c_j, origin, eu, ev, tiny, out, first):
 
 
 @njit(cache=True)
+def points_behind_planes(points, planes, tol):
+    """True when every point lies behind or on every plane, within ``tol``:
+    ``n · p − c <= tol`` (a closed box's convexity test, :func:`viscx.queries.formfactor.closed_boxes`;
+    a loop that stops at the first point in front, where the product of all points and
+    all planes of a 20,480-face sphere is 1.6 GB).
+
+    Parameters
+    ----------
+    points : (v, 3) float64
+    planes : (p, 4+) float64
+        ``(n, c, ...)`` per plane.
+    tol : float
+    """
+    for k in range(planes.shape[0]):
+        nx, ny, nz, c = planes[k, 0], planes[k, 1], planes[k, 2], planes[k, 3]
+        for i in range(points.shape[0]):
+            if points[i, 0] * nx + points[i, 1] * ny + points[i, 2] * nz - c > tol:
+                return False
+    return True
+
+
+#: Above this many points :func:`_convex_hull` sorts by merge sort, not by insertion.
+HULL_INSERTION = 32
+
+
+@njit(cache=True)
 def _convex_hull(pts, n, out):
     """Andrew's monotone chain: the convex hull of ``pts[:n]`` (2-D) counter-clockwise, as
     indices into ``out`` (size >= n + 1); returns its size (collinear points left out).
     The points are sorted in place by (u, v)."""
-    for i in range(1, n):  # insertion sort by (u, v): a few dozen points
-        u, v = pts[i, 0], pts[i, 1]
-        j = i
-        while j > 0 and (pts[j - 1, 0] > u or (pts[j - 1, 0] == u and pts[j - 1, 1] > v)):
-            pts[j, 0], pts[j, 1] = pts[j - 1, 0], pts[j - 1, 1]
-            j -= 1
-        pts[j, 0], pts[j, 1] = u, v
+    if n > HULL_INSERTION:
+        # a box of thousands of faces (a scanned convex solid): an O(n log n) sort, the
+        # same order (ties in u and v are the same point)
+        by_v = np.argsort(pts[:n, 1], kind="mergesort")
+        order = by_v[np.argsort(pts[by_v, 0], kind="mergesort")]
+        pts[:n] = pts[order]
+    else:
+        for i in range(1, n):  # insertion sort by (u, v): a few dozen points
+            u, v = pts[i, 0], pts[i, 1]
+            j = i
+            while j > 0 and (pts[j - 1, 0] > u or (pts[j - 1, 0] == u and pts[j - 1, 1] > v)):
+                pts[j, 0], pts[j, 1] = pts[j - 1, 0], pts[j - 1, 1]
+                j -= 1
+            pts[j, 0], pts[j, 1] = u, v
     if n < 3:
         return 0
     m = 0

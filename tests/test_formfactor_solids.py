@@ -120,14 +120,47 @@ def torus_scene():
                             ["floor", "light", "torus"]))
 
 
-@pytest.mark.parametrize("which", ["solid", "torus"])
-def test_front_face_outline_equals_every_face(which, scene, torus_scene):
+@pytest.fixture(scope="module")
+def annulus_scene():
+    """The floor and light of torus_scene and a torus of 6 sections around its tube: the
+    ring of 16 quads on its top lies in one plane, and so does the one on its bottom, and
+    the scene merges each into one face with a hole, an annulus (as a finely tessellated
+    torus or a pipe's end): still a closed solid (:func:`closed_solids`)."""
+    import trimesh
+
+    t = trimesh.creation.torus(major_radius=1.5, minor_radius=0.5, major_sections=16, minor_sections=6)
+    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(50), [1, 0, 0]))
+    t.apply_translation([5.0, 3.0, 5.0])
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
+    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
+                            ["floor", "light", "annulus"]))
+
+
+def test_a_solid_with_annuli_is_closed(annulus_scene):
+    """The torus whose top and bottom rings are faces with holes is one closed solid, its
+    normals outward, every edge of every loop (the holes' too) paired with the face across."""
+    s = annulus_scene
+    torus = s.group_faces("annulus")
+    holed = torus[np.diff(s.face_loop_offsets)[torus] == 2]
+    assert len(holed) == 2
+    face_solid, outward, neighbour = ff.closed_solids(s)
+    assert len(set(face_solid[torus].tolist())) == 1 and face_solid[torus[0]] >= 0
+    assert outward[face_solid[torus[0]]] == 1.0
+    lo = s.loop_offsets
+    for f in holed:
+        for j in range(s.face_loop_offsets[f], s.face_loop_offsets[f + 1]):
+            assert np.all(np.isin(neighbour[lo[j]:lo[j + 1]], torus))
+
+
+@pytest.mark.parametrize("which", ["solid", "torus", "annulus"])
+def test_front_face_outline_equals_every_face(which, request):
     """The pair kernel with a solid's faces as the outline of its front faces
     (:func:`viscx.geometry.occlusion._solid_outlines`) equals the kernel with every face
     on its own, within 1e-12, at points on the floor (the torus' outline crosses itself:
     its crossings must be breaks of the sweep), and per cubature triangle past the
     triangles' culled lists."""
-    s = scene if which == "solid" else torus_scene
+    s = request.getfixturevalue({"solid": "scene", "torus": "torus_scene", "annulus": "annulus_scene"}[which])
     floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
     setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
     k = setup.kernel
@@ -154,8 +187,8 @@ def _floor_grid(n, lo=0.0, hi=10.0):
     return np.concatenate([np.stack([a, e, c], 1), np.stack([a, c, b], 1)])
 
 
-@pytest.mark.parametrize("which", ["solid", "torus"])
-def test_umbra_triangles_see_none_of_the_light(which, scene, torus_scene):
+@pytest.mark.parametrize("which", ["solid", "torus", "annulus"])
+def test_umbra_triangles_see_none_of_the_light(which, request):
     """Every floor triangle :meth:`PairSetup.umbra` says is wholly in a solid's umbra is:
     each segment from its corners and random points inside to the light's corners and
     random points on it meets a face of the solid (the brute-force segment oracle; the
@@ -163,7 +196,7 @@ def test_umbra_triangles_see_none_of_the_light(which, scene, torus_scene):
     the rule flags something."""
     from oracles import segment_hits_reference
 
-    s = scene if which == "solid" else torus_scene
+    s = request.getfixturevalue({"solid": "scene", "torus": "torus_scene", "annulus": "annulus_scene"}[which])
     floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
     setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
     tri = _floor_grid(32)

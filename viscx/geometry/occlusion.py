@@ -980,7 +980,7 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
 def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, occ_nb, occ_vid, occ_next,
                     sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b, seg_p, seg_w, n_seg, kmax):
     """The faces of closed solids among ``sel`` (``poly_solid`` >= 0; x outside each solid,
-    every face one loop, its edge q → ``occ_next[q]`` shared with occluder ``occ_nb[q]``,
+    every loop of a face whole (holes too), its edge q → ``occ_next[q]`` shared with occluder ``occ_nb[q]``,
     -1 if that is none of them; ``occ_vid`` the vertices' ids) as the outlines of their
     front faces, appended to the segments: the edges of a front face whose neighbour is not
     a listed front face, chained into loops, clipped to the pyramid and projected, one
@@ -1025,7 +1025,7 @@ def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, t
         pid = sel[r]
         if poly_solid[pid] < 0 or mark[pid] != 1:
             continue
-        for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid] + 1]):
+        for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid + 1]]):  # every loop's edges
             nb = occ_nb[q]
             if nb >= 0 and mark[nb] == 1:
                 continue
@@ -1042,7 +1042,7 @@ def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, t
             break
         if poly_solid[pid] < 0 or mark[pid] != 1:
             continue
-        for q0 in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid] + 1]):
+        for q0 in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid + 1]]):
             nb = occ_nb[q0]
             if (nb >= 0 and mark[nb] == 1) or used[q0]:
                 continue
@@ -1092,7 +1092,7 @@ def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, t
         if poly_solid[pid] < 0:
             continue
         rep[poly_solid[pid]] = -1
-        for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid] + 1]):
+        for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid + 1]]):
             head[occ_vid[q]] = -1
             used[q] = 0
         if not ok:
@@ -1187,7 +1187,7 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         faces as one convex polygon (:func:`_visible_one`).
     poly_solid : (P,) int64
         The closed solid each occluder is a face of (-1 none; every point outside it, the
-        face one loop, unclipped, its normal outward: :func:`viscx.queries.formfactor.closed_solids`);
+        face's loops whole, its normal outward: :func:`viscx.queries.formfactor.closed_solids`);
         ``occ_nb`` (no,) int64 the occluder across the edge from each loop vertex to the
         next (``occ_next`` (no,) int64, its index), -1 none; ``occ_vid`` (no,) int64 the
         vertices' ids (equal for one point). The solid's front faces enter as their

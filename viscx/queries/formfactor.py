@@ -392,10 +392,12 @@ PLANE_BLOCK = 1 << 20
 
 def closed_solids(scene):
     """The closed solids bounded by faces of the scene, convex or not (a scanned statue: the
-    npm bunny's 3,674 triangles): connected sets of faces without holes in which every
-    directed edge of a face (loops counter-clockwise about the normals) is traversed
+    npm bunny's 3,674 triangles): connected sets of faces in which every directed edge of
+    a face (outer loops counter-clockwise about the normals, holes clockwise) is traversed
     backwards by exactly one other face of the set and by no third face (a watertight,
-    consistently oriented 2-manifold). A ray from a point outside such a solid that meets a
+    consistently oriented 2-manifold). A face may have holes: the ring of coplanar quads
+    at the top of a finely tessellated torus is one face, an annulus, once the scene's
+    coplanar triangles are merged, and so is a pipe's end. A ray from a point outside such a solid that meets a
     face the point is behind (a back face) has entered the solid before, through a face the
     point is in front of; so from such a point an edge between two front faces or two back
     faces is never on the outline of what the solid hides (docs/queries.md).
@@ -415,7 +417,6 @@ def closed_solids(scene):
     def build(scene):
         n, lv, lo = scene.n_faces, scene.loop_vertices.astype(np.int64), scene.loop_offsets.astype(np.int64)
         flo = scene.face_loop_offsets
-        one = np.diff(flo) == 1  # faces without holes
         loop_face = np.repeat(np.arange(n), np.diff(flo))
         sizes = np.diff(lo)
         edge_loop = np.repeat(np.arange(len(sizes)), sizes)
@@ -431,9 +432,9 @@ def closed_solids(scene):
         left = np.searchsorted(sk, rev, "left")
         rcount = np.searchsorted(sk, rev, "right") - left
         neighbour = np.full(len(lv), -1, np.int64)
-        paired = (count == 1) & (rcount == 1) & one[face]
+        paired = (count == 1) & (rcount == 1)
         neighbour[paired] = face[order[left[paired]]]
-        paired &= one[np.maximum(neighbour, 0)] & (neighbour != face)
+        paired &= neighbour != face
         neighbour[~paired] = -1
         link = np.flatnonzero(paired)
         _, comp = graph_components(n, face[link], neighbour[link])
@@ -442,7 +443,7 @@ def closed_solids(scene):
         faces_in = np.bincount(comp, minlength=n)
         good = ~bare & (faces_in >= 4)
         face_solid = np.full(n, -1, np.int64)
-        ok = good[comp] & one
+        ok = good[comp]
         ids, face_solid[ok] = np.unique(comp[ok], return_inverse=True)
         neighbour[~ok[face]] = -1
         # volume: Σ_f A_f (n_f · p_f) / 3 over each solid's faces
@@ -533,12 +534,14 @@ def _outside_solids(scene, n, c, tiny):
     return (outward > 0) & (low >= -tiny)
 
 
-def solid_edge_positions(scene, face, loop):
-    """(k,) int64: for the outer loop ``loop`` (k, 3) of a face's part, the position in
-    ``scene.loop_vertices`` of each edge's start when the part is the face's whole outer
-    loop (not clipped: the same points in the same order), else -1 (no
+def solid_edge_positions(scene, face, loop, j=0):
+    """(k,) int64: for loop ``j`` (0 the outer) ``loop`` (k, 3) of a face's part, the
+    position in ``scene.loop_vertices`` of each edge's start when the part's loop is the
+    face's whole loop j (not clipped: the same points in the same order), else -1 (no
     :func:`closed_solids` rule for its edges)."""
-    first = scene.face_loop_offsets[face]
+    first = scene.face_loop_offsets[face] + j
+    if first >= scene.face_loop_offsets[face + 1]:
+        return np.full(len(loop), -1, np.int64)
     lo, hi = scene.loop_offsets[first], scene.loop_offsets[first + 1]
     whole = scene.vertices[scene.loop_vertices[lo:hi]]
     if whole.shape != loop.shape or not np.array_equal(whole, loop):
@@ -612,14 +615,16 @@ def solid_sections(scene, solids, n, c, tiny, count=UMBRA_PLANES):
     eu, ev = plane_basis(n)
     if not len(faces):
         return np.zeros(0), np.zeros(1, np.int64), np.zeros((0, 4))
-    first = scene.face_loop_offsets[faces]  # a solid's faces have one loop each
-    lo, hi = scene.loop_offsets[first], scene.loop_offsets[first + 1]
+    flo = scene.face_loop_offsets
+    counts = flo[faces + 1] - flo[faces]
+    loops = np.repeat(flo[faces] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())  # holes too
+    lo, hi = scene.loop_offsets[loops], scene.loop_offsets[loops + 1]
     sizes = hi - lo
     pos = np.repeat(lo - np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes) + np.arange(sizes.sum())
     nxt = pos + 1
     last = np.cumsum(sizes) - 1
     nxt[last] = lo
-    edge_face = np.repeat(faces, sizes)
+    edge_face = np.repeat(np.repeat(faces, counts), sizes)
     a, b = scene.loop_vertices[pos].astype(np.int64), scene.loop_vertices[nxt].astype(np.int64)
     a, b = np.minimum(a, b), np.maximum(a, b)
     height = scene.vertices @ n - c
@@ -2049,7 +2054,8 @@ class PairSetup:
     def _solid_arrays(self, occluders, boxes, box_ptr, occ_loop):
         """The :func:`closed_solids` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
         for these occluders: ``poly_solid`` (a face of a solid that lies in the closed front
-        half-space of I, so that every point of I is outside it, unclipped, and no face of a
+        half-space of I, so that every point of I is outside it, unclipped (every loop
+        whole), and no face of a
         convex box of at most :data:`HULL_BOX_FACES` planes: those the kernel sweeps as the
         convex hull of their projection; else -1), ``occ_nb`` (the occluder across each edge, -1 none),
         ``occ_vid`` (compact vertex ids) and ``occ_next`` (the next vertex of each loop)."""
@@ -2070,17 +2076,18 @@ class PairSetup:
         hulled[hulled] = np.diff(box_ptr)[boxes[hulled]] <= HULL_BOX_FACES
         for k, o in enumerate(occluders):
             f = o[2] if len(o) > 2 else -1
-            if f < 0 or face_solid[f] < 0 or not eligible[face_solid[f]] or hulled[k] or len(o[0]) != 1:
+            if (f < 0 or face_solid[f] < 0 or not eligible[face_solid[f]] or hulled[k]
+                    or len(o[0]) != np.diff(self.scene.face_loop_offsets)[f]):
                 continue
-            p = solid_edge_positions(self.scene, f, o[0][0])
-            if p[0] < 0:
+            p = [solid_edge_positions(self.scene, f, loop, j) for j, loop in enumerate(o[0])]
+            if any(q[0] < 0 for q in p):
                 continue
             poly_solid[k] = face_solid[f]
-            pid_of[int(f)], edge_pos[k] = k, p
-        # occluder k's loops start at loop Σ_{k' < k} len(loops_k'); a solid face has one
+            pid_of[int(f)], edge_pos[k] = k, np.concatenate(p)
+        # occluder k's loops start at loop Σ_{k' < k} len(loops_k'), one after the other
         first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
         for k in np.flatnonzero(poly_solid >= 0):
-            pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + 1]] = edge_pos[k]
+            pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + len(occluders[k][0])]] = edge_pos[k]
         rows = np.flatnonzero(pos >= 0)
         nb_face = neighbour[pos[rows]]
         occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]

@@ -53,6 +53,42 @@ def test_closed_solid_found(scene):
             assert any((lg[k], lg[(k + 1) % len(lg)]) == (b, a) for k in range(len(lg)))
 
 
+def test_a_pair_numbers_its_own_solids(rng):
+    """Twelve ridge solids in a row, 20 apart, and a floor tile under the last with a light
+    over it: the tile → light pair's occluders are that solid's 7 faces, and the kernel
+    numbers the solids among its occluders from 0 (its work arrays have one entry per
+    occluder: the scene's id, 11 here, wrote past them). Its F at points of the tile equals
+    every face swept on its own, to 1e-12."""
+    v, polygons, groups = [], [], []
+    for k in range(12):
+        one = solid_scene()
+        lo, hi = one.face_loop_offsets, one.loop_offsets
+        faces = one.group_faces("solid")
+        for f in faces:
+            loop = one.vertices[one.loop_vertices[hi[lo[f]]:hi[lo[f] + 1]]] + [20.0 * k, 0, 0]
+            polygons.append(list(range(len(v), len(v) + len(loop))))
+            v += loop.tolist()
+            groups.append(0)
+    x0 = 20.0 * 11
+    for corners, g in (([[x0 + 2, 0, 2], [x0 + 2, 0, 8], [x0 + 8, 0, 8], [x0 + 8, 0, 2]], 1),
+                       ([[x0 + 4, 5, 4], [x0 + 6, 5, 4], [x0 + 6, 5, 6], [x0 + 4, 5, 6]], 2)):
+        polygons.append(list(range(len(v), len(v) + 4)))
+        v += corners
+        groups.append(g)
+    s = build_scene(soup(v, polygons, groups, ["solids", "tile", "light"]))
+    assert len(ff.closed_solids(s)[1]) == 12
+    tile, light = int(s.group_faces("tile")[0]), int(s.group_faces("light")[0])
+    setup = ff.PairSetup(s, tile, 1, ff.face_target(s, light), 1)
+    k = setup.kernel
+    assert len(setup.occluders) == 7 and np.array_equal(k["poly_solid"], np.zeros(7, np.int64))
+    each = dict(k, poly_solid=np.full_like(k["poly_solid"], -1))
+    xz = rng.uniform([x0 + 2, 2], [x0 + 8, 8], (300, 2))
+    points = np.ascontiguousarray(np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=1))
+    new = setup.f(points)
+    assert np.abs(new - setup.f(points, each)).max() <= 1e-12
+    assert np.count_nonzero(new < setup.f(points, setup.kernel_for([])) - 1e-6) > 30  # it hides something
+
+
 def _hovering(scene):
     n, loops = ff._hovering_loops(scene, int(scene.group_faces("floor")[0]), 1)
     ends = [np.round(np.stack([p, np.roll(proj, -1, axis=0)[k]])[:, [0, 2]], 9).tolist()

@@ -2088,6 +2088,10 @@ class PairSetup:
         first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
         for k in np.flatnonzero(poly_solid >= 0):
             pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + len(occluders[k][0])]] = edge_pos[k]
+        # the solids numbered among these occluders (the kernel's work arrays have one
+        # entry per occluder; the scene's ids may be larger)
+        solid = poly_solid >= 0
+        poly_solid[solid] = np.unique(poly_solid[solid], return_inverse=True)[1].reshape(-1)
         rows = np.flatnonzero(pos >= 0)
         nb_face = neighbour[pos[rows]]
         occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]

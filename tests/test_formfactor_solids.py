@@ -189,18 +189,71 @@ def test_a_solid_with_annuli_is_closed(annulus_scene):
             assert np.all(np.isin(neighbour[lo[j]:lo[j + 1]], torus))
 
 
-@pytest.mark.parametrize("which", ["solid", "torus", "annulus"])
+@pytest.fixture(scope="module")
+def shell_scene():
+    """The floor and light of torus_scene and an open shell: an icosphere of 320 triangles
+    (radius 1.5, centre 3 above the floor) without its bottom cap, as a scan misses an
+    object's underside. From the floor below its rim the shell's inside is seen, its back
+    faces; from farther off its outside."""
+    import trimesh
+
+    t = trimesh.creation.icosphere(subdivisions=2, radius=1.5)
+    t = trimesh.Trimesh(t.vertices, t.faces[t.triangles_center[:, 1] > -0.9], process=False)
+    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(20), [1, 0, 0]))
+    t.apply_translation([5.0, 3.0, 5.0])
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
+    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
+                            ["floor", "light", "shell"]))
+
+
+@pytest.fixture(scope="module")
+def sheet_scene():
+    """The floor and light of torus_scene and a crumpled open sheet over the floor's middle:
+    a height field of 12 × 12 × 2 triangles, its rim 0.05 above the floor and its inside up
+    to ~3.2 in waves: from the floor both its sides are seen, its underside from below and
+    its top past its folds from beside it."""
+    rng = np.random.default_rng(7)
+    n = 13
+    u, w = np.meshgrid(np.linspace(2.0, 8.0, n), np.linspace(2.0, 8.0, n), indexing="ij")
+    height = 1.6 + 1.4 * np.sin(2.2 * u) * np.cos(1.7 * w) + rng.uniform(-0.2, 0.2, (n, n))
+    height[0, :] = height[:, 0] = 0.05
+    sheet = np.stack([u, height, w], axis=2).reshape(-1, 3)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]) + 8
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + tris.tolist()
+    return build_scene(soup(np.concatenate([v, sheet]), polygons, [0, 1] + [2] * len(tris),
+                            ["floor", "light", "sheet"]))
+
+
+def test_an_open_shell_is_a_patch(shell_scene):
+    """The shell is no closed solid but one surface patch (:func:`surface_patches`), open
+    from the floor: the pair kernel sweeps the outlines of its front and of its back faces."""
+    s = shell_scene
+    shell = s.group_faces("shell")
+    assert np.all(ff.closed_solids(s)[0][shell] == -1)
+    patch, neighbour = ff.surface_patches(s)
+    assert len(set(patch[shell].tolist())) == 1 and np.count_nonzero(patch == patch[shell[0]]) == len(shell)
+    floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
+    k = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1).kernel
+    assert np.all(k["poly_solid"] == 0) and k["solid_open"].tolist() == [1]
+
+
+@pytest.mark.parametrize("which", ["solid", "torus", "annulus", "shell", "sheet"])
 def test_front_face_outline_equals_every_face(which, request):
     """The pair kernel with a solid's faces as the outline of its front faces
     (:func:`viscx.geometry.occlusion._solid_outlines`) equals the kernel with every face
     on its own, within 1e-12, at points on the floor (the torus' outline crosses itself:
-    its crossings must be breaks of the sweep), and per cubature triangle past the
-    triangles' culled lists."""
-    s = request.getfixturevalue({"solid": "scene", "torus": "torus_scene", "annulus": "annulus_scene"}[which])
+    its crossings must be breaks of the sweep; the open shell's back faces have an outline
+    of their own, walked backwards), and per cubature triangle past the triangles' culled
+    lists."""
+    s = request.getfixturevalue(f"{which}_scene" if which != "solid" else "scene")
     floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
     setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
     k = setup.kernel
-    assert np.count_nonzero(k["poly_solid"] >= 0) == len(s.group_faces(which))
+    assert np.count_nonzero(k["poly_solid"] >= 0) == len(s.group_faces(which)) == len(k["poly_solid"])
     each = dict(k, poly_solid=np.full_like(k["poly_solid"], -1))
     rng = np.random.default_rng(1)
     xz = rng.uniform(1.0, 9.0, (300, 2))
@@ -232,7 +285,7 @@ def test_umbra_triangles_see_none_of_the_light(which, request):
     the rule flags something."""
     from oracles import segment_hits_reference
 
-    s = request.getfixturevalue({"solid": "scene", "torus": "torus_scene", "annulus": "annulus_scene"}[which])
+    s = request.getfixturevalue(f"{which}_scene" if which != "solid" else "scene")
     floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
     setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
     tri = _floor_grid(32)

@@ -228,6 +228,34 @@ def sheet_scene():
                             ["floor", "light", "sheet"]))
 
 
+def test_a_solid_standing_on_the_emitter_seen_from_its_concavity(rng):
+    """A U-shaped closed solid (not convex: no box) standing on the floor, its opening
+    toward a wall that stands on the floor too; floor → wall from points between the U's
+    arms. Its side faces touch the floor's plane: their outline would run along the
+    points' horizon for more than half of it, and the pyramid to the wall, which reaches
+    down to that plane, clipped it there (0.16 off); such faces are swept on their own, and
+    the kernel equals every face on its own to 1e-12."""
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [0, 0, 10], [10, 0, 10], [10, 3, 10], [0, 3, 10]]
+    polygons = [[0, 3, 2, 1], [4, 7, 6, 5]]  # the floor (up), the wall (toward -z)
+    u = [(3, 3), (7, 3), (7, 8), (6, 8), (6, 4), (4, 4), (4, 8), (3, 8)]
+    n = len(u)
+    v += [[x, 0, z] for x, z in u] + [[x, 1, z] for x, z in u]
+    polygons += [list(range(8, 8 + n)), list(range(8 + 2 * n - 1, 8 + n - 1, -1))]  # bottom (down), top (up)
+    polygons += [[8 + i, 8 + n + i, 8 + n + (i + 1) % n, 8 + (i + 1) % n] for i in range(n)]  # sides (out)
+    s = build_scene(soup(v, polygons, [0, 1] + [2] * (n + 2), ["floor", "wall", "U"]))
+    face_solid, outward, _ = ff.closed_solids(s)
+    assert outward.tolist() == [1.0] and np.all(face_solid[s.group_faces("U")] == 0)
+    floor, wall = int(s.group_faces("floor")[0]), int(s.group_faces("wall")[0])
+    setup = ff.PairSetup(s, floor, 1, ff.face_target(s, wall), 1)
+    k = setup.kernel
+    assert np.count_nonzero(k["poly_solid"] >= 0) == 1  # the top: the rest touch the floor
+    xz = rng.uniform([4.05, 4.05], [5.95, 7.95], (300, 2))
+    points = np.ascontiguousarray(np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=1))
+    new = setup.f(points)
+    assert np.abs(new - setup.f(points, dict(k, poly_solid=np.full_like(k["poly_solid"], -1)))).max() <= 1e-12
+    assert np.count_nonzero(new < setup.f(points, setup.kernel_for([])) - 1e-3) > 100  # the arms hide much
+
+
 def test_an_open_shell_is_a_patch(shell_scene):
     """The shell is no closed solid but one surface patch (:func:`surface_patches`), open
     from the floor: the pair kernel sweeps the outlines of its front and of its back faces."""

@@ -2080,8 +2080,7 @@ class PairSetup:
         for these occluders: ``poly_solid`` (the patch of an unclipped occluder (every loop
         whole) that is no face of a convex box of at most :data:`HULL_BOX_FACES` planes, those
         the kernel sweeps as the convex hull of their projection, nor a patch of its own, nor
-        a face of an open patch within ``tiny`` of I's plane; numbered among these occluders
-        from 0; else -1), ``solid_open`` (per patch: 0 for a
+        a face within ``tiny`` of I's plane; numbered among these occluders from 0; else -1), ``solid_open`` (per patch: 0 for a
         :func:`closed_solids` solid in the closed front half-space of I, so that every point
         of I is outside it and its front faces hide all it hides, else 1: its back faces'
         outline is swept too), ``occ_nb`` (the occluder across each edge, -1 none),
@@ -2105,11 +2104,11 @@ class PairSetup:
             f = o[2] if len(o) > 2 else -1
             if f < 0 or alone[patch[f]] or hulled[k] or len(o[0]) != np.diff(self.scene.face_loop_offsets)[f]:
                 continue
-            if not (face_solid[f] >= 0 and eligible[face_solid[f]]) and \
-                    min(float((loop @ self.n_i).min()) for loop in o[0]) - self.c_i <= self.tiny:
-                # an open patch's face touching I's plane: the outline may run along the
-                # horizon of a point of I for more than half of it (the Cornell box's walls
-                # seen from its floor), where its clipped projection loses its winding
+            if min(float((loop @ self.n_i).min()) for loop in o[0]) - self.c_i <= self.tiny:
+                # a face touching I's plane: the outline may run along the horizon of a
+                # point of I for more than half of it (the Cornell box's walls seen from its
+                # floor; a U-shaped solid standing on it, seen from inside the U), where its
+                # clipped projection loses its winding; on its own it hides what it hides
                 continue
             p = [solid_edge_positions(self.scene, f, loop, j) for j, loop in enumerate(o[0])]
             if any(q[0] < 0 for q in p):

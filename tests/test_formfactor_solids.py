@@ -53,6 +53,42 @@ def test_closed_solid_found(scene):
             assert any((lg[k], lg[(k + 1) % len(lg)]) == (b, a) for k in range(len(lg)))
 
 
+def test_a_pair_numbers_its_own_solids(rng):
+    """Twelve ridge solids in a row, 20 apart, and a floor tile under the last with a light
+    over it: the tile → light pair's occluders are that solid's 7 faces, and the kernel
+    numbers the solids among its occluders from 0 (its work arrays have one entry per
+    occluder: the scene's id, 11 here, wrote past them). Its F at points of the tile equals
+    every face swept on its own, to 1e-12."""
+    v, polygons, groups = [], [], []
+    for k in range(12):
+        one = solid_scene()
+        lo, hi = one.face_loop_offsets, one.loop_offsets
+        faces = one.group_faces("solid")
+        for f in faces:
+            loop = one.vertices[one.loop_vertices[hi[lo[f]]:hi[lo[f] + 1]]] + [20.0 * k, 0, 0]
+            polygons.append(list(range(len(v), len(v) + len(loop))))
+            v += loop.tolist()
+            groups.append(0)
+    x0 = 20.0 * 11
+    for corners, g in (([[x0 + 2, 0, 2], [x0 + 2, 0, 8], [x0 + 8, 0, 8], [x0 + 8, 0, 2]], 1),
+                       ([[x0 + 4, 5, 4], [x0 + 6, 5, 4], [x0 + 6, 5, 6], [x0 + 4, 5, 6]], 2)):
+        polygons.append(list(range(len(v), len(v) + 4)))
+        v += corners
+        groups.append(g)
+    s = build_scene(soup(v, polygons, groups, ["solids", "tile", "light"]))
+    assert len(ff.closed_solids(s)[1]) == 12
+    tile, light = int(s.group_faces("tile")[0]), int(s.group_faces("light")[0])
+    setup = ff.PairSetup(s, tile, 1, ff.face_target(s, light), 1)
+    k = setup.kernel
+    assert len(setup.occluders) == 7 and np.array_equal(k["poly_solid"], np.zeros(7, np.int64))
+    each = dict(k, poly_solid=np.full_like(k["poly_solid"], -1))
+    xz = rng.uniform([x0 + 2, 2], [x0 + 8, 8], (300, 2))
+    points = np.ascontiguousarray(np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=1))
+    new = setup.f(points)
+    assert np.abs(new - setup.f(points, each)).max() <= 1e-12
+    assert np.count_nonzero(new < setup.f(points, setup.kernel_for([])) - 1e-6) > 30  # it hides something
+
+
 def _hovering(scene):
     n, loops = ff._hovering_loops(scene, int(scene.group_faces("floor")[0]), 1)
     ends = [np.round(np.stack([p, np.roll(proj, -1, axis=0)[k]])[:, [0, 2]], 9).tolist()
@@ -153,18 +189,99 @@ def test_a_solid_with_annuli_is_closed(annulus_scene):
             assert np.all(np.isin(neighbour[lo[j]:lo[j + 1]], torus))
 
 
-@pytest.mark.parametrize("which", ["solid", "torus", "annulus"])
+@pytest.fixture(scope="module")
+def shell_scene():
+    """The floor and light of torus_scene and an open shell: an icosphere of 320 triangles
+    (radius 1.5, centre 3 above the floor) without its bottom cap, as a scan misses an
+    object's underside. From the floor below its rim the shell's inside is seen, its back
+    faces; from farther off its outside."""
+    import trimesh
+
+    t = trimesh.creation.icosphere(subdivisions=2, radius=1.5)
+    t = trimesh.Trimesh(t.vertices, t.faces[t.triangles_center[:, 1] > -0.9], process=False)
+    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(20), [1, 0, 0]))
+    t.apply_translation([5.0, 3.0, 5.0])
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
+    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
+                            ["floor", "light", "shell"]))
+
+
+@pytest.fixture(scope="module")
+def sheet_scene():
+    """The floor and light of torus_scene and a crumpled open sheet over the floor's middle:
+    a height field of 12 × 12 × 2 triangles, its rim 0.05 above the floor and its inside up
+    to ~3.2 in waves: from the floor both its sides are seen, its underside from below and
+    its top past its folds from beside it."""
+    rng = np.random.default_rng(7)
+    n = 13
+    u, w = np.meshgrid(np.linspace(2.0, 8.0, n), np.linspace(2.0, 8.0, n), indexing="ij")
+    height = 1.6 + 1.4 * np.sin(2.2 * u) * np.cos(1.7 * w) + rng.uniform(-0.2, 0.2, (n, n))
+    height[0, :] = height[:, 0] = 0.05
+    sheet = np.stack([u, height, w], axis=2).reshape(-1, 3)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]) + 8
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + tris.tolist()
+    return build_scene(soup(np.concatenate([v, sheet]), polygons, [0, 1] + [2] * len(tris),
+                            ["floor", "light", "sheet"]))
+
+
+def test_a_solid_standing_on_the_emitter_seen_from_its_concavity(rng):
+    """A U-shaped closed solid (not convex: no box) standing on the floor, its opening
+    toward a wall that stands on the floor too; floor → wall from points between the U's
+    arms. Its side faces touch the floor's plane: their outline would run along the
+    points' horizon for more than half of it, and the pyramid to the wall, which reaches
+    down to that plane, clipped it there (0.16 off); such faces are swept on their own, and
+    the kernel equals every face on its own to 1e-12."""
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [0, 0, 10], [10, 0, 10], [10, 3, 10], [0, 3, 10]]
+    polygons = [[0, 3, 2, 1], [4, 7, 6, 5]]  # the floor (up), the wall (toward -z)
+    u = [(3, 3), (7, 3), (7, 8), (6, 8), (6, 4), (4, 4), (4, 8), (3, 8)]
+    n = len(u)
+    v += [[x, 0, z] for x, z in u] + [[x, 1, z] for x, z in u]
+    polygons += [list(range(8, 8 + n)), list(range(8 + 2 * n - 1, 8 + n - 1, -1))]  # bottom (down), top (up)
+    polygons += [[8 + i, 8 + n + i, 8 + n + (i + 1) % n, 8 + (i + 1) % n] for i in range(n)]  # sides (out)
+    s = build_scene(soup(v, polygons, [0, 1] + [2] * (n + 2), ["floor", "wall", "U"]))
+    face_solid, outward, _ = ff.closed_solids(s)
+    assert outward.tolist() == [1.0] and np.all(face_solid[s.group_faces("U")] == 0)
+    floor, wall = int(s.group_faces("floor")[0]), int(s.group_faces("wall")[0])
+    setup = ff.PairSetup(s, floor, 1, ff.face_target(s, wall), 1)
+    k = setup.kernel
+    assert np.count_nonzero(k["poly_solid"] >= 0) == 1  # the top: the rest touch the floor
+    xz = rng.uniform([4.05, 4.05], [5.95, 7.95], (300, 2))
+    points = np.ascontiguousarray(np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], axis=1))
+    new = setup.f(points)
+    assert np.abs(new - setup.f(points, dict(k, poly_solid=np.full_like(k["poly_solid"], -1)))).max() <= 1e-12
+    assert np.count_nonzero(new < setup.f(points, setup.kernel_for([])) - 1e-3) > 100  # the arms hide much
+
+
+def test_an_open_shell_is_a_patch(shell_scene):
+    """The shell is no closed solid but one surface patch (:func:`surface_patches`), open
+    from the floor: the pair kernel sweeps the outlines of its front and of its back faces."""
+    s = shell_scene
+    shell = s.group_faces("shell")
+    assert np.all(ff.closed_solids(s)[0][shell] == -1)
+    patch, neighbour = ff.surface_patches(s)
+    assert len(set(patch[shell].tolist())) == 1 and np.count_nonzero(patch == patch[shell[0]]) == len(shell)
+    floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
+    k = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1).kernel
+    assert np.all(k["poly_solid"] == 0) and k["solid_open"].tolist() == [1]
+
+
+@pytest.mark.parametrize("which", ["solid", "torus", "annulus", "shell", "sheet"])
 def test_front_face_outline_equals_every_face(which, request):
     """The pair kernel with a solid's faces as the outline of its front faces
     (:func:`viscx.geometry.occlusion._solid_outlines`) equals the kernel with every face
     on its own, within 1e-12, at points on the floor (the torus' outline crosses itself:
-    its crossings must be breaks of the sweep), and per cubature triangle past the
-    triangles' culled lists."""
-    s = request.getfixturevalue({"solid": "scene", "torus": "torus_scene", "annulus": "annulus_scene"}[which])
+    its crossings must be breaks of the sweep; the open shell's back faces have an outline
+    of their own, walked backwards), and per cubature triangle past the triangles' culled
+    lists."""
+    s = request.getfixturevalue(f"{which}_scene" if which != "solid" else "scene")
     floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
     setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
     k = setup.kernel
-    assert np.count_nonzero(k["poly_solid"] >= 0) == len(s.group_faces(which))
+    assert np.count_nonzero(k["poly_solid"] >= 0) == len(s.group_faces(which)) == len(k["poly_solid"])
     each = dict(k, poly_solid=np.full_like(k["poly_solid"], -1))
     rng = np.random.default_rng(1)
     xz = rng.uniform(1.0, 9.0, (300, 2))
@@ -196,7 +313,7 @@ def test_umbra_triangles_see_none_of_the_light(which, request):
     the rule flags something."""
     from oracles import segment_hits_reference
 
-    s = request.getfixturevalue({"solid": "scene", "torus": "torus_scene", "annulus": "annulus_scene"}[which])
+    s = request.getfixturevalue(f"{which}_scene" if which != "solid" else "scene")
     floor, light = int(s.group_faces("floor")[0]), int(s.group_faces("light")[0])
     setup = ff.PairSetup(s, floor, 1, ff.face_target(s, light), 1)
     tri = _floor_grid(32)

@@ -757,7 +757,7 @@ def _polygon_crossings(seg_a, seg_b, seg_p, seg_w, n_seg, lo_u, hi_u, self_cross
 def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, poly_loop,
                  poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state, box_head, box_next, box_list,
                  hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0,
-                 p1, poly_solid, occ_nb, occ_vid, occ_next, sw):
+                 p1, poly_solid, solid_open, occ_nb, occ_vid, occ_next, sw):
     """Form factor from (x, n_i) to the visible part of J past the occluder polygons ``sel``
     (their loops ``poly_loop[p]:poly_loop[p + 1]``; see the module docstring), and ``brk``
     (grown if it had to). The faces of a closed convex box x is outside of (``poly_box``,
@@ -793,11 +793,11 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             seg_p[n_seg] = 0
             seg_w[n_seg] = 1
             n_seg += 1
-    # closed solids: the outlines of their front faces first (every face of a solid is
-    # then done with, unless they did not fit: then each face on its own, below)
-    n_seg, solids = _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, occ_nb,
-                                    occ_vid, occ_next, sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b,
-                                    seg_p, seg_w, n_seg, buf_a.shape[0])
+    # surface patches: the outlines of their front (and open ones' back) faces first (every
+    # face of a patch is then done with, unless they did not fit: then each on its own, below)
+    n_seg, solids = _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid,
+                                    solid_open, occ_nb, occ_vid, occ_next, sw, planes, n_hull, hx, n_j, c_j, origin, eu,
+                                    ev, seg_a, seg_b, seg_p, seg_w, n_seg, buf_a.shape[0])
     mark, self_cross = sw[0], sw[5]
     n_box = 0
     for r in range(sel.shape[0]):
@@ -977,20 +977,25 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
 
 
 @njit(cache=True)
-def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, occ_nb, occ_vid, occ_next,
-                    sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b, seg_p, seg_w, n_seg, kmax):
-    """The faces of closed solids among ``sel`` (``poly_solid`` >= 0; x outside each solid,
-    every loop of a face whole (holes too), its edge q → ``occ_next[q]`` shared with occluder ``occ_nb[q]``,
-    -1 if that is none of them; ``occ_vid`` the vertices' ids) as the outlines of their
-    front faces, appended to the segments: the edges of a front face whose neighbour is not
-    a listed front face, chained into loops, clipped to the pyramid and projected, one
-    polygon per solid whose loops may cross each other. A ray from x meeting a back face
-    has entered the solid through a front face that meets the ray's segment to J, inside
-    the shaft (listed), so the back faces hide nothing more; the front faces' projections
-    are all counter-clockwise, their winding numbers add up, and the shared edges cancel:
-    the non-zero winding of the outline is their union. Work arrays ``sw``: (mark (P,)
-    1 front, 2 back or edge-on; head (V,), link (n,), used (n,), rep (P,), self_cross
-    (P + 1,), chain (n, 3), two clip buffers (2 n + 8, 3)).
+def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, tiny, poly_solid, solid_open, occ_nb,
+                    occ_vid, occ_next, sw, planes, n_hull, hx, n_j, c_j, origin, eu, ev, seg_a, seg_b, seg_p, seg_w, n_seg,
+                    kmax):
+    """The faces of surface patches among ``sel`` (``poly_solid`` >= 0: consistently
+    oriented, every loop of a face whole (holes too), its edge q → ``occ_next[q]`` shared
+    with occluder ``occ_nb[q]``, -1 if that is none of them; ``occ_vid`` the vertices' ids)
+    as the outlines of their front faces and, on an open patch (``solid_open``), of their
+    back faces, appended to the segments: the edges of a front (back) face whose neighbour
+    is not a listed front (back) face, chained into loops (a back face's walked backwards),
+    clipped to the pyramid and projected, one polygon per patch and side whose loops may
+    cross each other. The front faces' projections are all counter-clockwise seen from x,
+    the back faces' reversed too: their winding numbers add up, the shared edges cancel,
+    and the non-zero winding of each outline is the union of its faces. A closed solid x
+    is outside of needs its front faces only (``solid_open`` 0): a ray from x meeting a
+    back face has entered the solid through a front face that meets the ray's segment to J,
+    inside the shaft (listed); an open patch (a scan's shell) has no such front face behind
+    its rim. Work arrays ``sw``: (mark (P,) 1 front, 2 back, 3 edge-on or hiding nothing;
+    head (V,), link (n,), used (n,), rep (P,), self_cross (P + 1,), chain (n, 3), two clip
+    buffers (2 n + 8, 3)).
 
     Returns
     -------
@@ -999,77 +1004,103 @@ def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, t
         False when there are none or an outline did not fit (the faces are left to the
         caller, each on its own, and the segments are as they were).
     """
-    mark, head, link, used, rep, self_cross = sw[0], sw[1], sw[2], sw[3], sw[4], sw[5]
-    chain, cb_a, cb_b = sw[6], sw[7], sw[8]
-    n_front = 0
+    mark, self_cross = sw[0], sw[5]
+    n_listed, n_front, n_back = 0, 0, 0
     for r in range(sel.shape[0]):
         pid = sel[r]
         if poly_solid[pid] < 0:
             continue
+        n_listed += 1
         side = ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
                 + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2])
         if side > tiny:
             mark[pid] = 1
             n_front += 1
-        else:
+        elif side < -tiny and solid_open[poly_solid[pid]]:
             mark[pid] = 2
-    if n_front == 0:
-        ok = True
+            n_back += 1
+        else:
+            mark[pid] = 3
+    if n_listed == 0:
+        return n_seg, False
+    start_seg = n_seg
+    ok = True
+    budget = (n_front + n_back) * kmax
+    for which in (1, 2):
+        if ok and (n_front if which == 1 else n_back):
+            n_seg, ok = _outline_pass(which, x, sel, occ, occ_loop, poly_loop, poly_solid, occ_nb, occ_vid, occ_next, sw,
+                                      planes, n_hull, hx, n_j, c_j, origin, eu, ev, tiny, seg_a, seg_b, seg_p, seg_w,
+                                      n_seg, start_seg + budget)
+    if not ok:
+        for e in range(start_seg, n_seg):
+            self_cross[seg_p[e]] = 0
         for r in range(sel.shape[0]):
             if poly_solid[sel[r]] >= 0:
-                ok = False  # back faces only: nothing to add, all done
-        return n_seg, not ok
+                mark[sel[r]] = 0
+        return start_seg, False
+    return n_seg, True
+
+
+@njit(cache=True)
+def _outline_pass(which, x, sel, occ, occ_loop, poly_loop, poly_solid, occ_nb, occ_vid, occ_next, sw, planes, n_hull,
+                  hx, n_j, c_j, origin, eu, ev, tiny, seg_a, seg_b, seg_p, seg_w, n_seg, seg_end):
+    """One side's outlines for :func:`_solid_outlines`: the faces marked ``which`` (1 front,
+    2 back: each edge walked backwards, from ``occ_next[q]`` to q), their edges without a
+    neighbour marked the same chained into closed loops by their vertex ids. Returns
+    ``n_seg, ok`` (False: a chain did not close, or the segments would pass ``seg_end``)."""
+    mark, head, link, used, rep, self_cross = sw[0], sw[1], sw[2], sw[3], sw[4], sw[5]
+    chain, cb_a, cb_b = sw[6], sw[7], sw[8]
+    back = which == 2
     # the emitted edges, listed by their start vertex
     n_em = 0
     for r in range(sel.shape[0]):
         pid = sel[r]
-        if poly_solid[pid] < 0 or mark[pid] != 1:
+        if poly_solid[pid] < 0 or mark[pid] != which:
             continue
         for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid + 1]]):  # every loop's edges
             nb = occ_nb[q]
-            if nb >= 0 and mark[nb] == 1:
+            if nb >= 0 and mark[nb] == which:
                 continue
-            v = occ_vid[q]
+            v = occ_vid[occ_next[q]] if back else occ_vid[q]
             link[q] = head[v]
             head[v] = q
             n_em += 1
-    start_seg = n_seg
-    budget = n_front * kmax
     ok = True
     for r in range(sel.shape[0]):
         pid = sel[r]
         if not ok:
             break
-        if poly_solid[pid] < 0 or mark[pid] != 1:
+        if poly_solid[pid] < 0 or mark[pid] != which:
             continue
         for q0 in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid + 1]]):
             nb = occ_nb[q0]
-            if (nb >= 0 and mark[nb] == 1) or used[q0]:
+            if (nb >= 0 and mark[nb] == which) or used[q0]:
                 continue
             # walk the loop from edge q0
             n_ch = 0
             q = q0
-            start = occ_vid[q0]
+            start = occ_vid[occ_next[q0]] if back else occ_vid[q0]
             while True:
                 used[q] = 1
+                p = occ_next[q] if back else q
                 for c in range(3):
-                    chain[n_ch, c] = occ[q, c]
+                    chain[n_ch, c] = occ[p, c]
                 n_ch += 1
-                v = occ_vid[occ_next[q]]
+                v = occ_vid[q] if back else occ_vid[occ_next[q]]
                 if v == start:
                     break
                 e = head[v]
                 while e >= 0 and used[e]:
                     e = link[e]
                 if e < 0 or n_ch >= n_em:
-                    ok = False  # not a closed chain (cannot happen for a solid's faces)
+                    ok = False  # not a closed chain (cannot happen for a patch's faces)
                     break
                 head[v] = link[e]
                 q = e
             if not ok:
                 break
             n_in = _clip_chain(chain, n_ch, x, planes, n_hull, cb_a, cb_b)
-            if n_in < 0 or n_seg - start_seg + n_in > budget:
+            if n_in < 0 or n_seg + n_in > seg_end:
                 ok = False
                 break
             if n_in < 3:
@@ -1086,7 +1117,7 @@ def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, t
                 seg_w[first + k] = 1
             self_cross[rep[s] + 1] = 1
             n_seg += n_in
-    # reset the work arrays
+    # reset the work arrays (the marks stay: the caller clears them)
     for r in range(sel.shape[0]):
         pid = sel[r]
         if poly_solid[pid] < 0:
@@ -1095,13 +1126,7 @@ def _solid_outlines(x, sel, occ, occ_loop, poly_loop, poly_normal, poly_point, t
         for q in range(occ_loop[poly_loop[pid]], occ_loop[poly_loop[pid + 1]]):
             head[occ_vid[q]] = -1
             used[q] = 0
-        if not ok:
-            mark[pid] = 0
-    if not ok:
-        for e in range(start_seg, n_seg):
-            self_cross[seg_p[e]] = 0
-        return start_seg, False
-    return n_seg, True
+    return n_seg, ok
 
 
 @njit(cache=True)
@@ -1155,7 +1180,7 @@ def _buffers(j2, hull, occ_loop, n_poly):
 
 @njit(cache=True)
 def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ, occ_loop, occ_poly, poly_normal,
-                         poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid, occ_nb, occ_vid, occ_next):
+                         poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid, solid_open, occ_nb, occ_vid, occ_next):
     """Form factors from differential areas (points, common normal n_i) to the part of J
     each point sees past the occluders.
 
@@ -1186,12 +1211,13 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         (:func:`viscx.queries.formfactor.closed_boxes`): a point outside a box skips its
         faces as one convex polygon (:func:`_visible_one`).
     poly_solid : (P,) int64
-        The closed solid each occluder is a face of (-1 none; every point outside it, the
-        face's loops whole, its normal outward: :func:`viscx.queries.formfactor.closed_solids`);
-        ``occ_nb`` (no,) int64 the occluder across the edge from each loop vertex to the
-        next (``occ_next`` (no,) int64, its index), -1 none; ``occ_vid`` (no,) int64 the
-        vertices' ids (equal for one point). The solid's front faces enter as their
-        outline (:func:`_solid_outlines`).
+        The surface patch each occluder is a face of, numbered from 0 (-1 none; the face's
+        loops whole: :func:`viscx.queries.formfactor.surface_patches`); ``solid_open`` (s,)
+        int64 0 for a closed solid every point is outside of (its normals outward), 1 for
+        any other patch; ``occ_nb`` (no,) int64 the occluder across the edge from each loop
+        vertex to the next (``occ_next`` (no,) int64, its index), -1 none; ``occ_vid`` (no,)
+        int64 the vertices' ids (equal for one point). A patch's front faces, and an open
+        one's back faces, enter as their outlines (:func:`_solid_outlines`).
 
     Returns
     -------
@@ -1212,14 +1238,14 @@ def visible_form_factors(points, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull
         out[i], brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                    poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
                                    box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1,
-                                   poly_solid, occ_nb, occ_vid, occ_next, sw)
+                                   poly_solid, solid_open, occ_nb, occ_vid, occ_next, sw)
     return out
 
 
 @njit(cache=True, nogil=True)
 def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_loop, origin, eu, ev, n_j, c_j, hull, occ,
-                         occ_loop, occ_poly, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid, occ_nb,
-                         occ_vid, occ_next):
+                         occ_loop, occ_poly, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, poly_solid,
+                         solid_open, occ_nb, occ_vid, occ_next):
     """The part of F(x → J) that the occluders hide, ``F(x → J) − F(x → visible part of J)``,
     each point seeing past its own group's occluders only.
 
@@ -1257,11 +1283,11 @@ def blocked_form_factors(points, point_group, group_ptr, group_occ, n_i, j2, j_l
         whole, brk = _visible_one(points[i], n_i, j2, j_loop, none, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                   poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
                                   box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1,
-                                   poly_solid, occ_nb, occ_vid, occ_next, sw)
+                                   poly_solid, solid_open, occ_nb, occ_vid, occ_next, sw)
         seen, brk = _visible_one(points[i], n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, occ_loop,
                                  poly_loop, poly_normal, poly_point, tiny, poly_box, box_ptr, box_planes, box_state,
                                  box_head, box_next, box_list, hull_pts, hull_idx, seg_a, seg_b, seg_p, seg_w, buf_a, buf_b, brk, wind, act, act_v, act_v0, act_v1, p0, p1,
-                                   poly_solid, occ_nb, occ_vid, occ_next, sw)
+                                   poly_solid, solid_open, occ_nb, occ_vid, occ_next, sw)
         out[i] = whole - seen
     return out
 

@@ -390,28 +390,20 @@ HULL_BOX_FACES = 16
 PLANE_BLOCK = 1 << 20
 
 
-def closed_solids(scene):
-    """The closed solids bounded by faces of the scene, convex or not (a scanned statue: the
-    npm bunny's 3,674 triangles): connected sets of faces in which every directed edge of
-    a face (outer loops counter-clockwise about the normals, holes clockwise) is traversed
-    backwards by exactly one other face of the set and by no third face (a watertight,
-    consistently oriented 2-manifold). A face may have holes: the ring of coplanar quads
-    at the top of a finely tessellated torus is one face, an annulus, once the scene's
-    coplanar triangles are merged, and so is a pipe's end. A ray from a point outside such a solid that meets a
-    face the point is behind (a back face) has entered the solid before, through a face the
-    point is in front of; so from such a point an edge between two front faces or two back
-    faces is never on the outline of what the solid hides (docs/queries.md).
+def surface_patches(scene):
+    """The faces joined into consistently oriented surfaces, closed or not (a scan's open
+    shell, a solid's faces): two faces are neighbours across an edge that one traverses
+    from a to b and the other from b to a, no third face traversing it (outer loops
+    counter-clockwise about the normals, holes clockwise). Cached.
 
     Returns
     -------
-    face_solid : (f,) int64
-        The solid of each face, -1 if none.
-    outward : (s,) float64
-        +1 where the faces' normals point out of solid s, -1 where they point in (the
-        sign of its volume by the divergence theorem).
+    patch : (f,) int64
+        The patch of each face (:func:`viscx.arrays.graph_components` of the neighbours:
+        a face with none is a patch of its own).
     neighbour : (m,) int64
         Aligned with ``scene.loop_vertices``: the face across the edge from each loop
-        vertex to the next, -1 outside a solid.
+        vertex to the next, -1 none.
     """
 
     def build(scene):
@@ -437,15 +429,47 @@ def closed_solids(scene):
         paired &= neighbour != face
         neighbour[~paired] = -1
         link = np.flatnonzero(paired)
-        _, comp = graph_components(n, face[link], neighbour[link])
-        # a solid: every edge of every face of the component paired
-        bare = np.bincount(comp[face[~paired]], minlength=n) > 0
+        return graph_components(n, face[link], neighbour[link])[1], neighbour
+
+    return scene.cached("surface_patches", build)
+
+
+def closed_solids(scene):
+    """The closed solids bounded by faces of the scene, convex or not (a scanned statue: the
+    npm bunny's 3,674 triangles): connected sets of faces in which every directed edge of
+    a face (outer loops counter-clockwise about the normals, holes clockwise) is traversed
+    backwards by exactly one other face of the set and by no third face (a watertight,
+    consistently oriented 2-manifold). A face may have holes: the ring of coplanar quads
+    at the top of a finely tessellated torus is one face, an annulus, once the scene's
+    coplanar triangles are merged, and so is a pipe's end. A ray from a point outside such a solid that meets a
+    face the point is behind (a back face) has entered the solid before, through a face the
+    point is in front of; so from such a point an edge between two front faces or two back
+    faces is never on the outline of what the solid hides (docs/queries.md).
+
+    Returns
+    -------
+    face_solid : (f,) int64
+        The solid of each face, -1 if none.
+    outward : (s,) float64
+        +1 where the faces' normals point out of solid s, -1 where they point in (the
+        sign of its volume by the divergence theorem).
+    neighbour : (m,) int64
+        Aligned with ``scene.loop_vertices``: the face across the edge from each loop
+        vertex to the next, -1 outside a solid.
+    """
+
+    def build(scene):
+        n = scene.n_faces
+        comp, neighbour = surface_patches(scene)
+        face = np.repeat(np.repeat(np.arange(n), np.diff(scene.face_loop_offsets)), np.diff(scene.loop_offsets))
+        # a solid: every edge of every face of the patch paired
+        bare = np.bincount(comp[face[neighbour < 0]], minlength=n) > 0
         faces_in = np.bincount(comp, minlength=n)
         good = ~bare & (faces_in >= 4)
         face_solid = np.full(n, -1, np.int64)
         ok = good[comp]
         ids, face_solid[ok] = np.unique(comp[ok], return_inverse=True)
-        neighbour[~ok[face]] = -1
+        neighbour = np.where(ok[face], neighbour, -1)
         # volume: Σ_f A_f (n_f · p_f) / 3 over each solid's faces
         vol = np.bincount(face_solid[ok], weights=scene.face_area[ok] * scene.face_offset[ok], minlength=len(ids))
         return face_solid, np.where(vol >= 0, 1.0, -1.0), neighbour
@@ -2052,12 +2076,14 @@ class PairSetup:
         )
 
     def _solid_arrays(self, occluders, boxes, box_ptr, occ_loop):
-        """The :func:`closed_solids` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
-        for these occluders: ``poly_solid`` (a face of a solid that lies in the closed front
-        half-space of I, so that every point of I is outside it, unclipped (every loop
-        whole), and no face of a
-        convex box of at most :data:`HULL_BOX_FACES` planes: those the kernel sweeps as the
-        convex hull of their projection; else -1), ``occ_nb`` (the occluder across each edge, -1 none),
+        """The :func:`surface_patches` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
+        for these occluders: ``poly_solid`` (the patch of an unclipped occluder (every loop
+        whole) that is no face of a convex box of at most :data:`HULL_BOX_FACES` planes, those
+        the kernel sweeps as the convex hull of their projection, nor a patch of its own, nor
+        a face within ``tiny`` of I's plane; numbered among these occluders from 0; else -1), ``solid_open`` (per patch: 0 for a
+        :func:`closed_solids` solid in the closed front half-space of I, so that every point
+        of I is outside it and its front faces hide all it hides, else 1: its back faces'
+        outline is swept too), ``occ_nb`` (the occluder across each edge, -1 none),
         ``occ_vid`` (compact vertex ids) and ``occ_next`` (the next vertex of each loop)."""
         n = int(occ_loop[-1])
         poly_solid = np.full(len(occluders), -1, np.int64)
@@ -2066,33 +2092,47 @@ class PairSetup:
         sizes = np.diff(occ_loop)
         occ_next = np.arange(n, dtype=np.int64) + 1
         occ_next[occ_loop[1:][sizes > 0] - 1] = occ_loop[:-1][sizes > 0]
-        face_solid, _, neighbour = closed_solids(self.scene)
+        patch, neighbour = surface_patches(self.scene)
+        face_solid = closed_solids(self.scene)[0]
         eligible = _outside_solids(self.scene, self.n_i, self.c_i, self.tiny)
-        if not np.any(eligible):
-            return dict(poly_solid=poly_solid, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
+        alone = np.bincount(patch, minlength=self.scene.n_faces) < 2
         pos = np.full(n, -1, np.int64)
         pid_of, edge_pos = {}, {}
         hulled = boxes >= 0
         hulled[hulled] = np.diff(box_ptr)[boxes[hulled]] <= HULL_BOX_FACES
         for k, o in enumerate(occluders):
             f = o[2] if len(o) > 2 else -1
-            if (f < 0 or face_solid[f] < 0 or not eligible[face_solid[f]] or hulled[k]
-                    or len(o[0]) != np.diff(self.scene.face_loop_offsets)[f]):
+            if f < 0 or alone[patch[f]] or hulled[k] or len(o[0]) != np.diff(self.scene.face_loop_offsets)[f]:
+                continue
+            if min(float((loop @ self.n_i).min()) for loop in o[0]) - self.c_i <= self.tiny:
+                # a face touching I's plane: the outline may run along the horizon of a
+                # point of I for more than half of it (the Cornell box's walls seen from its
+                # floor; a U-shaped solid standing on it, seen from inside the U), where its
+                # clipped projection loses its winding; on its own it hides what it hides
                 continue
             p = [solid_edge_positions(self.scene, f, loop, j) for j, loop in enumerate(o[0])]
             if any(q[0] < 0 for q in p):
                 continue
-            poly_solid[k] = face_solid[f]
+            poly_solid[k] = patch[f]
             pid_of[int(f)], edge_pos[k] = k, np.concatenate(p)
         # occluder k's loops start at loop Σ_{k' < k} len(loops_k'), one after the other
         first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
         for k in np.flatnonzero(poly_solid >= 0):
             pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + len(occluders[k][0])]] = edge_pos[k]
+        # the patches numbered among these occluders (the kernel's work arrays have one
+        # entry per occluder; the scene's ids may be larger), each closed or open from I
+        inside = np.flatnonzero(poly_solid >= 0)
+        solid = face_solid[np.asarray([occluders[k][2] for k in inside], np.int64)]
+        closed = solid >= 0
+        closed[closed] = eligible[solid[closed]]
+        ids, poly_solid[inside] = np.unique(poly_solid[inside], return_inverse=True)
+        solid_open = np.ones(len(ids), np.int64)
+        solid_open[poly_solid[inside][closed]] = 0
         rows = np.flatnonzero(pos >= 0)
         nb_face = neighbour[pos[rows]]
         occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]
         _, occ_vid[rows] = np.unique(self.scene.loop_vertices[pos[rows]], return_inverse=True)
-        return dict(poly_solid=poly_solid, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
+        return dict(poly_solid=poly_solid, solid_open=solid_open, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
 
     @functools.cached_property
     def kernel(self):
@@ -2106,7 +2146,7 @@ class PairSetup:
         return visible_form_factors(np.ascontiguousarray(points), k["n_i"], k["j2"], k["j_loop"], k["origin"], k["eu"], k["ev"],
                                     k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"], k["poly_normal"],
                                     k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"], k["poly_solid"],
-                                    k["occ_nb"], k["occ_vid"], k["occ_next"])
+                                    k["solid_open"], k["occ_nb"], k["occ_vid"], k["occ_next"])
 
     def blocked(self, points, group, ptr, ids):
         """F(x → J') − F(x → visible part of J') at ``points``, each past its group's occluders
@@ -2115,7 +2155,7 @@ class PairSetup:
         return blocked_form_factors(points, np.asarray(group, np.int64), ptr, ids, k["n_i"], k["j2"], k["j_loop"], k["origin"],
                                     k["eu"], k["ev"], k["n_j"], k["c_j"], k["hull"], k["occ"], k["occ_loop"], k["occ_poly"],
                                     k["poly_normal"], k["poly_point"], k["tiny"], k["poly_box"], k["box_ptr"], k["box_planes"],
-                                    k["poly_solid"], k["occ_nb"], k["occ_vid"], k["occ_next"])
+                                    k["poly_solid"], k["solid_open"], k["occ_nb"], k["occ_vid"], k["occ_next"])
 
     # -- the cubature's domain ----------------------------------------------------------
     def triangles(self):

@@ -455,12 +455,13 @@ def _tile_form_factors(points, pt_ptr, group_n, group_target, occ_ptr, occ_ids, 
                 l_planes[l_box_ptr[j]] = box_planes[l_row[j]]
             else:
                 l_planes[l_box_ptr[j]:l_box_ptr[j + 1]] = box_planes[box_ptr[seen[j]]:box_ptr[seen[j] + 1]]
-        # no closed solids' outlines here (poly_solid -1): each face of the group's list on its own
+        # no surface patches' outlines here (poly_solid -1): each face of the group's list on its own
         out[a:b] = visible_form_factors(points[a:b], group_n[g], t_j2[t_j2_ptr[t]:t_j2_ptr[t + 1]],
                                         t_jl[t_jl_ptr[t]:t_jl_ptr[t + 1]], t_origin[t], t_eu[t], t_ev[t], t_n[t], t_c[t],
                                         t_hull[t_hull_ptr[t]:t_hull_ptr[t + 1]], l_occ, l_loop, l_poly, l_normal, l_point,
                                         tiny, l_box, l_box_ptr, l_planes, np.full(n_p, -1, np.int64),
-                                        np.full(n_v, -1, np.int64), np.zeros(n_v, np.int64), np.zeros(n_v, np.int64))
+                                        np.zeros(0, np.int64), np.full(n_v, -1, np.int64), np.zeros(n_v, np.int64),
+                                        np.zeros(n_v, np.int64))
     return out
 
 

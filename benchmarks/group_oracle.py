@@ -9,6 +9,8 @@ units of the two uncertainties together, √(σ² + estimate²).
 
     python benchmarks/buildings.py shelves -o shelves.obj && viscx build shelves.obj -o shelves.h5
     python benchmarks/group_oracle.py shelves.h5 --pairs light1:shelf0 shelf1:floor --rays 10000000
+    python benchmarks/scenes.py tori -o tori.obj
+    python benchmarks/group_oracle.py tori.obj --pairs light:floor --tol 1e-4
 
 Prints one JSON line per query and nothing else.
 """
@@ -53,7 +55,7 @@ def monte_carlo(scene, emitters, side, receivers, rays, seed):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("file", help="a scene built by viscx build")
+    parser.add_argument("file", help="a scene built by viscx build, or the scene file itself (as viscx formfactor takes)")
     parser.add_argument("--pairs", nargs="+", required=True, metavar="FROM:TO")
     parser.add_argument("--side", type=int, default=1, choices=(1, -1), help="the emitting side")
     parser.add_argument("--tol", type=float, default=1e-6)
@@ -61,10 +63,10 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
 
-    import viscx.api as api
     from viscx.queries import formfactor as ff
+    from viscx.queries.visibility import open_query
 
-    scene = api.open(args.file).scene
+    scene = open_query(args.file).scene
     for pair in args.pairs:
         a, b = pair.split(":")
         emitters = np.asarray(sorted(int(f) for f in scene.group_faces(a)), np.int64)

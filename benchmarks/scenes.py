@@ -25,14 +25,57 @@ def spheres_in_room_soup(n_spheres=6, subdivisions=5, seed=0, quad_light=False):
     :data:`SPHERES_LIGHT`, 0.5 under the ceiling, and the room's faces in groups floor,
     ceiling and walls (group ``room`` otherwise)."""
     rng = np.random.default_rng(seed)
-    room = trimesh.creation.box(extents=(20, 10, 20))
-    room.invert()  # faces look inward
-    meshes = [room]
+    meshes = []
     for _ in range(n_spheres):
         sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0 + rng.random())
         sphere.apply_translation(rng.uniform([-7, -2, -7], [7, 2, 7]))
         meshes.append(sphere)
-    names = ["room"] + [f"sphere{i}" for i in range(n_spheres)]
+    return _in_room(meshes, [f"sphere{i}" for i in range(n_spheres)], quad_light)
+
+
+def tori_in_room_soup(sections=180, n_tori=3, seed=0):
+    """Tessellated tori in the room of :func:`spheres_in_room_soup` (its light and groups):
+    ``n_tori`` tori (radii 1.5 and 0.5) of ``sections`` × ``sections // 2`` quads, each as
+    two triangles (with the default 97,214 triangles in all), turned at random. The ring of
+    quads on each torus' top, and on its bottom, lies in one plane: the scene's cleaning
+    merges it into one face with a hole, an annulus (docs/queries.md, "A closed solid whose
+    faces have holes")."""
+    rng = np.random.default_rng(seed)
+    meshes = []
+    for _ in range(n_tori):
+        torus = trimesh.creation.torus(major_radius=1.5, minor_radius=0.5, major_sections=sections,
+                                       minor_sections=max(8, sections // 2))
+        torus.apply_transform(trimesh.transformations.random_rotation_matrix(rng.random(3)))
+        torus.apply_translation(rng.uniform([-6, -2, -6], [6, 1, 6]))
+        meshes.append(torus)
+    return _in_room(meshes, [f"torus{i}" for i in range(n_tori)], True)
+
+
+def open_shells_in_room_soup(subdivisions=5, n_shells=6, seed=0):
+    """Open shells, as scans without their undersides, in the room of
+    :func:`spheres_in_room_soup` (its light and groups): ``n_shells`` icospheres whose
+    triangles beyond a plane at a random tilt (0.3 of the radius from the centre) are left
+    out (with the default 73,793 triangles in all): no closed solid (docs/queries.md, "An
+    open scanned shell")."""
+    rng = np.random.default_rng(seed)
+    meshes = []
+    for _ in range(n_shells):
+        shell = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0 + rng.random())
+        axis = rng.normal(size=3)
+        keep = shell.triangles_center @ (axis / np.linalg.norm(axis)) > -0.3
+        shell = trimesh.Trimesh(shell.vertices, shell.faces[keep], process=False)
+        shell.apply_translation(rng.uniform([-7, -2, -7], [7, 2, 7]))
+        meshes.append(shell)
+    return _in_room(meshes, [f"shell{i}" for i in range(n_shells)], True)
+
+
+def _in_room(meshes, names, quad_light):
+    """The meshes (named) in a 20 × 10 × 20 room facing in, as one soup of triangles; with
+    ``quad_light`` the light of :func:`spheres_in_room_soup` and the room's faces in groups
+    floor, ceiling and walls."""
+    room = trimesh.creation.box(extents=(20, 10, 20))
+    room.invert()  # faces look inward
+    meshes, names = [room] + list(meshes), ["room"] + list(names)
     if quad_light:  # two triangles wound to face -y
         x, y, z = SPHERES_LIGHT
         meshes.append(trimesh.Trimesh([[x - 1, y, z - 1], [x + 1, y, z - 1], [x + 1, y, z + 1], [x - 1, y, z + 1]],
@@ -205,3 +248,28 @@ def write_obj(path, soup):
             out.write(f"o {name}\n")
             for i in np.flatnonzero(soup.polygon_group == g):
                 out.write("f " + " ".join(map(str, pv[off[i]:off[i + 1]].tolist())) + "\n")
+
+
+if __name__ == "__main__":
+    import argparse
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from buildings import write_obj
+
+    parser = argparse.ArgumentParser(description="Write a scanned-mesh benchmark scene as OBJ: six closed spheres, "
+                                                 "three tori whose top rings are faces with holes, or six open shells, "
+                                                 "in a room with a light (groups light, floor, ceiling, walls).")
+    parser.add_argument("scene", choices=["spheres", "tori", "shells"])
+    parser.add_argument("--size", type=int, help="icosphere subdivisions (spheres, shells: 5) or torus sections (tori: 180)")
+    parser.add_argument("-o", "--output", required=True)
+    args = parser.parse_args()
+    if args.scene == "spheres":
+        soup = spheres_in_room_soup(subdivisions=5 if args.size is None else args.size, quad_light=True)
+    elif args.scene == "tori":
+        soup = tori_in_room_soup(180 if args.size is None else args.size)
+    else:
+        soup = open_shells_in_room_soup(5 if args.size is None else args.size)
+    write_obj(soup, args.output)
+    print(f"{args.output}: {len(soup.polygon_offsets) - 1} triangles")

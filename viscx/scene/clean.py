@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from viscx.arrays import first_of_rows
+
 
 def weld_vertices(vertices, tolerance):
     """Merge vertices closer than ``tolerance`` (transitively).
@@ -105,7 +107,7 @@ def duplicate_triangles(triangles):
     if len(triangles) == 0:
         return np.zeros(0, dtype=bool)
     key = np.sort(triangles, axis=1)
-    _, first = np.unique(key, axis=0, return_index=True)
+    first = first_of_rows(key)
     mask = np.ones(len(triangles), dtype=bool)
     mask[first] = False
     return mask

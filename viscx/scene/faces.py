@@ -11,7 +11,7 @@ more an event than a flat diagonal is.
 import numpy as np
 from numba import njit
 
-from viscx.arrays import walk_cycle
+from viscx.arrays import unique_rows, walk_cycle
 from viscx.errors import ViscxError
 from viscx.geometry.polygon import plane_basis
 from viscx.scene.clean import triangle_normals
@@ -267,7 +267,7 @@ def drop_collinear_vertices(vertices, loop_offsets, loop_vertices, tolerance):
     pos = np.arange(len(loop_vertices))
     nxt = np.where(pos + 1 == loop_offsets[loop_id + 1], loop_offsets[loop_id], pos + 1)
     a, b = loop_vertices, loop_vertices[nxt]
-    pairs = np.unique(np.concatenate([np.stack([a, b], 1), np.stack([b, a], 1)]), axis=0)
+    pairs = unique_rows(np.concatenate([np.stack([a, b], 1), np.stack([b, a], 1)]))[0]
     degree = np.bincount(pairs[:, 0], minlength=nv)
     if not np.any(degree == 2):
         return loop_offsets, loop_vertices

@@ -139,6 +139,25 @@ def test_inner_edges_leave_the_estimate_alone(scene, monkeypatch):
     assert setup.unresolved(tri, ptr, ids)[0] == pytest.approx(2 * 0.05 * np.sqrt(2))
 
 
+def _floor_and_light(vertices, triangles, name):
+    """A 10 × 10 floor (y = 0, facing up), a 2 × 2 light at y = 8 (facing down) and the
+    ``triangles`` (t, 3) int of ``vertices`` (n, 3) float as group ``name``."""
+    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
+    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(triangles) + 8).tolist()
+    return build_scene(soup(np.concatenate([v, vertices]), polygons, [0, 1] + [2] * len(triangles),
+                            ["floor", "light", name]))
+
+
+def _over_floor(mesh, degrees, name):
+    """:func:`_floor_and_light` with a trimesh ``mesh`` turned about x by ``degrees`` and
+    moved over the floor's middle, 3 above it."""
+    import trimesh
+
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.radians(degrees), [1, 0, 0]))
+    mesh.apply_translation([5.0, 3.0, 5.0])
+    return _floor_and_light(mesh.vertices, mesh.faces, name)
+
+
 @pytest.fixture(scope="module")
 def torus_scene():
     """A 10 × 10 floor (y = 0, facing up), a 2 × 2 light at y = 8 (facing down) and a torus
@@ -148,12 +167,7 @@ def torus_scene():
     import trimesh
 
     t = trimesh.creation.torus(major_radius=1.5, minor_radius=0.5, major_sections=16, minor_sections=8)
-    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(50), [1, 0, 0]))
-    t.apply_translation([5.0, 3.0, 5.0])
-    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
-    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
-    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
-                            ["floor", "light", "torus"]))
+    return _over_floor(t, 50, "torus")
 
 
 @pytest.fixture(scope="module")
@@ -165,12 +179,7 @@ def annulus_scene():
     import trimesh
 
     t = trimesh.creation.torus(major_radius=1.5, minor_radius=0.5, major_sections=16, minor_sections=6)
-    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(50), [1, 0, 0]))
-    t.apply_translation([5.0, 3.0, 5.0])
-    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
-    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
-    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
-                            ["floor", "light", "annulus"]))
+    return _over_floor(t, 50, "annulus")
 
 
 def test_a_solid_with_annuli_is_closed(annulus_scene):
@@ -199,12 +208,7 @@ def shell_scene():
 
     t = trimesh.creation.icosphere(subdivisions=2, radius=1.5)
     t = trimesh.Trimesh(t.vertices, t.faces[t.triangles_center[:, 1] > -0.9], process=False)
-    t.apply_transform(trimesh.transformations.rotation_matrix(np.radians(20), [1, 0, 0]))
-    t.apply_translation([5.0, 3.0, 5.0])
-    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
-    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + (np.asarray(t.faces) + 8).tolist()
-    return build_scene(soup(np.concatenate([v, t.vertices]), polygons, [0, 1] + [2] * len(t.faces),
-                            ["floor", "light", "shell"]))
+    return _over_floor(t, 20, "shell")
 
 
 @pytest.fixture(scope="module")
@@ -221,11 +225,7 @@ def sheet_scene():
     sheet = np.stack([u, height, w], axis=2).reshape(-1, 3)
     idx = np.arange(n * n).reshape(n, n)
     a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    tris = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]) + 8
-    v = [[0, 0, 0], [10, 0, 0], [10, 0, 10], [0, 0, 10], [4, 8, 4], [6, 8, 4], [6, 8, 6], [4, 8, 6]]
-    polygons = [[0, 3, 2, 1], [4, 5, 6, 7]] + tris.tolist()
-    return build_scene(soup(np.concatenate([v, sheet]), polygons, [0, 1] + [2] * len(tris),
-                            ["floor", "light", "sheet"]))
+    return _floor_and_light(sheet, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]), "sheet")
 
 
 def test_a_solid_standing_on_the_emitter_seen_from_its_concavity(rng):

@@ -2117,8 +2117,10 @@ class PairSetup:
             pid_of[int(f)], edge_pos[k] = k, np.concatenate(p)
         # occluder k's loops start at loop Σ_{k' < k} len(loops_k'), one after the other
         first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
+        edge_patch = np.full(n, -1, np.int64)
         for k in np.flatnonzero(poly_solid >= 0):
-            pos[occ_loop[first_loop[k]]:occ_loop[first_loop[k] + len(occluders[k][0])]] = edge_pos[k]
+            edges = slice(occ_loop[first_loop[k]], occ_loop[first_loop[k] + len(occluders[k][0])])
+            pos[edges], edge_patch[edges] = edge_pos[k], poly_solid[k]
         # the patches numbered among these occluders (the kernel's work arrays have one
         # entry per occluder; the scene's ids may be larger), each closed or open from I
         inside = np.flatnonzero(poly_solid >= 0)
@@ -2131,7 +2133,10 @@ class PairSetup:
         rows = np.flatnonzero(pos >= 0)
         nb_face = neighbour[pos[rows]]
         occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]
-        _, occ_vid[rows] = np.unique(self.scene.loop_vertices[pos[rows]], return_inverse=True)
+        # a vertex's id per patch: two patches meeting at a vertex (a bow-tie where a scan
+        # has holes) must not chain their outlines into each other's polygons
+        key = edge_patch[rows] * self.scene.n_vertices + self.scene.loop_vertices[pos[rows]]
+        _, occ_vid[rows] = np.unique(key, return_inverse=True)
         return dict(poly_solid=poly_solid, solid_open=solid_open, occ_nb=occ_nb, occ_vid=occ_vid, occ_next=occ_next)
 
     @functools.cached_property

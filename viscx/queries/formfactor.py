@@ -2100,9 +2100,10 @@ class PairSetup:
         pid_of, edge_pos = {}, {}
         hulled = boxes >= 0
         hulled[hulled] = np.diff(box_ptr)[boxes[hulled]] <= HULL_BOX_FACES
+        loops_of = np.diff(self.scene.face_loop_offsets)
         for k, o in enumerate(occluders):
             f = o[2] if len(o) > 2 else -1
-            if f < 0 or alone[patch[f]] or hulled[k] or len(o[0]) != np.diff(self.scene.face_loop_offsets)[f]:
+            if f < 0 or alone[patch[f]] or hulled[k] or len(o[0]) != loops_of[f]:
                 continue
             if min(float((loop @ self.n_i).min()) for loop in o[0]) - self.c_i <= self.tiny:
                 # a face touching I's plane: the outline may run along the horizon of a

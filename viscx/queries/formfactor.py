@@ -2066,16 +2066,16 @@ class PairSetup:
                 occ_poly.append(k)
             pn.append(nk)
             pp.append(loops[0][0])
-        occ_loop = np.asarray(occ_loop, np.int64)
+        occ_loop, occ_poly = np.asarray(occ_loop, np.int64), np.asarray(occ_poly, np.int64)
+        occ = np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3)))
         return dict(
             n_i=self.n_i, j2=allj, j_loop=j_loop, origin=origin, eu=eu, ev=ev, n_j=self.n_t, c_j=self.c_t, hull=hull3,
-            occ=np.ascontiguousarray(np.concatenate(occ) if occ else np.zeros((0, 3))), occ_loop=occ_loop,
-            occ_poly=np.asarray(occ_poly, np.int64), poly_normal=np.asarray(pn, np.float64).reshape(-1, 3),
+            occ=occ, occ_loop=occ_loop, occ_poly=occ_poly, poly_normal=np.asarray(pn, np.float64).reshape(-1, 3),
             poly_point=np.asarray(pp, np.float64).reshape(-1, 3), tiny=self.tiny, poly_box=boxes, box_ptr=box_ptr,
-            box_planes=box_planes, **self._solid_arrays(occluders, boxes, box_ptr, occ_loop),
+            box_planes=box_planes, **self._solid_arrays(occluders, occ, occ_loop, occ_poly, boxes, box_ptr),
         )
 
-    def _solid_arrays(self, occluders, boxes, box_ptr, occ_loop):
+    def _solid_arrays(self, occluders, occ, occ_loop, occ_poly, boxes, box_ptr):
         """The :func:`surface_patches` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
         for these occluders: ``poly_solid`` (the patch of an unclipped occluder (every loop
         whole) that is no face of a convex box of at most :data:`HULL_BOX_FACES` planes, those
@@ -2095,37 +2095,48 @@ class PairSetup:
         patch, neighbour = surface_patches(self.scene)
         face_solid = closed_solids(self.scene)[0]
         eligible = _outside_solids(self.scene, self.n_i, self.c_i, self.tiny)
-        alone = np.bincount(patch, minlength=self.scene.n_faces) < 2
-        pos = np.full(n, -1, np.int64)
-        pid_of, edge_pos = {}, {}
+        scene = self.scene
+        flo, lo = scene.face_loop_offsets, scene.loop_offsets
+        faces = np.asarray([o[2] if len(o) > 2 else -1 for o in occluders], np.int64).reshape(-1)
+        count = np.asarray([len(o[0]) for o in occluders], np.int64).reshape(-1)
+        first_loop = np.cumsum(count) - count  # occluder k's loops, one after the other
         hulled = boxes >= 0
         hulled[hulled] = np.diff(box_ptr)[boxes[hulled]] <= HULL_BOX_FACES
-        loops_of = np.diff(self.scene.face_loop_offsets)
-        for k, o in enumerate(occluders):
-            f = o[2] if len(o) > 2 else -1
-            if f < 0 or alone[patch[f]] or hulled[k] or len(o[0]) != loops_of[f]:
-                continue
-            if min(float((loop @ self.n_i).min()) for loop in o[0]) - self.c_i <= self.tiny:
-                # a face touching I's plane: the outline may run along the horizon of a
-                # point of I for more than half of it (the Cornell box's walls seen from its
-                # floor; a U-shaped solid standing on it, seen from inside the U), where its
-                # clipped projection loses its winding; on its own it hides what it hides
-                continue
-            p = [solid_edge_positions(self.scene, f, loop, j) for j, loop in enumerate(o[0])]
-            if any(q[0] < 0 for q in p):
-                continue
-            poly_solid[k] = patch[f]
-            pid_of[int(f)], edge_pos[k] = k, np.concatenate(p)
-        # occluder k's loops start at loop Σ_{k' < k} len(loops_k'), one after the other
-        first_loop = np.concatenate([[0], np.cumsum([len(o[0]) for o in occluders])])[:-1]
-        edge_patch = np.full(n, -1, np.int64)
-        for k in np.flatnonzero(poly_solid >= 0):
-            edges = slice(occ_loop[first_loop[k]], occ_loop[first_loop[k] + len(occluders[k][0])])
-            pos[edges], edge_patch[edges] = edge_pos[k], poly_solid[k]
+        take = (faces >= 0) & ~hulled
+        take[take] &= (np.bincount(patch, minlength=scene.n_faces)[patch[faces[take]]] >= 2) & \
+            (count[take] == np.diff(flo)[faces[take]])
+        # a face touching I's plane stays on its own: the outline may run along the horizon
+        # of a point of I for more than half of it (the Cornell box's walls seen from its
+        # floor; a U-shaped solid standing on it, seen from inside the U), where its clipped
+        # projection loses its winding; on its own it hides what it hides
+        low = np.full(len(occluders), -np.inf)
+        edge_poly = np.repeat(occ_poly, np.diff(occ_loop))
+        if n:
+            np.maximum.at(low, edge_poly, -(occ @ self.n_i))
+        take &= -low - self.c_i > self.tiny
+        # unclipped: every loop the face's own, the same points in the same order
+        # (:func:`solid_edge_positions`, for all occluders at once)
+        loop_k = occ_poly
+        scene_loop = flo[np.maximum(faces[loop_k], 0)] + np.arange(len(loop_k)) - first_loop[loop_k]
+        scene_loop = np.minimum(scene_loop, len(lo) - 2)
+        fits = take[loop_k] & (np.diff(occ_loop) == np.diff(lo)[scene_loop])
+        take &= np.bincount(loop_k[~fits], minlength=len(occluders)) == 0
+        edge_loop = np.repeat(np.arange(len(loop_k)), np.diff(occ_loop))
+        edges = np.flatnonzero(take[edge_poly])
+        at = lo[scene_loop[edge_loop[edges]]] + edges - occ_loop[edge_loop[edges]]
+        same = np.all(occ[edges] == scene.vertices[scene.loop_vertices[at]], axis=1)
+        take &= np.bincount(edge_poly[edges[~same]], minlength=len(occluders)) == 0
+        poly_solid[take] = patch[faces[take]]
+        inside_edges = take[edge_poly]
+        pos = np.full(n, -1, np.int64)
+        pos[edges[take[edge_poly[edges]]]] = at[take[edge_poly[edges]]]
+        edge_patch = np.where(inside_edges, poly_solid[edge_poly], -1)
+        pid_of = np.full(scene.n_faces, -1, np.int64)
+        pid_of[faces[take]] = np.flatnonzero(take)
         # the patches numbered among these occluders (the kernel's work arrays have one
         # entry per occluder; the scene's ids may be larger), each closed or open from I
         inside = np.flatnonzero(poly_solid >= 0)
-        solid = face_solid[np.asarray([occluders[k][2] for k in inside], np.int64)]
+        solid = face_solid[faces[inside]]
         closed = solid >= 0
         closed[closed] = eligible[solid[closed]]
         ids, poly_solid[inside] = np.unique(poly_solid[inside], return_inverse=True)
@@ -2133,7 +2144,7 @@ class PairSetup:
         solid_open[poly_solid[inside][closed]] = 0
         rows = np.flatnonzero(pos >= 0)
         nb_face = neighbour[pos[rows]]
-        occ_nb[rows] = [pid_of.get(int(g), -1) for g in nb_face]
+        occ_nb[rows] = np.where(nb_face >= 0, pid_of[np.maximum(nb_face, 0)], -1)
         # a vertex's id per patch: two patches meeting at a vertex (a bow-tie where a scan
         # has holes) must not chain their outlines into each other's polygons
         key = edge_patch[rows] * self.scene.n_vertices + self.scene.loop_vertices[pos[rows]]

@@ -2077,14 +2077,16 @@ class PairSetup:
 
     def _solid_arrays(self, occluders, occ, occ_loop, occ_poly, boxes, box_ptr):
         """The :func:`surface_patches` arrays of :func:`viscx.geometry.occlusion.visible_form_factors`
-        for these occluders: ``poly_solid`` (the patch of an unclipped occluder (every loop
-        whole) that is no face of a convex box of at most :data:`HULL_BOX_FACES` planes, those
-        the kernel sweeps as the convex hull of their projection, nor a patch of its own, nor
-        a face within ``tiny`` of I's plane; numbered among these occluders from 0; else -1), ``solid_open`` (per patch: 0 for a
-        :func:`closed_solids` solid in the closed front half-space of I, so that every point
-        of I is outside it and its front faces hide all it hides, else 1: its back faces'
-        outline is swept too), ``occ_nb`` (the occluder across each edge, -1 none),
-        ``occ_vid`` (compact vertex ids) and ``occ_next`` (the next vertex of each loop)."""
+        for these occluders (their loops ``occ`` (no, 3) float64, ``occ_loop``, ``occ_poly``
+        as the kernel has them): ``poly_solid`` (the patch of an unclipped occluder (every
+        loop whole) that is no face of a convex box of at most :data:`HULL_BOX_FACES` planes,
+        those the kernel sweeps as the convex hull of their projection, nor a patch of its
+        own, nor a face within ``tiny`` of I's plane; numbered among these occluders from 0;
+        else -1), ``solid_open`` (per patch: 0 for a :func:`closed_solids` solid in the closed
+        front half-space of I, so that every point of I is outside it and its front faces
+        hide all it hides, else 1: its back faces' outline is swept too), ``occ_nb`` (the
+        occluder across each edge, -1 none), ``occ_vid`` (vertex ids, per patch) and
+        ``occ_next`` (the next vertex of each loop)."""
         n = int(occ_loop[-1])
         poly_solid = np.full(len(occluders), -1, np.int64)
         occ_nb = np.full(n, -1, np.int64)

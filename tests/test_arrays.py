@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from viscx.arrays import expand_ranges, first_of_rows, graph_components, unique_rows, unique_sorted
+from viscx.arrays import (expand_ranges, first_of_rows, graph_components, loop_successors, reversed_loops, unique_rows,
+                          unique_sorted)
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 5000])
@@ -43,6 +44,21 @@ def test_expand_ranges_is_the_concatenated_ranges():
     row, index = expand_ranges(first, count)
     assert row.tolist() == [0, 0, 2, 2, 2]
     assert index.tolist() == [5, 6, 2, 3, 4]
+
+
+def test_loop_successors_and_reversed_loops_loop_by_loop(rng):
+    """Each loop's next element (its last to its first) and the loops turned where asked,
+    against a loop-by-loop reference, empty loops included."""
+    sizes = rng.integers(0, 6, 40)
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    reverse = rng.random(40) < 0.5
+    nxt, turned = [], []
+    for j in range(40):
+        ids = list(range(offsets[j], offsets[j + 1]))
+        nxt += ids[1:] + ids[:1]
+        turned += ids[::-1] if reverse[j] else ids
+    assert loop_successors(offsets).tolist() == nxt
+    assert reversed_loops(offsets, reverse).tolist() == turned
 
 
 def test_row_norms_equal_numpys_norm_bit_for_bit():

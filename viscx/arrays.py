@@ -24,6 +24,27 @@ def expand_ranges(first, count):
     return row, np.repeat(np.asarray(first, dtype=np.int64), count) + np.arange(int(count.sum())) - start[row]
 
 
+def loop_successors(offsets):
+    """(m,) int64: for each element of the loops packed at ``offsets`` (l + 1,) int, the
+    index of the next element of its loop (a loop's last goes to its first)."""
+    offsets = np.asarray(offsets, dtype=np.int64)
+    out = np.arange(int(offsets[-1]), dtype=np.int64) + 1
+    full = offsets[1:] > offsets[:-1]
+    out[offsets[1:][full] - 1] = offsets[:-1][full]
+    return out
+
+
+def reversed_loops(offsets, reverse):
+    """(m,) int64: the indices 0 .. m − 1 of the loops packed at ``offsets`` (l + 1,) int,
+    each loop j in reverse order where ``reverse[j]`` (l,) bool (a gather that turns them)."""
+    offsets = np.asarray(offsets, dtype=np.int64)
+    sizes = np.diff(offsets)
+    out = np.arange(int(offsets[-1]), dtype=np.int64)
+    back = np.repeat(np.asarray(reverse, bool), sizes)
+    out[back] = (np.repeat(offsets[:-1] + offsets[1:] - 1, sizes) - out)[back]
+    return out
+
+
 def unique_sorted(keys):
     """The distinct values of ``keys``, ascending: ``np.unique(keys)`` by a sort.
 

@@ -67,7 +67,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from viscx.arrays import graph_components
+from viscx.arrays import expand_ranges, graph_components, loop_successors, reversed_loops, unique_rows
 from viscx.errors import ViscxError
 from viscx.geometry.arrangement import cut_pieces, flat_to_pieces, piece_centres, pieces_to_flat, segments_crossing
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
@@ -250,14 +250,9 @@ def closed_boxes(scene):
         sizes = lo[loop + 1] - lo[loop]
         if not len(one):
             return np.full(n, -1, np.int64), np.zeros(1, np.int64), np.zeros((0, 5))
-        reverse = np.repeat(loop_normal_dots(scene)[loop] < 0, sizes)
-        start, end = np.repeat(lo[loop], sizes), np.repeat(lo[loop + 1], sizes)
-        pos = np.arange(int(sizes.sum()), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes) + start
-        pos[reverse] = start[reverse] + end[reverse] - 1 - pos[reverse]
-        ea = scene.loop_vertices[pos].astype(np.int64)
-        nxt = np.arange(len(ea)) + 1
-        nxt[np.cumsum(sizes) - 1] = np.cumsum(sizes) - sizes
-        eb, ef = ea[nxt], np.repeat(one, sizes)
+        turned = reversed_loops(lo, loop_normal_dots(scene) < 0)
+        ea = scene.loop_vertices[turned[expand_ranges(lo[loop], sizes)[1]]].astype(np.int64)
+        eb, ef = ea[loop_successors(np.concatenate([[0], np.cumsum(sizes)]))], np.repeat(one, sizes)
         # faces sharing an edge traversed both ways
         key, rev = ea * nv + eb, eb * nv + ea
         order = np.argsort(key, kind="stable")
@@ -265,7 +260,7 @@ def closed_boxes(scene):
         left = np.searchsorted(sk, rev, "left")
         count = np.searchsorted(sk, rev, "right") - left
         f = np.repeat(ef, count)
-        g = ef[order[np.repeat(left, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)]]
+        g = ef[order[expand_ranges(left, count)[1]]]
         f, g = f[f != g], g[f != g]
         # linked: not coplanar, and every vertex of each behind or on the other's plane
         # (a face's vertices padded with its first, so that one array holds them all)
@@ -285,13 +280,9 @@ def closed_boxes(scene):
         # an open box's bare edges, once and without reverse, outline its missing face)
         members = np.bincount(comp[one], minlength=n)
         ec = comp[ef]
-        uk, ek = np.unique(key, return_inverse=True)
-        ri = np.minimum(np.searchsorted(uk, rev), len(uk) - 1)
-        ck = ec * len(uk) + ek.reshape(-1)
-        rk = np.where(uk[ri] == rev, ec * len(uk) + ri, -1)
-        sck = np.sort(ck)
-        kcount = np.searchsorted(sck, ck, "right") - np.searchsorted(sck, ck, "left")
-        rcount = np.where(rk >= 0, np.searchsorted(sck, rk, "right") - np.searchsorted(sck, rk, "left"), 0)
+        ids = unique_rows(np.concatenate([np.stack([ec, ea, eb], 1), np.stack([ec, eb, ea], 1)]))[1]
+        tally = np.bincount(ids[:len(ea)], minlength=int(ids.max()) + 1)
+        kcount, rcount = tally[ids[:len(ea)]], tally[ids[len(ea):]]
         bare = (kcount == 1) & (rcount == 0)
         broken = np.bincount(ec[~bare & (rcount != kcount)], minlength=n) > 0
         has_bare = np.bincount(ec[bare], minlength=n) > 0
@@ -410,12 +401,8 @@ def surface_patches(scene):
         n, lv, lo = scene.n_faces, scene.loop_vertices.astype(np.int64), scene.loop_offsets.astype(np.int64)
         flo = scene.face_loop_offsets
         loop_face = np.repeat(np.arange(n), np.diff(flo))
-        sizes = np.diff(lo)
-        edge_loop = np.repeat(np.arange(len(sizes)), sizes)
-        nxt = np.arange(len(lv)) + 1
-        nxt[lo[1:] - 1] = lo[:-1]  # the last vertex of a loop goes to its first
-        a, b = lv, lv[nxt]
-        face = loop_face[edge_loop]
+        a, b = lv, lv[loop_successors(lo)]
+        face = np.repeat(loop_face, np.diff(lo))
         nv = scene.n_vertices
         key, rev = a * nv + b, b * nv + a
         order = np.argsort(key, kind="stable")
@@ -640,15 +627,12 @@ def solid_sections(scene, solids, n, c, tiny, count=UMBRA_PLANES):
     if not len(faces):
         return np.zeros(0), np.zeros(1, np.int64), np.zeros((0, 4))
     flo = scene.face_loop_offsets
-    counts = flo[faces + 1] - flo[faces]
-    loops = np.repeat(flo[faces] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())  # holes too
+    row, loops = expand_ranges(flo[faces], flo[faces + 1] - flo[faces])  # holes too
     lo, hi = scene.loop_offsets[loops], scene.loop_offsets[loops + 1]
     sizes = hi - lo
-    pos = np.repeat(lo - np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes) + np.arange(sizes.sum())
-    nxt = pos + 1
-    last = np.cumsum(sizes) - 1
-    nxt[last] = lo
-    edge_face = np.repeat(np.repeat(faces, counts), sizes)
+    pos = expand_ranges(lo, sizes)[1]
+    nxt = pos[loop_successors(np.concatenate([[0], np.cumsum(sizes)]))]
+    edge_face = np.repeat(faces[row], sizes)
     a, b = scene.loop_vertices[pos].astype(np.int64), scene.loop_vertices[nxt].astype(np.int64)
     a, b = np.minimum(a, b), np.maximum(a, b)
     height = scene.vertices @ n - c
@@ -873,19 +857,12 @@ def face_loops_oriented(scene):
         # oriented_loops and loops_area of every face, vectorised over all loops (the same
         # bits: newell_normals sums as newell_normal does): a 10⁵-triangle mesh in a second
         n, flo, lo = scene.n_faces, scene.face_loop_offsets, scene.loop_offsets.astype(np.int64)
-        sizes = np.diff(lo)
         loop_face = np.repeat(np.arange(n), np.diff(flo))
-        outer = np.zeros(len(sizes), bool)
+        outer = np.zeros(len(lo) - 1, bool)
         outer[flo[:-1][np.diff(flo) > 0]] = True
         normal = scene.face_normal.astype(np.float64)[loop_face]
         pts = scene.vertices[scene.loop_vertices].astype(np.float64)
-        flip = (loop_normal_dots(scene) > 0) != outer
-        # a flipped loop's vertices in reverse order
-        pos = np.arange(len(pts))
-        start, end = np.repeat(lo[:-1], sizes), np.repeat(lo[1:], sizes)
-        back = np.repeat(flip, sizes)
-        pos[back] = start[back] + end[back] - 1 - pos[back]
-        pts = pts[pos]
+        pts = pts[reversed_loops(lo, (loop_normal_dots(scene) > 0) != outer)]
         # 0.5 Σ_loops N · n, the loops added in order as Python's sum adds them
         dots = _dots(newell_normals(pts, lo), normal)
         areas = np.zeros(n)
@@ -2091,9 +2068,7 @@ class PairSetup:
         poly_solid = np.full(len(occluders), -1, np.int64)
         occ_nb = np.full(n, -1, np.int64)
         occ_vid = np.zeros(n, np.int64)
-        sizes = np.diff(occ_loop)
-        occ_next = np.arange(n, dtype=np.int64) + 1
-        occ_next[occ_loop[1:][sizes > 0] - 1] = occ_loop[:-1][sizes > 0]
+        occ_next = loop_successors(occ_loop)
         patch, neighbour = surface_patches(self.scene)
         face_solid = closed_solids(self.scene)[0]
         eligible = _outside_solids(self.scene, self.n_i, self.c_i, self.tiny)

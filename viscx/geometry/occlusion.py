@@ -818,6 +818,9 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
             continue
         b = poly_box[pid]
         if _outside(x, n_i, b, box_state, box_ptr, box_planes, tiny):
+            if ((x[0] - poly_point[pid, 0]) * poly_normal[pid, 0] + (x[1] - poly_point[pid, 1]) * poly_normal[pid, 1]
+                    + (x[2] - poly_point[pid, 2]) * poly_normal[pid, 2]) <= tiny:
+                continue  # a back face (or seen edge-on): the front faces' hull is the box's shadow
             if box_head[b] < 0:
                 box_list[n_box] = b
                 n_box += 1
@@ -845,10 +848,12 @@ def _visible_one(x, n_i, j2, j_loop, sel, origin, eu, ev, n_j, c_j, hull, occ, o
     # a closed convex box x is outside of hides the central projection of its part inside
     # the pyramid: a convex set (the box cut by the pyramid's planes and the half-spaces the
     # occluders were clipped to), the convex hull of the projected vertices of its faces
-    # clipped to the pyramid. Those of the faces listed suffice: a ray from x that meets the
-    # box enters it through a face x is in front of, at a point of the ray's segment to J,
-    # inside the shaft, so that face meets the shaft and is listed. One convex polygon
-    # instead of two or three faces (no shared edges, no back faces).
+    # clipped to the pyramid. Those of the front faces listed suffice: a ray from x that
+    # meets the box enters it through a face x is in front of (by its outward normal, as
+    # closed_boxes orients them), at a point of the ray's segment to J, inside the shaft, so
+    # that face meets the shaft and is listed; the back faces are neither clipped nor
+    # projected (a 256-sided column resting on the floor, which no outline takes: half of
+    # its faces). One convex polygon instead of two or three faces (no shared edges).
     n_hulls = 0
     for k in range(n_box):
         b = box_list[k]

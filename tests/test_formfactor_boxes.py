@@ -691,3 +691,33 @@ def test_a_box_resting_on_the_emitter_is_outside_from_it(rng):
     r = ff.face_to_face(s, floor, ceiling, tol=1e-5)
     mc, sigma = form_factor_monte_carlo(s, [floor], 1, 2_000_000, seed=3)
     assert abs(r["F"] - mc[2 * ceiling]) <= 4 * sigma[2 * ceiling] + r["error"]  # (its front faces the floor)
+
+
+def test_an_umbra_of_slivers_adds_nothing():
+    """A 4 × 4 floor, a 1 × 1 light 3 above it facing down, and a closed box standing on
+    the floor under the light's edge (its corners as lo + (hi − lo), one polygon of its own
+    each: the far ones 2.0000000000000004): the triangles of the floor found in the box's
+    umbra (their F(x → light) taken whole by the contour integral) were all slivers of the
+    emitter's cuts, of no area, and the contour integral of no area was 0 / 0: floor →
+    light gave F = inf at every tol. Now finite, and A_floor F = A_light F back (computed
+    from the light, another cubature) within both estimates, and within 4 σ of Monte Carlo."""
+    from oracles import form_factor_monte_carlo
+
+    def rect(c, a, b):  # normal a × b
+        c, a, b = (np.asarray(x, float) for x in (c, a, b))
+        return [c, c + a, c + a + b, c + b]
+
+    lo, hi = np.array([1.2, 1.0, 0.0]), np.array([2.0, 2.2, 0.9])
+    X, Y, Z = np.diag(hi - lo)
+    faces = [rect([0, 0, 0], [4, 0, 0], [0, 4, 0]), rect([1.5, 1.5, 3], [0, 1, 0], [1, 0, 0]),
+             rect(lo, Y, X), rect(lo + Z, X, Y), rect(lo, X, Z), rect(lo + Y, Z, X), rect(lo, Z, Y), rect(lo + X, Y, Z)]
+    v = [p.tolist() for f in faces for p in f]
+    polygons = [list(range(4 * k, 4 * k + 4)) for k in range(len(faces))]
+    s = build_scene(soup(v, polygons, [0, 1] + [2] * 6, ["floor", "light", "box"]))
+    assert len(ff.closed_boxes(s)[1]) == 2
+    up = ff.face_to_face(s, 0, 1, tol=1e-6)
+    down = ff.face_to_face(s, 1, 0, tol=1e-6)
+    assert np.isfinite(up["F"]) and np.isfinite(up["error"]) and up["error"] <= 1e-6
+    assert abs(16.0 * up["F"] - 1.0 * down["F"]) <= 16.0 * up["error"] + down["error"]
+    mc, sigma = form_factor_monte_carlo(s, [0], 1, 2_000_000, seed=5)
+    assert abs(up["F"] - mc[2]) <= 4 * sigma[2] + up["error"]  # (the light's front faces the floor)

@@ -2506,12 +2506,18 @@ class PairSetup:
 
     def unoccluded_integral(self, tri):
         """∫ F(x → J') dx over the triangles (g, 3, 3) of I' (disjoint): the contour integral
-        of their union (exact), ``(value, error)`` in area × F."""
-        if not len(tri):
-            return 0.0, 0.0
-        area = float(triangle_areas(tri).sum())
-        v, e = contour_form_factor(list(tri), self.n_i, self.J, self.n_t, separate=True)
-        return v * area, e * area
+        of their union (exact), ``(value, error)`` in area × F. Triangles of less than tiny²
+        area (slivers of the emitter's cuts) are left out, their area (F ≤ 1) added to the
+        error: the contour integral is F times the area, and of no area it was 0 / 0 (F = inf
+        from a floor beside a box standing on it, the umbra's triangles all slivers)."""
+        areas = triangle_areas(tri)
+        keep = areas > self.tiny * self.tiny
+        sliver = float(areas[~keep].sum())
+        if not keep.any():
+            return 0.0, sliver
+        area = float(areas[keep].sum())
+        v, e = contour_form_factor(list(tri[keep]), self.n_i, self.J, self.n_t, separate=True)
+        return v * area, e * area + sliver
 
 
 def convex_face_loops(scene):

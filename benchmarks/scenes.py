@@ -69,6 +69,62 @@ def open_shells_in_room_soup(subdivisions=5, n_shells=6, seed=0):
     return _in_room(meshes, [f"shell{i}" for i in range(n_shells)], True)
 
 
+def columns_in_room_soup(sections=256, n_columns=4, seed=0):
+    """Round columns from floor to ceiling in the room of :func:`spheres_in_room_soup` (its
+    light and groups): ``n_columns`` closed prisms of ``sections`` sides (radius 0.4, in a
+    row along x, at random z), their bottoms on the floor (y = −5) and their tops on the
+    ceiling: a convex box of ``sections`` + 2 planes each, resting on both (docs/queries.md,
+    "Columns resting on the floor"). With the default 4,110 triangles."""
+    rng = np.random.default_rng(seed)
+    meshes = []
+    for k in range(n_columns):
+        column = trimesh.creation.cylinder(radius=0.4, height=10.0, sections=sections)
+        column.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+        v = column.vertices.copy()
+        v[np.abs(np.abs(v[:, 1]) - 5.0) < 1e-9, 1] = np.sign(v[np.abs(np.abs(v[:, 1]) - 5.0) < 1e-9, 1]) * 5.0
+        v += [-6.0 + 4.0 * k, 0.0, rng.uniform(-5, 5)]
+        meshes.append(trimesh.Trimesh(v, column.faces, process=False))
+    return _in_room(meshes, [f"column{k}" for k in range(n_columns)], True)
+
+
+def scans_on_floor_soup(subdivisions=4, n_scans=6, seed=0):
+    """Open scans standing on the floor of the room of :func:`spheres_in_room_soup` (its
+    light and groups): ``n_scans`` icospheres cut flat by the floor (y = −5) 0.6 of their
+    radius below their centres, the cut left open (a scan has no underside), the cut's
+    points exactly on the floor: each shell meets the floor along a polygon, overhanging it
+    (docs/queries.md, "Not done yet"). With the default 25,382 triangles."""
+    rng = np.random.default_rng(seed)
+    meshes = []
+    for _ in range(n_scans):
+        r = 1.0 + rng.random()
+        sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=r)
+        sphere.apply_translation([rng.uniform(-7, 7), -5.0 + 0.6 * r, rng.uniform(-7, 7)])
+        meshes.append(_cut_above(sphere.triangles, -5.0))
+    return _in_room(meshes, [f"scan{k}" for k in range(n_scans)], True)
+
+
+def _cut_above(triangles, y):
+    """The parts of triangles (t, 3, 3) above the plane at height ``y`` (Sutherland–Hodgman,
+    the crossing points put on the plane exactly), fanned into triangles, as one mesh."""
+    v, f = [], []
+    for tri in triangles:
+        h = tri[:, 1] - y
+        kept = []
+        for i in range(3):
+            a, b, ha, hb = tri[i], tri[(i + 1) % 3], h[i], h[(i + 1) % 3]
+            if ha >= 0:
+                kept.append(a)
+            if (ha >= 0) != (hb >= 0):
+                p = a + (b - a) * (ha / (ha - hb))
+                p[1] = y
+                kept.append(p)
+        f += [[len(v), len(v) + j, len(v) + j + 1] for j in range(1, len(kept) - 1)]
+        v += kept
+    mesh = trimesh.Trimesh(np.array(v), np.array(f), process=False)
+    mesh.merge_vertices()
+    return mesh
+
+
 def _in_room(meshes, names, quad_light):
     """The meshes (named) in a 20 × 10 × 20 room facing in, as one soup of triangles; with
     ``quad_light`` the light of :func:`spheres_in_room_soup` and the room's faces in groups
@@ -259,17 +315,24 @@ if __name__ == "__main__":
     from buildings import write_obj
 
     parser = argparse.ArgumentParser(description="Write a scanned-mesh benchmark scene as OBJ: six closed spheres, "
-                                                 "three tori whose top rings are faces with holes, or six open shells, "
-                                                 "in a room with a light (groups light, floor, ceiling, walls).")
-    parser.add_argument("scene", choices=["spheres", "tori", "shells"])
-    parser.add_argument("--size", type=int, help="icosphere subdivisions (spheres, shells: 5) or torus sections (tori: 180)")
+                                                 "three tori whose top rings are faces with holes, six open shells, "
+                                                 "four round columns from floor to ceiling or six open scans standing "
+                                                 "on the floor, in a room with a light (groups light, floor, ceiling, "
+                                                 "walls).")
+    parser.add_argument("scene", choices=["spheres", "tori", "shells", "columns", "scans"])
+    parser.add_argument("--size", type=int, help="icosphere subdivisions (spheres, shells: 5; scans: 4) or sections "
+                                                 "(tori: 180, columns: 256)")
     parser.add_argument("-o", "--output", required=True)
     args = parser.parse_args()
     if args.scene == "spheres":
         soup = spheres_in_room_soup(subdivisions=5 if args.size is None else args.size, quad_light=True)
     elif args.scene == "tori":
         soup = tori_in_room_soup(180 if args.size is None else args.size)
-    else:
+    elif args.scene == "shells":
         soup = open_shells_in_room_soup(5 if args.size is None else args.size)
+    elif args.scene == "columns":
+        soup = columns_in_room_soup(256 if args.size is None else args.size)
+    else:
+        soup = scans_on_floor_soup(4 if args.size is None else args.size)
     write_obj(soup, args.output)
     print(f"{args.output}: {len(soup.polygon_offsets) - 1} triangles")

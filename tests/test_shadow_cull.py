@@ -87,7 +87,8 @@ def _culled(scene, face, x):
     sweep[face] = False
     poly_o, box_o, box_r = _spheres(pts, lo, hi, first, poly_box, nb)
     k = int(np.diff(ptr).max())
-    _cull_shadowed(np.asarray(x, np.float64), sweep, pts, lo, hi, first, poly_box, poly_o, ptr, planes, box_o, box_r,
+    n_i = np.asarray(scene.face_normal[face], np.float64)
+    _cull_shadowed(np.asarray(x, np.float64), n_i, sweep, pts, lo, hi, first, poly_box, poly_o, ptr, planes, box_o, box_r,
                    np.zeros(nb + 1, np.int64), 1e-9 * scene.diagonal, np.ones(nb), np.empty(len(planes)),
                    np.empty(nb, np.int64), np.empty((nb, 5)), np.empty(k), np.empty(k))
     names = scene.group_names

@@ -671,14 +671,15 @@ def solid_sections(scene, solids, n, c, tiny, count=UMBRA_PLANES):
     return np.asarray(heights), np.asarray(ptr, np.int64), np.ascontiguousarray(np.concatenate(out))
 
 
-def back_faces(scene, tri, cell, faces, tiny):
+def back_faces(scene, tri, cell, faces, tiny, n_i):
     """(c,) bool: for each pair (triangle ``tri[cell[c]]``, face ``faces[c]``), whether the
     face is a back face of a closed convex box (:func:`closed_boxes`) for every point of the
     triangle, each of which is outside the box: all three vertices behind the face's plane
     (by more than tiny), and for each plane of the box either all three on or behind it or
     all three more than 2 tiny in front, the latter for at least one (a convex combination
     keeps each, so every point of the triangle is outside the box and not within 2 tiny in
-    front of one of its planes, as :func:`viscx.geometry.occlusion._outside_box` asks). Such
+    front of one of its planes but a face lying on the emitter's plane (its front side's unit
+    normal ``n_i`` (3,) float64), as :func:`viscx.geometry.occlusion._outside_box` asks). Such
     a face hides nothing from the triangle that the box's front faces do not
     (:func:`viscx.geometry.occlusion._outside`): it can be dropped from its occluders.
 
@@ -717,7 +718,9 @@ def back_faces(scene, tri, cell, faces, tiny):
         h = np.einsum("tvj,tj->tv", tri[owner], p[:, :3]) - p[:, 3][:, None]  # (t, 3)
         missing = p[:, 4] != 0.0  # an open box's missing face: x on or behind its plane
         front = np.all(h > 2 * tiny, axis=1) & ~missing
-        fine = front | np.all(h <= np.where(missing, tiny, 0.0)[:, None], axis=1)
+        # a face on the emitter's plane facing away from its front: no way in (_outside_box)
+        floor = (p[:, :3] @ n_i < -1.0 + 1e-12) & np.all(h <= 2 * tiny, axis=1)
+        fine = front | floor | np.all(h <= np.where(missing, tiny, 0.0)[:, None], axis=1)
         ok[start:stop] = np.logical_and.reduceat(fine, first) & np.logical_or.reduceat(front, first)
         start = stop
     out[boxed] = ok[where]
@@ -2185,7 +2188,7 @@ class PairSetup:
         pts, lo, hi, normals = self.occluder_outlines
         counts = np.diff(ptr)
         cell = np.repeat(np.arange(len(tri)), counts)
-        keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny)
+        keep = ~back_faces(self.scene, tri, cell, self._occluder_faces[ids], self.tiny, self.n_i)
         cell, ids = cell[keep], ids[keep]
         tri = np.ascontiguousarray(tri)
         rough = (self.kernel["poly_solid"][ids] >= 0) & (counts[cell] < len(self.occluders)) & (not exact)
@@ -2503,12 +2506,18 @@ class PairSetup:
 
     def unoccluded_integral(self, tri):
         """∫ F(x → J') dx over the triangles (g, 3, 3) of I' (disjoint): the contour integral
-        of their union (exact), ``(value, error)`` in area × F."""
-        if not len(tri):
-            return 0.0, 0.0
-        area = float(triangle_areas(tri).sum())
-        v, e = contour_form_factor(list(tri), self.n_i, self.J, self.n_t, separate=True)
-        return v * area, e * area
+        of their union (exact), ``(value, error)`` in area × F. Triangles of less than tiny²
+        area (slivers of the emitter's cuts) are left out, their area (F ≤ 1) added to the
+        error: the contour integral is F times the area, and of no area it was 0 / 0 (F = inf
+        from a floor beside a box standing on it, the umbra's triangles all slivers)."""
+        areas = triangle_areas(tri)
+        keep = areas > self.tiny * self.tiny
+        sliver = float(areas[~keep].sum())
+        if not keep.any():
+            return 0.0, sliver
+        area = float(areas[keep].sum())
+        v, e = contour_form_factor(list(tri[keep]), self.n_i, self.J, self.n_t, separate=True)
+        return v * area, e * area + sliver
 
 
 def convex_face_loops(scene):

@@ -129,9 +129,26 @@ class Pair:
             loop = pts[lo[k]:hi[k]]
             for a in range(len(loop)):
                 owner[(key(loop[a]), key(loop[(a + 1) % len(loop)]))] = f
+        # connected components of the faces through their shared edges (closed solids)
+        parent = list(range(scene.n_faces))
+
+        def find(a):
+            while parent[a] != a:
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            return a
+
+        for (ka, kb), f in owner.items():
+            g = owner.get((kb, ka))
+            if g is not None:
+                parent[find(f)] = find(g)
+        comp = np.array([find(f) for f in range(scene.n_faces)])
         if occluders == "shaft":
             occ = pair_occluders(scene, [i3], n_i, c_i, [j3], s_j * n_j, s_j * c_j, {i, j})
-            faces = sorted({int(f) for _, _, f in occ})
+            faces = {int(f) for _, _, f in occ}
+            # with the rest of their solids (a box's bottom lying on i is on the shaft's boundary)
+            faces |= {int(f) for f in np.flatnonzero(np.isin(comp, comp[sorted(faces)]))} if faces else set()
+            faces = sorted(faces - {i, j})
         else:
             faces = [f for f in range(scene.n_faces) if f not in (i, j)]
         self.faces = faces
@@ -172,10 +189,12 @@ class Pair:
             L = float(np.linalg.norm(pb - pa))
             edges.append((0, pa, pb, (pb - pa) / L, n_j, c_j, n_j, c_j, j, -1))
         self.edges = edges
+        roots = {}
+        solid = np.array([roots.setdefault(comp[f], len(roots)) if c else -1 for f, c in zip(faces, o_closed)], np.int64)
         self.occ = (np.ascontiguousarray(np.concatenate(o_pts)) if o_pts else np.zeros((0, 3)),
                     np.array(o_lo, np.int64), np.array(o_hi, np.int64),
                     np.ascontiguousarray(np.array(o_n, np.float64).reshape(-1, 3)),
-                    np.array(o_c, np.float64), np.array(o_closed, np.bool_))
+                    np.array(o_c, np.float64), np.array(o_closed, np.bool_), solid, len(roots))
         self.j_cen = j3.mean(axis=0)
         self.evaluations = 0
         self.flagged = 0
@@ -330,7 +349,9 @@ def small_scenes():
               [sq_i, sq_j, rect([0.3, 0.2, 0.5], [0.5, 0, 0], [0, 0.4, 0])], 0, 1))
     floor = rect([0, 0, 0], [4, 0, 0], [0, 4, 0])
     light = rect([1.5, 1.5, 3], [0, 1, 0], [1, 0, 0])  # normal −z
-    S.append(("box on a floor under a light", [floor, light] + box([1.2, 1.0, 0.0], [2.0, 2.2, 0.9]), 0, 1))
+    # (with the box at [1.2, 2.0] × [1.0, 2.2] face_to_face(floor → light) returns inf on this
+    # version: an emitter cell of zero area; the light → floor direction of that scene is below)
+    S.append(("box on a floor under a light", [floor, light] + box([0.6, 1.0, 0.0], [1.4, 2.2, 0.9]), 0, 1))
     S.append(("box on a floor under a light (light to floor)", [floor, light] + box([1.2, 1.0, 0.0], [2.0, 2.2, 0.9]), 1, 0))
     S.append(("occluder touching the emitter (panel standing on i)",
               [sq_i, sq_j] + box([0.2, 0.45, 0.0], [0.8, 0.55, 0.6]), 0, 1))
@@ -338,6 +359,8 @@ def small_scenes():
               [sq_i, sq_j] + box([0.3, 0.1, 0.6], [0.7, 0.5, 1.0]), 0, 1))
     S.append(("a face lying on the receiver (box's top on j)",
               [sq_i, sq_j] + box([0.1, 0.3, 0.7], [0.6, 0.9, 1.0]), 0, 1))
+    S.append(("a box on a floor lit from a tilted panel", [floor, rect([2.5, 0.2, 2.0], [0, 1.5, 0.6], [1.2, 0, 0])]
+              + box([1.2, 1.0, 0.0], [2.0, 2.2, 0.9]), 0, 1))
     S.append(("two boxes, one stacked on the other, a loose panel",
               [floor, light] + box([0.5, 0.5, 0.0], [1.5, 2.0, 1.0]) + box([0.7, 0.8, 1.0], [1.3, 1.6, 1.4])
               + [rect([2.2, 0.5, 1.5], [0.8, 0, 0], [0, 0.9, 0.2])], 0, 1))

@@ -270,7 +270,7 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
 def edge_values(ys, kind, t, n1, c1, n2, c2,
                 o, u, v, n_i, c_i, i2, i3,
                 j3, n_j, c_j, s_j, j_cen,
-                occ_pts, occ_lo, occ_hi, occ_n, occ_c, occ_closed, eps):
+                occ_pts, occ_lo, occ_hi, occ_n, occ_c, occ_closed, occ_solid, n_solids, eps):
     """S(y) at the points ys (m, 3) of one edge.
 
     kind: 0 an edge of j; 1 an occluder edge of one face (plane n1, c1, the edge running
@@ -381,11 +381,35 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
         # ---- the polygons to take away: faces below y projected through y; above y (occluder
         # edges only) those between y and j
         npoly = 0
+        # a closed solid with y on one of its faces: rays from y into it leave through its
+        # back faces, so those are not culled for this y
+        touched = np.zeros(n_solids + 1, np.bool_)
+        for f in range(nf):
+            if occ_solid[f] < 0:
+                continue
+            dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
+            if abs(dn) > eps:
+                continue
+            lo, hi = occ_lo[f], occ_hi[f]
+            inside = True
+            for a in range(lo, hi):
+                b2 = a + 1 if a + 1 < hi else lo
+                ex = occ_pts[b2] - occ_pts[a]
+                w = y - occ_pts[a]
+                cr0 = ex[1] * w[2] - ex[2] * w[1]
+                cr1 = ex[2] * w[0] - ex[0] * w[2]
+                cr2 = ex[0] * w[1] - ex[1] * w[0]
+                le = np.sqrt(ex[0] ** 2 + ex[1] ** 2 + ex[2] ** 2)
+                if (cr0 * occ_n[f, 0] + cr1 * occ_n[f, 1] + cr2 * occ_n[f, 2]) / le < -eps:
+                    inside = False
+                    break
+            if inside:
+                touched[occ_solid[f]] = True
         for f in range(nf if not grazing else 0):
             dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
             if abs(dn) <= eps:
                 continue  # y in the face's plane: the face is seen edge-on
-            if occ_closed[f] and dn < 0.0:
+            if occ_closed[f] and dn < 0.0 and not touched[occ_solid[f]]:
                 continue  # a back face of a closed solid: its front faces cover it
             lo, hi = occ_lo[f], occ_hi[f]
             nv = hi - lo

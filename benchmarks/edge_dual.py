@@ -197,15 +197,19 @@ class Pair:
                     np.array(o_c, np.float64), np.array(o_closed, np.bool_), solid, len(roots))
         self.j_cen = j3.mean(axis=0)
         self.evaluations = 0
+        nf = len(self.occ[1])
+        self._nodbg = (np.zeros((1, 2)), np.zeros((1, 1, 2)), np.zeros(1, np.int64), np.zeros(2, np.int64))
+        self.dbg = (np.zeros((64, 2)), np.zeros((2 * nf + 1, 48, 2)), np.zeros(2 * nf + 1, np.int64), np.zeros(2, np.int64))
         self.flagged = 0
         self.grazing = 0
 
-    def values(self, e, ys):
+    def values(self, e, ys, mode=0):
         kind, pa, pb, t, n1, c1, n2, c2, f, g = self.edges[e]
         o, u, v, n_i, c_i = self.frame
         val, flags = edge_values(np.ascontiguousarray(ys), kind, np.asarray(t, np.float64), np.asarray(n1, np.float64),
                                  float(c1), np.asarray(n2, np.float64), float(c2), o, u, v, n_i, c_i, self.i2, self.i3,
-                                 self.j3, self.n_j, self.c_j, self.s_j, self.j_cen, *self.occ, self.eps)
+                                 self.j3, self.n_j, self.c_j, self.s_j, self.j_cen, *self.occ, self.eps, mode,
+                                 *(self.dbg if mode == 2 else self._nodbg))
         self.evaluations += len(ys)
         self.flagged += int((flags == 1).sum())
         self.grazing += int((flags == 2).sum())
@@ -268,9 +272,16 @@ def integrate(pair, tol, init_len=None, max_evals=20_000_000, log=None, left=0.5
             m = (a + b) / 2
             todo.append((e, a, m))
             todo.append((e, m, b))
-    per_edge = {}
+    per_edge, edge_err, edge_n = {}, {}, {}
     for x in live:
         per_edge[x[2]] = per_edge.get(x[2], 0.0) + x[5]
+        edge_err[x[2]] = edge_err.get(x[2], 0.0) - x[0]
+        edge_n[x[2]] = edge_n.get(x[2], 0) + 1
+    if log:
+        for e in sorted(edge_err, key=lambda e: -edge_err[e])[:8]:
+            kind, pa, pb, *_r = pair.edges[e]
+            log(f"    edge {e} kind {kind} {np.round(pa, 3)} -> {np.round(pb, 3)} faces {_r[-2]},{_r[-1]}: "
+                f"F part {per_edge[e] * scale:+.3e} est {edge_err[e] * scale:.2e} intervals {edge_n[e]}")
     nonzero = sum(1 for v in per_edge.values() if abs(v) > 0)
     cpu = time.process_time() - t0
     return {"F": value * scale, "error": total_err * scale, "evaluations": pair.evaluations, "edges": len(pair.edges),

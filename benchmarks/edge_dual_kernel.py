@@ -96,6 +96,26 @@ def _area2(poly, n):
 
 
 @njit(cache=True)
+def _thickness(poly, n):
+    """Width of a convex polygon: the least over its edges of the farthest vertex from the edge's line."""
+    best = 1e300
+    for e in range(n):
+        f = (e + 1) % n
+        ex, ey = poly[f, 0] - poly[e, 0], poly[f, 1] - poly[e, 1]
+        le = np.sqrt(ex * ex + ey * ey)
+        if le <= 0.0:
+            continue
+        far = 0.0
+        for a in range(n):
+            d = abs((poly[a, 0] - poly[e, 0]) * ey - (poly[a, 1] - poly[e, 1]) * ex) / le
+            if d > far:
+                far = d
+        if far < best:
+            best = far
+    return best
+
+
+@njit(cache=True)
 def _log_piece(px, py, qx, qy, yx, yy, h, tx, ty):
     """∫_p^q ln|x − y| (t · dx) along a straight piece (y above the plane by h)."""
     dx, dy = qx - px, qy - py
@@ -182,7 +202,7 @@ def _subtract(iv, m, a, b):
 
 
 @njit(cache=True)
-def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work, work2):
+def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work, work2, mode=0):
     """∮ ln|x − y| t·dx over the boundary of (convex base) minus the union of the polygons,
     the polygons first clipped to the base. Returns (value, pieces)."""
     # clip the polygons to the base
@@ -205,15 +225,15 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                 break
         if n < 3:
             continue
-        if _area2(work, n) <= tol * tol:
-            continue
+        if _area2(work, n) <= tol * tol or _thickness(work, n) <= 8.0 * tol:
+            continue  # a sliver (an edge of the base, or one seen edge-on): measure zero
         for a in range(n):
             clipped[kk, a, 0], clipped[kk, a, 1] = work[a, 0], work[a, 1]
         clen[kk] = n
         bx0[kk], by0[kk] = work[:n, 0].min(), work[:n, 1].min()
         bx1[kk], by1[kk] = work[:n, 0].max(), work[:n, 1].max()
         kk += 1
-    iv = np.empty((64, 2))
+    iv = np.empty((4096, 2))
     total = 0.0
     pieces = 0
     # the base's edges, as they go, minus the polygons' interiors
@@ -233,8 +253,11 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                     break
         for r in range(m):
             a, b = iv[r, 0], iv[r, 1]
-            total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
-                                yx, yy, h, tx, ty)
+            if mode == 0:
+                total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
+                                    yx, yy, h, tx, ty)
+            else:
+                total += 0.5 * ((x0 + a * (x1 - x0)) * (y0 + b * (y1 - y0)) - (x0 + b * (x1 - x0)) * (y0 + a * (y1 - y0)))
             pieces += 1
     # the polygons' edges, reversed, minus the other polygons (a collinear edge of the same
     # direction of an earlier polygon covers it)
@@ -260,8 +283,11 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                         break
             for r in range(m):
                 a, b = iv[r, 0], iv[r, 1]
-                total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
-                                    yx, yy, h, tx, ty)
+                if mode == 0:
+                    total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
+                                        yx, yy, h, tx, ty)
+                else:
+                    total += 0.5 * ((x0 + a * (x1 - x0)) * (y0 + b * (y1 - y0)) - (x0 + b * (x1 - x0)) * (y0 + a * (y1 - y0)))
                 pieces += 1
     return total, pieces
 
@@ -270,7 +296,8 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
 def edge_values(ys, kind, t, n1, c1, n2, c2,
                 o, u, v, n_i, c_i, i2, i3,
                 j3, n_j, c_j, s_j, j_cen,
-                occ_pts, occ_lo, occ_hi, occ_n, occ_c, occ_closed, occ_solid, n_solids, eps):
+                occ_pts, occ_lo, occ_hi, occ_n, occ_c, occ_closed, occ_solid, n_solids, eps, mode,
+                dbg_base, dbg_polys, dbg_plen, dbg_n):
     """S(y) at the points ys (m, 3) of one edge.
 
     kind: 0 an edge of j; 1 an occluder edge of one face (plane n1, c1, the edge running
@@ -376,7 +403,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     base[q, 0], base[q, 1] = work2[q, 0], work2[q, 1]
                 if nb < 3:
                     break
-        if nb < 3:
+        if nb < 3 or _thickness(base, nb) <= 8.0 * eps:
             continue
         # ---- the polygons to take away: faces below y projected through y; above y (occluder
         # edges only) those between y and j
@@ -499,8 +526,17 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 plen[npoly] = n
                 npoly += 1
         # ---- the regions
+        if mode == 2:
+            dbg_n[0] = nb
+            dbg_n[1] = npoly
+            for a in range(nb):
+                dbg_base[a, 0], dbg_base[a, 1] = base[a, 0], base[a, 1]
+            for q in range(npoly):
+                dbg_plen[q] = plen[q]
+                for a in range(plen[q]):
+                    dbg_polys[q, a, 0], dbg_polys[q, a, 1] = polys[q, a, 0], polys[q, a, 1]
         if kind == 0:
-            val, _ = _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, eps, work, work2)
+            val, _ = _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, eps, work, work2, mode)
             out[k] = s_j * val
             continue
         # silhouette regions: front of face 1 (and behind face 2): coefficient −1; behind face 1
@@ -533,9 +569,12 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                         base2[a, 0], base2[a, 1] = work2[a, 0], work2[a, 1]
                 elif sg2 * d2o <= 0.0:
                     n = 0
-            if n < 3 or abs(_area2(base2, n)) <= eps * eps:
+            if n < 3 or abs(_area2(base2, n)) <= eps * eps or _thickness(base2, n) <= 8.0 * eps:
                 continue
-            val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, h, tx, ty, eps, work, work2)
+            val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, h, tx, ty, eps, work, work2, mode)
+            if mode == 1:
+                total += (1.0 if side == 0 else 1000.0) * val
+                continue
             total += coef * val
         out[k] = total
     return out, flags

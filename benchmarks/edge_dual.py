@@ -121,6 +121,7 @@ class Pair:
         self.area_i = float(abs(_area(self.i2)))
         pts, lo, hi, lp, nrm, off, _ = scene_polygons(scene)
         self.eps = 1e-9 * float(scene.diagonal)
+        self.graze = 1e-8 * float(scene.diagonal)  # how far into j an edge of j in i's plane is taken
         # partners: the face holding each edge the other way
         key = lambda p: tuple(np.round(p, 7))  # noqa: E731
         owner = {}
@@ -209,7 +210,7 @@ class Pair:
         val, flags = edge_values(np.ascontiguousarray(ys), kind, np.asarray(t, np.float64), np.asarray(n1, np.float64),
                                  float(c1), np.asarray(n2, np.float64), float(c2), o, u, v, n_i, c_i, self.i2, self.i3,
                                  self.j3, self.n_j, self.c_j, self.s_j, self.j_cen, *self.occ, self.eps, mode,
-                                 *(self.dbg if mode == 2 else self._nodbg))
+                                 *(self.dbg if mode == 2 else self._nodbg), self.graze)
         self.evaluations += len(ys)
         self.flagged += int((flags == 1).sum())
         self.grazing += int((flags == 2).sum())
@@ -372,6 +373,13 @@ def small_scenes():
               [sq_i, sq_j] + box([0.1, 0.3, 0.7], [0.6, 0.9, 1.0]), 0, 1))
     S.append(("a box on a floor lit from a tilted panel", [floor, rect([2.5, 0.2, 2.0], [0, 1.5, 0.6], [1.2, 0, 0])]
               + box([1.2, 1.0, 0.0], [2.0, 2.2, 0.9]), 0, 1))
+    wall = rect([0, 0, 0], [0, 1, 0], [1, 0, 0])  # z = 0, normal −z... (y × x)
+    wall = rect([0, 0, 0], [1, 0, 0], [0, 1, 0])  # z = 0, normal +z: the emitter
+    ground = rect([0, 0, 0], [0, 0, 1], [1, 0, 0])  # y = 0, normal +y, sharing the edge along x
+    S.append(("receiver sharing an edge with i, a box against i on j",
+              [wall, ground] + box([0.3, 0.0, 0.0], [0.6, 0.4, 0.25]), 0, 1))
+    S.append(("receiver sharing an edge with i, a box on j apart from i",
+              [wall, ground] + box([0.3, 0.0, 0.2], [0.6, 0.4, 0.45]), 0, 1))
     S.append(("two boxes, one stacked on the other, a loose panel",
               [floor, light] + box([0.5, 0.5, 0.0], [1.5, 2.0, 1.0]) + box([0.7, 0.8, 1.0], [1.3, 1.6, 1.4])
               + [rect([2.2, 0.5, 1.5], [0.8, 0, 0], [0, 0.9, 0.2])], 0, 1))

@@ -297,7 +297,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 o, u, v, n_i, c_i, i2, i3,
                 j3, n_j, c_j, s_j, j_cen,
                 occ_pts, occ_lo, occ_hi, occ_n, occ_c, occ_closed, occ_solid, n_solids, eps, mode,
-                dbg_base, dbg_polys, dbg_plen, dbg_n):
+                dbg_base, dbg_polys, dbg_plen, dbg_n, graze):
     """S(y) at the points ys (m, 3) of one edge.
 
     kind: 0 an edge of j; 1 an occluder edge of one face (plane n1, c1, the edge running
@@ -336,14 +336,23 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
             if kind != 0 or h < -eps:
                 flags[k] = 1
                 continue
-            # an edge of j in i's plane: seen along grazing rays; occluders not applied
-            # (counted in flags as 2 where the pair has occluders)
+            # an edge of j in i's plane, seen along grazing rays: taken at y moved by
+            # GRAZE into j (its limit; the error is O(GRAZE ln GRAZE))
+            wx = n_j[1] * t[2] - n_j[2] * t[1]
+            wy = n_j[2] * t[0] - n_j[0] * t[2]
+            wz = n_j[0] * t[1] - n_j[1] * t[0]
+            up = wx * n_i[0] + wy * n_i[1] + wz * n_i[2]
+            if up <= 0.0:
+                continue
+            d = graze / up
+            y = np.array([y[0] + d * wx, y[1] + d * wy, y[2] + d * wz])
+            h = n_i[0] * y[0] + n_i[1] * y[1] + n_i[2] * y[2] - c_i
             grazing = True
-            h = 0.0
-            if nf > 0:
-                flags[k] = 2
-        yx = (y[0] - o[0]) * u[0] + (y[1] - o[1]) * u[1] + (y[2] - o[2]) * u[2]
-        yy = (y[0] - o[0]) * v[0] + (y[1] - o[1]) * v[1] + (y[2] - o[2]) * v[2]
+            flags[k] = 2
+        y0 = ys[k]
+        yx = (y0[0] - o[0]) * u[0] + (y0[1] - o[1]) * u[1] + (y0[2] - o[2]) * u[2]
+        yy = (y0[0] - o[0]) * v[0] + (y0[1] - o[1]) * v[1] + (y0[2] - o[2]) * v[2]
+        hl = 0.0 if grazing else h  # the log integral at the point itself
         # ---- the base: i ∩ (x on j's side) [∩ the projection of j through y]
         nb = ni
         for a in range(ni):
@@ -432,7 +441,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     break
             if inside:
                 touched[occ_solid[f]] = True
-        for f in range(nf if not grazing else 0):
+        for f in range(nf):
             dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
             if abs(dn) <= eps:
                 continue  # y in the face's plane: the face is seen edge-on
@@ -536,7 +545,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 for a in range(plen[q]):
                     dbg_polys[q, a, 0], dbg_polys[q, a, 1] = polys[q, a, 0], polys[q, a, 1]
         if kind == 0:
-            val, _ = _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, eps, work, work2, mode)
+            val, _ = _region_integral(base, nb, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode)
             out[k] = s_j * val
             continue
         # silhouette regions: front of face 1 (and behind face 2): coefficient −1; behind face 1
@@ -571,7 +580,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     n = 0
             if n < 3 or abs(_area2(base2, n)) <= eps * eps or _thickness(base2, n) <= 8.0 * eps:
                 continue
-            val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, h, tx, ty, eps, work, work2, mode)
+            val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode)
             if mode == 1:
                 total += (1.0 if side == 0 else 1000.0) * val
                 continue

@@ -96,15 +96,15 @@ def _area2(poly, n):
 
 
 @njit(cache=True)
-def _thickness(poly, n):
+def _thickness(poly, n, tol):
     """Width of a convex polygon: the least over its edges of the farthest vertex from the edge's line."""
     best = 1e300
     for e in range(n):
         f = (e + 1) % n
         ex, ey = poly[f, 0] - poly[e, 0], poly[f, 1] - poly[e, 1]
         le = np.sqrt(ex * ex + ey * ey)
-        if le <= 0.0:
-            continue
+        if le <= tol:
+            continue  # a vanishing edge: its direction is noise
         far = 0.0
         for a in range(n):
             d = abs((poly[a, 0] - poly[e, 0]) * ey - (poly[a, 1] - poly[e, 1]) * ex) / le
@@ -149,16 +149,22 @@ def _cover(x0, y0, x1, y1, poly, n, same_ok, tol):
     the same direction counts as inside when ``same_ok``. Returns (a, b) with b ≤ a if none."""
     a, b = 0.0, 1.0
     dxs, dys = x1 - x0, y1 - y0
+    ls = np.sqrt(dxs * dxs + dys * dys)
+    if ls <= 0.0:
+        return 1.0, 0.0
     for e in range(n):
         f = (e + 1) % n
         ex, ey = poly[f, 0] - poly[e, 0], poly[f, 1] - poly[e, 1]
         le = np.sqrt(ex * ex + ey * ey)
         if le <= 0.0:
             continue
+        if le <= tol:
+            continue  # a vanishing edge (a doubled vertex): its direction is noise
         nx, ny = -ey / le, ex / le  # inward (left) normal
         f0 = nx * (x0 - poly[e, 0]) + ny * (y0 - poly[e, 1])
         f1 = nx * (x1 - poly[e, 0]) + ny * (y1 - poly[e, 1])
-        if abs(f0) <= tol and abs(f1) <= tol:
+        # collinear (the same test both ways round): parallel, and the lines within tol
+        if abs(ex * dys - ey * dxs) <= 1e-9 * le * ls and abs(0.5 * (f0 + f1)) <= tol:
             if same_ok and ex * dxs + ey * dys > 0.0:
                 continue
             return 1.0, 0.0
@@ -225,7 +231,19 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                 break
         if n < 3:
             continue
-        if _area2(work, n) <= tol * tol or _thickness(work, n) <= 8.0 * tol:
+        # doubled vertices (within tol) merged
+        m = 0
+        for a in range(n):
+            if m > 0 and abs(work[a, 0] - work[m - 1, 0]) <= tol and abs(work[a, 1] - work[m - 1, 1]) <= tol:
+                continue
+            work[m, 0], work[m, 1] = work[a, 0], work[a, 1]
+            m += 1
+        while m > 1 and abs(work[m - 1, 0] - work[0, 0]) <= tol and abs(work[m - 1, 1] - work[0, 1]) <= tol:
+            m -= 1
+        n = m
+        if n < 3:
+            continue
+        if _area2(work, n) <= tol * tol or _thickness(work, n, tol) <= 8.0 * tol:
             continue  # a sliver (an edge of the base, or one seen edge-on): measure zero
         for a in range(n):
             clipped[kk, a, 0], clipped[kk, a, 1] = work[a, 0], work[a, 1]
@@ -345,10 +363,33 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
             if up <= 0.0:
                 continue
             d = graze / up
-            y = np.array([y[0] + d * wx, y[1] + d * wy, y[2] + d * wz])
-            h = n_i[0] * y[0] + n_i[1] * y[1] + n_i[2] * y[2] - c_i
+            yj = np.array([y[0] + d * wx, y[1] + d * wy, y[2] + d * wz])  # just inside j
+            h = 0.0
             grazing = True
             flags[k] = 2
+            # covered: the point of j next to y lies under a face lying on j
+            covered = False
+            for f in range(nf):
+                dn = occ_n[f, 0] * yj[0] + occ_n[f, 1] * yj[1] + occ_n[f, 2] * yj[2] - occ_c[f]
+                if abs(dn) > eps:
+                    continue
+                lo, hi = occ_lo[f], occ_hi[f]
+                inside = True
+                for a in range(lo, hi):
+                    b2 = a + 1 if a + 1 < hi else lo
+                    ex = occ_pts[b2] - occ_pts[a]
+                    w = yj - occ_pts[a]
+                    cr0 = ex[1] * w[2] - ex[2] * w[1]
+                    cr1 = ex[2] * w[0] - ex[0] * w[2]
+                    cr2 = ex[0] * w[1] - ex[1] * w[0]
+                    if cr0 * occ_n[f, 0] + cr1 * occ_n[f, 1] + cr2 * occ_n[f, 2] < 0.0:
+                        inside = False
+                        break
+                if inside:
+                    covered = True
+                    break
+            if covered:
+                continue
         y0 = ys[k]
         yx = (y0[0] - o[0]) * u[0] + (y0[1] - o[1]) * u[1] + (y0[2] - o[2]) * u[2]
         yy = (y0[0] - o[0]) * v[0] + (y0[1] - o[1]) * v[1] + (y0[2] - o[2]) * v[2]
@@ -412,15 +453,83 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     base[q, 0], base[q, 1] = work2[q, 0], work2[q, 1]
                 if nb < 3:
                     break
-        if nb < 3 or _thickness(base, nb) <= 8.0 * eps:
+        if nb < 3 or _thickness(base, nb, eps) <= 8.0 * eps:
             continue
         # ---- the polygons to take away: faces below y projected through y; above y (occluder
         # edges only) those between y and j
         npoly = 0
+        if grazing:
+            # along grazing rays (in i's plane) only the faces lying in i's plane block: each
+            # with its 2-D shadow from y (the cone from y over it, beyond its front edges)
+            for f in range(nf):
+                lo, hi = occ_lo[f], occ_hi[f]
+                nv = hi - lo
+                flat = True
+                for a in range(nv):
+                    p = occ_pts[lo + a]
+                    if abs(n_i[0] * p[0] + n_i[1] * p[1] + n_i[2] * p[2] - c_i) > eps:
+                        flat = False
+                        break
+                if not flat:
+                    continue
+                for a in range(nv):
+                    p = occ_pts[lo + a]
+                    work2[a, 0] = (p[0] - o[0]) * u[0] + (p[1] - o[1]) * u[1] + (p[2] - o[2]) * u[2]
+                    work2[a, 1] = (p[0] - o[0]) * v[0] + (p[1] - o[1]) * v[1] + (p[2] - o[2]) * v[2]
+                if _area2(work2, nv) < 0.0:
+                    for a in range(nv // 2):
+                        tmp0, tmp1 = work2[a, 0], work2[a, 1]
+                        work2[a, 0], work2[a, 1] = work2[nv - 1 - a, 0], work2[nv - 1 - a, 1]
+                        work2[nv - 1 - a, 0], work2[nv - 1 - a, 1] = tmp0, tmp1
+                cx, cy = 0.0, 0.0
+                for a in range(nv):
+                    cx += work2[a, 0] / nv
+                    cy += work2[a, 1] / nv
+                n = nb
+                for a in range(nb):
+                    work[a, 0], work[a, 1] = base[a, 0], base[a, 1]
+                front = np.zeros(nv, np.bool_)
+                for a in range(nv):
+                    b2 = (a + 1) % nv
+                    ex, ey = work2[b2, 0] - work2[a, 0], work2[b2, 1] - work2[a, 1]
+                    # y outside this edge (on its right): a front edge; keep its left side
+                    side = ex * (yy - work2[a, 1]) - ey * (yx - work2[a, 0])
+                    front[a] = side < 0.0
+                inside_all = True
+                for a in range(nv):
+                    if front[a]:
+                        inside_all = False
+                if inside_all:
+                    continue  # y inside the polygon (covered; not expected here)
+                for a in range(nv):
+                    b2 = (a + 1) % nv
+                    ex, ey = work2[b2, 0] - work2[a, 0], work2[b2, 1] - work2[a, 1]
+                    if front[a] and n >= 3:
+                        # left of the edge: −ey (x − ax) + ex (y − ay) ≥ 0 ⇔ ey x − ex y ≤ ey ax − ex ay
+                        n = _clip2(work, n, ey, -ex, ey * work2[a, 0] - ex * work2[a, 1], base2)
+                        for q in range(n):
+                            work[q, 0], work[q, 1] = base2[q, 0], base2[q, 1]
+                    # a tangent vertex (front and back edges meet at b2): the cone's side
+                    if front[a] != front[b2] and n >= 3:
+                        vx, vy = work2[b2, 0], work2[b2, 1]
+                        lx, ly = vx - yx, vy - yy
+                        # keep the centroid's side of the line y → v
+                        sc = lx * (cy - yy) - ly * (cx - yx)
+                        sg = 1.0 if sc > 0 else -1.0
+                        # sg (lx (Y − yy) − ly (X − yx)) ≥ 0 ⇔ sg ly X − sg lx Y ≤ sg (ly yx − lx yy)
+                        n = _clip2(work, n, sg * ly, -sg * lx, sg * (ly * yx - lx * yy), base2)
+                        for q in range(n):
+                            work[q, 0], work[q, 1] = base2[q, 0], base2[q, 1]
+                if n < 3:
+                    continue
+                for a in range(n):
+                    polys[npoly, a, 0], polys[npoly, a, 1] = work[a, 0], work[a, 1]
+                plen[npoly] = n
+                npoly += 1
         # a closed solid with y on one of its faces: rays from y into it leave through its
         # back faces, so those are not culled for this y
         touched = np.zeros(n_solids + 1, np.bool_)
-        for f in range(nf):
+        for f in range(nf if not grazing else 0):
             if occ_solid[f] < 0:
                 continue
             dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
@@ -441,7 +550,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     break
             if inside:
                 touched[occ_solid[f]] = True
-        for f in range(nf):
+        for f in range(nf if not grazing else 0):
             dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
             if abs(dn) <= eps:
                 continue  # y in the face's plane: the face is seen edge-on
@@ -578,7 +687,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                         base2[a, 0], base2[a, 1] = work2[a, 0], work2[a, 1]
                 elif sg2 * d2o <= 0.0:
                     n = 0
-            if n < 3 or abs(_area2(base2, n)) <= eps * eps or _thickness(base2, n) <= 8.0 * eps:
+            if n < 3 or abs(_area2(base2, n)) <= eps * eps or _thickness(base2, n, eps) <= 8.0 * eps:
                 continue
             val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode)
             if mode == 1:

@@ -186,9 +186,9 @@ def _cover(x0, y0, x1, y1, poly, n, same_ok, tol):
 
 
 @njit(cache=True)
-def _subtract(iv, m, a, b):
-    """Remove (a, b) from the sorted disjoint intervals iv[:m] (in place); returns the count."""
-    out = np.empty((m + 1, 2))
+def _subtract(iv, m, a, b, out):
+    """Remove (a, b) from the sorted disjoint intervals iv[:m] (in place, out a scratch
+    array); returns the count."""
     k = 0
     for r in range(m):
         lo, hi = iv[r, 0], iv[r, 1]
@@ -208,13 +208,12 @@ def _subtract(iv, m, a, b):
 
 
 @njit(cache=True)
-def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work, work2, mode=0):
+def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work, work2, mode, scratch):
     """∮ ln|x − y| t·dx over the boundary of (convex base) minus the union of the polygons,
     the polygons first clipped to the base. Returns (value, pieces)."""
     # clip the polygons to the base
-    clipped = np.empty((npoly, MAXV, 2))
-    clen = np.zeros(npoly, np.int64)
-    bx0, by0, bx1, by1 = np.empty(npoly), np.empty(npoly), np.empty(npoly), np.empty(npoly)
+    clipped, clen, bxs, iv, ivs = scratch
+    bx0, by0, bx1, by1 = bxs[0], bxs[1], bxs[2], bxs[3]
     kk = 0
     for p in range(npoly):
         n = plen[p]
@@ -251,7 +250,6 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
         bx0[kk], by0[kk] = work[:n, 0].min(), work[:n, 1].min()
         bx1[kk], by1[kk] = work[:n, 0].max(), work[:n, 1].max()
         kk += 1
-    iv = np.empty((4096, 2))
     total = 0.0
     pieces = 0
     # the base's edges, as they go, minus the polygons' interiors
@@ -266,7 +264,7 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                 continue
             a, b = _cover(x0, y0, x1, y1, clipped[q], clen[q], False, tol)
             if b > a:
-                m = _subtract(iv, m, a, b)
+                m = _subtract(iv, m, a, b, ivs)
                 if m == 0:
                     break
         for r in range(m):
@@ -296,7 +294,7 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                 # ours when their forward edges do
                 a, b = _cover(x1, y1, x0, y0, clipped[q], clen[q], q < p, tol)
                 if b > a:
-                    m = _subtract(iv, m, 1.0 - b, 1.0 - a)
+                    m = _subtract(iv, m, 1.0 - b, 1.0 - a, ivs)
                     if m == 0:
                         break
             for r in range(m):
@@ -342,6 +340,14 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
     hp = np.empty(6)  # half-planes of the regions (ax, ay, b) × 2
     tx = t[0] * u[0] + t[1] * u[1] + t[2] * u[2]
     ty = t[0] * v[0] + t[1] * v[1] + t[2] * v[2]
+    scratch = (np.empty((2 * nf + 1, MAXV, 2)), np.zeros(2 * nf + 1, np.int64), np.empty((4, 2 * nf + 1)),
+               np.empty((4096, 2)), np.empty((4097, 2)))
+    cone_i = np.empty((ni, 3))
+    cone_i_d = np.empty(ni)
+    cone_j = np.empty((nj, 3))
+    cone_j_d = np.empty(nj)
+    neg_n_i = -n_i
+    neg_sn_j = -s_j * n_j
     cen_i = np.zeros(3)
     for a in range(i3.shape[0]):
         cen_i += i3[a]
@@ -550,6 +556,25 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     break
             if inside:
                 touched[occ_solid[f]] = True
+        # the planes through y and the edges of i (the cone over i, inwards) and of j
+        for a in range(ni):
+            b2 = (a + 1) % ni
+            p0, p1, p2 = i3[a, 0] - y[0], i3[a, 1] - y[1], i3[a, 2] - y[2]
+            q0, q1, q2 = i3[b2, 0] - y[0], i3[b2, 1] - y[1], i3[b2, 2] - y[2]
+            m0, m1, m2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0
+            if m0 * (cen_i[0] - y[0]) + m1 * (cen_i[1] - y[1]) + m2 * (cen_i[2] - y[2]) < 0:
+                m0, m1, m2 = -m0, -m1, -m2
+            cone_i[a, 0], cone_i[a, 1], cone_i[a, 2] = m0, m1, m2
+            cone_i_d[a] = m0 * y[0] + m1 * y[1] + m2 * y[2]
+        for a in range(nj):
+            b2 = (a + 1) % nj
+            p0, p1, p2 = j3[a, 0] - y[0], j3[a, 1] - y[1], j3[a, 2] - y[2]
+            q0, q1, q2 = j3[b2, 0] - y[0], j3[b2, 1] - y[1], j3[b2, 2] - y[2]
+            m0, m1, m2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0
+            if m0 * (j_cen[0] - y[0]) + m1 * (j_cen[1] - y[1]) + m2 * (j_cen[2] - y[2]) < 0:
+                m0, m1, m2 = -m0, -m1, -m2
+            cone_j[a, 0], cone_j[a, 1], cone_j[a, 2] = m0, m1, m2
+            cone_j_d[a] = m0 * y[0] + m1 * y[1] + m2 * y[2]
         for f in range(nf if not grazing else 0):
             dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
             if abs(dn) <= eps:
@@ -574,51 +599,30 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 n = nv
                 if part == 0:
                     # below y: h_p ≤ h (n_i·p ≤ c_i + h)
-                    n = _clip3(work3, n, -n_i, -(c_i + h), work3b)
+                    n = _clip3(work3, n, neg_n_i, -(c_i + h), work3b)
                     work3[:n] = work3b[:n]
                     # in the cone from y over i
                     for a in range(ni):
                         if n < 3:
                             break
-                        b2 = (a + 1) % ni
-                        pa = i3[a] - y
-                        pb = i3[b2] - y
-                        mm = np.array([pa[1] * pb[2] - pa[2] * pb[1], pa[2] * pb[0] - pa[0] * pb[2], pa[0] * pb[1] - pa[1] * pb[0]])
-                        ref = mm[0] * (cen_i[0] - y[0]) + mm[1] * (cen_i[1] - y[1]) + mm[2] * (cen_i[2] - y[2])
-                        if ref < 0:
-                            mm = -mm
-                        n = _clip3(work3, n, mm, mm[0] * y[0] + mm[1] * y[1] + mm[2] * y[2], work3b)
+                        n = _clip3(work3, n, cone_i[a], cone_i_d[a], work3b)
                         work3[:n] = work3b[:n]
                 else:
                     n = _clip3(work3, n, n_i, c_i + h, work3b)
                     work3[:n] = work3b[:n]
                     # between y and j: j's side of j's plane ... up to j's plane
                     if n >= 3:
-                        n = _clip3(work3, n, -s_j * n_j, -s_j * c_j - lim, work3b)
+                        n = _clip3(work3, n, neg_sn_j, -s_j * c_j - lim, work3b)
                         work3[:n] = work3b[:n]
                     for a in range(nj):
                         if n < 3:
                             break
-                        b2 = (a + 1) % nj
-                        pa = j3[a] - y
-                        pb = j3[b2] - y
-                        mm = np.array([pa[1] * pb[2] - pa[2] * pb[1], pa[2] * pb[0] - pa[0] * pb[2], pa[0] * pb[1] - pa[1] * pb[0]])
-                        ref = mm[0] * (j_cen[0] - y[0]) + mm[1] * (j_cen[1] - y[1]) + mm[2] * (j_cen[2] - y[2])
-                        if ref < 0:
-                            mm = -mm
-                        n = _clip3(work3, n, mm, mm[0] * y[0] + mm[1] * y[1] + mm[2] * y[2], work3b)
+                        n = _clip3(work3, n, cone_j[a], cone_j_d[a], work3b)
                         work3[:n] = work3b[:n]
                     for a in range(ni):
                         if n < 3:
                             break
-                        b2 = (a + 1) % ni
-                        pa = i3[a] - y
-                        pb = i3[b2] - y
-                        mm = np.array([pa[1] * pb[2] - pa[2] * pb[1], pa[2] * pb[0] - pa[0] * pb[2], pa[0] * pb[1] - pa[1] * pb[0]])
-                        ref = mm[0] * (cen_i[0] - y[0]) + mm[1] * (cen_i[1] - y[1]) + mm[2] * (cen_i[2] - y[2])
-                        if ref > 0:
-                            mm = -mm  # the reflected cone: beyond y
-                        n = _clip3(work3, n, mm, mm[0] * y[0] + mm[1] * y[1] + mm[2] * y[2], work3b)
+                        n = _clip3(work3, n, -cone_i[a], -cone_i_d[a], work3b)  # the reflected cone: beyond y
                         work3[:n] = work3b[:n]
                 if n < 3:
                     continue
@@ -644,6 +648,9 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 plen[npoly] = n
                 npoly += 1
         # ---- the regions
+        if mode == 5:
+            out[k] = npoly  # the cost of the projections alone, and how many polygons
+            continue
         if mode == 2:
             dbg_n[0] = nb
             dbg_n[1] = npoly
@@ -654,7 +661,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 for a in range(plen[q]):
                     dbg_polys[q, a, 0], dbg_polys[q, a, 1] = polys[q, a, 0], polys[q, a, 1]
         if kind == 0:
-            val, _ = _region_integral(base, nb, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode)
+            val, _ = _region_integral(base, nb, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode, scratch)
             out[k] = s_j * val
             continue
         # silhouette regions: front of face 1 (and behind face 2): coefficient −1; behind face 1
@@ -689,7 +696,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     n = 0
             if n < 3 or abs(_area2(base2, n)) <= eps * eps or _thickness(base2, n, eps) <= 8.0 * eps:
                 continue
-            val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode)
+            val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode, scratch)
             if mode == 1:
                 total += (1.0 if side == 0 else 1000.0) * val
                 continue

@@ -31,7 +31,14 @@ Per point y (benchmarks/edge_dual_kernel.py): R is the convex base (i ∩ j's si
 projection of j through y and the silhouette half-planes, for occluder edges]) minus the
 projections through y of the occluder faces below y (shadows) and, for occluder edges,
 of those between y and j. Faces whose plane holds y are skipped (edge-on), and so are the
-back faces of closed solids (their front faces cover the same rays).
+back faces of closed solids (their front faces cover the same rays) unless y lies on a
+face of that solid (rays from y into it leave through its back faces). The pair's solids
+are taken whole. An edge of j in i's plane sees along grazing rays: only the faces lying
+in i's plane block, by their 2-D shadows. Occluder edges in i's plane are skipped (counted
+as flagged): they are never on the visible contour.
+
+Results and what had to change from the first sketch: docs/queries.md, "Along the edges,
+exactly over the emitter".
 
 Outer integral: adaptive Gauss–Kronrod (7, 15) on every edge, one global budget: the
 estimate is Σ |K − G| over the final intervals, the worst intervals split.

@@ -10,7 +10,14 @@ over the emitter points x for which y is a point of the contour of the visible p
 Everything happens in a 2-D frame (o, u, v) of the emitter's plane: the regions are the
 convex base (emitter ∩ half-planes) minus the central projections through y of the
 occluder faces (below y: shadows on the emitter's plane; above y, for occluder edges:
-the faces between y and j, projected back through y).
+the faces between y and j, projected back through y). Faces whose plane holds y are
+skipped; back faces of closed solids are culled unless y lies on one of the solid's
+faces. An edge of j in the emitter's plane is seen along grazing rays: only the faces
+lying in that plane block, by their exact 2-D shadows from y.
+
+edge_values' mode: 0 the values; 1 the regions' areas (side 0 + 1000 × side 1, for
+checks); 2 the point's base and polygons into the dbg arrays; 5 the number of polygons
+only (the cost of the projections).
 """
 
 import numpy as np

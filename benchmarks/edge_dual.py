@@ -32,7 +32,8 @@ projection of j through y and the silhouette half-planes, for occluder edges]) m
 projections through y of the occluder faces below y (shadows) and, for occluder edges,
 of those between y and j. Faces whose plane holds y are skipped (edge-on), and so are the
 back faces of closed solids (their front faces cover the same rays) unless y lies on a
-face of that solid (rays from y into it leave through its back faces). The pair's solids
+face of that solid or behind all its faces' planes (rays from y into it, or from inside it,
+leave through its back faces: intersecting solids). The pair's solids
 are taken whole. An edge of j in i's plane sees along grazing rays: only the faces lying
 in i's plane block, by their 2-D shadows. Occluder edges in i's plane are skipped (counted
 as flagged): they are never on the visible contour.
@@ -47,6 +48,7 @@ Usage:
   python benchmarks/edge_dual.py unoccluded
   python benchmarks/edge_dual.py small [--tol 1e-9]
   python benchmarks/edge_dual.py office FILE PAIR... [--tol 1e-6]   (PAIR: i:j, faces)
+  python benchmarks/edge_dual.py groups FILE.obj GROUP:GROUP... [--tol 1e-4 1e-6] [--max-cpu 600]
 """
 
 import argparse
@@ -60,7 +62,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from edge_dual_kernel import edge_values  # noqa: E402
+from edge_dual_kernel import MAXV, edge_values  # noqa: E402
 
 # Gauss–Kronrod (7, 15) on [−1, 1]
 _XK = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
@@ -96,7 +98,7 @@ def _convex(loop, normal):
 class Pair:
     """The geometry of one pair (emitter i, side 1, to the side of j facing it) for the kernel."""
 
-    def __init__(self, scene, i, j, occluders="shaft"):
+    def __init__(self, scene, i, j, occluders="shaft", skip_zero=False):
         from viscx.queries.formfactor import pair_occluders, scene_polygons
 
         self.scene, self.i, self.j = scene, i, j
@@ -169,6 +171,8 @@ class Pair:
             if len(ks) != 1:
                 raise NotImplementedError("occluder with holes")
             loop = pts[lo[ks[0]]:hi[ks[0]]]
+            if len(loop) > MAXV - 16:
+                raise NotImplementedError(f"occluder of {len(loop)} vertices (the kernel's MAXV is {MAXV})")
             closed = True
             for a in range(len(loop)):
                 pa, pb = loop[a], loop[(a + 1) % len(loop)]
@@ -196,6 +200,33 @@ class Pair:
             pa, pb = j3[a], j3[(a + 1) % len(j3)]
             L = float(np.linalg.norm(pb - pa))
             edges.append((0, pa, pb, (pb - pa) / L, n_j, c_j, n_j, c_j, j, -1))
+        # edges whose integrand is zero all along, dropped before any evaluation: an edge along
+        # n_i ((y − x) × t) · n_i = 0), and an occluder edge lying in i's plane (never on the
+        # visible contour; the kernel would flag its every point)
+        self.edges_all = len(edges)
+        self.edges_along_n = sum(1 for ed in edges if abs(float(ed[3] @ n_i)) >= 1.0 - 1e-12)
+        self.edges_in_plane = sum(1 for ed in edges if ed[0] != 0 and max(abs(float(ed[1] @ n_i) - c_i),
+                                                                         abs(float(ed[2] @ n_i) - c_i)) <= self.eps)
+        # and an edge of two faces that is a silhouette from no point of i (i in front of both
+        # faces' planes, or behind both, up to eps: the regions of both signs are empty)
+        def _never(ed):
+            if ed[0] != 2:
+                return False
+            for sg in (1.0, -1.0):
+                poly = i3
+                for m, c in ((sg * ed[4], sg * ed[5]), (-sg * ed[6], -sg * ed[7])):
+                    poly = _clip_poly(poly, m, c - self.eps)
+                    if len(poly) < 3:
+                        break
+                if len(poly) >= 3:
+                    return False
+            return True
+
+        self.edges_never = sum(1 for ed in edges if _never(ed)) if skip_zero else 0
+        if skip_zero:
+            edges = [ed for ed in edges if abs(float(ed[3] @ n_i)) < 1.0 - 1e-12 and not (
+                ed[0] != 0 and max(abs(float(ed[1] @ n_i) - c_i), abs(float(ed[2] @ n_i) - c_i)) <= self.eps)
+                and not _never(ed)]
         self.edges = edges
         roots = {}
         solid = np.array([roots.setdefault(comp[f], len(roots)) if c else -1 for f, c in zip(faces, o_closed)], np.int64)
@@ -207,7 +238,7 @@ class Pair:
         self.evaluations = 0
         nf = len(self.occ[1])
         self._nodbg = (np.zeros((1, 2)), np.zeros((1, 1, 2)), np.zeros(1, np.int64), np.zeros(2, np.int64))
-        self.dbg = (np.zeros((64, 2)), np.zeros((2 * nf + 1, 48, 2)), np.zeros(2 * nf + 1, np.int64), np.zeros(2, np.int64))
+        self.dbg = (np.zeros((64, 2)), np.zeros((2 * nf + 1, MAXV, 2)), np.zeros(2 * nf + 1, np.int64), np.zeros(2, np.int64))
         self.flagged = 0
         self.grazing = 0
 
@@ -224,12 +255,28 @@ class Pair:
         return val
 
 
+def _clip_poly(poly, m, c):
+    """The part of a 3-D convex polygon with m·p ≥ c."""
+    out = []
+    n = len(poly)
+    for a in range(n):
+        p, q = poly[a - 1], poly[a]
+        fp, fq = float(m @ p) - c, float(m @ q) - c
+        if fq >= 0:
+            if fp < 0:
+                out.append(p + fp / (fp - fq) * (q - p))
+            out.append(q)
+        elif fp >= 0:
+            out.append(p + fp / (fp - fq) * (q - p))
+    return out
+
+
 def _area(p):
     x, y = p[:, 0], p[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def integrate(pair, tol, init_len=None, max_evals=20_000_000, log=None, left=0.5):
+def integrate(pair, tol, init_len=None, max_evals=20_000_000, log=None, left=0.5, max_cpu=None):
     """A_i F by adaptive G7/K15 on every edge; tol absolute in F. Returns a dict."""
     t0 = time.process_time()
     scale = 1.0 / (2 * np.pi * pair.area_i)
@@ -270,7 +317,8 @@ def integrate(pair, tol, init_len=None, max_evals=20_000_000, log=None, left=0.5
         if log:
             log(f"  evals {pair.evaluations:>10,d}  F {value * scale:.10f}  est {total_err * scale:.2e}  "
                 f"intervals {len(live):,d}  cpu {time.process_time() - t0:.1f}")
-        if total_err <= budget or pair.evaluations >= max_evals:
+        stopped = max_cpu is not None and time.process_time() - t0 > max_cpu
+        if total_err <= budget or pair.evaluations >= max_evals or stopped:
             break
         # split the worst intervals until what is left is `left` times the budget
         rest = total_err
@@ -294,7 +342,7 @@ def integrate(pair, tol, init_len=None, max_evals=20_000_000, log=None, left=0.5
     cpu = time.process_time() - t0
     return {"F": value * scale, "error": total_err * scale, "evaluations": pair.evaluations, "edges": len(pair.edges),
             "edges_nonzero": nonzero, "intervals": len(live), "cpu_s": cpu,
-            "us_per_eval": 1e6 * cpu / max(pair.evaluations, 1), "flagged": pair.flagged, "grazing": pair.grazing, "rounds": rounds,
+            "us_per_eval": 1e6 * cpu / max(pair.evaluations, 1), "stopped": bool(stopped), "flagged": pair.flagged, "grazing": pair.grazing, "rounds": rounds,
             "per_edge": per_edge}
 
 
@@ -428,21 +476,70 @@ def office(path, pairs, tols, init_len, max_evals):
     return out
 
 
+def groups(path, pairs, tols, init_len, max_evals, max_cpu=None, skip_zero=False):
+    """Group pairs (gi:gj, group names) of a scene file (OBJ, ...): A_gi F = Σ over the face
+    pairs A_i F_ij, each pair integrated at tol × A_i / A_gi (so the group's F is within tol)."""
+    from viscx.scene import load_scene
+
+    t0 = time.process_time()
+    scene = load_scene(path)
+    load_cpu = time.process_time() - t0
+    out = {"file": str(path), "faces": int(scene.n_faces), "load_cpu_s": load_cpu}
+    for spec in pairs:
+        gi, gj = spec.split(":")
+        fi = [int(f) for f in scene.group_faces(gi)]
+        fj = [int(f) for f in scene.group_faces(gj)]
+        print(f"{gi} ({len(fi)} faces) -> {gj} ({len(fj)} faces)", flush=True)
+        for tol in tols:
+            t1 = time.process_time()
+            parts = []
+            for i in fi:
+                for j in fj:
+                    pair = Pair(scene, i, j, skip_zero=skip_zero)
+                    parts.append((i, j, pair))
+            a_tot = sum(p.area_i for _, _, p in parts) / max(len(fj), 1)
+            setup = time.process_time() - t1
+            AF, err, rec = 0.0, 0.0, []
+            for i, j, pair in parts:
+                print(f"  {i} -> {j} tol {tol:g}: {len(pair.edges)} edges integrated of {pair.edges_all} "
+                      f"({pair.edges_along_n} along n_i, {pair.edges_in_plane} in i's plane, {pair.edges_never} never silhouettes), {len(pair.faces)} occluders, "
+                      f"setup cpu {setup:.1f}", flush=True)
+                r = integrate(pair, tol * a_tot / pair.area_i, init_len=init_len, max_evals=max_evals,
+                              log=lambda s_: print(s_, flush=True), max_cpu=max_cpu)
+                r.pop("per_edge")
+                AF += r["F"] * pair.area_i
+                err += r["error"] * pair.area_i
+                rec.append({"i": i, "j": j, "edges_all": pair.edges_all, "edges_along_n": pair.edges_along_n,
+                            "edges_in_plane": pair.edges_in_plane, "edges_never": pair.edges_never, "occluders": len(pair.faces), **r})
+            res = {"F": AF / a_tot, "error": err / a_tot, "setup_cpu_s": setup,
+                   "cpu_s": sum(r["cpu_s"] for r in rec), "evaluations": sum(r["evaluations"] for r in rec),
+                   "edges": sum(r["edges"] for r in rec), "edges_all": sum(r["edges_all"] for r in rec), "edges_nonzero": sum(r["edges_nonzero"] for r in rec),
+                   "stopped": any(r.get("stopped") for r in rec), "pairs": rec}
+            res["us_per_eval"] = 1e6 * res["cpu_s"] / max(res["evaluations"], 1)
+            out[f"{spec}@{tol:g}"] = res
+            print(json.dumps({k: v for k, v in res.items() if k != "pairs"}), flush=True)
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
-    ap.add_argument("what", choices=["unoccluded", "small", "office"])
+    ap.add_argument("what", choices=["unoccluded", "small", "office", "groups"])
     ap.add_argument("file", nargs="?")
     ap.add_argument("pairs", nargs="*")
     ap.add_argument("--tol", type=float, nargs="+", default=[1e-9])
     ap.add_argument("--ref-tol", type=float, default=1e-9)
     ap.add_argument("--init-len", type=float, default=None)
     ap.add_argument("--max-evals", type=int, default=20_000_000)
+    ap.add_argument("--max-cpu", type=float, default=None, help="stop a pair's integration after this many CPU s")
+    ap.add_argument("--skip-zero", action="store_true", help="groups: drop the edges along n_i and the occluder edges in i's plane")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     if a.what == "unoccluded":
         res = unoccluded_checks()
     elif a.what == "small":
         res = small_checks(a.tol[0], a.ref_tol)
+    elif a.what == "groups":
+        res = groups(a.file, a.pairs, a.tol, a.init_len, a.max_evals, a.max_cpu, a.skip_zero)
     else:
         res = office(a.file, a.pairs, a.tol, a.init_len, a.max_evals)
     if a.json:

@@ -12,7 +12,8 @@ convex base (emitter ∩ half-planes) minus the central projections through y of
 occluder faces (below y: shadows on the emitter's plane; above y, for occluder edges:
 the faces between y and j, projected back through y). Faces whose plane holds y are
 skipped; back faces of closed solids are culled unless y lies on one of the solid's
-faces. An edge of j in the emitter's plane is seen along grazing rays: only the faces
+faces or behind all of its faces' planes (inside it, when it is convex: intersecting
+solids). An edge of j in the emitter's plane is seen along grazing rays: only the faces
 lying in that plane block, by their exact 2-D shadows from y.
 
 edge_values' mode: 0 the values; 1 the regions' areas (side 0 + 1000 × side 1, for
@@ -23,7 +24,7 @@ only (the cost of the projections).
 import numpy as np
 from numba import njit
 
-MAXV = 48  # vertices of one clipped polygon
+MAXV = 320  # vertices of one clipped polygon (faces of up to MAXV − 16 vertices: edge_dual.Pair checks)
 
 
 @njit(cache=True)
@@ -563,6 +564,19 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     break
             if inside:
                 touched[occ_solid[f]] = True
+        # a closed solid with y inside it (y behind all its faces' planes: its inside when it is
+        # convex; solids may intersect, or a face may pass through one): rays from y leave
+        # through its back faces, so those are not culled either
+        outside = np.zeros(n_solids + 1, np.bool_)
+        for f in range(nf if not grazing else 0):
+            if occ_solid[f] < 0:
+                continue
+            dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
+            if dn > eps:
+                outside[occ_solid[f]] = True
+        for q in range(n_solids):
+            if not outside[q]:
+                touched[q] = True
         # the planes through y and the edges of i (the cone over i, inwards) and of j
         for a in range(ni):
             b2 = (a + 1) % ni
@@ -605,8 +619,9 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     work3[a] = occ_pts[lo + a]
                 n = nv
                 if part == 0:
-                    # below y: h_p ≤ h (n_i·p ≤ c_i + h)
-                    n = _clip3(work3, n, neg_n_i, -(c_i + h), work3b)
+                    # below y: h_p ≤ h − eps (n_i·p ≤ c_i + h − eps): a vertex at y's height would
+                    # project to infinity (h / 0); the part cut off projects beyond ~h |p − y| / eps
+                    n = _clip3(work3, n, neg_n_i, -(c_i + h - eps), work3b)
                     work3[:n] = work3b[:n]
                     # in the cone from y over i
                     for a in range(ni):
@@ -615,7 +630,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                         n = _clip3(work3, n, cone_i[a], cone_i_d[a], work3b)
                         work3[:n] = work3b[:n]
                 else:
-                    n = _clip3(work3, n, n_i, c_i + h, work3b)
+                    n = _clip3(work3, n, n_i, c_i + h + eps, work3b)
                     work3[:n] = work3b[:n]
                     # between y and j: j's side of j's plane ... up to j's plane
                     if n >= 3:

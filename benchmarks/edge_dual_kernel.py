@@ -28,70 +28,53 @@ MAXV = 320  # vertices of one clipped polygon (faces of up to MAXV − 16 vertic
 
 
 @njit(cache=True)
-def _clip3(poly, n, m, d, out):
-    """Sutherland–Hodgman of a 3-D polygon poly[:n] against m·p − d ≥ 0 into out; returns the count."""
+def _clip(poly, n, dims, m0, m1, m2, d, out):
+    """Sutherland–Hodgman of a polygon poly[:n] (its first ``dims`` coordinates, 2 or 3)
+    against m·p − d ≥ 0 into out; returns the count."""
     k = 0
     if n == 0:
         return 0
-    px, py, pz = poly[n - 1, 0], poly[n - 1, 1], poly[n - 1, 2]
-    fp = m[0] * px + m[1] * py + m[2] * pz - d
+    px, py = poly[n - 1, 0], poly[n - 1, 1]
+    pz = poly[n - 1, 2] if dims == 3 else 0.0
+    fp = m0 * px + m1 * py
+    if dims == 3:
+        fp += m2 * pz
+    fp -= d
     for a in range(n):
-        qx, qy, qz = poly[a, 0], poly[a, 1], poly[a, 2]
-        fq = m[0] * qx + m[1] * qy + m[2] * qz - d
-        if fq >= 0.0:
-            if fp < 0.0:
-                s = fp / (fp - fq)
-                if k < MAXV:
-                    out[k, 0] = px + s * (qx - px)
-                    out[k, 1] = py + s * (qy - py)
-                    out[k, 2] = pz + s * (qz - pz)
-                    k += 1
-            if k < MAXV:
-                out[k, 0] = qx
-                out[k, 1] = qy
-                out[k, 2] = qz
-                k += 1
-        elif fp >= 0.0:
+        qx, qy = poly[a, 0], poly[a, 1]
+        qz = poly[a, 2] if dims == 3 else 0.0
+        fq = m0 * qx + m1 * qy
+        if dims == 3:
+            fq += m2 * qz
+        fq -= d
+        if ((fq >= 0.0 and fp < 0.0) or (fq < 0.0 and fp >= 0.0)) and k < MAXV:
             s = fp / (fp - fq)
-            if k < MAXV:
-                out[k, 0] = px + s * (qx - px)
-                out[k, 1] = py + s * (qy - py)
+            out[k, 0] = px + s * (qx - px)
+            out[k, 1] = py + s * (qy - py)
+            if dims == 3:
                 out[k, 2] = pz + s * (qz - pz)
-                k += 1
+            k += 1
+        if fq >= 0.0 and k < MAXV:
+            out[k, 0] = qx
+            out[k, 1] = qy
+            if dims == 3:
+                out[k, 2] = qz
+            k += 1
         px, py, pz, fp = qx, qy, qz, fq
     return k
 
 
 @njit(cache=True)
+def _clip3(poly, n, m, d, out):
+    """:func:`_clip` of a 3-D polygon against m·p − d ≥ 0."""
+    return _clip(poly, n, 3, m[0], m[1], m[2], d, out)
+
+
+@njit(cache=True)
 def _clip2(poly, n, ax, ay, b, out):
-    """Sutherland–Hodgman of a 2-D polygon against ax x + ay y ≤ b."""
-    k = 0
-    if n == 0:
-        return 0
-    px, py = poly[n - 1, 0], poly[n - 1, 1]
-    fp = b - (ax * px + ay * py)
-    for a in range(n):
-        qx, qy = poly[a, 0], poly[a, 1]
-        fq = b - (ax * qx + ay * qy)
-        if fq >= 0.0:
-            if fp < 0.0:
-                s = fp / (fp - fq)
-                if k < MAXV:
-                    out[k, 0] = px + s * (qx - px)
-                    out[k, 1] = py + s * (qy - py)
-                    k += 1
-            if k < MAXV:
-                out[k, 0] = qx
-                out[k, 1] = qy
-                k += 1
-        elif fp >= 0.0:
-            s = fp / (fp - fq)
-            if k < MAXV:
-                out[k, 0] = px + s * (qx - px)
-                out[k, 1] = py + s * (qy - py)
-                k += 1
-        px, py, fp = qx, qy, fq
-    return k
+    """:func:`_clip` of a 2-D polygon against ax x + ay y ≤ b, i.e. −a·p + b ≥ 0 (the
+    negations are exact: the same digits as b − a·p)."""
+    return _clip(poly, n, 2, -ax, -ay, 0.0, -b, out)
 
 
 @njit(cache=True)

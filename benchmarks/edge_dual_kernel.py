@@ -65,6 +65,91 @@ def _clip(poly, n, dims, m0, m1, m2, d, out):
 
 
 @njit(cache=True)
+def _cone_planes(y, loop, n, centre, planes, offsets):
+    """The planes through y and each edge of a convex loop (n, 3), normals towards its
+    ``centre`` (the cone from y over it, inwards): ``planes[a]`` · p ≥ ``offsets[a]``."""
+    for a in range(n):
+        b2 = (a + 1) % n
+        p0, p1, p2 = loop[a, 0] - y[0], loop[a, 1] - y[1], loop[a, 2] - y[2]
+        q0, q1, q2 = loop[b2, 0] - y[0], loop[b2, 1] - y[1], loop[b2, 2] - y[2]
+        m0, m1, m2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0
+        if m0 * (centre[0] - y[0]) + m1 * (centre[1] - y[1]) + m2 * (centre[2] - y[2]) < 0:
+            m0, m1, m2 = -m0, -m1, -m2
+        planes[a, 0], planes[a, 1], planes[a, 2] = m0, m1, m2
+        offsets[a] = m0 * y[0] + m1 * y[1] + m2 * y[2]
+
+
+@njit(cache=True)
+def _add_pieces(total, pieces, iv, m, x0, y0, x1, y1, mode, yx, yy, h, tx, ty):
+    """``total`` plus each piece [a, b] of ``iv[:m]`` of the segment (x0, y0) → (x1, y1) (in
+    parameter along it): its closed-form log integral (``mode`` 0) or its signed area term
+    (else, a debug mode), added in order; and ``pieces`` plus m."""
+    for r in range(m):
+        a, b = iv[r, 0], iv[r, 1]
+        if mode == 0:
+            total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
+                                yx, yy, h, tx, ty)
+        else:
+            total += 0.5 * ((x0 + a * (x1 - x0)) * (y0 + b * (y1 - y0)) - (x0 + b * (x1 - x0)) * (y0 + a * (y1 - y0)))
+        pieces += 1
+    return total, pieces
+
+
+@njit(cache=True)
+def _on_face(p, f, occ_n, occ_c, occ_lo, occ_hi, occ_pts, eps, slack):
+    """Whether the point p (3,) lies within eps of face f's plane and inside its convex loop:
+    on the inner side of each edge, or outside by at most ``slack`` (a distance)."""
+    if abs(occ_n[f, 0] * p[0] + occ_n[f, 1] * p[1] + occ_n[f, 2] * p[2] - occ_c[f]) > eps:
+        return False
+    return _loop_margin(p, occ_pts, occ_lo[f], occ_hi[f], occ_n[f]) >= -slack
+
+
+@njit(cache=True)
+def _loop_margin(p, pts, lo, hi, normal):
+    """The least distance of the point p (3,) inside the edges of the convex loop
+    ``pts[lo:hi]`` (counter-clockwise about ``normal``), each edge's line in the loop's plane:
+    negative outside (edges of no length left out)."""
+    least = np.inf
+    for a in range(lo, hi):
+        b2 = a + 1 if a + 1 < hi else lo
+        ex = pts[b2] - pts[a]
+        w = p - pts[a]
+        cr0 = ex[1] * w[2] - ex[2] * w[1]
+        cr1 = ex[2] * w[0] - ex[0] * w[2]
+        cr2 = ex[0] * w[1] - ex[1] * w[0]
+        le = np.sqrt(ex[0] ** 2 + ex[1] ** 2 + ex[2] ** 2)
+        d = (cr0 * normal[0] + cr1 * normal[1] + cr2 * normal[2]) / le
+        if d == d:
+            least = min(least, d)
+    return least
+
+
+@njit(cache=True)
+def _clip_half_plane(poly, n, a, b, c, work):
+    """A 2-D polygon poly[:n] clipped in place to a x + b y + c ≥ 0; where the line is no
+    line (|a| + |b| ≤ 1e-14) the sign of c keeps all of it or nothing. Returns the count."""
+    if abs(a) + abs(b) > 1e-14:
+        n = _clip2(poly, n, -a, -b, c, work)
+        for k in range(n):
+            poly[k, 0], poly[k, 1] = work[k, 0], work[k, 1]
+    elif c <= 0.0:
+        n = 0
+    return n
+
+
+@njit(cache=True)
+def _clip_to_cone(poly, n, planes, offsets, k, sign, work):
+    """A 3-D polygon poly[:n] clipped in place to sign · (planes[a] · p − offsets[a]) ≥ 0 for
+    a < k (a cone from y, or with sign −1 its reflection through y); returns the count."""
+    for a in range(k):
+        if n < 3:
+            break
+        n = _clip(poly, n, 3, sign * planes[a, 0], sign * planes[a, 1], sign * planes[a, 2], sign * offsets[a], work)
+        poly[:n] = work[:n]
+    return n
+
+
+@njit(cache=True)
 def _clip3(poly, n, m, d, out):
     """:func:`_clip` of a 3-D polygon against m·p − d ≥ 0."""
     return _clip(poly, n, 3, m[0], m[1], m[2], d, out)
@@ -258,14 +343,7 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                 m = _subtract(iv, m, a, b, ivs)
                 if m == 0:
                     break
-        for r in range(m):
-            a, b = iv[r, 0], iv[r, 1]
-            if mode == 0:
-                total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
-                                    yx, yy, h, tx, ty)
-            else:
-                total += 0.5 * ((x0 + a * (x1 - x0)) * (y0 + b * (y1 - y0)) - (x0 + b * (x1 - x0)) * (y0 + a * (y1 - y0)))
-            pieces += 1
+        total, pieces = _add_pieces(total, pieces, iv, m, x0, y0, x1, y1, mode, yx, yy, h, tx, ty)
     # the polygons' edges, reversed, minus the other polygons (a collinear edge of the same
     # direction of an earlier polygon covers it)
     for p in range(kk):
@@ -288,14 +366,7 @@ def _region_integral(base, nb, polys, plen, npoly, yx, yy, h, tx, ty, tol, work,
                     m = _subtract(iv, m, 1.0 - b, 1.0 - a, ivs)
                     if m == 0:
                         break
-            for r in range(m):
-                a, b = iv[r, 0], iv[r, 1]
-                if mode == 0:
-                    total += _log_piece(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0),
-                                        yx, yy, h, tx, ty)
-                else:
-                    total += 0.5 * ((x0 + a * (x1 - x0)) * (y0 + b * (y1 - y0)) - (x0 + b * (x1 - x0)) * (y0 + a * (y1 - y0)))
-                pieces += 1
+            total, pieces = _add_pieces(total, pieces, iv, m, x0, y0, x1, y1, mode, yx, yy, h, tx, ty)
     return total, pieces
 
 
@@ -367,22 +438,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
             # covered: the point of j next to y lies under a face lying on j
             covered = False
             for f in range(nf):
-                dn = occ_n[f, 0] * yj[0] + occ_n[f, 1] * yj[1] + occ_n[f, 2] * yj[2] - occ_c[f]
-                if abs(dn) > eps:
-                    continue
-                lo, hi = occ_lo[f], occ_hi[f]
-                inside = True
-                for a in range(lo, hi):
-                    b2 = a + 1 if a + 1 < hi else lo
-                    ex = occ_pts[b2] - occ_pts[a]
-                    w = yj - occ_pts[a]
-                    cr0 = ex[1] * w[2] - ex[2] * w[1]
-                    cr1 = ex[2] * w[0] - ex[0] * w[2]
-                    cr2 = ex[0] * w[1] - ex[1] * w[0]
-                    if cr0 * occ_n[f, 0] + cr1 * occ_n[f, 1] + cr2 * occ_n[f, 2] < 0.0:
-                        inside = False
-                        break
-                if inside:
+                if _on_face(yj, f, occ_n, occ_c, occ_lo, occ_hi, occ_pts, eps, 0.0):
                     covered = True
                     break
             if covered:
@@ -405,18 +461,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
         else:
             if abs(dj) <= eps:
                 # y on j's plane: the ray past y meets j at once where y is inside j
-                inside = True
-                for a in range(nj):
-                    b2 = (a + 1) % nj
-                    ex = j3[b2] - j3[a]
-                    w = y - j3[a]
-                    cr0 = ex[1] * w[2] - ex[2] * w[1]
-                    cr1 = ex[2] * w[0] - ex[0] * w[2]
-                    cr2 = ex[0] * w[1] - ex[1] * w[0]
-                    le = np.sqrt(ex[0] ** 2 + ex[1] ** 2 + ex[2] ** 2)
-                    if (cr0 * n_j[0] + cr1 * n_j[1] + cr2 * n_j[2]) / le <= eps:
-                        inside = False
-                        break
+                inside = _loop_margin(y, j3, 0, nj, n_j) > eps
                 if not inside:
                     continue
                 lim = 0.0
@@ -426,12 +471,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                 lim = s_j * dj
                 upper = True
         # s_j (n_j·X − c_j) > lim   ⇔   −s_j (nju, njv)·x ≤ s_j njo − lim
-        if abs(nju) + abs(njv) > 1e-14:
-            nb = _clip2(base, nb, -s_j * nju, -s_j * njv, s_j * njo - lim, work2)
-            for a in range(nb):
-                base[a, 0], base[a, 1] = work2[a, 0], work2[a, 1]
-        elif s_j * njo - lim <= 0.0:
-            nb = 0
+        nb = _clip_half_plane(base, nb, s_j * nju, s_j * njv, s_j * njo - lim, work2)
         if upper and nb >= 3:
             # the ray from x through y meets j: planes through y and j's edges
             for a in range(nj):
@@ -527,25 +567,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
         # back faces, so those are not culled for this y
         touched = np.zeros(n_solids + 1, np.bool_)
         for f in range(nf if not grazing else 0):
-            if occ_solid[f] < 0:
-                continue
-            dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
-            if abs(dn) > eps:
-                continue
-            lo, hi = occ_lo[f], occ_hi[f]
-            inside = True
-            for a in range(lo, hi):
-                b2 = a + 1 if a + 1 < hi else lo
-                ex = occ_pts[b2] - occ_pts[a]
-                w = y - occ_pts[a]
-                cr0 = ex[1] * w[2] - ex[2] * w[1]
-                cr1 = ex[2] * w[0] - ex[0] * w[2]
-                cr2 = ex[0] * w[1] - ex[1] * w[0]
-                le = np.sqrt(ex[0] ** 2 + ex[1] ** 2 + ex[2] ** 2)
-                if (cr0 * occ_n[f, 0] + cr1 * occ_n[f, 1] + cr2 * occ_n[f, 2]) / le < -eps:
-                    inside = False
-                    break
-            if inside:
+            if occ_solid[f] >= 0 and _on_face(y, f, occ_n, occ_c, occ_lo, occ_hi, occ_pts, eps, eps):
                 touched[occ_solid[f]] = True
         # a closed solid with y inside it (y behind all its faces' planes: its inside when it is
         # convex; solids may intersect, or a face may pass through one): rays from y leave
@@ -561,24 +583,8 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
             if not outside[q]:
                 touched[q] = True
         # the planes through y and the edges of i (the cone over i, inwards) and of j
-        for a in range(ni):
-            b2 = (a + 1) % ni
-            p0, p1, p2 = i3[a, 0] - y[0], i3[a, 1] - y[1], i3[a, 2] - y[2]
-            q0, q1, q2 = i3[b2, 0] - y[0], i3[b2, 1] - y[1], i3[b2, 2] - y[2]
-            m0, m1, m2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0
-            if m0 * (cen_i[0] - y[0]) + m1 * (cen_i[1] - y[1]) + m2 * (cen_i[2] - y[2]) < 0:
-                m0, m1, m2 = -m0, -m1, -m2
-            cone_i[a, 0], cone_i[a, 1], cone_i[a, 2] = m0, m1, m2
-            cone_i_d[a] = m0 * y[0] + m1 * y[1] + m2 * y[2]
-        for a in range(nj):
-            b2 = (a + 1) % nj
-            p0, p1, p2 = j3[a, 0] - y[0], j3[a, 1] - y[1], j3[a, 2] - y[2]
-            q0, q1, q2 = j3[b2, 0] - y[0], j3[b2, 1] - y[1], j3[b2, 2] - y[2]
-            m0, m1, m2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0
-            if m0 * (j_cen[0] - y[0]) + m1 * (j_cen[1] - y[1]) + m2 * (j_cen[2] - y[2]) < 0:
-                m0, m1, m2 = -m0, -m1, -m2
-            cone_j[a, 0], cone_j[a, 1], cone_j[a, 2] = m0, m1, m2
-            cone_j_d[a] = m0 * y[0] + m1 * y[1] + m2 * y[2]
+        _cone_planes(y, i3, ni, cen_i, cone_i, cone_i_d)
+        _cone_planes(y, j3, nj, j_cen, cone_j, cone_j_d)
         for f in range(nf if not grazing else 0):
             dn = occ_n[f, 0] * y[0] + occ_n[f, 1] * y[1] + occ_n[f, 2] * y[2] - occ_c[f]
             if abs(dn) <= eps:
@@ -607,11 +613,7 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     n = _clip3(work3, n, neg_n_i, -(c_i + h - eps), work3b)
                     work3[:n] = work3b[:n]
                     # in the cone from y over i
-                    for a in range(ni):
-                        if n < 3:
-                            break
-                        n = _clip3(work3, n, cone_i[a], cone_i_d[a], work3b)
-                        work3[:n] = work3b[:n]
+                    n = _clip_to_cone(work3, n, cone_i, cone_i_d, ni, 1.0, work3b)
                 else:
                     n = _clip3(work3, n, n_i, c_i + h + eps, work3b)
                     work3[:n] = work3b[:n]
@@ -619,16 +621,8 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
                     if n >= 3:
                         n = _clip3(work3, n, neg_sn_j, -s_j * c_j - lim, work3b)
                         work3[:n] = work3b[:n]
-                    for a in range(nj):
-                        if n < 3:
-                            break
-                        n = _clip3(work3, n, cone_j[a], cone_j_d[a], work3b)
-                        work3[:n] = work3b[:n]
-                    for a in range(ni):
-                        if n < 3:
-                            break
-                        n = _clip3(work3, n, -cone_i[a], -cone_i_d[a], work3b)  # the reflected cone: beyond y
-                        work3[:n] = work3b[:n]
+                    n = _clip_to_cone(work3, n, cone_j, cone_j_d, nj, 1.0, work3b)
+                    n = _clip_to_cone(work3, n, cone_i, cone_i_d, ni, -1.0, work3b)  # the reflected cone: beyond y
                 if n < 3:
                     continue
                 # project through y onto i's plane, to 2-D
@@ -685,20 +679,10 @@ def edge_values(ys, kind, t, n1, c1, n2, c2,
             for a in range(nb):
                 base2[a, 0], base2[a, 1] = base[a, 0], base[a, 1]
             # sg1 n1·(X − y) ≥ 0 ⇔ −sg1 (d1u, d1v)·x ≤ sg1 d1o
-            if abs(d1u) + abs(d1v) > 1e-14:
-                n = _clip2(base2, n, -sg1 * d1u, -sg1 * d1v, sg1 * d1o, work2)
-                for a in range(n):
-                    base2[a, 0], base2[a, 1] = work2[a, 0], work2[a, 1]
-            elif sg1 * d1o <= 0.0:
-                n = 0
+            n = _clip_half_plane(base2, n, sg1 * d1u, sg1 * d1v, sg1 * d1o, work2)
             if kind == 2 and n >= 3:
                 sg2 = -sg1  # the other face the other way
-                if abs(d2u) + abs(d2v) > 1e-14:
-                    n = _clip2(base2, n, -sg2 * d2u, -sg2 * d2v, sg2 * d2o, work2)
-                    for a in range(n):
-                        base2[a, 0], base2[a, 1] = work2[a, 0], work2[a, 1]
-                elif sg2 * d2o <= 0.0:
-                    n = 0
+                n = _clip_half_plane(base2, n, sg2 * d2u, sg2 * d2v, sg2 * d2o, work2)
             if n < 3 or abs(_area2(base2, n)) <= eps * eps or _thickness(base2, n, eps) <= 8.0 * eps:
                 continue
             val, _ = _region_integral(base2, n, polys, plen, npoly, yx, yy, hl, tx, ty, eps, work, work2, mode, scratch)

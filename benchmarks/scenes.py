@@ -81,7 +81,8 @@ def columns_in_room_soup(sections=256, n_columns=4, seed=0):
         column = trimesh.creation.cylinder(radius=0.4, height=10.0, sections=sections)
         column.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
         v = column.vertices.copy()
-        v[np.abs(np.abs(v[:, 1]) - 5.0) < 1e-9, 1] = np.sign(v[np.abs(np.abs(v[:, 1]) - 5.0) < 1e-9, 1]) * 5.0
+        ends = np.abs(np.abs(v[:, 1]) - 5.0) < 1e-9  # the caps' rounded heights, on floor and ceiling exactly
+        v[ends, 1] = np.sign(v[ends, 1]) * 5.0
         v += [-6.0 + 4.0 * k, 0.0, rng.uniform(-5, 5)]
         meshes.append(trimesh.Trimesh(v, column.faces, process=False))
     return _in_room(meshes, [f"column{k}" for k in range(n_columns)], True)
@@ -104,22 +105,20 @@ def scans_on_floor_soup(subdivisions=4, n_scans=6, seed=0):
 
 
 def _cut_above(triangles, y):
-    """The parts of triangles (t, 3, 3) above the plane at height ``y`` (Sutherland–Hodgman,
-    the crossing points put on the plane exactly), fanned into triangles, as one mesh."""
+    """The parts of triangles (t, 3, 3) above the plane at height ``y``
+    (:func:`viscx.geometry.formfactor.clip_to_hemisphere`, the crossing points put on the
+    plane exactly), fanned into triangles, as one mesh."""
+    from viscx.geometry.formfactor import clip_to_hemisphere
+
     v, f = [], []
     for tri in triangles:
-        h = tri[:, 1] - y
-        kept = []
-        for i in range(3):
-            a, b, ha, hb = tri[i], tri[(i + 1) % 3], h[i], h[(i + 1) % 3]
-            if ha >= 0:
-                kept.append(a)
-            if (ha >= 0) != (hb >= 0):
-                p = a + (b - a) * (ha / (ha - hb))
-                p[1] = y
-                kept.append(p)
+        kept = clip_to_hemisphere(tri, [0.0, y, 0.0], [0.0, 1.0, 0.0])
+        if len(kept) < 3:
+            continue
+        on = ~np.any(np.all(kept[:, None, :] == tri[None], axis=2), axis=1)  # the crossing points
+        kept[on, 1] = y
         f += [[len(v), len(v) + j, len(v) + j + 1] for j in range(1, len(kept) - 1)]
-        v += kept
+        v += list(kept)
     mesh = trimesh.Trimesh(np.array(v), np.array(f), process=False)
     mesh.merge_vertices()
     return mesh

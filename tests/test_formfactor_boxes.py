@@ -11,7 +11,7 @@ from conftest import soup
 from random_scenes import random_boxes
 
 from viscx.geometry.formfactor import point_to_polygon
-from viscx.geometry.occlusion import _clip_to_frustum, _outside_box, _wedges, point_views
+from viscx.geometry.occlusion import TURNED_OVER, _clip_to_frustum, _outside_box, _wedges, point_views
 from viscx.geometry.polygon import plane_basis
 from viscx.queries import formfactor as ff
 from viscx.scene import build_scene
@@ -265,7 +265,7 @@ def test_back_faces_rule(office60):
         f, b = faces[c], face_box[faces[c]]
         assert np.all(pts @ s.face_normal[f] - s.face_offset[f] < 0)
         h = pts @ planes[ptr[b]:ptr[b + 1], :3].T - planes[ptr[b]:ptr[b + 1], 3]
-        on_floor = planes[ptr[b]:ptr[b + 1], :3] @ up < -1.0 + 1e-12  # a bottom: no way in from the floor
+        on_floor = planes[ptr[b]:ptr[b + 1], :3] @ up < TURNED_OVER  # a bottom: no way in from the floor
         assert np.all(np.any(h > 2 * tiny, axis=1)) and not np.any((h > 0) & (h <= 2 * tiny) & ~on_floor)
     # a triangle under a cabinet (inside its footprint): nothing of it
     cab = np.flatnonzero(s.face_group == s.group_names.index("cabinet0"))
@@ -665,7 +665,7 @@ def test_a_box_resting_on_the_emitter_is_outside_from_it(rng):
     clear = np.linalg.norm(pts[:, None, [0, 2]] - centres[None], axis=2).min(axis=1) > 0.61
     pts = np.ascontiguousarray(pts[clear])
     # the case: some floor points within (0, 2 tiny] in front of a bottom's plane
-    bottoms = planes[:, :3] @ n_i < -1.0 + 1e-12
+    bottoms = planes[:, :3] @ n_i < TURNED_OVER
     h = pts @ planes[bottoms, :3].T - planes[bottoms, 3]
     assert np.any((h > 0) & (h <= 2 * tiny))
     for x in pts:

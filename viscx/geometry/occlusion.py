@@ -81,6 +81,11 @@ STEEP = 1e3
 #: polygon are off by a few ulps (~1e-15), and so are two edges from one vertex at a slab's
 #: middle when the slab is ~1e-14 wide (64 SNAP: a margin over what was seen, ~1e-14).
 ORDER_NOISE = 4 * SNAP
+#: A box's plane whose outward normal n has n · n_i below this, n_i the emitter's front
+#: normal (opposite to 1e-12), is the emitter's plane turned over when x lies on it: the
+#: face of a box resting on the emitter (:func:`_outside_box`, and
+#: :func:`viscx.queries.formfactor.back_faces`, which follows the same rule).
+TURNED_OVER = -1.0 + 1e-12
 #: Distance in u (in the wedge's plane) from a slab's left side within which two edges close
 #: there whose lines meet are taken to meet at it (:func:`_above`): far beyond rounding of
 #: a vertex (~1e-13 / the slopes' difference), far below any slab that matters.
@@ -321,7 +326,7 @@ def _outside_box(x, n_i, box_planes, lo, hi, tiny):
     front of it for a floor at y = -5), is no way in: a ray of the open front hemisphere
     leaves that plane at once, and meets the face only where x lies on it (the contact
     cells, under the box, where x is not outside anyway). Its plane is skipped there
-    (normals opposite to 1e-12); else every box resting on the floor was, from the floor's
+    (:data:`TURNED_OVER`); else every box resting on the floor was, from the floor's
     points, taken as one they may be inside of, by rounding, half of the time: its back
     faces swept and its shadow not cast (four 64-sided pillars: 2.7 ms a point)."""
     out = False
@@ -334,7 +339,7 @@ def _outside_box(x, n_i, box_planes, lo, hi, tiny):
         if s > 2.0 * tiny:
             out = True
         elif s > 0.0:
-            if box_planes[k, 0] * n_i[0] + box_planes[k, 1] * n_i[1] + box_planes[k, 2] * n_i[2] < -1.0 + 1e-12:
+            if box_planes[k, 0] * n_i[0] + box_planes[k, 1] * n_i[1] + box_planes[k, 2] * n_i[2] < TURNED_OVER:
                 continue  # lying on the emitter's plane, facing away from its front
             return False
     return out

@@ -71,9 +71,8 @@ from viscx.arrays import expand_ranges, graph_components, loop_successors, rever
 from viscx.errors import ViscxError
 from viscx.geometry.arrangement import cut_pieces, flat_to_pieces, piece_centres, pieces_to_flat, segments_crossing
 from viscx.geometry.formfactor import clip_to_hemisphere, point_to_polygon, polygon_to_polygon_orders
-from viscx.geometry.occlusion import (blocked_form_factors, point_views, points_behind_planes, shaft_boxes_meet,
-                                     shaft_meets,
-                                     umbra_triangles, visible_form_factors)
+from viscx.geometry.occlusion import (TURNED_OVER, blocked_form_factors, point_views, points_behind_planes,
+                                     shaft_boxes_meet, shaft_meets, umbra_triangles, visible_form_factors)
 from viscx.geometry.polygon import newell_normal, newell_normals, plane_basis
 from viscx.parallel import default_workers, map_chunks, row_chunks
 from viscx.queries.kinks import apex_segments, face_generators, kink_segments, load_kink_kernels, sky_generators
@@ -719,7 +718,7 @@ def back_faces(scene, tri, cell, faces, tiny, n_i):
         missing = p[:, 4] != 0.0  # an open box's missing face: x on or behind its plane
         front = np.all(h > 2 * tiny, axis=1) & ~missing
         # a face on the emitter's plane facing away from its front: no way in (_outside_box)
-        floor = (p[:, :3] @ n_i < -1.0 + 1e-12) & np.all(h <= 2 * tiny, axis=1)
+        floor = (p[:, :3] @ n_i < TURNED_OVER) & np.all(h <= 2 * tiny, axis=1)
         fine = front | floor | np.all(h <= np.where(missing, tiny, 0.0)[:, None], axis=1)
         ok[start:stop] = np.logical_and.reduceat(fine, first) & np.logical_or.reduceat(front, first)
         start = stop

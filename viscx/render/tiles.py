@@ -294,8 +294,9 @@ def _groups_outside(cells, points, pt_ptr, cell, box, box_ptr, box_planes, tiny)
     of ``box_planes``) with every corner of the group's patch more than 2 tiny in front,
     when each of the group's points is outside the box as
     :func:`viscx.geometry.occlusion._outside_box` judges (no plane with the point within
-    (0, 2 tiny] in front of it, an open box's missing face within tiny in front or behind);
-    else -1. Then that plane alone decides ``_outside_box`` at each point as all the planes
+    (0, 2 tiny] in front of it, an open box's missing face within tiny in front or behind;
+    conservatively: a face resting on the points' plane, which the kernel lets pass, keeps
+    the box's planes here); else -1. Then that plane alone decides ``_outside_box`` at each point as all the planes
     do. A plane with the patch's corners all on or behind it, or all more than 2 tiny in
     front (all but a few of a sphere's seen from a patch beside it), is settled by the
     corners; the points are judged against the others."""
